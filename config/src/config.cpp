@@ -1,0 +1,303 @@
+#include "pneu/config/config.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <fstream>
+#include <sstream>
+
+#include "yaml_reader.hpp"
+
+namespace pneu::config {
+
+using detail::check;
+using detail::fmt;
+using detail::MapReader;
+
+namespace {
+
+double positive(MapReader& r, const std::string& key) {
+  const double v = r.number(key);
+  check(v > 0.0, r.child_path(key), "must be > 0 (got " + fmt(v) + ")");
+  return v;
+}
+
+double positive_or(MapReader& r, const std::string& key, double fallback) {
+  return r.has(key) ? positive(r, key) : r.number_or(key, fallback);
+}
+
+double non_negative(MapReader& r, const std::string& key) {
+  const double v = r.number(key);
+  check(v >= 0.0, r.child_path(key), "must be >= 0 (got " + fmt(v) + ")");
+  return v;
+}
+
+double in_range(MapReader& r, const std::string& key, double lo, double hi) {
+  const double v = r.number(key);
+  check(v >= lo && v <= hi, r.child_path(key),
+        "must be in [" + fmt(lo) + ", " + fmt(hi) + "] (got " + fmt(v) + ")");
+  return v;
+}
+
+plant::Geometry read_geometry(MapReader r) {
+  plant::Geometry g;
+  g.stroke_m = positive(r, "stroke_m");
+  g.bore_diameter_m = positive(r, "bore_diameter_m");
+  g.rod_diameter_m = positive(r, "rod_diameter_m");
+  check(g.rod_diameter_m < g.bore_diameter_m, r.child_path("rod_diameter_m"),
+        "must be smaller than geometry.bore_diameter_m (" + fmt(g.rod_diameter_m) +
+            " >= " + fmt(g.bore_diameter_m) + ")");
+  g.dead_volume_p_m3 = positive(r, "dead_volume_p_m3");
+  g.dead_volume_n_m3 = positive(r, "dead_volume_n_m3");
+  r.finish();
+  return g;
+}
+
+plant::Gas read_gas(MapReader r) {
+  plant::Gas g;
+  g.supply_pressure_pa = positive(r, "supply_pressure_pa");
+  g.exhaust_pressure_pa = positive(r, "exhaust_pressure_pa");
+  check(g.supply_pressure_pa > g.exhaust_pressure_pa, r.child_path("supply_pressure_pa"),
+        "must exceed gas.exhaust_pressure_pa (" + fmt(g.supply_pressure_pa) + " <= " +
+            fmt(g.exhaust_pressure_pa) + ")");
+  g.polytropic_index = in_range(r, "polytropic_index", 1.0, 1.4);
+  g.gas_constant_j_per_kg_k = positive(r, "gas_constant_j_per_kg_k");
+  g.temperature_k = positive(r, "temperature_k");
+  r.finish();
+  return g;
+}
+
+plant::ValveParams read_valve(MapReader r) {
+  plant::ValveParams v;
+  v.max_conductance_m3_per_s_pa = positive(r, "max_conductance_m3_per_s_pa");
+  v.critical_pressure_ratio = r.number("critical_pressure_ratio");
+  check(v.critical_pressure_ratio > 0.0 && v.critical_pressure_ratio < plant::kLaminarPressureRatio,
+        r.child_path("critical_pressure_ratio"),
+        "must be in (0, " + fmt(plant::kLaminarPressureRatio) + ") (got " +
+            fmt(v.critical_pressure_ratio) + ")");
+  v.leak_conductance_in_m3_per_s_pa = non_negative(r, "leak_conductance_in_m3_per_s_pa");
+  v.leak_conductance_out_m3_per_s_pa = non_negative(r, "leak_conductance_out_m3_per_s_pa");
+  v.max_voltage_v = positive(r, "max_voltage_v");
+  // Optional: the ISO 6358 reference atmosphere.
+  v.reference_density_kg_per_m3 = positive_or(r, "reference_density_kg_per_m3", 1.185);
+  v.reference_temperature_k = positive_or(r, "reference_temperature_k", 293.15);
+  r.finish();
+  return v;
+}
+
+plant::FrictionParams read_friction(MapReader r) {
+  plant::FrictionParams f;
+  f.static_positive_n = positive(r, "static_positive_n");
+  f.coulomb_positive_n = positive(r, "coulomb_positive_n");
+  check(f.coulomb_positive_n <= f.static_positive_n, r.child_path("coulomb_positive_n"),
+        "must not exceed friction.static_positive_n (" + fmt(f.coulomb_positive_n) + " > " +
+            fmt(f.static_positive_n) + ")");
+  f.static_negative_n = r.number("static_negative_n");
+  check(f.static_negative_n < 0.0, r.child_path("static_negative_n"),
+        "must be < 0 (got " + fmt(f.static_negative_n) + ")");
+  f.coulomb_negative_n = r.number("coulomb_negative_n");
+  check(f.coulomb_negative_n < 0.0, r.child_path("coulomb_negative_n"),
+        "must be < 0 (got " + fmt(f.coulomb_negative_n) + ")");
+  check(f.coulomb_negative_n >= f.static_negative_n, r.child_path("coulomb_negative_n"),
+        "must not be below friction.static_negative_n (" + fmt(f.coulomb_negative_n) + " < " +
+            fmt(f.static_negative_n) + ")");
+  f.viscous_n_s_per_m = non_negative(r, "viscous_n_s_per_m");
+  f.stribeck_velocity_m_per_s = positive(r, "stribeck_velocity_m_per_s");
+  f.stick_velocity_m_per_s = non_negative(r, "stick_velocity_m_per_s");
+  r.finish();
+  return f;
+}
+
+plant::PlantParams read_plant(MapReader r) {
+  plant::PlantParams p;
+  p.mass_kg = positive(r, "mass_kg");
+  p.geometry = read_geometry(r.map("geometry"));
+  p.gas = read_gas(r.map("gas"));
+  p.valve = read_valve(r.map("valve"));
+  p.friction = read_friction(r.map("friction"));
+  p.max_step_s = in_range(r, "max_step_s", 1.0e-7, 1.0e-2);
+  r.finish();
+  return p;
+}
+
+plant::SensorChannelParams read_channel(MapReader r, const char* gain_key) {
+  plant::SensorChannelParams c;
+  c.gain_v_per_unit = r.number(gain_key);
+  check(c.gain_v_per_unit != 0.0, r.child_path(gain_key), "must not be 0");
+  c.offset_v = r.number("offset_v");
+  c.noise_std_v = non_negative(r, "noise_std_v");
+  const long long bits = r.integer("adc_bits");
+  check(bits >= 0 && bits <= 24, r.child_path("adc_bits"),
+        "must be 0 (no quantisation) or 1..24 (got " + std::to_string(bits) + ")");
+  c.adc_bits = static_cast<int>(bits);
+  c.range_min_v = r.number("range_min_v");
+  c.range_max_v = r.number("range_max_v");
+  check(c.range_max_v > c.range_min_v, r.child_path("range_max_v"),
+        "must exceed range_min_v (" + fmt(c.range_max_v) + " <= " + fmt(c.range_min_v) + ")");
+  r.finish();
+  return c;
+}
+
+plant::SensorParams read_sensors(MapReader r) {
+  plant::SensorParams s;
+  const long long seed = r.integer("seed");
+  check(seed >= 0, r.child_path("seed"), "must be >= 0");
+  s.seed = static_cast<std::uint64_t>(seed);
+  s.position = read_channel(r.map("position"), "gain_v_per_m");
+  s.pressure_p = read_channel(r.map("pressure_p"), "gain_v_per_pa");
+  s.pressure_n = read_channel(r.map("pressure_n"), "gain_v_per_pa");
+  r.finish();
+  return s;
+}
+
+SimulationConfig read_simulation(MapReader r, const plant::Geometry& g) {
+  SimulationConfig s;
+  s.initial_position_m = r.number("initial_position_m");
+  check(std::abs(s.initial_position_m) <= g.half_stroke_m(), r.child_path("initial_position_m"),
+        "must lie inside the stroke [" + fmt(-g.half_stroke_m()) + ", " + fmt(g.half_stroke_m()) +
+            "] m (got " + fmt(s.initial_position_m) + ")");
+  r.finish();
+  return s;
+}
+
+// "a.b.c=value": sets the node at a.b.c to the YAML value, creating missing keys; the schema
+// decoder then rejects any key it does not know.
+void apply_override(YAML::Node& root, const std::string& assignment) {
+  const auto eq = assignment.find('=');
+  if (eq == std::string::npos || eq == 0)
+    throw ConfigError("", "override '" + assignment + "' is not KEY=VALUE");
+  const std::string path = assignment.substr(0, eq);
+  const std::string text = assignment.substr(eq + 1);
+  YAML::Node value;
+  try {
+    value = YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(path, "cannot parse override value '" + text + "': " + e.msg);
+  }
+  std::vector<std::string> keys;
+  std::stringstream ss(path);
+  for (std::string key; std::getline(ss, key, '.');) {
+    if (key.empty()) throw ConfigError(path, "override key has an empty component");
+    keys.push_back(key);
+  }
+  // yaml-cpp nodes are handles: walk with copies of the handles, assign through the last one.
+  std::vector<YAML::Node> chain{root};
+  std::string walked;
+  for (std::size_t i = 0; i + 1 < keys.size(); ++i) {
+    walked += (walked.empty() ? "" : ".") + keys[i];
+    YAML::Node next = chain.back()[keys[i]];
+    if (next.IsDefined() && !next.IsNull() && !next.IsMap())
+      throw ConfigError(walked, "is a value, not a section: cannot override '" + path + "'");
+    if (!next.IsDefined() || next.IsNull()) throw ConfigError(path, "unknown key");
+    chain.push_back(next);
+  }
+  // A key absent from the file may still be an optional key of the schema: create it and let
+  // the decoder reject it when it is unknown.
+  YAML::Node leaf = chain.back()[keys.back()];
+  if (leaf.IsDefined() && leaf.IsMap())
+    throw ConfigError(path, "is a section; override its keys one by one");
+  chain.back()[keys.back()] = value;
+}
+
+Config decode(const YAML::Node& root) {
+  MapReader r(root, "");
+  Config c;
+  c.plant = read_plant(r.map("plant"));
+  c.sensors = read_sensors(r.map("sensors"));
+  c.simulation = read_simulation(r.map("simulation"), c.plant.geometry);
+  r.finish();
+  return c;
+}
+
+}  // namespace
+
+Config load_string(std::string_view yaml, const std::vector<std::string>& overrides,
+                   std::string_view origin) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(std::string(yaml));
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(std::string(origin),
+                      "not valid YAML (line " + std::to_string(e.mark.line + 1) + "): " + e.msg);
+  }
+  if (!root.IsMap()) throw ConfigError(std::string(origin), "expected a YAML mapping at the top");
+  for (const auto& o : overrides) apply_override(root, o);
+  return decode(root);
+}
+
+Config load_file(const std::filesystem::path& path, const std::vector<std::string>& overrides) {
+  std::ifstream in(path);
+  if (!in) throw ConfigError(path.string(), "cannot open the file");
+  std::stringstream text;
+  text << in.rdbuf();
+  return load_string(text.str(), overrides, path.string());
+}
+
+namespace {
+void emit_channel(YAML::Emitter& e, const char* name, const char* gain_key,
+                  const plant::SensorChannelParams& c) {
+  e << YAML::Key << name << YAML::Value << YAML::BeginMap;
+  e << YAML::Key << gain_key << YAML::Value << c.gain_v_per_unit;
+  e << YAML::Key << "offset_v" << YAML::Value << c.offset_v;
+  e << YAML::Key << "noise_std_v" << YAML::Value << c.noise_std_v;
+  e << YAML::Key << "adc_bits" << YAML::Value << c.adc_bits;
+  e << YAML::Key << "range_min_v" << YAML::Value << c.range_min_v;
+  e << YAML::Key << "range_max_v" << YAML::Value << c.range_max_v;
+  e << YAML::EndMap;
+}
+}  // namespace
+
+std::string to_yaml(const Config& c) {
+  YAML::Emitter e;
+  e.SetDoublePrecision(17);
+  const auto kv = [&](const char* k, auto v) { e << YAML::Key << k << YAML::Value << v; };
+  e << YAML::BeginMap;
+  e << YAML::Key << "plant" << YAML::Value << YAML::BeginMap;
+  kv("mass_kg", c.plant.mass_kg);
+  e << YAML::Key << "geometry" << YAML::Value << YAML::BeginMap;
+  kv("stroke_m", c.plant.geometry.stroke_m);
+  kv("bore_diameter_m", c.plant.geometry.bore_diameter_m);
+  kv("rod_diameter_m", c.plant.geometry.rod_diameter_m);
+  kv("dead_volume_p_m3", c.plant.geometry.dead_volume_p_m3);
+  kv("dead_volume_n_m3", c.plant.geometry.dead_volume_n_m3);
+  e << YAML::EndMap;
+  e << YAML::Key << "gas" << YAML::Value << YAML::BeginMap;
+  kv("supply_pressure_pa", c.plant.gas.supply_pressure_pa);
+  kv("exhaust_pressure_pa", c.plant.gas.exhaust_pressure_pa);
+  kv("polytropic_index", c.plant.gas.polytropic_index);
+  kv("gas_constant_j_per_kg_k", c.plant.gas.gas_constant_j_per_kg_k);
+  kv("temperature_k", c.plant.gas.temperature_k);
+  e << YAML::EndMap;
+  e << YAML::Key << "valve" << YAML::Value << YAML::BeginMap;
+  kv("max_conductance_m3_per_s_pa", c.plant.valve.max_conductance_m3_per_s_pa);
+  kv("critical_pressure_ratio", c.plant.valve.critical_pressure_ratio);
+  kv("leak_conductance_in_m3_per_s_pa", c.plant.valve.leak_conductance_in_m3_per_s_pa);
+  kv("leak_conductance_out_m3_per_s_pa", c.plant.valve.leak_conductance_out_m3_per_s_pa);
+  kv("max_voltage_v", c.plant.valve.max_voltage_v);
+  kv("reference_density_kg_per_m3", c.plant.valve.reference_density_kg_per_m3);
+  kv("reference_temperature_k", c.plant.valve.reference_temperature_k);
+  e << YAML::EndMap;
+  e << YAML::Key << "friction" << YAML::Value << YAML::BeginMap;
+  kv("static_positive_n", c.plant.friction.static_positive_n);
+  kv("coulomb_positive_n", c.plant.friction.coulomb_positive_n);
+  kv("static_negative_n", c.plant.friction.static_negative_n);
+  kv("coulomb_negative_n", c.plant.friction.coulomb_negative_n);
+  kv("viscous_n_s_per_m", c.plant.friction.viscous_n_s_per_m);
+  kv("stribeck_velocity_m_per_s", c.plant.friction.stribeck_velocity_m_per_s);
+  kv("stick_velocity_m_per_s", c.plant.friction.stick_velocity_m_per_s);
+  e << YAML::EndMap;
+  kv("max_step_s", c.plant.max_step_s);
+  e << YAML::EndMap;
+  e << YAML::Key << "sensors" << YAML::Value << YAML::BeginMap;
+  kv("seed", static_cast<unsigned long long>(c.sensors.seed));
+  emit_channel(e, "position", "gain_v_per_m", c.sensors.position);
+  emit_channel(e, "pressure_p", "gain_v_per_pa", c.sensors.pressure_p);
+  emit_channel(e, "pressure_n", "gain_v_per_pa", c.sensors.pressure_n);
+  e << YAML::EndMap;
+  e << YAML::Key << "simulation" << YAML::Value << YAML::BeginMap;
+  kv("initial_position_m", c.simulation.initial_position_m);
+  e << YAML::EndMap;
+  e << YAML::EndMap;
+  return std::string(e.c_str()) + "\n";
+}
+
+}  // namespace pneu::config

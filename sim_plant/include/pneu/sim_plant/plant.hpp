@@ -1,0 +1,106 @@
+// The 4th-order plant of Eq. 2 with hybrid Karnopp friction and hard end stops (MODEL.md 2-4).
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <span>
+
+#include "pneu/sim_plant/params.hpp"
+#include "pneu/sim_plant/valve.hpp"
+
+namespace pneu::plant {
+
+/// Discrete mode of the hybrid friction model.
+enum class Motion : std::uint8_t {
+  kStuck,            ///< v = 0 exactly, y frozen; F inside [F_S-, F_S+] (or pushing into an end stop)
+  kSlidingPositive,  ///< friction on the v > 0 branch
+  kSlidingNegative,  ///< friction on the v < 0 branch
+};
+
+/// Continuous state in SI units plus the discrete mode.
+struct PlantState {
+  double t_s = 0.0;          ///< simulated time [s]
+  double y_m = 0.0;          ///< position from mid-stroke [m]
+  double v_m_per_s = 0.0;    ///< velocity [m/s]
+  double p_p_pa = 1.0e5;     ///< chamber P absolute pressure [Pa]
+  double p_n_pa = 1.0e5;     ///< chamber N absolute pressure [Pa]
+  Motion motion = Motion::kStuck;
+};
+
+/// A mode change located inside an integration step.
+struct PlantEvent {
+  enum class Kind : std::uint8_t {
+    kBreakaway,  ///< stuck -> sliding: F left [F_S-, F_S+]
+    kStick,      ///< sliding -> stuck: v reached 0 with F inside the stiction band
+    kReversal,   ///< v reached 0 with F outside the band: sliding on in the other direction
+    kEndStop,    ///< the carriage hit y = +-L/2 and stopped there
+  };
+  Kind kind = Kind::kStick;
+  double t_s = 0.0;    ///< time of the event [s]
+  double y_m = 0.0;    ///< position at the event [m]
+  double force_n = 0.0;  ///< pressure force of Eq. 14 at the event [N]
+  int direction = 0;   ///< +1 / -1: direction of motion after (breakaway, reversal) or before (stick, end stop)
+};
+
+/// The simulated cylinder, valves and carriage. step() is real-time safe: no allocation, no throw.
+class Plant {
+ public:
+  /// Largest number of events one call to step() reports; more are counted in events_dropped().
+  static constexpr std::size_t kMaxEventsPerStep = 16;
+
+  explicit Plant(const PlantParams& params);
+
+  /// Puts the carriage at rest at `y_m` with both pressures at their null-flow values for the
+  /// valve voltages u_P = u, u_N = -u (complete equilibrium when F_e(u) is inside the stiction band).
+  void reset_at_rest(double y_m, double u_v, double t_s = 0.0) noexcept;
+  /// Sets an arbitrary state; the motion mode is made consistent with v (v = 0 -> stuck unless the
+  /// force already breaks away).
+  void reset(const PlantState& state) noexcept;
+
+  /// Advances by `dt_s` with the valve voltages held (u_P = u, u_N = -u), in equal sub-steps no
+  /// longer than step_size_s(); mode changes are located inside the sub-steps.
+  void step(double dt_s, double u_v) noexcept;
+
+  [[nodiscard]] const PlantState& state() const noexcept { return state_; }
+  /// F = S_P p_P - S_N p_N - S_r p_E at the current state [N].
+  [[nodiscard]] double pressure_force_n() const noexcept;
+  /// Events located during the last call to step().
+  [[nodiscard]] std::span<const PlantEvent> last_events() const noexcept {
+    return {events_.data(), event_count_};
+  }
+  [[nodiscard]] std::uint64_t events_dropped() const noexcept { return events_dropped_; }
+  /// Integration step actually used: min(max_step_s, 2.5 / |lambda_max|), lambda_max the fastest
+  /// pressure eigenvalue (smallest chamber volume, valve wide open, laminar slope) so explicit RK4
+  /// (stable for h |lambda| < 2.78) stays stable anywhere in the stroke.
+  [[nodiscard]] double step_size_s() const noexcept { return step_s_; }
+  /// Number of right-hand-side evaluations since construction (for benchmarks).
+  [[nodiscard]] std::uint64_t rhs_evaluations() const noexcept { return rhs_evaluations_; }
+
+  [[nodiscard]] const PlantParams& params() const noexcept { return params_; }
+  [[nodiscard]] const ValveModel& valve() const noexcept { return valve_; }
+  /// Friction force in the current sliding mode at velocity v [N] (MODEL.md section 4).
+  [[nodiscard]] double sliding_friction_n(Motion motion, double v_m_per_s) const noexcept;
+
+ private:
+  using Vec = Eigen::Vector4d;  // (y, v, p_P, p_N)
+
+  [[nodiscard]] Vec derivative(const Vec& x, Motion motion, double u_v) const noexcept;
+  [[nodiscard]] Vec rk4(const Vec& x, double h, Motion motion, double u_v) const noexcept;
+  [[nodiscard]] double force_of(const Vec& x) const noexcept;
+  void advance(double h, double u_v) noexcept;
+  void record(PlantEvent::Kind kind, int direction) noexcept;
+  void settle_mode_at_rest() noexcept;
+
+  PlantParams params_;
+  ValveModel valve_;
+  double area_p_m2_, area_n_m2_, area_rod_m2_, half_stroke_m_, k_r_t_, r_t_;
+  double step_s_;
+  PlantState state_;
+  std::array<PlantEvent, kMaxEventsPerStep> events_{};
+  std::size_t event_count_ = 0;
+  std::uint64_t events_dropped_ = 0;
+  mutable std::uint64_t rhs_evaluations_ = 0;
+};
+
+}  // namespace pneu::plant

@@ -1,0 +1,98 @@
+// The servo-distributor's mass-flow characteristic q(w, p) (MODEL.md section 3), as a parametric
+// model (ISO 6358 orifices) or as a measured table, behind one interface the predictor uses.
+#pragma once
+
+#include "pneu/sim_plant/params.hpp"
+
+namespace pneu::plant {
+
+/// Pressure ratio above which the ISO 6358 flow function is replaced by its secant to x = 1
+/// (laminar region). phi has an infinite slope at x -> 1; linearising keeps dq/dp finite.
+inline constexpr double kLaminarPressureRatio = 0.999;
+
+/// ISO 6358 flow function phi(x), x = p_down / p_up in [0, 1]; linear for x > kLaminarPressureRatio.
+[[nodiscard]] double flow_function(double pressure_ratio, double critical_ratio) noexcept;
+/// d phi / dx, consistent with flow_function().
+[[nodiscard]] double flow_function_slope(double pressure_ratio, double critical_ratio) noexcept;
+
+/// One ISO 6358 orifice. Returns the mass flow from `p_a` to `p_b` [kg/s]: positive when
+/// p_a > p_b, negative (reversed) when p_b > p_a, zero when equal.
+/// m_dot = C rho_0 p_up sqrt(T_0 / T) phi(p_down / p_up).
+struct Orifice {
+  double critical_ratio;             ///< b [-]
+  double reference_density_kg_per_m3;
+  double temperature_factor;         ///< sqrt(T_0 / T) [-]
+
+  [[nodiscard]] double mass_flow_kg_per_s(double conductance_m3_per_s_pa, double p_a_pa,
+                                          double p_b_pa) const noexcept;
+  /// d m_dot / d p_b at fixed p_a [kg/(s Pa)] (<= 0).
+  [[nodiscard]] double d_mass_flow_d_pb(double conductance_m3_per_s_pa, double p_a_pa,
+                                        double p_b_pa) const noexcept;
+  /// d m_dot / d p_a at fixed p_b [kg/(s Pa)] (>= 0).
+  [[nodiscard]] double d_mass_flow_d_pa(double conductance_m3_per_s_pa, double p_a_pa,
+                                        double p_b_pa) const noexcept;
+};
+
+/// A servo-distributor's static characteristic: the mass flow into a chamber at pressure p when the
+/// valve is driven with voltage w. Implementations are immutable and real-time safe after
+/// construction (no allocation, no throw).
+class ValveCharacteristic {
+ public:
+  virtual ~ValveCharacteristic() = default;
+  /// q(w, p): mass flow into the chamber [kg/s]; decreasing in p.
+  [[nodiscard]] virtual double mass_flow_kg_per_s(double w_v, double p_pa) const noexcept = 0;
+  /// dq/dp (w, p) [kg/(s Pa)], <= 0.
+  [[nodiscard]] virtual double dq_dp(double w_v, double p_pa) const noexcept = 0;
+  /// Pressure range over which the characteristic is defined [Pa] (p_E and p_S for the model).
+  [[nodiscard]] virtual double min_pressure_pa() const noexcept = 0;
+  [[nodiscard]] virtual double max_pressure_pa() const noexcept = 0;
+  /// Voltage range [V].
+  [[nodiscard]] virtual double min_voltage_v() const noexcept = 0;
+  [[nodiscard]] virtual double max_voltage_v() const noexcept = 0;
+
+  /// Null-flow pressure p_null(w): q(w, p_null) = 0, the pressure gain characteristic (Fig. 6).
+  /// Clamped to [min_pressure_pa, max_pressure_pa] when no root lies inside. Monotone in w.
+  [[nodiscard]] double null_pressure_pa(double w_v) const noexcept;
+};
+
+/// The parametric model of MODEL.md section 3:
+///   C_in(w)  = C_leak_in  + C_max clamp( w / u_max, 0, 1)
+///   C_out(w) = C_leak_out + C_max clamp(-w / u_max, 0, 1)
+///   q(w, p)  = m_dot(C_in(w), p_S, p) - m_dot(C_out(w), p, p_E)
+class ValveModel final : public ValveCharacteristic {
+ public:
+  ValveModel(const ValveParams& valve, const Gas& gas) noexcept;
+
+  [[nodiscard]] double mass_flow_kg_per_s(double w_v, double p_pa) const noexcept override;
+  [[nodiscard]] double dq_dp(double w_v, double p_pa) const noexcept override;
+  [[nodiscard]] double min_pressure_pa() const noexcept override { return p_exhaust_pa_; }
+  [[nodiscard]] double max_pressure_pa() const noexcept override { return p_supply_pa_; }
+  [[nodiscard]] double min_voltage_v() const noexcept override { return -valve_.max_voltage_v; }
+  [[nodiscard]] double max_voltage_v() const noexcept override { return valve_.max_voltage_v; }
+
+  [[nodiscard]] double inlet_conductance_m3_per_s_pa(double w_v) const noexcept;
+  [[nodiscard]] double outlet_conductance_m3_per_s_pa(double w_v) const noexcept;
+  [[nodiscard]] const Orifice& orifice() const noexcept { return orifice_; }
+
+ private:
+  ValveParams valve_;
+  double p_supply_pa_;
+  double p_exhaust_pa_;
+  Orifice orifice_;
+};
+
+/// Pressure force of Eq. 14, F = S_P p_P - S_N p_N - S_r p_E [N].
+[[nodiscard]] double pressure_force_n(const Geometry& geometry, double exhaust_pressure_pa,
+                                      double p_p_pa, double p_n_pa) noexcept;
+
+/// Force gain characteristic: the pressure force at complete equilibrium under voltage u,
+/// F_e(u) = S_P p_null(u) - S_N p_null(-u) - S_r p_E [N]. Increasing in u.
+[[nodiscard]] double equilibrium_force_n(const ValveCharacteristic& valve, const Geometry& geometry,
+                                         double exhaust_pressure_pa, double u_v) noexcept;
+
+/// u_e of Eq. 7: the voltage whose equilibrium force is zero (no dry friction),
+/// S_P p_null(u_e) - S_N p_null(-u_e) = S_r p_E [V].
+[[nodiscard]] double equilibrium_voltage_v(const ValveCharacteristic& valve, const Geometry& geometry,
+                                           double exhaust_pressure_pa) noexcept;
+
+}  // namespace pneu::plant

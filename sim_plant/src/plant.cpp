@@ -1,0 +1,283 @@
+#include "pneu/sim_plant/plant.hpp"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+
+namespace pneu::plant {
+
+namespace {
+
+constexpr int kPositive = +1;
+constexpr int kNegative = -1;
+
+int direction_of(Motion m) noexcept {
+  return m == Motion::kSlidingPositive ? kPositive : (m == Motion::kSlidingNegative ? kNegative : 0);
+}
+
+Motion sliding(int direction) noexcept {
+  return direction > 0 ? Motion::kSlidingPositive : Motion::kSlidingNegative;
+}
+
+// Event location on theta in [0, 1] for an event function g with g(0) <= 0 < g(1): Illinois
+// regula falsi keeping a bracket, returning its right end (where g > 0, so the located state
+// satisfies the event condition). `eval` maps theta to g. Stops when the bracket is narrower
+// than `theta_tolerance`.
+template <typename G>
+double locate_event(G&& eval, double g0, double g1, double theta_tolerance) noexcept {
+  double lo = 0.0, hi = 1.0, g_lo = g0, g_hi = g1;
+  int side = 0;
+  for (int i = 0; i < 100 && hi - lo > theta_tolerance; ++i) {
+    double theta = (lo * g_hi - hi * g_lo) / (g_hi - g_lo);
+    if (!(theta > lo && theta < hi)) theta = 0.5 * (lo + hi);
+    const double g = eval(theta);
+    if (g > 0.0) {
+      hi = theta;
+      g_hi = g;
+      if (side == +1) g_lo *= 0.5;
+      side = +1;
+    } else {
+      lo = theta;
+      g_lo = g;
+      if (side == -1) g_hi *= 0.5;
+      side = -1;
+    }
+  }
+  return hi;
+}
+
+// RK4 is stable on the negative real axis for h |lambda| < 2.785; keep 10 % margin.
+constexpr double kStabilityMargin = 2.5;
+
+// RK4 is stable on the negative real axis for h |lambda| < 2.785; keep 10 % margin.
+constexpr double kStabilityMargin = 2.5;
+
+// Event time resolution [s].
+constexpr double kEventTimeTolerance_s = 1.0e-11;
+
+}  // namespace
+
+Plant::Plant(const PlantParams& params)
+    : params_(params),
+      valve_(params.valve, params.gas),
+      area_p_m2_(params.geometry.area_p_m2()),
+      area_n_m2_(params.geometry.area_n_m2()),
+      area_rod_m2_(params.geometry.area_rod_m2()),
+      half_stroke_m_(params.geometry.half_stroke_m()),
+      k_r_t_(params.gas.k_r_t()),
+      r_t_(params.gas.gas_constant_j_per_kg_k * params.gas.temperature_k) {
+  assert(params.mass_kg > 0.0 && params.max_step_s > 0.0 && area_n_m2_ > 0.0);
+  // Fastest pressure mode: |dq/dp| is largest in the laminar region of a wide-open orifice,
+  // |d m/d p| <= K (1 + |phi'|) per orifice; both orifices of one valve together open at most
+  // C_max + C_leak_in + C_leak_out.
+  const auto& v = params.valve;
+  const double max_open = v.max_conductance_m3_per_s_pa + v.leak_conductance_in_m3_per_s_pa +
+                          v.leak_conductance_out_m3_per_s_pa;
+  const double k = max_open * v.reference_density_kg_per_m3 * valve_.orifice().temperature_factor;
+  const double max_dq_dp =
+      k * (1.0 + std::abs(flow_function_slope(1.0, v.critical_pressure_ratio)));
+  const double min_volume =
+      std::min(params.geometry.dead_volume_p_m3, params.geometry.dead_volume_n_m3);
+  const double lambda_max = k_r_t_ * max_dq_dp / min_volume;
+  step_s_ = std::min(params.max_step_s, kStabilityMargin / lambda_max);
+  reset_at_rest(0.0, 0.0);
+}
+
+double Plant::sliding_friction_n(Motion motion, double v) const noexcept {
+  const auto& f = params_.friction;
+  const double s = v / f.stribeck_velocity_m_per_s;
+  const double stribeck = std::exp(-s * s);
+  if (motion == Motion::kSlidingNegative) {
+    return f.coulomb_negative_n + (f.static_negative_n - f.coulomb_negative_n) * stribeck +
+           f.viscous_n_s_per_m * v;
+  }
+  return f.coulomb_positive_n + (f.static_positive_n - f.coulomb_positive_n) * stribeck +
+         f.viscous_n_s_per_m * v;
+}
+
+double Plant::force_of(const Vec& x) const noexcept {
+  return area_p_m2_ * x[2] - area_n_m2_ * x[3] - area_rod_m2_ * params_.gas.exhaust_pressure_pa;
+}
+
+double Plant::pressure_force_n() const noexcept {
+  return force_of(Vec(state_.y_m, state_.v_m_per_s, state_.p_p_pa, state_.p_n_pa));
+}
+
+// Eq. 2.
+Plant::Vec Plant::derivative(const Vec& x, Motion motion, double u) const noexcept {
+  ++rhs_evaluations_;
+  const double y = x[0], v = x[1], p_p = x[2], p_n = x[3];
+  const double v_p = params_.geometry.dead_volume_p_m3 + area_p_m2_ * (half_stroke_m_ + y);
+  const double v_n = params_.geometry.dead_volume_n_m3 + area_n_m2_ * (half_stroke_m_ - y);
+  const double q_p = valve_.mass_flow_kg_per_s(u, p_p);
+  const double q_n = valve_.mass_flow_kg_per_s(-u, p_n);
+  Vec dx;
+  dx[2] = k_r_t_ / v_p * (q_p - area_p_m2_ * p_p * v / r_t_);
+  dx[3] = k_r_t_ / v_n * (q_n + area_n_m2_ * p_n * v / r_t_);
+  if (motion == Motion::kStuck) {
+    dx[0] = 0.0;
+    dx[1] = 0.0;
+  } else {
+    dx[0] = v;
+    dx[1] = (force_of(x) - sliding_friction_n(motion, v)) / params_.mass_kg;
+  }
+  return dx;
+}
+
+Plant::Vec Plant::rk4(const Vec& x, double h, Motion motion, double u) const noexcept {
+  const Vec k1 = derivative(x, motion, u);
+  const Vec k2 = derivative(x + 0.5 * h * k1, motion, u);
+  const Vec k3 = derivative(x + 0.5 * h * k2, motion, u);
+  const Vec k4 = derivative(x + h * k3, motion, u);
+  Vec out = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+  if (motion == Motion::kStuck) {  // no creep: y and v are not integrated at all while stuck
+    out[0] = x[0];
+    out[1] = 0.0;
+  }
+  return out;
+}
+
+void Plant::record(PlantEvent::Kind kind, int direction) noexcept {
+  if (event_count_ == events_.size()) {
+    ++events_dropped_;
+    return;
+  }
+  events_[event_count_++] = PlantEvent{kind, state_.t_s, state_.y_m, pressure_force_n(), direction};
+}
+
+void Plant::settle_mode_at_rest() noexcept {
+  const auto& f = params_.friction;
+  const double force = pressure_force_n();
+  if (state_.v_m_per_s > 0.0) {
+    state_.motion = Motion::kSlidingPositive;
+  } else if (state_.v_m_per_s < 0.0) {
+    state_.motion = Motion::kSlidingNegative;
+  } else if (force > f.static_positive_n && state_.y_m < half_stroke_m_) {
+    state_.motion = Motion::kSlidingPositive;
+  } else if (force < f.static_negative_n && state_.y_m > -half_stroke_m_) {
+    state_.motion = Motion::kSlidingNegative;
+  } else {
+    state_.motion = Motion::kStuck;
+  }
+}
+
+void Plant::reset_at_rest(double y_m, double u_v, double t_s) noexcept {
+  state_ = PlantState{t_s, std::clamp(y_m, -half_stroke_m_, half_stroke_m_), 0.0,
+                      valve_.null_pressure_pa(u_v), valve_.null_pressure_pa(-u_v), Motion::kStuck};
+  settle_mode_at_rest();
+  event_count_ = 0;
+}
+
+void Plant::reset(const PlantState& state) noexcept {
+  state_ = state;
+  state_.y_m = std::clamp(state_.y_m, -half_stroke_m_, half_stroke_m_);
+  settle_mode_at_rest();
+  event_count_ = 0;
+}
+
+void Plant::step(double dt_s, double u_v) noexcept {
+  event_count_ = 0;
+  if (!(dt_s > 0.0)) return;
+  const double t_end = state_.t_s + dt_s;
+  const int n = static_cast<int>(std::ceil(dt_s / step_s_ - 1e-9));
+  const double h = dt_s / std::max(n, 1);
+  for (int i = 0; i < std::max(n, 1); ++i) advance(h, u_v);
+  state_.t_s = t_end;
+}
+
+void Plant::advance(double h, double u) noexcept {
+  const auto& f = params_.friction;
+  Vec x(state_.y_m, state_.v_m_per_s, state_.p_p_pa, state_.p_n_pa);
+  double remaining = h;
+  const auto commit = [&](const Vec& xn, double dt) {
+    state_.y_m = xn[0];
+    state_.v_m_per_s = xn[1];
+    state_.p_p_pa = xn[2];
+    state_.p_n_pa = xn[3];
+    state_.t_s += dt;
+    x = xn;
+    remaining -= dt;
+  };
+
+  // Each pass integrates the rest of the sub-step or stops at the first located mode change.
+  for (int pass = 0; pass < 32 && remaining > 0.0; ++pass) {
+    const Motion m = state_.motion;
+    const Vec x0 = x;
+    const Vec x1 = rk4(x0, remaining, m, u);
+    const double theta_tolerance = kEventTimeTolerance_s / remaining;
+
+    if (m == Motion::kStuck) {
+      // Breakaway when F leaves [F_S-, F_S+]; an end stop blocks breakaway into itself.
+      const bool may_go_up = x0[0] < half_stroke_m_;
+      const bool may_go_down = x0[0] > -half_stroke_m_;
+      const auto g = [&](const Vec& xs) {
+        const double force = force_of(xs);
+        const double up = may_go_up ? force - f.static_positive_n : -1.0;
+        const double down = may_go_down ? f.static_negative_n - force : -1.0;
+        return std::max(up, down);
+      };
+      const double g1 = g(x1);
+      if (g1 <= 0.0) {
+        commit(x1, remaining);
+        break;
+      }
+      const double g0 = std::min(g(x0), 0.0);
+      const double theta = locate_event(
+          [&](double th) { return g(rk4(x0, th * remaining, m, u)); }, g0, g1, theta_tolerance);
+      const Vec xe = rk4(x0, theta * remaining, m, u);
+      commit(xe, theta * remaining);
+      const double force = force_of(xe);
+      const int dir = (may_go_up && force > f.static_positive_n) ? kPositive : kNegative;
+      state_.motion = sliding(dir);
+      record(PlantEvent::Kind::kBreakaway, dir);
+      continue;
+    }
+
+    const int s = direction_of(m);
+    // Events while sliding: the velocity changes sign, or the carriage reaches its end stop.
+    const auto g_velocity = [&](const Vec& xs) { return -s * xs[1]; };
+    const auto g_stop = [&](const Vec& xs) { return s * xs[0] - half_stroke_m_; };
+    const auto g = [&](const Vec& xs) { return std::max(g_velocity(xs), g_stop(xs)); };
+    const double g1 = g(x1);
+    if (g1 <= 0.0) {
+      commit(x1, remaining);
+      // Asymptotic approach to rest: inside the velocity band, decelerating, F inside the
+      // stiction band -> stick.
+      const double force = force_of(x);
+      const double accel = derivative(x, m, u)[1];
+      if (std::abs(x[1]) < f.stick_velocity_m_per_s && s * accel < 0.0 &&
+          force >= f.static_negative_n && force <= f.static_positive_n) {
+        state_.v_m_per_s = 0.0;
+        state_.motion = Motion::kStuck;
+        record(PlantEvent::Kind::kStick, s);
+      }
+      break;
+    }
+    const double g0 = std::min(g(x0), 0.0);
+    const double theta = locate_event([&](double th) { return g(rk4(x0, th * remaining, m, u)); },
+                                      g0, g1, theta_tolerance);
+    Vec xe = rk4(x0, theta * remaining, m, u);
+    const bool hit_stop = g_stop(xe) >= g_velocity(xe);
+    xe[1] = 0.0;
+    if (hit_stop) xe[0] = s * half_stroke_m_;
+    commit(xe, theta * remaining);
+    const double force = force_of(xe);
+    if (hit_stop) {
+      state_.motion = Motion::kStuck;
+      record(PlantEvent::Kind::kEndStop, s);
+    } else if (force >= f.static_negative_n && force <= f.static_positive_n) {
+      state_.motion = Motion::kStuck;
+      record(PlantEvent::Kind::kStick, s);
+    } else {
+      const int dir = force > f.static_positive_n ? kPositive : kNegative;
+      state_.motion = sliding(dir);
+      if (dir != s) record(PlantEvent::Kind::kReversal, dir);
+    }
+  }
+  if (remaining > 0.0) {  // more than 32 mode changes in one sub-step: finish without events
+    commit(rk4(x, remaining, state_.motion, u), remaining);
+    ++events_dropped_;
+  }
+}
+
+}  // namespace pneu::plant

@@ -1,0 +1,142 @@
+#include "pneu/sim_plant/valve.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace pneu::plant {
+
+namespace {
+
+double raw_flow_function(double x, double b) noexcept {
+  if (x <= b) return 1.0;
+  const double s = (x - b) / (1.0 - b);
+  return std::sqrt(std::max(0.0, 1.0 - s * s));
+}
+
+// Finds the root of a decreasing function on [lo, hi] by bisection refined with regula falsi
+// (Illinois). Returns the clamped end when there is no sign change.
+template <typename F>
+double decreasing_root(F&& f, double lo, double hi, double x_tolerance) noexcept {
+  double f_lo = f(lo);
+  double f_hi = f(hi);
+  if (f_lo <= 0.0) return lo;
+  if (f_hi >= 0.0) return hi;
+  int side = 0;
+  for (int i = 0; i < 200 && hi - lo > x_tolerance; ++i) {
+    double x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
+    // Guard against regula falsi stagnation: fall back to bisection near the ends.
+    if (!(x > lo && x < hi)) x = 0.5 * (lo + hi);
+    const double fx = f(x);
+    if (fx == 0.0) return x;
+    if (fx > 0.0) {
+      lo = x;
+      f_lo = fx;
+      if (side == -1) f_hi *= 0.5;
+      side = -1;
+    } else {
+      hi = x;
+      f_hi = fx;
+      if (side == +1) f_lo *= 0.5;
+      side = +1;
+    }
+  }
+  return 0.5 * (lo + hi);
+}
+
+}  // namespace
+
+double flow_function(double x, double b) noexcept {
+  x = std::clamp(x, 0.0, 1.0);
+  if (x <= kLaminarPressureRatio) return raw_flow_function(x, b);
+  const double at_threshold = raw_flow_function(kLaminarPressureRatio, b);
+  return at_threshold * (1.0 - x) / (1.0 - kLaminarPressureRatio);
+}
+
+double flow_function_slope(double x, double b) noexcept {
+  x = std::clamp(x, 0.0, 1.0);
+  if (x <= b) return 0.0;
+  if (x <= kLaminarPressureRatio) {
+    const double s = (x - b) / (1.0 - b);
+    return -s / ((1.0 - b) * std::sqrt(1.0 - s * s));
+  }
+  return -raw_flow_function(kLaminarPressureRatio, b) / (1.0 - kLaminarPressureRatio);
+}
+
+double Orifice::mass_flow_kg_per_s(double c, double p_a, double p_b) const noexcept {
+  if (p_a >= p_b) {
+    return c * reference_density_kg_per_m3 * p_a * temperature_factor *
+           flow_function(p_b / p_a, critical_ratio);
+  }
+  return -c * reference_density_kg_per_m3 * p_b * temperature_factor *
+         flow_function(p_a / p_b, critical_ratio);
+}
+
+// With m = K p_up phi(p_down / p_up), K = C rho_0 sqrt(T0/T):
+//   dm/dp_down = K phi'(x)                      dm/dp_up = K (phi(x) - x phi'(x))
+double Orifice::d_mass_flow_d_pb(double c, double p_a, double p_b) const noexcept {
+  const double k = c * reference_density_kg_per_m3 * temperature_factor;
+  if (p_a >= p_b) return k * flow_function_slope(p_b / p_a, critical_ratio);
+  // Reversed: m = -K p_b phi(p_a / p_b); p_b is upstream.
+  const double x = p_a / p_b;
+  return -k * (flow_function(x, critical_ratio) - x * flow_function_slope(x, critical_ratio));
+}
+
+double Orifice::d_mass_flow_d_pa(double c, double p_a, double p_b) const noexcept {
+  const double k = c * reference_density_kg_per_m3 * temperature_factor;
+  if (p_a >= p_b) {
+    const double x = p_b / p_a;
+    return k * (flow_function(x, critical_ratio) - x * flow_function_slope(x, critical_ratio));
+  }
+  return -k * flow_function_slope(p_a / p_b, critical_ratio);
+}
+
+double ValveCharacteristic::null_pressure_pa(double w_v) const noexcept {
+  return decreasing_root([&](double p) { return mass_flow_kg_per_s(w_v, p); }, min_pressure_pa(),
+                         max_pressure_pa(), 1.0e-7);
+}
+
+ValveModel::ValveModel(const ValveParams& valve, const Gas& gas) noexcept
+    : valve_(valve),
+      p_supply_pa_(gas.supply_pressure_pa),
+      p_exhaust_pa_(gas.exhaust_pressure_pa),
+      orifice_{valve.critical_pressure_ratio, valve.reference_density_kg_per_m3,
+               std::sqrt(valve.reference_temperature_k / gas.temperature_k)} {}
+
+double ValveModel::inlet_conductance_m3_per_s_pa(double w) const noexcept {
+  return valve_.leak_conductance_in_m3_per_s_pa +
+         valve_.max_conductance_m3_per_s_pa * std::clamp(w / valve_.max_voltage_v, 0.0, 1.0);
+}
+
+double ValveModel::outlet_conductance_m3_per_s_pa(double w) const noexcept {
+  return valve_.leak_conductance_out_m3_per_s_pa +
+         valve_.max_conductance_m3_per_s_pa * std::clamp(-w / valve_.max_voltage_v, 0.0, 1.0);
+}
+
+double ValveModel::mass_flow_kg_per_s(double w, double p) const noexcept {
+  return orifice_.mass_flow_kg_per_s(inlet_conductance_m3_per_s_pa(w), p_supply_pa_, p) -
+         orifice_.mass_flow_kg_per_s(outlet_conductance_m3_per_s_pa(w), p, p_exhaust_pa_);
+}
+
+double ValveModel::dq_dp(double w, double p) const noexcept {
+  return orifice_.d_mass_flow_d_pb(inlet_conductance_m3_per_s_pa(w), p_supply_pa_, p) -
+         orifice_.d_mass_flow_d_pa(outlet_conductance_m3_per_s_pa(w), p, p_exhaust_pa_);
+}
+
+double pressure_force_n(const Geometry& g, double p_e, double p_p, double p_n) noexcept {
+  return g.area_p_m2() * p_p - g.area_n_m2() * p_n - g.area_rod_m2() * p_e;
+}
+
+double equilibrium_force_n(const ValveCharacteristic& valve, const Geometry& g, double p_e,
+                           double u) noexcept {
+  return pressure_force_n(g, p_e, valve.null_pressure_pa(u), valve.null_pressure_pa(-u));
+}
+
+double equilibrium_voltage_v(const ValveCharacteristic& valve, const Geometry& g,
+                             double p_e) noexcept {
+  // F_e(u) increases with u; the root of -F_e is found by the decreasing-root solver.
+  const double u_lim = std::min(valve.max_voltage_v(), -valve.min_voltage_v());
+  return decreasing_root([&](double u) { return -equilibrium_force_n(valve, g, p_e, u); }, -u_lim,
+                         u_lim, 1.0e-12);
+}
+
+}  // namespace pneu::plant
