@@ -49,9 +49,6 @@ double locate_event(G&& eval, double g0, double g1, double theta_tolerance) noex
 // RK4 is stable on the negative real axis for h |lambda| < 2.785; keep 10 % margin.
 constexpr double kStabilityMargin = 2.5;
 
-// RK4 is stable on the negative real axis for h |lambda| < 2.785; keep 10 % margin.
-constexpr double kStabilityMargin = 2.5;
-
 // Event time resolution [s].
 constexpr double kEventTimeTolerance_s = 1.0e-11;
 
