@@ -1,0 +1,234 @@
+// pneu-plant as a user runs it: the open-loop simulator's file contract, valve characterisation,
+// and bad input refused with exit code 2, a message naming the place, and no output left behind.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "pneu/sim_plant/plant.hpp"
+#include "pneu/sim_plant/valve_table.hpp"
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+
+namespace {
+
+struct Outcome {
+  int exit_code;
+  std::string out;
+  std::string err;
+};
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+class PneuPlantCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("pneu_cli_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) +
+            "_" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  Outcome run(const std::string& args) const {
+    const fs::path out = dir_ / "stdout.txt", err = dir_ / "stderr.txt";
+    const std::string cmd = std::string(PNEU_BINARY_DIR) + "/bin/pneu-plant " + args + " >" +
+                            out.string() + " 2>" + err.string();
+    const int status = std::system(cmd.c_str());
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(out), slurp(err)};
+  }
+  fs::path write(const std::string& name, const std::string& text) const {
+    const fs::path p = dir_ / name;
+    std::ofstream(p) << text;
+    return p;
+  }
+  // Nothing but the inputs and our captured streams remain in the directory.
+  std::vector<std::string> leftovers() const {
+    std::vector<std::string> names;
+    for (const auto& e : fs::directory_iterator(dir_)) {
+      const auto n = e.path().filename().string();
+      if (n != "stdout.txt" && n != "stderr.txt" && n.rfind("in", 0) != 0) names.push_back(n);
+    }
+    return names;
+  }
+  static std::vector<std::vector<double>> rows(const std::string& csv, std::string* header) {
+    std::vector<std::vector<double>> out;
+    std::stringstream ss(csv);
+    std::string line;
+    std::getline(ss, *header);
+    while (std::getline(ss, line)) {
+      std::vector<double> r;
+      std::stringstream ls(line);
+      for (std::string cell; std::getline(ls, cell, ',');) r.push_back(std::stod(cell));
+      out.push_back(r);
+    }
+    return out;
+  }
+
+  fs::path dir_;
+};
+
+std::string constant_input(double u, int samples, double dt) {
+  std::string s = "t,u\n";
+  for (int i = 0; i < samples; ++i) s += std::to_string(i * dt) + "," + std::to_string(u) + "\n";
+  return s;
+}
+
+}  // namespace
+
+TEST_F(PneuPlantCli, PrintsItsVersionAndHelpForEveryCommand) {
+  const Outcome v = run("--version");
+  EXPECT_EQ(v.exit_code, 0);
+  EXPECT_THAT(v.out, HasSubstr("pneu-plant 0."));
+  for (const char* cmd : {"--help", "simulate --help", "characterize-valve --help"}) {
+    const Outcome h = run(cmd);
+    EXPECT_EQ(h.exit_code, 0) << cmd;
+    EXPECT_THAT(h.out, HasSubstr("--config")) << cmd;
+  }
+}
+
+TEST_F(PneuPlantCli, SimulateWritesOneRowPerSampleTakenBeforeTheSamplesInputIsApplied) {
+  // u steps from -0.19 V (near u_e: F inside the stiction band, at rest) to +2 V at the third
+  // sample: the carriage must still be at rest in row 3, because each row is the state at its
+  // own time, before its own input takes effect.
+  const auto in = write("in.csv", "t,u\n0,-0.19\n0.01,-0.19\n0.02,2\n0.03,2\n0.04,2\n");
+  const fs::path out = dir_ / "traj.csv";
+  const Outcome r = run("simulate --input " + in.string() + " --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::string header;
+  const auto data = rows(slurp(out), &header);
+  EXPECT_EQ(header, "t,y,v,p_P,p_N,F,stuck,u");
+  ASSERT_EQ(data.size(), 5u);
+  EXPECT_DOUBLE_EQ(data[2][0], 0.02);
+
+  // The same run with the model directly: initial pressures at p_null(u), p_null(-u) of the first
+  // sample, input held between samples.
+  const pneu::plant::PlantParams params;  // == config/sim.yaml (the embedded default)
+  pneu::plant::Plant plant(params);
+  plant.reset_at_rest(0.2195, -0.19);
+  EXPECT_NEAR(data[0][3], plant.valve().null_pressure_pa(-0.19), 1e-3);
+  EXPECT_NEAR(data[0][4], plant.valve().null_pressure_pa(0.19), 1e-3);
+  const double u[] = {-0.19, -0.19, 2, 2};
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_NEAR(data[static_cast<std::size_t>(i)][1], plant.state().y_m, 1e-9) << "row " << i;
+    EXPECT_NEAR(data[static_cast<std::size_t>(i)][3], plant.state().p_p_pa, 1e-3) << "row " << i;
+    plant.step(0.01, u[i]);
+  }
+  EXPECT_NEAR(data[4][1], plant.state().y_m, 1e-9);
+  EXPECT_EQ(data[2][6], 1.0) << "still stuck at the sample where the step is applied";
+  EXPECT_EQ(data[2][1], 0.2195);
+  EXPECT_GT(data[4][1], 0.2195) << "the +2 V step moves the carriage";
+  EXPECT_THAT(r.out, HasSubstr("5 samples"));
+}
+
+TEST_F(PneuPlantCli, SimulateAddsSensorReadingsOnRequest) {
+  const auto in = write("in.csv", constant_input(-0.19, 3, 0.001));
+  const fs::path out = dir_ / "traj.csv";
+  const Outcome r = run("simulate --sensors --quiet --set sensors.position.adc_bits=12 --input " +
+                    in.string() + " --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(r.out.empty());
+  std::string header;
+  const auto data = rows(slurp(out), &header);
+  EXPECT_EQ(header, "t,y,v,p_P,p_N,F,stuck,u,y_meas,p_P_meas,p_N_meas");
+  // 12 bits over 10 V at 20 V/m: one step is 0.122 mm; the reading is within half a step.
+  EXPECT_NEAR(data[0][8], data[0][1], 0.5 * 10.0 / 4095.0 / 20.0 + 1e-12);
+  EXPECT_NE(data[0][8], data[0][1]) << "quantisation must show at 219.5 mm";
+}
+
+TEST_F(PneuPlantCli, MalformedInputIsRefusedNamingTheLineAndLeavesNoOutput) {
+  struct Case {
+    const char* text;
+    const char* expected;
+  } cases[] = {
+      {"time,u\n0,0\n0.1,0\n", ":1: the header must name the columns 't'"},
+      {"t,u\n0,0\n0.1,zero\n", ":3: column 'u' is not a finite number: 'zero'"},
+      {"t,u\n0,0\n0.1,0\n0.1,0\n", ":4: time does not increase"},
+      {"t,u\n0,0\n0.1,0\n0.3,0\n", ":4: sample period"},
+      {"t,u\n0,0\n0.1\n", ":3: expected 2 columns, got 1"},
+      {"t,u\n0,nan\n0.1,0\n", ":2: column 'u' is not a finite number"},
+      {"", "empty file"},
+  };
+  for (const auto& c : cases) {
+    const auto in = write("in.csv", c.text);
+    const fs::path out = dir_ / "traj.csv";
+    const Outcome r = run("simulate --input " + in.string() + " --out " + out.string());
+    EXPECT_EQ(r.exit_code, 2) << c.text;
+    EXPECT_THAT(r.err, HasSubstr(c.expected)) << c.text;
+    EXPECT_FALSE(fs::exists(out)) << c.text;
+    EXPECT_THAT(leftovers(), ::testing::IsEmpty()) << c.text;
+  }
+}
+
+TEST_F(PneuPlantCli, ConfigErrorsNameTheKeyAndTheReason) {
+  const auto in = write("in.csv", constant_input(0.0, 3, 0.001));
+  const fs::path out = dir_ / "traj.csv";
+  const std::string io = " --input " + in.string() + " --out " + out.string();
+
+  Outcome r = run("simulate --set plant.mass_kg=-3" + io);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("plant.mass_kg: must be > 0 (got -3)"));
+
+  r = run("simulate --set plant.geometry.rod_diameter_m=0.04" + io);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("plant.geometry.rod_diameter_m: must be smaller than"));
+
+  r = run("simulate --set plant.mass=3" + io);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("plant.mass: unknown key"));
+
+  const auto bad = write("in_bad.yaml", "plant:\n  mass_kg: 17\n");
+  r = run("simulate --config " + bad.string() + io);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("plant.geometry: missing"));
+
+  r = run("simulate --config " + (dir_ / "in_absent.yaml").string() + io);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("cannot open"));
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_THAT(leftovers(), ::testing::IsEmpty());
+}
+
+TEST_F(PneuPlantCli, BadCommandLinesExitWithTwo) {
+  EXPECT_EQ(run("").exit_code, 2);
+  EXPECT_EQ(run("fly").exit_code, 2);
+  const Outcome r = run("simulate --out x.csv");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("missing --input"));
+  EXPECT_THAT(run("simulate --frobnicate").err, HasSubstr("unknown option --frobnicate"));
+  EXPECT_THAT(run("characterize-valve --out t.csv --voltage-step-v -1").err,
+              HasSubstr("--voltage-step-v"));
+}
+
+TEST_F(PneuPlantCli, CharacterizeValveWritesATableThePredictorCanLoad) {
+  const fs::path out = dir_ / "valve.csv";
+  const Outcome r = run("characterize-valve --voltage-step-v 0.5 --pressure-step-pa 10000 --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto table = pneu::plant::ValveTable::load(out);
+  // -10..10 V by 0.5 V holds 0 and both ends; 1e5..7e5 Pa by 1e4 Pa.
+  EXPECT_EQ(table.voltages_v().size(), 41u);
+  EXPECT_EQ(table.pressures_pa().size(), 61u);
+  const pneu::plant::PlantParams params;
+  const pneu::plant::ValveModel model(params.valve, params.gas);
+  for (double w : {-10.0, -0.5, 0.0, 1.5, 10.0})
+    for (double p : {1.0e5, 3.5e5, 7.0e5})
+      EXPECT_NEAR(table.mass_flow_kg_per_s(w, p), model.mass_flow_kg_per_s(w, p),
+                  1e-15 + 1e-12 * std::abs(model.mass_flow_kg_per_s(w, p)))
+          << "w=" << w << " p=" << p;
+  EXPECT_THAT(r.out, HasSubstr("u_e (Eq. 7)"));
+}

@@ -232,6 +232,12 @@ Config load_file(const std::filesystem::path& path, const std::vector<std::strin
   return load_string(text.str(), overrides, path.string());
 }
 
+Config load_file_or_default(const std::filesystem::path& path,
+                            const std::vector<std::string>& overrides) {
+  if (path.empty()) return load_string(default_config_yaml(), overrides, "<embedded sim.yaml>");
+  return load_file(path, overrides);
+}
+
 namespace {
 void emit_channel(YAML::Emitter& e, const char* name, const char* gain_key,
                   const plant::SensorChannelParams& c) {

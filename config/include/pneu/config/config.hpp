@@ -46,6 +46,12 @@ struct Config {
 /// Same, from YAML text (`origin` names it in messages).
 [[nodiscard]] Config load_string(std::string_view yaml, const std::vector<std::string>& overrides = {},
                                  std::string_view origin = "<string>");
+/// The default bench (config/sim.yaml), embedded at build time.
+[[nodiscard]] std::string_view default_config_yaml() noexcept;
+/// Loads `path`, or the embedded default when `path` is empty.
+[[nodiscard]] Config load_file_or_default(const std::filesystem::path& path,
+                                          const std::vector<std::string>& overrides = {});
+
 /// The effective configuration as YAML, loadable by load_string().
 [[nodiscard]] std::string to_yaml(const Config& config);
 
