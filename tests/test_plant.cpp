@@ -1,0 +1,347 @@
+// Specification of the plant (MODEL.md sections 1, 2 and 4): Eq. 2 with hybrid Karnopp friction,
+// events located inside the step, hard end stops.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <utility>
+#include <vector>
+
+#include "pneu/sim_plant/params.hpp"
+#include "pneu/sim_plant/plant.hpp"
+#include "pneu/sim_plant/valve.hpp"
+
+namespace pneu::plant {
+namespace {
+
+using Kind = PlantEvent::Kind;
+
+constexpr double kSampleS = 1.0e-3;  // the bench's sample period (MODEL.md section 7)
+constexpr double kExhaustPa = 1.0e5;
+constexpr double kForceSPlus = 45.0;
+constexpr double kForceSMinus = -50.0;
+constexpr double kHalfStrokeM = 0.25;
+
+double area_p() { return std::numbers::pi / 4.0 * 0.032 * 0.032; }
+double area_n() { return area_p() - std::numbers::pi / 4.0 * 0.020 * 0.020; }
+double force_of(const PlantState& s) {
+  return area_p() * s.p_p_pa - area_n() * s.p_n_pa -
+         std::numbers::pi / 4.0 * 0.020 * 0.020 * kExhaustPa;
+}
+
+double equilibrium_voltage(const Plant& plant) {
+  return equilibrium_voltage_v(plant.valve(), plant.params().geometry, kExhaustPa);
+}
+
+// The voltage whose equilibrium force F_e(u) equals `force_n`, by bisection on the increasing
+// force gain characteristic.
+double voltage_for_equilibrium_force(const Plant& plant, double force_n) {
+  double lo = -10.0, hi = 10.0;
+  for (int i = 0; i < 100; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    const double f = equilibrium_force_n(plant.valve(), plant.params().geometry, kExhaustPa, mid);
+    (f < force_n ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+int count_events(const std::vector<PlantEvent>& events, Kind kind) {
+  return static_cast<int>(std::count_if(events.begin(), events.end(),
+                                        [&](const PlantEvent& e) { return e.kind == kind; }));
+}
+
+// An open-loop run from rest at mid-stroke: u_e, then steps that make the carriage slide, stick,
+// slide back and stop again. Returns the state after every 1 ms sample and every event.
+struct Trajectory {
+  std::vector<PlantState> samples;
+  std::vector<PlantEvent> events;
+};
+Trajectory run_open_loop_sequence(const PlantParams& params) {
+  Plant plant(params);
+  const double u_e = equilibrium_voltage(plant);
+  plant.reset_at_rest(0.0, u_e);
+  // (voltage [V], duration [s])
+  const std::vector<std::pair<double, double>> profile{
+      {u_e, 0.5}, {u_e + 0.6, 1.0}, {u_e - 0.8, 1.0}, {u_e + 0.3, 1.0}};
+  Trajectory run;
+  for (const auto& [u, duration] : profile) {
+    const int n = static_cast<int>(std::lround(duration / kSampleS));
+    for (int i = 0; i < n; ++i) {
+      plant.step(kSampleS, u);
+      run.samples.push_back(plant.state());
+      for (const PlantEvent& e : plant.last_events()) run.events.push_back(e);
+    }
+  }
+  return run;
+}
+
+// --- Pressure dynamics --------------------------------------------------------------------------
+
+TEST(Plant, ClosedChambersFollowThePolytropicLaw) {
+  PlantParams params;
+  params.valve.leak_conductance_in_m3_per_s_pa = 0.0;  // u = 0 then closes both orifices
+  params.valve.leak_conductance_out_m3_per_s_pa = 0.0;
+  params.friction = {.static_positive_n = 1e-3,
+                     .coulomb_positive_n = 1e-3,
+                     .static_negative_n = -1e-3,
+                     .coulomb_negative_n = -1e-3,
+                     .viscous_n_s_per_m = 0.0,
+                     .stribeck_velocity_m_per_s = 0.01,
+                     .stick_velocity_m_per_s = 0.0};
+  Plant plant(params);
+  // A gas spring: launched at 0.5 m/s it oscillates over several cm (period ~0.6 s).
+  plant.reset({.t_s = 0.0, .y_m = 0.0, .v_m_per_s = 0.5, .p_p_pa = 3.0e5, .p_n_pa = 3.0e5});
+  const double k = 1.2;
+  const auto volume_p = [](double y) { return 1.0e-5 + area_p() * (kHalfStrokeM + y); };
+  const auto volume_n = [](double y) { return 1.0e-5 + area_n() * (kHalfStrokeM - y); };
+  const double invariant_p = 3.0e5 * std::pow(volume_p(0.0), k);
+  const double invariant_n = 3.0e5 * std::pow(volume_n(0.0), k);
+
+  double y_min = 0.0, y_max = 0.0, worst = 0.0;
+  for (int i = 0; i < 3000; ++i) {
+    plant.step(kSampleS, 0.0);
+    const PlantState& s = plant.state();
+    y_min = std::min(y_min, s.y_m);
+    y_max = std::max(y_max, s.y_m);
+    worst = std::max({worst, std::abs(s.p_p_pa * std::pow(volume_p(s.y_m), k) / invariant_p - 1.0),
+                      std::abs(s.p_n_pa * std::pow(volume_n(s.y_m), k) / invariant_n - 1.0)});
+  }
+  EXPECT_GT(y_max - y_min, 0.05);  // the piston really moved
+  // RK4 at h = 2e-4 s on a ~10 rad/s oscillation has a local error ~(h omega)^5 ~ 3e-16; measured
+  // worst 3.4e-14 over 3 s (15000 steps and 10 reversals). 1e-12 leaves room for rounding; a wrong
+  // exponent, volume or sign of the v-terms of Eq. 2 gives > 1e-2.
+  EXPECT_LT(worst, 1e-12);
+}
+
+// --- Friction -----------------------------------------------------------------------------------
+
+TEST(Plant, SlidingFrictionFollowsTheAsymmetricStribeckCurve) {
+  const Plant plant(PlantParams{});
+  for (double v : {1e-4, 0.005, 0.01, 0.03, 0.2, 1.5}) {
+    const double stribeck = std::exp(-(v / 0.01) * (v / 0.01));
+    // Rounding of forces of tens of N: 1e-12 N.
+    EXPECT_NEAR(plant.sliding_friction_n(Motion::kSlidingPositive, v),
+                35.0 + (45.0 - 35.0) * stribeck + 60.0 * v, 1e-12)
+        << v;
+    EXPECT_NEAR(plant.sliding_friction_n(Motion::kSlidingNegative, -v),
+                -38.0 + (-50.0 + 38.0) * stribeck - 60.0 * v, 1e-12)
+        << v;
+  }
+}
+
+// --- Stiction -----------------------------------------------------------------------------------
+
+TEST(Plant, StuckCarriageStaysExactlyStillWhilePressuresEvolve) {
+  Plant plant(PlantParams{});
+  const double u_e = equilibrium_voltage(plant);
+  plant.reset_at_rest(0.1, u_e);
+  const PlantState null = plant.state();
+  // Both chambers 30 kPa above their null pressures with the same force as at equilibrium (F = 0):
+  // each term of F decays monotonically from S_P * 30 kPa = 24 N, so |F| < 24 N < 45 N throughout.
+  const double dp = 3.0e4;
+  PlantState start = null;
+  start.p_p_pa += dp;
+  start.p_n_pa += dp * area_p() / area_n();
+  plant.reset(start);
+  ASSERT_EQ(plant.state().motion, Motion::kStuck);
+
+  for (int i = 0; i < 10000; ++i) {  // 10 s
+    plant.step(kSampleS, u_e);
+    const PlantState& s = plant.state();
+    ASSERT_GT(force_of(s), kForceSMinus);  // precondition of the test: F inside the band
+    ASSERT_LT(force_of(s), kForceSPlus);
+    ASSERT_EQ(s.y_m, 0.1) << "t = " << s.t_s;  // bitwise: no creep
+    ASSERT_EQ(s.v_m_per_s, 0.0) << "t = " << s.t_s;
+    ASSERT_EQ(s.motion, Motion::kStuck);
+    ASSERT_TRUE(plant.last_events().empty());
+  }
+  // Not vacuous: the pressures did relax most of the way back to their null values.
+  EXPECT_LT(std::abs(plant.state().p_p_pa - null.p_p_pa), 0.3 * dp);
+  EXPECT_LT(std::abs(plant.state().p_n_pa - null.p_n_pa), 0.3 * dp * area_p() / area_n());
+}
+
+// Holds `u` from complete equilibrium at u_e until the first event; checks it is a breakaway at
+// `bound` in `direction` and that nothing moved before.
+void expect_breakaway_at_stiction_bound(double target_force_n, double bound, int direction) {
+  Plant plant(PlantParams{});
+  plant.reset_at_rest(0.0, equilibrium_voltage(plant));
+  const double u = voltage_for_equilibrium_force(plant, target_force_n);
+
+  std::vector<PlantEvent> events;
+  for (int i = 0; i < 30000 && events.empty(); ++i) {  // up to 30 s
+    const PlantState before = plant.state();
+    plant.step(kSampleS, u);
+    for (const PlantEvent& e : plant.last_events()) events.push_back(e);
+    if (!events.empty()) {
+      // The step that breaks away started inside the band.
+      EXPECT_LT(direction * force_of(before), direction * bound);
+      EXPECT_GT(events.front().t_s, before.t_s);
+      EXPECT_LE(events.front().t_s, plant.state().t_s);
+      break;
+    }
+    // No event yet: the carriage has not moved, and F is still inside the band.
+    ASSERT_EQ(plant.state().y_m, 0.0);
+    ASSERT_EQ(plant.state().v_m_per_s, 0.0);
+    ASSERT_LT(direction * force_of(plant.state()), direction * bound) << plant.state().t_s;
+  }
+  ASSERT_EQ(count_events(events, Kind::kBreakaway), 1);
+  ASSERT_EQ(events.size(), 1u);
+  const PlantEvent& breakaway = events.front();
+  EXPECT_EQ(breakaway.direction, direction);
+  EXPECT_EQ(breakaway.y_m, 0.0);
+  // Located to 1e-11 s while F rises at < 1e3 N/s: well below 1e-6 N, on the breaking side.
+  EXPECT_NEAR(breakaway.force_n, bound, 1e-6);
+  EXPECT_GE(direction * breakaway.force_n, direction * bound);
+
+  // Then it moves in `direction`: friction starts at F_S, so it gathers speed slowly, but it does.
+  double previous_y = plant.state().y_m;
+  for (int i = 0; i < 100; ++i) {
+    plant.step(kSampleS, u);
+    EXPECT_GT(direction * (plant.state().y_m - previous_y), 0.0) << "t = " << plant.state().t_s;
+    previous_y = plant.state().y_m;
+  }
+  EXPECT_GT(direction * plant.state().y_m, 1e-5);  // 100 ms later: tens of um (not a rounding)
+}
+
+TEST(Plant, BreaksAwayForwardWhenForceCrossesPositiveStiction) {
+  // F_e 5 N beyond F_S+: the pressures creep towards it and cross F_S+ after a few seconds.
+  expect_breakaway_at_stiction_bound(kForceSPlus + 5.0, kForceSPlus, +1);
+}
+
+TEST(Plant, BreaksAwayBackwardWhenForceCrossesNegativeStiction) {
+  expect_breakaway_at_stiction_bound(kForceSMinus - 5.0, kForceSMinus, -1);
+}
+
+TEST(Plant, SticksOnlyWithForceInsideTheStictionBand) {
+  const Trajectory run = run_open_loop_sequence(PlantParams{});
+  ASSERT_GE(count_events(run.events, Kind::kStick), 2);  // the profile stops the carriage twice
+  for (const PlantEvent& e : run.events) {
+    if (e.kind != Kind::kStick) continue;
+    EXPECT_GE(e.force_n, kForceSMinus) << "t = " << e.t_s;
+    EXPECT_LE(e.force_n, kForceSPlus) << "t = " << e.t_s;
+  }
+}
+
+TEST(Plant, ReversesInsteadOfStickingWhenForceIsBeyondStictionAtZeroVelocity) {
+  Plant plant(PlantParams{});
+  // Sliding backwards at 0.3 m/s against F ~ 220 N (> F_S+): it stops within ~20 ms, then must go
+  // on forwards without sticking.
+  plant.reset({.t_s = 0.0, .y_m = 0.0, .v_m_per_s = -0.3, .p_p_pa = 5.0e5, .p_n_pa = 3.0e5});
+  std::vector<PlantEvent> events;
+  for (int i = 0; i < 100 && events.empty(); ++i) {
+    plant.step(kSampleS, 2.0);
+    for (const PlantEvent& e : plant.last_events()) events.push_back(e);
+  }
+  ASSERT_FALSE(events.empty());
+  EXPECT_EQ(events.front().kind, Kind::kReversal);
+  EXPECT_EQ(events.front().direction, +1);
+  EXPECT_GT(events.front().force_n, kForceSPlus);
+  EXPECT_EQ(count_events(events, Kind::kStick), 0);
+  plant.step(kSampleS, 2.0);
+  EXPECT_GT(plant.state().v_m_per_s, 0.0);
+}
+
+TEST(Plant, SlowApproachToZeroVelocityDoesNotStickWithForceBeyondStiction) {
+  PlantParams params;
+  params.mass_kg = 2000.0;  // decelerates at ~0.075 m/s^2: |v| < 1e-4 m/s for ~1.3 ms, 6 sub-steps
+  Plant plant(params);
+  const double u = voltage_for_equilibrium_force(plant, 100.0);
+  plant.reset_at_rest(0.0, u);  // F = 100 N > F_S+, held there by u
+  PlantState start = plant.state();
+  start.v_m_per_s = -1.0e-3;
+  plant.reset(start);
+  std::vector<PlantEvent> events;
+  for (int i = 0; i < 100 && events.empty(); ++i) {
+    plant.step(kSampleS, u);
+    for (const PlantEvent& e : plant.last_events()) events.push_back(e);
+  }
+  ASSERT_FALSE(events.empty());
+  EXPECT_EQ(events.front().kind, Kind::kReversal);  // not a stick inside the velocity band
+  EXPECT_EQ(count_events(events, Kind::kStick), 0);
+}
+
+// --- End stops ----------------------------------------------------------------------------------
+
+void expect_stops_at_end(double u, double end_m, int direction) {
+  Plant plant(PlantParams{});
+  plant.reset_at_rest(0.0, equilibrium_voltage(plant));
+  std::vector<PlantEvent> events;
+  bool reached = false;
+  for (int i = 0; i < 3000; ++i) {  // 3 s at full opening
+    plant.step(kSampleS, u);
+    const PlantState& s = plant.state();
+    ASSERT_LE(std::abs(s.y_m), kHalfStrokeM) << "t = " << s.t_s;
+    for (const PlantEvent& e : plant.last_events()) events.push_back(e);
+    if (s.y_m == end_m) reached = true;
+    if (reached) {  // and stays there, at rest, pressed against the stop
+      ASSERT_EQ(s.y_m, end_m);
+      ASSERT_EQ(s.v_m_per_s, 0.0);
+    }
+  }
+  EXPECT_TRUE(reached);
+  ASSERT_EQ(count_events(events, Kind::kEndStop), 1);
+  const auto stop = std::find_if(events.begin(), events.end(),
+                                 [](const PlantEvent& e) { return e.kind == Kind::kEndStop; });
+  EXPECT_EQ(stop->y_m, end_m);
+  EXPECT_EQ(stop->direction, direction);
+  EXPECT_EQ(plant.state().motion, Motion::kStuck);
+}
+
+TEST(Plant, FullOpeningDrivesTheCarriageOntoThePositiveEndStop) {
+  expect_stops_at_end(+10.0, +kHalfStrokeM, +1);
+}
+
+TEST(Plant, FullReverseOpeningDrivesTheCarriageOntoTheNegativeEndStop) {
+  expect_stops_at_end(-10.0, -kHalfStrokeM, -1);
+}
+
+// --- Numerics -----------------------------------------------------------------------------------
+
+TEST(Plant, HalvingTheStepChangesTheTrajectoryLessThanTheStatedTolerance) {
+  PlantParams coarse, fine;
+  coarse.max_step_s = 2.0e-4;
+  fine.max_step_s = 1.0e-4;
+  // Both below the stability limit (~2.1e-4 s for the paper bench), so the step really halves.
+  ASSERT_EQ(Plant(coarse).step_size_s(), 2.0e-4);
+  ASSERT_EQ(Plant(fine).step_size_s(), 1.0e-4);
+
+  const Trajectory a = run_open_loop_sequence(coarse);
+  const Trajectory b = run_open_loop_sequence(fine);
+  ASSERT_EQ(a.samples.size(), b.samples.size());
+  double y_range = 0.0, dy = 0.0, dp = 0.0;
+  for (std::size_t i = 0; i < a.samples.size(); ++i) {
+    y_range = std::max(y_range, std::abs(a.samples[i].y_m));
+    dy = std::max(dy, std::abs(a.samples[i].y_m - b.samples[i].y_m));
+    dp = std::max({dp, std::abs(a.samples[i].p_p_pa - b.samples[i].p_p_pa),
+                   std::abs(a.samples[i].p_n_pa - b.samples[i].p_n_pa)});
+  }
+  EXPECT_GT(y_range, 0.02);  // the profile does move the carriage (measured 0.157 m)
+  EXPECT_EQ(a.events.size(), b.events.size());  // same stick/breakaway sequence (5 events)
+  // Measured: max |dy| = 8.7e-10 m, max |dp| = 2.2e-3 Pa (the largest differences come from the
+  // stick-velocity band, tested only at sub-step ends). Tolerances about 5x above.
+  EXPECT_LT(dy, 5.0e-9);
+  EXPECT_LT(dp, 1.0e-2);
+}
+
+TEST(Plant, StepIsDeterministic) {
+  const Trajectory a = run_open_loop_sequence(PlantParams{});
+  const Trajectory b = run_open_loop_sequence(PlantParams{});
+  ASSERT_EQ(a.samples.size(), b.samples.size());
+  for (std::size_t i = 0; i < a.samples.size(); ++i) {  // bitwise equal
+    ASSERT_EQ(a.samples[i].y_m, b.samples[i].y_m);
+    ASSERT_EQ(a.samples[i].v_m_per_s, b.samples[i].v_m_per_s);
+    ASSERT_EQ(a.samples[i].p_p_pa, b.samples[i].p_p_pa);
+    ASSERT_EQ(a.samples[i].p_n_pa, b.samples[i].p_n_pa);
+    ASSERT_EQ(a.samples[i].t_s, b.samples[i].t_s);
+    ASSERT_EQ(a.samples[i].motion, b.samples[i].motion);
+  }
+  ASSERT_EQ(a.events.size(), b.events.size());
+  for (std::size_t i = 0; i < a.events.size(); ++i) {
+    EXPECT_EQ(a.events[i].t_s, b.events[i].t_s);
+    EXPECT_EQ(a.events[i].force_n, b.events[i].force_n);
+  }
+}
+
+}  // namespace
+}  // namespace pneu::plant
