@@ -159,6 +159,99 @@ SimulationConfig read_simulation(MapReader r, const plant::Geometry& g) {
   return s;
 }
 
+ControllerConfig read_controller(MapReader r, const plant::PlantParams& plant) {
+  ControllerConfig c;
+  const double half = plant.geometry.half_stroke_m();
+  c.rate_hz = in_range(r, "rate_hz", 1.0, 20000.0);
+  const std::string clock = r.string("clock");
+  if (clock == "simulated") c.clock = ClockKind::kSimulated;
+  else if (clock == "real") c.clock = ClockKind::kReal;
+  else throw ConfigError(r.child_path("clock"), "must be 'simulated' or 'real' (got '" + clock + "')");
+  c.duration_s = non_negative(r, "duration_s");
+  {
+    MapReader law = r.map("law");
+    c.law.position_gain_v_per_m = non_negative(law, "position_gain_v_per_m");
+    c.law.velocity_gain_v_s_per_m = non_negative(law, "velocity_gain_v_s_per_m");
+    c.law.acceleration_gain_v_s2_per_m = non_negative(law, "acceleration_gain_v_s2_per_m");
+    const YAML::Node offset = law.node("offset_v");
+    if (offset.IsScalar() && offset.Scalar() == "auto") {
+      c.offset_auto = true;
+    } else {
+      c.offset_auto = false;
+      c.law.offset_v = MapReader::to_number(offset, law.child_path("offset_v"));
+    }
+    c.law.max_voltage_v = positive(law, "max_voltage_v");
+    law.finish();
+  }
+  {
+    MapReader d = r.map("differentiator");
+    c.differentiator.smoothing = d.number("smoothing");
+    check(c.differentiator.smoothing > 0.0 && c.differentiator.smoothing <= 1.0,
+          d.child_path("smoothing"), "must be in (0, 1] (got " + fmt(c.differentiator.smoothing) + ")");
+    d.finish();
+  }
+  {
+    MapReader d = r.map("stop_detector");
+    c.stop_detector.rest_band_m = non_negative(d, "rest_band_m");
+    c.stop_detector.motion_band_m = positive(d, "motion_band_m");
+    check(c.stop_detector.motion_band_m > c.stop_detector.rest_band_m, d.child_path("motion_band_m"),
+          "must exceed rest_band_m");
+    c.stop_detector.hold_s = positive(d, "hold_s");
+    d.finish();
+  }
+  {
+    MapReader pr = r.map("predictor");
+    const YAML::Node methods = pr.node("methods");
+    const std::string mpath = pr.child_path("methods");
+    if (!methods.IsSequence()) throw ConfigError(mpath, "expected a list, e.g. [linearized, nonlinear]");
+    c.predictor.linearized = c.predictor.nonlinear = false;
+    for (std::size_t i = 0; i < methods.size(); ++i) {
+      const std::string m = methods[i].IsScalar() ? methods[i].Scalar() : "";
+      if (m == "linearized") c.predictor.linearized = true;
+      else if (m == "nonlinear") c.predictor.nonlinear = true;
+      else throw ConfigError(mpath + "[" + std::to_string(i) + "]",
+                             "unknown method '" + m + "' (linearized, nonlinear)");
+    }
+    c.predictor.valve_table = pr.string_or("valve_table", "");
+    c.predictor.horizon_s = positive(pr, "horizon_s");
+    pr.finish();
+  }
+  {
+    MapReader sp = r.map("setpoints");
+    c.initial_setpoint_m = sp.number("initial_m");
+    check(std::abs(c.initial_setpoint_m) <= half, sp.child_path("initial_m"),
+          "must lie inside the stroke [" + fmt(-half) + ", " + fmt(half) + "] m (got " +
+              fmt(c.initial_setpoint_m) + ")");
+    const YAML::Node steps = sp.sequence_or_empty("schedule");
+    const std::string spath = sp.child_path("schedule");
+    for (std::size_t i = 0; i < steps.size(); ++i) {
+      MapReader step(steps[i], spath + "[" + std::to_string(i) + "]");
+      SetpointStep s;
+      s.t_s = non_negative(step, "t_s");
+      s.position_m = step.number("position_m");
+      check(std::abs(s.position_m) <= half, step.child_path("position_m"),
+            "must lie inside the stroke [" + fmt(-half) + ", " + fmt(half) + "] m (got " +
+                fmt(s.position_m) + ")");
+      if (!c.schedule.empty())
+        check(s.t_s > c.schedule.back().t_s, step.child_path("t_s"), "times must increase");
+      step.finish();
+      c.schedule.push_back(s);
+    }
+    sp.finish();
+  }
+  r.finish();
+  return c;
+}
+
+HalConfig read_hal(MapReader r) {
+  HalConfig h;
+  const std::string backend = r.string("backend");
+  if (backend == "sim") h.backend = BackendKind::kSim;
+  else throw ConfigError(r.child_path("backend"), "unknown backend '" + backend + "' (sim)");
+  r.finish();
+  return h;
+}
+
 // "a.b.c=value": sets the node at a.b.c to the YAML value, creating missing keys; the schema
 // decoder then rejects any key it does not know.
 void apply_override(YAML::Node& root, const std::string& assignment) {
@@ -204,6 +297,8 @@ Config decode(const YAML::Node& root) {
   c.plant = read_plant(r.map("plant"));
   c.sensors = read_sensors(r.map("sensors"));
   c.simulation = read_simulation(r.map("simulation"), c.plant.geometry);
+  c.controller = read_controller(r.map("controller"), c.plant);
+  c.hal = read_hal(r.map("hal"));
   r.finish();
   return c;
 }
@@ -301,6 +396,50 @@ std::string to_yaml(const Config& c) {
   e << YAML::EndMap;
   e << YAML::Key << "simulation" << YAML::Value << YAML::BeginMap;
   kv("initial_position_m", c.simulation.initial_position_m);
+  e << YAML::EndMap;
+  const auto& k = c.controller;
+  e << YAML::Key << "controller" << YAML::Value << YAML::BeginMap;
+  kv("rate_hz", k.rate_hz);
+  kv("clock", k.clock == ClockKind::kReal ? "real" : "simulated");
+  kv("duration_s", k.duration_s);
+  e << YAML::Key << "law" << YAML::Value << YAML::BeginMap;
+  kv("position_gain_v_per_m", k.law.position_gain_v_per_m);
+  kv("velocity_gain_v_s_per_m", k.law.velocity_gain_v_s_per_m);
+  kv("acceleration_gain_v_s2_per_m", k.law.acceleration_gain_v_s2_per_m);
+  if (k.offset_auto) kv("offset_v", "auto");
+  else kv("offset_v", k.law.offset_v);
+  kv("max_voltage_v", k.law.max_voltage_v);
+  e << YAML::EndMap;
+  e << YAML::Key << "differentiator" << YAML::Value << YAML::BeginMap;
+  kv("smoothing", k.differentiator.smoothing);
+  e << YAML::EndMap;
+  e << YAML::Key << "stop_detector" << YAML::Value << YAML::BeginMap;
+  kv("rest_band_m", k.stop_detector.rest_band_m);
+  kv("motion_band_m", k.stop_detector.motion_band_m);
+  kv("hold_s", k.stop_detector.hold_s);
+  e << YAML::EndMap;
+  e << YAML::Key << "predictor" << YAML::Value << YAML::BeginMap;
+  e << YAML::Key << "methods" << YAML::Value << YAML::Flow << YAML::BeginSeq;
+  if (k.predictor.linearized) e << "linearized";
+  if (k.predictor.nonlinear) e << "nonlinear";
+  e << YAML::EndSeq;
+  kv("valve_table", k.predictor.valve_table);
+  kv("horizon_s", k.predictor.horizon_s);
+  e << YAML::EndMap;
+  e << YAML::Key << "setpoints" << YAML::Value << YAML::BeginMap;
+  kv("initial_m", k.initial_setpoint_m);
+  e << YAML::Key << "schedule" << YAML::Value << YAML::BeginSeq;
+  for (const auto& s : k.schedule) {
+    e << YAML::Flow << YAML::BeginMap;
+    kv("t_s", s.t_s);
+    kv("position_m", s.position_m);
+    e << YAML::EndMap;
+  }
+  e << YAML::EndSeq;
+  e << YAML::EndMap;
+  e << YAML::EndMap;
+  e << YAML::Key << "hal" << YAML::Value << YAML::BeginMap;
+  kv("backend", "sim");
   e << YAML::EndMap;
   e << YAML::EndMap;
   return std::string(e.c_str()) + "\n";

@@ -59,6 +59,19 @@ class MapReader {
     if (!n.IsScalar()) throw ConfigError(child_path(key), "expected a string, got " + describe(n));
     return n.Scalar();
   }
+  std::string string_or(const std::string& key, const std::string& fallback) {
+    if (has(key)) return string(key);
+    seen_.insert(key);
+    return fallback;
+  }
+  /// An optional sequence: an empty one when the key is absent.
+  YAML::Node sequence_or_empty(const std::string& key) {
+    seen_.insert(key);
+    if (!has(key)) return YAML::Node(YAML::NodeType::Sequence);
+    const YAML::Node n = node_[key];
+    if (!n.IsSequence()) throw ConfigError(child_path(key), "expected a list, got " + describe(n));
+    return n;
+  }
   MapReader map(const std::string& key) {
     seen_.insert(key);
     return MapReader(node_[key], child_path(key));

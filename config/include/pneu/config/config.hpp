@@ -31,11 +31,79 @@ struct SimulationConfig {
   double initial_position_m = 0.2195;  ///< simulation.initial_position_m: rest position at t = 0 [m], inside the stroke
 };
 
+struct DifferentiatorParams {
+  /// Smoothing gain alpha of each first-order low-pass, x += alpha (raw - x) per sample, in (0, 1].
+  /// alpha = 1 is the bare backward difference. Pole at z = 1 - alpha: time constant
+  /// -T / ln(1 - alpha) (2.8 ms at alpha = 0.3, T = 1 ms), -3 dB bandwidth about
+  /// acos(1 - alpha^2 / (2 (1 - alpha))) / (2 pi T) (57 Hz at alpha = 0.3, T = 1 ms).
+  double smoothing = 0.3;
+};
+
+struct ControlLawParams {
+  double position_gain_v_per_m = 80.0;             ///< K_y [V/m]
+  double velocity_gain_v_s_per_m = 1.5;            ///< K_v [V/(m/s)]
+  double acceleration_gain_v_s2_per_m = 0.002;     ///< K_a [V/(m/s^2)]
+  double offset_v = 0.0;                           ///< u_0 [V]: u_e of Eq. 7 unless configured
+  double max_voltage_v = 10.0;                     ///< u_max: saturation [V], > 0
+};
+
+struct StopDetectorParams {
+  /// Positions within this band of the first still sample count as "not moving" [m], >= 0.
+  /// 0 suits ideal sensors (a stuck carriage reads the same position bit for bit); with noise or
+  /// quantisation use a few standard deviations / one LSB.
+  double rest_band_m = 0.0;
+  /// Leaving rest: the position must move more than this from the stop position [m], > rest band.
+  double motion_band_m = 1.0e-6;
+  /// A stop is confirmed once the position stays within the rest band this long [s], > 0.
+  double hold_s = 0.005;
+};
+
+/// Which predictors run at each stop, and with which valve characteristic.
+struct PredictorConfig {
+  bool linearized = true;           ///< controller.predictor.methods holds "linearized"
+  bool nonlinear = true;            ///< controller.predictor.methods holds "nonlinear"
+  std::string valve_table;          ///< table from `pneu-plant characterize-valve`; empty: the model
+  double horizon_s = 600.0;         ///< the nonlinear method stops looking this long after a stop [s]
+};
+
+/// One step of the set-point schedule.
+struct SetpointStep {
+  double t_s = 0.0;                 ///< from this time on [s], increasing
+  double position_m = 0.0;          ///< the set point y_d [m], inside the stroke
+};
+
+enum class ClockKind { kSimulated, kReal };
+
+/// pneud's loop and control.
+struct ControllerConfig {
+  double rate_hz = 1000.0;          ///< loop rate [Hz]
+  ClockKind clock = ClockKind::kSimulated;  ///< simulated: lockstep with the in-process plant
+  double duration_s = 12.0;         ///< run length [s]; 0 = until SIGINT/SIGTERM (real clock)
+  bool offset_auto = true;          ///< u_0 = u_e of Eq. 7 (law.offset_v is then computed)
+  ControlLawParams law;
+  DifferentiatorParams differentiator;
+  StopDetectorParams stop_detector;
+  PredictorConfig predictor;
+  double initial_setpoint_m = 0.2195;   ///< set point before the first schedule step [m]
+  std::vector<SetpointStep> schedule;   ///< set-point steps, time increasing
+
+  [[nodiscard]] double period_s() const noexcept { return 1.0 / rate_hz; }
+};
+
+enum class BackendKind { kSim };
+
+/// The hardware abstraction layer: which backend pneud drives.
+struct HalConfig {
+  BackendKind backend = BackendKind::kSim;  ///< hal.backend: "sim" (in-process plant)
+};
+
 /// The whole configuration.
 struct Config {
   plant::PlantParams plant;          ///< plant.*
   plant::SensorParams sensors;       ///< sensors.*
   SimulationConfig simulation;       ///< simulation.*
+  ControllerConfig controller;       ///< controller.*
+  HalConfig hal;                     ///< hal.*
 };
 
 /// Loads and validates a YAML file. `overrides` are "dotted.key.path=value" strings applied

@@ -1,0 +1,139 @@
+// pneud: the controller daemon of the electropneumatic bench.
+#include <csignal>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <optional>
+
+#include "pneu/config/cli.hpp"
+#include "pneu/config/config.hpp"
+#include "pneu/controller/session.hpp"
+
+namespace {
+
+using namespace pneu;
+
+constexpr const char* kHelp = R"(pneud: real-time controller of the electropneumatic positioning bench
+
+Usage:
+  pneud [--config FILE] [--clock real|simulated] [--duration S] [--events FILE]
+        [--trajectory FILE] [--set KEY=VALUE ...] [--check-config] [--quiet]
+  pneud --help | --version
+
+  --config FILE      YAML configuration (default: the embedded config/sim.yaml, the simulated bench
+                     running the paper's set-point step)
+  --clock C          real: fixed rate on CLOCK_MONOTONIC (clock_nanosleep, absolute deadlines);
+                     simulated: lockstep with the in-process plant, as fast as the CPU allows
+                     (same as --set controller.clock=C)
+  --duration S       run length in seconds; 0 runs until SIGINT/SIGTERM (real clock)
+                     (same as --set controller.duration_s=S)
+  --events FILE      one JSON object per line: start, stop, prediction, end
+  --trajectory FILE  one CSV row per tick: seq,t,y_d,y,v_hat,a_hat,p_P,p_N,F,u,stuck,validity
+  --set KEY=VALUE    override a config key by its dotted path, e.g. controller.law.position_gain_v_per_m=60
+  --check-config     validate, print the effective configuration (u_0 resolved) and exit
+  --quiet            no summary
+
+Exit codes: 0 success, 1 run failure, 2 bad command line or configuration (nothing was run).
+)";
+
+std::atomic<bool> g_stop{false};
+extern "C" void on_signal(int) { g_stop.store(true); }
+
+int run(int argc, char** argv) {
+  const cli::Args args(argc, argv, 1, {"config", "clock", "duration", "events", "trajectory"},
+                       {"check-config", "quiet", "help", "version"}, {"set"});
+  if (args.flag("help")) {
+    std::cout << kHelp;
+    return cli::kExitOk;
+  }
+  if (args.flag("version")) {
+    std::printf("pneud %s\n", PNEU_VERSION);
+    return cli::kExitOk;
+  }
+  std::vector<std::string> overrides = args.all("set");
+  if (auto c = args.value("clock")) {
+    if (*c != "real" && *c != "simulated") throw cli::UsageError("--clock must be real or simulated");
+    overrides.push_back("controller.clock=" + *c);
+  }
+  if (auto d = args.value("duration")) {
+    (void)args.number("duration", 0.0);  // a number, or a usage error
+    overrides.push_back("controller.duration_s=" + *d);
+  }
+  const std::string config_path = args.value("config").value_or("");
+  config::Config cfg = config::load_file_or_default(config_path, overrides);
+  if (cfg.controller.duration_s == 0.0 && cfg.controller.clock == config::ClockKind::kSimulated)
+    throw config::ConfigError("controller.duration_s",
+                              "0 (run until stopped) needs the real clock; give a duration");
+  std::unique_ptr<plant::ValveCharacteristic> valve;
+  try {
+    valve = controller::make_valve_characteristic(
+        cfg, config_path.empty() ? std::filesystem::path() : std::filesystem::path(config_path).parent_path());
+  } catch (const plant::ValveTableError& e) {
+    throw config::ConfigError("controller.predictor.valve_table", e.what());
+  }
+  controller::resolve_offset(cfg, *valve);
+
+  if (args.flag("check-config")) {
+    std::cout << "# effective configuration of pneud (u_0 = u_e of Eq. 7 = " << cfg.controller.law.offset_v
+              << " V)\n"
+              << config::to_yaml(cfg);
+    return cli::kExitOk;
+  }
+
+  std::optional<std::ofstream> events, trajectory;
+  if (auto p = args.value("events")) {
+    events.emplace(*p);
+    if (!*events) throw std::runtime_error(*p + ": cannot create the events file");
+  }
+  if (auto p = args.value("trajectory")) {
+    trajectory.emplace(*p);
+    if (!*trajectory) throw std::runtime_error(*p + ": cannot create the trajectory file");
+  }
+
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  auto run = controller::make_simulated_run(cfg, *valve, events ? &*events : nullptr,
+                                            trajectory ? &*trajectory : nullptr);
+  std::unique_ptr<controller::Clock> clock;
+  if (cfg.controller.clock == config::ClockKind::kReal) clock = std::make_unique<controller::RealClock>();
+  else clock = std::make_unique<controller::SimulatedClock>();
+  const auto wall0 = std::chrono::steady_clock::now();
+  controller::execute(run, cfg, *clock, g_stop);
+  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+
+  if (events) events->flush();
+  if (trajectory) trajectory->flush();
+  if ((events && !*events) || (trajectory && !*trajectory)) throw std::runtime_error("writing the output failed");
+
+  if (!args.flag("quiet")) {
+    std::printf("pneud %s: %.3f s on the sim backend, %s clock (%s), u_0 = %+.4f V, wall time %.3f s (%.0fx real time)\n",
+                PNEU_VERSION, run.report->end_time_s(),
+                cfg.controller.clock == config::ClockKind::kReal ? "real" : "simulated",
+                config_path.empty() ? "embedded sim.yaml" : config_path.c_str(), cfg.controller.law.offset_v,
+                wall_s, run.report->end_time_s() / wall_s);
+    run.report->print_summary(stdout, run.timing);
+    if (run.outputs->ticks_dropped || run.outputs->events_dropped)
+      std::printf("  telemetry dropped: %llu tick records, %llu events\n",
+                  static_cast<unsigned long long>(run.outputs->ticks_dropped),
+                  static_cast<unsigned long long>(run.outputs->events_dropped));
+  }
+  return cli::kExitOk;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const cli::UsageError& e) {
+    std::cerr << "pneud: " << e.what() << "\n";
+    return cli::kExitBadInput;
+  } catch (const config::ConfigError& e) {
+    std::cerr << "pneud: config: " << e.what() << "\n";
+    return cli::kExitBadInput;
+  } catch (const std::exception& e) {
+    std::cerr << "pneud: " << e.what() << "\n";
+    return cli::kExitFailure;
+  }
+}

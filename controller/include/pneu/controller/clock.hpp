@@ -1,0 +1,65 @@
+// The loop's clocks and the fixed-rate runner.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+
+#include "pneu/controller/loop.hpp"
+#include "pneu/controller/timing_stats.hpp"
+
+namespace pneu::controller {
+
+/// Time source of the loop, in seconds since an epoch of the clock's choosing.
+class Clock {
+ public:
+  virtual ~Clock() = default;
+  [[nodiscard]] virtual double now_s() noexcept = 0;
+  /// Returns at or after `t_s`. Real-time safe.
+  virtual void sleep_until(double t_s) noexcept = 0;
+  [[nodiscard]] virtual bool simulated() const noexcept = 0;
+};
+
+/// CLOCK_MONOTONIC, absolute-deadline sleep with clock_nanosleep(TIMER_ABSTIME).
+class RealClock final : public Clock {
+ public:
+  RealClock() noexcept;
+  [[nodiscard]] double now_s() noexcept override;
+  void sleep_until(double t_s) noexcept override;
+  [[nodiscard]] bool simulated() const noexcept override { return false; }
+
+ private:
+  double epoch_s_;
+};
+
+/// Lockstep with the in-process plant: time jumps to each deadline, nothing sleeps; runs are
+/// deterministic and as fast as the CPU allows.
+class SimulatedClock final : public Clock {
+ public:
+  [[nodiscard]] double now_s() noexcept override { return now_s_; }
+  void sleep_until(double t_s) noexcept override {
+    if (t_s > now_s_) now_s_ = t_s;
+  }
+  [[nodiscard]] bool simulated() const noexcept override { return true; }
+
+ private:
+  double now_s_ = 0.0;
+};
+
+/// Timing of a run. Written by the loop thread; read after the run.
+struct LoopTiming {
+  TimingStats wake_latency;   ///< actual wake-up minus deadline (0 on the simulated clock)
+  TimingStats compute;        ///< wake-up to end of tick, measured on the steady clock
+  std::uint64_t ticks = 0;
+  std::uint64_t overruns = 0; ///< ticks that ended after the next deadline (those deadlines are skipped)
+  double period_s = 0.0;
+};
+
+/// Runs `loop` at a fixed period from loop time 0 until `max_ticks` (0 = no limit) or
+/// `stop_requested`. `between_ticks`, when set, runs after each tick outside the timed part (the
+/// simulated clock's way of servicing the non-real-time side deterministically).
+void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t max_ticks,
+              const std::atomic<bool>& stop_requested, LoopTiming& timing,
+              const std::function<void()>& between_ticks = {});
+
+}  // namespace pneu::controller

@@ -1,0 +1,66 @@
+// The restart predictor (MODEL.md section 6): while the carriage is stuck at y* under the constant
+// control u* (Eq. 11), will the pressure force leave the stiction band, in which direction, when?
+// A pure library: no state, no allocation, no exception.
+#pragma once
+
+#include <cstdint>
+#include <limits>
+
+#include "pneu/sim_plant/params.hpp"
+#include "pneu/sim_plant/valve.hpp"
+
+namespace pneu::controller {
+
+enum class PredictionMethod : std::uint8_t {
+  kLinearized,  ///< the paper's closed form, Eq. 16/17/23-25
+  kNonlinear,   ///< the two pressure equations of Eq. 19 integrated with u held at u*
+};
+
+[[nodiscard]] const char* to_string(PredictionMethod m) noexcept;
+
+/// What the predictor knows of the bench.
+struct PredictorModel {
+  plant::Geometry geometry;
+  plant::Gas gas;
+  plant::FrictionParams friction;                 ///< the stiction bounds F_S+, F_S-
+  const plant::ValveCharacteristic* valve = nullptr;  ///< model or measured table; must outlive use
+  double horizon_s = 600.0;  ///< the nonlinear method gives up (no restart) this long after the stop
+};
+
+/// The snapshot taken when the stop is confirmed.
+struct StopSnapshot {
+  double t_s = 0.0;        ///< time the pressures were measured [s]
+  double y_m = 0.0;        ///< y*, the rest position [m]
+  double p_p_pa = 0.0;     ///< chamber P pressure at t_s [Pa]
+  double p_n_pa = 0.0;     ///< chamber N pressure at t_s [Pa]
+  double u_v = 0.0;        ///< u*, the control held while stuck (Eq. 11) [V]
+  /// +1: at the +L/2 end stop (a push towards + cannot move it), -1 at -L/2, 0 elsewhere.
+  int blocked_direction = 0;
+};
+
+struct Prediction {
+  PredictionMethod method = PredictionMethod::kNonlinear;
+  bool will_restart = false;
+  int direction = 0;               ///< +1 / -1 when will_restart, else 0
+  double t_restart_s = std::numeric_limits<double>::quiet_NaN();  ///< absolute time, NaN if none
+  double equilibrium_force_n = 0.0;   ///< F at complete equilibrium under u*, Eq. 17 at t -> inf [N]
+  double p_p_equilibrium_pa = 0.0;    ///< p_null(u*) [Pa]
+  double p_n_equilibrium_pa = 0.0;    ///< p_null(-u*) [Pa]
+  double tau_p_s = 0.0;               ///< time constant of chamber P, Eq. 23 [s]
+  double tau_n_s = 0.0;               ///< time constant of chamber N, Eq. 23 [s]
+  /// Smallest distance of F(t) to the nearer stiction bound from the snapshot up to the restart
+  /// (or forever when none) [N]; 0 at a restart.
+  double min_margin_n = 0.0;
+  bool horizon_reached = false;       ///< nonlinear: undecided at the horizon, reported as no restart
+};
+
+/// Eq. 16/17/25 with the time constants of Eq. 23; the condition is checked exactly over all
+/// t >= t_stop (F(t) is monotone on both sides of its one possible extremum).
+[[nodiscard]] Prediction predict_linearized(const PredictorModel& model, const StopSnapshot& stop) noexcept;
+/// Integrates dp/dt = k r T / V(y*) q(+-u*, p) for both chambers (RK4, step a fraction of the
+/// local time constant) and locates the first crossing of a stiction bound inside the step.
+[[nodiscard]] Prediction predict_nonlinear(const PredictorModel& model, const StopSnapshot& stop) noexcept;
+[[nodiscard]] Prediction predict(PredictionMethod method, const PredictorModel& model,
+                                 const StopSnapshot& stop) noexcept;
+
+}  // namespace pneu::controller

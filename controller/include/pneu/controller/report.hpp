@@ -1,0 +1,80 @@
+// The non-real-time side of a run: drains the loop's records, runs the restart predictors at each
+// stop, writes the events (JSON lines) and the trajectory, and judges each forecast at the end.
+#pragma once
+
+#include <cstdio>
+#include <memory>
+#include <optional>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include "pneu/controller/clock.hpp"
+#include "pneu/controller/loop.hpp"
+#include "pneu/controller/predictor.hpp"
+
+namespace pneu::controller {
+
+/// One sticking phase, what was forecast at its start and what happened.
+struct StopOutcome {
+  std::uint64_t index = 0;
+  double t_stop_s = 0.0;           ///< the stop event's time
+  double y_stop_m = 0.0;
+  double force_n = 0.0;            ///< F at confirmation
+  double y_d_m = 0.0;
+  StopSnapshot snapshot;
+  std::optional<Prediction> linearized;
+  std::optional<Prediction> nonlinear;
+  bool ended = false;              ///< the carriage left rest before the run ended
+  bool restarted = false;          ///< ... and the set point had not changed (a true restart)
+  double t_end_s = 0.0;            ///< the start's time, or the run's end
+  int direction = 0;               ///< of the start
+
+  [[nodiscard]] double sticking_s() const noexcept { return t_end_s - t_stop_s; }
+};
+
+/// How a forecast compares with what happened (stops ended by a set-point change are not judged).
+struct Verdict {
+  enum class Kind { kTruePositive, kTrueNegative, kFalsePositive, kFalseNegative, kNotJudged };
+  Kind kind = Kind::kNotJudged;
+  double error_s = 0.0;       ///< predicted minus actual restart time (true positives) [s]
+  double error_percent = 0.0; ///< |error| in percent of the sticking duration
+  bool direction_ok = true;
+};
+[[nodiscard]] Verdict judge(const StopOutcome& stop, const Prediction& prediction, double t_end_s) noexcept;
+
+class RunReport {
+ public:
+  /// `events` (JSON lines) and `trajectory` (CSV) may be null.
+  RunReport(const PredictorModel& model, bool linearized, bool nonlinear, std::ostream* events,
+            std::ostream* trajectory);
+
+  /// Pops everything the loop queued. Not real-time: call from the service thread or between
+  /// simulated ticks.
+  void drain(LoopOutputs& outputs);
+  /// Closes the run at `t_end_s`.
+  void finish(double t_end_s);
+
+  [[nodiscard]] const std::vector<StopOutcome>& stops() const noexcept { return stops_; }
+  [[nodiscard]] double end_time_s() const noexcept { return t_end_s_; }
+  [[nodiscard]] std::uint64_t ticks_seen() const noexcept { return ticks_seen_; }
+  [[nodiscard]] std::uint64_t sequence_gaps() const noexcept { return sequence_gaps_; }
+  /// The readable end-of-run summary.
+  void print_summary(std::FILE* out, const LoopTiming& timing) const;
+
+ private:
+  void on_event(const LoopEvent& e);
+  void write_prediction(const StopOutcome& s, const Prediction& p);
+
+  PredictorModel model_;
+  bool linearized_, nonlinear_;
+  std::ostream* events_;
+  std::ostream* trajectory_;
+  std::vector<StopOutcome> stops_;
+  double t_end_s_ = 0.0;
+  std::uint64_t ticks_seen_ = 0;
+  std::uint64_t next_seq_ = 0;
+  std::uint64_t sequence_gaps_ = 0;
+};
+
+}  // namespace pneu::controller

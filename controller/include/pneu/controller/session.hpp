@@ -1,0 +1,50 @@
+// Assembly of a run from the configuration, shared by pneud, the sweep and the end-to-end tests.
+#pragma once
+
+#include <atomic>
+#include <filesystem>
+#include <memory>
+#include <ostream>
+
+#include "pneu/config/config.hpp"
+#include "pneu/controller/clock.hpp"
+#include "pneu/controller/report.hpp"
+#include "pneu/hal/sim_backend.hpp"
+#include "pneu/sim_plant/valve_table.hpp"
+
+namespace pneu::controller {
+
+/// The valve characteristic the controller uses (u_0 of Eq. 7, the predictors): the measured table
+/// of controller.predictor.valve_table (relative paths against `config_dir`) or the model.
+/// Throws plant::ValveTableError.
+[[nodiscard]] std::unique_ptr<plant::ValveCharacteristic> make_valve_characteristic(
+    const config::Config& config, const std::filesystem::path& config_dir);
+
+/// Fills controller.law.offset_v with u_e of Eq. 7 when it is "auto".
+void resolve_offset(config::Config& config, const plant::ValveCharacteristic& valve);
+
+/// The predictors' view of the bench.
+[[nodiscard]] PredictorModel predictor_model(const config::Config& config,
+                                             const plant::ValveCharacteristic& valve);
+
+/// A complete run on the in-process simulated bench: backend, loop, report.
+struct SimulatedRun {
+  std::unique_ptr<hal::SimBackend> backend;
+  std::unique_ptr<LoopOutputs> outputs;
+  std::unique_ptr<ControlLoop> loop;
+  std::unique_ptr<RunReport> report;
+  LoopTiming timing;
+};
+
+/// Builds the run for `config` (offset already resolved). The plant starts at rest at
+/// simulation.initial_position_m, at complete equilibrium for the loop's first output.
+[[nodiscard]] SimulatedRun make_simulated_run(const config::Config& config,
+                                              const plant::ValveCharacteristic& valve,
+                                              std::ostream* events, std::ostream* trajectory);
+
+/// Runs it for controller.duration_s on `clock` (the simulated clock services the report between
+/// ticks; the real clock drains it from a service thread every 5 ms).
+void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
+             const std::atomic<bool>& stop_requested);
+
+}  // namespace pneu::controller

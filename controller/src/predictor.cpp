@@ -1,0 +1,224 @@
+#include "pneu/controller/predictor.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace pneu::controller {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kTimeTolerance_s = 1.0e-7;
+
+struct Bounds {
+  double upper_n;   // F_S+, or +inf when the + direction is blocked by an end stop
+  double lower_n;   // F_S-, or -inf
+};
+
+Bounds bounds_of(const PredictorModel& m, const StopSnapshot& s) noexcept {
+  constexpr double inf = std::numeric_limits<double>::infinity();
+  return {s.blocked_direction > 0 ? inf : m.friction.static_positive_n,
+          s.blocked_direction < 0 ? -inf : m.friction.static_negative_n};
+}
+
+// > 0 once F is outside the band it may leave.
+double excess(const Bounds& b, double force) noexcept {
+  return std::max(force - b.upper_n, b.lower_n - force);
+}
+
+double margin(const PredictorModel& m, double force) noexcept {
+  return std::min(m.friction.static_positive_n - force, force - m.friction.static_negative_n);
+}
+
+struct Common {
+  double s_p, s_n, s_r, p_e, k_r_t, v_p, v_n;
+  double force(double p_p, double p_n) const noexcept { return s_p * p_p - s_n * p_n - s_r * p_e; }
+};
+
+Common common_of(const PredictorModel& m, const StopSnapshot& s) noexcept {
+  return {m.geometry.area_p_m2(), m.geometry.area_n_m2(), m.geometry.area_rod_m2(),
+          m.gas.exhaust_pressure_pa, m.gas.k_r_t(), m.geometry.volume_p_m3(s.y_m),
+          m.geometry.volume_n_m3(s.y_m)};
+}
+
+// Root of a function on [a, b] with f(a) <= 0 < f(b) (Illinois); returns the right end of the
+// final bracket, where the event condition holds.
+template <typename F>
+double bracketed_root(F&& f, double a, double b, double fa, double fb, double tol) noexcept {
+  int side = 0;
+  for (int i = 0; i < 200 && b - a > tol; ++i) {
+    double x = (a * fb - b * fa) / (fb - fa);
+    if (!(x > a && x < b)) x = 0.5 * (a + b);
+    const double fx = f(x);
+    if (fx > 0.0) {
+      b = x;
+      fb = fx;
+      if (side == +1) fa *= 0.5;
+      side = +1;
+    } else {
+      a = x;
+      fa = fx;
+      if (side == -1) fb *= 0.5;
+      side = -1;
+    }
+  }
+  return b;
+}
+
+// Fills the fields every method shares: equilibrium pressures and force, Eq. 23 time constants.
+Prediction base(PredictionMethod method, const PredictorModel& m, const StopSnapshot& s,
+                const Common& c) noexcept {
+  Prediction p;
+  p.method = method;
+  p.p_p_equilibrium_pa = m.valve->null_pressure_pa(s.u_v);
+  p.p_n_equilibrium_pa = m.valve->null_pressure_pa(-s.u_v);
+  p.equilibrium_force_n = c.force(p.p_p_equilibrium_pa, p.p_n_equilibrium_pa);
+  const double c_pp = -m.valve->dq_dp(s.u_v, s.p_p_pa);
+  const double c_pn = -m.valve->dq_dp(-s.u_v, s.p_n_pa);
+  p.tau_p_s = c_pp > 0.0 ? c.v_p / (c.k_r_t * c_pp) : std::numeric_limits<double>::infinity();
+  p.tau_n_s = c_pn > 0.0 ? c.v_n / (c.k_r_t * c_pn) : std::numeric_limits<double>::infinity();
+  return p;
+}
+
+void mark_restart(Prediction& p, const StopSnapshot& s, double dt, double force,
+                  const Bounds& b) noexcept {
+  p.will_restart = true;
+  p.t_restart_s = s.t_s + dt;
+  p.direction = (force - b.upper_n >= b.lower_n - force) ? +1 : -1;
+  p.min_margin_n = 0.0;
+}
+
+}  // namespace
+
+const char* to_string(PredictionMethod m) noexcept {
+  return m == PredictionMethod::kLinearized ? "linearized" : "nonlinear";
+}
+
+Prediction predict_linearized(const PredictorModel& m, const StopSnapshot& s) noexcept {
+  const Common c = common_of(m, s);
+  Prediction p = base(PredictionMethod::kLinearized, m, s, c);
+  const Bounds b = bounds_of(m, s);
+
+  // Eq. 17: F(x) = A e^{-x/tau_P} + B e^{-x/tau_N} + C, x = t - t_stop.
+  const double a = c.s_p * (s.p_p_pa - p.p_p_equilibrium_pa);
+  const double bb = -c.s_n * (s.p_n_pa - p.p_n_equilibrium_pa);
+  const double cc = p.equilibrium_force_n;
+  const double tp = p.tau_p_s, tn = p.tau_n_s;
+  const auto force = [&](double x) {
+    const double ep = std::isinf(tp) ? 1.0 : std::exp(-x / tp);
+    const double en = std::isinf(tn) ? 1.0 : std::exp(-x / tn);
+    return a * ep + bb * en + cc;
+  };
+  const double f0 = force(0.0);
+  if (excess(b, f0) > 0.0) {
+    mark_restart(p, s, 0.0, f0, b);
+    return p;
+  }
+  // F' = 0 at most once: -A/tau_P e^{-x/tau_P} = B/tau_N e^{-x/tau_N}.
+  double x_ext = -1.0;
+  if (std::isfinite(tp) && std::isfinite(tn) && tp != tn && a != 0.0 && bb != 0.0) {
+    const double ratio = -(bb * tp) / (a * tn);
+    if (ratio > 0.0) x_ext = -std::log(ratio) / (1.0 / tp - 1.0 / tn);
+  }
+  // Monotone segments [0, x_ext] and [x_ext, inf) (or [0, inf)). The limit at infinity is C unless
+  // a time constant is infinite, in which case that term stays.
+  const double f_inf = (std::isinf(tp) ? a : 0.0) + (std::isinf(tn) ? bb : 0.0) + cc;
+  double seg_start = 0.0, f_start = f0;
+  double min_margin = margin(m, f0);
+  const double ends[2] = {x_ext > 0.0 ? x_ext : -1.0, std::numeric_limits<double>::infinity()};
+  for (double seg_end : ends) {
+    if (seg_end < 0.0) continue;
+    const double f_end = std::isinf(seg_end) ? f_inf : force(seg_end);
+    if (excess(b, f_end) > 0.0) {
+      // Bracket a finite end on the way to infinity.
+      double hi = seg_end;
+      if (std::isinf(hi)) {
+        const double tmax = std::max(std::isfinite(tp) ? tp : 0.0, std::isfinite(tn) ? tn : 0.0);
+        hi = seg_start + std::max(tmax, 1e-3);
+        while (excess(b, force(hi)) <= 0.0 && hi < 1e9) hi = seg_start + 2.0 * (hi - seg_start);
+      }
+      const auto g = [&](double x) { return excess(b, force(x)); };
+      const double x = bracketed_root(g, seg_start, hi, excess(b, f_start), g(hi), kTimeTolerance_s);
+      mark_restart(p, s, x, force(x), b);
+      return p;
+    }
+    min_margin = std::min(min_margin, margin(m, f_end));
+    seg_start = seg_end;
+    f_start = f_end;
+  }
+  p.min_margin_n = min_margin;
+  return p;
+}
+
+Prediction predict_nonlinear(const PredictorModel& m, const StopSnapshot& s) noexcept {
+  const Common c = common_of(m, s);
+  Prediction p = base(PredictionMethod::kNonlinear, m, s, c);
+  const Bounds b = bounds_of(m, s);
+  const plant::ValveCharacteristic& valve = *m.valve;
+  const double u = s.u_v;
+
+  struct P2 {
+    double pp, pn;
+  };
+  const auto rhs = [&](const P2& x) {
+    return P2{c.k_r_t / c.v_p * valve.mass_flow_kg_per_s(u, x.pp),
+              c.k_r_t / c.v_n * valve.mass_flow_kg_per_s(-u, x.pn)};
+  };
+  const auto rk4 = [&](const P2& x, double h) {
+    const P2 k1 = rhs(x);
+    const P2 k2 = rhs({x.pp + 0.5 * h * k1.pp, x.pn + 0.5 * h * k1.pn});
+    const P2 k3 = rhs({x.pp + 0.5 * h * k2.pp, x.pn + 0.5 * h * k2.pn});
+    const P2 k4 = rhs({x.pp + h * k3.pp, x.pn + h * k3.pn});
+    return P2{x.pp + h / 6.0 * (k1.pp + 2 * k2.pp + 2 * k3.pp + k4.pp),
+              x.pn + h / 6.0 * (k1.pn + 2 * k2.pn + 2 * k3.pn + k4.pn)};
+  };
+  const auto force = [&](const P2& x) { return c.force(x.pp, x.pn); };
+
+  P2 x{s.p_p_pa, s.p_n_pa};
+  double f = force(x);
+  if (excess(b, f) > 0.0) {
+    mark_restart(p, s, 0.0, f, b);
+    return p;
+  }
+  const double pe_p = p.p_p_equilibrium_pa, pe_n = p.p_n_equilibrium_pa;
+  double min_margin = margin(m, f);
+  double t = 0.0;
+  constexpr double kStepFraction = 0.1;  // of the local time constant: RK4 error << 1e-6 relative
+  constexpr double kMaxStep_s = 0.01;
+  while (t < m.horizon_s) {
+    // Each pressure relaxes monotonically towards its null-flow value (a scalar autonomous ODE
+    // with q decreasing in p), so F stays inside the box spanned by the present and equilibrium
+    // pressures: when that box lies inside the band, no restart can ever come.
+    const double f_lo = c.force(std::min(x.pp, pe_p), std::max(x.pn, pe_n));
+    const double f_hi = c.force(std::max(x.pp, pe_p), std::min(x.pn, pe_n));
+    if (f_lo > b.lower_n && f_hi < b.upper_n) {
+      p.min_margin_n = std::min(min_margin, std::min(margin(m, f_lo), margin(m, f_hi)));
+      return p;
+    }
+    const double slope = std::max(c.k_r_t / c.v_p * -valve.dq_dp(u, x.pp),
+                                  c.k_r_t / c.v_n * -valve.dq_dp(-u, x.pn));
+    const double h = std::min(kMaxStep_s, slope > 0.0 ? kStepFraction / slope : kMaxStep_s);
+    const P2 x1 = rk4(x, h);
+    const double f1 = force(x1);
+    if (excess(b, f1) > 0.0) {
+      const auto g = [&](double th) { return excess(b, force(rk4(x, th * h))); };
+      const double th = bracketed_root(g, 0.0, 1.0, excess(b, f), excess(b, f1), kTimeTolerance_s / h);
+      mark_restart(p, s, t + th * h, force(rk4(x, th * h)), b);
+      return p;
+    }
+    min_margin = std::min(min_margin, margin(m, f1));
+    x = x1;
+    f = f1;
+    t += h;
+  }
+  p.horizon_reached = true;
+  p.min_margin_n = min_margin;
+  return p;
+}
+
+Prediction predict(PredictionMethod method, const PredictorModel& model, const StopSnapshot& stop) noexcept {
+  return method == PredictionMethod::kLinearized ? predict_linearized(model, stop)
+                                                 : predict_nonlinear(model, stop);
+}
+
+}  // namespace pneu::controller

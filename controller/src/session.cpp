@@ -1,0 +1,76 @@
+#include "pneu/controller/session.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <thread>
+
+namespace pneu::controller {
+
+std::unique_ptr<plant::ValveCharacteristic> make_valve_characteristic(
+    const config::Config& config, const std::filesystem::path& config_dir) {
+  const std::string& table = config.controller.predictor.valve_table;
+  if (table.empty())
+    return std::make_unique<plant::ValveModel>(config.plant.valve, config.plant.gas);
+  std::filesystem::path path(table);
+  if (path.is_relative() && !config_dir.empty()) path = config_dir / path;
+  return std::make_unique<plant::ValveTable>(plant::ValveTable::load(path));
+}
+
+void resolve_offset(config::Config& config, const plant::ValveCharacteristic& valve) {
+  if (config.controller.offset_auto)
+    config.controller.law.offset_v =
+        plant::equilibrium_voltage_v(valve, config.plant.geometry, config.plant.gas.exhaust_pressure_pa);
+}
+
+PredictorModel predictor_model(const config::Config& config, const plant::ValveCharacteristic& valve) {
+  PredictorModel m;
+  m.geometry = config.plant.geometry;
+  m.gas = config.plant.gas;
+  m.friction = config.plant.friction;
+  m.valve = &valve;
+  m.horizon_s = config.controller.predictor.horizon_s;
+  return m;
+}
+
+SimulatedRun make_simulated_run(const config::Config& config, const plant::ValveCharacteristic& valve,
+                                std::ostream* events, std::ostream* trajectory) {
+  SimulatedRun run;
+  const ControlLaw law(config.controller.law);
+  const double u_initial =
+      law.resting_control_v(config.controller.initial_setpoint_m, config.simulation.initial_position_m);
+  run.backend = std::make_unique<hal::SimBackend>(config.plant, config.sensors,
+                                                  config.simulation.initial_position_m, u_initial);
+  run.outputs = std::make_unique<LoopOutputs>();
+  run.loop = std::make_unique<ControlLoop>(config, *run.backend, *run.outputs);
+  const auto& p = config.controller.predictor;
+  run.report = std::make_unique<RunReport>(predictor_model(config, valve), p.linearized, p.nonlinear,
+                                           events, trajectory);
+  return run;
+}
+
+void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
+             const std::atomic<bool>& stop_requested) {
+  const double period = config.controller.period_s();
+  const auto ticks = static_cast<std::uint64_t>(std::llround(config.controller.duration_s / period)) +
+                     (config.controller.duration_s > 0.0 ? 1 : 0);  // both ends: t = 0 and t = duration
+  if (clock.simulated()) {
+    run_loop(*run.loop, clock, period, ticks, stop_requested, run.timing,
+             [&] { run.report->drain(*run.outputs); });
+  } else {
+    std::atomic<bool> done{false};
+    std::thread service([&] {
+      while (!done.load(std::memory_order_acquire)) {
+        run.report->drain(*run.outputs);
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      }
+    });
+    run_loop(*run.loop, clock, period, ticks, stop_requested, run.timing);
+    done.store(true, std::memory_order_release);
+    service.join();
+  }
+  run.loop->stop();
+  run.report->drain(*run.outputs);
+  run.report->finish(run.report->end_time_s());
+}
+
+}  // namespace pneu::controller

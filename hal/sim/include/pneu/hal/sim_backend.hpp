@@ -1,0 +1,36 @@
+// The `sim` backend: the sim_plant model in the same process, integrated between ticks with the
+// last command held (zero-order hold), sensors read through the sensor models.
+#pragma once
+
+#include "pneu/hal/backend.hpp"
+#include "pneu/sim_plant/plant.hpp"
+#include "pneu/sim_plant/sensors.hpp"
+
+namespace pneu::hal {
+
+class SimBackend final : public Backend {
+ public:
+  /// The plant starts at rest at `initial_position_m` at complete equilibrium for `initial_u_v`.
+  SimBackend(const plant::PlantParams& plant, const plant::SensorParams& sensors,
+             double initial_position_m, double initial_u_v);
+
+  void open(double t0_s) override;
+  void close() noexcept override {}
+  /// Integrates the plant from its current time to `t_s` with the held command, then samples the
+  /// sensors. Real-time safe.
+  [[nodiscard]] Status read(double t_s, SensorFrame& frame) noexcept override;
+  [[nodiscard]] Status write(const ActuatorCommand& command) noexcept override;
+
+  /// The simulated truth, for tests and what-if runs.
+  [[nodiscard]] const plant::Plant& plant() const noexcept { return plant_; }
+  [[nodiscard]] const ActuatorCommand& held_command() const noexcept { return command_; }
+
+ private:
+  plant::Plant plant_;
+  plant::SensorSuite sensors_;
+  double initial_position_m_;
+  double initial_u_v_;
+  ActuatorCommand command_;
+};
+
+}  // namespace pneu::hal

@@ -1,0 +1,36 @@
+#include "pneu/hal/sim_backend.hpp"
+
+namespace pneu::hal {
+
+SimBackend::SimBackend(const plant::PlantParams& plant, const plant::SensorParams& sensors,
+                       double initial_position_m, double initial_u_v)
+    : plant_(plant),
+      sensors_(sensors),
+      initial_position_m_(initial_position_m),
+      initial_u_v_(initial_u_v),
+      command_(ActuatorCommand::from_control(initial_u_v, true)) {
+  plant_.reset_at_rest(initial_position_m_, initial_u_v_);
+}
+
+void SimBackend::open(double t0_s) {
+  plant_.reset_at_rest(initial_position_m_, initial_u_v_, t0_s);
+  command_ = ActuatorCommand::from_control(initial_u_v_, true);
+}
+
+Status SimBackend::read(double t_s, SensorFrame& frame) noexcept {
+  const double dt = t_s - plant_.state().t_s;
+  // Unpowered valves sit at their mechanical centre: both valves at 0 V.
+  const double u = command_.valve_power ? command_.u_p_v : 0.0;
+  if (dt > 0.0) plant_.step(dt, u);
+  const auto& s = plant_.state();
+  const auto m = sensors_.measure(s.y_m, s.p_p_pa, s.p_n_pa);
+  frame = SensorFrame{t_s, m.y_m, m.p_p_pa, m.p_n_pa, 0.0, false, kSensorsValid};
+  return Status::kOk;
+}
+
+Status SimBackend::write(const ActuatorCommand& command) noexcept {
+  command_ = command;
+  return Status::kOk;
+}
+
+}  // namespace pneu::hal
