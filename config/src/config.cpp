@@ -2,6 +2,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <cctype>
 #include <fstream>
 #include <sstream>
 
@@ -258,7 +259,9 @@ void apply_override(YAML::Node& root, const std::string& assignment) {
   const auto eq = assignment.find('=');
   if (eq == std::string::npos || eq == 0)
     throw ConfigError("", "override '" + assignment + "' is not KEY=VALUE");
-  const std::string path = assignment.substr(0, eq);
+  std::string path = assignment.substr(0, eq);
+  while (!path.empty() && std::isspace(static_cast<unsigned char>(path.back()))) path.pop_back();
+  while (!path.empty() && std::isspace(static_cast<unsigned char>(path.front()))) path.erase(0, 1);
   const std::string text = assignment.substr(eq + 1);
   YAML::Node value;
   try {
@@ -320,6 +323,8 @@ Config load_string(std::string_view yaml, const std::vector<std::string>& overri
 }
 
 Config load_file(const std::filesystem::path& path, const std::vector<std::string>& overrides) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) throw ConfigError(path.string(), "cannot open the file (no such file)");
   std::ifstream in(path);
   if (!in) throw ConfigError(path.string(), "cannot open the file");
   std::stringstream text;

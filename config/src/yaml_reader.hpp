@@ -17,6 +17,13 @@ class MapReader {
   MapReader(const YAML::Node& node, std::string path) : node_(node), path_(std::move(path)) {
     if (!node_.IsDefined() || node_.IsNull()) throw ConfigError(path_, "missing section");
     if (!node_.IsMap()) throw ConfigError(path_, "expected a mapping of keys");
+    // yaml-cpp keeps repeated keys and answers the first: refuse them, and non-text keys.
+    std::set<std::string> keys;
+    for (const auto& kv : node_) {
+      if (!kv.first.IsScalar()) throw ConfigError(path_, "keys must be plain names, got " + describe(kv.first));
+      if (!keys.insert(kv.first.Scalar()).second)
+        throw ConfigError(child_path(kv.first.Scalar()), "given twice");
+    }
   }
 
   [[nodiscard]] std::string child_path(const std::string& key) const {
@@ -81,7 +88,7 @@ class MapReader {
   /// Every key of the mapping must have been read.
   void finish() const {
     for (const auto& kv : node_) {
-      const std::string key = kv.first.as<std::string>();
+      const std::string key = kv.first.Scalar();
       if (!seen_.count(key)) throw ConfigError(child_path(key), "unknown key");
     }
   }
