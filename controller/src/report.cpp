@@ -17,6 +17,10 @@ std::string num(double v, int precision = 9) {
 
 }  // namespace
 
+double observation_tolerance_s(const StopOutcome& s) noexcept {
+  return std::max(0.010, 0.01 * s.sticking_s());
+}
+
 Verdict judge(const StopOutcome& s, const Prediction& p, double t_end_s) noexcept {
   Verdict v;
   if (s.ended && !s.restarted) return v;  // the set point moved: the forecast no longer applies
@@ -28,6 +32,9 @@ Verdict judge(const StopOutcome& s, const Prediction& p, double t_end_s) noexcep
       v.error_percent = 100.0 * std::abs(v.error_s) / std::max(s.sticking_s(), 1e-9);
       v.direction_ok = p.direction == s.direction;
     }
+  } else if (predicted && t_end_s - p.t_restart_s < observation_tolerance_s(s)) {
+    // A restart forecast this close to the end of the run cannot be confirmed or refuted by the
+    // signals (a start is seen only once the carriage has moved): not judged.
   } else {
     v.kind = predicted ? Verdict::Kind::kFalsePositive : Verdict::Kind::kTrueNegative;
   }

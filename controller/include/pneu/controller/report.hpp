@@ -41,6 +41,11 @@ struct Verdict {
   double error_percent = 0.0; ///< |error| in percent of the sticking duration
   bool direction_ok = true;
 };
+/// How far before the end of a run a forecast restart must lie to be judged: max(10 ms, 1 % of the
+/// sticking time), the acceptance tolerance.
+[[nodiscard]] double observation_tolerance_s(const StopOutcome& stop) noexcept;
+/// Stops ended by a set-point change, and restart forecasts within observation_tolerance_s() of
+/// the end of the run, are not judged.
 [[nodiscard]] Verdict judge(const StopOutcome& stop, const Prediction& prediction, double t_end_s) noexcept;
 
 class RunReport {

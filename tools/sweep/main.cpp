@@ -1,0 +1,320 @@
+// pneu-sweep: runs many set-point steps across the stroke in simulated time, in parallel, and
+// judges every restart forecast against what the simulated bench did.
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <mutex>
+#include <random>
+#include <thread>
+#include <vector>
+
+#include "pneu/config/cli.hpp"
+#include "pneu/config/config.hpp"
+#include "pneu/controller/session.hpp"
+
+namespace {
+
+using namespace pneu;
+using controller::Verdict;
+
+constexpr const char* kHelp = R"(pneu-sweep: the restart predictor against many simulated set-point steps
+
+Usage:
+  pneu-sweep [--config FILE] --out SWEEP.csv [--steps N] [--seed S] [--jobs J] [--duration S]
+             [--step-time S] [--margin-m M] [--min-step-m D] [--friction-spread F] [--gain-spread G]
+             [--set KEY=VALUE ...] [--strict] [--quiet]
+
+Scenario i starts at rest at a random position y0 and steps the set point at --step-time
+(default 1 s) to y_d, the targets spread evenly over the stroke less --margin-m (default 0.02 m)
+at each end, |y_d - y0| >= --min-step-m (default 0.005 m). --friction-spread F scales all friction
+values of a scenario by a factor drawn in [1-F, 1+F], --gain-spread G the three gains likewise
+(default 0: the config's values). Each scenario runs --duration seconds (default 12) in simulated
+time; --jobs threads (default: the cores) share the scenarios.
+
+SWEEP.csv has one row per stop: the scenario, the stop, what happened, and each method's forecast
+with its verdict and error. The summary gives the confusion matrix of restart / no restart and the
+error percentiles per method. Acceptance: restarts after >= 0.5 s of sticking within 1 % of the
+sticking time (nonlinear) and 5 % (linearized), shorter ones within 10 ms; --strict exits 1 when
+any forecast misses it.
+)";
+
+struct Scenario {
+  int index = 0;
+  double y0_m = 0.0, y_d_m = 0.0, friction_scale = 1.0, gain_scale = 1.0;
+};
+
+struct ScenarioResult {
+  Scenario scenario;
+  std::vector<controller::StopOutcome> stops;
+  double t_end_s = 0.0;
+};
+
+struct MethodStats {
+  std::uint64_t tp = 0, tn = 0, fp = 0, fn = 0, wrong_direction = 0, misses = 0;
+  std::vector<double> long_error_pct;  // sticking >= 0.5 s
+  std::vector<double> short_error_ms;  // shorter
+};
+
+constexpr double kLongSticking_s = 0.5;
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  const double pos = q * static_cast<double>(v.size() - 1);
+  const auto i = static_cast<std::size_t>(pos);
+  const double f = pos - static_cast<double>(i);
+  return i + 1 < v.size() ? v[i] * (1 - f) + v[i + 1] * f : v[i];
+}
+
+const char* verdict_name(Verdict::Kind k) {
+  switch (k) {
+    case Verdict::Kind::kTruePositive: return "true_restart";
+    case Verdict::Kind::kTrueNegative: return "true_no_restart";
+    case Verdict::Kind::kFalsePositive: return "false_restart";
+    case Verdict::Kind::kFalseNegative: return "missed_restart";
+    case Verdict::Kind::kNotJudged: return "not_judged";
+  }
+  return "?";
+}
+
+// Tolerance of the acceptance criteria for one forecast.
+bool within_criteria(const controller::StopOutcome& s, const Verdict& v, bool nonlinear) {
+  if (v.kind == Verdict::Kind::kFalseNegative || v.kind == Verdict::Kind::kFalsePositive) return false;
+  if (v.kind != Verdict::Kind::kTruePositive) return true;
+  if (!v.direction_ok) return false;
+  if (s.sticking_s() >= kLongSticking_s) return v.error_percent <= (nonlinear ? 1.0 : 5.0);
+  return std::abs(v.error_s) <= 0.010;
+}
+
+int run(int argc, char** argv) {
+  const cli::Args args(argc, argv, 1,
+                       {"config", "out", "steps", "seed", "jobs", "duration", "step-time", "margin-m",
+                        "min-step-m", "friction-spread", "gain-spread"},
+                       {"strict", "quiet", "help"}, {"set"});
+  if (args.flag("help")) {
+    std::cout << kHelp;
+    return cli::kExitOk;
+  }
+  const std::string config_path = args.value("config").value_or("");
+  config::Config base = config::load_file_or_default(config_path, args.all("set"));
+  const std::string out_path = args.required("out");
+  const double steps_d = args.number("steps", 200);
+  const double seed_d = args.number("seed", 1);
+  const double jobs_d = args.number("jobs", std::max(1u, std::thread::hardware_concurrency()));
+  const double duration = args.number("duration", 12.0);
+  const double step_time = args.number("step-time", 1.0);
+  const double margin = args.number("margin-m", 0.02);
+  const double min_step = args.number("min-step-m", 0.005);
+  const double friction_spread = args.number("friction-spread", 0.0);
+  const double gain_spread = args.number("gain-spread", 0.0);
+  const double half = base.plant.geometry.half_stroke_m();
+  if (!(steps_d >= 1 && steps_d == std::floor(steps_d))) throw cli::UsageError("--steps must be a whole number >= 1");
+  if (!(jobs_d >= 1 && jobs_d == std::floor(jobs_d))) throw cli::UsageError("--jobs must be a whole number >= 1");
+  if (!(seed_d >= 0 && seed_d == std::floor(seed_d))) throw cli::UsageError("--seed must be a whole number >= 0");
+  if (!(duration > step_time && step_time >= 0)) throw cli::UsageError("--duration must exceed --step-time >= 0");
+  if (!(margin >= 0 && 2 * margin + min_step < 2 * half)) throw cli::UsageError("--margin-m leaves no room in the stroke");
+  if (!(min_step >= 0)) throw cli::UsageError("--min-step-m must be >= 0");
+  if (!(friction_spread >= 0 && friction_spread < 1)) throw cli::UsageError("--friction-spread must be in [0, 1)");
+  if (!(gain_spread >= 0 && gain_spread < 1)) throw cli::UsageError("--gain-spread must be in [0, 1)");
+  const auto n = static_cast<int>(steps_d);
+  const auto jobs = static_cast<int>(std::min<double>(jobs_d, n));
+
+  // The scenarios, drawn up front so they do not depend on the thread count.
+  std::vector<Scenario> scenarios(static_cast<std::size_t>(n));
+  std::mt19937_64 rng(static_cast<std::uint64_t>(seed_d));
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  const double lo = -half + margin, hi = half - margin;
+  for (int i = 0; i < n; ++i) {
+    Scenario& s = scenarios[static_cast<std::size_t>(i)];
+    s.index = i;
+    s.y_d_m = lo + (hi - lo) * (i + 0.5) / n;
+    do {
+      s.y0_m = lo + (hi - lo) * 0.5 * (1.0 + unit(rng));
+    } while (std::abs(s.y0_m - s.y_d_m) < min_step);
+    s.friction_scale = 1.0 + friction_spread * unit(rng);
+    s.gain_scale = 1.0 + gain_spread * unit(rng);
+  }
+
+  cli::AtomicFile out(out_path);  // created before the run: an unwritable path fails fast
+
+  std::vector<ScenarioResult> results(scenarios.size());
+  std::atomic<int> next{0}, done{0};
+  std::exception_ptr failure;
+  std::mutex failure_mutex;
+  const auto wall0 = std::chrono::steady_clock::now();
+  const auto worker = [&] {
+    for (int i; (i = next.fetch_add(1)) < n;) {
+      try {
+        const Scenario& s = scenarios[static_cast<std::size_t>(i)];
+        config::Config cfg = base;
+        cfg.simulation.initial_position_m = s.y0_m;
+        cfg.controller.initial_setpoint_m = s.y0_m;
+        cfg.controller.schedule = {{step_time, s.y_d_m}};
+        cfg.controller.duration_s = duration;
+        cfg.controller.clock = config::ClockKind::kSimulated;
+        auto& f = cfg.plant.friction;
+        f.static_positive_n *= s.friction_scale;
+        f.coulomb_positive_n *= s.friction_scale;
+        f.static_negative_n *= s.friction_scale;
+        f.coulomb_negative_n *= s.friction_scale;
+        f.viscous_n_s_per_m *= s.friction_scale;
+        auto& law = cfg.controller.law;
+        law.position_gain_v_per_m *= s.gain_scale;
+        law.velocity_gain_v_s_per_m *= s.gain_scale;
+        law.acceleration_gain_v_s2_per_m *= s.gain_scale;
+        const auto valve = controller::make_valve_characteristic(
+            cfg, config_path.empty() ? std::filesystem::path() : std::filesystem::path(config_path).parent_path());
+        controller::resolve_offset(cfg, *valve);
+        auto sim = controller::make_simulated_run(cfg, *valve, nullptr, nullptr);
+        controller::SimulatedClock clock;
+        std::atomic<bool> never{false};
+        controller::execute(sim, cfg, clock, never);
+        results[static_cast<std::size_t>(i)] = {s, sim.report->stops(), sim.report->end_time_s()};
+      } catch (...) {
+        const std::lock_guard<std::mutex> lock(failure_mutex);
+        if (!failure) failure = std::current_exception();
+      }
+      done.fetch_add(1);
+    }
+  };
+  std::vector<std::thread> threads;
+  for (int j = 0; j < jobs; ++j) threads.emplace_back(worker);
+
+  // Progress bar on stderr: redrawn in place on a terminal, a line per 10 % otherwise.
+  const bool tty = ::isatty(STDERR_FILENO) && !args.flag("quiet");
+  int last_decile = -1;
+  for (;;) {
+    const int d = done.load();
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+    if (!args.flag("quiet")) {
+      constexpr int kWidth = 40;
+      const int filled = kWidth * d / n;
+      if (tty) {
+        std::fprintf(stderr, "\r[%.*s%*s] %d/%d scenarios, %.1f s", filled,
+                     "########################################", kWidth - filled, "", d, n, elapsed);
+      } else if (d * 10 / n != last_decile) {
+        last_decile = d * 10 / n;
+        std::fprintf(stderr, "pneu-sweep: %d/%d scenarios, %.1f s\n", d, n, elapsed);
+      }
+    }
+    if (d == n) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  if (tty) std::fprintf(stderr, "\n");
+  for (auto& t : threads) t.join();
+  if (failure) std::rethrow_exception(failure);
+  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+
+  // One CSV row per stop.
+  auto& os = out.stream();
+  os << "scenario,y0_m,y_d_m,friction_scale,gain_scale,stop,t_stop_s,y_stop_m,force_n,u_star_v,"
+        "equilibrium_force_n,outcome,t_end_s,sticking_s,direction";
+  for (const char* m : {"lin", "nl"})
+    os << ',' << m << "_will_restart," << m << "_t_restart_s," << m << "_direction," << m << "_verdict,"
+       << m << "_error_ms," << m << "_error_percent," << m << "_within_criteria";
+  os << '\n';
+  MethodStats stats[2];
+  std::uint64_t stops = 0, restarts = 0, long_restarts = 0, longest_restart_count_1s = 0;
+  char buf[512];
+  for (const auto& r : results) {
+    for (const auto& s : r.stops) {
+      ++stops;
+      const char* outcome = !s.ended ? "stuck_to_end" : (s.restarted ? "restart" : "setpoint_changed");
+      if (s.restarted) {
+        ++restarts;
+        if (s.sticking_s() >= kLongSticking_s) ++long_restarts;
+        if (s.sticking_s() >= 1.0) ++longest_restart_count_1s;
+      }
+      const controller::Prediction* any = s.nonlinear ? &*s.nonlinear : (s.linearized ? &*s.linearized : nullptr);
+      std::snprintf(buf, sizeof buf, "%d,%.6f,%.6f,%.4f,%.4f,%llu,%.6f,%.9f,%.4f,%.6f,%.4f,%s,%.6f,%.6f,%d",
+                    r.scenario.index, r.scenario.y0_m, r.scenario.y_d_m, r.scenario.friction_scale,
+                    r.scenario.gain_scale, static_cast<unsigned long long>(s.index), s.t_stop_s, s.y_stop_m,
+                    s.force_n, s.snapshot.u_v, any ? any->equilibrium_force_n : NAN, outcome, s.t_end_s,
+                    s.sticking_s(), s.direction);
+      os << buf;
+      const std::optional<controller::Prediction>* ps[2] = {&s.linearized, &s.nonlinear};
+      for (int m = 0; m < 2; ++m) {
+        if (!*ps[m]) {
+          os << ",,,,,,,";
+          continue;
+        }
+        const auto& p = **ps[m];
+        const Verdict v = controller::judge(s, p, r.t_end_s);
+        const bool ok = within_criteria(s, v, m == 1);
+        MethodStats& st = stats[m];
+        switch (v.kind) {
+          case Verdict::Kind::kTruePositive:
+            ++st.tp;
+            if (!v.direction_ok) ++st.wrong_direction;
+            if (s.sticking_s() >= kLongSticking_s) st.long_error_pct.push_back(v.error_percent);
+            else st.short_error_ms.push_back(std::abs(v.error_s) * 1e3);
+            break;
+          case Verdict::Kind::kTrueNegative: ++st.tn; break;
+          case Verdict::Kind::kFalsePositive: ++st.fp; break;
+          case Verdict::Kind::kFalseNegative: ++st.fn; break;
+          case Verdict::Kind::kNotJudged: break;
+        }
+        if (!ok) ++st.misses;
+        const bool tp = v.kind == Verdict::Kind::kTruePositive;
+        std::snprintf(buf, sizeof buf, ",%d,%.6f,%d,%s,%s,%s,%d", p.will_restart ? 1 : 0, p.t_restart_s,
+                      p.direction, verdict_name(v.kind), tp ? std::to_string(v.error_s * 1e3).c_str() : "",
+                      tp ? std::to_string(v.error_percent).c_str() : "", ok ? 1 : 0);
+        os << buf;
+      }
+      os << '\n';
+    }
+  }
+  out.commit();
+
+  std::printf("pneu-sweep: %d scenarios (%d set-point steps over [%.3f, %.3f] m, seed %llu, friction +-%.0f %%, gains +-%.0f %%), %.0f s each\n",
+              n, n, lo, hi, static_cast<unsigned long long>(seed_d), friction_spread * 100, gain_spread * 100, duration);
+  std::printf("  %llu stops, %llu restarts (%llu after >= 0.5 s of sticking, %llu after >= 1 s)\n",
+              static_cast<unsigned long long>(stops), static_cast<unsigned long long>(restarts),
+              static_cast<unsigned long long>(long_restarts), static_cast<unsigned long long>(longest_restart_count_1s));
+  std::printf("  %.2f s wall on %d threads: %.1f scenarios/s\n", wall_s, jobs, n / wall_s);
+  const char* names[2] = {"linearized", "nonlinear"};
+  for (int m = 0; m < 2; ++m) {
+    const MethodStats& st = stats[m];
+    if (st.tp + st.tn + st.fp + st.fn == 0) continue;
+    std::printf("  %s:\n", names[m]);
+    std::printf("    confusion            actual restart  actual none\n");
+    std::printf("      forecast restart   %14llu  %11llu\n", static_cast<unsigned long long>(st.tp),
+                static_cast<unsigned long long>(st.fp));
+    std::printf("      forecast none      %14llu  %11llu\n", static_cast<unsigned long long>(st.fn),
+                static_cast<unsigned long long>(st.tn));
+    std::printf("    wrong direction: %llu\n", static_cast<unsigned long long>(st.wrong_direction));
+    std::printf("    error, sticking >= 0.5 s (%zu): p50 %.3f %%  p90 %.3f %%  p99 %.3f %%  max %.3f %% of the sticking time\n",
+                st.long_error_pct.size(), percentile(st.long_error_pct, 0.5), percentile(st.long_error_pct, 0.9),
+                percentile(st.long_error_pct, 0.99), percentile(st.long_error_pct, 1.0));
+    std::printf("    error, sticking <  0.5 s (%zu): p50 %.3f ms p90 %.3f ms p99 %.3f ms max %.3f ms\n",
+                st.short_error_ms.size(), percentile(st.short_error_ms, 0.5), percentile(st.short_error_ms, 0.9),
+                percentile(st.short_error_ms, 0.99), percentile(st.short_error_ms, 1.0));
+    std::printf("    outside the acceptance criteria (%s %%, 10 ms): %llu\n", m == 0 ? "5" : "1",
+                static_cast<unsigned long long>(st.misses));
+  }
+  std::printf("  wrote %s\n", out_path.c_str());
+  if (args.flag("strict") && (stats[0].misses || stats[1].misses)) return cli::kExitFailure;
+  return cli::kExitOk;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const cli::UsageError& e) {
+    std::cerr << "pneu-sweep: " << e.what() << "\n";
+    return cli::kExitBadInput;
+  } catch (const config::ConfigError& e) {
+    std::cerr << "pneu-sweep: config: " << e.what() << "\n";
+    return cli::kExitBadInput;
+  } catch (const std::exception& e) {
+    std::cerr << "pneu-sweep: " << e.what() << "\n";
+    return cli::kExitFailure;
+  }
+}
