@@ -120,7 +120,8 @@ void RunReport::finish(double t_end_s) {
 }
 
 void RunReport::print_summary(std::FILE* out, const LoopTiming& timing) const {
-  std::fprintf(out, "stops (sticking phases) and their restart forecasts; error in %% of the sticking time:\n");
+  std::fprintf(out, "stops (sticking phases) and their restart forecasts; forecast error in %% of the sticking\n"
+                    "time when it lasted 0.5 s or more, in ms (forecast - actual) otherwise:\n");
   std::fprintf(out, "  %3s %9s %9s %8s %8s %8s  %-34s %-24s %-24s\n", "#", "t_stop[s]", "y*[mm]", "F[N]",
                "u*[V]", "F_e[N]", "what happened", "linearized", "nonlinear");
   for (const auto& s : stops_) {
@@ -144,9 +145,12 @@ void RunReport::print_summary(std::FILE* out, const LoopTiming& timing) const {
       char buf[64];
       if (!p.will_restart)
         std::snprintf(buf, sizeof buf, "none%s", v.kind == Verdict::Kind::kFalseNegative ? " (MISSED)" : "");
-      else if (v.kind == Verdict::Kind::kTruePositive)
+      else if (v.kind == Verdict::Kind::kTruePositive && s.sticking_s() >= 0.5)
         std::snprintf(buf, sizeof buf, "%c %.4f s (%.2f %%)%s", p.direction > 0 ? '+' : '-', p.t_restart_s,
                       v.error_percent, v.direction_ok ? "" : " WRONG DIR");
+      else if (v.kind == Verdict::Kind::kTruePositive)
+        std::snprintf(buf, sizeof buf, "%c %.4f s (%+.1f ms)%s", p.direction > 0 ? '+' : '-', p.t_restart_s,
+                      v.error_s * 1e3, v.direction_ok ? "" : " WRONG DIR");
       else
         std::snprintf(buf, sizeof buf, "%c %.4f s%s", p.direction > 0 ? '+' : '-', p.t_restart_s,
                       v.kind == Verdict::Kind::kFalsePositive ? " (FALSE)" : "");
