@@ -1,0 +1,326 @@
+// The loop thread is real-time safe (STYLE.md habit 4): after start-up it allocates nothing and
+// throws nothing, and it never waits for the non-real-time side; a full queue drops and counts.
+//
+// Allocations are counted by replacing the global allocation functions for this test executable:
+// every operator new / new[] (plain, aligned, nothrow) and operator delete / delete[] bumps a
+// counter while `g_counting` is set. Allocations that bypass operator new (a direct malloc from C
+// code) are not seen; nothing in controller/, hal/ or sim_plant/ calls malloc directly.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <cstdlib>
+#include <memory>
+#include <new>
+#include <random>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include "pneu/config/config.hpp"
+#include "pneu/controller/clock.hpp"
+#include "pneu/controller/loop.hpp"
+#include "pneu/controller/session.hpp"
+#include "pneu/controller/spsc_queue.hpp"
+#include "pneu/controller/timing_stats.hpp"
+#include "pneu/hal/backend.hpp"
+#include "pneu/sim_plant/valve.hpp"
+
+namespace {
+
+std::atomic<bool> g_counting{false};
+std::atomic<std::uint64_t> g_allocations{0};
+std::atomic<std::uint64_t> g_deallocations{0};
+
+void note_allocation() noexcept {
+  if (g_counting.load(std::memory_order_relaxed))
+    g_allocations.fetch_add(1, std::memory_order_relaxed);
+}
+void note_deallocation(void* p) noexcept {
+  if (p != nullptr && g_counting.load(std::memory_order_relaxed))
+    g_deallocations.fetch_add(1, std::memory_order_relaxed);
+}
+
+void* allocate(std::size_t size) noexcept {
+  note_allocation();
+  return std::malloc(size == 0 ? 1 : size);
+}
+void* allocate_aligned(std::size_t size, std::align_val_t alignment) noexcept {
+  note_allocation();
+  const auto a = std::max(static_cast<std::size_t>(alignment), sizeof(void*));
+  void* p = nullptr;
+  return posix_memalign(&p, a, size == 0 ? 1 : size) == 0 ? p : nullptr;
+}
+void* allocate_or_throw(std::size_t size) {
+  if (void* p = allocate(size)) return p;
+  throw std::bad_alloc();
+}
+void* allocate_aligned_or_throw(std::size_t size, std::align_val_t alignment) {
+  if (void* p = allocate_aligned(size, alignment)) return p;
+  throw std::bad_alloc();
+}
+void release(void* p) noexcept {
+  note_deallocation(p);
+  std::free(p);
+}
+
+}  // namespace
+
+// The replaceable global allocation functions ([new.delete]); all route through the counters.
+void* operator new(std::size_t n) { return allocate_or_throw(n); }
+void* operator new[](std::size_t n) { return allocate_or_throw(n); }
+void* operator new(std::size_t n, const std::nothrow_t&) noexcept { return allocate(n); }
+void* operator new[](std::size_t n, const std::nothrow_t&) noexcept { return allocate(n); }
+void* operator new(std::size_t n, std::align_val_t a) { return allocate_aligned_or_throw(n, a); }
+void* operator new[](std::size_t n, std::align_val_t a) { return allocate_aligned_or_throw(n, a); }
+void* operator new(std::size_t n, std::align_val_t a, const std::nothrow_t&) noexcept {
+  return allocate_aligned(n, a);
+}
+void* operator new[](std::size_t n, std::align_val_t a, const std::nothrow_t&) noexcept {
+  return allocate_aligned(n, a);
+}
+void operator delete(void* p) noexcept { release(p); }
+void operator delete[](void* p) noexcept { release(p); }
+void operator delete(void* p, std::size_t) noexcept { release(p); }
+void operator delete[](void* p, std::size_t) noexcept { release(p); }
+void operator delete(void* p, const std::nothrow_t&) noexcept { release(p); }
+void operator delete[](void* p, const std::nothrow_t&) noexcept { release(p); }
+void operator delete(void* p, std::align_val_t) noexcept { release(p); }
+void operator delete[](void* p, std::align_val_t) noexcept { release(p); }
+void operator delete(void* p, std::size_t, std::align_val_t) noexcept { release(p); }
+void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { release(p); }
+void operator delete(void* p, std::align_val_t, const std::nothrow_t&) noexcept { release(p); }
+void operator delete[](void* p, std::align_val_t, const std::nothrow_t&) noexcept { release(p); }
+
+namespace {
+
+using namespace pneu;
+using controller::ControlLoop;
+using controller::SpscQueue;
+using controller::TimingStats;
+
+// Nothing on the loop thread can throw: an exception escaping tick() would leave the valves at
+// whatever they were last told. These fail the build, not the run.
+static_assert(noexcept(std::declval<ControlLoop&>().tick(0.0)));
+static_assert(noexcept(std::declval<ControlLoop&>().stop()));
+static_assert(noexcept(std::declval<hal::Backend&>().read(0.0, std::declval<hal::SensorFrame&>())));
+static_assert(noexcept(std::declval<hal::Backend&>().write(hal::ActuatorCommand{})));
+static_assert(noexcept(std::declval<controller::Clock&>().sleep_until(0.0)));
+static_assert(noexcept(std::declval<SpscQueue<int, 4>&>().try_push(0)));
+static_assert(noexcept(std::declval<TimingStats&>().add(0.0)));
+
+// Opens and closes the counted window around exactly one call.
+class CountedWindow {
+ public:
+  CountedWindow() { g_counting.store(true, std::memory_order_seq_cst); }
+  ~CountedWindow() { g_counting.store(false, std::memory_order_seq_cst); }
+  CountedWindow(const CountedWindow&) = delete;
+  CountedWindow& operator=(const CountedWindow&) = delete;
+};
+
+void reset_counters() {
+  g_allocations.store(0);
+  g_deallocations.store(0);
+}
+
+// The default bench running the paper scenario (embedded config/sim.yaml). The loop keeps a
+// reference to the config, so this object stays where it was built.
+struct DefaultRun {
+  config::Config config = config::load_string(config::default_config_yaml());
+  plant::ValveModel valve{config.plant.valve, config.plant.gas};
+  controller::SimulatedRun run;
+
+  DefaultRun() {
+    controller::resolve_offset(config, valve);
+    run = controller::make_simulated_run(config, valve, nullptr, nullptr);
+  }
+  DefaultRun(const DefaultRun&) = delete;
+  DefaultRun& operator=(const DefaultRun&) = delete;
+  [[nodiscard]] double period_s() const { return config.controller.period_s(); }
+};
+
+void* volatile g_sink = nullptr;  // keeps the control allocation from being optimised away
+
+TEST(AllocationCounter, CountsAnAllocationMadeInsideTheWindow) {
+  reset_counters();
+  {
+    CountedWindow window;
+    g_sink = ::operator new(64);
+  }
+  ::operator delete(g_sink);
+  {
+    CountedWindow window;
+    // The vector and its buffer are freed inside the window too.
+    auto v = std::make_unique<std::vector<double>>(16);
+    g_sink = v.get();
+  }
+  EXPECT_EQ(g_allocations.load(), 3u);  // raw block, the vector object, its buffer
+  EXPECT_EQ(g_deallocations.load(), 2u);
+}
+
+TEST(AllocationCounter, IgnoresAllocationsOutsideTheWindow) {
+  reset_counters();
+  auto v = std::make_unique<std::vector<double>>(16);
+  g_sink = v.get();
+  v.reset();
+  EXPECT_EQ(g_allocations.load(), 0u);
+  EXPECT_EQ(g_deallocations.load(), 0u);
+}
+
+TEST(ControlLoop, AllocatesNothingOverTenThousandTicksAfterStart) {
+  DefaultRun d;
+  auto& run = d.run;
+  run.loop->start(0.0);
+  reset_counters();
+  constexpr std::uint64_t kTicks = 10'000;  // 10 s: the set-point step and the long sticking phase
+  for (std::uint64_t k = 0; k < kTicks; ++k) {
+    {
+      CountedWindow window;
+      run.loop->tick(static_cast<double>(k) * d.period_s());
+    }
+    run.report->drain(*run.outputs);  // the non-real-time side, outside the window: it allocates
+  }
+  EXPECT_EQ(g_allocations.load(), 0u);
+  EXPECT_EQ(g_deallocations.load(), 0u);
+
+  // The ticks did real work: the carriage moved, stopped, and restarted (events were queued),
+  // and no record was lost on the way.
+  EXPECT_EQ(run.loop->ticks(), kTicks);
+  EXPECT_EQ(run.report->ticks_seen(), kTicks);
+  ASSERT_FALSE(run.report->stops().empty());
+  EXPECT_TRUE(run.report->stops().front().ended);
+  EXPECT_EQ(run.outputs->ticks_dropped, 0u);
+  EXPECT_EQ(run.outputs->events_dropped, 0u);
+}
+
+TEST(SpscQueue, FullQueueRefusesAndKeepsWhatItHolds) {
+  SpscQueue<int, 4> q;
+  for (int i = 0; i < 4; ++i) ASSERT_TRUE(q.try_push(i));
+  EXPECT_FALSE(q.try_push(4));
+  int v = -1;
+  ASSERT_TRUE(q.try_pop(v));
+  EXPECT_EQ(v, 0);
+  EXPECT_TRUE(q.try_push(5));  // one slot freed, one push accepted
+  EXPECT_FALSE(q.try_push(6));
+  for (int expected : {1, 2, 3, 5}) {
+    ASSERT_TRUE(q.try_pop(v));
+    EXPECT_EQ(v, expected);
+  }
+  EXPECT_FALSE(q.try_pop(v));
+}
+
+TEST(ControlLoop, CountsDroppedTickRecordsAndKeepsTickingWhenNobodyDrains) {
+  DefaultRun d;
+  auto& run = d.run;
+  run.loop->start(0.0);
+  constexpr std::uint64_t kCapacity = decltype(controller::LoopOutputs::ticks)::capacity();
+  constexpr std::uint64_t kExtra = 100;
+  for (std::uint64_t k = 0; k < kCapacity + kExtra; ++k)
+    run.loop->tick(static_cast<double>(k) * d.period_s());
+
+  EXPECT_EQ(run.loop->ticks(), kCapacity + kExtra);
+  EXPECT_EQ(run.outputs->ticks_dropped, kExtra);  // the queue held exactly its capacity
+  // The loop went on controlling while its records were dropped: the set point stepped at 1 s and
+  // the carriage followed it (it started at 219.5 mm, the set point is 170 mm).
+  EXPECT_LT(run.backend->plant().state().y_m, 0.19);
+
+  // The reader sees the loss as one gap in the sequence numbers once the loop's records flow again.
+  run.report->drain(*run.outputs);
+  EXPECT_EQ(run.report->ticks_seen(), kCapacity);
+  EXPECT_EQ(run.report->sequence_gaps(), 0u);
+  run.loop->tick(static_cast<double>(kCapacity + kExtra) * d.period_s());
+  run.report->drain(*run.outputs);
+  EXPECT_EQ(run.report->sequence_gaps(), 1u);
+}
+
+TEST(SpscQueue, CarriesAMillionSequenceNumbersBetweenThreadsInOrderWithoutLoss) {
+  constexpr std::uint64_t kCount = 1'000'000;
+  // Small, so that the queue runs full and empty often.
+  auto q = std::make_unique<SpscQueue<std::uint64_t, 1024>>();
+  std::uint64_t out_of_order = 0;
+  std::uint64_t received = 0;
+  std::thread consumer([&] {
+    std::uint64_t v = 0;
+    while (received < kCount) {
+      if (!q->try_pop(v)) {
+        std::this_thread::yield();
+        continue;
+      }
+      if (v != received) ++out_of_order;
+      ++received;
+    }
+  });
+  for (std::uint64_t i = 0; i < kCount; ++i) {
+    while (!q->try_push(i)) std::this_thread::yield();
+  }
+  consumer.join();
+  EXPECT_EQ(received, kCount);
+  EXPECT_EQ(out_of_order, 0u);
+  std::uint64_t leftover = 0;
+  EXPECT_FALSE(q->try_pop(leftover));
+}
+
+// The empirical q-quantile of the sorted sample, by the same rank rule as TimingStats.
+double empirical_quantile(const std::vector<double>& sorted, double q) {
+  const auto rank = static_cast<std::size_t>(std::ceil(q * static_cast<double>(sorted.size())));
+  return sorted[std::max<std::size_t>(rank, 1) - 1];
+}
+
+TEST(TimingStats, QuantilesOfALogNormalSampleMatchTheSortedSampleWithinOneBin) {
+  // Compute times of a loop: median 2 us, a long right tail (sigma 0.5 in log space: p99 ~ 6 us).
+  std::mt19937_64 rng(20240601);
+  std::lognormal_distribution<double> dist(std::log(2.0e-6), 0.5);
+  std::vector<double> sample(100'000);
+  TimingStats stats;
+  for (double& s : sample) {
+    s = dist(rng);
+    stats.add(s);
+  }
+  std::sort(sample.begin(), sample.end());
+
+  EXPECT_EQ(stats.count(), sample.size());
+  EXPECT_EQ(stats.min_s(), sample.front());  // exact, not binned
+  EXPECT_EQ(stats.max_s(), sample.back());
+  // The histogram returns the geometric centre of the bin holding the rank: within one bin ratio
+  // (1.005) of the true order statistic, by construction.
+  constexpr double kBinRatio = 1.005;
+  for (double q : {0.01, 0.1, 0.5, 0.9, 0.99, 0.999}) {
+    const double truth = empirical_quantile(sample, q);
+    const double got = stats.quantile_s(q);
+    EXPECT_GE(got, truth / kBinRatio) << "q = " << q;
+    EXPECT_LE(got, truth * kBinRatio) << "q = " << q;
+  }
+}
+
+TEST(TimingStats, EmptyReadsZero) {
+  TimingStats stats;
+  EXPECT_EQ(stats.count(), 0u);
+  EXPECT_EQ(stats.quantile_s(0.5), 0.0);
+  EXPECT_EQ(stats.min_s(), 0.0);
+  EXPECT_EQ(stats.max_s(), 0.0);
+}
+
+TEST(TimingStats, EveryQuantileOfOneSampleIsThatSampleExactly) {
+  TimingStats stats;
+  stats.add(3.7e-6);
+  for (double q : {0.0, 0.5, 1.0}) EXPECT_EQ(stats.quantile_s(q), 3.7e-6) << "q = " << q;
+}
+
+TEST(TimingStats, ValuesOutsideTheHistogramKeepExactExtremesAndQuantilesStayBetweenThem) {
+  TimingStats stats;
+  stats.add(1.0e-9);  // below the 10 ns floor of the histogram
+  stats.add(30.0);    // above its 10 s ceiling
+  EXPECT_EQ(stats.min_s(), 1.0e-9);
+  EXPECT_EQ(stats.max_s(), 30.0);
+  for (double q : {0.0, 0.5, 1.0}) {
+    EXPECT_GE(stats.quantile_s(q), 1.0e-9) << "q = " << q;
+    EXPECT_LE(stats.quantile_s(q), 30.0) << "q = " << q;
+  }
+  stats.reset();
+  EXPECT_EQ(stats.count(), 0u);
+}
+
+}  // namespace

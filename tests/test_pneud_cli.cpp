@@ -1,0 +1,265 @@
+// pneud as a user runs it: help and version, the summary and the events file of the default run,
+// the effective configuration, bad input refused with exit code 2 before anything runs (naming the
+// key and the reason), and a short run on the real clock.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <optional>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+using ::testing::Not;
+
+struct Outcome {
+  int exit_code = -1;
+  std::string out;
+  std::string err;
+};
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+std::vector<std::string> lines_of(const std::string& text) {
+  std::vector<std::string> lines;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
+}
+
+// One line of the events file: a flat JSON object whose values are numbers, strings without
+// commas or braces, true, false or null. Good enough to read pneud's own output; anything else
+// makes the shape check below fail.
+using JsonLine = std::map<std::string, std::string>;
+
+bool looks_like_event_object(const std::string& line) {
+  return line.starts_with("{\"event\":\"") && line.ends_with("}") &&
+         line.find(",\"t\":") != std::string::npos;
+}
+
+JsonLine parse_flat_object(const std::string& line) {
+  JsonLine fields;
+  static const std::regex kField(R"re("([a-z_]+)":("[^"]*"|[^,}]+))re");
+  for (auto it = std::sregex_iterator(line.begin(), line.end(), kField);
+       it != std::sregex_iterator(); ++it)
+    fields[(*it)[1]] = (*it)[2];
+  return fields;
+}
+
+bool is_number(const std::string& v) {
+  if (v.empty()) return false;
+  char* end = nullptr;
+  (void)std::strtod(v.c_str(), &end);
+  return end == v.c_str() + v.size();
+}
+
+class PneudCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    std::string name = info->name();
+    std::replace(name.begin(), name.end(), '/', '_');  // parameterised tests: "Test/Param"
+    dir_ = fs::temp_directory_path() / ("pneud_cli_" + std::to_string(::getpid()) + "_" + name);
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+
+  // Runs pneud with `args` (already shell-quoted where needed), capturing stdout and stderr.
+  Outcome pneud(const std::string& args) const {
+    const fs::path out = dir_ / "stdout.txt";
+    const fs::path err = dir_ / "stderr.txt";
+    const std::string command = std::string("'") + PNEU_BINARY_DIR + "/bin/pneud' " + args +
+                                " > '" + out.string() + "' 2> '" + err.string() + "'";
+    const int status = std::system(command.c_str());
+    Outcome o;
+    o.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    o.out = slurp(out);
+    o.err = slurp(err);
+    return o;
+  }
+  [[nodiscard]] fs::path file(const std::string& name) const { return dir_ / name; }
+  [[nodiscard]] static std::string quoted(const fs::path& p) { return "'" + p.string() + "'"; }
+
+ private:
+  fs::path dir_;
+};
+
+TEST_F(PneudCli, HelpDescribesTheUsageAndExitsZero) {
+  const Outcome o = pneud("--help");
+  EXPECT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_THAT(o.out, HasSubstr("Usage:"));
+  EXPECT_THAT(o.out, HasSubstr("--events FILE"));
+  EXPECT_EQ(o.err, "");
+}
+
+TEST_F(PneudCli, VersionPrintsTheProgramAndVersionAndExitsZero) {
+  const Outcome o = pneud("--version");
+  EXPECT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_THAT(o.out, ::testing::MatchesRegex("pneud [0-9]+\\.[0-9]+\\.[0-9]+\n"));
+}
+
+TEST_F(PneudCli, DefaultRunPrintsTheSummaryOfTheTwelveSecondPaperScenario) {
+  const Outcome o = pneud("");
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_THAT(o.out, HasSubstr("12.000 s on the sim backend, simulated clock"));
+  EXPECT_THAT(o.out, HasSubstr("stops (sticking phases) and their restart forecasts"));
+  EXPECT_THAT(o.out, HasSubstr("restart - at"));
+  EXPECT_THAT(o.out, HasSubstr("loop: 12001 ticks at 1000 Hz"));
+  EXPECT_THAT(o.out, Not(HasSubstr("MISSED")));
+  EXPECT_THAT(o.out, Not(HasSubstr("WRONG DIR")));
+  EXPECT_THAT(o.out, Not(HasSubstr("telemetry dropped")));
+}
+
+TEST_F(PneudCli, EventsFileHoldsOneEventObjectPerLineWithConsistentStopsAndPredictions) {
+  const fs::path events = file("events.jsonl");
+  const Outcome o = pneud("--quiet --events " + quoted(events));
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_EQ(o.out, "");  // --quiet
+
+  const std::vector<std::string> lines = lines_of(slurp(events));
+  ASSERT_FALSE(lines.empty());
+  std::map<std::string, std::string> stop_time;  // stop index -> its event's "t", as written
+  std::map<std::string, int> predictions_per_stop;
+  bool restart_seen = false;
+  for (const std::string& line : lines) {
+    SCOPED_TRACE(line);
+    ASSERT_TRUE(looks_like_event_object(line));
+    const JsonLine f = parse_flat_object(line);
+    ASSERT_TRUE(f.contains("t"));
+    EXPECT_TRUE(is_number(f.at("t")));
+    const std::string& kind = f.at("event");
+    if (kind == "\"stop\"") {
+      stop_time[f.at("stop")] = f.at("t");
+    } else if (kind == "\"prediction\"") {
+      ASSERT_TRUE(stop_time.contains(f.at("stop"))) << "a prediction follows its stop";
+      EXPECT_EQ(f.at("t_stop"), stop_time.at(f.at("stop")));  // same double, same text
+      ++predictions_per_stop[f.at("stop")];
+      EXPECT_THAT(f.at("method"), ::testing::AnyOf("\"linearized\"", "\"nonlinear\""));
+      ASSERT_TRUE(f.contains("will_restart"));
+      EXPECT_THAT(f.at("will_restart"), ::testing::AnyOf("true", "false"));
+      EXPECT_THAT(f.at("direction"), ::testing::AnyOf("1", "-1", "0"));
+      ASSERT_TRUE(f.contains("t_restart"));
+      if (f.at("will_restart") == "true")
+        EXPECT_TRUE(is_number(f.at("t_restart")));
+      else
+        EXPECT_TRUE(f.at("t_restart") == "null" || is_number(f.at("t_restart")));
+    } else if (kind == "\"start\"") {
+      ASSERT_TRUE(f.contains("restart"));
+      if (f.at("restart") == "true") restart_seen = true;
+    } else {
+      EXPECT_EQ(kind, "\"end\"");
+    }
+  }
+  EXPECT_FALSE(stop_time.empty());
+  for (const auto& [stop, n] : predictions_per_stop)
+    EXPECT_EQ(n, 2) << "stop " << stop;  // both methods
+  EXPECT_EQ(predictions_per_stop.size(), stop_time.size());
+  EXPECT_TRUE(restart_seen);
+  EXPECT_EQ(lines.back(), "{\"event\":\"end\",\"t\":12}");
+}
+
+TEST_F(PneudCli, TrajectoryFileHasAHeaderAndOneRowPerTick) {
+  const fs::path trajectory = file("trajectory.csv");
+  const Outcome o = pneud("--quiet --trajectory " + quoted(trajectory));
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  const std::vector<std::string> lines = lines_of(slurp(trajectory));
+  ASSERT_EQ(lines.size(), 1u + 12001u);
+  EXPECT_EQ(lines.front(), "seq,t,y_d,y,v_hat,a_hat,p_P,p_N,F,u,stuck,validity");
+  EXPECT_THAT(lines.back(), ::testing::StartsWith("12000,12,"));
+}
+
+TEST_F(PneudCli, CheckConfigPrintsTheEffectiveYamlWithTheOffsetResolvedAndRunsNothing) {
+  const Outcome o = pneud("--check-config");
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_THAT(o.out, HasSubstr("plant:"));
+  EXPECT_THAT(o.out, ::testing::ContainsRegex("offset_v: -?[0-9]"));  // u_e of Eq. 7, not "auto"
+  EXPECT_THAT(o.out, Not(HasSubstr("stops (sticking phases)")));
+}
+
+// Bad input: exit code 2, a message on stderr naming the key (or option) and the reason, nothing
+// on stdout, and no output file created (nothing ran).
+struct BadInput {
+  std::string name;
+  std::string args;
+  std::string names;   // the key or option the message must name
+  std::string reason;  // and the reason it must give
+};
+
+void PrintTo(const BadInput& b, std::ostream* os) { *os << b.name; }
+
+class PneudBadInput : public PneudCli, public ::testing::WithParamInterface<BadInput> {};
+
+TEST_P(PneudBadInput, ExitsTwoNamingTheKeyAndReasonBeforeAnythingRuns) {
+  const BadInput& b = GetParam();
+  std::string args = b.args;
+  if (args.find("@BAD_CONFIG@") != std::string::npos) {
+    // The embedded default with one required key removed.
+    std::string yaml = slurp(fs::path(PNEU_SOURCE_DIR) / "config" / "sim.yaml");
+    const auto at = yaml.find("  mass_kg:");
+    ASSERT_NE(at, std::string::npos);
+    yaml.erase(at, yaml.find('\n', at) + 1 - at);
+    std::ofstream(file("bad.yaml")) << yaml;
+    args.replace(args.find("@BAD_CONFIG@"), 12, quoted(file("bad.yaml")));
+  }
+  const fs::path events = file("events.jsonl");
+  const Outcome o = pneud(args + " --events " + quoted(events));
+  EXPECT_EQ(o.exit_code, 2) << o.out << o.err;
+  EXPECT_THAT(o.err, HasSubstr(b.names));
+  EXPECT_THAT(o.err, HasSubstr(b.reason));
+  EXPECT_EQ(o.out, "");
+  EXPECT_FALSE(fs::exists(events));
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Pneud, PneudBadInput,
+    ::testing::Values(
+        BadInput{"UnknownSetKey", "--set controller.no_such_key=1", "controller.no_such_key",
+                 "unknown key"},
+        BadInput{"MalformedNumber", "--set controller.rate_hz=fast", "controller.rate_hz",
+                 "expected a number"},
+        BadInput{"OutOfRange", "--set controller.law.max_voltage_v=-1",
+                 "controller.law.max_voltage_v", "must be > 0"},
+        BadInput{"ConfigFileMissingAKey", "--config @BAD_CONFIG@", "plant.mass_kg", "missing"},
+        BadInput{"UnknownClock", "--clock bogus", "--clock", "real or simulated"},
+        BadInput{"DurationNotANumber", "--duration abc", "--duration", "not a finite number"},
+        BadInput{"ZeroDurationOnTheSimulatedClock", "--duration 0", "controller.duration_s",
+                 "needs the real clock"}),
+    [](const ::testing::TestParamInfo<BadInput>& p) { return p.param.name; });
+
+TEST_F(PneudCli, ShortRunOnTheRealClockCompletesAndReportsLoopTiming) {
+  const Outcome o = pneud("--clock real --duration 0.3");
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_THAT(o.out, HasSubstr("real clock"));
+  EXPECT_THAT(o.out, HasSubstr("wake-up latency [us]"));
+  EXPECT_THAT(o.out, HasSubstr("compute per tick [us]"));
+  // No timing assertions (shared machines are noisy, and every overrun skips deadlines): only that
+  // it ticked, and never beyond the 301 deadlines at 0, 1, ..., 300 ms.
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(o.out, m, std::regex(R"(loop: ([0-9]+) ticks at 1000 Hz)")))
+      << o.out;
+  const long ticks = std::stol(m[1]);
+  EXPECT_GE(ticks, 1);
+  EXPECT_LE(ticks, 301);
+}
+
+}  // namespace

@@ -36,14 +36,14 @@ void RealClock::sleep_until(double t_s) noexcept {
   }
 }
 
-void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t max_ticks,
+void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t deadlines,
               const std::atomic<bool>& stop_requested, LoopTiming& timing,
               const std::function<void()>& between_ticks) {
   timing.period_s = period_s;
   const double epoch = clock.now_s();
   loop.start(0.0);
   std::uint64_t k = 0;  // deadline index: deadline k is at k * period (no accumulated rounding)
-  while ((max_ticks == 0 || timing.ticks < max_ticks) &&
+  while ((deadlines == 0 || k < deadlines) &&
          !stop_requested.load(std::memory_order_relaxed)) {
     const double deadline = static_cast<double>(k) * period_s;
     clock.sleep_until(epoch + deadline);

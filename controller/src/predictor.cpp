@@ -9,6 +9,8 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kTimeTolerance_s = 1.0e-7;
+// The nonlinear method's smallest margin is exact to this [N].
+constexpr double kMarginTolerance_n = 1.0e-3;
 
 struct Bounds {
   double upper_n;   // F_S+, or +inf when the + direction is blocked by an end stop
@@ -191,9 +193,14 @@ Prediction predict_nonlinear(const PredictorModel& m, const StopSnapshot& s) noe
     // pressures: when that box lies inside the band, no restart can ever come.
     const double f_lo = c.force(std::min(x.pp, pe_p), std::max(x.pn, pe_n));
     const double f_hi = c.force(std::max(x.pp, pe_p), std::min(x.pn, pe_n));
+    // Once no restart is possible, go on only while the box could still hold a smaller margin
+    // than the one already met (after an overshoot the box corner lingers near a bound).
     if (f_lo > b.lower_n && f_hi < b.upper_n) {
-      p.min_margin_n = std::min(min_margin, std::min(margin(m, f_lo), margin(m, f_hi)));
-      return p;
+      const double box_margin = std::min(margin(m, f_lo), margin(m, f_hi));
+      if (box_margin >= min_margin - kMarginTolerance_n) {
+        p.min_margin_n = std::min(min_margin, box_margin);
+        return p;
+      }
     }
     const double slope = std::max(c.k_r_t / c.v_p * -valve.dq_dp(u, x.pp),
                                   c.k_r_t / c.v_n * -valve.dq_dp(-u, x.pn));

@@ -137,7 +137,7 @@ void RunReport::print_summary(std::FILE* out, const LoopTiming& timing) const {
     const std::optional<Prediction>* ps[2] = {&s.linearized, &s.nonlinear};
     for (int i = 0; i < 2; ++i) {
       if (!*ps[i]) {
-        cells[i] = "-";
+        cells[i].assign(1, '-');
         continue;
       }
       const Prediction& p = **ps[i];

@@ -55,10 +55,11 @@ struct LoopTiming {
   double period_s = 0.0;
 };
 
-/// Runs `loop` at a fixed period from loop time 0 until `max_ticks` (0 = no limit) or
+/// Runs `loop` at a fixed period from loop time 0 over the deadlines 0 .. `deadlines` - 1 (0 = no
+/// limit; deadlines skipped after an overrun count, so the run never outlasts them) or until
 /// `stop_requested`. `between_ticks`, when set, runs after each tick outside the timed part (the
 /// simulated clock's way of servicing the non-real-time side deterministically).
-void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t max_ticks,
+void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t deadlines,
               const std::atomic<bool>& stop_requested, LoopTiming& timing,
               const std::function<void()>& between_ticks = {});
 

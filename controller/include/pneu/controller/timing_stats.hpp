@@ -2,6 +2,7 @@
 // (0.5 % bins from 10 ns to 10 s) for the median and percentiles.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
