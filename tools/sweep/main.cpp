@@ -26,7 +26,7 @@ constexpr const char* kHelp = R"(pneu-sweep: the restart predictor against many 
 
 Usage:
   pneu-sweep [--config FILE] --out SWEEP.csv [--steps N] [--seed S] [--jobs J] [--duration S]
-             [--step-time S] [--margin-m M] [--min-step-m D] [--friction-spread F] [--gain-spread G]
+             [--step-time S] [--tail S] [--margin-m M] [--min-step-m D] [--friction-spread F] [--gain-spread G]
              [--set KEY=VALUE ...] [--strict] [--quiet]
 
 Scenario i starts at rest at a random position y0 and steps the set point at --step-time
@@ -34,7 +34,10 @@ Scenario i starts at rest at a random position y0 and steps the set point at --s
 at each end, |y_d - y0| >= --min-step-m (default 0.005 m). --friction-spread F scales all friction
 values of a scenario by a factor drawn in [1-F, 1+F], --gain-spread G the three gains likewise
 (default 0: the config's values). Each scenario runs --duration seconds (default 12) in simulated
-time; --jobs threads (default: the cores) share the scenarios.
+time, then --tail seconds more (default 1) in which no new stop is judged: a restart forecast just
+before the end of the window is then seen or refuted by the signals rather than cut off (a
+breakaway with a force a hair beyond stiction moves the carriage by less than the detector's
+motion band for tens of milliseconds). --jobs threads (default: the cores) share the scenarios.
 
 SWEEP.csv has one row per stop: the scenario, the stop, what happened, and each method's forecast
 with its verdict and error. The summary gives the confusion matrix of restart / no restart and the
@@ -94,7 +97,7 @@ bool within_criteria(const controller::StopOutcome& s, const Verdict& v, bool no
 int run(int argc, char** argv) {
   const cli::Args args(argc, argv, 1,
                        {"config", "out", "steps", "seed", "jobs", "duration", "step-time", "margin-m",
-                        "min-step-m", "friction-spread", "gain-spread"},
+                        "min-step-m", "friction-spread", "gain-spread", "tail"},
                        {"strict", "quiet", "help"}, {"set"});
   if (args.flag("help")) {
     std::cout << kHelp;
@@ -112,6 +115,7 @@ int run(int argc, char** argv) {
   const double min_step = args.number("min-step-m", 0.005);
   const double friction_spread = args.number("friction-spread", 0.0);
   const double gain_spread = args.number("gain-spread", 0.0);
+  const double tail = args.number("tail", 1.0);
   const double half = base.plant.geometry.half_stroke_m();
   if (!(steps_d >= 1 && steps_d == std::floor(steps_d))) throw cli::UsageError("--steps must be a whole number >= 1");
   if (!(jobs_d >= 1 && jobs_d == std::floor(jobs_d))) throw cli::UsageError("--jobs must be a whole number >= 1");
@@ -121,6 +125,7 @@ int run(int argc, char** argv) {
   if (!(min_step >= 0)) throw cli::UsageError("--min-step-m must be >= 0");
   if (!(friction_spread >= 0 && friction_spread < 1)) throw cli::UsageError("--friction-spread must be in [0, 1)");
   if (!(gain_spread >= 0 && gain_spread < 1)) throw cli::UsageError("--gain-spread must be in [0, 1)");
+  if (!(tail >= 0)) throw cli::UsageError("--tail must be >= 0");
   const auto n = static_cast<int>(steps_d);
   const auto jobs = static_cast<int>(std::min<double>(jobs_d, n));
 
@@ -155,7 +160,7 @@ int run(int argc, char** argv) {
         cfg.simulation.initial_position_m = s.y0_m;
         cfg.controller.initial_setpoint_m = s.y0_m;
         cfg.controller.schedule = {{step_time, s.y_d_m}};
-        cfg.controller.duration_s = duration;
+        cfg.controller.duration_s = duration + tail;
         cfg.controller.clock = config::ClockKind::kSimulated;
         auto& f = cfg.plant.friction;
         f.static_positive_n *= s.friction_scale;
@@ -174,7 +179,12 @@ int run(int argc, char** argv) {
         controller::SimulatedClock clock;
         std::atomic<bool> never{false};
         controller::execute(sim, cfg, clock, never);
-        results[static_cast<std::size_t>(i)] = {s, sim.report->stops(), sim.report->end_time_s()};
+        // Stops from the tail are not judged: the tail only lets the carriage show what it did
+        // after the stops of the judged window.
+        ScenarioResult r{s, {}, sim.report->end_time_s()};
+        for (const auto& stop : sim.report->stops())
+          if (stop.t_stop_s <= duration) r.stops.push_back(stop);
+        results[static_cast<std::size_t>(i)] = std::move(r);
       } catch (...) {
         const std::lock_guard<std::mutex> lock(failure_mutex);
         if (!failure) failure = std::current_exception();
@@ -271,8 +281,8 @@ int run(int argc, char** argv) {
   }
   out.commit();
 
-  std::printf("pneu-sweep: %d scenarios (%d set-point steps over [%.3f, %.3f] m, seed %llu, friction +-%.0f %%, gains +-%.0f %%), %.0f s each\n",
-              n, n, lo, hi, static_cast<unsigned long long>(seed_d), friction_spread * 100, gain_spread * 100, duration);
+  std::printf("pneu-sweep: %d scenarios (%d set-point steps over [%.3f, %.3f] m, seed %llu, friction +-%.0f %%, gains +-%.0f %%), stops of the first %.0f s judged (+ %.1f s tail)\n",
+              n, n, lo, hi, static_cast<unsigned long long>(seed_d), friction_spread * 100, gain_spread * 100, duration, tail);
   std::printf("  %llu stops, %llu restarts (%llu after >= 0.5 s of sticking, %llu after >= 1 s)\n",
               static_cast<unsigned long long>(stops), static_cast<unsigned long long>(restarts),
               static_cast<unsigned long long>(long_restarts), static_cast<unsigned long long>(longest_restart_count_1s));
