@@ -232,3 +232,23 @@ TEST_F(PneuPlantCli, CharacterizeValveWritesATableThePredictorCanLoad) {
           << "w=" << w << " p=" << p;
   EXPECT_THAT(r.out, HasSubstr("u_e (Eq. 7)"));
 }
+
+TEST_F(PneuPlantCli, NullFlowCurveIsTheEquilibriumForceOfEquation7) {
+  const fs::path out = dir_ / "curve.csv";
+  const Outcome r = run("null-flow --voltage-step-v 0.5 --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::string header;
+  const auto data = rows(slurp(out), &header);
+  EXPECT_EQ(header, "u_v,p_null_p_pa,p_null_n_pa,x_n,y_n,equilibrium_force_n");
+  ASSERT_EQ(data.size(), 41u);
+  const pneu::plant::PlantParams params;
+  const pneu::plant::ValveModel model(params.valve, params.gas);
+  const auto& g = params.geometry;
+  for (const auto& row : data) {
+    EXPECT_NEAR(row[1], model.null_pressure_pa(row[0]), 1e-3);
+    EXPECT_NEAR(row[3], g.area_p_m2() * row[1], 1e-9);
+    EXPECT_NEAR(row[4], g.area_n_m2() * row[2] + g.area_rod_m2() * 1.0e5, 1e-9);
+    EXPECT_NEAR(row[5], row[3] - row[4], 1e-9);
+  }
+  for (std::size_t i = 1; i < data.size(); ++i) EXPECT_GT(data[i][5], data[i - 1][5]) << "increasing in u";
+}

@@ -23,6 +23,7 @@ constexpr const char* kUsage = R"(pneu-plant: the simulated electropneumatic ben
 Usage:
   pneu-plant simulate [--config FILE] --input U.csv --out TRAJ.csv [--set KEY=VALUE ...] [--sensors] [--quiet]
   pneu-plant characterize-valve [--config FILE] --out TABLE.csv [--voltage-step-v V] [--pressure-step-pa P]
+  pneu-plant null-flow [--config FILE] --out CURVE.csv [--voltage-step-v V]
   pneu-plant COMMAND --help
   pneu-plant --version
 
@@ -60,6 +61,18 @@ constexpr const char* kCharacterizeHelp = R"(pneu-plant characterize-valve: the 
 As a flow bench measures it (Fig. 12 of the paper): each chamber pressure held, the valve driven
 at each voltage, the mass flow into the chamber recorded. The restart predictor loads this table
 as the valve characteristic.
+)";
+
+constexpr const char* kNullFlowHelp = R"(pneu-plant null-flow: the complete-equilibrium curve (Fig. 6 and Fig. 7)
+
+  --config FILE         YAML configuration (default: the embedded config/sim.yaml)
+  --out CURVE.csv       u_v, p_null_p_pa = p_null(u), p_null_n_pa = p_null(-u), x_n = S_P p_null(u),
+                        y_n = S_N p_null(-u) + S_r p_E, equilibrium_force_n = x - y (Eq. 7 / Eq. 14)
+  --voltage-step-v V    voltage step (default 0.01 V), from -u_max to +u_max
+  --set KEY=VALUE       override a config key (repeatable)
+
+The null-flow curve in the pressure-force plane; with the stop and no-restarting areas of MODEL.md
+section 5 it is what the pressure-force figure draws.
 )";
 
 const char* event_name(plant::PlantEvent::Kind k, int direction) {
@@ -231,6 +244,32 @@ int characterize(int argc, char** argv) {
   return cli::kExitOk;
 }
 
+int null_flow(int argc, char** argv) {
+  const cli::Args args(argc, argv, 2, {"config", "out", "voltage-step-v"}, {"help"}, {"set"});
+  if (args.flag("help")) {
+    std::cout << kNullFlowHelp;
+    return cli::kExitOk;
+  }
+  const config::Config cfg = config::load_file_or_default(args.value("config").value_or(""), args.all("set"));
+  const std::string out_path = args.required("out");
+  const double u_max = cfg.plant.valve.max_voltage_v;
+  const double dw = args.number("voltage-step-v", 0.01);
+  if (!(dw > 0.0 && dw <= u_max)) throw cli::UsageError("--voltage-step-v must be in (0, u_max]");
+  const plant::ValveModel valve(cfg.plant.valve, cfg.plant.gas);
+  const auto& g = cfg.plant.geometry;
+  const double p_e = cfg.plant.gas.exhaust_pressure_pa;
+  cli::AtomicFile out(out_path);
+  auto& os = out.stream();
+  os << "u_v,p_null_p_pa,p_null_n_pa,x_n,y_n,equilibrium_force_n\n" << std::setprecision(10);
+  for (double w : grid(-u_max, u_max, dw, true)) {
+    const double pp = valve.null_pressure_pa(w), pn = valve.null_pressure_pa(-w);
+    const double x = g.area_p_m2() * pp, y = g.area_n_m2() * pn + g.area_rod_m2() * p_e;
+    os << w << ',' << pp << ',' << pn << ',' << x << ',' << y << ',' << x - y << '\n';
+  }
+  out.commit();
+  return cli::kExitOk;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -238,6 +277,7 @@ int main(int argc, char** argv) {
     const std::string command = argc > 1 ? argv[1] : "";
     if (command == "simulate") return simulate(argc, argv);
     if (command == "characterize-valve") return characterize(argc, argv);
+    if (command == "null-flow") return null_flow(argc, argv);
     if (command == "--version") {
       std::printf("pneu-plant %s\n", PNEU_VERSION);
       return cli::kExitOk;
