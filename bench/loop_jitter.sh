@@ -13,7 +13,7 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 cyclictest -m --default-system -i 1000 -l "$loops" -q -h 2000 "${prio[@]}" >"$tmp/cyclic.txt" 2>&1 &
 cpid=$!
-build/bin/pneud --clock real --duration "$secs" >"$tmp/pneud.txt"
+build/bin/pneud --clock real --duration "$secs" --set telemetry.enabled=false >"$tmp/pneud.txt"
 wait $cpid
 echo "pneud (real clock, ${secs} s at 1 kHz):"
 grep -E "overruns|wake-up|compute" "$tmp/pneud.txt"

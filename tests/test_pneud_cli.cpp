@@ -85,11 +85,14 @@ class PneudCli : public ::testing::Test {
   }
 
   // Runs pneud with `args` (already shell-quoted where needed), capturing stdout and stderr.
+  // Telemetry is off: these tests run in the host's network namespace, and LCM multicast in tests
+  // belongs inside a private one (test_lcm_integration).
   Outcome pneud(const std::string& args) const {
     const fs::path out = dir_ / "stdout.txt";
     const fs::path err = dir_ / "stderr.txt";
     const std::string command = std::string("'") + PNEU_BINARY_DIR + "/bin/pneud' " + args +
-                                " > '" + out.string() + "' 2> '" + err.string() + "'";
+                                " --set telemetry.enabled=false > '" + out.string() + "' 2> '" +
+                                err.string() + "'";
     const int status = std::system(command.c_str());
     Outcome o;
     o.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;

@@ -240,6 +240,44 @@ ControllerConfig read_controller(MapReader r, const plant::PlantParams& plant) {
     }
     sp.finish();
   }
+  c.soft_limit_min_m = r.number("soft_limit_min_m");
+  c.soft_limit_max_m = r.number("soft_limit_max_m");
+  check(c.soft_limit_min_m >= -half, r.child_path("soft_limit_min_m"),
+        "must lie inside the stroke (>= " + fmt(-half) + " m, got " + fmt(c.soft_limit_min_m) + ")");
+  check(c.soft_limit_max_m <= half, r.child_path("soft_limit_max_m"),
+        "must lie inside the stroke (<= " + fmt(half) + " m, got " + fmt(c.soft_limit_max_m) + ")");
+  check(c.soft_limit_max_m > c.soft_limit_min_m, r.child_path("soft_limit_max_m"),
+        "must exceed soft_limit_min_m");
+  check(c.initial_setpoint_m >= c.soft_limit_min_m && c.initial_setpoint_m <= c.soft_limit_max_m,
+        r.child_path("setpoints.initial_m"), "must lie within the soft limits");
+  for (std::size_t i = 0; i < c.schedule.size(); ++i)
+    check(c.schedule[i].position_m >= c.soft_limit_min_m && c.schedule[i].position_m <= c.soft_limit_max_m,
+          r.child_path("setpoints.schedule[" + std::to_string(i) + "].position_m"),
+          "must lie within the soft limits [" + fmt(c.soft_limit_min_m) + ", " + fmt(c.soft_limit_max_m) + "] m");
+  c.start_armed = r.boolean("start_armed");
+  r.finish();
+  return c;
+}
+
+TelemetryConfig read_telemetry(MapReader r) {
+  TelemetryConfig t;
+  t.enabled = r.boolean("enabled");
+  t.lcm_url = r.string("lcm_url");
+  check(!t.lcm_url.empty(), r.child_path("lcm_url"), "must not be empty");
+  t.channel_prefix = r.string("channel_prefix");
+  for (char ch : t.channel_prefix)
+    check(std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-' || ch == '.',
+          r.child_path("channel_prefix"), "may hold letters, digits, '_', '-' and '.' only");
+  t.health_period_s = in_range(r, "health_period_s", 0.01, 60.0);
+  r.finish();
+  return t;
+}
+
+CommandsConfig read_commands(MapReader r) {
+  CommandsConfig c;
+  c.enabled = r.boolean("enabled");
+  c.max_rate_hz = in_range(r, "max_rate_hz", 0.01, 1000.0);
+  c.burst = in_range(r, "burst", 1.0, 1000.0);
   r.finish();
   return c;
 }
@@ -302,6 +340,8 @@ Config decode(const YAML::Node& root) {
   c.simulation = read_simulation(r.map("simulation"), c.plant.geometry);
   c.controller = read_controller(r.map("controller"), c.plant);
   c.hal = read_hal(r.map("hal"));
+  c.telemetry = read_telemetry(r.map("telemetry"));
+  c.commands = read_commands(r.map("commands"));
   r.finish();
   return c;
 }
@@ -442,9 +482,23 @@ std::string to_yaml(const Config& c) {
   }
   e << YAML::EndSeq;
   e << YAML::EndMap;
+  kv("soft_limit_min_m", k.soft_limit_min_m);
+  kv("soft_limit_max_m", k.soft_limit_max_m);
+  kv("start_armed", k.start_armed);
   e << YAML::EndMap;
   e << YAML::Key << "hal" << YAML::Value << YAML::BeginMap;
   kv("backend", "sim");
+  e << YAML::EndMap;
+  e << YAML::Key << "telemetry" << YAML::Value << YAML::BeginMap;
+  kv("enabled", c.telemetry.enabled);
+  kv("lcm_url", c.telemetry.lcm_url);
+  kv("channel_prefix", c.telemetry.channel_prefix);
+  kv("health_period_s", c.telemetry.health_period_s);
+  e << YAML::EndMap;
+  e << YAML::Key << "commands" << YAML::Value << YAML::BeginMap;
+  kv("enabled", c.commands.enabled);
+  kv("max_rate_hz", c.commands.max_rate_hz);
+  kv("burst", c.commands.burst);
   e << YAML::EndMap;
   e << YAML::EndMap;
   return std::string(e.c_str()) + "\n";

@@ -1,5 +1,6 @@
 // pneud: the controller daemon of the electropneumatic bench.
 #include <csignal>
+#include <functional>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -9,6 +10,9 @@
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/session.hpp"
+#ifdef PNEU_WITH_LCM
+#include "pneu/telemetry/lcm_bridge.hpp"
+#endif
 
 namespace {
 
@@ -18,7 +22,7 @@ constexpr const char* kHelp = R"(pneud: real-time controller of the electropneum
 
 Usage:
   pneud [--config FILE] [--clock real|simulated] [--duration S] [--events FILE]
-        [--trajectory FILE] [--set KEY=VALUE ...] [--check-config] [--quiet]
+        [--trajectory FILE] [--set KEY=VALUE ...] [--check-config] [--require-telemetry] [--quiet]
   pneud --help | --version
 
   --config FILE      YAML configuration (default: the embedded config/sim.yaml, the simulated bench
@@ -32,6 +36,7 @@ Usage:
   --trajectory FILE  one CSV row per tick: seq,t,y_d,y,v_hat,a_hat,p_P,p_N,F,u,stuck,validity
   --set KEY=VALUE    override a config key by its dotted path, e.g. controller.law.position_gain_v_per_m=60
   --check-config     validate, print the effective configuration (u_0 resolved) and exit
+  --require-telemetry  exit with an error when LCM cannot start, instead of running without it
   --quiet            no summary
 
 Exit codes: 0 success, 1 run failure, 2 bad command line or configuration (nothing was run).
@@ -42,7 +47,7 @@ extern "C" void on_signal(int) { g_stop.store(true); }
 
 int run(int argc, char** argv) {
   const cli::Args args(argc, argv, 1, {"config", "clock", "duration", "events", "trajectory"},
-                       {"check-config", "quiet", "help", "version"}, {"set"});
+                       {"check-config", "quiet", "help", "version", "require-telemetry"}, {"set"});
   if (args.flag("help")) {
     std::cout << kHelp;
     return cli::kExitOk;
@@ -95,11 +100,26 @@ int run(int argc, char** argv) {
   std::signal(SIGTERM, on_signal);
   auto run = controller::make_simulated_run(cfg, *valve, events ? &*events : nullptr,
                                             trajectory ? &*trajectory : nullptr);
+  const bool real_clock = cfg.controller.clock == config::ClockKind::kReal;
+  std::function<void(int)> wait_for_input;
+#ifdef PNEU_WITH_LCM
+  std::unique_ptr<telemetry::LcmBridge> bridge;
+  if (cfg.telemetry.enabled) {
+    try {
+      bridge = std::make_unique<telemetry::LcmBridge>(cfg, *run.outputs, real_clock && cfg.commands.enabled);
+      run.report->set_listener(bridge.get());
+      wait_for_input = [&](int ms) { (void)bridge->handle(ms); };
+    } catch (const telemetry::LcmError& e) {
+      if (args.flag("require-telemetry")) throw;
+      std::fprintf(stderr, "pneud: warning: telemetry off: %s\n", e.what());
+    }
+  }
+#endif
   std::unique_ptr<controller::Clock> clock;
   if (cfg.controller.clock == config::ClockKind::kReal) clock = std::make_unique<controller::RealClock>();
   else clock = std::make_unique<controller::SimulatedClock>();
   const auto wall0 = std::chrono::steady_clock::now();
-  controller::execute(run, cfg, *clock, g_stop);
+  controller::execute(run, cfg, *clock, g_stop, wait_for_input);
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
 
   if (events) events->flush();
@@ -113,6 +133,16 @@ int run(int argc, char** argv) {
                 config_path.empty() ? "embedded sim.yaml" : config_path.c_str(), cfg.controller.law.offset_v,
                 wall_s, run.report->end_time_s() / wall_s);
     run.report->print_summary(stdout, run.timing);
+#ifdef PNEU_WITH_LCM
+    if (bridge) {
+      const auto& c = bridge->command_counters();
+      std::printf("telemetry: LCM %s, channels %s*; %llu publish errors; commands: %llu received, %llu accepted, %llu rejected\n",
+                  cfg.telemetry.lcm_url.c_str(), cfg.telemetry.channel_prefix.c_str(),
+                  static_cast<unsigned long long>(bridge->publish_errors()),
+                  static_cast<unsigned long long>(c.received), static_cast<unsigned long long>(c.accepted),
+                  static_cast<unsigned long long>(c.rejected));
+    }
+#endif
     if (run.outputs->ticks_dropped || run.outputs->events_dropped)
       std::printf("  telemetry dropped: %llu tick records, %llu events\n",
                   static_cast<unsigned long long>(run.outputs->ticks_dropped),

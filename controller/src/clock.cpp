@@ -4,6 +4,7 @@
 
 #include <cerrno>
 #include <chrono>
+#include <algorithm>
 #include <cmath>
 
 namespace pneu::controller {
@@ -36,10 +37,28 @@ void RealClock::sleep_until(double t_s) noexcept {
   }
 }
 
+namespace {
+void fill(const TimingStats& s, double (&out)[4]) noexcept {
+  out[0] = s.min_s();
+  out[1] = s.quantile_s(0.5);
+  out[2] = s.quantile_s(0.99);
+  out[3] = s.max_s();
+}
+}  // namespace
+
 void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t deadlines,
               const std::atomic<bool>& stop_requested, LoopTiming& timing,
-              const std::function<void()>& between_ticks) {
+              const std::function<void()>& between_ticks, double health_period_s,
+              LoopOutputs* health) {
   timing.period_s = period_s;
+  // Statistics of the current health period (the run's totals are in `timing`).
+  static thread_local TimingStats window_wake, window_compute;
+  window_wake.reset();
+  window_compute.reset();
+  const auto health_every = health && health_period_s > 0.0
+                                ? std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::llround(health_period_s / period_s)))
+                                : 0;
+  std::uint64_t next_health = health_every;
   const double epoch = clock.now_s();
   loop.start(0.0);
   std::uint64_t k = 0;  // deadline index: deadline k is at k * period (no accumulated rounding)
@@ -53,6 +72,8 @@ void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t de
     const double c1 = steady_s();
     timing.wake_latency.add(wake - deadline);
     timing.compute.add(c1 - c0);
+    window_wake.add(wake - deadline);
+    window_compute.add(c1 - c0);
     ++timing.ticks;
     ++k;
     if (!clock.simulated()) {
@@ -60,8 +81,26 @@ void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t de
       const double next = static_cast<double>(k) * period_s;
       if (end > next) {  // overrun: skip the deadlines already passed
         ++timing.overruns;
-        k = static_cast<std::uint64_t>(std::floor(end / period_s)) + 1;
+        const auto resume = static_cast<std::uint64_t>(std::floor(end / period_s)) + 1;
+        timing.deadlines_skipped += resume - k;
+        k = resume;
       }
+    }
+    if (health_every && timing.ticks >= next_health) {
+      next_health += health_every;
+      HealthRecord h;
+      h.t_s = deadline;
+      h.ticks = timing.ticks;
+      h.overruns = timing.overruns;
+      h.deadlines_skipped = timing.deadlines_skipped;
+      fill(window_wake, h.wake_latency_s);
+      fill(window_compute, h.compute_s);
+      h.ticks_dropped = health->ticks_dropped;
+      h.events_dropped = health->events_dropped;
+      h.mode = loop.mode();
+      (void)health->health.try_push(h);
+      window_wake.reset();
+      window_compute.reset();
     }
     if (between_ticks) between_ticks();
   }

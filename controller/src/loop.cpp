@@ -1,5 +1,6 @@
 #include "pneu/controller/loop.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace pneu::controller {
@@ -38,6 +39,10 @@ void ControlLoop::start(double t0_s) {
   next_step_ = 0;
   stops_ = 0;
   y_d_m_ = config_.controller.initial_setpoint_m;
+  mode_ = config_.controller.start_armed ? Mode::kArmed : Mode::kDisarmed;
+  schedule_active_ = true;
+  out_.setpoint_m.store(y_d_m_, std::memory_order_relaxed);
+  out_.mode.store(static_cast<std::uint8_t>(mode_), std::memory_order_relaxed);
   hal::SensorFrame frame;
   (void)backend_.read(t0_s, frame);
   differentiator_.reset(frame.y_m);
@@ -49,18 +54,55 @@ void ControlLoop::push(const LoopEvent& e) noexcept {
   if (!out_.events.try_push(e)) ++out_.events_dropped;
 }
 
+// Commands were validated off the loop; here they only take effect. A set point leaves the soft
+// limits only through a step that the validator could not foresee: clamp it.
+void ControlLoop::apply_commands(double y_m) noexcept {
+  const auto& c = config_.controller;
+  LoopCommand cmd;
+  while (out_.commands.try_pop(cmd)) {
+    switch (cmd.kind) {
+      case LoopCommand::Kind::kSetPoint:
+        y_d_m_ = std::clamp(cmd.value_m, c.soft_limit_min_m, c.soft_limit_max_m);
+        schedule_active_ = false;
+        break;
+      case LoopCommand::Kind::kSetPointStep:
+        y_d_m_ = std::clamp(y_d_m_ + cmd.value_m, c.soft_limit_min_m, c.soft_limit_max_m);
+        schedule_active_ = false;
+        break;
+      case LoopCommand::Kind::kArm:
+        if (mode_ == Mode::kDisarmed) {
+          mode_ = Mode::kArmed;
+          // Bumpless: hold where the carriage is until told otherwise.
+          y_d_m_ = std::clamp(y_m, c.soft_limit_min_m, c.soft_limit_max_m);
+          schedule_active_ = false;
+        }
+        break;
+      case LoopCommand::Kind::kDisarm:
+        if (mode_ == Mode::kArmed) mode_ = Mode::kDisarmed;
+        break;
+      case LoopCommand::Kind::kFaultReset:
+        if (mode_ == Mode::kFault) mode_ = Mode::kDisarmed;
+        break;
+    }
+  }
+}
+
 void ControlLoop::tick(double t_s) noexcept {
   hal::SensorFrame frame;
   (void)backend_.read(t_s, frame);  // status and validity go to the supervisor (issue 6)
 
-  while (next_step_ < schedule_.size() && schedule_[next_step_].t_s <= t_s + 1e-9)
+  apply_commands(frame.y_m);
+  while (schedule_active_ && next_step_ < schedule_.size() && schedule_[next_step_].t_s <= t_s + 1e-9)
     y_d_m_ = schedule_[next_step_++].position_m;
 
   differentiator_.update(frame.y_m);
   const double v_hat = differentiator_.velocity_m_per_s();
   const double a_hat = differentiator_.acceleration_m_per_s2();
-  const double u = law_.control_v(y_d_m_, frame.y_m, v_hat, a_hat);
+  const double u = mode_ == Mode::kArmed ? law_.control_v(y_d_m_, frame.y_m, v_hat, a_hat)
+                                         : config_.controller.law.offset_v;
   (void)backend_.write(hal::ActuatorCommand::from_control(u, true));
+  out_.setpoint_m.store(y_d_m_, std::memory_order_relaxed);
+  out_.mode.store(static_cast<std::uint8_t>(mode_), std::memory_order_relaxed);
 
   const double force = area_p_m2_ * frame.p_p_pa - area_n_m2_ * frame.p_n_pa - area_rod_m2_ * p_e_pa_;
   switch (detector_.update(t_s, frame.y_m)) {
@@ -112,6 +154,7 @@ void ControlLoop::tick(double t_s) noexcept {
   r.force_n = force;
   r.u_v = u;
   r.stuck = detector_.stopped();
+  r.mode = mode_;
   r.sensor_validity = frame.validity;
   if (!out_.ticks.try_push(r)) ++out_.ticks_dropped;
 }

@@ -54,6 +54,7 @@ void RunReport::drain(LoopOutputs& out) {
     next_seq_ = r.seq + 1;
     ++ticks_seen_;
     t_end_s_ = r.t_s;
+    if (listener_) listener_->on_tick(r);
     if (trajectory_) {
       *trajectory_ << r.seq << ',' << num(r.t_s, 12) << ',' << num(r.y_d_m) << ',' << num(r.y_m, 12) << ','
                    << num(r.v_hat_m_per_s) << ',' << num(r.a_hat_m_per_s2) << ',' << num(r.p_p_pa) << ','
@@ -63,9 +64,13 @@ void RunReport::drain(LoopOutputs& out) {
   }
   LoopEvent e;
   while (out.events.try_pop(e)) on_event(e);
+  HealthRecord h;
+  while (out.health.try_pop(h))
+    if (listener_) listener_->on_health(h);
 }
 
 void RunReport::write_prediction(const StopOutcome& s, const Prediction& p) {
+  if (listener_) listener_->on_prediction(s, p);
   if (!events_) return;
   *events_ << "{\"event\":\"prediction\",\"t\":" << num(s.snapshot.t_s, 12) << ",\"stop\":" << s.index
            << ",\"t_stop\":" << num(s.t_stop_s, 12) << ",\"method\":\"" << to_string(p.method)
@@ -78,6 +83,7 @@ void RunReport::write_prediction(const StopOutcome& s, const Prediction& p) {
 }
 
 void RunReport::on_event(const LoopEvent& e) {
+  if (listener_) listener_->on_event(e);
   if (e.kind == LoopEvent::Kind::kStop) {
     StopOutcome s;
     s.index = e.stop_index;
@@ -117,6 +123,7 @@ void RunReport::finish(double t_end_s) {
   for (auto& s : stops_)
     if (!s.ended) s.t_end_s = t_end_s_;
   if (events_) *events_ << "{\"event\":\"end\",\"t\":" << num(t_end_s_, 12) << "}\n";
+  if (listener_) listener_->on_end(t_end_s_);
 }
 
 void RunReport::print_summary(std::FILE* out, const LoopTiming& timing) const {

@@ -49,22 +49,25 @@ SimulatedRun make_simulated_run(const config::Config& config, const plant::Valve
 }
 
 void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
-             const std::atomic<bool>& stop_requested) {
+             const std::atomic<bool>& stop_requested,
+             const std::function<void(int timeout_ms)>& wait_for_input) {
   const double period = config.controller.period_s();
   const auto ticks = static_cast<std::uint64_t>(std::llround(config.controller.duration_s / period)) +
                      (config.controller.duration_s > 0.0 ? 1 : 0);  // both ends: t = 0 and t = duration
+  const double health_s = config.telemetry.health_period_s;
   if (clock.simulated()) {
     run_loop(*run.loop, clock, period, ticks, stop_requested, run.timing,
-             [&] { run.report->drain(*run.outputs); });
+             [&] { run.report->drain(*run.outputs); }, health_s, run.outputs.get());
   } else {
     std::atomic<bool> done{false};
     std::thread service([&] {
       while (!done.load(std::memory_order_acquire)) {
         run.report->drain(*run.outputs);
-        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+        if (wait_for_input) wait_for_input(2);
+        else std::this_thread::sleep_for(std::chrono::milliseconds(2));
       }
     });
-    run_loop(*run.loop, clock, period, ticks, stop_requested, run.timing);
+    run_loop(*run.loop, clock, period, ticks, stop_requested, run.timing, {}, health_s, run.outputs.get());
     done.store(true, std::memory_order_release);
     service.join();
   }

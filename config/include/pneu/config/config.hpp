@@ -86,8 +86,26 @@ struct ControllerConfig {
   PredictorConfig predictor;
   double initial_setpoint_m = 0.2195;   ///< set point before the first schedule step [m]
   std::vector<SetpointStep> schedule;   ///< set-point steps, time increasing
+  double soft_limit_min_m = -0.24;      ///< set points (and, later, positions) below are refused [m]
+  double soft_limit_max_m = 0.24;       ///< ... and above [m]
+  bool start_armed = true;              ///< armed at start-up (else disarmed until an ARM command)
 
   [[nodiscard]] double period_s() const noexcept { return 1.0 / rate_hz; }
+};
+
+/// LCM telemetry (state, events, predictions, health).
+struct TelemetryConfig {
+  bool enabled = true;
+  std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0";  ///< ttl=0: nothing leaves the host
+  std::string channel_prefix = "PNEU_";   ///< channels: <prefix>STATE, EVENT, PREDICTION, HEALTH
+  double health_period_s = 1.0;           ///< health message period [s]
+};
+
+/// Inbound commands on <prefix>COMMAND (real clock only).
+struct CommandsConfig {
+  bool enabled = true;
+  double max_rate_hz = 20.0;   ///< sustained command rate accepted [1/s]; above it: rejected
+  double burst = 5.0;          ///< commands accepted back to back before the rate applies
 };
 
 enum class BackendKind { kSim };
@@ -104,6 +122,8 @@ struct Config {
   SimulationConfig simulation;       ///< simulation.*
   ControllerConfig controller;       ///< controller.*
   HalConfig hal;                     ///< hal.*
+  TelemetryConfig telemetry;         ///< telemetry.*
+  CommandsConfig commands;           ///< commands.*
 };
 
 /// Loads and validates a YAML file. `overrides` are "dotted.key.path=value" strings applied

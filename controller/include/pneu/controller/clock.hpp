@@ -52,6 +52,7 @@ struct LoopTiming {
   TimingStats compute;        ///< wake-up to end of tick, measured on the steady clock
   std::uint64_t ticks = 0;
   std::uint64_t overruns = 0; ///< ticks that ended after the next deadline (those deadlines are skipped)
+  std::uint64_t deadlines_skipped = 0;  ///< deadlines passed without a tick after overruns
   double period_s = 0.0;
 };
 
@@ -59,8 +60,10 @@ struct LoopTiming {
 /// limit; deadlines skipped after an overrun count, so the run never outlasts them) or until
 /// `stop_requested`. `between_ticks`, when set, runs after each tick outside the timed part (the
 /// simulated clock's way of servicing the non-real-time side deterministically).
+/// Every `health_period_s` (0: never) the period's timing goes to `health` (a full queue drops it).
 void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t deadlines,
               const std::atomic<bool>& stop_requested, LoopTiming& timing,
-              const std::function<void()>& between_ticks = {});
+              const std::function<void()>& between_ticks = {}, double health_period_s = 0.0,
+              LoopOutputs* health = nullptr);
 
 }  // namespace pneu::controller

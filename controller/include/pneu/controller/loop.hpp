@@ -2,6 +2,7 @@
 // starts, write the valves, hand the tick's record and events to the non-real-time side.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <span>
 
@@ -14,6 +15,13 @@
 #include "pneu/hal/backend.hpp"
 
 namespace pneu::controller {
+
+/// The loop's operating mode.
+enum class Mode : std::uint8_t {
+  kDisarmed = 0,  ///< outputs held at the neutral voltage u_0 (F_e(u_0) = 0), no control
+  kArmed = 1,     ///< the control law drives the valves
+  kFault = 2,     ///< latched fault (supervisor, later): safe output until reset
+};
 
 /// Everything one tick computed: the per-tick telemetry record.
 struct TickRecord {
@@ -28,6 +36,7 @@ struct TickRecord {
   double force_n = 0.0;        ///< pressure force of Eq. 14 from the measured pressures [N]
   double u_v = 0.0;            ///< control sent: u_P = u, u_N = -u [V]
   bool stuck = false;          ///< the stop detector holds the carriage at rest
+  Mode mode = Mode::kArmed;
   std::uint32_t sensor_validity = 0;  ///< hal::SensorValidity flags of the sample
 };
 
@@ -45,13 +54,40 @@ struct LoopEvent {
   StopSnapshot snapshot;         ///< stop: state at confirmation, u* of Eq. 11
 };
 
-/// Where the loop's records go; both queues are drained by the non-real-time side. A full queue
-/// drops the record and counts it; the loop never waits.
+
+/// A validated command for the loop (see CommandValidator).
+struct LoopCommand {
+  enum class Kind : std::uint8_t { kSetPoint, kSetPointStep, kArm, kDisarm, kFaultReset };
+  Kind kind = Kind::kSetPoint;
+  double value_m = 0.0;  ///< set point, or its change [m]
+  std::uint64_t seq = 0;
+};
+
+/// Loop statistics handed out once per health period.
+struct HealthRecord {
+  double t_s = 0.0;
+  std::uint64_t ticks = 0;
+  std::uint64_t overruns = 0;
+  std::uint64_t deadlines_skipped = 0;
+  double wake_latency_s[4] = {};  ///< min, median, p99, max over the period
+  double compute_s[4] = {};
+  std::uint64_t ticks_dropped = 0;
+  std::uint64_t events_dropped = 0;
+  Mode mode = Mode::kArmed;
+};
+
+/// The loop's lock-free boundary with the non-real-time side. Records leave through
+/// single-producer queues (a full queue drops and counts; the loop never waits); validated
+/// commands arrive through one. Two atomics publish what command validation needs to know.
 struct LoopOutputs {
   SpscQueue<TickRecord, 8192> ticks;
   SpscQueue<LoopEvent, 256> events;
+  SpscQueue<HealthRecord, 16> health;
+  SpscQueue<LoopCommand, 64> commands;  ///< producer: the command thread; consumer: the loop
   std::uint64_t ticks_dropped = 0;   ///< written by the loop thread only
   std::uint64_t events_dropped = 0;  ///< written by the loop thread only
+  std::atomic<double> setpoint_m{0.0};  ///< the loop's current set point
+  std::atomic<std::uint8_t> mode{static_cast<std::uint8_t>(Mode::kArmed)};
 };
 
 /// The controller's tick. Construct and start() outside the loop; tick() is real-time safe.
@@ -70,9 +106,11 @@ class ControlLoop {
   [[nodiscard]] std::uint64_t ticks() const noexcept { return seq_; }
   [[nodiscard]] double setpoint_at(double t_s) const noexcept;
   [[nodiscard]] const ControlLaw& law() const noexcept { return law_; }
+  [[nodiscard]] Mode mode() const noexcept { return mode_; }
 
  private:
   void push(const LoopEvent& e) noexcept;
+  void apply_commands(double y_m) noexcept;
 
   const config::Config& config_;
   hal::Backend& backend_;
@@ -88,6 +126,8 @@ class ControlLoop {
   double y_d_m_ = 0.0;
   std::uint64_t stops_ = 0;
   double y_d_at_stop_m_ = 0.0;
+  Mode mode_ = Mode::kArmed;
+  bool schedule_active_ = true;  ///< a set-point command ends the configured schedule
 };
 
 }  // namespace pneu::controller

@@ -48,11 +48,25 @@ struct Verdict {
 /// the end of the run, are not judged.
 [[nodiscard]] Verdict judge(const StopOutcome& stop, const Prediction& prediction, double t_end_s) noexcept;
 
+/// Receives what the report drains, in order, on the non-real-time side (LCM telemetry).
+class ReportListener {
+ public:
+  virtual ~ReportListener() = default;
+  virtual void on_tick(const TickRecord& record) = 0;
+  virtual void on_event(const LoopEvent& event) = 0;
+  virtual void on_prediction(const StopOutcome& stop, const Prediction& prediction) = 0;
+  virtual void on_health(const HealthRecord& health) = 0;
+  virtual void on_end(double t_end_s) = 0;
+};
+
 class RunReport {
  public:
   /// `events` (JSON lines) and `trajectory` (CSV) may be null.
   RunReport(const PredictorModel& model, bool linearized, bool nonlinear, std::ostream* events,
             std::ostream* trajectory);
+
+  /// Forwards everything drained to `listener` (may be null; must outlive the report).
+  void set_listener(ReportListener* listener) noexcept { listener_ = listener; }
 
   /// Pops everything the loop queued. Not real-time: call from the service thread or between
   /// simulated ticks.
@@ -75,6 +89,7 @@ class RunReport {
   bool linearized_, nonlinear_;
   std::ostream* events_;
   std::ostream* trajectory_;
+  ReportListener* listener_ = nullptr;
   std::vector<StopOutcome> stops_;
   double t_end_s_ = 0.0;
   std::uint64_t ticks_seen_ = 0;

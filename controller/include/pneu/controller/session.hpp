@@ -3,6 +3,7 @@
 
 #include <atomic>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <ostream>
 
@@ -43,8 +44,10 @@ struct SimulatedRun {
                                               std::ostream* events, std::ostream* trajectory);
 
 /// Runs it for controller.duration_s on `clock` (the simulated clock services the report between
-/// ticks; the real clock drains it from a service thread every 5 ms).
+/// ticks; the real clock drains it from a service thread). `wait_for_input(timeout_ms)`, when set,
+/// is how the service thread waits between drains (LCM's handle); else it sleeps 2 ms.
 void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
-             const std::atomic<bool>& stop_requested);
+             const std::atomic<bool>& stop_requested,
+             const std::function<void(int timeout_ms)>& wait_for_input = {});
 
 }  // namespace pneu::controller

@@ -1,0 +1,74 @@
+// Validation of inbound commands, off the real-time path: decoded fields in, a LoopCommand or a
+// reason out. Pure logic (no LCM), so it is tested on its own.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "pneu/config/config.hpp"
+#include "pneu/controller/loop.hpp"
+
+namespace pneu::telemetry {
+
+/// The fields of a command_t, as decoded.
+struct CommandFields {
+  std::int64_t utime = 0;
+  std::int64_t seq = 0;
+  std::int8_t kind = 0;  ///< command_t.KIND_*
+  double value = 0.0;
+};
+
+/// Command kinds on the wire (command_t.KIND_*).
+inline constexpr std::int8_t kWireSetPoint = 1, kWireSetPointStep = 2, kWireArm = 3,
+                             kWireDisarm = 4, kWireFaultReset = 5;
+
+enum class Rejection : std::uint8_t {
+  kNone,
+  kMalformed,  ///< undecodable, wrong type or size
+  kInvalid,    ///< non-finite value, unknown kind, set point outside the soft limits
+  kRate,       ///< over the rate limit
+  kMode,       ///< not allowed in the current mode
+  kSequence,   ///< sequence number not above the last accepted one
+};
+
+struct Verdict {
+  bool accepted = false;
+  controller::LoopCommand command;  ///< when accepted
+  Rejection rejection = Rejection::kNone;
+  std::string text;                 ///< what was done, or why not, for people
+};
+
+struct CommandCounters {
+  std::uint64_t received = 0, accepted = 0, rejected = 0;
+  std::uint64_t malformed = 0, invalid = 0, rate = 0, mode = 0, sequence = 0;
+};
+
+/// Checks, in order: rate (token bucket: `burst` back to back, `max_rate_hz` sustained), sequence
+/// (strictly increasing over accepted commands), values (finite, known kind, resulting set point
+/// inside the soft limits), mode (set points: armed or disarmed; arm: disarmed; disarm: armed;
+/// fault reset: fault). Not thread-safe: one command thread owns it.
+class CommandValidator {
+ public:
+  explicit CommandValidator(const config::Config& config);
+
+  /// `now_s` on any monotonic clock; `setpoint_m` and `mode` as the loop last published them.
+  [[nodiscard]] Verdict validate(const CommandFields& command, double now_s, double setpoint_m,
+                                 controller::Mode mode);
+  /// Counts an undecodable message.
+  [[nodiscard]] Verdict malformed(const std::string& why);
+  [[nodiscard]] const CommandCounters& counters() const noexcept { return counters_; }
+
+ private:
+  Verdict reject(Rejection why, std::string text);
+
+  double min_m_, max_m_, rate_hz_, burst_;
+  double tokens_;
+  double last_refill_s_ = -1.0;
+  bool have_seq_ = false;
+  std::int64_t last_seq_ = 0;
+  CommandCounters counters_;
+};
+
+[[nodiscard]] const char* to_string(Rejection r) noexcept;
+
+}  // namespace pneu::telemetry

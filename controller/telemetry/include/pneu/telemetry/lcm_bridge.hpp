@@ -1,0 +1,65 @@
+// pneud's LCM side: publishes what the report drains (state every tick, events, predictions,
+// health) and takes commands in, validated, towards the loop. Lives on the non-real-time service
+// thread: LCM::publish allocates and must never run on the loop thread.
+#pragma once
+
+#include <lcm/lcm-cpp.hpp>
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "pneu/config/config.hpp"
+#include "pneu/controller/report.hpp"
+#include "pneu/telemetry/command_validator.hpp"
+
+namespace pneu::telemetry {
+
+class LcmError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class LcmBridge final : public controller::ReportListener {
+ public:
+  /// Opens LCM on telemetry.lcm_url. Throws LcmError when LCM cannot start (bad URL, no
+  /// multicast route). With `accept_commands`, subscribes to <prefix>COMMAND.
+  LcmBridge(const config::Config& config, controller::LoopOutputs& loop, bool accept_commands);
+  ~LcmBridge() override;
+
+  /// Handles inbound messages for up to `timeout_ms`. Returns false on an LCM failure.
+  bool handle(int timeout_ms);
+
+  void on_tick(const controller::TickRecord& record) override;
+  void on_event(const controller::LoopEvent& event) override;
+  void on_prediction(const controller::StopOutcome& stop, const controller::Prediction& prediction) override;
+  void on_health(const controller::HealthRecord& health) override;
+  void on_end(double t_end_s) override;
+
+  [[nodiscard]] const CommandCounters& command_counters() const noexcept { return validator_.counters(); }
+  [[nodiscard]] std::uint64_t publish_errors() const noexcept { return publish_errors_; }
+  /// Commands that passed validation but found the loop's command queue full.
+  [[nodiscard]] std::uint64_t commands_dropped() const noexcept { return commands_dropped_; }
+  [[nodiscard]] std::string channel(const char* suffix) const { return prefix_ + suffix; }
+
+ private:
+  void on_command(const lcm::ReceiveBuffer* buffer, const std::string& channel);
+  void publish_text_event(std::int8_t kind, const std::string& text);
+  [[nodiscard]] std::int64_t utime_of(double t_s) const noexcept;
+  template <typename T>
+  void publish(const char* suffix, const T& msg);
+
+  std::unique_ptr<lcm::LCM> lcm_;
+  std::string prefix_;
+  controller::LoopOutputs& loop_;
+  CommandValidator validator_;
+  double last_t_s_ = 0.0;
+  std::int64_t epoch_utime_ = 0;                     // Unix time of loop time 0 [us]
+  std::chrono::steady_clock::time_point started_;
+  std::uint64_t publish_errors_ = 0;
+  std::uint64_t commands_dropped_ = 0;
+};
+
+}  // namespace pneu::telemetry

@@ -1,0 +1,123 @@
+#include "pneu/telemetry/command_validator.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace pneu::telemetry {
+
+using controller::LoopCommand;
+using controller::Mode;
+
+namespace {
+std::string mm(double m) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3f mm", m * 1e3);
+  return buf;
+}
+const char* mode_name(Mode m) {
+  return m == Mode::kArmed ? "armed" : (m == Mode::kDisarmed ? "disarmed" : "fault");
+}
+}  // namespace
+
+const char* to_string(Rejection r) noexcept {
+  switch (r) {
+    case Rejection::kNone: return "none";
+    case Rejection::kMalformed: return "malformed";
+    case Rejection::kInvalid: return "invalid";
+    case Rejection::kRate: return "rate";
+    case Rejection::kMode: return "mode";
+    case Rejection::kSequence: return "sequence";
+  }
+  return "?";
+}
+
+CommandValidator::CommandValidator(const config::Config& config)
+    : min_m_(config.controller.soft_limit_min_m),
+      max_m_(config.controller.soft_limit_max_m),
+      rate_hz_(config.commands.max_rate_hz),
+      burst_(config.commands.burst),
+      tokens_(config.commands.burst) {}
+
+Verdict CommandValidator::reject(Rejection why, std::string text) {
+  ++counters_.rejected;
+  switch (why) {
+    case Rejection::kMalformed: ++counters_.malformed; break;
+    case Rejection::kInvalid: ++counters_.invalid; break;
+    case Rejection::kRate: ++counters_.rate; break;
+    case Rejection::kMode: ++counters_.mode; break;
+    case Rejection::kSequence: ++counters_.sequence; break;
+    case Rejection::kNone: break;
+  }
+  Verdict v;
+  v.rejection = why;
+  v.text = std::move(text);
+  return v;
+}
+
+Verdict CommandValidator::malformed(const std::string& why) {
+  ++counters_.received;
+  return reject(Rejection::kMalformed, "malformed command: " + why);
+}
+
+Verdict CommandValidator::validate(const CommandFields& c, double now_s, double setpoint_m, Mode mode) {
+  ++counters_.received;
+  // Token bucket.
+  if (last_refill_s_ >= 0.0) tokens_ = std::min(burst_, tokens_ + (now_s - last_refill_s_) * rate_hz_);
+  last_refill_s_ = now_s;
+  if (tokens_ < 1.0) return reject(Rejection::kRate, "rate limit: more than the allowed commands per second");
+  tokens_ -= 1.0;
+
+  if (have_seq_ && c.seq <= last_seq_)
+    return reject(Rejection::kSequence, "sequence number " + std::to_string(c.seq) +
+                                            " is not above the last accepted " + std::to_string(last_seq_));
+  if (!std::isfinite(c.value)) return reject(Rejection::kInvalid, "value is not a finite number");
+
+  LoopCommand cmd;
+  cmd.seq = static_cast<std::uint64_t>(c.seq);
+  cmd.value_m = c.value;
+  std::string what;
+  switch (c.kind) {
+    case kWireSetPoint:
+    case kWireSetPointStep: {
+      const bool step = c.kind == kWireSetPointStep;
+      const double target = step ? setpoint_m + c.value : c.value;
+      if (target < min_m_ || target > max_m_)
+        return reject(Rejection::kInvalid, std::string(step ? "set-point step to " : "set point ") + mm(target) +
+                                               " is outside the soft limits [" + mm(min_m_) + ", " + mm(max_m_) + "]");
+      if (mode == Mode::kFault) return reject(Rejection::kMode, "set point refused: a fault is latched, reset it first");
+      cmd.kind = step ? LoopCommand::Kind::kSetPointStep : LoopCommand::Kind::kSetPoint;
+      what = "set point " + mm(target);
+      break;
+    }
+    case kWireArm:
+      if (mode != Mode::kDisarmed)
+        return reject(Rejection::kMode, std::string("arm refused: ") +
+                                            (mode == Mode::kFault ? "a fault is latched, reset it first" : "already armed"));
+      cmd.kind = LoopCommand::Kind::kArm;
+      what = "arm";
+      break;
+    case kWireDisarm:
+      if (mode != Mode::kArmed) return reject(Rejection::kMode, std::string("disarm refused: ") + mode_name(mode));
+      cmd.kind = LoopCommand::Kind::kDisarm;
+      what = "disarm";
+      break;
+    case kWireFaultReset:
+      if (mode != Mode::kFault) return reject(Rejection::kMode, "fault reset refused: no fault is latched");
+      cmd.kind = LoopCommand::Kind::kFaultReset;
+      what = "fault reset";
+      break;
+    default:
+      return reject(Rejection::kInvalid, "unknown command kind " + std::to_string(c.kind));
+  }
+  have_seq_ = true;
+  last_seq_ = c.seq;
+  ++counters_.accepted;
+  Verdict v;
+  v.accepted = true;
+  v.command = cmd;
+  v.text = what;
+  return v;
+}
+
+}  // namespace pneu::telemetry
