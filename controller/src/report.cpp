@@ -171,8 +171,10 @@ void RunReport::print_summary(std::FILE* out, const LoopTiming& timing) const {
   }
   if (stops_.empty()) std::fprintf(out, "  (none)\n");
   const auto us = [](double s) { return s * 1e6; };
-  std::fprintf(out, "loop: %llu ticks at %.0f Hz, %llu overruns\n", static_cast<unsigned long long>(timing.ticks),
-               1.0 / timing.period_s, static_cast<unsigned long long>(timing.overruns));
+  std::fprintf(out, "loop: %llu ticks at %.0f Hz, %llu overruns (%llu deadlines skipped)\n",
+               static_cast<unsigned long long>(timing.ticks), 1.0 / timing.period_s,
+               static_cast<unsigned long long>(timing.overruns),
+               static_cast<unsigned long long>(timing.deadlines_skipped));
   std::fprintf(out, "  wake-up latency [us]  min %8.2f  median %8.2f  p99 %8.2f  max %8.2f\n",
                us(timing.wake_latency.min_s()), us(timing.wake_latency.quantile_s(0.5)),
                us(timing.wake_latency.quantile_s(0.99)), us(timing.wake_latency.max_s()));

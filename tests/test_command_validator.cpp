@@ -1,0 +1,117 @@
+// Inbound commands are checked off the loop: what passes, what is refused, and why.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <limits>
+
+#include "pneu/config/config.hpp"
+#include "pneu/telemetry/command_validator.hpp"
+
+namespace {
+
+using namespace pneu;
+using controller::LoopCommand;
+using controller::Mode;
+using telemetry::CommandFields;
+using telemetry::CommandValidator;
+using telemetry::Rejection;
+using ::testing::HasSubstr;
+
+config::Config make_config() {
+  config::Config c = config::load_string(config::default_config_yaml());
+  c.controller.soft_limit_min_m = -0.2;
+  c.controller.soft_limit_max_m = 0.2;
+  c.commands.max_rate_hz = 10.0;
+  c.commands.burst = 3.0;
+  return c;
+}
+
+CommandFields cmd(std::int64_t seq, std::int8_t kind, double value = 0.0) { return {0, seq, kind, value}; }
+
+TEST(CommandValidator, AcceptsASetPointInsideTheSoftLimits) {
+  CommandValidator v(make_config());
+  const auto r = v.validate(cmd(1, telemetry::kWireSetPoint, 0.15), 0.0, 0.0, Mode::kArmed);
+  ASSERT_TRUE(r.accepted) << r.text;
+  EXPECT_EQ(r.command.kind, LoopCommand::Kind::kSetPoint);
+  EXPECT_DOUBLE_EQ(r.command.value_m, 0.15);
+  EXPECT_EQ(v.counters().accepted, 1u);
+}
+
+TEST(CommandValidator, RefusesSetPointsOutsideTheSoftLimitsIncludingByAStep) {
+  CommandValidator v(make_config());
+  auto r = v.validate(cmd(1, telemetry::kWireSetPoint, 0.21), 0.0, 0.0, Mode::kArmed);
+  EXPECT_FALSE(r.accepted);
+  EXPECT_EQ(r.rejection, Rejection::kInvalid);
+  EXPECT_THAT(r.text, HasSubstr("outside the soft limits"));
+  // A step is judged by where it lands: 0.19 + 0.02 = 0.21 m.
+  r = v.validate(cmd(2, telemetry::kWireSetPointStep, 0.02), 0.1, 0.19, Mode::kArmed);
+  EXPECT_FALSE(r.accepted);
+  r = v.validate(cmd(3, telemetry::kWireSetPointStep, -0.02), 0.2, 0.19, Mode::kArmed);
+  EXPECT_TRUE(r.accepted) << r.text;
+  EXPECT_EQ(v.counters().invalid, 2u);
+}
+
+TEST(CommandValidator, RefusesNonFiniteValuesAndUnknownKinds) {
+  CommandValidator v(make_config());
+  EXPECT_EQ(v.validate(cmd(1, telemetry::kWireSetPoint, std::numeric_limits<double>::quiet_NaN()), 0, 0, Mode::kArmed)
+                .rejection,
+            Rejection::kInvalid);
+  EXPECT_EQ(v.validate(cmd(2, telemetry::kWireSetPoint, std::numeric_limits<double>::infinity()), 1, 0, Mode::kArmed)
+                .rejection,
+            Rejection::kInvalid);
+  const auto r = v.validate(cmd(3, 99), 2, 0, Mode::kArmed);
+  EXPECT_EQ(r.rejection, Rejection::kInvalid);
+  EXPECT_THAT(r.text, HasSubstr("unknown command kind 99"));
+}
+
+TEST(CommandValidator, RequiresIncreasingSequenceNumbers) {
+  CommandValidator v(make_config());
+  ASSERT_TRUE(v.validate(cmd(10, telemetry::kWireSetPoint, 0.1), 0, 0, Mode::kArmed).accepted);
+  EXPECT_EQ(v.validate(cmd(10, telemetry::kWireSetPoint, 0.1), 1, 0, Mode::kArmed).rejection, Rejection::kSequence);
+  EXPECT_EQ(v.validate(cmd(9, telemetry::kWireSetPoint, 0.1), 2, 0, Mode::kArmed).rejection, Rejection::kSequence);
+  EXPECT_TRUE(v.validate(cmd(11, telemetry::kWireSetPoint, 0.1), 3, 0, Mode::kArmed).accepted);
+}
+
+TEST(CommandValidator, RateLimitAllowsTheBurstThenTheSustainedRate) {
+  CommandValidator v(make_config());  // burst 3, 10 per second
+  int accepted = 0;
+  for (int i = 0; i < 6; ++i)  // six at the same instant: the burst passes, the rest do not
+    accepted += v.validate(cmd(i + 1, telemetry::kWireSetPoint, 0.1), 5.0, 0, Mode::kArmed).accepted;
+  EXPECT_EQ(accepted, 3);
+  EXPECT_EQ(v.counters().rate, 3u);
+  // 0.125 s later 1.25 tokens are back (10 per second): one more command, not two.
+  EXPECT_TRUE(v.validate(cmd(10, telemetry::kWireSetPoint, 0.1), 5.125, 0, Mode::kArmed).accepted);
+  EXPECT_FALSE(v.validate(cmd(11, telemetry::kWireSetPoint, 0.1), 5.125, 0, Mode::kArmed).accepted);
+}
+
+TEST(CommandValidator, EachCommandIsAllowedOnlyInItsModes) {
+  CommandValidator v(make_config());
+  double t = 0.0;
+  std::int64_t seq = 0;
+  const auto check = [&](std::int8_t kind, Mode mode) {
+    t += 1.0;  // never rate limited
+    return v.validate(cmd(++seq, kind, 0.0), t, 0.0, mode);
+  };
+  EXPECT_TRUE(check(telemetry::kWireArm, Mode::kDisarmed).accepted);
+  EXPECT_THAT(check(telemetry::kWireArm, Mode::kArmed).text, HasSubstr("already armed"));
+  EXPECT_THAT(check(telemetry::kWireArm, Mode::kFault).text, HasSubstr("reset it first"));
+  EXPECT_TRUE(check(telemetry::kWireDisarm, Mode::kArmed).accepted);
+  EXPECT_FALSE(check(telemetry::kWireDisarm, Mode::kDisarmed).accepted);
+  EXPECT_TRUE(check(telemetry::kWireFaultReset, Mode::kFault).accepted);
+  EXPECT_THAT(check(telemetry::kWireFaultReset, Mode::kArmed).text, HasSubstr("no fault is latched"));
+  EXPECT_TRUE(check(telemetry::kWireSetPoint, Mode::kDisarmed).accepted);
+  EXPECT_EQ(check(telemetry::kWireSetPoint, Mode::kFault).rejection, Rejection::kMode);
+  EXPECT_EQ(v.counters().mode, 5u);
+}
+
+TEST(CommandValidator, CountsMalformedMessagesAmongTheRejected) {
+  CommandValidator v(make_config());
+  const auto r = v.malformed("3 bytes");
+  EXPECT_FALSE(r.accepted);
+  EXPECT_EQ(r.rejection, Rejection::kMalformed);
+  EXPECT_EQ(v.counters().received, 1u);
+  EXPECT_EQ(v.counters().rejected, 1u);
+  EXPECT_EQ(v.counters().malformed, 1u);
+}
+
+}  // namespace

@@ -1,0 +1,326 @@
+// pneud among real LCM tools, inside a private network namespace (tests/in_private_netns.sh):
+// recorded by the real lcm-logger, and steered by a real LCM publisher.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <lcm/lcm-cpp.hpp>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <fcntl.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "pneu_lcm/command_t.hpp"
+#include "pneu_lcm/event_t.hpp"
+#include "pneu_lcm/health_t.hpp"
+#include "pneu_lcm/prediction_t.hpp"
+#include "pneu_lcm/state_t.hpp"
+
+extern char** environ;
+
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+using namespace std::chrono_literals;
+
+constexpr const char* kUrl = "udpm://239.255.76.67:7667?ttl=0";
+
+std::string bin(const std::string& name) { return std::string(PNEU_BINARY_DIR) + "/bin/" + name; }
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// A child process with its output in files.
+struct Child {
+  pid_t pid = -1;
+  static Child spawn(const std::vector<std::string>& args, const fs::path& out, const fs::path& err) {
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    std::vector<char*> argv;
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    Child c;
+    if (posix_spawnp(&c.pid, argv[0], &fa, nullptr, argv.data(), environ) != 0) c.pid = -1;
+    posix_spawn_file_actions_destroy(&fa);
+    return c;
+  }
+  int wait() {
+    int status = 0;
+    if (pid <= 0 || waitpid(pid, &status, 0) != pid) return -1;
+    pid = -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  }
+  ~Child() {
+    if (pid > 0) {
+      kill(pid, SIGKILL);
+      waitpid(pid, nullptr, 0);
+    }
+  }
+};
+
+// A CSV file as rows of named cells.
+struct Csv {
+  std::vector<std::string> header;
+  std::vector<std::vector<std::string>> rows;
+  std::size_t col(const std::string& name) const {
+    for (std::size_t i = 0; i < header.size(); ++i)
+      if (header[i] == name) return i;
+    ADD_FAILURE() << "no column " << name;
+    return 0;
+  }
+  static Csv read(const fs::path& p) {
+    Csv c;
+    std::ifstream in(p);
+    std::string line;
+    bool first = true;
+    while (std::getline(in, line)) {
+      std::vector<std::string> cells;
+      std::string cell;
+      bool quoted = false;
+      for (std::size_t i = 0; i < line.size(); ++i) {
+        const char ch = line[i];
+        if (quoted) {
+          if (ch == '"' && i + 1 < line.size() && line[i + 1] == '"') cell += '"', ++i;
+          else if (ch == '"') quoted = false;
+          else cell += ch;
+        } else if (ch == '"') {
+          quoted = true;
+        } else if (ch == ',') {
+          cells.push_back(cell);
+          cell.clear();
+        } else {
+          cell += ch;
+        }
+      }
+      cells.push_back(cell);
+      if (first) c.header = cells, first = false;
+      else c.rows.push_back(cells);
+    }
+    return c;
+  }
+};
+
+class LcmIntegration : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("pneu_lcm_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
+            std::to_string(getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override {
+    if (!HasFailure()) fs::remove_all(dir_);
+  }
+  fs::path dir_;
+};
+
+TEST_F(LcmIntegration, LcmLoggerRecordsEveryTickInOrderWithEventsAndPredictions) {
+  const fs::path log = dir_ / "run.lcm";
+  Child logger = Child::spawn({"lcm-logger", "-q", "-f", std::string("--lcm-url=") + kUrl, "-c", "PNEU_.*", log.string()},
+                              dir_ / "logger.out", dir_ / "logger.err");
+  ASSERT_GT(logger.pid, 0) << "lcm-logger (package liblcm-bin) did not start";
+  std::this_thread::sleep_for(500ms);  // subscribed before the first tick
+
+  Child pneud = Child::spawn({bin("pneud"), "--clock", "real", "--duration", "3", "--require-telemetry",
+                              "--trajectory", (dir_ / "traj.csv").string(), "--events", (dir_ / "events.jsonl").string()},
+                             dir_ / "pneud.out", dir_ / "pneud.err");
+  ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
+  std::this_thread::sleep_for(500ms);  // the logger flushes every 100 ms
+  kill(logger.pid, SIGINT);
+  ASSERT_EQ(logger.wait(), 0) << slurp(dir_ / "logger.err");
+
+  // Read the log itself.
+  lcm::LogFile file(log.string(), "r");
+  ASSERT_TRUE(file.good());
+  std::vector<pneu_lcm::state_t> states;
+  std::map<std::string, int> counts;
+  std::vector<pneu_lcm::event_t> events;
+  int predictions = 0;
+  for (const lcm::LogEvent* e = file.readNextEvent(); e; e = file.readNextEvent()) {
+    ++counts[e->channel];
+    if (e->channel == "PNEU_STATE") {
+      pneu_lcm::state_t s;
+      ASSERT_EQ(s.decode(e->data, 0, e->datalen), e->datalen);
+      states.push_back(s);
+    } else if (e->channel == "PNEU_EVENT") {
+      pneu_lcm::event_t ev;
+      ASSERT_GT(ev.decode(e->data, 0, e->datalen), 0);
+      events.push_back(ev);
+    } else if (e->channel == "PNEU_PREDICTION") {
+      pneu_lcm::prediction_t p;
+      ASSERT_GT(p.decode(e->data, 0, e->datalen), 0);
+      ++predictions;
+    }
+  }
+  const Csv traj = Csv::read(dir_ / "traj.csv");
+  ASSERT_EQ(states.size(), traj.rows.size()) << "every tick's state arrives";
+  for (std::size_t i = 0; i < states.size(); ++i) ASSERT_EQ(states[i].seq, static_cast<int64_t>(i)) << "in order, no gap";
+  EXPECT_EQ(states.size(), 3001u);
+  bool stop = false, restart = false;
+  for (const auto& e : events) {
+    stop |= e.kind == pneu_lcm::event_t::KIND_STOP;
+    restart |= e.kind == pneu_lcm::event_t::KIND_RESTART;
+  }
+  EXPECT_TRUE(stop && restart) << "the paper run stops at 1.6 s and restarts at 1.8 s";
+  EXPECT_EQ(predictions, 2 * static_cast<int>(std::count_if(events.begin(), events.end(), [](const auto& e) {
+                           return e.kind == pneu_lcm::event_t::KIND_STOP;
+                         })));
+  EXPECT_GE(counts["PNEU_HEALTH"], 2);
+
+  // The converter's CSV holds the same.
+  const fs::path csv_dir = dir_ / "csv";
+  ASSERT_EQ(std::system((bin("pneu-log2csv") + " " + log.string() + " " + csv_dir.string() + " > " +
+                         (dir_ / "conv.out").string() + " 2>&1").c_str()),
+            0)
+      << slurp(dir_ / "conv.out");
+  const Csv st = Csv::read(csv_dir / "PNEU_STATE.csv");
+  ASSERT_EQ(st.rows.size(), states.size());
+  const std::size_t c_seq = st.col("seq"), c_y = st.col("y"), c_u = st.col("u"), c_pp = st.col("p_p");
+  for (std::size_t i = 0; i < states.size(); ++i) {
+    ASSERT_EQ(std::stoll(st.rows[i][c_seq]), states[i].seq);
+    ASSERT_EQ(std::stod(st.rows[i][c_y]), states[i].y) << "row " << i;  // %.17g round-trips
+    ASSERT_EQ(std::stod(st.rows[i][c_u]), states[i].u) << "row " << i;
+    ASSERT_EQ(std::stod(st.rows[i][c_pp]), states[i].p_p) << "row " << i;
+    // ... and pneud's own trajectory, printed with 9 to 12 significant digits.
+    ASSERT_NEAR(std::stod(traj.rows[i][3]), states[i].y, 1e-11) << "row " << i;
+  }
+  EXPECT_EQ(Csv::read(csv_dir / "PNEU_EVENT.csv").rows.size(), events.size());
+  EXPECT_EQ(Csv::read(csv_dir / "PNEU_PREDICTION.csv").rows.size(), static_cast<std::size_t>(predictions));
+}
+
+// Collects what pneud publishes about commands.
+struct Listener {
+  std::mutex m;
+  std::vector<pneu_lcm::event_t> events;
+  pneu_lcm::health_t last_health{};
+  int health_count = 0;
+  void on_event(const lcm::ReceiveBuffer*, const std::string&, const pneu_lcm::event_t* e) {
+    std::lock_guard<std::mutex> l(m);
+    events.push_back(*e);
+  }
+  void on_health(const lcm::ReceiveBuffer*, const std::string&, const pneu_lcm::health_t* h) {
+    std::lock_guard<std::mutex> l(m);
+    last_health = *h;
+    ++health_count;
+  }
+};
+
+pneu_lcm::command_t command(int64_t seq, int8_t kind, double value) {
+  pneu_lcm::command_t c;
+  c.utime = 0;
+  c.seq = seq;
+  c.kind = kind;
+  c.value = value;
+  return c;
+}
+
+TEST_F(LcmIntegration, CommandsAreValidatedAndOnlyValidOnesReachTheLoop) {
+  lcm::LCM lcm(kUrl);
+  ASSERT_TRUE(lcm.good());
+  Listener listener;
+  lcm.subscribe("PNEU_EVENT", &Listener::on_event, &listener);
+  lcm.subscribe("PNEU_HEALTH", &Listener::on_health, &listener);
+  std::atomic<bool> done{false};
+  std::thread handler([&] {
+    while (!done) lcm.handleTimeout(20);
+  });
+
+  // No schedule: the carriage holds 219.5 mm until commanded.
+  Child pneud = Child::spawn({bin("pneud"), "--clock", "real", "--duration", "4", "--require-telemetry",
+                              "--set", "controller.setpoints.schedule=[]", "--set", "telemetry.health_period_s=0.5",
+                              "--trajectory", (dir_ / "traj.csv").string()},
+                             dir_ / "pneud.out", dir_ / "pneud.err");
+  std::this_thread::sleep_for(800ms);
+  using C = pneu_lcm::command_t;
+  const auto send = [&](const C& c) { ASSERT_EQ(lcm.publish("PNEU_COMMAND", &c), 0); };
+  send(command(10, C::KIND_SET_POINT, 0.100));          // valid
+  send(command(11, C::KIND_SET_POINT, 0.900));          // outside the soft limits
+  send(command(12, C::KIND_SET_POINT, std::nan("")));   // not finite
+  send(command(5, C::KIND_SET_POINT, 0.120));           // sequence going back
+  send(command(13, 42, 0.0));                           // unknown kind
+  send(command(14, C::KIND_ARM, 0.0));                  // already armed
+  pneu_lcm::state_t wrong{};                            // wrongly typed message
+  ASSERT_EQ(lcm.publish("PNEU_COMMAND", &wrong), 0);
+  const char garbage[3] = {1, 2, 3};
+  for (int i = 0; i < 300; ++i) ASSERT_EQ(lcm.publish("PNEU_COMMAND", garbage, sizeof garbage), 0);  // a flood
+  std::this_thread::sleep_for(300ms);  // let the bucket refill before the burst
+  for (int i = 0; i < 12; ++i) send(command(100 + i, C::KIND_SET_POINT_STEP, 0.0001));  // burst: rate limit
+  ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
+  std::this_thread::sleep_for(300ms);
+  done = true;
+  handler.join();
+
+  std::lock_guard<std::mutex> l(listener.m);
+  std::vector<std::string> rejected, accepted;
+  for (const auto& e : listener.events) {
+    if (e.kind == pneu_lcm::event_t::KIND_COMMAND_REJECTED) rejected.push_back(e.text);
+    if (e.kind == pneu_lcm::event_t::KIND_COMMAND_ACCEPTED) accepted.push_back(e.text);
+  }
+  const auto any = [](const std::vector<std::string>& v, const std::string& s) {
+    return std::any_of(v.begin(), v.end(), [&](const std::string& t) { return t.find(s) != std::string::npos; });
+  };
+  EXPECT_TRUE(any(accepted, "set point 100.000 mm"));
+  EXPECT_TRUE(any(rejected, "outside the soft limits"));
+  EXPECT_TRUE(any(rejected, "not a finite number"));
+  EXPECT_TRUE(any(rejected, "is not above the last accepted"));
+  EXPECT_TRUE(any(rejected, "unknown command kind 42"));
+  EXPECT_TRUE(any(rejected, "already armed"));
+  EXPECT_TRUE(any(rejected, "not a pneu_lcm.command_t"));
+  EXPECT_TRUE(any(rejected, "rate limit"));
+
+  // Counted and published in health (the last health message counts everything sent above).
+  ASSERT_GE(listener.health_count, 2);
+  const auto& h = listener.last_health;
+  EXPECT_EQ(h.commands_received, 1 + 5 + 1 + 300 + 12);
+  EXPECT_EQ(h.commands_rejected, static_cast<int64_t>(rejected.size()));
+  EXPECT_EQ(h.commands_accepted, static_cast<int64_t>(accepted.size()));
+  EXPECT_EQ(h.rejected_malformed, 301);
+  EXPECT_EQ(h.rejected_invalid, 3);
+  EXPECT_EQ(h.rejected_sequence, 1);
+  EXPECT_EQ(h.rejected_mode, 1);
+  EXPECT_GE(h.rejected_rate, 1);
+  EXPECT_EQ(h.telemetry_dropped, 0);
+
+  // The valid set point moved the simulated piston; the loop ticked on throughout: every
+  // deadline of the 4 s run is accounted for (ticked, or skipped after an overrun the machine
+  // caused), and the recorded ticks have no gap.
+  const Csv traj = Csv::read(dir_ / "traj.csv");
+  ASSERT_FALSE(traj.rows.empty());
+  const double y_d_end = std::stod(traj.rows.back()[2]), y_end = std::stod(traj.rows.back()[3]);
+  EXPECT_NEAR(y_d_end, 0.100 + 0.0001 * static_cast<double>(accepted.size() - 1), 1e-9);
+  EXPECT_NEAR(y_end, y_d_end, 0.005) << "the carriage went from 219.5 mm to the commanded set point";
+  for (std::size_t i = 0; i < traj.rows.size(); ++i) ASSERT_EQ(std::stoull(traj.rows[i][0]), i);
+  const std::string out = slurp(dir_ / "pneud.out");
+  unsigned long long ticks = 0, overruns = 0, skipped = 0;
+  const auto pos = out.find("loop: ");
+  ASSERT_NE(pos, std::string::npos) << out;
+  ASSERT_EQ(std::sscanf(out.c_str() + pos, "loop: %llu ticks at 1000 Hz, %llu overruns (%llu deadlines skipped)",
+                        &ticks, &overruns, &skipped),
+            3);
+  EXPECT_EQ(ticks + skipped, 4001u);
+  EXPECT_EQ(ticks, traj.rows.size());
+}
+
+}  // namespace
