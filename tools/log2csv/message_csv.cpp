@@ -1,0 +1,334 @@
+#include "message_csv.hpp"
+
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+
+#include "pneu_lcm/command_t.hpp"
+#include "pneu_lcm/event_t.hpp"
+#include "pneu_lcm/health_t.hpp"
+#include "pneu_lcm/prediction_t.hpp"
+#include "pneu_lcm/state_t.hpp"
+
+namespace pneu::log2csv {
+namespace {
+
+// Appends the cells of one row to a line, commas between them.
+class Row {
+ public:
+  Row(std::string& line, std::int64_t log_utime) : line_(line) {
+    line_.clear();
+    integer(log_utime);
+  }
+  // %.17g reads back to the same double; NaN ("no value" in these messages) is an empty cell.
+  Row& number(double v) {
+    separate();
+    if (std::isnan(v)) return *this;
+    char buf[32];
+    const int n = std::snprintf(buf, sizeof buf, "%.17g", v);
+    line_.append(buf, static_cast<std::size_t>(n));
+    return *this;
+  }
+  Row& integer(std::int64_t v) {
+    separate();
+    char buf[24];
+    const auto r = std::to_chars(buf, buf + sizeof buf, v);
+    line_.append(buf, r.ptr);
+    return *this;
+  }
+  Row& boolean(std::int8_t v) {
+    separate();
+    line_ += v != 0 ? '1' : '0';
+    return *this;
+  }
+  // A name from a fixed table: never holds a comma or a quote.
+  Row& word(std::string_view v) {
+    separate();
+    line_ += v;
+    return *this;
+  }
+  // Free text, always quoted (RFC 4180): a quote doubled, commas and newlines kept as they are.
+  Row& text(std::string_view v) {
+    separate();
+    line_ += '"';
+    for (const char c : v) {
+      if (c == '"') line_ += '"';
+      line_ += c;
+    }
+    line_ += '"';
+    return *this;
+  }
+  void end() { line_ += '\n'; }
+
+ private:
+  void separate() {
+    if (!first_) line_ += ',';
+    first_ = false;
+  }
+  std::string& line_;
+  bool first_ = true;
+};
+
+const char* event_kind_name(std::int8_t kind) {
+  using E = pneu_lcm::event_t;
+  switch (kind) {
+    case E::KIND_START:
+      return "start";
+    case E::KIND_RESTART:
+      return "restart";
+    case E::KIND_STOP:
+      return "stop";
+    case E::KIND_FAULT:
+      return "fault";
+    case E::KIND_COMMAND_ACCEPTED:
+      return "command_accepted";
+    case E::KIND_COMMAND_REJECTED:
+      return "command_rejected";
+    case E::KIND_END:
+      return "end";
+    default:
+      return "unknown";
+  }
+}
+
+const char* command_kind_name(std::int8_t kind) {
+  using C = pneu_lcm::command_t;
+  switch (kind) {
+    case C::KIND_SET_POINT:
+      return "set_point";
+    case C::KIND_SET_POINT_STEP:
+      return "set_point_step";
+    case C::KIND_ARM:
+      return "arm";
+    case C::KIND_DISARM:
+      return "disarm";
+    case C::KIND_FAULT_RESET:
+      return "fault_reset";
+    default:
+      return "unknown";
+  }
+}
+
+const char* method_name(std::int8_t method) {
+  using P = pneu_lcm::prediction_t;
+  switch (method) {
+    case P::METHOD_LINEARIZED:
+      return "linearized";
+    case P::METHOD_NONLINEAR:
+      return "nonlinear";
+    default:
+      return "unknown";
+  }
+}
+
+// The fingerprint: the payload's first 8 bytes, big-endian, as T::getHash() gives it.
+bool read_fingerprint(const void* data, std::int32_t size, std::int64_t* fingerprint) {
+  if (size < 8) return false;
+  const auto* b = static_cast<const unsigned char*>(data);
+  std::uint64_t v = 0;
+  for (int i = 0; i < 8; ++i) v = (v << 8) | b[i];
+  *fingerprint = static_cast<std::int64_t>(v);
+  return true;
+}
+
+// Decoded whole: the fingerprint matches and the payload holds exactly one message. Trailing
+// bytes are refused, since the daemon never sends them and they mean the type is not what it says.
+template <class T>
+bool decode_whole(const void* data, std::int32_t size, T* msg) {
+  return msg->decode(data, 0, size) == size;
+}
+
+void unknown_row(std::int64_t log_utime, const void* data, std::int32_t size, std::string& line) {
+  Row row(line, log_utime);
+  row.integer(size);
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string hex;
+  const auto* b = static_cast<const unsigned char*>(data);
+  for (std::int32_t i = 0; i < size && i < 8; ++i) {
+    hex += kHex[b[i] >> 4];
+    hex += kHex[b[i] & 0xf];
+  }
+  row.word(hex);
+  row.end();
+}
+
+}  // namespace
+
+const char* type_name(MessageType type) {
+  switch (type) {
+    case MessageType::kState:
+      return "state_t";
+    case MessageType::kEvent:
+      return "event_t";
+    case MessageType::kPrediction:
+      return "prediction_t";
+    case MessageType::kHealth:
+      return "health_t";
+    case MessageType::kCommand:
+      return "command_t";
+    case MessageType::kUnknown:
+      return "unknown";
+  }
+  return "unknown";
+}
+
+std::string_view csv_header(MessageType type) {
+  switch (type) {
+    case MessageType::kState:
+      return "log_utime,utime,seq,t,y_d,y,v_hat,a_hat,p_p,p_n,force,u,stuck,mode,validity";
+    case MessageType::kEvent:
+      return "log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,text";
+    case MessageType::kPrediction:
+      return "log_utime,utime,t,stop,t_stop,method,method_name,will_restart,direction,t_restart,"
+             "u_star,equilibrium_force,p_p_equilibrium,p_n_equilibrium,tau_p,tau_n,min_margin,"
+             "horizon_reached";
+    case MessageType::kHealth:
+      return "log_utime,utime,t,mode,ticks,overruns,wake_latency_us_min,wake_latency_us_median,"
+             "wake_latency_us_p99,wake_latency_us_max,compute_us_min,compute_us_median,"
+             "compute_us_p99,compute_us_max,comms_errors,telemetry_dropped,commands_received,"
+             "commands_accepted,commands_rejected,rejected_malformed,rejected_invalid,"
+             "rejected_rate,rejected_mode,rejected_sequence";
+    case MessageType::kCommand:
+      return "log_utime,utime,seq,kind,kind_name,value";
+    case MessageType::kUnknown:
+      return "log_utime,bytes,fingerprint_hex";
+  }
+  return "log_utime,bytes,fingerprint_hex";
+}
+
+MessageType classify(const void* data, std::int32_t size) {
+  std::int64_t fingerprint = 0;
+  if (!read_fingerprint(data, size, &fingerprint)) return MessageType::kUnknown;
+  const auto as = [&](auto msg, MessageType type) {
+    return decode_whole(data, size, &msg) ? type : MessageType::kUnknown;
+  };
+  if (fingerprint == pneu_lcm::state_t::getHash())
+    return as(pneu_lcm::state_t{}, MessageType::kState);
+  if (fingerprint == pneu_lcm::event_t::getHash())
+    return as(pneu_lcm::event_t{}, MessageType::kEvent);
+  if (fingerprint == pneu_lcm::prediction_t::getHash())
+    return as(pneu_lcm::prediction_t{}, MessageType::kPrediction);
+  if (fingerprint == pneu_lcm::health_t::getHash())
+    return as(pneu_lcm::health_t{}, MessageType::kHealth);
+  if (fingerprint == pneu_lcm::command_t::getHash())
+    return as(pneu_lcm::command_t{}, MessageType::kCommand);
+  return MessageType::kUnknown;
+}
+
+RowInfo format_csv_row(std::int64_t log_utime, const void* data, std::int32_t size,
+                       std::string& line) {
+  std::int64_t fingerprint = 0;
+  if (!read_fingerprint(data, size, &fingerprint)) {
+    unknown_row(log_utime, data, size, line);
+    return {};
+  }
+  if (fingerprint == pneu_lcm::state_t::getHash()) {
+    pneu_lcm::state_t m{};
+    if (decode_whole(data, size, &m)) {
+      Row(line, log_utime)
+          .integer(m.utime)
+          .integer(m.seq)
+          .number(m.t)
+          .number(m.y_d)
+          .number(m.y)
+          .number(m.v_hat)
+          .number(m.a_hat)
+          .number(m.p_p)
+          .number(m.p_n)
+          .number(m.force)
+          .number(m.u)
+          .boolean(m.stuck)
+          .integer(m.mode)
+          .integer(m.validity)
+          .end();
+      return {MessageType::kState, m.seq};
+    }
+  } else if (fingerprint == pneu_lcm::event_t::getHash()) {
+    pneu_lcm::event_t m{};
+    if (decode_whole(data, size, &m)) {
+      Row(line, log_utime)
+          .integer(m.utime)
+          .integer(m.kind)
+          .word(event_kind_name(m.kind))
+          .number(m.t)
+          .integer(m.stop)
+          .number(m.y)
+          .number(m.force)
+          .number(m.y_d)
+          .integer(m.direction)
+          .text(m.text)
+          .end();
+      return {MessageType::kEvent, 0};
+    }
+  } else if (fingerprint == pneu_lcm::prediction_t::getHash()) {
+    pneu_lcm::prediction_t m{};
+    if (decode_whole(data, size, &m)) {
+      Row(line, log_utime)
+          .integer(m.utime)
+          .number(m.t)
+          .integer(m.stop)
+          .number(m.t_stop)
+          .integer(m.method)
+          .word(method_name(m.method))
+          .boolean(m.will_restart)
+          .integer(m.direction)
+          .number(m.t_restart)
+          .number(m.u_star)
+          .number(m.equilibrium_force)
+          .number(m.p_p_equilibrium)
+          .number(m.p_n_equilibrium)
+          .number(m.tau_p)
+          .number(m.tau_n)
+          .number(m.min_margin)
+          .boolean(m.horizon_reached)
+          .end();
+      return {MessageType::kPrediction, 0};
+    }
+  } else if (fingerprint == pneu_lcm::health_t::getHash()) {
+    pneu_lcm::health_t m{};
+    if (decode_whole(data, size, &m)) {
+      Row row(line, log_utime);
+      row.integer(m.utime).number(m.t).integer(m.mode).integer(m.ticks).integer(m.overruns);
+      for (const double v : m.wake_latency_us) row.number(v);
+      for (const double v : m.compute_us) row.number(v);
+      row.integer(m.comms_errors)
+          .integer(m.telemetry_dropped)
+          .integer(m.commands_received)
+          .integer(m.commands_accepted)
+          .integer(m.commands_rejected)
+          .integer(m.rejected_malformed)
+          .integer(m.rejected_invalid)
+          .integer(m.rejected_rate)
+          .integer(m.rejected_mode)
+          .integer(m.rejected_sequence)
+          .end();
+      return {MessageType::kHealth, 0};
+    }
+  } else if (fingerprint == pneu_lcm::command_t::getHash()) {
+    pneu_lcm::command_t m{};
+    if (decode_whole(data, size, &m)) {
+      Row(line, log_utime)
+          .integer(m.utime)
+          .integer(m.seq)
+          .integer(m.kind)
+          .word(command_kind_name(m.kind))
+          .number(m.value)
+          .end();
+      return {MessageType::kCommand, 0};
+    }
+  }
+  unknown_row(log_utime, data, size, line);
+  return {};
+}
+
+std::string sanitize_file_name(std::string_view channel) {
+  std::string name(channel);
+  for (char& c : name) {
+    const bool keep = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') ||
+                      c == '_' || c == '.' || c == '-';
+    if (!keep) c = '_';
+  }
+  return name;
+}
+
+}  // namespace pneu::log2csv
