@@ -269,6 +269,7 @@ TelemetryConfig read_telemetry(MapReader r) {
     check(std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-' || ch == '.',
           r.child_path("channel_prefix"), "may hold letters, digits, '_', '-' and '.' only");
   t.health_period_s = in_range(r, "health_period_s", 0.01, 60.0);
+  t.in_simulated_time = r.boolean("in_simulated_time");
   r.finish();
   return t;
 }
@@ -494,6 +495,7 @@ std::string to_yaml(const Config& c) {
   kv("lcm_url", c.telemetry.lcm_url);
   kv("channel_prefix", c.telemetry.channel_prefix);
   kv("health_period_s", c.telemetry.health_period_s);
+  kv("in_simulated_time", c.telemetry.in_simulated_time);
   e << YAML::EndMap;
   e << YAML::Key << "commands" << YAML::Value << YAML::BeginMap;
   kv("enabled", c.commands.enabled);

@@ -104,7 +104,7 @@ int run(int argc, char** argv) {
   std::function<void(int)> wait_for_input;
 #ifdef PNEU_WITH_LCM
   std::unique_ptr<telemetry::LcmBridge> bridge;
-  if (cfg.telemetry.enabled) {
+  if (cfg.telemetry.enabled && (real_clock || cfg.telemetry.in_simulated_time)) {
     try {
       bridge = std::make_unique<telemetry::LcmBridge>(cfg, *run.outputs, real_clock && cfg.commands.enabled);
       run.report->set_listener(bridge.get());

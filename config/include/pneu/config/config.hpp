@@ -99,6 +99,9 @@ struct TelemetryConfig {
   std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0";  ///< ttl=0: nothing leaves the host
   std::string channel_prefix = "PNEU_";   ///< channels: <prefix>STATE, EVENT, PREDICTION, HEALTH
   double health_period_s = 1.0;           ///< health message period [s]
+  /// Publish also when the loop runs on the simulated clock (a 12 s run then floods the network
+  /// with 12,000 states in a few tens of milliseconds and runs 5x slower).
+  bool in_simulated_time = false;
 };
 
 /// Inbound commands on <prefix>COMMAND (real clock only).
