@@ -81,7 +81,8 @@ void ControlLoop::apply_commands(double y_m) noexcept {
         if (mode_ == Mode::kArmed) mode_ = Mode::kDisarmed;
         break;
       case LoopCommand::Kind::kFaultReset:
-        if (mode_ == Mode::kFault) mode_ = Mode::kDisarmed;
+        // The cause must be gone: a reset while the e-stop is still pressed keeps the fault.
+        if (mode_ == Mode::kFault && !estop_active_) mode_ = Mode::kDisarmed;
         break;
     }
   }
@@ -91,6 +92,9 @@ void ControlLoop::tick(double t_s) noexcept {
   hal::SensorFrame frame;
   (void)backend_.read(t_s, frame);  // status and validity go to the supervisor (issue 6)
 
+  // The e-stop latches the fault (safe output) until an explicit reset once it is released.
+  estop_active_ = frame.estop;
+  if (estop_active_) mode_ = Mode::kFault;
   apply_commands(frame.y_m);
   while (schedule_active_ && next_step_ < schedule_.size() && schedule_[next_step_].t_s <= t_s + 1e-9)
     y_d_m_ = schedule_[next_step_++].position_m;
@@ -98,9 +102,10 @@ void ControlLoop::tick(double t_s) noexcept {
   differentiator_.update(frame.y_m);
   const double v_hat = differentiator_.velocity_m_per_s();
   const double a_hat = differentiator_.acceleration_m_per_s2();
-  const double u = mode_ == Mode::kArmed ? law_.control_v(y_d_m_, frame.y_m, v_hat, a_hat)
-                                         : config_.controller.law.offset_v;
-  (void)backend_.write(hal::ActuatorCommand::from_control(u, true));
+  // Valve power follows the armed state; otherwise the outputs sit at the neutral voltage u_0.
+  const bool armed = mode_ == Mode::kArmed;
+  const double u = armed ? law_.control_v(y_d_m_, frame.y_m, v_hat, a_hat) : config_.controller.law.offset_v;
+  (void)backend_.write(hal::ActuatorCommand::from_control(u, armed));
   out_.setpoint_m.store(y_d_m_, std::memory_order_relaxed);
   out_.mode.store(static_cast<std::uint8_t>(mode_), std::memory_order_relaxed);
 
@@ -160,7 +165,7 @@ void ControlLoop::tick(double t_s) noexcept {
 }
 
 void ControlLoop::stop() noexcept {
-  (void)backend_.write(hal::ActuatorCommand::from_control(config_.controller.law.offset_v, true));
+  (void)backend_.write(hal::ActuatorCommand::from_control(config_.controller.law.offset_v, false));
 }
 
 }  // namespace pneu::controller

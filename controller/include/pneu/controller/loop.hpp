@@ -18,9 +18,10 @@ namespace pneu::controller {
 
 /// The loop's operating mode.
 enum class Mode : std::uint8_t {
-  kDisarmed = 0,  ///< outputs held at the neutral voltage u_0 (F_e(u_0) = 0), no control
-  kArmed = 1,     ///< the control law drives the valves
-  kFault = 2,     ///< latched fault (supervisor, later): safe output until reset
+  kDisarmed = 0,  ///< valve power off, outputs at the neutral voltage u_0 (F_e(u_0) = 0)
+  kArmed = 1,     ///< valve power on, the control law drives the valves
+  kFault = 2,     ///< latched (e-stop; the supervisor's faults later): as disarmed until a reset
+                  ///< received once the cause is gone
 };
 
 /// Everything one tick computed: the per-tick telemetry record.
@@ -128,6 +129,7 @@ class ControlLoop {
   double y_d_at_stop_m_ = 0.0;
   Mode mode_ = Mode::kArmed;
   bool schedule_active_ = true;  ///< a set-point command ends the configured schedule
+  bool estop_active_ = false;
 };
 
 }  // namespace pneu::controller
