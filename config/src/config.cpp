@@ -2,6 +2,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cctype>
 #include <fstream>
 #include <sstream>
@@ -283,11 +284,112 @@ CommandsConfig read_commands(MapReader r) {
   return c;
 }
 
+RegisterChannel read_register(MapReader r) {
+  RegisterChannel c;
+  const long long address = r.integer("register");
+  check(address >= 0 && address <= 65535, r.child_path("register"), "must be in [0, 65535]");
+  c.address = static_cast<int>(address);
+  c.is_signed = r.boolean("signed");
+  c.raw_min = r.number("raw_min");
+  c.raw_max = r.number("raw_max");
+  const double lo = c.is_signed ? -32768.0 : 0.0, hi = c.is_signed ? 32767.0 : 65535.0;
+  check(c.raw_min >= lo && c.raw_min <= hi, r.child_path("raw_min"),
+        "must fit a " + std::string(c.is_signed ? "signed" : "unsigned") + " 16-bit register [" + fmt(lo) + ", " + fmt(hi) + "]");
+  check(c.raw_max >= lo && c.raw_max <= hi, r.child_path("raw_max"),
+        "must fit a " + std::string(c.is_signed ? "signed" : "unsigned") + " 16-bit register [" + fmt(lo) + ", " + fmt(hi) + "]");
+  check(c.raw_max > c.raw_min, r.child_path("raw_max"),
+        "the raw range is empty (raw_max " + fmt(c.raw_max) + " <= raw_min " + fmt(c.raw_min) + ")");
+  c.volts_min = r.number("volts_min");
+  c.volts_max = r.number("volts_max");
+  check(c.volts_max > c.volts_min, r.child_path("volts_max"),
+        "the volts range is empty (volts_max " + fmt(c.volts_max) + " <= volts_min " + fmt(c.volts_min) + ")");
+  r.finish();
+  return c;
+}
+
+ModbusConfig read_modbus(MapReader r) {
+  ModbusConfig m;
+  const std::string transport = r.string("transport");
+  if (transport == "tcp") m.transport = ModbusTransport::kTcp;
+  else if (transport == "rtu") m.transport = ModbusTransport::kRtu;
+  else throw ConfigError(r.child_path("transport"), "must be 'tcp' or 'rtu' (got '" + transport + "')");
+  m.host = r.string_or("host", m.host);
+  const long long port = r.integer_or("port", m.port);
+  check(port >= 1 && port <= 65535, r.child_path("port"), "must be in [1, 65535]");
+  m.port = static_cast<int>(port);
+  m.device = r.string_or("device", m.device);
+  const long long baud = r.integer_or("baud", m.baud);
+  check(baud >= 300 && baud <= 4000000, r.child_path("baud"), "must be in [300, 4000000]");
+  m.baud = static_cast<int>(baud);
+  const std::string parity = r.string_or("parity", "none");
+  if (parity == "none") m.parity = 'N';
+  else if (parity == "even") m.parity = 'E';
+  else if (parity == "odd") m.parity = 'O';
+  else throw ConfigError(r.child_path("parity"), "must be none, even or odd (got '" + parity + "')");
+  const long long data_bits = r.integer_or("data_bits", 8);
+  check(data_bits >= 5 && data_bits <= 8, r.child_path("data_bits"), "must be in [5, 8]");
+  m.data_bits = static_cast<int>(data_bits);
+  const long long stop_bits = r.integer_or("stop_bits", 1);
+  check(stop_bits == 1 || stop_bits == 2, r.child_path("stop_bits"), "must be 1 or 2");
+  m.stop_bits = static_cast<int>(stop_bits);
+  const long long unit = r.integer("unit_id");
+  check(unit >= 1 && unit <= 247, r.child_path("unit_id"), "must be in [1, 247]");
+  m.unit_id = static_cast<int>(unit);
+  m.response_timeout_s = in_range(r, "response_timeout_s", 1e-4, 10.0);
+  m.max_sample_age_s = in_range(r, "max_sample_age_s", 1e-4, 10.0);
+  m.min_exchange_period_s = in_range(r, "min_exchange_period_s", 0.0, 1.0);
+  m.read_write_multiple = r.boolean("read_write_multiple");
+  const std::string table = r.string("sensor_table");
+  if (table == "holding") m.sensor_table = SensorTable::kHolding;
+  else if (table == "input") m.sensor_table = SensorTable::kInput;
+  else throw ConfigError(r.child_path("sensor_table"), "must be 'holding' or 'input' (got '" + table + "')");
+  check(!(m.read_write_multiple && m.sensor_table == SensorTable::kInput), r.child_path("read_write_multiple"),
+        "function 23 reads holding registers: with sensor_table input, set read_write_multiple false");
+  m.reconnect_min_s = in_range(r, "reconnect_min_s", 1e-3, 60.0);
+  m.reconnect_max_s = in_range(r, "reconnect_max_s", m.reconnect_min_s, 600.0);
+  {
+    MapReader ch = r.map("channels");
+    m.position = read_register(ch.map("position"));
+    m.pressure_p = read_register(ch.map("pressure_p"));
+    m.pressure_n = read_register(ch.map("pressure_n"));
+    m.valve_p = read_register(ch.map("valve_p"));
+    m.valve_n = read_register(ch.map("valve_n"));
+    // One register holds one channel: refuse overlaps within a table (the valves are holding
+    // registers; the sensors are too unless sensor_table is input).
+    struct Named { const char* name; const RegisterChannel* c; bool holding; };
+    const bool sensors_holding = m.sensor_table == SensorTable::kHolding;
+    const Named all[] = {{"position", &m.position, sensors_holding}, {"pressure_p", &m.pressure_p, sensors_holding},
+                         {"pressure_n", &m.pressure_n, sensors_holding}, {"valve_p", &m.valve_p, true},
+                         {"valve_n", &m.valve_n, true}};
+    for (std::size_t i = 0; i < 5; ++i)
+      for (std::size_t j = i + 1; j < 5; ++j)
+        check(!(all[i].holding == all[j].holding && all[i].c->address == all[j].c->address),
+              ch.child_path(all[j].name) + ".register",
+              "overlaps " + std::string(all[i].name) + " (both at register " + std::to_string(all[j].c->address) + ")");
+    if (m.read_write_multiple)
+      check(std::abs(m.valve_p.address - m.valve_n.address) == 1, ch.child_path("valve_n") + ".register",
+            "function 23 writes one block: valve_p and valve_n must be adjacent registers");
+    const int lo = std::min({m.position.address, m.pressure_p.address, m.pressure_n.address});
+    const int hi = std::max({m.position.address, m.pressure_p.address, m.pressure_n.address});
+    check(hi - lo < 121, ch.child_path("pressure_n") + ".register",
+          "the sensor registers must lie within 121 consecutive registers (one read transaction)");
+    ch.finish();
+  }
+  r.finish();
+  return m;
+}
+
 HalConfig read_hal(MapReader r) {
   HalConfig h;
   const std::string backend = r.string("backend");
   if (backend == "sim") h.backend = BackendKind::kSim;
-  else throw ConfigError(r.child_path("backend"), "unknown backend '" + backend + "' (sim)");
+  else if (backend == "modbus") h.backend = BackendKind::kModbus;
+  else throw ConfigError(r.child_path("backend"), "unknown backend '" + backend + "' (sim, modbus)");
+  h.has_modbus = r.has("modbus");
+  if (h.has_modbus) h.modbus = read_modbus(r.map("modbus"));
+  else (void)r.string_or("modbus", "");
+  if (h.backend == BackendKind::kModbus && !h.has_modbus)
+    throw ConfigError(r.child_path("modbus"), "missing: the modbus backend needs its section");
   r.finish();
   return h;
 }
@@ -488,7 +590,43 @@ std::string to_yaml(const Config& c) {
   kv("start_armed", k.start_armed);
   e << YAML::EndMap;
   e << YAML::Key << "hal" << YAML::Value << YAML::BeginMap;
-  kv("backend", "sim");
+  kv("backend", c.hal.backend == BackendKind::kModbus ? "modbus" : "sim");
+  if (c.hal.has_modbus) {
+    const auto& m = c.hal.modbus;
+    e << YAML::Key << "modbus" << YAML::Value << YAML::BeginMap;
+    kv("transport", m.transport == ModbusTransport::kRtu ? "rtu" : "tcp");
+    kv("host", m.host);
+    kv("port", m.port);
+    kv("device", m.device);
+    kv("baud", m.baud);
+    kv("parity", m.parity == 'E' ? "even" : (m.parity == 'O' ? "odd" : "none"));
+    kv("data_bits", m.data_bits);
+    kv("stop_bits", m.stop_bits);
+    kv("unit_id", m.unit_id);
+    kv("response_timeout_s", m.response_timeout_s);
+    kv("max_sample_age_s", m.max_sample_age_s);
+    kv("min_exchange_period_s", m.min_exchange_period_s);
+    kv("read_write_multiple", m.read_write_multiple);
+    kv("sensor_table", m.sensor_table == SensorTable::kInput ? "input" : "holding");
+    kv("reconnect_min_s", m.reconnect_min_s);
+    kv("reconnect_max_s", m.reconnect_max_s);
+    e << YAML::Key << "channels" << YAML::Value << YAML::BeginMap;
+    const std::pair<const char*, const RegisterChannel*> chans[] = {
+        {"position", &m.position}, {"pressure_p", &m.pressure_p}, {"pressure_n", &m.pressure_n},
+        {"valve_p", &m.valve_p}, {"valve_n", &m.valve_n}};
+    for (const auto& [name, ch] : chans) {
+      e << YAML::Key << name << YAML::Value << YAML::Flow << YAML::BeginMap;
+      kv("register", ch->address);
+      kv("signed", ch->is_signed);
+      kv("raw_min", ch->raw_min);
+      kv("raw_max", ch->raw_max);
+      kv("volts_min", ch->volts_min);
+      kv("volts_max", ch->volts_max);
+      e << YAML::EndMap;
+    }
+    e << YAML::EndMap;
+    e << YAML::EndMap;
+  }
   e << YAML::EndMap;
   e << YAML::Key << "telemetry" << YAML::Value << YAML::BeginMap;
   kv("enabled", c.telemetry.enabled);

@@ -13,6 +13,9 @@
 #ifdef PNEU_WITH_LCM
 #include "pneu/telemetry/lcm_bridge.hpp"
 #endif
+#ifdef PNEU_WITH_MODBUS
+#include "pneu/hal/modbus_backend.hpp"
+#endif
 
 namespace {
 
@@ -70,6 +73,8 @@ int run(int argc, char** argv) {
   if (cfg.controller.duration_s == 0.0 && cfg.controller.clock == config::ClockKind::kSimulated)
     throw config::ConfigError("controller.duration_s",
                               "0 (run until stopped) needs the real clock; give a duration");
+  if (cfg.hal.backend == config::BackendKind::kModbus && cfg.controller.clock != config::ClockKind::kReal)
+    throw config::ConfigError("controller.clock", "the modbus backend runs on the real clock (--clock real)");
   std::unique_ptr<plant::ValveCharacteristic> valve;
   try {
     valve = controller::make_valve_characteristic(
@@ -98,9 +103,19 @@ int run(int argc, char** argv) {
 
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
-  auto run = controller::make_simulated_run(cfg, *valve, events ? &*events : nullptr,
-                                            trajectory ? &*trajectory : nullptr);
   const bool real_clock = cfg.controller.clock == config::ClockKind::kReal;
+  controller::SimulatedRun run;
+  if (cfg.hal.backend == config::BackendKind::kModbus) {
+#ifdef PNEU_WITH_MODBUS
+    run = controller::make_hardware_run(cfg, *valve, std::make_unique<hal::ModbusBackend>(cfg.hal.modbus, cfg.sensors),
+                                        events ? &*events : nullptr, trajectory ? &*trajectory : nullptr);
+#else
+    throw config::ConfigError("hal.backend", "this pneud was built without the modbus backend");
+#endif
+  } else {
+    run = controller::make_simulated_run(cfg, *valve, events ? &*events : nullptr,
+                                         trajectory ? &*trajectory : nullptr);
+  }
   std::function<void(int)> wait_for_input;
 #ifdef PNEU_WITH_LCM
   std::unique_ptr<telemetry::LcmBridge> bridge;
@@ -127,8 +142,8 @@ int run(int argc, char** argv) {
   if ((events && !*events) || (trajectory && !*trajectory)) throw std::runtime_error("writing the output failed");
 
   if (!args.flag("quiet")) {
-    std::printf("pneud %s: %.3f s on the sim backend, %s clock (%s), u_0 = %+.4f V, wall time %.3f s (%.0fx real time)\n",
-                PNEU_VERSION, run.report->end_time_s(),
+    std::printf("pneud %s: %.3f s on the %s backend, %s clock (%s), u_0 = %+.4f V, wall time %.3f s (%.0fx real time)\n",
+                PNEU_VERSION, run.report->end_time_s(), cfg.hal.backend == config::BackendKind::kModbus ? "modbus" : "sim",
                 cfg.controller.clock == config::ClockKind::kReal ? "real" : "simulated",
                 config_path.empty() ? "embedded sim.yaml" : config_path.c_str(), cfg.controller.law.offset_v,
                 wall_s, run.report->end_time_s() / wall_s);
@@ -141,6 +156,15 @@ int run(int argc, char** argv) {
                   static_cast<unsigned long long>(bridge->publish_errors()),
                   static_cast<unsigned long long>(c.received), static_cast<unsigned long long>(c.accepted),
                   static_cast<unsigned long long>(c.rejected));
+    }
+#endif
+#ifdef PNEU_WITH_MODBUS
+    if (auto* mb = dynamic_cast<hal::ModbusBackend*>(run.hardware.get())) {
+      const auto& c = mb->counters();
+      std::printf("modbus: %llu transactions, %llu errors, %llu reconnects, %llu samples out of range%s%s\n",
+                  static_cast<unsigned long long>(c.transactions.load()), static_cast<unsigned long long>(c.errors.load()),
+                  static_cast<unsigned long long>(c.reconnects.load()), static_cast<unsigned long long>(c.out_of_range.load()),
+                  c.errors.load() ? "; last error: " : "", c.errors.load() ? mb->last_error().c_str() : "");
     }
 #endif
     if (run.outputs->ticks_dropped || run.outputs->events_dropped)

@@ -48,6 +48,19 @@ SimulatedRun make_simulated_run(const config::Config& config, const plant::Valve
   return run;
 }
 
+SimulatedRun make_hardware_run(const config::Config& config, const plant::ValveCharacteristic& valve,
+                               std::unique_ptr<hal::Backend> backend, std::ostream* events,
+                               std::ostream* trajectory) {
+  SimulatedRun run;
+  run.hardware = std::move(backend);
+  run.outputs = std::make_unique<LoopOutputs>();
+  run.loop = std::make_unique<ControlLoop>(config, *run.hardware, *run.outputs);
+  const auto& p = config.controller.predictor;
+  run.report = std::make_unique<RunReport>(predictor_model(config, valve), p.linearized, p.nonlinear,
+                                           events, trajectory);
+  return run;
+}
+
 void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
              const std::atomic<bool>& stop_requested,
              const std::function<void(int timeout_ms)>& wait_for_input) {
@@ -67,11 +80,18 @@ void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
         else std::this_thread::sleep_for(std::chrono::milliseconds(2));
       }
     });
-    run_loop(*run.loop, clock, period, ticks, stop_requested, run.timing, {}, health_s, run.outputs.get());
+    try {
+      run_loop(*run.loop, clock, period, ticks, stop_requested, run.timing, {}, health_s, run.outputs.get());
+    } catch (...) {  // the backend failed to open: stop the service thread before reporting
+      done.store(true, std::memory_order_release);
+      service.join();
+      throw;
+    }
     done.store(true, std::memory_order_release);
     service.join();
   }
   run.loop->stop();
+  if (run.hardware) run.hardware->close();
   run.report->drain(*run.outputs);
   run.report->finish(run.report->end_time_s());
 }

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "input_csv.hpp"
+#include "serve.hpp"
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/sim_plant/plant.hpp"
@@ -24,6 +25,7 @@ Usage:
   pneu-plant simulate [--config FILE] --input U.csv --out TRAJ.csv [--set KEY=VALUE ...] [--sensors] [--quiet]
   pneu-plant characterize-valve [--config FILE] --out TABLE.csv [--voltage-step-v V] [--pressure-step-pa P]
   pneu-plant null-flow [--config FILE] --out CURVE.csv [--voltage-step-v V]
+  pneu-plant serve --config FILE [--set KEY=VALUE ...] [--duration S]
   pneu-plant COMMAND --help
   pneu-plant --version
 
@@ -278,6 +280,7 @@ int main(int argc, char** argv) {
     if (command == "simulate") return simulate(argc, argv);
     if (command == "characterize-valve") return characterize(argc, argv);
     if (command == "null-flow") return null_flow(argc, argv);
+    if (command == "serve") return plant_app::serve(argc, argv);
     if (command == "--version") {
       std::printf("pneu-plant %s\n", PNEU_VERSION);
       return cli::kExitOk;

@@ -8,6 +8,7 @@
 #include <string_view>
 #include <vector>
 
+#include "pneu/config/register_map.hpp"
 #include "pneu/sim_plant/params.hpp"
 #include "pneu/sim_plant/sensors.hpp"
 #include "pneu/sim_plant/valve.hpp"
@@ -111,11 +112,14 @@ struct CommandsConfig {
   double burst = 5.0;          ///< commands accepted back to back before the rate applies
 };
 
-enum class BackendKind { kSim };
+enum class BackendKind { kSim, kModbus };
 
 /// The hardware abstraction layer: which backend pneud drives.
 struct HalConfig {
-  BackendKind backend = BackendKind::kSim;  ///< hal.backend: "sim" (in-process plant)
+  BackendKind backend = BackendKind::kSim;  ///< hal.backend: "sim" (in-process plant) or "modbus"
+  bool has_modbus = false;                  ///< hal.modbus present (required by the modbus backend
+                                            ///< and by pneu-plant serve)
+  ModbusConfig modbus;
 };
 
 /// The whole configuration.

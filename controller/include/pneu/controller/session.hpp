@@ -28,9 +28,11 @@ void resolve_offset(config::Config& config, const plant::ValveCharacteristic& va
 [[nodiscard]] PredictorModel predictor_model(const config::Config& config,
                                              const plant::ValveCharacteristic& valve);
 
-/// A complete run on the in-process simulated bench: backend, loop, report.
+/// A complete run: backend, loop, report. `backend` is set for the in-process simulated bench;
+/// `hardware` for any other backend (modbus), which the loop then drives.
 struct SimulatedRun {
   std::unique_ptr<hal::SimBackend> backend;
+  std::unique_ptr<hal::Backend> hardware;
   std::unique_ptr<LoopOutputs> outputs;
   std::unique_ptr<ControlLoop> loop;
   std::unique_ptr<RunReport> report;
@@ -42,6 +44,11 @@ struct SimulatedRun {
 [[nodiscard]] SimulatedRun make_simulated_run(const config::Config& config,
                                               const plant::ValveCharacteristic& valve,
                                               std::ostream* events, std::ostream* trajectory);
+/// The same on another backend (opened when the run starts).
+[[nodiscard]] SimulatedRun make_hardware_run(const config::Config& config,
+                                             const plant::ValveCharacteristic& valve,
+                                             std::unique_ptr<hal::Backend> backend,
+                                             std::ostream* events, std::ostream* trajectory);
 
 /// Runs it for controller.duration_s on `clock` (the simulated clock services the report between
 /// ticks; the real clock drains it from a service thread). `wait_for_input(timeout_ms)`, when set,

@@ -58,7 +58,7 @@ struct SensorParams {
   SensorChannelParams pressure_n;      ///< chamber N transmitter, gain in V/Pa
 };
 
-/// What the three sensors report, in SI units.
+/// What the three sensors report, in SI units (or in volts, from read_volts()).
 struct SensorReadings {
   double y_m = 0.0;
   double p_p_pa = 0.0;
@@ -74,6 +74,11 @@ class SensorSuite {
         pressure_n_(params.pressure_n),
         rng_(params.seed) {}
 
+  /// What the three sensors output, in volts (before any calibration back to SI).
+  [[nodiscard]] SensorReadings read_volts(double y_m, double p_p_pa, double p_n_pa) noexcept {
+    return {position_.read_volts(y_m, rng_), pressure_p_.read_volts(p_p_pa, rng_),
+            pressure_n_.read_volts(p_n_pa, rng_)};
+  }
   [[nodiscard]] SensorReadings measure(double y_m, double p_p_pa, double p_n_pa) noexcept {
     return {position_.measure(y_m, rng_), pressure_p_.measure(p_p_pa, rng_),
             pressure_n_.measure(p_n_pa, rng_)};

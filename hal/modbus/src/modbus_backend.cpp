@@ -1,0 +1,222 @@
+#include "pneu/hal/modbus_backend.hpp"
+
+#include <modbus.h>
+#include <time.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <stdexcept>
+
+namespace pneu::hal {
+
+namespace {
+
+double mono_s() noexcept {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
+void sleep_until_mono(double t) noexcept {
+  timespec ts{};
+  ts.tv_sec = static_cast<time_t>(std::floor(t));
+  ts.tv_nsec = static_cast<long>((t - std::floor(t)) * 1e9);
+  if (ts.tv_nsec >= 1000000000L) {
+    ts.tv_sec += 1;
+    ts.tv_nsec -= 1000000000L;
+  }
+  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+  }
+}
+
+modbus_t* as_ctx(void* p) { return static_cast<modbus_t*>(p); }
+
+}  // namespace
+
+ModbusBackend::ModbusBackend(const config::ModbusConfig& modbus, const plant::SensorParams& calibration)
+    : cfg_(modbus),
+      position_(calibration.position),
+      pressure_p_(calibration.pressure_p),
+      pressure_n_(calibration.pressure_n) {
+  const int r0 = std::min({cfg_.position.address, cfg_.pressure_p.address, cfg_.pressure_n.address});
+  const int r1 = std::max({cfg_.position.address, cfg_.pressure_p.address, cfg_.pressure_n.address});
+  read_start_ = r0;
+  read_count_ = r1 - r0 + 1;
+  write_start_ = std::min(cfg_.valve_p.address, cfg_.valve_n.address);
+  write_count_ = std::abs(cfg_.valve_p.address - cfg_.valve_n.address) + 1;
+  if (read_count_ > MODBUS_MAX_WR_READ_REGISTERS)
+    throw std::runtime_error("hal.modbus.channels: the sensor registers span " + std::to_string(read_count_) +
+                             " registers, more than one read transaction carries");
+  if (cfg_.read_write_multiple && write_count_ != 2)
+    throw std::runtime_error("hal.modbus.channels: function 23 writes one block: valve_p and valve_n must be adjacent registers");
+}
+
+ModbusBackend::~ModbusBackend() { close(); }
+
+std::string ModbusBackend::last_error() const {
+  (void)error_seq_.load(std::memory_order_acquire);
+  return last_error_;
+}
+
+bool ModbusBackend::connect_once(std::string* why) noexcept {
+  disconnect();
+  modbus_t* ctx = cfg_.transport == config::ModbusTransport::kTcp
+                      ? modbus_new_tcp(cfg_.host.c_str(), cfg_.port)
+                      : modbus_new_rtu(cfg_.device.c_str(), cfg_.baud, cfg_.parity, cfg_.data_bits, cfg_.stop_bits);
+  if (!ctx) {
+    *why = std::string("cannot create the libmodbus context: ") + modbus_strerror(errno);
+    return false;
+  }
+  modbus_set_slave(ctx, cfg_.unit_id);
+  const double to = cfg_.response_timeout_s;
+  modbus_set_response_timeout(ctx, static_cast<uint32_t>(to), static_cast<uint32_t>((to - std::floor(to)) * 1e6));
+  if (modbus_connect(ctx) == -1) {
+    *why = std::string("cannot connect: ") + modbus_strerror(errno);
+    modbus_free(ctx);
+    return false;
+  }
+  ctx_ = ctx;
+  return true;
+}
+
+void ModbusBackend::disconnect() noexcept {
+  if (ctx_) {
+    modbus_close(as_ctx(ctx_));
+    modbus_free(as_ctx(ctx_));
+    ctx_ = nullptr;
+  }
+}
+
+bool ModbusBackend::exchange(std::string* why) noexcept {
+  uint16_t out[2] = {};
+  // Unpowered valves sit at their centre: with power off the outputs are written at 0 V.
+  const double u_p = io_command_.valve_power ? io_command_.u_p_v : 0.0;
+  const double u_n = io_command_.valve_power ? io_command_.u_n_v : 0.0;
+  out[cfg_.valve_p.address - write_start_ == 0 ? 0 : 1] = cfg_.valve_p.to_word(u_p);
+  out[cfg_.valve_n.address - write_start_ == 0 ? 0 : 1] = cfg_.valve_n.to_word(u_n);
+  uint16_t in[MODBUS_MAX_WR_READ_REGISTERS] = {};
+  modbus_t* ctx = as_ctx(ctx_);
+  int rc = 0;
+  if (cfg_.read_write_multiple) {
+    rc = modbus_write_and_read_registers(ctx, write_start_, write_count_, out, read_start_, read_count_, in);
+  } else {
+    rc = cfg_.sensor_table == config::SensorTable::kInput ? modbus_read_input_registers(ctx, read_start_, read_count_, in)
+                                                          : modbus_read_registers(ctx, read_start_, read_count_, in);
+    if (rc == read_count_) {
+      const int w = write_count_ == 2 ? modbus_write_registers(ctx, write_start_, 2, out)
+                                      : (modbus_write_register(ctx, cfg_.valve_p.address, out[0]) == 1 &&
+                                                 modbus_write_register(ctx, cfg_.valve_n.address, out[1]) == 1
+                                             ? 2
+                                             : -1);
+      if (w != write_count_ && w != 2) rc = -1;
+    }
+  }
+  if (rc != read_count_) {
+    *why = rc < 0 ? std::string(modbus_strerror(errno)) : "short reply (" + std::to_string(rc) + " registers)";
+    counters_.last_errno.store(errno, std::memory_order_relaxed);
+    return false;
+  }
+  Sample s;
+  s.mono_s = mono_s();
+  const auto word = [&](const config::RegisterChannel& c) { return in[c.address - read_start_]; };
+  const auto take = [&](const config::RegisterChannel& c, const plant::SensorChannel& cal, double& value,
+                        std::uint32_t invalid_flag) {
+    const uint16_t w = word(c);
+    value = cal.to_si(c.to_volts(w));
+    if (!c.in_range(w)) s.validity |= invalid_flag;
+  };
+  take(cfg_.position, position_, s.y_m, kPositionInvalid);
+  take(cfg_.pressure_p, pressure_p_, s.p_p_pa, kPressurePInvalid);
+  take(cfg_.pressure_n, pressure_n_, s.p_n_pa, kPressureNInvalid);
+  if (s.validity) counters_.out_of_range.fetch_add(1, std::memory_order_relaxed);
+  sample_.store(s);
+  return true;
+}
+
+void ModbusBackend::open(double) {
+  std::string why;
+  const std::string where = cfg_.transport == config::ModbusTransport::kTcp
+                                ? cfg_.host + ":" + std::to_string(cfg_.port)
+                                : cfg_.device + " at " + std::to_string(cfg_.baud) + " baud";
+  if (!connect_once(&why)) throw std::runtime_error("modbus " + where + ": " + why);
+  if (!exchange(&why)) {
+    disconnect();
+    throw std::runtime_error("modbus " + where + ", unit " + std::to_string(cfg_.unit_id) +
+                             ": the first exchange failed: " + why);
+  }
+  link_up_.store(true);
+  running_.store(true);
+  thread_ = std::thread([this] { io_thread(); });
+}
+
+void ModbusBackend::close() noexcept {
+  if (running_.exchange(false) && thread_.joinable()) thread_.join();
+  // Leave the valves as the last command said (the caller wrote its safe state before closing).
+  disconnect();
+  link_up_.store(false);
+}
+
+void ModbusBackend::io_thread() noexcept {
+  double backoff = cfg_.reconnect_min_s;
+  double next = mono_s();
+  std::string why;
+  while (running_.load(std::memory_order_relaxed)) {
+    if (!link_up_.load(std::memory_order_relaxed)) {
+      counters_.reconnects.fetch_add(1, std::memory_order_relaxed);
+      if (connect_once(&why)) {
+        link_up_.store(true, std::memory_order_relaxed);
+      } else {
+        std::snprintf(last_error_, sizeof last_error_, "%s", why.c_str());
+        error_seq_.fetch_add(1, std::memory_order_release);
+        sleep_until_mono(mono_s() + backoff);
+        backoff = std::min(2.0 * backoff, cfg_.reconnect_max_s);
+        continue;
+      }
+    }
+    (void)command_.load(io_command_);
+    if (exchange(&why)) {
+      counters_.transactions.fetch_add(1, std::memory_order_relaxed);
+      backoff = cfg_.reconnect_min_s;
+    } else {
+      // After a timeout or bad data libmodbus 3.1.6 may pair the next request with this late
+      // reply (issue #255): close and reconnect rather than carry on desynchronised.
+      counters_.errors.fetch_add(1, std::memory_order_relaxed);
+      std::snprintf(last_error_, sizeof last_error_, "%s", why.c_str());
+      error_seq_.fetch_add(1, std::memory_order_release);
+      disconnect();
+      link_up_.store(false, std::memory_order_relaxed);
+      continue;
+    }
+    next += cfg_.min_exchange_period_s;
+    const double now = mono_s();
+    if (now < next) sleep_until_mono(next);
+    else next = now;
+  }
+}
+
+Status ModbusBackend::read(double t_s, SensorFrame& frame) noexcept {
+  Sample s;
+  if (!sample_.load(s)) {
+    frame = SensorFrame{t_s, 0.0, 0.0, 0.0, 0.0, false, kSampleStale | kCommsError};
+    return Status::kCommsError;
+  }
+  const double age = mono_s() - s.mono_s;
+  frame = SensorFrame{t_s - age, s.y_m, s.p_p_pa, s.p_n_pa, age, false, s.validity};
+  const bool up = link_up_.load(std::memory_order_relaxed);
+  if (!up) frame.validity |= kCommsError;
+  if (age > cfg_.max_sample_age_s) {
+    frame.validity |= kSampleStale;
+    return up ? Status::kStale : Status::kCommsError;
+  }
+  return up ? Status::kOk : Status::kCommsError;
+}
+
+Status ModbusBackend::write(const ActuatorCommand& command) noexcept {
+  command_.store(command);
+  return Status::kOk;
+}
+
+}  // namespace pneu::hal
