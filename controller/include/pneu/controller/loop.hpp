@@ -101,7 +101,7 @@ class ControlLoop {
   void start(double t0_s);
   /// One tick at loop time `t_s`. Real-time safe.
   void tick(double t_s) noexcept;
-  /// Drives the configured output for the end of the run (valves held at u_0, power kept).
+  /// Drives the safe output for the end of the run: valves at u_0, valve power off.
   void stop() noexcept;
 
   [[nodiscard]] std::uint64_t ticks() const noexcept { return seq_; }
