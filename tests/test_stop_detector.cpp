@@ -215,5 +215,33 @@ TEST(StopDetector, StopThenRestartThenStopAgain) {
   EXPECT_EQ(events[3].event_y_m, y(1100));
 }
 
+
+
+// A breakaway under a force ramping through stiction: d(t) = c (t - t0)^3 from t0 on, seen through
+// 16-bit quantisation steps of 7.6 um plus dither, as pneu-plant serve's sensors give it.
+double cubic_departure(int k, double t0_s, double dither_m) {
+  const double t = time_of(k);
+  // m/s^3: 20 um after 19 ms; slower starts (under rest band / hold = 4 mm/s) look like rest.
+  const double c = 3.0;
+  const double d = t > t0_s ? c * (t - t0_s) * (t - t0_s) * (t - t0_s) : 0.0;
+  const double lsb = 7.6e-6;
+  const double noisy = 0.1 + d + ((k * 7919) % 13 - 6) / 6.0 * dither_m;
+  return std::round(noisy / lsb) * lsb;
+}
+
+
+TEST(StopDetector, WithNoisySensorsAStartIsDatedByTheCubicLawOfABreakawayNotByTheBand) {
+  // Rest band 20 um, motion band 40 um: the carriage is seen leaving only ~24 ms after it did.
+  constexpr double kT0 = 0.5003;
+  StopDetector detector(params(2e-5, 4e-5, 0.005), kPeriodS);
+  const auto events = run(detector, [&](int k) { return cubic_departure(k, kT0, 2.5e-6); }, 800);
+  ASSERT_EQ(count(events, Event::kStart), 1);
+  const Emitted& start = events.back();
+  EXPECT_GT(time_of(start.k) - kT0, 0.020) << "the band alone would date it this late";
+  // The fit over the samples that left the rest band recovers t0 to within a few ticks despite
+  // the quantisation and dither.
+  EXPECT_NEAR(start.event_t_s, kT0, 0.003);
+}
+
 }  // namespace
 }  // namespace pneu::controller

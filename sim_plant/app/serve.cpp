@@ -118,7 +118,7 @@ int serve(int argc, char** argv) {
   }
 
   const double t0 = mono_s();
-  std::uint64_t requests = 0, refused = 0, clients = 0;
+  std::uint64_t requests = 0, refused = 0, clients = 0, foreign = 0;
   uint8_t query[MODBUS_RTU_MAX_ADU_LENGTH > MODBUS_TCP_MAX_ADU_LENGTH ? MODBUS_RTU_MAX_ADU_LENGTH : MODBUS_TCP_MAX_ADU_LENGTH];
   while (!g_stop.load()) {
     const double now = mono_s() - t0;
@@ -137,22 +137,13 @@ int serve(int argc, char** argv) {
       if (errno == EINTR) continue;
       throw std::runtime_error(std::string("select: ") + std::strerror(errno));
     }
-    if (listen_fd >= 0 && FD_ISSET(listen_fd, &fds)) {
-      if (client_fd < 0) {
-        client_fd = modbus_tcp_accept(m.ctx, &listen_fd);
-        if (client_fd >= 0) ++clients;
-      } else {  // one client at a time: refuse cleanly
-        const int extra = accept(listen_fd, nullptr, nullptr);
-        if (extra >= 0) {
-          ::close(extra);
-          ++refused;
-          std::fprintf(stderr, "pneu-plant serve: refused a second client (one at a time)\n");
-        }
-      }
-    }
+    // The present client first: a departed one is noticed before a newcomer is judged.
     if (client_fd >= 0 && FD_ISSET(client_fd, &fds)) {
       const int rc = modbus_receive(m.ctx, query);
-      if (rc > 0) {
+      const int unit_at = modbus_get_header_length(m.ctx) - 1;
+      if (rc > 0 && query[unit_at] != mb.unit_id && query[unit_at] != 0) {
+        ++foreign;  // another unit's request: a real module stays silent, the client times out
+      } else if (rc > 0) {
         ++requests;
         const double t = mono_s() - t0;
         if (t > plant.state().t_s) plant.step(t - plant.state().t_s, u_p);
@@ -171,11 +162,24 @@ int serve(int argc, char** argv) {
         }
       }
     }
+    if (listen_fd >= 0 && FD_ISSET(listen_fd, &fds)) {
+      if (client_fd < 0) {
+        client_fd = modbus_tcp_accept(m.ctx, &listen_fd);
+        if (client_fd >= 0) ++clients;
+      } else {  // one client at a time: refuse cleanly
+        const int extra = accept(listen_fd, nullptr, nullptr);
+        if (extra >= 0) {
+          ::close(extra);
+          ++refused;
+          std::fprintf(stderr, "pneu-plant serve: refused a second client (one at a time)\n");
+        }
+      }
+    }
   }
-  std::printf("pneu-plant serve: stopped after %.3f s; %llu requests from %llu clients, %llu refused; "
-              "last valve voltages: u_P = %+.4f V, u_N = %+.4f V\n",
+  std::printf("pneu-plant serve: stopped after %.3f s; %llu requests from %llu clients, %llu refused, "
+              "%llu for other units ignored; last valve voltages: u_P = %+.4f V, u_N = %+.4f V\n",
               mono_s() - t0, static_cast<unsigned long long>(requests), static_cast<unsigned long long>(clients),
-              static_cast<unsigned long long>(refused), u_p, u_n);
+              static_cast<unsigned long long>(refused), static_cast<unsigned long long>(foreign), u_p, u_n);
   if (listen_fd >= 0) ::close(listen_fd);
   return cli::kExitOk;
 }

@@ -3,6 +3,9 @@
 
 #include "pneu/config/config.hpp"
 
+#include <algorithm>
+#include <array>
+#include <cmath>
 #include <cstdint>
 
 namespace pneu::controller {
@@ -31,13 +34,15 @@ class StopDetector {
   }
 
   [[nodiscard]] StopDetectorEvent update(double t_s, double y_m) noexcept {
+    history_[head_ % kHistory] = {t_s, y_m};
+    ++head_;
     const double dy = y_m - anchor_y_m_;
     const double distance = dy < 0.0 ? -dy : dy;
     if (stopped_) {
       if (distance <= p_.rest_band_m) last_rest_t_s_ = t_s;
       if (distance > p_.motion_band_m) {
         stopped_ = false;
-        event_t_s_ = last_rest_t_s_ + 0.5 * period_s_;
+        event_t_s_ = departure_time_s(dy > 0.0 ? 1.0 : -1.0);
         event_y_m_ = anchor_y_m_;
         anchor_t_s_ = t_s;
         anchor_y_m_ = y_m;
@@ -69,6 +74,39 @@ class StopDetector {
   [[nodiscard]] double rest_position_m() const noexcept { return anchor_y_m_; }
 
  private:
+  // When the carriage left rest. With ideal sensors (rest band 0) the last sample still at rest
+  // dates it to within a tick: midway to the next. With noise the displacement must first clear
+  // the rest band, which a slow breakaway takes tens of milliseconds to do: the start of a
+  // breakaway under a force ramping through stiction goes as d = c (t - t0)^3, so the cube root
+  // of the displacements since the last sample at rest is a straight line in t, whose zero is t0.
+  [[nodiscard]] double departure_time_s(double direction) const noexcept {
+    const double fallback = last_rest_t_s_ + 0.5 * period_s_;
+    if (p_.rest_band_m <= 0.0) return fallback;
+    double n = 0.0, st = 0.0, sx = 0.0, stt = 0.0, stx = 0.0;
+    for (std::size_t k = 1; k <= kHistory && k <= head_; ++k) {
+      const Sample& h = history_[(head_ - k) % kHistory];
+      if (h.t_s <= last_rest_t_s_) break;
+      const double d = direction * (h.y_m - anchor_y_m_);
+      if (d <= 0.0) break;
+      const double x = std::cbrt(d);
+      const double t = h.t_s - last_rest_t_s_;  // centred for conditioning
+      n += 1.0, st += t, sx += x, stt += t * t, stx += t * x;
+    }
+    const double det = n * stt - st * st;
+    if (n < 2.0 || det <= 0.0) return fallback;
+    const double slope = (n * stx - st * sx) / det;
+    if (slope <= 0.0) return fallback;
+    const double t0 = last_rest_t_s_ + ((sx - slope * st) / n) / -slope;
+    // It left rest after the stop, and no later than the first sample outside the rest band.
+    return std::clamp(t0, std::max(anchor_t_s_, last_rest_t_s_ - 0.2), last_rest_t_s_ + period_s_);
+  }
+
+  struct Sample {
+    double t_s, y_m;
+  };
+  static constexpr std::size_t kHistory = 256;
+  std::array<Sample, kHistory> history_{};
+  std::size_t head_ = 0;
   StopDetectorParams p_;
   double period_s_;
   bool stopped_ = true;

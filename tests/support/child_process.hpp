@@ -1,0 +1,103 @@
+// Test support: child processes with their output in files, CSV files read by column name.
+#pragma once
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+extern char** environ;
+
+namespace pneu::test {
+
+namespace fs = std::filesystem;
+
+inline std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// A child process with its output in files; killed if still running when destroyed.
+struct Child {
+  pid_t pid = -1;
+  static Child spawn(const std::vector<std::string>& args, const fs::path& out, const fs::path& err) {
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    std::vector<char*> argv;
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    Child c;
+    if (posix_spawnp(&c.pid, argv[0], &fa, nullptr, argv.data(), environ) != 0) c.pid = -1;
+    posix_spawn_file_actions_destroy(&fa);
+    return c;
+  }
+  int wait() {
+    int status = 0;
+    if (pid <= 0 || waitpid(pid, &status, 0) != pid) return -1;
+    pid = -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  }
+  ~Child() {
+    if (pid > 0) {
+      kill(pid, SIGKILL);
+      waitpid(pid, nullptr, 0);
+    }
+  }
+};
+
+// A CSV file as rows of named cells.
+struct Csv {
+  std::vector<std::string> header;
+  std::vector<std::vector<std::string>> rows;
+  std::size_t col(const std::string& name) const {
+    for (std::size_t i = 0; i < header.size(); ++i)
+      if (header[i] == name) return i;
+    ADD_FAILURE() << "no column " << name;
+    return 0;
+  }
+  static Csv read(const fs::path& p) {
+    Csv c;
+    std::ifstream in(p);
+    std::string line;
+    bool first = true;
+    while (std::getline(in, line)) {
+      std::vector<std::string> cells;
+      std::string cell;
+      bool quoted = false;
+      for (std::size_t i = 0; i < line.size(); ++i) {
+        const char ch = line[i];
+        if (quoted) {
+          if (ch == '"' && i + 1 < line.size() && line[i + 1] == '"') cell += '"', ++i;
+          else if (ch == '"') quoted = false;
+          else cell += ch;
+        } else if (ch == '"') {
+          quoted = true;
+        } else if (ch == ',') {
+          cells.push_back(cell);
+          cell.clear();
+        } else {
+          cell += ch;
+        }
+      }
+      cells.push_back(cell);
+      if (first) c.header = cells, first = false;
+      else c.rows.push_back(cells);
+    }
+    return c;
+  }
+};
+
+}  // namespace pneu::test
