@@ -209,4 +209,46 @@ TEST_F(Hil, UnreachableHostWrongUnitAndBadMapFailAtStartUpWithClearErrors) {
   EXPECT_EQ(plant.wait(), 0);
 }
 
+TEST_F(Hil, RtuOverAPtyPairAt115200BaudKeepsTheLoopRateAndFreshSamples) {
+  if (system("command -v socat > /dev/null") != 0) GTEST_SKIP() << "socat (Debian package socat) is not installed";
+  const fs::path a = dir_ / "ttyA", b = dir_ / "ttyB";
+  Child pty = Child::spawn({"socat", "pty,raw,echo=0,link=" + a.string(), "pty,raw,echo=0,link=" + b.string()},
+                           dir_ / "socat.out", dir_ / "socat.err");
+  for (int i = 0; i < 200 && !(fs::exists(a) && fs::exists(b)); ++i) std::this_thread::sleep_for(10ms);
+  ASSERT_TRUE(fs::exists(a) && fs::exists(b)) << slurp(dir_ / "socat.err");
+  // The server holds each reply for the time it takes on a real 115200 baud line (a pty has no
+  // speed of its own): a function-23 exchange of 28 bytes plus silences takes about 3 ms.
+  Child plant = Child::spawn({bin("pneu-plant"), "serve", "--config", hil_yaml(), "--set", "hal.modbus.transport=rtu",
+                              "--set", "hal.modbus.device=" + a.string(), "--duration", "6"},
+                             dir_ / "serve.out", dir_ / "serve.err");
+  std::this_thread::sleep_for(300ms);
+  Child pneud = Child::spawn(pneud_args({"--duration", "3", "--set", "hal.modbus.transport=rtu", "--set",
+                                         "hal.modbus.device=" + b.string()}),
+                             dir_ / "pneud.out", dir_ / "pneud.err");
+  ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
+  kill(plant.pid, SIGINT);
+  EXPECT_EQ(plant.wait(), 0);
+  const std::string out = slurp(dir_ / "pneud.out");
+  unsigned long long ticks = 0, overruns = 0, skipped = 0, transactions = 0, errors = 0, reconnects = 0, out_of_range = 0,
+                     stale = 0;
+  double rate = 0, oldest_ms = 0;
+  const auto loop = out.find("loop: "), mb = out.find("modbus: ");
+  ASSERT_NE(loop, std::string::npos) << out;
+  ASSERT_NE(mb, std::string::npos) << out;
+  ASSERT_EQ(std::sscanf(out.c_str() + loop, "loop: %llu ticks at 1000 Hz, %llu overruns (%llu deadlines skipped)", &ticks,
+                        &overruns, &skipped),
+            3);
+  ASSERT_EQ(std::sscanf(out.c_str() + mb,
+                        "modbus: %llu transactions (%lf per second), %llu errors, %llu reconnects, %llu samples out of "
+                        "range, %llu stale reads, oldest sample %lf ms",
+                        &transactions, &rate, &errors, &reconnects, &out_of_range, &stale, &oldest_ms),
+            7)
+      << out;
+  EXPECT_EQ(ticks + skipped, 3001u) << "the loop kept its 1 kHz deadlines";
+  EXPECT_EQ(errors, 0u);
+  EXPECT_GT(rate, 100.0) << "exchanges as often as the line allows";
+  EXPECT_LT(rate, 400.0) << "and no more often than a 115200 baud line allows";
+  EXPECT_LE(stale, ticks / 100) << "samples stay within the 20 ms age limit (oldest " << oldest_ms << " ms)";
+}
+
 }  // namespace

@@ -1,4 +1,5 @@
 // pneud: the controller daemon of the electropneumatic bench.
+#include <algorithm>
 #include <csignal>
 #include <functional>
 #include <cstdio>
@@ -161,9 +162,13 @@ int run(int argc, char** argv) {
 #ifdef PNEU_WITH_MODBUS
     if (auto* mb = dynamic_cast<hal::ModbusBackend*>(run.hardware.get())) {
       const auto& c = mb->counters();
-      std::printf("modbus: %llu transactions, %llu errors, %llu reconnects, %llu samples out of range%s%s\n",
-                  static_cast<unsigned long long>(c.transactions.load()), static_cast<unsigned long long>(c.errors.load()),
+      std::printf("modbus: %llu transactions (%.0f per second), %llu errors, %llu reconnects, %llu samples out of range, "
+                  "%llu stale reads, oldest sample %.2f ms%s%s\n",
+                  static_cast<unsigned long long>(c.transactions.load()),
+                  static_cast<double>(c.transactions.load()) / std::max(run.report->end_time_s(), 1e-9),
+                  static_cast<unsigned long long>(c.errors.load()),
                   static_cast<unsigned long long>(c.reconnects.load()), static_cast<unsigned long long>(c.out_of_range.load()),
+                  static_cast<unsigned long long>(c.stale_reads.load()), c.max_age_s.load() * 1e3,
                   c.errors.load() ? "; last error: " : "", c.errors.load() ? mb->last_error().c_str() : "");
     }
 #endif

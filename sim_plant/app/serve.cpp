@@ -152,6 +152,22 @@ int serve(int argc, char** argv) {
         sensor_regs[mb.position.address] = mb.position.to_word(v.y_m);
         sensor_regs[mb.pressure_p.address] = mb.pressure_p.to_word(v.p_p_pa);
         sensor_regs[mb.pressure_n.address] = mb.pressure_n.to_word(v.p_n_pa);
+        if (!tcp) {
+          // A pty carries bytes at any speed: hold the reply for the time the request and the
+          // reply take on a real line at this baud rate (10 bits a byte, 3.5-character silences),
+          // so the client meets the timing of the bench's serial link.
+          const int fc = query[unit_at + 1];
+          const int n_read = fc == 3 || fc == 4 ? (query[unit_at + 4] << 8 | query[unit_at + 5])
+                             : fc == 23         ? (query[unit_at + 4] << 8 | query[unit_at + 5])
+                                                : 0;
+          const int reply_bytes = n_read > 0 ? 5 + 2 * n_read : 8;
+          const double wire_s = (rc + reply_bytes + 7) * 10.0 / mb.baud;
+          const double until = mono_s() + wire_s;
+          while (mono_s() < until) {
+            timespec ts{0, 50000};
+            nanosleep(&ts, nullptr);
+          }
+        }
         modbus_reply(m.ctx, query, rc, m.map);
         u_p = mb.valve_p.to_volts(m.map->tab_registers[mb.valve_p.address]);
         u_n = mb.valve_n.to_volts(m.map->tab_registers[mb.valve_n.address]);

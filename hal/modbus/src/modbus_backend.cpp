@@ -205,9 +205,11 @@ Status ModbusBackend::read(double t_s, SensorFrame& frame) noexcept {
   }
   const double age = mono_s() - s.mono_s;
   frame = SensorFrame{t_s - age, s.y_m, s.p_p_pa, s.p_n_pa, age, false, s.validity};
+  if (age > counters_.max_age_s.load(std::memory_order_relaxed)) counters_.max_age_s.store(age, std::memory_order_relaxed);
   const bool up = link_up_.load(std::memory_order_relaxed);
   if (!up) frame.validity |= kCommsError;
   if (age > cfg_.max_sample_age_s) {
+    counters_.stale_reads.fetch_add(1, std::memory_order_relaxed);
     frame.validity |= kSampleStale;
     return up ? Status::kStale : Status::kCommsError;
   }

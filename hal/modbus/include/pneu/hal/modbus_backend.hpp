@@ -24,6 +24,8 @@ struct ModbusCounters {
   std::atomic<std::uint64_t> reconnects{0};
   std::atomic<std::uint64_t> out_of_range{0};   ///< samples with a register outside its raw range
   std::atomic<int> last_errno{0};               ///< libmodbus/errno code of the last failure
+  std::atomic<std::uint64_t> stale_reads{0};    ///< loop reads that found the sample too old
+  std::atomic<double> max_age_s{0.0};           ///< oldest sample the loop took [s]
 };
 
 class ModbusBackend final : public Backend {
