@@ -1,0 +1,722 @@
+#!/usr/bin/python3
+"""pneu_plots: the figures of a pneud run, after Brun et al. 2005 (Fig. 8 and Fig. 7/10/11).
+
+Reads either pneud's own output (--trajectory T.csv --events E.jsonl) or the CSV files that
+pneu-log2csv converts from an LCM log (--log-csv DIR), and writes
+
+  OUT/<name>_time.png/.svg   time traces: set point and position, chamber pressures, control
+                             voltage and pressure force, with the stops, the forecast restarts
+                             (one marker per method) and the actual restarts;
+  OUT/<name>_plane.png/.svg  the pressure-force plane: x = S_P p_P, y = S_N p_N + S_r p_E [N],
+                             with the stop area (Eq. 12), the no-restarting area (Eq. 13), the
+                             null-flow curve and the run's trajectory, plus a zoom on the longest
+                             sticking phase.
+
+Geometry and friction come from the YAML configuration (--config, default config/sim.yaml of
+the source tree); the null-flow curve from --null-flow CURVE.csv or, without it, from running
+`pneu-plant null-flow` on the same configuration. Exit codes: 0 written, 2 bad input (missing
+file, missing column, malformed value), 1 anything else.
+"""
+
+import argparse
+import csv
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+
+EXIT_BAD_INPUT = 2
+
+
+class InputError(Exception):
+    """Bad user input: reported on stderr with exit code 2."""
+
+
+# --------------------------------------------------------------------------------------------
+# Reading
+
+
+def _require_file(path, what):
+    if not os.path.isfile(path):
+        raise InputError(f"{what}: no such file: {path}")
+
+
+def _parse_float(text, path, line, column):
+    text = text.strip()
+    if text == "" or text.lower() in ("nan", "null", "none"):
+        return math.nan
+    if text.lower() == "true":
+        return 1.0
+    if text.lower() == "false":
+        return 0.0
+    try:
+        return float(text)
+    except ValueError:
+        raise InputError(f"{path}:{line}: column '{column}': not a number: '{text}'") from None
+
+
+def _parse_bool(text, path, line, column):
+    t = text.strip().lower()
+    if t in ("1", "true", "yes"):
+        return True
+    if t in ("0", "false", "no", ""):
+        return False
+    raise InputError(f"{path}:{line}: column '{column}': not a boolean: '{text}'")
+
+
+def read_csv_columns(path, numeric, text=(), what="CSV"):
+    """Returns {column: list} for the numeric columns (floats) and text columns (str)."""
+    _require_file(path, what)
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = (line for line in f if not line.startswith("#"))
+        reader = csv.reader(rows)
+        try:
+            header = [h.strip() for h in next(reader)]
+        except StopIteration:
+            raise InputError(f"{path}: empty file (no header)") from None
+        missing = [c for c in list(numeric) + list(text) if c not in header]
+        if missing:
+            raise InputError(f"{path}: missing column(s) {', '.join(missing)} "
+                             f"(header has: {', '.join(header)})")
+        index = {c: header.index(c) for c in list(numeric) + list(text)}
+        out = {c: [] for c in index}
+        for n, row in enumerate(reader, start=2):
+            if not row:
+                continue
+            if len(row) < len(header):
+                raise InputError(f"{path}:{n}: {len(row)} fields, the header has {len(header)}")
+            for c in numeric:
+                out[c].append(_parse_float(row[index[c]], path, n, c))
+            for c in text:
+                out[c].append(row[index[c]].strip())
+    return out
+
+
+class Run:
+    """One run: per-tick arrays (SI) and its events."""
+
+    def __init__(self):
+        self.t = self.y_d = self.y = self.p_p = self.p_n = self.force = self.u = self.stuck = None
+        self.stops = []        # dicts: index, t, y, force
+        self.starts = []       # dicts: index, t, y, restart, direction
+        self.predictions = []  # dicts: stop, t, t_stop, method, will_restart, direction,
+        #                               t_restart (None), u_star, p_p_e/p_n_e (None if unknown)
+        self.source = ""
+
+
+def load_pneud_output(trajectory_path, events_path):
+    import numpy as np
+
+    cols = read_csv_columns(trajectory_path, ["t", "y_d", "y", "p_P", "p_N", "F", "u", "stuck"],
+                            what="--trajectory")
+    run = Run()
+    run.t, run.y_d, run.y = (np.array(cols[c]) for c in ("t", "y_d", "y"))
+    run.p_p, run.p_n, run.force, run.u = (np.array(cols[c]) for c in ("p_P", "p_N", "F", "u"))
+    run.stuck = np.array(cols["stuck"]) > 0.5
+    _require_file(events_path, "--events")
+    with open(events_path, encoding="utf-8") as f:
+        for n, line in enumerate(f, start=1):
+            if not line.strip():
+                continue
+            try:
+                ev = json.loads(line)
+            except json.JSONDecodeError as e:
+                raise InputError(f"{events_path}:{n}: not JSON: {e}") from None
+            kind = ev.get("event")
+
+            def need(*keys, ev=ev, n=n, kind=kind):
+                for k in keys:
+                    if k not in ev:
+                        raise InputError(f"{events_path}:{n}: '{kind}' event without '{k}'")
+
+            if kind == "stop":
+                need("t", "y", "force")
+                run.stops.append({"index": ev.get("stop", len(run.stops) + 1), "t": ev["t"],
+                                  "y": ev["y"], "force": ev["force"]})
+            elif kind == "start":
+                need("t", "restart", "y")
+                run.starts.append({"index": ev.get("stop", 0), "t": ev["t"], "y": ev["y"],
+                                   "restart": bool(ev["restart"]),
+                                   "direction": ev.get("direction", 0)})
+            elif kind == "prediction":
+                need("t_stop", "method", "will_restart", "t_restart")
+                run.predictions.append({
+                    "stop": ev.get("stop", 0), "t": ev.get("t", ev["t_stop"]),
+                    "t_stop": ev["t_stop"], "method": ev["method"],
+                    "will_restart": bool(ev["will_restart"]),
+                    "direction": ev.get("direction", 0), "t_restart": ev["t_restart"],
+                    "u_star": ev.get("u_star"), "p_p_e": None, "p_n_e": None,
+                    "tau_p": ev.get("tau_p"), "tau_n": ev.get("tau_n")})
+    run.source = os.path.basename(trajectory_path)
+    return run
+
+
+def load_log_csv(directory, prefix):
+    import numpy as np
+
+    if not os.path.isdir(directory):
+        raise InputError(f"--log-csv: no such directory: {directory}")
+    state = read_csv_columns(os.path.join(directory, prefix + "STATE.csv"),
+                             ["t", "y_d", "y", "p_p", "p_n", "force", "u", "stuck"],
+                             what=f"--log-csv ({prefix}STATE.csv)")
+    events = read_csv_columns(os.path.join(directory, prefix + "EVENT.csv"),
+                              ["t", "stop", "y", "force", "direction"], ["kind_name"],
+                              what=f"--log-csv ({prefix}EVENT.csv)")
+    pred_path = os.path.join(directory, prefix + "PREDICTION.csv")
+    run = Run()
+    order = np.argsort(np.array(state["t"]), kind="stable")
+    run.t, run.y_d, run.y = (np.array(state[c])[order] for c in ("t", "y_d", "y"))
+    run.p_p, run.p_n, run.force, run.u = (np.array(state[c])[order]
+                                          for c in ("p_p", "p_n", "force", "u"))
+    run.stuck = np.array(state["stuck"])[order] > 0.5
+    for i, kind in enumerate(events["kind_name"]):
+        if kind == "stop":
+            run.stops.append({"index": int(events["stop"][i]), "t": events["t"][i],
+                              "y": events["y"][i], "force": events["force"][i]})
+        elif kind in ("start", "restart"):
+            run.starts.append({"index": int(events["stop"][i]), "t": events["t"][i],
+                               "y": events["y"][i], "restart": kind == "restart",
+                               "direction": events["direction"][i]})
+    if os.path.isfile(pred_path):
+        pred = read_csv_columns(pred_path, ["t", "stop", "t_stop", "direction", "t_restart",
+                                            "u_star", "p_p_equilibrium", "p_n_equilibrium",
+                                            "tau_p", "tau_n"],
+                                ["method_name", "will_restart"],
+                                what=f"--log-csv ({prefix}PREDICTION.csv)")
+        for i, method in enumerate(pred["method_name"]):
+            t_restart = pred["t_restart"][i]
+            run.predictions.append({
+                "stop": int(pred["stop"][i]), "t": pred["t"][i], "t_stop": pred["t_stop"][i],
+                "method": method,
+                "will_restart": _parse_bool(pred["will_restart"][i], pred_path, i + 2,
+                                            "will_restart"),
+                "direction": pred["direction"][i],
+                "t_restart": None if math.isnan(t_restart) else t_restart,
+                "u_star": pred["u_star"][i], "p_p_e": pred["p_p_equilibrium"][i],
+                "p_n_e": pred["p_n_equilibrium"][i], "tau_p": pred["tau_p"][i],
+                "tau_n": pred["tau_n"][i]})
+    else:
+        print(f"pneu_plots: note: no {pred_path}: no forecasts drawn", file=sys.stderr)
+    run.source = os.path.basename(os.path.normpath(directory)) + "/" + prefix + "*.csv"
+    return run
+
+
+def restrict_to_time_range(run, t0, t1):
+    keep = (run.t >= t0) & (run.t <= t1)
+    for name in ("t", "y_d", "y", "p_p", "p_n", "force", "u", "stuck"):
+        setattr(run, name, getattr(run, name)[keep])
+    run.stops = [s for s in run.stops if t0 <= s["t"] <= t1]
+    run.starts = [s for s in run.starts if t0 <= s["t"] <= t1]
+    run.predictions = [p for p in run.predictions if t0 <= p["t_stop"] <= t1]
+
+
+class Bench:
+    """Areas [m^2], exhaust pressure [Pa] and dry friction [N] of the configuration."""
+
+    def __init__(self, config_path):
+        try:
+            import yaml
+        except ImportError:
+            raise InputError("PyYAML is missing (Debian package python3-yaml)") from None
+        _require_file(config_path, "--config")
+        try:
+            with open(config_path, encoding="utf-8") as f:
+                cfg = yaml.safe_load(f)
+        except yaml.YAMLError as e:
+            raise InputError(f"{config_path}: not valid YAML: {e}") from None
+
+        def get(*keys):
+            node = cfg
+            for k in keys:
+                if not isinstance(node, dict) or k not in node:
+                    raise InputError(f"{config_path}: missing key {'.'.join(keys)}")
+                node = node[k]
+            try:
+                return float(node)
+            except (TypeError, ValueError):
+                raise InputError(f"{config_path}: {'.'.join(keys)}: not a number: {node!r}") from None
+
+        bore = get("plant", "geometry", "bore_diameter_m")
+        rod = get("plant", "geometry", "rod_diameter_m")
+        self.area_p = math.pi / 4 * bore ** 2
+        self.area_rod = math.pi / 4 * rod ** 2
+        self.area_n = self.area_p - self.area_rod
+        self.p_e = get("plant", "gas", "exhaust_pressure_pa")
+        self.fs_pos = get("plant", "friction", "static_positive_n")
+        self.fc_pos = get("plant", "friction", "coulomb_positive_n")
+        self.fs_neg = get("plant", "friction", "static_negative_n")
+        self.fc_neg = get("plant", "friction", "coulomb_negative_n")
+        self.path = config_path
+
+    def plane(self, p_p, p_n):
+        """Eq. 14 split in two: x = S_P p_P, y = S_N p_N + S_r p_E [N]."""
+        return self.area_p * p_p, self.area_n * p_n + self.area_rod * self.p_e
+
+
+def find_pneu_plant(explicit):
+    if explicit:
+        if not (os.path.isfile(explicit) and os.access(explicit, os.X_OK)):
+            raise InputError(f"--pneu-plant: not an executable file: {explicit}")
+        return explicit
+    here = os.path.dirname(os.path.realpath(__file__))
+    candidates = [os.path.join(here, "pneu-plant"), shutil.which("pneu-plant"),
+                  os.path.join(here, "..", "..", "build", "bin", "pneu-plant")]
+    for c in candidates:
+        if c and os.path.isfile(c) and os.access(c, os.X_OK):
+            return os.path.normpath(c)
+    raise InputError("pneu-plant not found (looked next to this script, on PATH and in "
+                     "build/bin of the source tree): pass --pneu-plant PATH or --null-flow CURVE.csv")
+
+
+def null_flow_curve(args, config_path):
+    cols = ["u_v", "p_null_p_pa", "p_null_n_pa", "x_n", "y_n"]
+    if args.null_flow:
+        return read_csv_columns(args.null_flow, cols, what="--null-flow")
+    plant = find_pneu_plant(args.pneu_plant)
+    with tempfile.TemporaryDirectory(prefix="pneu_plots.") as tmp:
+        out = os.path.join(tmp, "null_flow.csv")
+        cmd = [plant, "null-flow", "--config", config_path, "--out", out,
+               "--voltage-step-v", "0.002"]
+        r = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        if r.returncode != 0:
+            raise InputError(f"'{' '.join(cmd)}' failed (exit {r.returncode}): "
+                             f"{r.stderr.strip() or r.stdout.strip()}")
+        return read_csv_columns(out, cols, what="pneu-plant null-flow output")
+
+
+def default_config():
+    here = os.path.dirname(os.path.realpath(__file__))
+    for c in (os.path.join(here, "..", "..", "config", "sim.yaml"),
+              os.path.join(here, "..", "share", "pneu", "config", "sim.yaml")):
+        if os.path.isfile(c):
+            return os.path.normpath(c)
+    raise InputError("no configuration: pass --config FILE (the run's YAML configuration)")
+
+
+# --------------------------------------------------------------------------------------------
+# Figures
+
+METHOD_STYLE = {  # forecast markers, one per method
+    "linearized": {"marker": "v", "color": "#e66100", "label": "forecast restart, linearized (Eq. 17/25)"},
+    "nonlinear": {"marker": "D", "color": "#1a9641", "label": "forecast restart, nonlinear (Eq. 19)"},
+}
+OTHER_METHOD = {"marker": "s", "color": "#7b3294"}
+C_Y, C_YD = "#1f4e9c", "#555555"
+C_PP, C_PN = "#c0392b", "#2471a3"
+C_U, C_F = "#6c3483", "#117a65"
+C_STOP, C_RESTART = "black", "#d7191c"
+C_STUCK_SPAN = "#f4d03f"
+
+
+def _setup_matplotlib():
+    try:
+        import matplotlib
+    except ImportError:
+        raise InputError("matplotlib is missing (Debian package python3-matplotlib)") from None
+    matplotlib.use("Agg")
+    matplotlib.rcParams.update({
+        "svg.hashsalt": "pneu_plots",  # deterministic SVG ids
+        "svg.fonttype": "none",        # text stays text (searchable, smaller)
+        "font.size": 9.5,
+        "axes.titlesize": 10.5,
+        "legend.fontsize": 8.2,
+        "axes.grid": True,
+        "grid.alpha": 0.3,
+        "path.simplify": True,
+    })
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _method_style(method):
+    return METHOD_STYLE.get(method, dict(OTHER_METHOD, label=f"forecast restart, {method}"))
+
+
+def sticking_phases(run):
+    """(stop dict, end time, ended by a restart start event or None) for each stop."""
+    phases = []
+    for s in run.stops:
+        later = [st for st in run.starts if st["t"] > s["t"]]
+        nxt = min(later, key=lambda st: st["t"]) if later else None
+        end = nxt["t"] if nxt else float(run.t[-1])
+        phases.append((s, end, nxt if nxt and nxt["restart"] else None))
+    return phases
+
+
+def _interp(run, t, values):
+    import numpy as np
+    return float(np.interp(t, run.t, values))
+
+
+def _save(fig, out_dir, stem, dpi):
+    paths = []
+    for ext in ("png", "svg"):
+        path = os.path.join(out_dir, f"{stem}.{ext}")
+        meta = {"Date": None} if ext == "svg" else {"Software": None}
+        fig.savefig(path, dpi=dpi, metadata=meta)
+        paths.append(path)
+    return paths
+
+
+def _event_markers(ax, run, phases, yscale):
+    """Stops, forecast restarts (per method) and actual restarts on a position axis."""
+    first = set()
+
+    def label(key, text):
+        if key in first:
+            return None
+        first.add(key)
+        return text
+
+    for s in run.stops:
+        ax.plot(s["t"], s["y"] * yscale, "o", color=C_STOP, ms=5.5, zorder=5,
+                label=label("stop", "stop (t_stop, y*)"))
+    for p in run.predictions:
+        if p["will_restart"] and p["t_restart"] is not None:
+            st = _method_style(p["method"])
+            y_star = next((s["y"] for s in run.stops if s["index"] == p["stop"]),
+                          _interp(run, p["t_stop"], run.y))
+            ax.plot(p["t_restart"], y_star * yscale, st["marker"], color=st["color"], ms=6,
+                    mfc="none", mew=1.4, zorder=6, label=label(p["method"], st["label"]))
+    for st in run.starts:
+        if st["restart"]:
+            ax.plot(st["t"], st["y"] * yscale, "x", color=C_RESTART, ms=8, mew=1.8, zorder=7,
+                    label=label("restart", "actual restart"))
+
+
+def time_figure(run, bench, name, plt):
+    import numpy as np
+    from mpl_toolkits.axes_grid1.inset_locator import mark_inset
+
+    fig, axes = plt.subplots(4, 1, sharex=True, figsize=(10.0, 10.4),
+                             gridspec_kw={"height_ratios": [2.3, 1.5, 1.2, 1.5]})
+    ax_y, ax_p, ax_u, ax_f = axes
+    phases = sticking_phases(run)
+    for ax in axes:
+        for i, (s, end, _) in enumerate(phases):
+            ax.axvspan(s["t"], end, color=C_STUCK_SPAN, alpha=0.28, lw=0,
+                       label="sticking phase (stop to start)" if i == 0 else None)
+            ax.axvline(s["t"], color=C_STOP, lw=0.7, ls=":", alpha=0.8)
+
+    ax_y.plot(run.t, run.y_d * 1e3, color=C_YD, lw=1.3, ls="--", label="set point y_d")
+    ax_y.plot(run.t, run.y * 1e3, color=C_Y, lw=1.6, label="position y")
+    _event_markers(ax_y, run, phases, 1e3)
+    ax_y.set_ylabel("position [mm]")
+    ax_y.legend(loc="upper left", bbox_to_anchor=(0.09, 1.0), ncol=2, framealpha=0.92)
+
+    # Inset: the stops around the final set point, where millimetres matter.
+    if run.stops:
+        t_first = min(s["t"] for s in run.stops)
+        t_last = max(end for _, end, _ in phases)
+        span = max(t_last - t_first, 0.5)
+        t0, t1 = t_first - 0.15 * span, t_last + 0.2 * span
+        sel = (run.t >= t0) & (run.t <= t1)
+        ys = np.concatenate([run.y[sel], run.y_d[sel], [s["y"] for s in run.stops]]) * 1e3
+        lo, hi = float(np.nanmin(ys)), float(np.nanmax(ys))
+        pad = max(0.15 * (hi - lo), 0.3)
+        full_lo, full_hi = ax_y.get_ylim()
+        if (hi - lo + 2 * pad) < 0.5 * (full_hi - full_lo):
+            ins = ax_y.inset_axes([0.42, 0.36, 0.56, 0.6])
+            ins.plot(run.t, run.y_d * 1e3, color=C_YD, lw=1.1, ls="--")
+            ins.plot(run.t, run.y * 1e3, color=C_Y, lw=1.4)
+            for s, end, _ in phases:
+                ins.axvspan(s["t"], end, color=C_STUCK_SPAN, alpha=0.28, lw=0)
+            _event_markers(ins, run, phases, 1e3)
+            for s in run.stops:
+                ins.annotate(str(s["index"]), (s["t"], s["y"] * 1e3), xytext=(-3, 6),
+                             textcoords="offset points", fontsize=8, ha="right")
+            ins.set_xlim(t0, t1)
+            ins.set_ylim(lo - pad, hi + pad)
+            ins.set_title("zoom on the stops (numbered)", fontsize=8.5, pad=3)
+            ins.tick_params(labelsize=7.5)
+            ins.set_facecolor("white")
+            mark_inset(ax_y, ins, loc1=3, loc2=4, fc="none", ec="0.55", lw=0.7)
+
+    ax_p.plot(run.t, run.p_p / 1e5, color=C_PP, lw=1.4, label="p_P (chamber P, bore side)")
+    ax_p.plot(run.t, run.p_n / 1e5, color=C_PN, lw=1.4, label="p_N (chamber N, rod side)")
+    ax_p.set_ylabel("pressure [bar abs]")
+    ax_p.legend(loc="upper right", framealpha=0.92)
+
+    ax_u.plot(run.t, run.u, color=C_U, lw=1.3, label="control u = u_P = -u_N")
+    ax_u.set_ylabel("control u [V]")
+    ax_u.legend(loc="lower right", framealpha=0.92)
+
+    ax_f.plot(run.t, run.force, color=C_F, lw=1.4, label="pressure force F (Eq. 14)")
+    for v, ls, lab in ((bench.fs_pos, "--", "stiction bounds F_S+, F_S-"),
+                       (bench.fs_neg, "--", None),
+                       (bench.fc_pos, ":", "Coulomb levels F_C+, F_C-"),
+                       (bench.fc_neg, ":", None)):
+        ax_f.axhline(v, color="0.25", lw=1.0, ls=ls, label=lab)
+    ax_f.set_ylabel("force [N]")
+    ax_f.set_xlabel("time t [s]")
+    ax_f.legend(loc="upper right", ncol=3, framealpha=0.92)
+    ax_f.set_xlim(float(run.t[0]), float(run.t[-1]))
+
+    fig.suptitle(f"{name}: set-point step, sticking and restarting (cf. Brun et al. 2005, Fig. 8)\n"
+                 f"{run.source}; stops, forecast restarts per method and actual restarts",
+                 fontsize=11)
+    fig.tight_layout(rect=(0, 0, 1, 0.97))
+    return fig
+
+
+def _draw_areas(ax, bench, x_lo, x_hi):
+    import numpy as np
+    xs = np.array([x_lo, x_hi])
+    ax.fill_between(xs, xs - bench.fs_pos, xs - bench.fs_neg, facecolor="none",
+                    edgecolor="#9a7d0a", hatch="///", lw=0.0, alpha=0.55, zorder=1,
+                    label=f"no-restarting area (Eq. 13): {bench.fs_neg:g} N <= x - y <= {bench.fs_pos:g} N")
+    ax.fill_between(xs, xs - bench.fc_pos, xs - bench.fc_neg, color="#aed6f1", alpha=0.55,
+                    lw=0, zorder=0.5,
+                    label=f"stop area (Eq. 12): {bench.fc_neg:g} N <= x - y <= {bench.fc_pos:g} N")
+    for f, ls in ((bench.fs_pos, "-"), (bench.fs_neg, "-"), (bench.fc_pos, "--"), (bench.fc_neg, "--")):
+        ax.plot(xs, xs - f, color="0.35", lw=0.8, ls=ls, zorder=1.5)
+
+
+def _label_band_lines(ax, bench, x_lo, x_hi, y_lo, y_hi):
+    """Writes F_S+/F_S-/F_C+/F_C- along their lines, where they cross the view."""
+    for f, text in ((bench.fs_pos, "F_S+"), (bench.fs_neg, "F_S-"), (bench.fc_pos, "F_C+"),
+                    (bench.fc_neg, "F_C-")):
+        # the line y = x - f; put the label near the top or right edge of the view
+        x = min(x_hi - 0.02 * (x_hi - x_lo), y_hi - 0.03 * (y_hi - y_lo) + f)
+        y = x - f
+        if x_lo < x < x_hi and y_lo < y < y_hi:
+            ax.annotate(f"x - y = {text}", (x, y), fontsize=7.2, color="0.2", ha="right",
+                        va="bottom", rotation=0, xytext=(-2, 1), textcoords="offset points",
+                        bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.75})
+
+
+def _positive(v):
+    return v is not None and not math.isnan(v) and v > 0
+
+
+def _equilibrium_point(bench, curve, prediction):
+    """Complete equilibrium under u* (Eq. 11): (x_e, y_e), or None."""
+    import numpy as np
+    if prediction.get("p_p_e") is not None and not math.isnan(prediction["p_p_e"]):
+        return bench.plane(prediction["p_p_e"], prediction["p_n_e"])
+    u_star = prediction.get("u_star")
+    if u_star is None or not (curve["u"][0] <= u_star <= curve["u"][-1]):
+        return None
+    return (float(np.interp(u_star, curve["u"], curve["x"])),
+            float(np.interp(u_star, curve["u"], curve["y"])))
+
+
+def plane_figure(run, bench, curve, name, plt):
+    import numpy as np
+
+    x, y = bench.plane(run.p_p, run.p_n)
+    phases = sticking_phases(run)
+    longest = max(phases, key=lambda ph: ph[1] - ph[0]["t"]) if phases else None
+
+    fig, axes = plt.subplots(1, 2 if longest else 1, figsize=(12.0 if longest else 7.0, 7.2),
+                             squeeze=False)
+    axes = axes[0]
+
+    def view(xs, ys, margin, min_span):
+        xs, ys = np.asarray(xs), np.asarray(ys)
+        x_lo, x_hi = float(np.nanmin(xs)), float(np.nanmax(xs))
+        y_lo, y_hi = float(np.nanmin(ys)), float(np.nanmax(ys))
+        span = max(x_hi - x_lo, y_hi - y_lo, min_span)
+        # keep the aspect near 1 so the +45 degree bands look like bands
+        xc, yc = 0.5 * (x_lo + x_hi), 0.5 * (y_lo + y_hi)
+        sx = max(x_hi - x_lo, 0.62 * span) * (1 + 2 * margin)
+        sy = max(y_hi - y_lo, 0.62 * span) * (1 + 2 * margin)
+        return xc - sx / 2, xc + sx / 2, yc - sy / 2, yc + sy / 2
+
+    band = bench.fs_pos - bench.fs_neg
+    main_view = view(x, y, 0.08, 1.6 * band)
+    panels = [(axes[0], main_view, "whole run")]
+    if longest:
+        s, end, _ = longest
+        sel = (run.t >= s["t"]) & (run.t <= end)
+        zx, zy = list(x[sel]), list(y[sel])
+        pred = [p for p in run.predictions if p["stop"] == s["index"]]
+        eq = _equilibrium_point(bench, curve, pred[0]) if pred else None
+        if eq:
+            zx.append(eq[0])
+            zy.append(eq[1])
+        zoom_view = view(zx, zy, 0.12, 0.35 * band)
+        panels.append((axes[1], zoom_view,
+                       f"zoom: sticking phase {s['index']}, {end - s['t']:.3f} s at rest "
+                       f"(t = {s['t']:.3f} to {end:.3f} s)"))
+
+    moving = np.where(run.stuck, np.nan, 1.0)
+    stuck = np.where(run.stuck, 1.0, np.nan)
+    # let the stuck segments join their neighbours so the line has no gaps
+    stuck_ext = stuck.copy()
+    stuck_ext[:-1] = np.where(np.isnan(stuck[:-1]) & ~np.isnan(stuck[1:]), 1.0, stuck_ext[:-1])
+    stuck_ext[1:] = np.where(np.isnan(stuck[1:]) & ~np.isnan(stuck[:-1]), 1.0, stuck_ext[1:])
+
+    for k, (ax, (x_lo, x_hi, y_lo, y_hi), title) in enumerate(panels):
+        pad = 10 * (x_hi - x_lo + y_hi - y_lo)
+        _draw_areas(ax, bench, x_lo - pad, x_hi + pad)
+        ax.plot(curve["x"], curve["y"], color="0.1", lw=1.0, ls="-.", zorder=2,
+                label="null-flow curve (S_P p_null(u), S_N p_null(-u) + S_r p_E)")
+        f_eq = curve["x"] - curve["y"]
+        inside = np.where((f_eq >= bench.fs_neg) & (f_eq <= bench.fs_pos), 1.0, np.nan)
+        ax.plot(curve["x"] * inside, curve["y"] * inside, color="0.1", lw=3.2, zorder=2,
+                solid_capstyle="butt", label="complete-equilibrium line (null flow, no restart)")
+        ax.plot(x * moving, y * moving, color=C_Y, lw=1.3, zorder=3, label="trajectory, moving")
+        ax.plot(x * stuck_ext, y * stuck_ext, color="#c0392b", lw=2.0, zorder=3.5,
+                label="trajectory, stuck (pressures drift at rest)")
+        ax.plot(x[0], y[0], "s", color="0.3", ms=6, mfc="white", mew=1.3, zorder=6,
+                label=f"start of the run (t = {run.t[0]:g} s)")
+        first = set()
+
+        def label(key, text):
+            if key in first:
+                return None
+            first.add(key)
+            return text
+
+        for s in run.stops:
+            xs, ys = _interp(run, s["t"], x), _interp(run, s["t"], y)
+            ax.plot(xs, ys, "o", color=C_STOP, ms=6.5, zorder=7, label=label("stop", "stop"))
+            if x_lo < xs < x_hi and y_lo < ys < y_hi:
+                ax.annotate(str(s["index"]), (xs, ys), xytext=(-5, 4), textcoords="offset points",
+                            fontsize=9, fontweight="bold", ha="right", zorder=8)
+        for st in run.starts:
+            if st["restart"]:
+                ax.plot(_interp(run, st["t"], x), _interp(run, st["t"], y), "x", color=C_RESTART,
+                        ms=9, mew=2.0, zorder=8, label=label("restart", "actual restart"))
+        if k == 1:
+            s, end, _ = longest
+            # The forecasts of this stop: where the pressures were at each forecast restart time,
+            # the complete equilibrium the pressures head for, and the linearized path (Eq. 24).
+            for p in run.predictions:
+                if p["stop"] != s["index"] or not p["will_restart"] or p["t_restart"] is None:
+                    continue
+                stl = _method_style(p["method"])
+                ax.plot(_interp(run, p["t_restart"], x), _interp(run, p["t_restart"], y),
+                        stl["marker"], color=stl["color"], ms=8, mfc="none", mew=1.6, zorder=7.5,
+                        label=label(p["method"], stl["label"] + ",\n  on the trajectory at the forecast time"))
+            lin = next((p for p in run.predictions
+                        if p["stop"] == s["index"] and p["method"] == "linearized"), None)
+            eq = _equilibrium_point(bench, curve, pred[0]) if pred else None
+            if eq and lin and _positive(lin.get("tau_p")) and _positive(lin.get("tau_n")):
+                # Eq. 24 from the pressures at the forecast (the stop's confirmation): each
+                # coordinate relaxes towards the equilibrium with its own time constant.
+                x_c, y_c = _interp(run, lin["t"], x), _interp(run, lin["t"], y)
+                s_grid = np.linspace(0.0, 6.0 * max(lin["tau_p"], lin["tau_n"]), 400)
+                ax.plot(eq[0] + (x_c - eq[0]) * np.exp(-s_grid / lin["tau_p"]),
+                        eq[1] + (y_c - eq[1]) * np.exp(-s_grid / lin["tau_n"]),
+                        color=METHOD_STYLE["linearized"]["color"], lw=1.2, ls="--", zorder=3.2,
+                        label="linearized forecast path (Eq. 24)")
+            if eq:
+                ax.plot(*eq, "*", color="#f39c12", mec="0.2", ms=15, zorder=7,
+                        label=f"complete equilibrium under u* = {pred[0]['u_star']:+.3f} V (Eq. 11)")
+            # time ticks along the stuck path
+            span = end - s["t"]
+            step = next(d for d in (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1, 2, 5, 10, 20, 60, 120, 300)
+                        if span / d <= 10)
+            for tt in np.arange(math.ceil(s["t"] / step) * step, end, step):
+                px, py = _interp(run, tt, x), _interp(run, tt, y)
+                ax.plot(px, py, "|", color="0.15", ms=7, zorder=6)
+                ax.annotate(f"{tt:g} s", (px, py), xytext=(5, -3), textcoords="offset points",
+                            fontsize=7, color="0.25", zorder=6)
+        ax.set_xlim(x_lo, x_hi)
+        ax.set_ylim(y_lo, y_hi)
+        _label_band_lines(ax, bench, x_lo, x_hi, y_lo, y_hi)
+        ax.set_xlabel("x = S_P p_P [N]")
+        ax.set_ylabel("y = S_N p_N + S_r p_E [N]")
+        ax.set_title(title)
+        ax.legend(loc="upper left", framealpha=0.93, fontsize=7.4 if k == 0 else 7.2)
+    if longest:
+        from matplotlib.patches import Rectangle
+        x_lo, x_hi, y_lo, y_hi = panels[1][1]
+        axes[0].add_patch(Rectangle((x_lo, y_lo), x_hi - x_lo, y_hi - y_lo, fill=False,
+                                    ec="0.3", lw=1.0, ls="--", zorder=9))
+    fig.suptitle(f"{name}: the pressure-force plane (cf. Brun et al. 2005, Fig. 7, 10, 11); "
+                 f"F = x - y (Eq. 14)\n{run.source}; S_P = {bench.area_p * 1e4:.3f} cm^2, "
+                 f"S_N = {bench.area_n * 1e4:.3f} cm^2, S_r = {bench.area_rod * 1e4:.3f} cm^2, "
+                 f"p_E = {bench.p_e / 1e5:g} bar", fontsize=11)
+    fig.tight_layout(rect=(0, 0, 1, 0.95))
+    return fig
+
+
+# --------------------------------------------------------------------------------------------
+
+
+def parse_args(argv):
+    p = argparse.ArgumentParser(
+        prog="pneu_plots.py",
+        description="Figures of a pneud run: time traces (Fig. 8) and the pressure-force plane "
+                    "(Fig. 7/10/11) of Brun et al. 2005.")
+    src = p.add_argument_group("input (one of)")
+    src.add_argument("--trajectory", metavar="T.csv", help="pneud --trajectory output")
+    src.add_argument("--events", metavar="E.jsonl", help="pneud --events output (with --trajectory)")
+    src.add_argument("--log-csv", metavar="DIR", help="directory of pneu-log2csv output")
+    src.add_argument("--prefix", default="PNEU_", help="channel prefix of the --log-csv files "
+                     "(default PNEU_)")
+    p.add_argument("--config", metavar="FILE", help="YAML configuration of the run (default: "
+                   "config/sim.yaml of the source tree)")
+    p.add_argument("--null-flow", metavar="CURVE.csv", help="output of pneu-plant null-flow "
+                   "(default: run pneu-plant null-flow on --config)")
+    p.add_argument("--pneu-plant", metavar="PATH", help="pneu-plant executable (default: next "
+                   "to this script, on PATH, or build/bin of the source tree)")
+    p.add_argument("--time-range", nargs=2, type=float, metavar=("T0", "T1"),
+                   help="plot only loop times T0 <= t <= T1 [s]")
+    p.add_argument("--out-dir", required=True, metavar="DIR", help="where the figures go")
+    p.add_argument("--name", default="paper", help="file stem and title (default: paper)")
+    p.add_argument("--dpi", type=float, default=110, help="PNG resolution (default 110)")
+    args = p.parse_args(argv)
+    if args.log_csv and (args.trajectory or args.events):
+        p.error("give either --trajectory/--events or --log-csv, not both")
+    if not args.log_csv and not (args.trajectory and args.events):
+        p.error("give --trajectory T.csv --events E.jsonl, or --log-csv DIR")
+    if not args.name or "/" in args.name:
+        p.error("--name must be a non-empty file stem without '/'")
+    if not 20 <= args.dpi <= 600:
+        p.error("--dpi must be in [20, 600]")
+    return args
+
+
+def main(argv):
+    args = parse_args(argv)  # argparse exits 2 on a bad command line
+    try:
+        import numpy as np
+        plt = _setup_matplotlib()
+        config_path = args.config or default_config()
+        bench = Bench(config_path)
+        if args.log_csv:
+            run = load_log_csv(args.log_csv, args.prefix)
+        else:
+            run = load_pneud_output(args.trajectory, args.events)
+        if args.time_range:
+            restrict_to_time_range(run, *args.time_range)
+        if len(run.t) < 2:
+            raise InputError("fewer than two samples to plot")
+        raw = null_flow_curve(args, config_path)
+        order = np.argsort(raw["u_v"])
+        curve = {"u": np.array(raw["u_v"])[order], "x": np.array(raw["x_n"])[order],
+                 "y": np.array(raw["y_n"])[order]}
+        x, y = bench.plane(run.p_p, run.p_n)
+        mismatch = float(np.nanmax(np.abs(x - y - run.force)))
+        if mismatch > 0.5 + 0.01 * float(np.nanmax(np.abs(run.force))):
+            print(f"pneu_plots: warning: the recorded force differs from S_P p_P - S_N p_N - S_r p_E "
+                  f"of {config_path} by up to {mismatch:.2f} N: is it the run's configuration?",
+                  file=sys.stderr)
+        os.makedirs(args.out_dir, exist_ok=True)
+        written = []
+        fig = time_figure(run, bench, args.name, plt)
+        written += _save(fig, args.out_dir, f"{args.name}_time", args.dpi)
+        plt.close(fig)
+        fig = plane_figure(run, bench, curve, args.name, plt)
+        written += _save(fig, args.out_dir, f"{args.name}_plane", args.dpi)
+        plt.close(fig)
+    except InputError as e:
+        print(f"pneu_plots: {e}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except OSError as e:
+        print(f"pneu_plots: {e}", file=sys.stderr)
+        return EXIT_BAD_INPUT if isinstance(e, (FileNotFoundError, PermissionError)) else 1
+    print(f"pneu_plots: {len(run.stops)} stops, {sum(s['restart'] for s in run.starts)} restarts, "
+          f"{len(run.predictions)} forecasts; wrote {', '.join(written)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
