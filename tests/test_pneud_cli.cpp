@@ -265,4 +265,11 @@ TEST_F(PneudCli, ShortRunOnTheRealClockCompletesAndReportsLoopTiming) {
   EXPECT_LE(ticks, 301);
 }
 
+TEST_F(PneudCli, AGpioChipThatDoesNotExistIsAClearStartUpError) {
+  const Outcome o = pneud("--set hal.gpio.enabled=true --set hal.gpio.chip=pneu-no-such-chip");
+  EXPECT_EQ(o.exit_code, 1);
+  EXPECT_THAT(o.err, HasSubstr("cannot open GPIO chip 'pneu-no-such-chip' (hal.gpio.chip)"));
+  EXPECT_THAT(o.out, Not(HasSubstr("loop:"))) << "nothing ran";
+}
+
 }  // namespace

@@ -388,6 +388,25 @@ HalConfig read_hal(MapReader r) {
   h.has_modbus = r.has("modbus");
   if (h.has_modbus) h.modbus = read_modbus(r.map("modbus"));
   else (void)r.string_or("modbus", "");
+  if (r.has("gpio")) {
+    MapReader g = r.map("gpio");
+    h.gpio.enabled = g.boolean("enabled");
+    h.gpio.chip = g.string_or("chip", h.gpio.chip);
+    check(!h.gpio.chip.empty(), g.child_path("chip"), "must not be empty");
+    const long long estop = g.integer_or("estop_line", h.gpio.estop_line);
+    const long long power = g.integer_or("valve_power_line", h.gpio.valve_power_line);
+    check(estop >= 0 && estop < 65536, g.child_path("estop_line"), "must be a line offset >= 0");
+    check(power >= 0 && power < 65536, g.child_path("valve_power_line"), "must be a line offset >= 0");
+    check(estop != power, g.child_path("valve_power_line"), "must differ from estop_line");
+    h.gpio.estop_line = static_cast<unsigned>(estop);
+    h.gpio.valve_power_line = static_cast<unsigned>(power);
+    h.gpio.estop_active_low = g.boolean_or("estop_active_low", h.gpio.estop_active_low);
+    h.gpio.valve_power_active_low = g.boolean_or("valve_power_active_low", h.gpio.valve_power_active_low);
+    h.gpio.consumer = g.string_or("consumer", h.gpio.consumer);
+    g.finish();
+  } else {
+    (void)r.string_or("gpio", "");
+  }
   if (h.backend == BackendKind::kModbus && !h.has_modbus)
     throw ConfigError(r.child_path("modbus"), "missing: the modbus backend needs its section");
   r.finish();
@@ -625,6 +644,18 @@ std::string to_yaml(const Config& c) {
       e << YAML::EndMap;
     }
     e << YAML::EndMap;
+    e << YAML::EndMap;
+  }
+  {
+    const auto& g = c.hal.gpio;
+    e << YAML::Key << "gpio" << YAML::Value << YAML::BeginMap;
+    kv("enabled", g.enabled);
+    kv("chip", g.chip);
+    kv("estop_line", g.estop_line);
+    kv("estop_active_low", g.estop_active_low);
+    kv("valve_power_line", g.valve_power_line);
+    kv("valve_power_active_low", g.valve_power_active_low);
+    kv("consumer", g.consumer);
     e << YAML::EndMap;
   }
   e << YAML::EndMap;

@@ -66,6 +66,11 @@ class MapReader {
     if (!n.IsScalar()) throw ConfigError(child_path(key), "expected a string, got " + describe(n));
     return n.Scalar();
   }
+  bool boolean_or(const std::string& key, bool fallback) {
+    if (has(key)) return boolean(key);
+    seen_.insert(key);
+    return fallback;
+  }
   std::string string_or(const std::string& key, const std::string& fallback) {
     if (has(key)) return string(key);
     seen_.insert(key);

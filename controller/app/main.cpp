@@ -17,6 +17,10 @@
 #ifdef PNEU_WITH_MODBUS
 #include "pneu/hal/modbus_backend.hpp"
 #endif
+#ifdef PNEU_WITH_GPIOD
+#include "pneu/hal/gpio_backend.hpp"
+#include "pneu/hal/gpio_lines.hpp"
+#endif
 
 namespace {
 
@@ -105,17 +109,40 @@ int run(int argc, char** argv) {
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   const bool real_clock = cfg.controller.clock == config::ClockKind::kReal;
+  // The backend: the in-process plant or the I/O module, with the GPIO lines around it when
+  // configured (they outlive the run: declared before it).
+  std::unique_ptr<hal::Backend> inner;
+#ifdef PNEU_WITH_GPIOD
+  std::unique_ptr<hal::LibgpiodLines> lines;
+#endif
   controller::SimulatedRun run;
+  std::ostream* ev = events ? &*events : nullptr;
+  std::ostream* tr = trajectory ? &*trajectory : nullptr;
   if (cfg.hal.backend == config::BackendKind::kModbus) {
 #ifdef PNEU_WITH_MODBUS
-    run = controller::make_hardware_run(cfg, *valve, std::make_unique<hal::ModbusBackend>(cfg.hal.modbus, cfg.sensors),
-                                        events ? &*events : nullptr, trajectory ? &*trajectory : nullptr);
+    inner = std::make_unique<hal::ModbusBackend>(cfg.hal.modbus, cfg.sensors);
 #else
     throw config::ConfigError("hal.backend", "this pneud was built without the modbus backend");
 #endif
+  } else if (cfg.hal.gpio.enabled) {
+    const controller::ControlLaw law(cfg.controller.law);
+    inner = std::make_unique<hal::SimBackend>(
+        cfg.plant, cfg.sensors, cfg.simulation.initial_position_m,
+        law.resting_control_v(cfg.controller.initial_setpoint_m, cfg.simulation.initial_position_m));
+  }
+  if (cfg.hal.gpio.enabled) {
+#ifdef PNEU_WITH_GPIOD
+    const auto& g = cfg.hal.gpio;
+    lines = std::make_unique<hal::LibgpiodLines>(hal::GpioParams{g.chip, g.estop_line, g.estop_active_low,
+                                                                 g.valve_power_line, g.valve_power_active_low, g.consumer});
+    run = controller::make_hardware_run(cfg, *valve, std::make_unique<hal::GpioBackend>(*inner, *lines), ev, tr);
+#else
+    throw config::ConfigError("hal.gpio.enabled", "this pneud was built without libgpiod");
+#endif
+  } else if (inner) {
+    run = controller::make_hardware_run(cfg, *valve, std::move(inner), ev, tr);
   } else {
-    run = controller::make_simulated_run(cfg, *valve, events ? &*events : nullptr,
-                                         trajectory ? &*trajectory : nullptr);
+    run = controller::make_simulated_run(cfg, *valve, ev, tr);
   }
   std::function<void(int)> wait_for_input;
 #ifdef PNEU_WITH_LCM
@@ -160,7 +187,7 @@ int run(int argc, char** argv) {
     }
 #endif
 #ifdef PNEU_WITH_MODBUS
-    if (auto* mb = dynamic_cast<hal::ModbusBackend*>(run.hardware.get())) {
+    if (auto* mb = dynamic_cast<hal::ModbusBackend*>(inner ? inner.get() : run.hardware.get())) {
       const auto& c = mb->counters();
       std::printf("modbus: %llu transactions (%.0f per second), %llu errors, %llu reconnects, %llu samples out of range, "
                   "%llu stale reads, oldest sample %.2f ms%s%s\n",

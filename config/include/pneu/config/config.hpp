@@ -112,6 +112,17 @@ struct CommandsConfig {
   double burst = 5.0;          ///< commands accepted back to back before the rate applies
 };
 
+/// Digital lines beside either backend (hal.gpio.*, libgpiod).
+struct GpioConfig {
+  bool enabled = false;
+  std::string chip = "gpiochip0";       ///< name, /dev path, label or number
+  unsigned estop_line = 0;              ///< e-stop input line offset
+  bool estop_active_low = true;         ///< pressed = electrically low (a broken wire reads pressed)
+  unsigned valve_power_line = 1;        ///< valve power-enable output line offset
+  bool valve_power_active_low = false;  ///< power on = electrically low
+  std::string consumer = "pneud";       ///< consumer name shown by gpioinfo
+};
+
 enum class BackendKind { kSim, kModbus };
 
 /// The hardware abstraction layer: which backend pneud drives.
@@ -120,6 +131,7 @@ struct HalConfig {
   bool has_modbus = false;                  ///< hal.modbus present (required by the modbus backend
                                             ///< and by pneu-plant serve)
   ModbusConfig modbus;
+  GpioConfig gpio;                          ///< hal.gpio (optional section; absent: disabled)
 };
 
 /// The whole configuration.
