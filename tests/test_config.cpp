@@ -603,3 +603,12 @@ TEST(ConfigOverride, UnparsableValueIsRejectedNamingTheKey) {
 
 }  // namespace
 }  // namespace pneu::config
+
+// The other shipped configurations stay valid as the schema grows.
+TEST(ShippedConfig, HilAndBenchExamplesLoad) {
+  for (const char* name : {"hil.yaml", "bench.yaml"}) {
+    const auto c = pneu::config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/" + name);
+    EXPECT_EQ(c.hal.backend, pneu::config::BackendKind::kModbus) << name;
+    EXPECT_EQ(c.controller.clock, pneu::config::ClockKind::kReal) << name;
+  }
+}
