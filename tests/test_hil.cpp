@@ -201,12 +201,47 @@ TEST_F(Hil, UnreachableHostWrongUnitAndBadMapFailAtStartUpWithClearErrors) {
   EXPECT_EQ(overlap.wait(), 2);
   EXPECT_THAT(slurp(dir_ / "c.err"), HasSubstr("hal.modbus.channels.pressure_p.register: overlaps position"));
 
+  // A register the module does not have: it answers with an exception, named at start-up.
+  Child beyond = Child::spawn(pneud_args({"--duration", "1", "--set", "hal.modbus.channels.pressure_n.register=100"}),
+                              dir_ / "e.out", dir_ / "e.err");
+  EXPECT_EQ(beyond.wait(), 1);
+  EXPECT_THAT(slurp(dir_ / "e.err"), HasSubstr("Illegal data address"));
+
   Child empty = Child::spawn(pneud_args({"--duration", "1", "--set", "hal.modbus.channels.position.raw_max=0"}),
                              dir_ / "d.out", dir_ / "d.err");
   EXPECT_EQ(empty.wait(), 2);
   EXPECT_THAT(slurp(dir_ / "d.err"), HasSubstr("the raw range is empty"));
   kill(plant.pid, SIGINT);
   EXPECT_EQ(plant.wait(), 0);
+}
+
+TEST_F(Hil, AModuleThatAnswersLateIsACountedCommsFaultAndTheLoopNeverWaits) {
+  // From 1 s on every reply comes 50 ms late, beyond the 20 ms response timeout.
+  Child plant = serve(6.0, {"--reply-delay-s", "0.05", "--delay-after-s", "1"});
+  Child pneud = Child::spawn(pneud_args({"--duration", "3"}), dir_ / "pneud.out", dir_ / "pneud.err");
+  ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
+  kill(plant.pid, SIGINT);
+  EXPECT_EQ(plant.wait(), 0);
+  const std::string out = slurp(dir_ / "pneud.out");
+  unsigned long long ticks = 0, overruns = 0, skipped = 0, transactions = 0, errors = 0, reconnects = 0, out_of_range = 0,
+                     stale = 0;
+  double rate = 0, oldest_ms = 0;
+  const auto loop = out.find("loop: "), mb = out.find("modbus: ");
+  ASSERT_NE(mb, std::string::npos) << out;
+  ASSERT_EQ(std::sscanf(out.c_str() + loop, "loop: %llu ticks at 1000 Hz, %llu overruns (%llu deadlines skipped)", &ticks,
+                        &overruns, &skipped),
+            3);
+  ASSERT_EQ(std::sscanf(out.c_str() + mb,
+                        "modbus: %llu transactions (%lf per second), %llu errors, %llu reconnects, %llu samples out of "
+                        "range, %llu stale reads, oldest sample %lf ms",
+                        &transactions, &rate, &errors, &reconnects, &out_of_range, &stale, &oldest_ms),
+            7)
+      << out;
+  EXPECT_GE(errors, 5u) << "each late reply is a counted comms error";
+  EXPECT_GE(reconnects, 5u) << "and the I/O thread closes and reconnects (libmodbus issue #255)";
+  EXPECT_GT(stale, 1000u) << "the loop saw the samples go stale: flagged, not waited for";
+  EXPECT_EQ(ticks + skipped, 3001u) << "every deadline of the 3 s run was met or accounted for";
+  EXPECT_LT(skipped, 100u) << "the loop did not stall on the module";
 }
 
 TEST_F(Hil, RtuOverAPtyPairAt115200BaudKeepsTheLoopRateAndFreshSamples) {

@@ -57,6 +57,8 @@ const char* const kServeHelpText = R"(pneu-plant serve: the simulated bench behi
                        config/sim.yaml, which has none: use config/hil.yaml)
   --set KEY=VALUE      override a config key (repeatable), e.g. --set hal.modbus.port=1502
   --duration S         stop after S seconds (default: run until SIGINT/SIGTERM)
+  --reply-delay-s D    fault injection: answer every request D seconds late ...
+  --delay-after-s T    ... from T seconds after start-up on (default 0)
   --quiet              no start-up line
 
 The plant of plant.* runs in real time from rest at simulation.initial_position_m. Each request
@@ -68,7 +70,7 @@ unit hal.modbus.unit_id. On exit it prints the last valve voltages it was sent.
 )";
 
 int serve(int argc, char** argv) {
-  const cli::Args args(argc, argv, 2, {"config", "duration"}, {"help", "quiet"}, {"set"});
+  const cli::Args args(argc, argv, 2, {"config", "duration", "reply-delay-s", "delay-after-s"}, {"help", "quiet"}, {"set"});
   if (args.flag("help")) {
     std::cout << kServeHelpText;
     return cli::kExitOk;
@@ -77,6 +79,9 @@ int serve(int argc, char** argv) {
   if (!cfg.hal.has_modbus) throw config::ConfigError("hal.modbus", "missing: serve needs the register map (see config/hil.yaml)");
   const double duration = args.number("duration", 0.0);
   if (duration < 0.0) throw cli::UsageError("--duration must be >= 0");
+  const double reply_delay = args.number("reply-delay-s", 0.0);
+  const double delay_after = args.number("delay-after-s", 0.0);
+  if (reply_delay < 0.0 || delay_after < 0.0) throw cli::UsageError("--reply-delay-s and --delay-after-s must be >= 0");
   const auto& mb = cfg.hal.modbus;
 
   plant::Plant plant(cfg.plant);
@@ -165,6 +170,13 @@ int serve(int argc, char** argv) {
           const double until = mono_s() + wire_s;
           while (mono_s() < until) {
             timespec ts{0, 50000};
+            nanosleep(&ts, nullptr);
+          }
+        }
+        if (reply_delay > 0.0 && t >= delay_after) {  // fault injection: a module that answers late
+          const double until = mono_s() + reply_delay;
+          while (mono_s() < until && !g_stop.load()) {
+            timespec ts{0, 200000};
             nanosleep(&ts, nullptr);
           }
         }
