@@ -175,7 +175,8 @@ def main():
     parser.add_argument("--unit", type=int, default=1, help="unit (slave) identifier, default 1")
     parser.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0: on a signal)")
     args = parser.parse_args()
-    logging.basicConfig(level=logging.CRITICAL)  # pymodbus logs aborted sessions as warnings/errors
+    # pymodbus 3.0 configures the root logger at import and logs every closed session as an error.
+    logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
     asyncio.run(serve(args))
     return 0
 
