@@ -223,25 +223,13 @@ TEST_F(Hil, AModuleThatAnswersLateIsACountedCommsFaultAndTheLoopNeverWaits) {
   kill(plant.pid, SIGINT);
   EXPECT_EQ(plant.wait(), 0);
   const std::string out = slurp(dir_ / "pneud.out");
-  unsigned long long ticks = 0, overruns = 0, skipped = 0, transactions = 0, errors = 0, reconnects = 0, out_of_range = 0,
-                     stale = 0;
-  double rate = 0, oldest_ms = 0;
-  const auto loop = out.find("loop: "), mb = out.find("modbus: ");
-  ASSERT_NE(mb, std::string::npos) << out;
-  ASSERT_EQ(std::sscanf(out.c_str() + loop, "loop: %llu ticks at 1000 Hz, %llu overruns (%llu deadlines skipped)", &ticks,
-                        &overruns, &skipped),
-            3);
-  ASSERT_EQ(std::sscanf(out.c_str() + mb,
-                        "modbus: %llu transactions (%lf per second), %llu errors, %llu reconnects, %llu samples out of "
-                        "range, %llu stale reads, oldest sample %lf ms",
-                        &transactions, &rate, &errors, &reconnects, &out_of_range, &stale, &oldest_ms),
-            7)
-      << out;
-  EXPECT_GE(errors, 5u) << "each late reply is a counted comms error";
-  EXPECT_GE(reconnects, 5u) << "and the I/O thread closes and reconnects (libmodbus issue #255)";
-  EXPECT_GT(stale, 1000u) << "the loop saw the samples go stale: flagged, not waited for";
-  EXPECT_EQ(ticks + skipped, 3001u) << "every deadline of the 3 s run was met or accounted for";
-  EXPECT_LT(skipped, 100u) << "the loop did not stall on the module";
+  const auto summary = pneu::test::PneudSummary::parse(out);
+  ASSERT_TRUE(summary.has_loop && summary.has_modbus) << out;
+  EXPECT_GE(summary.errors, 5u) << "each late reply is a counted comms error";
+  EXPECT_GE(summary.reconnects, 5u) << "and the I/O thread closes and reconnects (libmodbus issue #255)";
+  EXPECT_GT(summary.stale, 1000u) << "the loop saw the samples go stale: flagged, not waited for";
+  EXPECT_EQ(summary.ticks + summary.skipped, 3001u) << "every deadline of the 3 s run was met or accounted for";
+  EXPECT_LT(summary.skipped, 100u) << "the loop did not stall on the module";
 }
 
 TEST_F(Hil, RtuOverAPtyPairAt115200BaudKeepsTheLoopRateAndFreshSamples) {
@@ -264,26 +252,13 @@ TEST_F(Hil, RtuOverAPtyPairAt115200BaudKeepsTheLoopRateAndFreshSamples) {
   kill(plant.pid, SIGINT);
   EXPECT_EQ(plant.wait(), 0);
   const std::string out = slurp(dir_ / "pneud.out");
-  unsigned long long ticks = 0, overruns = 0, skipped = 0, transactions = 0, errors = 0, reconnects = 0, out_of_range = 0,
-                     stale = 0;
-  double rate = 0, oldest_ms = 0;
-  const auto loop = out.find("loop: "), mb = out.find("modbus: ");
-  ASSERT_NE(loop, std::string::npos) << out;
-  ASSERT_NE(mb, std::string::npos) << out;
-  ASSERT_EQ(std::sscanf(out.c_str() + loop, "loop: %llu ticks at 1000 Hz, %llu overruns (%llu deadlines skipped)", &ticks,
-                        &overruns, &skipped),
-            3);
-  ASSERT_EQ(std::sscanf(out.c_str() + mb,
-                        "modbus: %llu transactions (%lf per second), %llu errors, %llu reconnects, %llu samples out of "
-                        "range, %llu stale reads, oldest sample %lf ms",
-                        &transactions, &rate, &errors, &reconnects, &out_of_range, &stale, &oldest_ms),
-            7)
-      << out;
-  EXPECT_EQ(ticks + skipped, 3001u) << "the loop kept its 1 kHz deadlines";
-  EXPECT_EQ(errors, 0u);
-  EXPECT_GT(rate, 100.0) << "exchanges as often as the line allows";
-  EXPECT_LT(rate, 400.0) << "and no more often than a 115200 baud line allows";
-  EXPECT_LE(stale, ticks / 100) << "samples stay within the 20 ms age limit (oldest " << oldest_ms << " ms)";
+  const auto summary = pneu::test::PneudSummary::parse(out);
+  ASSERT_TRUE(summary.has_loop && summary.has_modbus) << out;
+  EXPECT_EQ(summary.ticks + summary.skipped, 3001u) << "the loop kept its 1 kHz deadlines";
+  EXPECT_EQ(summary.errors, 0u);
+  EXPECT_GT(summary.rate_per_s, 100.0) << "exchanges as often as the line allows";
+  EXPECT_LT(summary.rate_per_s, 400.0) << "and no more often than a 115200 baud line allows";
+  EXPECT_LE(summary.stale, summary.ticks / 100) << "samples stay within the 20 ms age limit (oldest " << summary.oldest_ms << " ms)";
 }
 
 }  // namespace

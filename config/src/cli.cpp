@@ -2,6 +2,10 @@
 
 #include <unistd.h>
 
+#include <iostream>
+
+#include "pneu/config/config.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -67,6 +71,24 @@ double Args::number(const std::string& name, double fallback) const {
 std::vector<std::string> Args::all(const std::string& name) const {
   const auto it = values_.find(name);
   return it == values_.end() ? std::vector<std::string>{} : it->second;
+}
+
+int run_main(const char* program, int (*body)(int, char**), int argc, char** argv) noexcept {
+  try {
+    return body(argc, argv);
+  } catch (const UsageError& e) {
+    std::cerr << program << ": " << e.what() << "\n";
+    return kExitBadInput;
+  } catch (const config::ConfigError& e) {
+    std::cerr << program << ": config: " << e.what() << "\n";
+    return kExitBadInput;
+  } catch (const std::exception& e) {
+    std::cerr << program << ": " << e.what() << "\n";
+    return kExitFailure;
+  } catch (...) {
+    std::cerr << program << ": unknown failure\n";
+    return kExitFailure;
+  }
 }
 
 AtomicFile::AtomicFile(std::filesystem::path path) : path_(std::move(path)) {

@@ -209,17 +209,4 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const cli::UsageError& e) {
-    std::cerr << "pneud: " << e.what() << "\n";
-    return cli::kExitBadInput;
-  } catch (const config::ConfigError& e) {
-    std::cerr << "pneud: config: " << e.what() << "\n";
-    return cli::kExitBadInput;
-  } catch (const std::exception& e) {
-    std::cerr << "pneud: " << e.what() << "\n";
-    return cli::kExitFailure;
-  }
-}
+int main(int argc, char** argv) { return pneu::cli::run_main("pneud", run, argc, argv); }

@@ -272,35 +272,26 @@ int null_flow(int argc, char** argv) {
   return cli::kExitOk;
 }
 
+int dispatch(int argc, char** argv) {
+  const std::string command = argc > 1 ? argv[1] : "";
+  if (command == "simulate") return simulate(argc, argv);
+  if (command == "characterize-valve") return characterize(argc, argv);
+  if (command == "null-flow") return null_flow(argc, argv);
+  if (command == "serve") return plant_app::serve(argc, argv);
+  if (command == "--version") {
+    std::printf("pneu-plant %s\n", PNEU_VERSION);
+    return cli::kExitOk;
+  }
+  if (command == "--help" || command == "-h" || command == "help") {
+    std::cout << kUsage;
+    return cli::kExitOk;
+  }
+  std::cerr << (command.empty() ? std::string("pneu-plant: missing command")
+                                : "pneu-plant: unknown command '" + command + "'")
+            << "\n\n" << kUsage;
+  return cli::kExitBadInput;
+}
+
 }  // namespace
 
-int main(int argc, char** argv) {
-  try {
-    const std::string command = argc > 1 ? argv[1] : "";
-    if (command == "simulate") return simulate(argc, argv);
-    if (command == "characterize-valve") return characterize(argc, argv);
-    if (command == "null-flow") return null_flow(argc, argv);
-    if (command == "serve") return plant_app::serve(argc, argv);
-    if (command == "--version") {
-      std::printf("pneu-plant %s\n", PNEU_VERSION);
-      return cli::kExitOk;
-    }
-    if (command == "--help" || command == "-h" || command == "help") {
-      std::cout << kUsage;
-      return cli::kExitOk;
-    }
-    std::cerr << (command.empty() ? std::string("pneu-plant: missing command")
-                                  : "pneu-plant: unknown command '" + command + "'")
-              << "\n\n" << kUsage;
-    return cli::kExitBadInput;
-  } catch (const cli::UsageError& e) {
-    std::cerr << "pneu-plant: " << e.what() << "\n";
-    return cli::kExitBadInput;
-  } catch (const config::ConfigError& e) {
-    std::cerr << "pneu-plant: config: " << e.what() << "\n";
-    return cli::kExitBadInput;
-  } catch (const std::exception& e) {
-    std::cerr << "pneu-plant: " << e.what() << "\n";
-    return cli::kExitFailure;
-  }
-}
+int main(int argc, char** argv) { return pneu::cli::run_main("pneu-plant", dispatch, argc, argv); }

@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -97,6 +98,30 @@ struct Csv {
       else c.rows.push_back(cells);
     }
     return c;
+  }
+};
+
+/// The loop and modbus lines of pneud's end-of-run summary.
+struct PneudSummary {
+  bool has_loop = false, has_modbus = false;
+  unsigned long long ticks = 0, overruns = 0, skipped = 0;
+  unsigned long long transactions = 0, errors = 0, reconnects = 0, out_of_range = 0, stale = 0;
+  double rate_per_s = 0.0, oldest_ms = 0.0;
+
+  static PneudSummary parse(const std::string& out) {
+    PneudSummary s;
+    const auto loop = out.find("loop: ");
+    if (loop != std::string::npos)
+      s.has_loop = std::sscanf(out.c_str() + loop, "loop: %llu ticks at 1000 Hz, %llu overruns (%llu deadlines skipped)",
+                               &s.ticks, &s.overruns, &s.skipped) == 3;
+    const auto mb = out.find("modbus: ");
+    if (mb != std::string::npos)
+      s.has_modbus = std::sscanf(out.c_str() + mb,
+                                 "modbus: %llu transactions (%lf per second), %llu errors, %llu reconnects, %llu "
+                                 "samples out of range, %llu stale reads, oldest sample %lf ms",
+                                 &s.transactions, &s.rate_per_s, &s.errors, &s.reconnects, &s.out_of_range, &s.stale,
+                                 &s.oldest_ms) == 7;
+    return s;
   }
 };
 

@@ -92,14 +92,4 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const cli::UsageError& e) {
-    std::cerr << "pneu-command: " << e.what() << "\n";
-    return cli::kExitBadInput;
-  } catch (const std::exception& e) {
-    std::cerr << "pneu-command: " << e.what() << "\n";
-    return cli::kExitFailure;
-  }
-}
+int main(int argc, char** argv) { return pneu::cli::run_main("pneu-command", run, argc, argv); }

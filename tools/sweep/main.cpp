@@ -314,17 +314,4 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const cli::UsageError& e) {
-    std::cerr << "pneu-sweep: " << e.what() << "\n";
-    return cli::kExitBadInput;
-  } catch (const config::ConfigError& e) {
-    std::cerr << "pneu-sweep: config: " << e.what() << "\n";
-    return cli::kExitBadInput;
-  } catch (const std::exception& e) {
-    std::cerr << "pneu-sweep: " << e.what() << "\n";
-    return cli::kExitFailure;
-  }
-}
+int main(int argc, char** argv) { return pneu::cli::run_main("pneu-sweep", run, argc, argv); }

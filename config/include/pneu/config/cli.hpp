@@ -41,6 +41,11 @@ class Args {
   std::map<std::string, std::vector<std::string>> values_;
 };
 
+/// Runs a program's body and turns what it throws into the exit codes above, with the message on
+/// stderr prefixed by the program's name: UsageError and config::ConfigError are bad input (2),
+/// anything else a failure (1).
+int run_main(const char* program, int (*body)(int, char**), int argc, char** argv) noexcept;
+
 /// A file written beside its final path and renamed into place by commit(); destroyed without
 /// commit (an error, an exception), it removes the partial file, so nothing half-written is left.
 class AtomicFile {
