@@ -100,18 +100,20 @@ class RecordingBlock(ModbusSequentialDataBlock):
 
 
 class CountingSlaveContext(ModbusSlaveContext):
-    """Counts the requests by function code (each request validates its block once or twice)."""
+    """Counts the requests by function code: reads (FC3, FC4, FC23) by their one getValues(), writes
+    (FC6, FC16) by their one setValues() (FC6 reads its register back to echo it)."""
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self.requests = {}
 
     def getValues(self, fc_as_hex, address, count=1):  # noqa: N802
-        self.requests[fc_as_hex] = self.requests.get(fc_as_hex, 0) + 1
+        if fc_as_hex in (3, 4, 23):
+            self.requests[fc_as_hex] = self.requests.get(fc_as_hex, 0) + 1
         return super().getValues(fc_as_hex, address, count)
 
     def setValues(self, fc_as_hex, address, values):  # noqa: N802
-        if fc_as_hex in (6, 16):  # writes without a read; FC23 is counted by its read
+        if fc_as_hex in (6, 16):
             self.requests[fc_as_hex] = self.requests.get(fc_as_hex, 0) + 1
         super().setValues(fc_as_hex, address, values)
 

@@ -95,8 +95,10 @@ bool ModbusBackend::exchange(std::string* why) noexcept {
   // Unpowered valves sit at their centre: with power off the outputs are written at 0 V.
   const double u_p = io_command_.valve_power ? io_command_.u_p_v : 0.0;
   const double u_n = io_command_.valve_power ? io_command_.u_n_v : 0.0;
-  out[cfg_.valve_p.address - write_start_ == 0 ? 0 : 1] = cfg_.valve_p.to_word(u_p);
-  out[cfg_.valve_n.address - write_start_ == 0 ? 0 : 1] = cfg_.valve_n.to_word(u_n);
+  const int at_p = cfg_.valve_p.address == write_start_ ? 0 : 1;  // index in the written block
+  const int at_n = 1 - at_p;
+  out[at_p] = cfg_.valve_p.to_word(u_p);
+  out[at_n] = cfg_.valve_n.to_word(u_n);
   uint16_t in[MODBUS_MAX_WR_READ_REGISTERS] = {};
   modbus_t* ctx = as_ctx(ctx_);
   int rc = 0;
@@ -107,8 +109,8 @@ bool ModbusBackend::exchange(std::string* why) noexcept {
                                                           : modbus_read_registers(ctx, read_start_, read_count_, in);
     if (rc == read_count_) {
       const int w = write_count_ == 2 ? modbus_write_registers(ctx, write_start_, 2, out)
-                                      : (modbus_write_register(ctx, cfg_.valve_p.address, out[0]) == 1 &&
-                                                 modbus_write_register(ctx, cfg_.valve_n.address, out[1]) == 1
+                                      : (modbus_write_register(ctx, cfg_.valve_p.address, out[at_p]) == 1 &&
+                                                 modbus_write_register(ctx, cfg_.valve_n.address, out[at_n]) == 1
                                              ? 2
                                              : -1);
       if (w != write_count_ && w != 2) rc = -1;
@@ -154,7 +156,13 @@ void ModbusBackend::open(double) {
 
 void ModbusBackend::close() noexcept {
   if (running_.exchange(false) && thread_.joinable()) thread_.join();
-  // Leave the valves as the last command said (the caller wrote its safe state before closing).
+  // The caller wrote its safe state just before closing: deliver it in one last exchange, so the
+  // module holds it after we are gone.
+  if (ctx_ && link_up_.load()) {
+    std::string why;
+    (void)command_.load(io_command_);
+    if (!exchange(&why)) counters_.errors.fetch_add(1, std::memory_order_relaxed);
+  }
   disconnect();
   link_up_.store(false);
 }

@@ -1,0 +1,262 @@
+// pneud's modbus backend against a Modbus TCP server not written here: pymodbus 3.0 (Debian's
+// python3-pymodbus) playing the analog I/O module with the register map of config/hil.yaml
+// (tests/pymodbus_io_module.py). The module serves constant sensor words, so the carriage "sits"
+// at 0.100 m and the loop, holding that set point, sends one constant command: both directions of
+// the register map can be checked word for word.
+#include <arpa/inet.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "support/child_process.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using pneu::test::Child;
+using pneu::test::Csv;
+using pneu::test::slurp;
+using ::testing::HasSubstr;
+
+const char* const kPython = "/usr/bin/python3";  // Debian's, where python3-pymodbus is installed
+
+// What the module serves (tests/pymodbus_io_module.py) and one step of each channel's scaling in
+// config/hil.yaml. A word is the rounded value, so a reading lies within half a step of the
+// nominal one; the tolerances below allow one full step.
+constexpr double kServedPositionM = 0.100;    // 7.0 V at 20 V/m, 5 V at mid-stroke
+constexpr double kServedPressurePPa = 3.0e5;  // 3.0 V at 1e-5 V/Pa
+constexpr double kServedPressureNPa = 4.0e5;  // 4.0 V
+constexpr double kSensorStepV = 10.0 / 65535.0;
+constexpr double kPositionStepM = kSensorStepV / 20.0;     // 7.6 um
+constexpr double kPressureStepPa = kSensorStepV / 1.0e-5;  // 15.3 Pa
+constexpr double kValveStepV = 10.0 / 32767.0;             // 0.31 mV, signed -32767..32767
+
+std::string bin(const std::string& name) { return std::string(PNEU_BINARY_DIR) + "/bin/" + name; }
+std::string src(const std::string& path) { return std::string(PNEU_SOURCE_DIR) + "/" + path; }
+
+bool pymodbus_available() {
+  return std::system((std::string(kPython) + " -c 'import pymodbus' > /dev/null 2>&1").c_str()) ==
+         0;
+}
+
+// A loopback port nobody listens on right now.
+int free_port() {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = 0;
+  bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
+  socklen_t len = sizeof a;
+  getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
+  const int port = ntohs(a.sin_port);
+  close(fd);
+  return port;
+}
+
+// One valve command as the module recorded it: a run of equal (u_P, u_N) writes.
+struct ValveRun {
+  double u_p_v = NAN, u_n_v = NAN;
+  unsigned long long writes = 0;
+};
+
+// What the module printed when it stopped.
+struct ModuleReport {
+  unsigned long long fc3 = 0, fc4 = 0, fc6 = 0, fc16 = 0, fc23 = 0;
+  std::vector<ValveRun> history;  // oldest first, the last few runs
+  ValveRun last;                  // the registers' final content (writes unused)
+  bool complete = false;
+
+  static ModuleReport parse(const std::string& out) {
+    ModuleReport r;
+    const auto req = out.find("requests: "), hist = out.find("valve history: "),
+               last = out.find("last valve voltages: ");
+    if (req == std::string::npos || hist == std::string::npos || last == std::string::npos)
+      return r;
+    if (std::sscanf(out.c_str() + req,
+                    "requests: fc3 %llu, fc4 %llu, fc6 %llu, fc16 %llu, fc23 %llu", &r.fc3, &r.fc4,
+                    &r.fc6, &r.fc16, &r.fc23) != 5)
+      return r;
+    if (std::sscanf(out.c_str() + last, "last valve voltages: u_P = %lf V, u_N = %lf V",
+                    &r.last.u_p_v, &r.last.u_n_v) != 2)
+      return r;
+    const std::string line = out.substr(hist, out.find('\n', hist) - hist);
+    for (auto p = line.find('('); p != std::string::npos; p = line.find('(', p + 1)) {
+      ValveRun run;
+      if (std::sscanf(line.c_str() + p, "(%lf, %lf) V x %llu", &run.u_p_v, &run.u_n_v,
+                      &run.writes) == 3)
+        r.history.push_back(run);
+    }
+    r.complete = true;
+    return r;
+  }
+  // The last command written with the valves powered: a trailing (0 V, 0 V) run is the safe state
+  // pneud writes on stop (power off), not a control output.
+  [[nodiscard]] ValveRun last_control() const {
+    if (history.empty()) return {};
+    const ValveRun& tail = history.back();
+    const bool safe_state = tail.u_p_v == 0.0 && tail.u_n_v == 0.0;
+    return safe_state && history.size() >= 2 ? history[history.size() - 2] : tail;
+  }
+};
+
+
+class PymodbusInterop : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!pymodbus_available())
+      GTEST_SKIP()
+          << kPython
+          << " cannot import pymodbus (Debian package python3-pymodbus, 3.0): no third-party "
+          << "Modbus server to test against";
+    dir_ = fs::temp_directory_path() /
+           ("pneu_pymodbus_" +
+            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
+            std::to_string(getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    port_ = free_port();
+  }
+  void TearDown() override {
+    if (!dir_.empty() && !HasFailure()) fs::remove_all(dir_);
+  }
+
+  // Starts the module and waits for its "listening" line (a probe connection would be a client
+  // session of its own in the module's request counts).
+  Child start_module() {
+    Child c = Child::spawn({kPython, src("tests/pymodbus_io_module.py"), "--port",
+                            std::to_string(port_), "--duration", "60"},
+                           dir_ / "module.out", dir_ / "module.err");
+    for (int i = 0;
+         i < 1000 && slurp(dir_ / "module.err").find("listening on") == std::string::npos; ++i)
+      std::this_thread::sleep_for(10ms);
+    EXPECT_THAT(slurp(dir_ / "module.err"), HasSubstr("listening on"))
+        << "the module did not start within 10 s";
+    return c;
+  }
+  ModuleReport stop_module(Child& module) {
+    kill(module.pid, SIGTERM);
+    EXPECT_EQ(module.wait(), 0) << slurp(dir_ / "module.err");
+    const std::string out = slurp(dir_ / "module.out");
+    ModuleReport r = ModuleReport::parse(out);
+    EXPECT_TRUE(r.complete) << "unexpected module report:\n" << out;
+    return r;
+  }
+  Child run_pneud(const std::vector<std::string>& extra) {
+    std::vector<std::string> args{bin("pneud"),
+                                  "--config",
+                                  src("config/hil.yaml"),
+                                  "--set",
+                                  "hal.modbus.port=" + std::to_string(port_),
+                                  "--set",
+                                  "telemetry.enabled=false",
+                                  "--set",
+                                  "controller.setpoints.schedule=[]",
+                                  "--set",
+                                  "controller.setpoints.initial_m=0.1",
+                                  "--duration",
+                                  "2",
+                                  "--trajectory",
+                                  (dir_ / "trajectory.csv").string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return Child::spawn(args, dir_ / "pneud.out", dir_ / "pneud.err");
+  }
+
+  // The checks both function-code variants share: a clean 2 s run at about 1 kHz, every sample
+  // the served one, and the module holding the command the trajectory says was sent.
+  void expect_both_directions_interoperate(const ModuleReport& module) {
+    const std::string out = slurp(dir_ / "pneud.out");
+    const auto mb = pneu::test::PneudSummary::parse(out);
+    ASSERT_TRUE(mb.has_modbus) << out;
+    EXPECT_EQ(mb.errors, 0u) << out;
+    EXPECT_EQ(mb.reconnects, 0u) << out;
+    EXPECT_EQ(mb.out_of_range, 0u) << out;
+    EXPECT_GE(mb.transactions, 1000u) << "2 s at up to one exchange per millisecond\n" << out;
+
+    const Csv tr = Csv::read(dir_ / "trajectory.csv");
+    ASSERT_GE(tr.rows.size(), 1000u);
+    const std::size_t y = tr.col("y"), p_p = tr.col("p_P"), p_n = tr.col("p_N"), u = tr.col("u"),
+                      validity = tr.col("validity");
+    int off = 0;
+    for (const auto& row : tr.rows) {
+      const bool ok = std::abs(std::stod(row[y]) - kServedPositionM) <= kPositionStepM &&
+                      std::abs(std::stod(row[p_p]) - kServedPressurePPa) <= kPressureStepPa &&
+                      std::abs(std::stod(row[p_n]) - kServedPressureNPa) <= kPressureStepPa &&
+                      row[validity] == "0";
+      if (!ok && off++ < 3)
+        ADD_FAILURE() << "tick " << row[0] << ": y " << row[y] << " m, p_P " << row[p_p]
+                      << " Pa, p_N " << row[p_n] << " Pa, validity " << row[validity] << "; served "
+                      << kServedPositionM << " m, " << kServedPressurePPa << " Pa, "
+                      << kServedPressureNPa << " Pa";
+    }
+    EXPECT_EQ(off, 0) << "ticks whose sample is not the served one";
+
+    // Constant sensors, set point = position: u = u_0 on every tick, so "the last u sent" does
+    // not depend on which tick's command the I/O thread carried last.
+    const double u_last = std::stod(tr.rows.back()[u]);
+    const ValveRun sent = module.last_control();
+    EXPECT_GE(sent.writes, 1000u) << "the command the module held for most of the run";
+    EXPECT_NEAR(sent.u_p_v, u_last, kValveStepV) << "valve_p (register 16) = u (Eq. 1)";
+    EXPECT_NEAR(sent.u_n_v, -u_last, kValveStepV) << "valve_n (register 17) = -u (Eq. 1)";
+    EXPECT_GT(std::abs(u_last), 2 * kValveStepV)
+        << "u_0 is not 0 V, so a sign error in either register shows";
+    // The registers' final content: that command, or the power-off safe state (0 V) after it.
+    const bool held = std::abs(module.last.u_p_v - u_last) <= kValveStepV &&
+                      std::abs(module.last.u_n_v + u_last) <= kValveStepV;
+    const bool safe = module.last.u_p_v == 0.0 && module.last.u_n_v == 0.0;
+    EXPECT_TRUE(held || safe) << "final valve registers " << module.last.u_p_v << " V, "
+                              << module.last.u_n_v << " V";
+  }
+
+  fs::path dir_;
+  int port_ = 0;
+};
+
+TEST_F(PymodbusInterop,
+       Function23ExchangesReadTheServedSensorsAndWriteTheValveVoltagesPymodbusDecodes) {
+  Child module = start_module();
+  Child pneud = run_pneud({});
+  ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
+  const ModuleReport module_report = stop_module(module);
+  ASSERT_TRUE(module_report.complete);
+  EXPECT_GE(module_report.fc23, 1000u) << "one read/write-multiple (FC23) request per exchange";
+  EXPECT_EQ(module_report.fc3 + module_report.fc4 + module_report.fc6 + module_report.fc16, 0u);
+  expect_both_directions_interoperate(module_report);
+}
+
+TEST_F(PymodbusInterop, ReadHoldingPlusWriteMultipleExchangesInteroperateToo) {
+  Child module = start_module();
+  Child pneud = run_pneud({"--set", "hal.modbus.read_write_multiple=false"});
+  ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
+  const ModuleReport module_report = stop_module(module);
+  ASSERT_TRUE(module_report.complete);
+  EXPECT_GE(module_report.fc3, 1000u) << "read holding registers (FC3) for the sensors";
+  EXPECT_GE(module_report.fc16, 1000u) << "write multiple registers (FC16) for both valves";
+  EXPECT_EQ(module_report.fc3, module_report.fc16) << "one read and one write per exchange";
+  EXPECT_EQ(module_report.fc23 + module_report.fc4 + module_report.fc6, 0u);
+  expect_both_directions_interoperate(module_report);
+}
+
+// The loop's stop() writes the power-off command (0 V on both valves) just before the backend
+// closes: close() delivers it in one last exchange, so the module is left in the safe state.
+TEST_F(PymodbusInterop, ThePowerOffSafeStateReachesTheModuleBeforePneudDisconnects) {
+  Child module = start_module();
+  Child pneud = run_pneud({});
+  ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
+  const ModuleReport module_report = stop_module(module);
+  ASSERT_TRUE(module_report.complete);
+  EXPECT_EQ(module_report.last.u_p_v, 0.0) << "valve_p";
+  EXPECT_EQ(module_report.last.u_n_v, 0.0) << "valve_n";
+}
+
+}  // namespace
