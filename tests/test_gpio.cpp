@@ -386,6 +386,24 @@ TEST_F(EStopLoop, PressingTheEStopFaultsWithinOneTickCutsValvePowerAndHoldsNeutr
   EXPECT_EQ(last_u_v_, bench_.u_0());
 }
 
+TEST_F(EStopLoop, TheFaultIsReportedOnceAsAnEventWithItsCause) {
+  run_to_mid_run();
+  controller::LoopEvent e;
+  while (outputs_->events.try_pop(e)) {
+  }
+  lines_.estop_pressed = true;
+  run_ticks(50);  // held for 50 ms: one fault, not one per tick
+  int faults = 0;
+  while (outputs_->events.try_pop(e)) {
+    if (e.kind != controller::LoopEvent::Kind::kFault) continue;
+    ++faults;
+    EXPECT_EQ(e.fault_cause, controller::kFaultEStop);
+    EXPECT_NEAR(e.t_s, 1.2, 1e-9) << "dated at the tick that saw the e-stop";
+  }
+  EXPECT_EQ(faults, 1);
+  EXPECT_THAT(controller::fault_text(controller::kFaultEStop), ::testing::HasSubstr("e-stop"));
+}
+
 TEST_F(EStopLoop, TheFaultStaysLatchedAfterTheEStopIsReleased) {
   run_to_mid_run();
   lines_.estop_pressed = true;

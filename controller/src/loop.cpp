@@ -54,6 +54,13 @@ void ControlLoop::push(const LoopEvent& e) noexcept {
   if (!out_.events.try_push(e)) ++out_.events_dropped;
 }
 
+const char* fault_text(std::uint8_t cause) noexcept {
+  switch (cause) {
+    case kFaultEStop: return "e-stop pressed: valve power off, outputs neutral until a fault reset once released";
+    default: return "fault";
+  }
+}
+
 // Commands were validated off the loop; here they only take effect. A set point leaves the soft
 // limits only through a step that the validator could not foresee: clamp it.
 void ControlLoop::apply_commands(double y_m) noexcept {
@@ -94,7 +101,17 @@ void ControlLoop::tick(double t_s) noexcept {
 
   // The e-stop latches the fault (safe output) until an explicit reset once it is released.
   estop_active_ = frame.estop;
-  if (estop_active_) mode_ = Mode::kFault;
+  if (estop_active_ && mode_ != Mode::kFault) {
+    mode_ = Mode::kFault;
+    LoopEvent e;
+    e.kind = LoopEvent::Kind::kFault;
+    e.stop_index = stops_;
+    e.t_s = t_s;
+    e.y_m = frame.y_m;
+    e.y_d_m = y_d_m_;
+    e.fault_cause = kFaultEStop;
+    push(e);
+  }
   apply_commands(frame.y_m);
   while (schedule_active_ && next_step_ < schedule_.size() && schedule_[next_step_].t_s <= t_s + 1e-9)
     y_d_m_ = schedule_[next_step_++].position_m;

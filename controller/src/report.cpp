@@ -104,6 +104,12 @@ void RunReport::on_event(const LoopEvent& e) {
     stops_.push_back(s);
     return;
   }
+  if (e.kind == LoopEvent::Kind::kFault) {
+    if (events_)
+      *events_ << "{\"event\":\"fault\",\"t\":" << num(e.t_s, 12) << ",\"y\":" << num(e.y_m, 12)
+               << ",\"cause\":\"" << fault_text(e.fault_cause) << "\"}\n";
+    return;
+  }
   if (events_) {
     *events_ << "{\"event\":\"start\",\"t\":" << num(e.t_s, 12) << ",\"stop\":" << e.stop_index
              << ",\"restart\":" << (e.restart ? "true" : "false") << ",\"direction\":" << e.direction

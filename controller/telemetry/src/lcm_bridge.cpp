@@ -80,6 +80,9 @@ void LcmBridge::on_event(const LoopEvent& e) {
   if (e.kind == LoopEvent::Kind::kStop) {
     m.kind = pneu_lcm::event_t::KIND_STOP;
     m.text = "stop";
+  } else if (e.kind == LoopEvent::Kind::kFault) {
+    m.kind = pneu_lcm::event_t::KIND_FAULT;
+    m.text = controller::fault_text(e.fault_cause);
   } else if (e.restart) {
     m.kind = pneu_lcm::event_t::KIND_RESTART;
     m.text = "restart after a stop, set point unchanged";

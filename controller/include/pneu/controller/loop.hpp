@@ -41,9 +41,10 @@ struct TickRecord {
   std::uint32_t sensor_validity = 0;  ///< hal::SensorValidity flags of the sample
 };
 
-/// A start or stop of the carriage, with the snapshot the predictor needs at a stop.
+/// A start or stop of the carriage (with the snapshot the predictor needs at a stop), or a fault
+/// latched by the loop (cause: FaultCause).
 struct LoopEvent {
-  enum class Kind : std::uint8_t { kStop, kStart };
+  enum class Kind : std::uint8_t { kStop, kStart, kFault };
   Kind kind = Kind::kStop;
   std::uint64_t stop_index = 0;  ///< stops are numbered from 1; a start refers to the last stop (0: none)
   double t_s = 0.0;              ///< backdated to the signals (see StopDetector) [s]
@@ -53,7 +54,12 @@ struct LoopEvent {
   bool restart = false;          ///< start: the set point did not change since the stop
   int direction = 0;             ///< start: +1 / -1
   StopSnapshot snapshot;         ///< stop: state at confirmation, u* of Eq. 11
+  std::uint8_t fault_cause = 0;  ///< fault: FaultCause
 };
+
+/// Why the loop latched a fault.
+enum FaultCause : std::uint8_t { kFaultNone = 0, kFaultEStop = 1 };
+[[nodiscard]] const char* fault_text(std::uint8_t cause) noexcept;
 
 
 /// A validated command for the loop (see CommandValidator).
