@@ -324,3 +324,43 @@ TEST(TimingStats, ValuesOutsideTheHistogramKeepExactExtremesAndQuantilesStayBetw
 }
 
 }  // namespace
+
+namespace {
+
+// A backend whose reads go stale on request (a module that stopped answering).
+class FlakyBackend final : public pneu::hal::Backend {
+ public:
+  void open(double) override {}
+  void close() noexcept override {}
+  pneu::hal::Status read(double t_s, pneu::hal::SensorFrame& frame) noexcept override {
+    frame = pneu::hal::SensorFrame{t_s, 0.2195, 3.4e5, 4.9e5, 0.0, false, 0};
+    if (!stale) return pneu::hal::Status::kOk;
+    frame.validity = pneu::hal::kSampleStale;
+    return pneu::hal::Status::kStale;
+  }
+  pneu::hal::Status write(const pneu::hal::ActuatorCommand&) noexcept override { return pneu::hal::Status::kOk; }
+  bool stale = false;
+};
+
+TEST(ControlLoop, CountsBackendFailuresAndHandsThemToHealth) {
+  auto config = pneu::config::load_string(pneu::config::default_config_yaml());
+  config.controller.schedule.clear();
+  FlakyBackend backend;
+  auto outputs = std::make_unique<pneu::controller::LoopOutputs>();
+  pneu::controller::ControlLoop loop(config, backend, *outputs);
+  pneu::controller::SimulatedClock clock;
+  pneu::controller::LoopTiming timing;
+  const std::atomic<bool> never{false};
+  int k = 0;
+  // 100 good ticks, then 50 stale ones; health every 50 ms.
+  pneu::controller::run_loop(loop, clock, 1e-3, 150, never, timing, [&] { backend.stale = ++k >= 100; }, 0.05,
+                             outputs.get());
+  EXPECT_EQ(loop.comms_errors(), 50u);
+  pneu::controller::HealthRecord h, last;
+  int n = 0;
+  while (outputs->health.try_pop(h)) last = h, ++n;
+  ASSERT_EQ(n, 3);
+  EXPECT_EQ(last.comms_errors, 50u) << "the last health period saw every failure so far";
+}
+
+}  // namespace

@@ -98,6 +98,7 @@ void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t de
       h.ticks_dropped = health->ticks_dropped;
       h.events_dropped = health->events_dropped;
       h.mode = loop.mode();
+      h.comms_errors = loop.comms_errors();
       (void)health->health.try_push(h);
       window_wake.reset();
       window_compute.reset();

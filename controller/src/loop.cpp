@@ -36,6 +36,7 @@ double ControlLoop::setpoint_at(double t_s) const noexcept {
 void ControlLoop::start(double t0_s) {
   backend_.open(t0_s);
   seq_ = 0;
+  comms_errors_ = 0;
   next_step_ = 0;
   stops_ = 0;
   y_d_m_ = config_.controller.initial_setpoint_m;
@@ -97,7 +98,7 @@ void ControlLoop::apply_commands(double y_m) noexcept {
 
 void ControlLoop::tick(double t_s) noexcept {
   hal::SensorFrame frame;
-  (void)backend_.read(t_s, frame);  // status and validity go to the supervisor (issue 6)
+  if (backend_.read(t_s, frame) != hal::Status::kOk) ++comms_errors_;  // counted for health
 
   // The e-stop latches the fault (safe output) until an explicit reset once it is released.
   estop_active_ = frame.estop;
@@ -122,7 +123,7 @@ void ControlLoop::tick(double t_s) noexcept {
   // Valve power follows the armed state; otherwise the outputs sit at the neutral voltage u_0.
   const bool armed = mode_ == Mode::kArmed;
   const double u = armed ? law_.control_v(y_d_m_, frame.y_m, v_hat, a_hat) : config_.controller.law.offset_v;
-  (void)backend_.write(hal::ActuatorCommand::from_control(u, armed));
+  if (backend_.write(hal::ActuatorCommand::from_control(u, armed)) != hal::Status::kOk) ++comms_errors_;
   out_.setpoint_m.store(y_d_m_, std::memory_order_relaxed);
   out_.mode.store(static_cast<std::uint8_t>(mode_), std::memory_order_relaxed);
 

@@ -127,7 +127,7 @@ void LcmBridge::on_health(const controller::HealthRecord& h) {
     m.wake_latency_us[i] = h.wake_latency_s[i] * 1e6;
     m.compute_us[i] = h.compute_s[i] * 1e6;
   }
-  m.comms_errors = 0;  // the sim backend has no link to lose
+  m.comms_errors = static_cast<std::int64_t>(h.comms_errors);
   m.telemetry_dropped = static_cast<std::int64_t>(h.ticks_dropped + h.events_dropped + publish_errors_);
   m.commands_received = static_cast<std::int64_t>(c.received);
   m.commands_accepted = static_cast<std::int64_t>(c.accepted);

@@ -80,6 +80,7 @@ struct HealthRecord {
   double compute_s[4] = {};
   std::uint64_t ticks_dropped = 0;
   std::uint64_t events_dropped = 0;
+  std::uint64_t comms_errors = 0;  ///< backend reads and writes that did not return kOk, since start
   Mode mode = Mode::kArmed;
 };
 
@@ -114,6 +115,8 @@ class ControlLoop {
   [[nodiscard]] double setpoint_at(double t_s) const noexcept;
   [[nodiscard]] const ControlLaw& law() const noexcept { return law_; }
   [[nodiscard]] Mode mode() const noexcept { return mode_; }
+  /// Backend reads and writes that did not return kOk (stale samples, comms or device errors).
+  [[nodiscard]] std::uint64_t comms_errors() const noexcept { return comms_errors_; }
 
  private:
   void push(const LoopEvent& e) noexcept;
@@ -136,6 +139,7 @@ class ControlLoop {
   Mode mode_ = Mode::kArmed;
   bool schedule_active_ = true;  ///< a set-point command ends the configured schedule
   bool estop_active_ = false;
+  std::uint64_t comms_errors_ = 0;
 };
 
 }  // namespace pneu::controller
