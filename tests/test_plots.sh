@@ -1,35 +1,132 @@
 #!/usr/bin/env bash
-# The paper's two figures rendered from a recorded paper-scenario run (pneud's events and
-# trajectory) and from an LCM-style CSV directory is not needed here: the files must exist, be real
-# PNG/SVG of a sensible size, and carry what the figures are about.
-# Usage: test_plots.sh BUILD_BIN_DIR SOURCE_DIR   (exit 77: skipped, with the reason)
+# The paper's two figures (tools/plots/pneu_plots.py) rendered from a paper-scenario run: from
+# pneud's own output and from the same run laid out as pneu-log2csv writes an LCM log. The files
+# must exist, be real PNG/SVG of a sensible size, carry what the figures are about (areas, curve,
+# one stop marker per stop), and bad input must be refused with exit code 2.
+# Usage: test_plots.sh BUILD_BIN_DIR SOURCE_DIR   (exit 77: skipped, saying why)
 set -euo pipefail
 bin=$1
 src=$2
 py=/usr/bin/python3
-if ! "$py" -c "import matplotlib, yaml" 2>/dev/null; then
-  echo "SKIPPED: /usr/bin/python3 lacks matplotlib or yaml (Debian packages python3-matplotlib, python3-yaml)" >&2
+tool="$src/tools/plots/pneu_plots.py"
+if ! "$py" -c "import matplotlib, numpy, yaml" 2>/dev/null; then
+  echo "SKIPPED: $py lacks matplotlib, numpy or yaml (Debian packages python3-matplotlib," \
+       "python3-numpy, python3-yaml)" >&2
   exit 77
 fi
+fail() { echo "FAIL: $*" >&2; exit 1; }
+export PATH="$bin:$PATH"  # where the tool looks for pneu-plant when not told
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-"$bin/pneud" --set telemetry.enabled=false --quiet --events "$tmp/events.jsonl" --trajectory "$tmp/traj.csv"
-"$py" "$src/tools/plots/pneu_plots.py" --trajectory "$tmp/traj.csv" --events "$tmp/events.jsonl" \
-  --config "$src/config/sim.yaml" --pneu-plant "$bin/pneu-plant" --out-dir "$tmp/out" --name paper
-fail() { echo "FAIL: $*" >&2; exit 1; }
-for f in paper_time paper_plane; do
-  png="$tmp/out/$f.png"; svg="$tmp/out/$f.svg"
-  [ -s "$png" ] || fail "$png missing"
-  [ -s "$svg" ] || fail "$svg missing"
-  [ "$(head -c 8 "$png" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ] || fail "$png is not a PNG"
-  size=$(stat -c %s "$png")
-  [ "$size" -gt 20000 ] || fail "$png is only $size bytes"
-  # IHDR width and height, big-endian at bytes 16..23.
-  read -r w h < <("$py" -c "import struct,sys; d=open(sys.argv[1],'rb').read(24); print(*struct.unpack('>II', d[16:24]))" "$png")
-  [ "$w" -ge 600 ] && [ "$h" -ge 400 ] || fail "$png is ${w}x${h}"
-  grep -q "<svg" "$svg" || fail "$svg has no <svg>"
-done
-grep -q "no-restarting area" "$tmp/out/paper_plane.svg" || fail "the plane figure lacks the no-restarting area"
-grep -q "null-flow curve" "$tmp/out/paper_plane.svg" || fail "the plane figure lacks the null-flow curve"
-grep -q "forecast restart" "$tmp/out/paper_time.svg" || fail "the time figure lacks the forecast restarts"
-echo "plots: paper_time and paper_plane, PNG and SVG, ok"
+
+# The configuration as this build's pneud sees it (the source tree's sim.yaml may be newer than
+# the binaries); the run and both figures use it.
+"$bin/pneud" --set telemetry.enabled=false --check-config > "$tmp/config.yaml"
+"$bin/pneud" --config "$tmp/config.yaml" --quiet --events "$tmp/events.jsonl" --trajectory "$tmp/traj.csv"
+stops=$(grep -c '"event":"stop"' "$tmp/events.jsonl")
+[ "$stops" -ge 2 ] || fail "the paper run has $stops stops"
+
+check_figures() {  # DIR NAME
+  local dir=$1 name=$2 f png svg size w h
+  for f in "${name}_time" "${name}_plane"; do
+    png="$dir/$f.png"; svg="$dir/$f.svg"
+    [ -s "$png" ] || fail "$png missing"
+    [ -s "$svg" ] || fail "$svg missing"
+    [ "$(head -c 8 "$png" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ] || fail "$png is not a PNG"
+    size=$(stat -c %s "$png")
+    [ "$size" -gt 20000 ] || fail "$png is only $size bytes"
+    # IHDR: width and height, big-endian, at bytes 16..23.
+    read -r w h < <(od -An -tu1 -j16 -N8 "$png" | awk '{print $1*16777216+$2*65536+$3*256+$4, $5*16777216+$6*65536+$7*256+$8}')
+    [ "$w" -ge 800 ] && [ "$w" -le 3000 ] && [ "$h" -ge 600 ] && [ "$h" -le 3000 ] || fail "$png is ${w}x${h}"
+    grep -q "<svg" "$svg" || fail "$svg has no <svg>"
+    ! grep -q "<dc:date>" "$svg" || fail "$svg carries a date (not reproducible)"
+  done
+  grep -q "no-restarting area" "$dir/${name}_plane.svg" || fail "the plane figure lacks the no-restarting area"
+  grep -q "stop area" "$dir/${name}_plane.svg" || fail "the plane figure lacks the stop area"
+  grep -q "null-flow curve" "$dir/${name}_plane.svg" || fail "the plane figure lacks the null-flow curve"
+  grep -q "forecast restart, linearized" "$dir/${name}_time.svg" || fail "the time figure lacks the linearized forecasts"
+  grep -q "forecast restart, nonlinear" "$dir/${name}_time.svg" || fail "the time figure lacks the nonlinear forecasts"
+  grep -q "actual restart" "$dir/${name}_time.svg" || fail "the time figure lacks the actual restarts"
+  # Each stop is numbered in the time figure's zoom: the labels 1..N are there.
+  for ((i = 1; i <= stops; i++)); do
+    grep -q ">$i</text>" "$dir/${name}_time.svg" || fail "the time figure lacks the label of stop $i"
+  done
+}
+
+# 1. pneud's output; pneu-plant found on PATH.
+"$py" "$tool" --trajectory "$tmp/traj.csv" --events "$tmp/events.jsonl" --config "$tmp/config.yaml" \
+  --out-dir "$tmp/out" --name paper || fail "pneu_plots.py failed on pneud's output"
+check_figures "$tmp/out" paper
+
+# Reproducible SVG: a second rendering is byte-identical.
+"$py" "$tool" --trajectory "$tmp/traj.csv" --events "$tmp/events.jsonl" --config "$tmp/config.yaml" \
+  --pneu-plant "$bin/pneu-plant" --out-dir "$tmp/again" --name paper > /dev/null
+cmp -s "$tmp/out/paper_plane.svg" "$tmp/again/paper_plane.svg" || fail "two renderings of the plane SVG differ"
+
+# 2. The same run as pneu-log2csv lays out an LCM log (column sets of lcmtypes/*.lcm), with a
+#    null-flow curve given as a file.
+"$py" - "$tmp" <<'EOF'
+import csv, json, math, sys
+tmp = sys.argv[1]
+d = f"{tmp}/log"
+import os; os.makedirs(d)
+with open(f"{tmp}/traj.csv") as f, open(f"{d}/RUN1_STATE.csv", "w", newline="") as o:
+    w = csv.writer(o)
+    w.writerow("log_utime,utime,seq,t,y_d,y,v_hat,a_hat,p_p,p_n,force,u,stuck,mode,validity".split(","))
+    for r in csv.DictReader(f):
+        us = 1_700_000_000_000_000 + round(float(r["t"]) * 1e6)
+        w.writerow([us + 50, us, r["seq"], r["t"], r["y_d"], r["y"], r["v_hat"], r["a_hat"], r["p_P"],
+                    r["p_N"], r["F"], r["u"], r["stuck"], 1, r["validity"]])
+ev = [json.loads(l) for l in open(f"{tmp}/events.jsonl")]
+with open(f"{d}/RUN1_EVENT.csv", "w", newline="") as o, open(f"{d}/RUN1_PREDICTION.csv", "w", newline="") as p:
+    we, wp = csv.writer(o), csv.writer(p)
+    we.writerow("log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,text".split(","))
+    wp.writerow(("log_utime,utime,t,stop,t_stop,method,method_name,will_restart,direction,t_restart,"
+                 "u_star,equilibrium_force,p_p_equilibrium,p_n_equilibrium,tau_p,tau_n,min_margin,"
+                 "horizon_reached").split(","))
+    for e in ev:
+        us = 1_700_000_000_000_000 + round(e["t"] * 1e6)
+        k = e["event"]
+        if k == "start":
+            name = "restart" if e["restart"] else "start"
+            we.writerow([us, us, 2 if e["restart"] else 1, name, e["t"], e["stop"], e["y"], "",
+                         e["y_d"], e["direction"], 'left rest, "quoted", with a comma\nand a newline'])
+        elif k == "stop":
+            we.writerow([us, us, 3, "stop", e["t"], e["stop"], e["y"], e["force"], e["y_d"], 0, ""])
+        elif k == "end":
+            we.writerow([us, us, 7, "end", e["t"], 0, "", "", "", 0, ""])
+        elif k == "prediction":
+            m = e["method"]
+            wp.writerow([us, us, e["t"], e["stop"], e["t_stop"], 1 if m == "linearized" else 2, m,
+                         int(e["will_restart"]), e["direction"],
+                         "" if e["t_restart"] is None else e["t_restart"], e["u_star"],
+                         e["equilibrium_force"], "", "", e["tau_p"], e["tau_n"], e["min_margin"],
+                         int(e["horizon_reached"])])
+EOF
+"$bin/pneu-plant" null-flow --config "$tmp/config.yaml" --out "$tmp/null_flow.csv"
+"$py" "$tool" --log-csv "$tmp/log" --prefix RUN1_ --config "$tmp/config.yaml" \
+  --null-flow "$tmp/null_flow.csv" --out-dir "$tmp/out_lcm" --name lcm || fail "pneu_plots.py failed on the LCM CSVs"
+check_figures "$tmp/out_lcm" lcm
+
+# 3. Bad input is refused with exit code 2 and a message naming the problem.
+expect_refusal() {  # WHAT PATTERN ARGS...
+  local what=$1 pattern=$2 rc=0
+  shift 2
+  "$py" "$tool" "$@" --out-dir "$tmp/bad" > "$tmp/bad.out" 2> "$tmp/bad.err" || rc=$?
+  [ "$rc" -eq 2 ] || fail "$what: exit code $rc, expected 2"
+  grep -q -- "$pattern" "$tmp/bad.err" || fail "$what: the message does not say '$pattern': $(cat "$tmp/bad.err")"
+}
+expect_refusal "a missing trajectory" "no such file" --trajectory "$tmp/nothing.csv" \
+  --events "$tmp/events.jsonl" --config "$tmp/config.yaml" --null-flow "$tmp/null_flow.csv"
+cut -d, -f1-8 "$tmp/traj.csv" > "$tmp/short.csv"
+expect_refusal "a trajectory without F, u, stuck" "missing column(s) F, u, stuck" --trajectory "$tmp/short.csv" \
+  --events "$tmp/events.jsonl" --config "$tmp/config.yaml" --null-flow "$tmp/null_flow.csv"
+expect_refusal "a missing log directory" "no such directory" --log-csv "$tmp/nowhere" \
+  --config "$tmp/config.yaml" --null-flow "$tmp/null_flow.csv"
+expect_refusal "a wrong prefix" "PNEU_STATE.csv" --log-csv "$tmp/log" \
+  --config "$tmp/config.yaml" --null-flow "$tmp/null_flow.csv"
+expect_refusal "both inputs" "not both" --log-csv "$tmp/log" --trajectory "$tmp/traj.csv" \
+  --events "$tmp/events.jsonl"
+[ ! -e "$tmp/bad" ] || [ -z "$(ls -A "$tmp/bad")" ] || fail "a refused run left files in its --out-dir"
+
+echo "plots: $stops stops; paper_time and paper_plane (PNG and SVG) from pneud's output and from LCM CSVs; bad input refused"

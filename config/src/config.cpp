@@ -256,6 +256,7 @@ ControllerConfig read_controller(MapReader r, const plant::PlantParams& plant) {
           r.child_path("setpoints.schedule[" + std::to_string(i) + "].position_m"),
           "must lie within the soft limits [" + fmt(c.soft_limit_min_m) + ", " + fmt(c.soft_limit_max_m) + "] m");
   c.start_armed = r.boolean("start_armed");
+  c.comms_fault_after_s = in_range(r, "comms_fault_after_s", 0.0, 10.0);
   r.finish();
   return c;
 }
@@ -607,6 +608,7 @@ std::string to_yaml(const Config& c) {
   kv("soft_limit_min_m", k.soft_limit_min_m);
   kv("soft_limit_max_m", k.soft_limit_max_m);
   kv("start_armed", k.start_armed);
+  kv("comms_fault_after_s", k.comms_fault_after_s);
   e << YAML::EndMap;
   e << YAML::Key << "hal" << YAML::Value << YAML::BeginMap;
   kv("backend", c.hal.backend == BackendKind::kModbus ? "modbus" : "sim");

@@ -59,8 +59,8 @@ void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t de
                                 ? std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::llround(health_period_s / period_s)))
                                 : 0;
   std::uint64_t next_health = health_every;
+  loop.start(0.0);  // opens the backend (a connect, a first exchange) before time starts
   const double epoch = clock.now_s();
-  loop.start(0.0);
   std::uint64_t k = 0;  // deadline index: deadline k is at k * period (no accumulated rounding)
   while ((deadlines == 0 || k < deadlines) &&
          !stop_requested.load(std::memory_order_relaxed)) {

@@ -48,6 +48,11 @@ void ControlLoop::start(double t0_s) {
   (void)backend_.read(t0_s, frame);
   differentiator_.reset(frame.y_m);
   detector_.reset_at_rest(t0_s, frame.y_m);
+  detector_last_y_ = frame.y_m;
+  ticks_since_sample_ = 0;
+  bad_reads_in_a_row_ = 0;
+  comms_fault_reads_ = static_cast<std::uint64_t>(
+      std::ceil(config_.controller.comms_fault_after_s / config_.controller.period_s() - 1e-9));
   y_d_at_stop_m_ = y_d_m_;
 }
 
@@ -58,6 +63,7 @@ void ControlLoop::push(const LoopEvent& e) noexcept {
 const char* fault_text(std::uint8_t cause) noexcept {
   switch (cause) {
     case kFaultEStop: return "e-stop pressed: valve power off, outputs neutral until a fault reset once released";
+    case kFaultComms: return "sensor samples stale, invalid or lost (controller.comms_fault_after_s): valve power off until a fault reset with good samples";
     default: return "fault";
   }
 }
@@ -80,6 +86,8 @@ void ControlLoop::apply_commands(double y_m) noexcept {
       case LoopCommand::Kind::kArm:
         if (mode_ == Mode::kDisarmed) {
           mode_ = Mode::kArmed;
+          // Only what is measured from now on drives the valves: no stale derivative.
+          differentiator_.reset(y_m);
           // Bumpless: hold where the carriage is until told otherwise.
           y_d_m_ = std::clamp(y_m, c.soft_limit_min_m, c.soft_limit_max_m);
           schedule_active_ = false;
@@ -89,35 +97,53 @@ void ControlLoop::apply_commands(double y_m) noexcept {
         if (mode_ == Mode::kArmed) mode_ = Mode::kDisarmed;
         break;
       case LoopCommand::Kind::kFaultReset:
-        // The cause must be gone: a reset while the e-stop is still pressed keeps the fault.
-        if (mode_ == Mode::kFault && !estop_active_) mode_ = Mode::kDisarmed;
+        // The cause must be gone: a reset while the e-stop is still pressed, or while the
+        // samples are still bad, keeps the fault.
+        if (mode_ == Mode::kFault && !estop_active_ && bad_reads_in_a_row_ == 0) mode_ = Mode::kDisarmed;
         break;
     }
   }
 }
 
+void ControlLoop::latch_fault(std::uint8_t cause, double t_s, double y_m) noexcept {
+  if (mode_ == Mode::kFault) return;
+  mode_ = Mode::kFault;
+  LoopEvent e;
+  e.kind = LoopEvent::Kind::kFault;
+  e.stop_index = stops_;
+  e.t_s = t_s;
+  e.y_m = y_m;
+  e.y_d_m = y_d_m_;
+  e.fault_cause = cause;
+  push(e);
+}
+
 void ControlLoop::tick(double t_s) noexcept {
   hal::SensorFrame frame;
-  if (backend_.read(t_s, frame) != hal::Status::kOk) ++comms_errors_;  // counted for health
+  const bool read_ok = backend_.read(t_s, frame) == hal::Status::kOk && frame.valid();
+  if (!read_ok) ++comms_errors_;  // counted for health
+  bad_reads_in_a_row_ = read_ok ? 0 : bad_reads_in_a_row_ + 1;
 
-  // The e-stop latches the fault (safe output) until an explicit reset once it is released.
+  // The e-stop latches the fault (safe output) until an explicit reset once it is released; so
+  // do samples that stay bad (stale, link lost, out of range) for comms_fault_after_s.
   estop_active_ = frame.estop;
-  if (estop_active_ && mode_ != Mode::kFault) {
-    mode_ = Mode::kFault;
-    LoopEvent e;
-    e.kind = LoopEvent::Kind::kFault;
-    e.stop_index = stops_;
-    e.t_s = t_s;
-    e.y_m = frame.y_m;
-    e.y_d_m = y_d_m_;
-    e.fault_cause = kFaultEStop;
-    push(e);
-  }
+  if (estop_active_) latch_fault(kFaultEStop, t_s, frame.y_m);
+  if (bad_reads_in_a_row_ > comms_fault_reads_) latch_fault(kFaultComms, t_s, frame.y_m);
+  // Without a good sample, keep the last position: a stale or invalid value must not reach the
+  // differentiator or the detector.
+  if (!read_ok) frame.y_m = detector_last_y_;
   apply_commands(frame.y_m);
   while (schedule_active_ && next_step_ < schedule_.size() && schedule_[next_step_].t_s <= t_s + 1e-9)
     y_d_m_ = schedule_[next_step_++].position_m;
 
-  differentiator_.update(frame.y_m);
+  // Differentiate new samples only (a slow link repeats them), over the ticks since the last new
+  // one: the loop's period keeps the arrival jitter of the samples out of the derivatives.
+  ++ticks_since_sample_;
+  if (read_ok && frame.fresh) {
+    differentiator_.update(frame.y_m, static_cast<double>(ticks_since_sample_) * config_.controller.period_s());
+    ticks_since_sample_ = 0;
+  }
+  detector_last_y_ = frame.y_m;
   const double v_hat = differentiator_.velocity_m_per_s();
   const double a_hat = differentiator_.acceleration_m_per_s2();
   // Valve power follows the armed state; otherwise the outputs sit at the neutral voltage u_0.
@@ -142,6 +168,7 @@ void ControlLoop::tick(double t_s) noexcept {
       e.snapshot.p_p_pa = frame.p_p_pa;
       e.snapshot.p_n_pa = frame.p_n_pa;
       e.snapshot.u_v = law_.resting_control_v(y_d_m_, e.y_m);
+      e.controlled = mode_ == Mode::kArmed;
       e.snapshot.blocked_direction = e.y_m >= half_stroke_m_ - kEndStopTolerance_m    ? +1
                                      : e.y_m <= -half_stroke_m_ + kEndStopTolerance_m ? -1
                                                                                       : 0;

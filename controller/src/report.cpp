@@ -97,8 +97,9 @@ void RunReport::on_event(const LoopEvent& e) {
                << ",\"y\":" << num(e.y_m, 12) << ",\"force\":" << num(e.force_n)
                << ",\"y_d\":" << num(e.y_d_m) << "}\n";
     }
-    if (linearized_) s.linearized = predict_linearized(model_, s.snapshot);
-    if (nonlinear_) s.nonlinear = predict_nonlinear(model_, s.snapshot);
+    // Forecasts assume the law holds u* (Eq. 11): not when disarmed or faulted.
+    if (linearized_ && e.controlled) s.linearized = predict_linearized(model_, s.snapshot);
+    if (nonlinear_ && e.controlled) s.nonlinear = predict_nonlinear(model_, s.snapshot);
     if (s.linearized) write_prediction(s, *s.linearized);
     if (s.nonlinear) write_prediction(s, *s.nonlinear);
     stops_.push_back(s);

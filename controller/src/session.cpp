@@ -87,6 +87,7 @@ void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
       service.join();
       throw;
     }
+    run.loop->stop();  // the safe state first, before waiting for the service thread
     done.store(true, std::memory_order_release);
     service.join();
   }

@@ -20,12 +20,15 @@ file, missing column, malformed value), 1 anything else.
 
 import argparse
 import csv
+import io
+import itertools
 import json
 import math
 import os
 import shutil
 import subprocess
 import sys
+import textwrap
 import tempfile
 
 EXIT_BAD_INPUT = 2
@@ -71,7 +74,9 @@ def read_csv_columns(path, numeric, text=(), what="CSV"):
     """Returns {column: list} for the numeric columns (floats) and text columns (str)."""
     _require_file(path, what)
     with open(path, newline="", encoding="utf-8") as f:
-        rows = (line for line in f if not line.startswith("#"))
+        # comment lines may precede the header (pneu-plant's tables); quoted cells after it may
+        # span lines (pneu-log2csv's event text), so only leading comments are skipped
+        rows = itertools.dropwhile(lambda line: line.startswith("#"), f)
         reader = csv.reader(rows)
         try:
             header = [h.strip() for h in next(reader)]
@@ -289,8 +294,9 @@ def null_flow_curve(args, config_path):
 
 def default_config():
     here = os.path.dirname(os.path.realpath(__file__))
-    for c in (os.path.join(here, "..", "..", "config", "sim.yaml"),
-              os.path.join(here, "..", "share", "pneu", "config", "sim.yaml")):
+    for c in (os.path.join(here, "..", "..", "config", "sim.yaml"),  # the source tree
+              os.path.join(here, "..", "etc", "pneu", "sim.yaml"),    # installed in a prefix
+              "/etc/pneu/sim.yaml"):
         if os.path.isfile(c):
             return os.path.normpath(c)
     raise InputError("no configuration: pass --config FILE (the run's YAML configuration)")
@@ -352,13 +358,21 @@ def _interp(run, t, values):
 
 
 def _save(fig, out_dir, stem, dpi):
-    paths = []
-    for ext in ("png", "svg"):
-        path = os.path.join(out_dir, f"{stem}.{ext}")
-        meta = {"Date": None} if ext == "svg" else {"Software": None}
-        fig.savefig(path, dpi=dpi, metadata=meta)
-        paths.append(path)
-    return paths
+    """PNG (palette of 256 colours when Pillow allows: a third of the size) and SVG."""
+    png = os.path.join(out_dir, f"{stem}.png")
+    svg = os.path.join(out_dir, f"{stem}.svg")
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi, metadata={"Software": None})
+    try:
+        from PIL import Image
+        img = Image.open(io.BytesIO(buf.getvalue())).convert("RGB")
+        img.quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE) \
+            .save(png, optimize=True)
+    except (ImportError, AttributeError):  # no Pillow, or one older than 9.1: keep RGBA
+        with open(png, "wb") as f:
+            f.write(buf.getvalue())
+    fig.savefig(svg, metadata={"Date": None})
+    return [png, svg]
 
 
 def _event_markers(ax, run, phases, yscale):
@@ -398,28 +412,31 @@ def time_figure(run, bench, name, plt):
     for ax in axes:
         for i, (s, end, _) in enumerate(phases):
             ax.axvspan(s["t"], end, color=C_STUCK_SPAN, alpha=0.28, lw=0,
-                       label="sticking phase (stop to start)" if i == 0 else None)
+                       label="sticking phase (stop to start)" if i == 0 and ax is ax_y else None)
             ax.axvline(s["t"], color=C_STOP, lw=0.7, ls=":", alpha=0.8)
 
     ax_y.plot(run.t, run.y_d * 1e3, color=C_YD, lw=1.3, ls="--", label="set point y_d")
     ax_y.plot(run.t, run.y * 1e3, color=C_Y, lw=1.6, label="position y")
     _event_markers(ax_y, run, phases, 1e3)
     ax_y.set_ylabel("position [mm]")
-    ax_y.legend(loc="upper left", bbox_to_anchor=(0.09, 1.0), ncol=2, framealpha=0.92)
+    ax_y.legend(loc="lower left", bbox_to_anchor=(0.0, 1.02, 1.0, 0.2), mode="expand", ncol=3,
+                borderaxespad=0.0, framealpha=0.92)
 
     # Inset: the stops around the final set point, where millimetres matter.
     if run.stops:
         t_first = min(s["t"] for s in run.stops)
         t_last = max(end for _, end, _ in phases)
         span = max(t_last - t_first, 0.5)
-        t0, t1 = t_first - 0.15 * span, t_last + 0.2 * span
-        sel = (run.t >= t0) & (run.t <= t1)
-        ys = np.concatenate([run.y[sel], run.y_d[sel], [s["y"] for s in run.stops]]) * 1e3
+        t0 = max(t_first - 0.08 * span, float(run.t[0]))
+        t1 = min(t_last + 0.12 * span, float(run.t[-1]))
+        # the rest positions and the set points held meanwhile; the moving trajectory may clip
+        sel = (run.t >= t_first) & (run.t <= t_last)
+        ys = np.concatenate([run.y_d[sel], [s["y"] for s in run.stops]]) * 1e3
         lo, hi = float(np.nanmin(ys)), float(np.nanmax(ys))
         pad = max(0.15 * (hi - lo), 0.3)
         full_lo, full_hi = ax_y.get_ylim()
         if (hi - lo + 2 * pad) < 0.5 * (full_hi - full_lo):
-            ins = ax_y.inset_axes([0.42, 0.36, 0.56, 0.6])
+            ins = ax_y.inset_axes([0.36, 0.3, 0.62, 0.64])
             ins.plot(run.t, run.y_d * 1e3, color=C_YD, lw=1.1, ls="--")
             ins.plot(run.t, run.y * 1e3, color=C_Y, lw=1.4)
             for s, end, _ in phases:
@@ -430,7 +447,7 @@ def time_figure(run, bench, name, plt):
                              textcoords="offset points", fontsize=8, ha="right")
             ins.set_xlim(t0, t1)
             ins.set_ylim(lo - pad, hi + pad)
-            ins.set_title("zoom on the stops (numbered)", fontsize=8.5, pad=3)
+            ins.set_title("zoom on the stops (numbered) [mm]", fontsize=8.5, pad=3)
             ins.tick_params(labelsize=7.5)
             ins.set_facecolor("white")
             mark_inset(ax_y, ins, loc1=3, loc2=4, fc="none", ec="0.55", lw=0.7)
@@ -458,34 +475,37 @@ def time_figure(run, bench, name, plt):
     fig.suptitle(f"{name}: set-point step, sticking and restarting (cf. Brun et al. 2005, Fig. 8)\n"
                  f"{run.source}; stops, forecast restarts per method and actual restarts",
                  fontsize=11)
-    fig.tight_layout(rect=(0, 0, 1, 0.97))
+    fig.tight_layout(rect=(0, 0, 1, 0.965))
     return fig
 
 
 def _draw_areas(ax, bench, x_lo, x_hi):
+    """Eq. 13 (hatched, underneath) and Eq. 12 (opaque on top): the hatch shows where a stuck
+    carriage stays stuck although a sliding one would not have stopped."""
     import numpy as np
     xs = np.array([x_lo, x_hi])
-    ax.fill_between(xs, xs - bench.fs_pos, xs - bench.fs_neg, facecolor="none",
-                    edgecolor="#9a7d0a", hatch="///", lw=0.0, alpha=0.55, zorder=1,
-                    label=f"no-restarting area (Eq. 13): {bench.fs_neg:g} N <= x - y <= {bench.fs_pos:g} N")
-    ax.fill_between(xs, xs - bench.fc_pos, xs - bench.fc_neg, color="#aed6f1", alpha=0.55,
-                    lw=0, zorder=0.5,
+    ax.fill_between(xs, xs - bench.fs_pos, xs - bench.fs_neg, facecolor="#fcf3cf",
+                    edgecolor="#b7950b", hatch="////", lw=0.0, zorder=0.4,
+                    label=f"no-restarting area (Eq. 13): {bench.fs_neg:g} N <= x - y <= "
+                          f"{bench.fs_pos:g} N (it contains the stop area)")
+    ax.fill_between(xs, xs - bench.fc_pos, xs - bench.fc_neg, color="#d6eaf8", lw=0, zorder=0.5,
                     label=f"stop area (Eq. 12): {bench.fc_neg:g} N <= x - y <= {bench.fc_pos:g} N")
     for f, ls in ((bench.fs_pos, "-"), (bench.fs_neg, "-"), (bench.fc_pos, "--"), (bench.fc_neg, "--")):
         ax.plot(xs, xs - f, color="0.35", lw=0.8, ls=ls, zorder=1.5)
 
 
 def _label_band_lines(ax, bench, x_lo, x_hi, y_lo, y_hi):
-    """Writes F_S+/F_S-/F_C+/F_C- along their lines, where they cross the view."""
+    """Names the four lines x - y = F_S+/F_C+/F_C-/F_S- where they leave the view."""
     for f, text in ((bench.fs_pos, "F_S+"), (bench.fs_neg, "F_S-"), (bench.fc_pos, "F_C+"),
                     (bench.fc_neg, "F_C-")):
-        # the line y = x - f; put the label near the top or right edge of the view
-        x = min(x_hi - 0.02 * (x_hi - x_lo), y_hi - 0.03 * (y_hi - y_lo) + f)
+        # the line y = x - f: label it near the top edge, or the right edge if it leaves there
+        x = min(x_hi - 0.01 * (x_hi - x_lo), y_hi - 0.02 * (y_hi - y_lo) + f)
         y = x - f
         if x_lo < x < x_hi and y_lo < y < y_hi:
-            ax.annotate(f"x - y = {text}", (x, y), fontsize=7.2, color="0.2", ha="right",
-                        va="bottom", rotation=0, xytext=(-2, 1), textcoords="offset points",
-                        bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.75})
+            ax.annotate(f"x - y = {text}", (x, y), fontsize=7.2, color="0.15", ha="right",
+                        va="top", xytext=(-3, -2), textcoords="offset points", zorder=9,
+                        bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none",
+                              "alpha": 0.8})
 
 
 def _positive(v):
@@ -495,8 +515,9 @@ def _positive(v):
 def _equilibrium_point(bench, curve, prediction):
     """Complete equilibrium under u* (Eq. 11): (x_e, y_e), or None."""
     import numpy as np
-    if prediction.get("p_p_e") is not None and not math.isnan(prediction["p_p_e"]):
-        return bench.plane(prediction["p_p_e"], prediction["p_n_e"])
+    p_p_e = prediction.get("p_p_e")
+    if p_p_e is not None and not math.isnan(p_p_e):
+        return bench.plane(p_p_e, prediction["p_n_e"])
     u_star = prediction.get("u_star")
     if u_star is None or not (curve["u"][0] <= u_star <= curve["u"][-1]):
         return None
@@ -504,74 +525,95 @@ def _equilibrium_point(bench, curve, prediction):
             float(np.interp(u_star, curve["u"], curve["y"])))
 
 
+def _view(xs, ys, margin, min_span, min_aspect=0.62):
+    """Limits around the points; neither side shorter than min_aspect of the other so the
+    +45 degree bands still read as bands."""
+    import numpy as np
+    xs, ys = np.asarray(xs, dtype=float), np.asarray(ys, dtype=float)
+    x_lo, x_hi = float(np.nanmin(xs)), float(np.nanmax(xs))
+    y_lo, y_hi = float(np.nanmin(ys)), float(np.nanmax(ys))
+    span = max(x_hi - x_lo, y_hi - y_lo, min_span)
+    xc, yc = 0.5 * (x_lo + x_hi), 0.5 * (y_lo + y_hi)
+    sx = max(x_hi - x_lo, min_aspect * span) * (1 + 2 * margin)
+    sy = max(y_hi - y_lo, min_aspect * span) * (1 + 2 * margin)
+    return xc - sx / 2, xc + sx / 2, yc - sy / 2, yc + sy / 2
+
+
 def plane_figure(run, bench, curve, name, plt):
     import numpy as np
+    from matplotlib.patches import Rectangle
 
     x, y = bench.plane(run.p_p, run.p_n)
     phases = sticking_phases(run)
     longest = max(phases, key=lambda ph: ph[1] - ph[0]["t"]) if phases else None
-
-    fig, axes = plt.subplots(1, 2 if longest else 1, figsize=(12.0 if longest else 7.0, 7.2),
-                             squeeze=False)
-    axes = axes[0]
-
-    def view(xs, ys, margin, min_span):
-        xs, ys = np.asarray(xs), np.asarray(ys)
-        x_lo, x_hi = float(np.nanmin(xs)), float(np.nanmax(xs))
-        y_lo, y_hi = float(np.nanmin(ys)), float(np.nanmax(ys))
-        span = max(x_hi - x_lo, y_hi - y_lo, min_span)
-        # keep the aspect near 1 so the +45 degree bands look like bands
-        xc, yc = 0.5 * (x_lo + x_hi), 0.5 * (y_lo + y_hi)
-        sx = max(x_hi - x_lo, 0.62 * span) * (1 + 2 * margin)
-        sy = max(y_hi - y_lo, 0.62 * span) * (1 + 2 * margin)
-        return xc - sx / 2, xc + sx / 2, yc - sy / 2, yc + sy / 2
-
     band = bench.fs_pos - bench.fs_neg
-    main_view = view(x, y, 0.08, 1.6 * band)
-    panels = [(axes[0], main_view, "whole run")]
+
+    # Panels: the whole run; the longest sticking phase; a close-up of how that phase ends.
+    panels = [{"view": _view(x, y, 0.08, 1.6 * band), "phase": None,
+               "title": f"the whole record, t = {run.t[0]:g} to {run.t[-1]:g} s"}]
     if longest:
-        s, end, _ = longest
+        s, end, restart = longest
         sel = (run.t >= s["t"]) & (run.t <= end)
-        zx, zy = list(x[sel]), list(y[sel])
         pred = [p for p in run.predictions if p["stop"] == s["index"]]
         eq = _equilibrium_point(bench, curve, pred[0]) if pred else None
+        zx, zy = list(x[sel]), list(y[sel])
         if eq:
             zx.append(eq[0])
             zy.append(eq[1])
-        zoom_view = view(zx, zy, 0.12, 0.35 * band)
-        panels.append((axes[1], zoom_view,
-                       f"zoom: sticking phase {s['index']}, {end - s['t']:.3f} s at rest "
-                       f"(t = {s['t']:.3f} to {end:.3f} s)"))
+        panels.append({"view": _view(zx, zy, 0.14, 0.35 * band), "phase": longest,
+                       "title": f"sticking phase {s['index']}: {end - s['t']:.3f} s at rest "
+                                f"(t = {s['t']:.3f} to {end:.3f} s)"})
+        # close-up: the last tenth of the phase, its forecasts and the equilibrium it aims at
+        tail = sel & (run.t >= end - 0.1 * (end - s["t"]))
+        cx, cy = list(x[tail]), list(y[tail])
+        for p in pred:
+            if p["will_restart"] and p["t_restart"] is not None:
+                cx.append(_interp(run, p["t_restart"], x))
+                cy.append(_interp(run, p["t_restart"], y))
+        if eq:
+            cx.append(eq[0])
+            cy.append(eq[1])
+        what = "restart" if restart else "end"
+        panels.append({"view": _view(cx, cy, 0.3, 0.03 * band, min_aspect=0.8), "phase": longest,
+                       "title": f"close-up: the {what} of sticking phase {s['index']}"})
+
+    ncols = 2 if len(panels) > 1 else 1
+    fig, grid = plt.subplots(2, ncols, figsize=(12.0, 11.6) if ncols == 2 else (7.6, 11.6),
+                             squeeze=False)
+    cells = [grid[0, 0], grid[0, 1], grid[1, 0]] if ncols == 2 else [grid[0, 0]]
+    legend_ax = grid[1, 1] if ncols == 2 else grid[1, 0]
 
     moving = np.where(run.stuck, np.nan, 1.0)
-    stuck = np.where(run.stuck, 1.0, np.nan)
-    # let the stuck segments join their neighbours so the line has no gaps
-    stuck_ext = stuck.copy()
-    stuck_ext[:-1] = np.where(np.isnan(stuck[:-1]) & ~np.isnan(stuck[1:]), 1.0, stuck_ext[:-1])
-    stuck_ext[1:] = np.where(np.isnan(stuck[1:]) & ~np.isnan(stuck[:-1]), 1.0, stuck_ext[1:])
+    stuck = run.stuck.copy()
+    stuck[1:] |= run.stuck[:-1]  # each stuck stretch joins the samples either side: no gaps
+    stuck[:-1] |= run.stuck[1:]
+    stuck = np.where(stuck, 1.0, np.nan)
+    f_eq = curve["x"] - curve["y"]
+    inside = np.where((f_eq >= bench.fs_neg) & (f_eq <= bench.fs_pos), 1.0, np.nan)
 
-    for k, (ax, (x_lo, x_hi, y_lo, y_hi), title) in enumerate(panels):
-        pad = 10 * (x_hi - x_lo + y_hi - y_lo)
-        _draw_areas(ax, bench, x_lo - pad, x_hi + pad)
-        ax.plot(curve["x"], curve["y"], color="0.1", lw=1.0, ls="-.", zorder=2,
-                label="null-flow curve (S_P p_null(u), S_N p_null(-u) + S_r p_E)")
-        f_eq = curve["x"] - curve["y"]
-        inside = np.where((f_eq >= bench.fs_neg) & (f_eq <= bench.fs_pos), 1.0, np.nan)
-        ax.plot(curve["x"] * inside, curve["y"] * inside, color="0.1", lw=3.2, zorder=2,
-                solid_capstyle="butt", label="complete-equilibrium line (null flow, no restart)")
-        ax.plot(x * moving, y * moving, color=C_Y, lw=1.3, zorder=3, label="trajectory, moving")
-        ax.plot(x * stuck_ext, y * stuck_ext, color="#c0392b", lw=2.0, zorder=3.5,
-                label="trajectory, stuck (pressures drift at rest)")
-        ax.plot(x[0], y[0], "s", color="0.3", ms=6, mfc="white", mew=1.3, zorder=6,
-                label=f"start of the run (t = {run.t[0]:g} s)")
+    for k, (ax, panel) in enumerate(zip(cells, panels)):
+        x_lo, x_hi, y_lo, y_hi = panel["view"]
+        ax.set_xlim(x_lo, x_hi)
+        ax.set_ylim(y_lo, y_hi)
         first = set()
 
-        def label(key, text):
+        def label(key, text, first=first):
             if key in first:
                 return None
             first.add(key)
             return text
 
+        pad = 10 * (x_hi - x_lo + y_hi - y_lo)
+        _draw_areas(ax, bench, x_lo - pad, x_hi + pad)
+        ax.plot(curve["x"], curve["y"], color="0.1", lw=1.0, ls="-.", zorder=2,
+                label="null-flow curve (S_P p_null(u), S_N p_null(-u) + S_r p_E)")
+        ax.plot(curve["x"] * inside, curve["y"] * inside, color="0.1", lw=3.2, zorder=2,
+                solid_capstyle="butt", label="complete-equilibrium line (null flow, no restart)")
+        ax.plot(x * moving, y * moving, color=C_Y, lw=1.3, zorder=3, label="trajectory, moving")
+        ax.plot(x * stuck, y * stuck, color="#c0392b", lw=2.0, zorder=3.5,
+                label="trajectory, stuck (the pressures drift at rest)")
+        ax.plot(x[0], y[0], "s", color="0.3", ms=6, mfc="white", mew=1.3, zorder=6,
+                label=f"start of the run (t = {run.t[0]:g} s)")
         for s in run.stops:
             xs, ys = _interp(run, s["t"], x), _interp(run, s["t"], y)
             ax.plot(xs, ys, "o", color=C_STOP, ms=6.5, zorder=7, label=label("stop", "stop"))
@@ -582,58 +624,82 @@ def plane_figure(run, bench, curve, name, plt):
             if st["restart"]:
                 ax.plot(_interp(run, st["t"], x), _interp(run, st["t"], y), "x", color=C_RESTART,
                         ms=9, mew=2.0, zorder=8, label=label("restart", "actual restart"))
-        if k == 1:
-            s, end, _ = longest
-            # The forecasts of this stop: where the pressures were at each forecast restart time,
-            # the complete equilibrium the pressures head for, and the linearized path (Eq. 24).
-            for p in run.predictions:
-                if p["stop"] != s["index"] or not p["will_restart"] or p["t_restart"] is None:
-                    continue
+        for p in run.predictions:
+            if p["will_restart"] and p["t_restart"] is not None:
                 stl = _method_style(p["method"])
                 ax.plot(_interp(run, p["t_restart"], x), _interp(run, p["t_restart"], y),
                         stl["marker"], color=stl["color"], ms=8, mfc="none", mew=1.6, zorder=7.5,
-                        label=label(p["method"], stl["label"] + ",\n  on the trajectory at the forecast time"))
-            lin = next((p for p in run.predictions
-                        if p["stop"] == s["index"] and p["method"] == "linearized"), None)
+                        label=label(p["method"], stl["label"] + ": where the pressures were "
+                                    "at the forecast time"))
+        if panel["phase"]:
+            s, end, _ = panel["phase"]
+            pred = [p for p in run.predictions if p["stop"] == s["index"]]
             eq = _equilibrium_point(bench, curve, pred[0]) if pred else None
+            lin = next((p for p in pred if p["method"] == "linearized"), None)
             if eq and lin and _positive(lin.get("tau_p")) and _positive(lin.get("tau_n")):
                 # Eq. 24 from the pressures at the forecast (the stop's confirmation): each
                 # coordinate relaxes towards the equilibrium with its own time constant.
                 x_c, y_c = _interp(run, lin["t"], x), _interp(run, lin["t"], y)
-                s_grid = np.linspace(0.0, 6.0 * max(lin["tau_p"], lin["tau_n"]), 400)
+                s_grid = np.linspace(0.0, 8.0 * max(lin["tau_p"], lin["tau_n"]), 800)
                 ax.plot(eq[0] + (x_c - eq[0]) * np.exp(-s_grid / lin["tau_p"]),
                         eq[1] + (y_c - eq[1]) * np.exp(-s_grid / lin["tau_n"]),
                         color=METHOD_STYLE["linearized"]["color"], lw=1.2, ls="--", zorder=3.2,
-                        label="linearized forecast path (Eq. 24)")
+                        label=f"linearized forecast path of stop {s['index']} (Eq. 24)")
             if eq:
                 ax.plot(*eq, "*", color="#f39c12", mec="0.2", ms=15, zorder=7,
-                        label=f"complete equilibrium under u* = {pred[0]['u_star']:+.3f} V (Eq. 11)")
-            # time ticks along the stuck path
-            span = end - s["t"]
-            step = next(d for d in (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1, 2, 5, 10, 20, 60, 120, 300)
-                        if span / d <= 10)
-            for tt in np.arange(math.ceil(s["t"] / step) * step, end, step):
-                px, py = _interp(run, tt, x), _interp(run, tt, y)
-                ax.plot(px, py, "|", color="0.15", ms=7, zorder=6)
-                ax.annotate(f"{tt:g} s", (px, py), xytext=(5, -3), textcoords="offset points",
-                            fontsize=7, color="0.25", zorder=6)
-        ax.set_xlim(x_lo, x_hi)
-        ax.set_ylim(y_lo, y_hi)
+                        label=f"complete equilibrium of stop {s['index']}: null flow under "
+                              f"u* = {pred[0]['u_star']:+.4f} V (Eq. 11)")
+            # time along the stuck path, where it is in view; labels only where they do not crowd
+            in_view = (run.t >= s["t"]) & (run.t <= end) & (x > x_lo) & (x < x_hi) \
+                & (y > y_lo) & (y < y_hi)
+            if np.any(in_view):
+                t_a, t_b = float(run.t[in_view][0]), float(run.t[in_view][-1])
+                step = next((d for d in (0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.25,
+                                         0.5, 1, 2, 5, 10, 20, 60, 120, 300, 600, 1800, 3600)
+                             if (t_b - t_a) / d <= 16), 7200)
+                last = None
+                for tt in np.arange(math.ceil(t_a / step) * step, t_b, step):
+                    px, py = _interp(run, tt, x), _interp(run, tt, y)
+                    ax.plot(px, py, ".", color="0.1", ms=5, zorder=6,
+                            label=label("tick", "time along the stuck path (ticks)"))
+                    d = ax.transData.transform((px, py))
+                    if last is None or np.hypot(*(d - last)) > 34:
+                        ax.annotate(f"{tt:g} s", (px, py), xytext=(3, 4),
+                                    textcoords="offset points", fontsize=7.2, color="0.2",
+                                    zorder=6)
+                        last = d
         _label_band_lines(ax, bench, x_lo, x_hi, y_lo, y_hi)
         ax.set_xlabel("x = S_P p_P [N]")
         ax.set_ylabel("y = S_N p_N + S_r p_E [N]")
-        ax.set_title(title)
-        ax.legend(loc="upper left", framealpha=0.93, fontsize=7.4 if k == 0 else 7.2)
-    if longest:
-        from matplotlib.patches import Rectangle
-        x_lo, x_hi, y_lo, y_hi = panels[1][1]
-        axes[0].add_patch(Rectangle((x_lo, y_lo), x_hi - x_lo, y_hi - y_lo, fill=False,
-                                    ec="0.3", lw=1.0, ls="--", zorder=9))
+        ax.set_title(panel["title"])
+        if k + 1 < len(panels):  # where the next panel zooms in
+            nx_lo, nx_hi, ny_lo, ny_hi = panels[k + 1]["view"]
+            ax.add_patch(Rectangle((nx_lo, ny_lo), nx_hi - nx_lo, ny_hi - ny_lo, fill=False,
+                                   ec="0.2", lw=1.1, ls="--", zorder=9))
+            ax.annotate(f"panel {k + 2}", (nx_hi, ny_lo), xytext=(2, 2),
+                        textcoords="offset points", fontsize=7.5, zorder=9)
+        ax.annotate(f"{k + 1}", (0.985, 0.015), xycoords="axes fraction", ha="right",
+                    va="bottom", fontsize=11, fontweight="bold", zorder=10,
+                    bbox={"boxstyle": "circle,pad=0.2", "fc": "white", "ec": "0.3"})
+
+    handles, labels = {}, []
+    for ax in cells[:len(panels)]:
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            if lab not in handles:
+                handles[lab] = h
+                labels.append(lab)
+    legend_ax.axis("off")
+    legend_ax.legend([handles[lab] for lab in labels],
+                     [textwrap.fill(lab, 58, subsequent_indent="  ") for lab in labels],
+                     loc="center", fontsize=8.3, framealpha=1.0, borderpad=0.9, labelspacing=0.75,
+                     title="panels 1-3 (numbered in their lower right corners)",
+                     title_fontsize=8.8)
     fig.suptitle(f"{name}: the pressure-force plane (cf. Brun et al. 2005, Fig. 7, 10, 11); "
-                 f"F = x - y (Eq. 14)\n{run.source}; S_P = {bench.area_p * 1e4:.3f} cm^2, "
-                 f"S_N = {bench.area_n * 1e4:.3f} cm^2, S_r = {bench.area_rod * 1e4:.3f} cm^2, "
-                 f"p_E = {bench.p_e / 1e5:g} bar", fontsize=11)
-    fig.tight_layout(rect=(0, 0, 1, 0.95))
+                 f"the pressure force is F = x - y (Eq. 14)\n{run.source}; "
+                 f"S_P = {bench.area_p * 1e4:.3f} cm^2, S_N = {bench.area_n * 1e4:.3f} cm^2, "
+                 f"S_r = {bench.area_rod * 1e4:.3f} cm^2, p_E = {bench.p_e / 1e5:g} bar",
+                 fontsize=11)
+    fig.tight_layout(rect=(0, 0, 1, 0.955))
     return fig
 
 
@@ -642,7 +708,6 @@ def plane_figure(run, bench, curve, name, plt):
 
 def parse_args(argv):
     p = argparse.ArgumentParser(
-        prog="pneu_plots.py",
         description="Figures of a pneud run: time traces (Fig. 8) and the pressure-force plane "
                     "(Fig. 7/10/11) of Brun et al. 2005.")
     src = p.add_argument_group("input (one of)")
@@ -677,7 +742,10 @@ def parse_args(argv):
 def main(argv):
     args = parse_args(argv)  # argparse exits 2 on a bad command line
     try:
-        import numpy as np
+        try:
+            import numpy as np
+        except ImportError:
+            raise InputError("numpy is missing (Debian package python3-numpy)") from None
         plt = _setup_matplotlib()
         config_path = args.config or default_config()
         bench = Bench(config_path)

@@ -57,8 +57,13 @@ ModbusBackend::ModbusBackend(const config::ModbusConfig& modbus, const plant::Se
 ModbusBackend::~ModbusBackend() { close(); }
 
 std::string ModbusBackend::last_error() const {
-  (void)error_seq_.load(std::memory_order_acquire);
+  const std::lock_guard<std::mutex> lock(error_mutex_);  // the I/O thread's, never the loop's
   return last_error_;
+}
+
+void ModbusBackend::set_error(const std::string& why) {
+  const std::lock_guard<std::mutex> lock(error_mutex_);
+  last_error_ = why;
 }
 
 bool ModbusBackend::connect_once(std::string* why) noexcept {
@@ -72,7 +77,14 @@ bool ModbusBackend::connect_once(std::string* why) noexcept {
   }
   modbus_set_slave(ctx, cfg_.unit_id);
   const double to = cfg_.response_timeout_s;
-  modbus_set_response_timeout(ctx, static_cast<uint32_t>(to), static_cast<uint32_t>((to - std::floor(to)) * 1e6));
+  // The response timeout bounds the whole reply: libmodbus' byte timeout (500 ms by default)
+  // would otherwise let a garbled reply stall the I/O thread far longer.
+  if (modbus_set_response_timeout(ctx, static_cast<uint32_t>(to), static_cast<uint32_t>((to - std::floor(to)) * 1e6)) == -1 ||
+      modbus_set_byte_timeout(ctx, 0, 0) == -1) {
+    *why = std::string("cannot set the timeouts: ") + modbus_strerror(errno);
+    modbus_free(ctx);
+    return false;
+  }
   if (modbus_connect(ctx) == -1) {
     *why = std::string("cannot connect: ") + modbus_strerror(errno);
     modbus_free(ctx);
@@ -177,9 +189,11 @@ void ModbusBackend::io_thread() noexcept {
       if (connect_once(&why)) {
         link_up_.store(true, std::memory_order_relaxed);
       } else {
-        std::snprintf(last_error_, sizeof last_error_, "%s", why.c_str());
-        error_seq_.fetch_add(1, std::memory_order_release);
-        sleep_until_mono(mono_s() + backoff);
+        set_error(why);
+        // Back off in short slices so that close() never waits for a long back-off.
+        const double until = mono_s() + backoff;
+        while (running_.load(std::memory_order_relaxed) && mono_s() < until)
+          sleep_until_mono(std::min(until, mono_s() + 0.01));
         backoff = std::min(2.0 * backoff, cfg_.reconnect_max_s);
         continue;
       }
@@ -192,8 +206,7 @@ void ModbusBackend::io_thread() noexcept {
       // After a timeout or bad data libmodbus 3.1.6 may pair the next request with this late
       // reply (issue #255): close and reconnect rather than carry on desynchronised.
       counters_.errors.fetch_add(1, std::memory_order_relaxed);
-      std::snprintf(last_error_, sizeof last_error_, "%s", why.c_str());
-      error_seq_.fetch_add(1, std::memory_order_release);
+      set_error(why);
       disconnect();
       link_up_.store(false, std::memory_order_relaxed);
       continue;
@@ -207,12 +220,13 @@ void ModbusBackend::io_thread() noexcept {
 
 Status ModbusBackend::read(double t_s, SensorFrame& frame) noexcept {
   Sample s;
-  if (!sample_.load(s)) {
-    frame = SensorFrame{t_s, 0.0, 0.0, 0.0, 0.0, false, kSampleStale | kCommsError};
+  bool fresh = false;
+  if (!sample_.load(s, &fresh)) {
+    frame = SensorFrame{t_s, 0.0, 0.0, 0.0, 0.0, false, false, kSampleStale | kCommsError};
     return Status::kCommsError;
   }
   const double age = mono_s() - s.mono_s;
-  frame = SensorFrame{t_s - age, s.y_m, s.p_p_pa, s.p_n_pa, age, false, s.validity};
+  frame = SensorFrame{t_s - age, s.y_m, s.p_p_pa, s.p_n_pa, age, false, fresh, s.validity};
   if (age > counters_.max_age_s.load(std::memory_order_relaxed)) counters_.max_age_s.store(age, std::memory_order_relaxed);
   const bool up = link_up_.load(std::memory_order_relaxed);
   if (!up) frame.validity |= kCommsError;

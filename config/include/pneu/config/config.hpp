@@ -90,6 +90,8 @@ struct ControllerConfig {
   double soft_limit_min_m = -0.24;      ///< set points (and, later, positions) below are refused [m]
   double soft_limit_max_m = 0.24;       ///< ... and above [m]
   bool start_armed = true;              ///< armed at start-up (else disarmed until an ARM command)
+  /// Reads that are not ok (stale sample, lost link) for this long in a row latch a comms fault [s].
+  double comms_fault_after_s = 0.05;
 
   [[nodiscard]] double period_s() const noexcept { return 1.0 / rate_hz; }
 };

@@ -25,16 +25,19 @@ class Differentiator {
     v_hat_ = v_prev_ = a_hat_ = 0.0;
     primed_ = true;
   }
-  void update(double y_m) noexcept {
-    if (!primed_) {
-      reset(y_m);
+  void update(double y_m) noexcept { update(y_m, period_s_); }
+  /// One new sample `dt_s` after the previous one (a backend that delivers samples at its own
+  /// pace: the differences use the samples' own spacing).
+  void update(double y_m, double dt_s) noexcept {
+    if (!primed_ || !(dt_s > 0.0)) {
+      if (!primed_) reset(y_m);
       return;
     }
-    const double v_raw = (y_m - y_prev_) / period_s_;
+    const double v_raw = (y_m - y_prev_) / dt_s;
     y_prev_ = y_m;
     v_prev_ = v_hat_;
     v_hat_ += alpha_ * (v_raw - v_hat_);
-    const double a_raw = (v_hat_ - v_prev_) / period_s_;
+    const double a_raw = (v_hat_ - v_prev_) / dt_s;
     a_hat_ += alpha_ * (a_raw - a_hat_);
   }
   [[nodiscard]] double velocity_m_per_s() const noexcept { return v_hat_; }

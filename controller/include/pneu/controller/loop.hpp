@@ -54,11 +54,12 @@ struct LoopEvent {
   bool restart = false;          ///< start: the set point did not change since the stop
   int direction = 0;             ///< start: +1 / -1
   StopSnapshot snapshot;         ///< stop: state at confirmation, u* of Eq. 11
+  bool controlled = true;        ///< stop: the law was driving (armed), so u* applies and a forecast makes sense
   std::uint8_t fault_cause = 0;  ///< fault: FaultCause
 };
 
 /// Why the loop latched a fault.
-enum FaultCause : std::uint8_t { kFaultNone = 0, kFaultEStop = 1 };
+enum FaultCause : std::uint8_t { kFaultNone = 0, kFaultEStop = 1, kFaultComms = 2 };
 [[nodiscard]] const char* fault_text(std::uint8_t cause) noexcept;
 
 
@@ -121,6 +122,7 @@ class ControlLoop {
  private:
   void push(const LoopEvent& e) noexcept;
   void apply_commands(double y_m) noexcept;
+  void latch_fault(std::uint8_t cause, double t_s, double y_m) noexcept;
 
   const config::Config& config_;
   hal::Backend& backend_;
@@ -140,6 +142,10 @@ class ControlLoop {
   bool schedule_active_ = true;  ///< a set-point command ends the configured schedule
   bool estop_active_ = false;
   std::uint64_t comms_errors_ = 0;
+  std::uint64_t bad_reads_in_a_row_ = 0;
+  std::uint64_t comms_fault_reads_ = 0;  // bad reads in a row that latch the comms fault
+  std::uint64_t ticks_since_sample_ = 0;  // ticks since the differentiator took a new sample
+  double detector_last_y_ = 0.0;         // the last good position
 };
 
 }  // namespace pneu::controller

@@ -27,10 +27,13 @@ class StopDetector {
 
   /// Starts at rest at `y_m` (no event).
   void reset_at_rest(double t_s, double y_m) noexcept {
+    head_ = 0;  // forget any earlier run's samples
     stopped_ = true;
     anchor_t_s_ = t_s;
     anchor_y_m_ = y_m;
     last_rest_t_s_ = t_s;
+    still_sum_m_ = 0.0;
+    still_n_ = 1;
   }
 
   [[nodiscard]] StopDetectorEvent update(double t_s, double y_m) noexcept {
@@ -53,12 +56,19 @@ class StopDetector {
     if (distance > p_.rest_band_m) {  // still moving: this sample becomes the candidate
       anchor_t_s_ = t_s;
       anchor_y_m_ = y_m;
+      still_sum_m_ = 0.0;
+      still_n_ = 1;
       return StopDetectorEvent::kNone;
     }
+    still_sum_m_ += dy;  // deviations from the anchor: identical samples average to it exactly
+    ++still_n_;
     if (t_s - anchor_t_s_ >= p_.hold_s - 1e-9 * period_s_) {
       stopped_ = true;
       last_rest_t_s_ = t_s;
       event_t_s_ = anchor_t_s_;
+      // The rest position: the mean of the still samples, so that noise and ADC steps average out
+      // of y* (and of u* = K_y (y_d - y*) + u_0 the predictor uses); exact for ideal sensors.
+      anchor_y_m_ += still_sum_m_ / static_cast<double>(still_n_);
       event_y_m_ = anchor_y_m_;
       return StopDetectorEvent::kStop;
     }
@@ -112,6 +122,8 @@ class StopDetector {
   bool stopped_ = true;
   double anchor_t_s_ = 0.0, anchor_y_m_ = 0.0, last_rest_t_s_ = 0.0;
   double event_t_s_ = 0.0, event_y_m_ = 0.0;
+  double still_sum_m_ = 0.0;  // sum of the still samples' deviations from the anchor, while moving
+  long still_n_ = 0;
 };
 
 }  // namespace pneu::controller

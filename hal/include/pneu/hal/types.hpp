@@ -23,6 +23,7 @@ struct SensorFrame {
   double p_n_pa = 0.0;       ///< chamber N absolute pressure [Pa]
   double age_s = 0.0;        ///< age of the sample when the loop read it [s] (0 for the sim backend)
   bool estop = false;        ///< emergency-stop input active
+  bool fresh = true;         ///< a new sample since the last read (false: the same one again)
   std::uint32_t validity = kSensorsValid;  ///< SensorValidity flags; 0 = all readings valid
 
   [[nodiscard]] bool valid() const noexcept { return validity == kSensorsValid; }

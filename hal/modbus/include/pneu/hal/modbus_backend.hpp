@@ -8,6 +8,7 @@
 #include <atomic>
 #include <cstdint>
 #include <string>
+#include <mutex>
 #include <thread>
 
 #include "pneu/config/config.hpp"
@@ -69,8 +70,9 @@ class ModbusBackend final : public Backend {
   std::thread thread_;
   ModbusCounters counters_;
   int read_start_ = 0, read_count_ = 0, write_start_ = 0, write_count_ = 0;
-  char last_error_[160] = {};
-  std::atomic<std::uint32_t> error_seq_{0};
+  void set_error(const std::string& why);
+  mutable std::mutex error_mutex_;  // taken by the I/O thread and by readers of last_error()
+  std::string last_error_;
 };
 
 }  // namespace pneu::hal
