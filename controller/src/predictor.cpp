@@ -28,8 +28,9 @@ double excess(const Bounds& b, double force) noexcept {
   return std::max(force - b.upper_n, b.lower_n - force);
 }
 
-double margin(const PredictorModel& m, double force) noexcept {
-  return std::min(m.friction.static_positive_n - force, force - m.friction.static_negative_n);
+// Distance to the nearer bound the carriage can cross (an end stop blocks one of them).
+double margin(const Bounds& b, double force) noexcept {
+  return std::min(b.upper_n - force, force - b.lower_n);
 }
 
 struct Common {
@@ -126,7 +127,7 @@ Prediction predict_linearized(const PredictorModel& m, const StopSnapshot& s) no
   // a time constant is infinite, in which case that term stays.
   const double f_inf = (std::isinf(tp) ? a : 0.0) + (std::isinf(tn) ? bb : 0.0) + cc;
   double seg_start = 0.0, f_start = f0;
-  double min_margin = margin(m, f0);
+  double min_margin = margin(b, f0);
   const double ends[2] = {x_ext > 0.0 ? x_ext : -1.0, std::numeric_limits<double>::infinity()};
   for (double seg_end : ends) {
     if (seg_end < 0.0) continue;
@@ -144,7 +145,7 @@ Prediction predict_linearized(const PredictorModel& m, const StopSnapshot& s) no
       mark_restart(p, s, x, force(x), b);
       return p;
     }
-    min_margin = std::min(min_margin, margin(m, f_end));
+    min_margin = std::min(min_margin, margin(b, f_end));
     seg_start = seg_end;
     f_start = f_end;
   }
@@ -183,7 +184,7 @@ Prediction predict_nonlinear(const PredictorModel& m, const StopSnapshot& s) noe
     return p;
   }
   const double pe_p = p.p_p_equilibrium_pa, pe_n = p.p_n_equilibrium_pa;
-  double min_margin = margin(m, f);
+  double min_margin = margin(b, f);
   double t = 0.0;
   constexpr double kStepFraction = 0.1;  // of the local time constant: RK4 error << 1e-6 relative
   constexpr double kMaxStep_s = 0.01;
@@ -196,7 +197,7 @@ Prediction predict_nonlinear(const PredictorModel& m, const StopSnapshot& s) noe
     // Once no restart is possible, go on only while the box could still hold a smaller margin
     // than the one already met (after an overshoot the box corner lingers near a bound).
     if (f_lo > b.lower_n && f_hi < b.upper_n) {
-      const double box_margin = std::min(margin(m, f_lo), margin(m, f_hi));
+      const double box_margin = std::min(margin(b, f_lo), margin(b, f_hi));
       if (box_margin >= min_margin - kMarginTolerance_n) {
         p.min_margin_n = std::min(min_margin, box_margin);
         return p;
@@ -213,7 +214,7 @@ Prediction predict_nonlinear(const PredictorModel& m, const StopSnapshot& s) noe
       mark_restart(p, s, t + th * h, force(rk4(x, th * h)), b);
       return p;
     }
-    min_margin = std::min(min_margin, margin(m, f1));
+    min_margin = std::min(min_margin, margin(b, f1));
     x = x1;
     f = f1;
     t += h;
@@ -226,6 +227,11 @@ Prediction predict_nonlinear(const PredictorModel& m, const StopSnapshot& s) noe
 Prediction predict(PredictionMethod method, const PredictorModel& model, const StopSnapshot& stop) noexcept {
   return method == PredictionMethod::kLinearized ? predict_linearized(model, stop)
                                                  : predict_nonlinear(model, stop);
+}
+
+bool snapshot_is_finite(const StopSnapshot& s) noexcept {
+  return std::isfinite(s.t_s) && std::isfinite(s.y_m) && std::isfinite(s.p_p_pa) && std::isfinite(s.p_n_pa) &&
+         std::isfinite(s.u_v);
 }
 
 }  // namespace pneu::controller

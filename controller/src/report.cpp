@@ -32,9 +32,9 @@ Verdict judge(const StopOutcome& s, const Prediction& p, double t_end_s) noexcep
       v.error_percent = 100.0 * std::abs(v.error_s) / std::max(s.sticking_s(), 1e-9);
       v.direction_ok = p.direction == s.direction;
     }
-  } else if (predicted && t_end_s - p.t_restart_s < observation_tolerance_s(s)) {
-    // A restart forecast this close to the end of the run cannot be confirmed or refuted by the
-    // signals (a start is seen only once the carriage has moved): not judged.
+  } else if (p.will_restart && p.t_restart_s > t_end_s - observation_tolerance_s(s)) {
+    // A restart forecast after the end of the run, or this close to it, cannot be confirmed or
+    // refuted by the signals (a start is seen only once the carriage has moved): not judged.
   } else {
     v.kind = predicted ? Verdict::Kind::kFalsePositive : Verdict::Kind::kTrueNegative;
   }
@@ -98,8 +98,9 @@ void RunReport::on_event(const LoopEvent& e) {
                << ",\"y_d\":" << num(e.y_d_m) << "}\n";
     }
     // Forecasts assume the law holds u* (Eq. 11): not when disarmed or faulted.
-    if (linearized_ && e.controlled) s.linearized = predict_linearized(model_, s.snapshot);
-    if (nonlinear_ && e.controlled) s.nonlinear = predict_nonlinear(model_, s.snapshot);
+    const bool forecastable = e.controlled && snapshot_is_finite(s.snapshot);
+    if (linearized_ && forecastable) s.linearized = predict_linearized(model_, s.snapshot);
+    if (nonlinear_ && forecastable) s.nonlinear = predict_nonlinear(model_, s.snapshot);
     if (s.linearized) write_prediction(s, *s.linearized);
     if (s.nonlinear) write_prediction(s, *s.nonlinear);
     stops_.push_back(s);

@@ -58,7 +58,7 @@ struct ScenarioResult {
 };
 
 struct MethodStats {
-  std::uint64_t tp = 0, tn = 0, fp = 0, fn = 0, wrong_direction = 0, misses = 0;
+  std::uint64_t tp = 0, tn = 0, fp = 0, fn = 0, not_judged = 0, wrong_direction = 0, misses = 0;
   std::vector<double> long_error_pct;  // sticking >= 0.5 s
   std::vector<double> short_error_ms;  // shorter
 };
@@ -123,6 +123,8 @@ int run(int argc, char** argv) {
   if (!(duration > step_time && step_time >= 0)) throw cli::UsageError("--duration must exceed --step-time >= 0");
   if (!(margin >= 0 && 2 * margin + min_step < 2 * half)) throw cli::UsageError("--margin-m leaves no room in the stroke");
   if (!(min_step >= 0)) throw cli::UsageError("--min-step-m must be >= 0");
+  // Every target needs a start at least min_step away inside [lo, hi]: the mid-range one too.
+  if (!(min_step < half - margin)) throw cli::UsageError("--min-step-m must be below half the usable stroke");
   if (!(friction_spread >= 0 && friction_spread < 1)) throw cli::UsageError("--friction-spread must be in [0, 1)");
   if (!(gain_spread >= 0 && gain_spread < 1)) throw cli::UsageError("--gain-spread must be in [0, 1)");
   if (!(tail >= 0)) throw cli::UsageError("--tail must be >= 0");
@@ -267,7 +269,7 @@ int run(int argc, char** argv) {
           case Verdict::Kind::kTrueNegative: ++st.tn; break;
           case Verdict::Kind::kFalsePositive: ++st.fp; break;
           case Verdict::Kind::kFalseNegative: ++st.fn; break;
-          case Verdict::Kind::kNotJudged: break;
+          case Verdict::Kind::kNotJudged: ++st.not_judged; break;
         }
         if (!ok) ++st.misses;
         const bool tp = v.kind == Verdict::Kind::kTruePositive;
@@ -297,6 +299,8 @@ int run(int argc, char** argv) {
                 static_cast<unsigned long long>(st.fp));
     std::printf("      forecast none      %14llu  %11llu\n", static_cast<unsigned long long>(st.fn),
                 static_cast<unsigned long long>(st.tn));
+    std::printf("    not judged: %llu (the set point moved, or the forecast restart falls after the run)\n",
+                static_cast<unsigned long long>(st.not_judged));
     std::printf("    wrong direction: %llu\n", static_cast<unsigned long long>(st.wrong_direction));
     std::printf("    error, sticking >= 0.5 s (%zu): p50 %.3f %%  p90 %.3f %%  p99 %.3f %%  max %.3f %% of the sticking time\n",
                 st.long_error_pct.size(), percentile(st.long_error_pct, 0.5), percentile(st.long_error_pct, 0.9),

@@ -48,8 +48,8 @@ struct Prediction {
   double p_n_equilibrium_pa = 0.0;    ///< p_null(-u*) [Pa]
   double tau_p_s = 0.0;               ///< time constant of chamber P, Eq. 23 [s]
   double tau_n_s = 0.0;               ///< time constant of chamber N, Eq. 23 [s]
-  /// Smallest distance of F(t) to the nearer stiction bound from the snapshot up to the restart
-  /// (or forever when none) [N]; 0 at a restart.
+  /// Smallest distance of F(t) to the nearer stiction bound it can cross (an end stop blocks
+  /// one) from the snapshot up to the restart, or forever when none [N]; 0 at a restart.
   double min_margin_n = 0.0;
   bool horizon_reached = false;       ///< nonlinear: undecided at the horizon, reported as no restart
 };
@@ -62,5 +62,8 @@ struct Prediction {
 [[nodiscard]] Prediction predict_nonlinear(const PredictorModel& model, const StopSnapshot& stop) noexcept;
 [[nodiscard]] Prediction predict(PredictionMethod method, const PredictorModel& model,
                                  const StopSnapshot& stop) noexcept;
+/// A forecast needs finite inputs: callers skip the predictors otherwise (a NaN pressure would
+/// read as "no restart").
+[[nodiscard]] bool snapshot_is_finite(const StopSnapshot& stop) noexcept;
 
 }  // namespace pneu::controller
