@@ -24,6 +24,7 @@ namespace {
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 using pneu::test::Child;
+using pneu::test::free_port;
 using pneu::test::Csv;
 using pneu::test::slurp;
 using ::testing::HasSubstr;
@@ -49,20 +50,6 @@ bool pymodbus_available() {
          0;
 }
 
-// A loopback port nobody listens on right now.
-int free_port() {
-  const int fd = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  a.sin_port = 0;
-  bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
-  socklen_t len = sizeof a;
-  getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
-  const int port = ntohs(a.sin_port);
-  close(fd);
-  return port;
-}
 
 // One valve command as the module recorded it: a run of equal (u_P, u_N) writes.
 struct ValveRun {
