@@ -154,7 +154,8 @@ void ControlLoop::tick(double t_s) noexcept {
   out_.mode.store(static_cast<std::uint8_t>(mode_), std::memory_order_relaxed);
 
   const double force = area_p_m2_ * frame.p_p_pa - area_n_m2_ * frame.p_n_pa - area_rod_m2_ * p_e_pa_;
-  switch (detector_.update(t_s, frame.y_m)) {
+  // Stops and starts are judged from good samples only (a snapshot must hold real pressures).
+  switch (read_ok ? detector_.update(t_s, frame.y_m) : StopDetectorEvent::kNone) {
     case StopDetectorEvent::kStop: {
       LoopEvent e;
       e.kind = LoopEvent::Kind::kStop;
