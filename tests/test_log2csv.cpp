@@ -24,6 +24,8 @@
 #include "pneu_lcm/prediction_t.hpp"
 #include "pneu_lcm/state_t.hpp"
 
+#include "support/child_process.hpp"
+
 namespace fs = std::filesystem;
 using ::testing::ContainsRegex;
 using ::testing::HasSubstr;
@@ -55,12 +57,7 @@ std::vector<std::uint8_t> encode(const T& msg) {
   return buf;
 }
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using pneu::test::slurp;
 
 // A CSV file read by RFC 4180: quoted cells may hold commas, doubled quotes and newlines.
 struct Csv {

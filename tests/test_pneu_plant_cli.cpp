@@ -16,6 +16,8 @@
 #include "pneu/sim_plant/plant.hpp"
 #include "pneu/sim_plant/valve_table.hpp"
 
+#include "support/child_process.hpp"
+
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 
@@ -27,12 +29,7 @@ struct Outcome {
   std::string err;
 };
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using pneu::test::slurp;
 
 class PneuPlantCli : public ::testing::Test {
  protected:

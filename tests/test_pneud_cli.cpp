@@ -17,6 +17,8 @@
 #include <string>
 #include <vector>
 
+#include "support/child_process.hpp"
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -29,12 +31,7 @@ struct Outcome {
   std::string err;
 };
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using pneu::test::slurp;
 
 std::vector<std::string> lines_of(const std::string& text) {
   std::vector<std::string> lines;

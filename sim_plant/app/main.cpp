@@ -214,6 +214,14 @@ std::vector<double> grid(double lo, double hi, double step, bool hold_zero) {
   return v;
 }
 
+// The voltage axis of --voltage-step-v (default `default_step_v`): -u_max .. u_max through 0.
+std::vector<double> voltage_grid(const cli::Args& args, const config::Config& cfg, double default_step_v) {
+  const double u_max = cfg.plant.valve.max_voltage_v;
+  const double dw = args.number("voltage-step-v", default_step_v);
+  if (!(dw > 0.0 && dw <= u_max)) throw cli::UsageError("--voltage-step-v must be in (0, u_max]");
+  return grid(-u_max, u_max, dw, true);
+}
+
 int characterize(int argc, char** argv) {
   const cli::Args args(argc, argv, 2, {"config", "out", "voltage-step-v", "pressure-step-pa"}, {"help"},
                        {"set"});
@@ -223,15 +231,13 @@ int characterize(int argc, char** argv) {
   }
   const config::Config cfg = config::load_file_or_default(args.value("config").value_or(""), args.all("set"));
   const std::string out_path = args.required("out");
-  const double u_max = cfg.plant.valve.max_voltage_v;
-  const double dw = args.number("voltage-step-v", 0.1);
+  const std::vector<double> voltages = voltage_grid(args, cfg, 0.1);
   const double dp = args.number("pressure-step-pa", 2000.0);
-  if (!(dw > 0.0 && dw <= u_max)) throw cli::UsageError("--voltage-step-v must be in (0, u_max]");
   const double p_e = cfg.plant.gas.exhaust_pressure_pa, p_s = cfg.plant.gas.supply_pressure_pa;
   if (!(dp > 0.0 && dp <= p_s - p_e)) throw cli::UsageError("--pressure-step-pa must be in (0, p_S - p_E]");
 
   const plant::ValveModel model(cfg.plant.valve, cfg.plant.gas);
-  const auto table = plant::ValveTable::sample(model, grid(-u_max, u_max, dw, true), grid(p_e, p_s, dp, false));
+  const auto table = plant::ValveTable::sample(model, voltages, grid(p_e, p_s, dp, false));
   cli::AtomicFile out(out_path);
   table.write(out.stream());
   out.commit();
@@ -254,16 +260,14 @@ int null_flow(int argc, char** argv) {
   }
   const config::Config cfg = config::load_file_or_default(args.value("config").value_or(""), args.all("set"));
   const std::string out_path = args.required("out");
-  const double u_max = cfg.plant.valve.max_voltage_v;
-  const double dw = args.number("voltage-step-v", 0.01);
-  if (!(dw > 0.0 && dw <= u_max)) throw cli::UsageError("--voltage-step-v must be in (0, u_max]");
+  const std::vector<double> voltages = voltage_grid(args, cfg, 0.01);
   const plant::ValveModel valve(cfg.plant.valve, cfg.plant.gas);
   const auto& g = cfg.plant.geometry;
   const double p_e = cfg.plant.gas.exhaust_pressure_pa;
   cli::AtomicFile out(out_path);
   auto& os = out.stream();
   os << "u_v,p_null_p_pa,p_null_n_pa,x_n,y_n,equilibrium_force_n\n" << std::setprecision(10);
-  for (double w : grid(-u_max, u_max, dw, true)) {
+  for (double w : voltages) {
     const double pp = valve.null_pressure_pa(w), pn = valve.null_pressure_pa(-w);
     const double x = g.area_p_m2() * pp, y = g.area_n_m2() * pn + g.area_rod_m2() * p_e;
     os << w << ',' << pp << ',' << pn << ',' << x << ',' << y << ',' << x - y << '\n';

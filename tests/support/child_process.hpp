@@ -26,7 +26,7 @@ namespace pneu::test {
 namespace fs = std::filesystem;
 
 inline std::string slurp(const fs::path& p) {
-  std::ifstream in(p);
+  std::ifstream in(p, std::ios::binary);
   std::stringstream ss;
   ss << in.rdbuf();
   return ss.str();
