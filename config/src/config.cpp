@@ -257,6 +257,48 @@ ControllerConfig read_controller(MapReader r, const plant::PlantParams& plant) {
           "must lie within the soft limits [" + fmt(c.soft_limit_min_m) + ", " + fmt(c.soft_limit_max_m) + "] m");
   c.start_armed = r.boolean("start_armed");
   c.comms_fault_after_s = in_range(r, "comms_fault_after_s", 0.0, 10.0);
+  {
+    MapReader s = r.map("supervisor");
+    auto& v = c.supervisor;
+    v.position_min_m = s.number("position_min_m");
+    v.position_max_m = s.number("position_max_m");
+    check(v.position_max_m > v.position_min_m, s.child_path("position_max_m"), "must exceed position_min_m");
+    check(v.position_min_m <= -half && v.position_max_m >= half, s.child_path("position_min_m"),
+          "the range must contain the stroke [" + fmt(-half) + ", " + fmt(half) + "] m: a carriage at an end stop is not a fault");
+    v.pressure_min_pa = non_negative(s, "pressure_min_pa");
+    v.pressure_max_pa = positive(s, "pressure_max_pa");
+    check(v.pressure_max_pa > v.pressure_min_pa, s.child_path("pressure_max_pa"), "must exceed pressure_min_pa");
+    check(v.pressure_max_pa > plant.gas.supply_pressure_pa, s.child_path("pressure_max_pa"),
+          "must exceed the supply pressure (" + fmt(plant.gas.supply_pressure_pa) + " Pa): a chamber may reach it");
+    check(v.pressure_min_pa < plant.gas.exhaust_pressure_pa, s.child_path("pressure_min_pa"),
+          "must lie below the exhaust pressure (" + fmt(plant.gas.exhaust_pressure_pa) + " Pa): a chamber may reach it");
+    v.max_speed_m_per_s = non_negative(s, "max_speed_m_per_s");
+    v.frozen_after_s = in_range(s, "frozen_after_s", 0.0, 60.0);
+    v.following_error_m = positive(s, "following_error_m");
+    v.following_error_s = in_range(s, "following_error_s", 0.0, 600.0);
+    const long long k = s.integer("overruns_in_a_row");
+    check(k >= 0 && k <= 1000000, s.child_path("overruns_in_a_row"), "must be in [0, 1000000] (0 = off)");
+    v.overruns_in_a_row = static_cast<std::uint32_t>(k);
+    v.max_tick_interval_s = in_range(s, "max_tick_interval_s", 0.0, 10.0);
+    check(v.max_tick_interval_s == 0.0 || v.max_tick_interval_s > 1.0 / c.rate_hz, s.child_path("max_tick_interval_s"),
+          "must exceed the loop period (" + fmt(1.0 / c.rate_hz) + " s), or be 0 (off)");
+    const std::string safe = s.string("safe_output");
+    if (safe == "neutral") v.safe_output = SafeOutput::kNeutral;
+    else if (safe == "exhaust") v.safe_output = SafeOutput::kExhaust;
+    else throw ConfigError(s.child_path("safe_output"), "must be 'neutral' or 'exhaust' (got '" + safe + "')");
+    s.finish();
+  }
+  {
+    MapReader rt = r.map("realtime");
+    const long long prio = rt.integer("priority");
+    check(prio >= 0 && prio <= 99, rt.child_path("priority"), "must be in [0, 99] (0 = normal scheduling)");
+    c.realtime.priority = static_cast<int>(prio);
+    const long long cpu = rt.integer("cpu");
+    check(cpu >= -1 && cpu < 1024, rt.child_path("cpu"), "must be a CPU number, or -1 (no pinning)");
+    c.realtime.cpu = static_cast<int>(cpu);
+    c.realtime.lock_memory = rt.boolean("lock_memory");
+    rt.finish();
+  }
   r.finish();
   return c;
 }
@@ -281,6 +323,9 @@ CommandsConfig read_commands(MapReader r) {
   c.enabled = r.boolean("enabled");
   c.max_rate_hz = in_range(r, "max_rate_hz", 0.01, 1000.0);
   c.burst = in_range(r, "burst", 1.0, 1000.0);
+  c.max_age_s = in_range(r, "max_age_s", 0.001, 3600.0);
+  c.max_setpoint_step_m = positive(r, "max_setpoint_step_m");
+  c.setpoint_stream_timeout_s = in_range(r, "setpoint_stream_timeout_s", 0.0, 3600.0);
   r.finish();
   return c;
 }
@@ -609,6 +654,27 @@ std::string to_yaml(const Config& c) {
   kv("soft_limit_max_m", k.soft_limit_max_m);
   kv("start_armed", k.start_armed);
   kv("comms_fault_after_s", k.comms_fault_after_s);
+  {
+    const auto& v = k.supervisor;
+    e << YAML::Key << "supervisor" << YAML::Value << YAML::BeginMap;
+    kv("position_min_m", v.position_min_m);
+    kv("position_max_m", v.position_max_m);
+    kv("pressure_min_pa", v.pressure_min_pa);
+    kv("pressure_max_pa", v.pressure_max_pa);
+    kv("max_speed_m_per_s", v.max_speed_m_per_s);
+    kv("frozen_after_s", v.frozen_after_s);
+    kv("following_error_m", v.following_error_m);
+    kv("following_error_s", v.following_error_s);
+    kv("overruns_in_a_row", v.overruns_in_a_row);
+    kv("max_tick_interval_s", v.max_tick_interval_s);
+    kv("safe_output", v.safe_output == SafeOutput::kExhaust ? "exhaust" : "neutral");
+    e << YAML::EndMap;
+  }
+  e << YAML::Key << "realtime" << YAML::Value << YAML::BeginMap;
+  kv("priority", k.realtime.priority);
+  kv("cpu", k.realtime.cpu);
+  kv("lock_memory", k.realtime.lock_memory);
+  e << YAML::EndMap;
   e << YAML::EndMap;
   e << YAML::Key << "hal" << YAML::Value << YAML::BeginMap;
   kv("backend", c.hal.backend == BackendKind::kModbus ? "modbus" : "sim");
@@ -672,6 +738,9 @@ std::string to_yaml(const Config& c) {
   kv("enabled", c.commands.enabled);
   kv("max_rate_hz", c.commands.max_rate_hz);
   kv("burst", c.commands.burst);
+  kv("max_age_s", c.commands.max_age_s);
+  kv("max_setpoint_step_m", c.commands.max_setpoint_step_m);
+  kv("setpoint_stream_timeout_s", c.commands.setpoint_stream_timeout_s);
   e << YAML::EndMap;
   e << YAML::EndMap;
   return std::string(e.c_str()) + "\n";

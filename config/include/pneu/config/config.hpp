@@ -2,6 +2,7 @@
 // in the key names. A bad file is refused with the key path and the reason (ConfigError).
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <stdexcept>
 #include <string>
@@ -75,6 +76,39 @@ struct SetpointStep {
 
 enum class ClockKind { kSimulated, kReal };
 
+/// What the valves are driven to while a fault is latched (controller.supervisor.safe_output).
+enum class SafeOutput {
+  kNeutral,  ///< "neutral": both valves at the neutral voltage u_0 (u_P = u_0, u_N = -u_0): the
+             ///< chambers hold their pressures and the carriage its position
+  kExhaust,  ///< "exhaust": both valves at -u_max: both chambers vent, the cylinder goes limp
+};
+
+/// The supervisor's fault checks (controller.supervisor.*). A check set to 0 is off.
+struct SupervisorConfig {
+  double position_min_m = -0.255;   ///< a position reading below is out of range [m]
+  double position_max_m = 0.255;    ///< ... above [m]
+  double pressure_min_pa = 2.0e4;   ///< a pressure reading below is out of range [Pa abs]
+  double pressure_max_pa = 7.7e5;   ///< ... above [Pa abs]
+  /// Two successive samples further apart than this speed allows: the position sensor jumped
+  /// (a broken wiper, a rail) [m/s]; 0 = off.
+  double max_speed_m_per_s = 5.0;
+  /// A pressure reading unchanged bit for bit this long: the sensor or its converter is frozen
+  /// [s]; 0 = off (ideal noiseless sensors legitimately repeat themselves).
+  double frozen_after_s = 0.0;
+  double following_error_m = 0.01;  ///< |y_d - y| above this ... [m]
+  double following_error_s = 2.0;   ///< ... for longer than this while armed latches a fault [s]; 0 = off
+  std::uint32_t overruns_in_a_row = 10;  ///< this many overrunning ticks in a row latch a fault; 0 = off
+  double max_tick_interval_s = 0.05;     ///< one tick interval longer than this latches a fault [s]; 0 = off
+  SafeOutput safe_output = SafeOutput::kNeutral;
+};
+
+/// Real-time set-up of the loop thread (controller.realtime.*), real clock only.
+struct RealtimeConfig {
+  int priority = 0;           ///< SCHED_FIFO priority of the loop thread, 1..99; 0 = normal scheduling
+  int cpu = -1;               ///< pin the loop thread to this CPU; -1 = no pinning
+  bool lock_memory = false;   ///< mlockall(MCL_CURRENT | MCL_FUTURE) and a pre-faulted stack
+};
+
 /// pneud's loop and control.
 struct ControllerConfig {
   double rate_hz = 1000.0;          ///< loop rate [Hz]
@@ -92,6 +126,8 @@ struct ControllerConfig {
   bool start_armed = true;              ///< armed at start-up (else disarmed until an ARM command)
   /// Reads that are not ok (stale sample, lost link) for this long in a row latch a comms fault [s].
   double comms_fault_after_s = 0.05;
+  SupervisorConfig supervisor;          ///< controller.supervisor.*
+  RealtimeConfig realtime;              ///< controller.realtime.*
 
   [[nodiscard]] double period_s() const noexcept { return 1.0 / rate_hz; }
 };
@@ -112,6 +148,14 @@ struct CommandsConfig {
   bool enabled = true;
   double max_rate_hz = 20.0;   ///< sustained command rate accepted [1/s]; above it: rejected
   double burst = 5.0;          ///< commands accepted back to back before the rate applies
+  /// A command stamped (utime) further than this from this host's clock, past or future, is
+  /// refused as stale or replayed [s].
+  double max_age_s = 0.5;
+  /// Largest set-point change one command may make [m] (rate of change of the set point).
+  double max_setpoint_step_m = 0.5;
+  /// With a set-point stream configured (> 0): armed, no set point for this long latches a
+  /// fault [s]; 0 = set points come when they come.
+  double setpoint_stream_timeout_s = 0.0;
 };
 
 /// Digital lines beside either backend (hal.gpio.*, libgpiod).
