@@ -104,9 +104,11 @@ void ModbusBackend::disconnect() noexcept {
 
 bool ModbusBackend::exchange(std::string* why) noexcept {
   uint16_t out[2] = {};
-  // Unpowered valves sit at their centre: with power off the outputs are written at 0 V.
-  const double u_p = io_command_.valve_power ? io_command_.u_p_v : 0.0;
-  const double u_n = io_command_.valve_power ? io_command_.u_n_v : 0.0;
+  // The analog outputs carry the commanded voltages whatever the valve power: in fault and
+  // disarmed the loop commands its safe voltages, and they must reach the module (the power-enable
+  // line, where there is one, is the GPIO decorator's).
+  const double u_p = io_command_.u_p_v;
+  const double u_n = io_command_.u_n_v;
   const int at_p = cfg_.valve_p.address == write_start_ ? 0 : 1;  // index in the written block
   const int at_n = 1 - at_p;
   out[at_p] = cfg_.valve_p.to_word(u_p);
@@ -183,18 +185,27 @@ void ModbusBackend::io_thread() noexcept {
   double backoff = cfg_.reconnect_min_s;
   double next = mono_s();
   std::string why;
+  // Waits out the back-off in short slices, so that close() never waits for a long one, and
+  // doubles it for the next failure.
+  const auto back_off = [&] {
+    const double until = mono_s() + backoff;
+    while (running_.load(std::memory_order_relaxed) && mono_s() < until)
+      sleep_until_mono(std::min(until, mono_s() + 0.01));
+    backoff = std::min(2.0 * backoff, cfg_.reconnect_max_s);
+  };
+  bool failed_since_connect = false;
   while (running_.load(std::memory_order_relaxed)) {
     if (!link_up_.load(std::memory_order_relaxed)) {
+      // After a failed exchange too: a frozen module still completes TCP handshakes from its
+      // kernel's backlog, and reconnecting at once would only pile connections up in it.
+      if (failed_since_connect) back_off();
+      if (!running_.load(std::memory_order_relaxed)) break;
       counters_.reconnects.fetch_add(1, std::memory_order_relaxed);
       if (connect_once(&why)) {
         link_up_.store(true, std::memory_order_relaxed);
       } else {
         set_error(why);
-        // Back off in short slices so that close() never waits for a long back-off.
-        const double until = mono_s() + backoff;
-        while (running_.load(std::memory_order_relaxed) && mono_s() < until)
-          sleep_until_mono(std::min(until, mono_s() + 0.01));
-        backoff = std::min(2.0 * backoff, cfg_.reconnect_max_s);
+        failed_since_connect = true;
         continue;
       }
     }
@@ -202,6 +213,7 @@ void ModbusBackend::io_thread() noexcept {
     if (exchange(&why)) {
       counters_.transactions.fetch_add(1, std::memory_order_relaxed);
       backoff = cfg_.reconnect_min_s;
+      failed_since_connect = false;
     } else {
       // After a timeout or bad data libmodbus 3.1.6 may pair the next request with this late
       // reply (issue #255): close and reconnect rather than carry on desynchronised.
@@ -209,6 +221,7 @@ void ModbusBackend::io_thread() noexcept {
       set_error(why);
       disconnect();
       link_up_.store(false, std::memory_order_relaxed);
+      failed_since_connect = true;
       continue;
     }
     next += cfg_.min_exchange_period_s;
