@@ -193,19 +193,21 @@ void ModbusBackend::io_thread() noexcept {
       sleep_until_mono(std::min(until, mono_s() + 0.01));
     backoff = std::min(2.0 * backoff, cfg_.reconnect_max_s);
   };
-  bool failed_since_connect = false;
+  int failures_in_a_row = 0;
   while (running_.load(std::memory_order_relaxed)) {
     if (!link_up_.load(std::memory_order_relaxed)) {
-      // After a failed exchange too: a frozen module still completes TCP handshakes from its
-      // kernel's backlog, and reconnecting at once would only pile connections up in it.
-      if (failed_since_connect) back_off();
+      // One failure is retried at once (a single lost reply need not cost a comms fault); from
+      // the second in a row on, back off, after failed exchanges too: a frozen module still
+      // completes TCP handshakes from its kernel's backlog, and reconnecting at once would only
+      // pile connections up in it.
+      if (failures_in_a_row >= 2) back_off();
       if (!running_.load(std::memory_order_relaxed)) break;
       counters_.reconnects.fetch_add(1, std::memory_order_relaxed);
       if (connect_once(&why)) {
         link_up_.store(true, std::memory_order_relaxed);
       } else {
         set_error(why);
-        failed_since_connect = true;
+        ++failures_in_a_row;
         continue;
       }
     }
@@ -213,7 +215,7 @@ void ModbusBackend::io_thread() noexcept {
     if (exchange(&why)) {
       counters_.transactions.fetch_add(1, std::memory_order_relaxed);
       backoff = cfg_.reconnect_min_s;
-      failed_since_connect = false;
+      failures_in_a_row = 0;
     } else {
       // After a timeout or bad data libmodbus 3.1.6 may pair the next request with this late
       // reply (issue #255): close and reconnect rather than carry on desynchronised.
@@ -221,7 +223,7 @@ void ModbusBackend::io_thread() noexcept {
       set_error(why);
       disconnect();
       link_up_.store(false, std::memory_order_relaxed);
-      failed_since_connect = true;
+      ++failures_in_a_row;
       continue;
     }
     next += cfg_.min_exchange_period_s;
