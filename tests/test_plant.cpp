@@ -343,5 +343,86 @@ TEST(Plant, StepIsDeterministic) {
   }
 }
 
+// --- Independent valve voltages -----------------------------------------------------------------
+
+TEST(Plant, BothValvesAtFullReverseVentBothChambersAndTheCarriageStaysPut) {
+  // The safe state "exhaust both chambers": u_P = u_N = -u_max, which Eq. 1 cannot express.
+  Plant plant(PlantParams{});
+  plant.reset_at_rest(0.0, equilibrium_voltage(plant));  // mid-stroke, complete equilibrium
+  const double u_max = plant.params().valve.max_voltage_v;
+  // Each chamber vents to the exhaust through the wide-open outlet orifice; the inlet leak keeps
+  // it a little above p_E, at the null-flow pressure of w = -u_max.
+  const double p_vented = plant.valve().null_pressure_pa(-u_max);
+  ASSERT_GT(p_vented, kExhaustPa);
+  ASSERT_LT(p_vented, kExhaustPa + 5.0e3);
+
+  PlantState before = plant.state();
+  double max_abs_force = 0.0;
+  for (int i = 0; i < 2000; ++i) {  // 2 s
+    plant.step(kSampleS, -u_max, -u_max);
+    const PlantState& s = plant.state();
+    ASSERT_LE(s.p_p_pa, before.p_p_pa) << "t = " << s.t_s;  // monotonically down
+    ASSERT_LE(s.p_n_pa, before.p_n_pa) << "t = " << s.t_s;
+    ASSERT_GE(s.p_p_pa, p_vented) << "t = " << s.t_s;       // never below where it settles
+    ASSERT_GE(s.p_n_pa, p_vented) << "t = " << s.t_s;
+    // Chamber N (smaller volume) vents faster, so F rises on the way (measured peak 28.4 N at
+    // mid-stroke), but never to the stiction bound of 45 N: the carriage does not move at all.
+    max_abs_force = std::max(max_abs_force, std::abs(force_of(s)));
+    ASSERT_EQ(s.y_m, 0.0) << "t = " << s.t_s;
+    ASSERT_EQ(s.v_m_per_s, 0.0) << "t = " << s.t_s;
+    ASSERT_EQ(s.motion, Motion::kStuck);
+    ASSERT_TRUE(plant.last_events().empty());
+    before = s;
+  }
+  EXPECT_GT(max_abs_force, 10.0);  // not vacuous: the venting did push
+  EXPECT_LT(max_abs_force, kForceSPlus);
+  // Vented: within 10 Pa of the null-flow pressure after 2 s (from 3.4 and 4.9 bar).
+  EXPECT_NEAR(plant.state().p_p_pa, p_vented, 10.0);
+  EXPECT_NEAR(plant.state().p_n_pa, p_vented, 10.0);
+}
+
+TEST(Plant, OppositeVoltagesOnBothValvesAreEquation1BitForBit) {
+  // step(dt, u) is the shorthand of step(dt, u, -u): the same trajectory and events, bit for bit,
+  // over a sequence that slides, sticks, reverses and breaks away.
+  Plant eq1(PlantParams{}), both(PlantParams{});
+  const double u_e = equilibrium_voltage(eq1);
+  eq1.reset_at_rest(0.0, u_e);
+  both.reset_at_rest(0.0, u_e);
+  std::size_t events = 0;
+  for (const auto& [u, duration] : std::vector<std::pair<double, double>>{
+           {u_e, 0.5}, {u_e + 0.6, 1.0}, {u_e - 0.8, 1.0}, {u_e + 0.3, 1.0}, {10.0, 0.3}}) {
+    for (int i = 0; i < static_cast<int>(std::lround(duration / kSampleS)); ++i) {
+      eq1.step(kSampleS, u);
+      both.step(kSampleS, u, -u);
+      const PlantState &a = eq1.state(), &b = both.state();
+      ASSERT_EQ(a.t_s, b.t_s);
+      ASSERT_EQ(a.y_m, b.y_m) << "t = " << a.t_s;
+      ASSERT_EQ(a.v_m_per_s, b.v_m_per_s) << "t = " << a.t_s;
+      ASSERT_EQ(a.p_p_pa, b.p_p_pa) << "t = " << a.t_s;
+      ASSERT_EQ(a.p_n_pa, b.p_n_pa) << "t = " << a.t_s;
+      ASSERT_EQ(a.motion, b.motion) << "t = " << a.t_s;
+      ASSERT_EQ(eq1.last_events().size(), both.last_events().size());
+      for (std::size_t k = 0; k < eq1.last_events().size(); ++k) {
+        ASSERT_EQ(eq1.last_events()[k].t_s, both.last_events()[k].t_s);
+        ASSERT_EQ(eq1.last_events()[k].force_n, both.last_events()[k].force_n);
+      }
+      events += eq1.last_events().size();
+    }
+  }
+  EXPECT_GE(events, 5u);  // the sequence did exercise the event location
+  EXPECT_EQ(eq1.rhs_evaluations(), both.rhs_evaluations());
+}
+
+TEST(Plant, EachValveDrivesItsOwnChamber) {
+  // Valve P wide open to supply, valve N held at its equilibrium voltage: only chamber P fills.
+  Plant plant(PlantParams{});
+  const double u_e = equilibrium_voltage(plant);
+  plant.reset_at_rest(0.0, u_e);
+  const PlantState start = plant.state();
+  for (int i = 0; i < 2; ++i) plant.step(kSampleS, 10.0, -u_e);  // 2 ms: before any motion matters
+  EXPECT_GT(plant.state().p_p_pa, start.p_p_pa + 1.0e4);
+  EXPECT_NEAR(plant.state().p_n_pa, start.p_n_pa, 1.0e3);
+}
+
 }  // namespace
 }  // namespace pneu::plant

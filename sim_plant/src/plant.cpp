@@ -101,14 +101,14 @@ double Plant::pressure_force_n() const noexcept {
   return force_of(Vec(state_.y_m, state_.v_m_per_s, state_.p_p_pa, state_.p_n_pa));
 }
 
-// Eq. 2.
-Plant::Vec Plant::derivative(const Vec& x, Motion motion, double u) const noexcept {
+// Eq. 2, each valve at its own voltage (Eq. 1 is u_P = u, u_N = -u).
+Plant::Vec Plant::derivative(const Vec& x, Motion motion, Drive u) const noexcept {
   ++rhs_evaluations_;
   const double y = x[0], v = x[1], p_p = x[2], p_n = x[3];
   const double v_p = params_.geometry.dead_volume_p_m3 + area_p_m2_ * (half_stroke_m_ + y);
   const double v_n = params_.geometry.dead_volume_n_m3 + area_n_m2_ * (half_stroke_m_ - y);
-  const double q_p = valve_.mass_flow_kg_per_s(u, p_p);
-  const double q_n = valve_.mass_flow_kg_per_s(-u, p_n);
+  const double q_p = valve_.mass_flow_kg_per_s(u.u_p_v, p_p);
+  const double q_n = valve_.mass_flow_kg_per_s(u.u_n_v, p_n);
   Vec dx;
   dx[2] = k_r_t_ / v_p * (q_p - area_p_m2_ * p_p * v / r_t_);
   dx[3] = k_r_t_ / v_n * (q_n + area_n_m2_ * p_n * v / r_t_);
@@ -122,7 +122,7 @@ Plant::Vec Plant::derivative(const Vec& x, Motion motion, double u) const noexce
   return dx;
 }
 
-Plant::Vec Plant::rk4(const Vec& x, double h, Motion motion, double u) const noexcept {
+Plant::Vec Plant::rk4(const Vec& x, double h, Motion motion, Drive u) const noexcept {
   const Vec k1 = derivative(x, motion, u);
   const Vec k2 = derivative(x + 0.5 * h * k1, motion, u);
   const Vec k3 = derivative(x + 0.5 * h * k2, motion, u);
@@ -173,17 +173,18 @@ void Plant::reset(const PlantState& state) noexcept {
   event_count_ = 0;
 }
 
-void Plant::step(double dt_s, double u_v) noexcept {
+void Plant::step(double dt_s, double u_p_v, double u_n_v) noexcept {
   event_count_ = 0;
   if (!(dt_s > 0.0)) return;
   const double t_end = state_.t_s + dt_s;
   const int n = static_cast<int>(std::ceil(dt_s / step_s_ - 1e-9));
   const double h = dt_s / std::max(n, 1);
-  for (int i = 0; i < std::max(n, 1); ++i) advance(h, u_v);
+  const Drive u{u_p_v, u_n_v};
+  for (int i = 0; i < std::max(n, 1); ++i) advance(h, u);
   state_.t_s = t_end;
 }
 
-void Plant::advance(double h, double u) noexcept {
+void Plant::advance(double h, Drive u) noexcept {
   const auto& f = params_.friction;
   Vec x(state_.y_m, state_.v_m_per_s, state_.p_p_pa, state_.p_n_pa);
   double remaining = h;

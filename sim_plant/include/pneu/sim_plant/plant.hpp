@@ -58,9 +58,14 @@ class Plant {
   /// force already breaks away).
   void reset(const PlantState& state) noexcept;
 
-  /// Advances by `dt_s` with the valve voltages held (u_P = u, u_N = -u), in equal sub-steps no
-  /// longer than step_size_s(); mode changes are located inside the sub-steps.
-  void step(double dt_s, double u_v) noexcept;
+  /// Advances by `dt_s` with the valve voltages held (u_P = u, u_N = -u: Eq. 1), in equal
+  /// sub-steps no longer than step_size_s(); mode changes are located inside the sub-steps.
+  /// The same as step(dt_s, u_v, -u_v), bit for bit.
+  void step(double dt_s, double u_v) noexcept { step(dt_s, u_v, -u_v); }
+  /// Advances by `dt_s` with each 3-way valve driven by its own voltage held over the step: valve P
+  /// at `u_p_v`, valve N at `u_n_v` (w in MODEL.md section 3). Beyond Eq. 1: e.g. both at -u_max
+  /// vents both chambers to the exhaust (a safe state), a stuck spool drives one valve alone.
+  void step(double dt_s, double u_p_v, double u_n_v) noexcept;
 
   [[nodiscard]] const PlantState& state() const noexcept { return state_; }
   /// F = S_P p_P - S_N p_N - S_r p_E at the current state [N].
@@ -85,10 +90,16 @@ class Plant {
  private:
   using Vec = Eigen::Vector4d;  // (y, v, p_P, p_N)
 
-  [[nodiscard]] Vec derivative(const Vec& x, Motion motion, double u_v) const noexcept;
-  [[nodiscard]] Vec rk4(const Vec& x, double h, Motion motion, double u_v) const noexcept;
+  /// The two valve voltages held over a step [V].
+  struct Drive {
+    double u_p_v;
+    double u_n_v;
+  };
+
+  [[nodiscard]] Vec derivative(const Vec& x, Motion motion, Drive u) const noexcept;
+  [[nodiscard]] Vec rk4(const Vec& x, double h, Motion motion, Drive u) const noexcept;
   [[nodiscard]] double force_of(const Vec& x) const noexcept;
-  void advance(double h, double u_v) noexcept;
+  void advance(double h, Drive u) noexcept;
   void record(PlantEvent::Kind kind, int direction) noexcept;
   void settle_mode_at_rest() noexcept;
 
