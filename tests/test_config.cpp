@@ -612,3 +612,211 @@ TEST(ShippedConfig, HilAndBenchExamplesLoad) {
     EXPECT_EQ(c.controller.clock, pneu::config::ClockKind::kReal) << name;
   }
 }
+
+// --- Register map: float32 sensor channels (hal.modbus.channels.*.format) ----------------------
+
+namespace pneu::config {
+namespace {
+
+const std::filesystem::path kHilConfig = std::filesystem::path(PNEU_SOURCE_DIR) / "config/hil.yaml";
+
+std::string hil_yaml() {
+  std::ifstream in(kHilConfig);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// hil.yaml's pressure channels as float32 at registers 4-5 and 6-7: the overrides the HIL fault
+// tests pass to both pneu-plant serve and pneud, one per line.
+std::vector<std::string> float32_overrides() {
+  std::ifstream in(std::filesystem::path(PNEU_SOURCE_DIR) / "tests/hil_float32_overrides.txt");
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);)
+    if (!line.empty()) lines.push_back(line);
+  return lines;
+}
+
+std::vector<std::string> with(std::vector<std::string> a, const std::vector<std::string>& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  return a;
+}
+
+void expect_same_channel(const RegisterChannel& a, const RegisterChannel& b) {
+  EXPECT_EQ(a.address, b.address);
+  EXPECT_EQ(a.format, b.format);
+  EXPECT_EQ(a.is_signed, b.is_signed);
+  EXPECT_EQ(a.raw_min, b.raw_min);
+  EXPECT_EQ(a.raw_max, b.raw_max);
+  EXPECT_EQ(a.volts_min, b.volts_min);
+  EXPECT_EQ(a.volts_max, b.volts_max);
+}
+
+RegisterChannel float32_channel() {
+  RegisterChannel c;
+  c.format = RegisterFormat::kFloat32;
+  c.raw_min = 0.0;
+  c.raw_max = 10.0;
+  c.volts_min = 0.0;
+  c.volts_max = 10.0;
+  return c;
+}
+
+TEST(RegisterMap, ChannelsAreInt16UnlessAFormatIsGiven) {
+  const Config c = load_file(kHilConfig);
+  for (const RegisterChannel* ch : {&c.hal.modbus.position, &c.hal.modbus.pressure_p, &c.hal.modbus.pressure_n,
+                                    &c.hal.modbus.valve_p, &c.hal.modbus.valve_n}) {
+    EXPECT_EQ(ch->format, RegisterFormat::kInt16);
+    EXPECT_EQ(ch->register_count(), 1);
+  }
+}
+
+TEST(RegisterMap, TheFloat32OverridesMoveBothPressuresToTwoRegistersEach) {
+  ASSERT_EQ(float32_overrides().size(), 12u);
+  const Config c = load_file(kHilConfig, float32_overrides());
+  const ModbusConfig& m = c.hal.modbus;
+  EXPECT_EQ(m.pressure_p.format, RegisterFormat::kFloat32);
+  EXPECT_EQ(m.pressure_p.address, 4);
+  EXPECT_EQ(m.pressure_p.last_address(), 5);
+  EXPECT_EQ(m.pressure_n.format, RegisterFormat::kFloat32);
+  EXPECT_EQ(m.pressure_n.address, 6);
+  EXPECT_EQ(m.pressure_n.last_address(), 7);
+  EXPECT_EQ(m.position.format, RegisterFormat::kInt16);
+  EXPECT_EQ(m.pressure_p.raw_min, 0.0);
+  EXPECT_EQ(m.pressure_p.raw_max, 10.0);
+}
+
+TEST(RegisterMap, Float32IsHighWordFirstIeeeSingle) {
+  const RegisterChannel c = float32_channel();
+  std::uint16_t w[2] = {};
+  c.to_words(2.5, w);  // 2.5f = 0x40200000
+  EXPECT_EQ(w[0], 0x4020);
+  EXPECT_EQ(w[1], 0x0000);
+  const std::uint16_t pi_words[2] = {0x4049, 0x0FDB};  // 3.14159274f = 0x40490FDB
+  EXPECT_EQ(c.raw_of(pi_words), static_cast<double>(3.14159274f));
+  EXPECT_EQ(c.to_volts(pi_words), static_cast<double>(3.14159274f));
+  EXPECT_TRUE(c.in_range(pi_words));
+}
+
+TEST(RegisterMap, Float32ScalesItsRawRangeToVoltsAndClampsWhatItEncodes) {
+  RegisterChannel c = float32_channel();
+  c.raw_min = 4.0;  // e.g. a 4-20 mA reading in mA
+  c.raw_max = 20.0;
+  std::uint16_t w[2] = {};
+  c.to_words(5.0, w);
+  EXPECT_EQ(c.raw_of(w), 12.0);
+  EXPECT_EQ(c.to_volts(w), 5.0);
+  c.to_words(11.0, w);  // beyond volts_max: clamped to raw_max, as an int16 channel is
+  EXPECT_EQ(c.raw_of(w), 20.0);
+}
+
+TEST(RegisterMap, Float32NanInfinityAndValuesOutsideTheRawRangeAreOutOfRange) {
+  const RegisterChannel c = float32_channel();
+  const std::uint16_t nan_words[2] = {0x7FC0, 0x0000};
+  const std::uint16_t inf_words[2] = {0x7F80, 0x0000};
+  const std::uint16_t minus_inf_words[2] = {0xFF80, 0x0000};
+  EXPECT_FALSE(c.in_range(nan_words));
+  EXPECT_TRUE(std::isnan(c.to_volts(nan_words))) << "NaN passes through the scaling";
+  EXPECT_FALSE(c.in_range(inf_words));
+  EXPECT_FALSE(c.in_range(minus_inf_words));
+  std::uint16_t w[2] = {};
+  ASSERT_TRUE(c.raw_to_words(10.5, w));
+  EXPECT_FALSE(c.in_range(w));
+  ASSERT_TRUE(c.raw_to_words(-0.5, w));
+  EXPECT_FALSE(c.in_range(w));
+  ASSERT_TRUE(c.raw_to_words(10.0, w));
+  EXPECT_TRUE(c.in_range(w));
+}
+
+TEST(RegisterMap, RawValuesBeyondTheRegisterTypeSaturateAndSaySo) {
+  RegisterChannel i16;
+  i16.is_signed = true;
+  std::uint16_t w[2] = {};
+  EXPECT_TRUE(i16.raw_to_words(-32768.0, w));
+  EXPECT_EQ(w[0], 0x8000);
+  EXPECT_FALSE(i16.raw_to_words(40000.0, w));
+  EXPECT_EQ(w[0], 0x7FFF);
+  EXPECT_FALSE(i16.raw_to_words(1.5, w)) << "a count is an integer";
+  const RegisterChannel f32 = float32_channel();
+  EXPECT_FALSE(f32.raw_to_words(1e39, w));
+  EXPECT_EQ(f32.raw_of(w), 3.4028234663852886e38);
+  EXPECT_TRUE(f32.raw_to_words(std::nan(""), w));
+  EXPECT_TRUE(std::isnan(f32.raw_of(w)));
+}
+
+TEST(RegisterMap, ValveChannelsCannotBeFloat32) {
+  EXPECT_THAT(loading(hil_yaml(), {"hal.modbus.channels.valve_p.format=float32"}),
+              refuses("hal.modbus.channels.valve_p.format", "float32 is for sensor channels only"));
+  EXPECT_THAT(loading(hil_yaml(), {"hal.modbus.channels.valve_n.format=float32"}),
+              refuses("hal.modbus.channels.valve_n.format", "float32 is for sensor channels only"));
+}
+
+TEST(RegisterMap, UnknownFormatIsRefusedNamingTheChoices) {
+  EXPECT_THAT(loading(hil_yaml(), {"hal.modbus.channels.position.format=float64"}),
+              refuses("hal.modbus.channels.position.format", "must be 'int16' or 'float32' (got 'float64')"));
+}
+
+TEST(RegisterMap, OverlapCheckCountsTheSecondRegisterOfAFloat32) {
+  // pressure_p as float32 at 1 holds registers 1 and 2: pressure_n (int16 at 2) overlaps it.
+  EXPECT_THAT(loading(hil_yaml(), {"hal.modbus.channels.pressure_p.format=float32"}),
+              refuses("hal.modbus.channels.pressure_n.register", "overlaps pressure_p (both at register 2)"));
+  // ... and moved out of the way, it does not.
+  EXPECT_NO_THROW(load_string(hil_yaml(), {"hal.modbus.channels.pressure_p.format=float32",
+                                           "hal.modbus.channels.pressure_n.register=3"}));
+  // Two float32 channels one register apart share a register.
+  EXPECT_THAT(loading(hil_yaml(), with(float32_overrides(), {"hal.modbus.channels.pressure_n.register=5"})),
+              refuses("hal.modbus.channels.pressure_n.register", "overlaps pressure_p (both at register 5)"));
+  // A float32 channel below an int16 one reaches it with its low word.
+  EXPECT_THAT(loading(hil_yaml(), with(float32_overrides(), {"hal.modbus.channels.position.register=5"})),
+              refuses("hal.modbus.channels.pressure_p.register", "overlaps position (both at register 5)"));
+}
+
+TEST(RegisterMap, Float32InTheLastRegisterIsRefused) {
+  EXPECT_THAT(loading(hil_yaml(), with(float32_overrides(), {"hal.modbus.channels.pressure_n.register=65535"})),
+              refuses("hal.modbus.channels.pressure_n.register", "must be in [0, 65534]"));
+}
+
+TEST(RegisterMap, OneReadTransactionMustReachTheLowWordOfAFloat32) {
+  // position at 0, pressure_n's high word at 120: 121 registers; its low word at 121 makes 122.
+  EXPECT_NO_THROW(load_string(hil_yaml(), {"hal.modbus.channels.pressure_n.register=120"}));
+  EXPECT_THAT(loading(hil_yaml(), with(float32_overrides(), {"hal.modbus.channels.pressure_n.register=120"})),
+              refuses("hal.modbus.channels.pressure_n.register", "within 121 consecutive registers"));
+}
+
+TEST(RegisterMap, Float32RawRangeMustFitASingle) {
+  EXPECT_THAT(loading(hil_yaml(), with(float32_overrides(), {"hal.modbus.channels.pressure_p.raw_max=1e39"})),
+              refuses("hal.modbus.channels.pressure_p.raw_max", "must fit a float32"));
+  // A range no int16 could hold is fine for a float32.
+  EXPECT_NO_THROW(load_string(hil_yaml(), with(float32_overrides(), {"hal.modbus.channels.pressure_p.raw_min=-1e6"})));
+}
+
+TEST(RegisterMap, SignedIsAcceptedButIgnoredForFloat32) {
+  const Config c = load_string(hil_yaml(), with(float32_overrides(), {"hal.modbus.channels.pressure_p.signed=true"}));
+  EXPECT_FALSE(c.hal.modbus.pressure_p.is_signed);
+  // ... still type-checked when present ...
+  EXPECT_THAT(loading(hil_yaml(), with(float32_overrides(), {"hal.modbus.channels.pressure_p.signed=maybe"})),
+              refuses("hal.modbus.channels.pressure_p.signed", "expected true or false"));
+  // ... and optional, while an int16 channel still needs it.
+  YAML::Node root = YAML::Load(hil_yaml());
+  root["hal"]["modbus"]["channels"]["pressure_p"].remove("signed");
+  EXPECT_NO_THROW(load_string(YAML::Dump(root), float32_overrides()));
+  EXPECT_THAT(loading(YAML::Dump(root)), refuses("hal.modbus.channels.pressure_p.signed", "missing"));
+}
+
+TEST(ToYaml, RoundTripsFloat32Channels) {
+  const Config original = load_file(kHilConfig, float32_overrides());
+
+  const std::string once = to_yaml(original);
+  const Config reloaded = load_string(once, {}, "to_yaml");
+
+  expect_same_channel(reloaded.hal.modbus.position, original.hal.modbus.position);
+  expect_same_channel(reloaded.hal.modbus.pressure_p, original.hal.modbus.pressure_p);
+  expect_same_channel(reloaded.hal.modbus.pressure_n, original.hal.modbus.pressure_n);
+  expect_same_channel(reloaded.hal.modbus.valve_p, original.hal.modbus.valve_p);
+  expect_same_channel(reloaded.hal.modbus.valve_n, original.hal.modbus.valve_n);
+  EXPECT_EQ(reloaded.hal.modbus.pressure_p.format, RegisterFormat::kFloat32);
+  EXPECT_EQ(to_yaml(reloaded), once);
+}
+
+}  // namespace
+}  // namespace pneu::config

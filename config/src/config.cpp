@@ -330,19 +330,40 @@ CommandsConfig read_commands(MapReader r) {
   return c;
 }
 
-RegisterChannel read_register(MapReader r) {
+// One channel of hal.modbus.channels. `sensor`: a sensor channel (may be float32), else a valve
+// output (int16 only).
+RegisterChannel read_register(MapReader r, bool sensor) {
   RegisterChannel c;
+  const std::string format = r.string_or("format", "int16");
+  if (format == "int16") c.format = RegisterFormat::kInt16;
+  else if (format == "float32") c.format = RegisterFormat::kFloat32;
+  else throw ConfigError(r.child_path("format"), "must be 'int16' or 'float32' (got '" + format + "')");
+  check(sensor || c.format == RegisterFormat::kInt16, r.child_path("format"),
+        "float32 is for sensor channels only: a valve output is one 16-bit register");
+  const bool is_float = c.format == RegisterFormat::kFloat32;
   const long long address = r.integer("register");
-  check(address >= 0 && address <= 65535, r.child_path("register"), "must be in [0, 65535]");
+  if (is_float)
+    check(address >= 0 && address <= 65534, r.child_path("register"),
+          "must be in [0, 65534] (a float32 spans this register and the next)");
+  else
+    check(address >= 0 && address <= 65535, r.child_path("register"), "must be in [0, 65535]");
   c.address = static_cast<int>(address);
-  c.is_signed = r.boolean("signed");
+  // float32: `signed` is accepted (and type-checked) but means nothing; it is not kept.
+  if (is_float) (void)r.boolean_or("signed", false);
+  else c.is_signed = r.boolean("signed");
   c.raw_min = r.number("raw_min");
   c.raw_max = r.number("raw_max");
-  const double lo = c.is_signed ? -32768.0 : 0.0, hi = c.is_signed ? 32767.0 : 65535.0;
-  check(c.raw_min >= lo && c.raw_min <= hi, r.child_path("raw_min"),
-        "must fit a " + std::string(c.is_signed ? "signed" : "unsigned") + " 16-bit register [" + fmt(lo) + ", " + fmt(hi) + "]");
-  check(c.raw_max >= lo && c.raw_max <= hi, r.child_path("raw_max"),
-        "must fit a " + std::string(c.is_signed ? "signed" : "unsigned") + " 16-bit register [" + fmt(lo) + ", " + fmt(hi) + "]");
+  if (is_float) {
+    constexpr double kFloatMax = 3.4028234663852886e38;
+    check(std::abs(c.raw_min) <= kFloatMax, r.child_path("raw_min"), "must fit a float32 (|raw_min| <= 3.4028235e38)");
+    check(std::abs(c.raw_max) <= kFloatMax, r.child_path("raw_max"), "must fit a float32 (|raw_max| <= 3.4028235e38)");
+  } else {
+    const double lo = c.is_signed ? -32768.0 : 0.0, hi = c.is_signed ? 32767.0 : 65535.0;
+    check(c.raw_min >= lo && c.raw_min <= hi, r.child_path("raw_min"),
+          "must fit a " + std::string(c.is_signed ? "signed" : "unsigned") + " 16-bit register [" + fmt(lo) + ", " + fmt(hi) + "]");
+    check(c.raw_max >= lo && c.raw_max <= hi, r.child_path("raw_max"),
+          "must fit a " + std::string(c.is_signed ? "signed" : "unsigned") + " 16-bit register [" + fmt(lo) + ", " + fmt(hi) + "]");
+  }
   check(c.raw_max > c.raw_min, r.child_path("raw_max"),
         "the raw range is empty (raw_max " + fmt(c.raw_max) + " <= raw_min " + fmt(c.raw_min) + ")");
   c.volts_min = r.number("volts_min");
@@ -395,28 +416,31 @@ ModbusConfig read_modbus(MapReader r) {
   m.reconnect_max_s = in_range(r, "reconnect_max_s", m.reconnect_min_s, 600.0);
   {
     MapReader ch = r.map("channels");
-    m.position = read_register(ch.map("position"));
-    m.pressure_p = read_register(ch.map("pressure_p"));
-    m.pressure_n = read_register(ch.map("pressure_n"));
-    m.valve_p = read_register(ch.map("valve_p"));
-    m.valve_n = read_register(ch.map("valve_n"));
+    m.position = read_register(ch.map("position"), true);
+    m.pressure_p = read_register(ch.map("pressure_p"), true);
+    m.pressure_n = read_register(ch.map("pressure_n"), true);
+    m.valve_p = read_register(ch.map("valve_p"), false);
+    m.valve_n = read_register(ch.map("valve_n"), false);
     // One register holds one channel: refuse overlaps within a table (the valves are holding
-    // registers; the sensors are too unless sensor_table is input).
+    // registers; the sensors are too unless sensor_table is input). A float32 channel holds two.
     struct Named { const char* name; const RegisterChannel* c; bool holding; };
     const bool sensors_holding = m.sensor_table == SensorTable::kHolding;
     const Named all[] = {{"position", &m.position, sensors_holding}, {"pressure_p", &m.pressure_p, sensors_holding},
                          {"pressure_n", &m.pressure_n, sensors_holding}, {"valve_p", &m.valve_p, true},
                          {"valve_n", &m.valve_n, true}};
     for (std::size_t i = 0; i < 5; ++i)
-      for (std::size_t j = i + 1; j < 5; ++j)
-        check(!(all[i].holding == all[j].holding && all[i].c->address == all[j].c->address),
+      for (std::size_t j = i + 1; j < 5; ++j) {
+        const RegisterChannel &a = *all[i].c, &b = *all[j].c;
+        const int shared = std::max(a.address, b.address);  // the first register both hold, if any
+        check(!(all[i].holding == all[j].holding && shared <= std::min(a.last_address(), b.last_address())),
               ch.child_path(all[j].name) + ".register",
-              "overlaps " + std::string(all[i].name) + " (both at register " + std::to_string(all[j].c->address) + ")");
+              "overlaps " + std::string(all[i].name) + " (both at register " + std::to_string(shared) + ")");
+      }
     if (m.read_write_multiple)
       check(std::abs(m.valve_p.address - m.valve_n.address) == 1, ch.child_path("valve_n") + ".register",
             "function 23 writes one block: valve_p and valve_n must be adjacent registers");
     const int lo = std::min({m.position.address, m.pressure_p.address, m.pressure_n.address});
-    const int hi = std::max({m.position.address, m.pressure_p.address, m.pressure_n.address});
+    const int hi = std::max({m.position.last_address(), m.pressure_p.last_address(), m.pressure_n.last_address()});
     check(hi - lo < 121, ch.child_path("pressure_n") + ".register",
           "the sensor registers must lie within 121 consecutive registers (one read transaction)");
     ch.finish();
@@ -704,7 +728,8 @@ std::string to_yaml(const Config& c) {
     for (const auto& [name, ch] : chans) {
       e << YAML::Key << name << YAML::Value << YAML::Flow << YAML::BeginMap;
       kv("register", ch->address);
-      kv("signed", ch->is_signed);
+      kv("format", ch->format == RegisterFormat::kFloat32 ? "float32" : "int16");
+      if (ch->format == RegisterFormat::kInt16) kv("signed", ch->is_signed);
       kv("raw_min", ch->raw_min);
       kv("raw_max", ch->raw_max);
       kv("volts_min", ch->volts_min);

@@ -42,7 +42,7 @@ ModbusBackend::ModbusBackend(const config::ModbusConfig& modbus, const plant::Se
       pressure_p_(calibration.pressure_p),
       pressure_n_(calibration.pressure_n) {
   const int r0 = std::min({cfg_.position.address, cfg_.pressure_p.address, cfg_.pressure_n.address});
-  const int r1 = std::max({cfg_.position.address, cfg_.pressure_p.address, cfg_.pressure_n.address});
+  const int r1 = std::max({cfg_.position.last_address(), cfg_.pressure_p.last_address(), cfg_.pressure_n.last_address()});
   read_start_ = r0;
   read_count_ = r1 - r0 + 1;
   write_start_ = std::min(cfg_.valve_p.address, cfg_.valve_n.address);
@@ -137,10 +137,12 @@ bool ModbusBackend::exchange(std::string* why) noexcept {
   }
   Sample s;
   s.mono_s = mono_s();
-  const auto word = [&](const config::RegisterChannel& c) { return in[c.address - read_start_]; };
+  // A channel's words (two for a float32: high word first). A NaN or infinite float32 reaches the
+  // frame as a non-finite value, flagged invalid like any reading outside the raw range.
+  const auto words = [&](const config::RegisterChannel& c) { return &in[c.address - read_start_]; };
   const auto take = [&](const config::RegisterChannel& c, const plant::SensorChannel& cal, double& value,
                         std::uint32_t invalid_flag) {
-    const uint16_t w = word(c);
+    const uint16_t* w = words(c);
     value = cal.to_si(c.to_volts(w));
     if (!c.in_range(w)) s.validity |= invalid_flag;
   };
