@@ -352,15 +352,18 @@ TEST(ControlLoop, CountsBackendFailuresAndHandsThemToHealth) {
   pneu::controller::LoopTiming timing;
   const std::atomic<bool> never{false};
   int k = 0;
-  // 100 good ticks, then 50 stale ones; health every 50 ms.
-  pneu::controller::run_loop(loop, clock, 1e-3, 150, never, timing, [&] { backend.stale = ++k >= 100; }, 0.05,
+  // 100 good ticks, then 60 stale ones; health every 50 ms, and a final record as the loop ends.
+  pneu::controller::run_loop(loop, clock, 1e-3, 160, never, timing, [&] { backend.stale = ++k >= 100; }, 0.05,
                              outputs.get());
-  EXPECT_EQ(loop.comms_errors(), 50u);
+  EXPECT_EQ(loop.comms_errors(), 60u);
   pneu::controller::HealthRecord h, last;
   int n = 0;
   while (outputs->health.try_pop(h)) last = h, ++n;
-  ASSERT_EQ(n, 3);
-  EXPECT_EQ(last.comms_errors, 50u) << "the last health period saw every failure so far";
+  ASSERT_EQ(n, 4) << "three periodic records and the final one";
+  EXPECT_TRUE(last.final);
+  EXPECT_EQ(last.comms_errors, 60u) << "the last health record saw every failure so far";
+  EXPECT_EQ(last.mode, pneu::controller::Mode::kFault) << "50 ms of stale samples latch the comms fault";
+  EXPECT_EQ(last.fault_cause, pneu::controller::kFaultComms);
 }
 
 }  // namespace

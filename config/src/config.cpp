@@ -274,6 +274,7 @@ ControllerConfig read_controller(MapReader r, const plant::PlantParams& plant) {
           "must lie below the exhaust pressure (" + fmt(plant.gas.exhaust_pressure_pa) + " Pa): a chamber may reach it");
     v.max_speed_m_per_s = non_negative(s, "max_speed_m_per_s");
     v.frozen_after_s = in_range(s, "frozen_after_s", 0.0, 60.0);
+    v.overtravel_m = non_negative(s, "overtravel_m");
     v.following_error_m = positive(s, "following_error_m");
     v.following_error_s = in_range(s, "following_error_s", 0.0, 600.0);
     const long long k = s.integer("overruns_in_a_row");
@@ -687,6 +688,7 @@ std::string to_yaml(const Config& c) {
     kv("pressure_max_pa", v.pressure_max_pa);
     kv("max_speed_m_per_s", v.max_speed_m_per_s);
     kv("frozen_after_s", v.frozen_after_s);
+    kv("overtravel_m", v.overtravel_m);
     kv("following_error_m", v.following_error_m);
     kv("following_error_s", v.following_error_s);
     kv("overruns_in_a_row", v.overruns_in_a_row);

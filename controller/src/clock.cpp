@@ -46,13 +46,37 @@ void fill(const TimingStats& s, double (&out)[4]) noexcept {
 }
 }  // namespace
 
+namespace {
+// Statistics of the current health period (the run's totals are in `timing`).
+thread_local TimingStats window_wake, window_compute;
+
+void push_health(const ControlLoop& loop, const LoopTiming& timing, double t_s, LoopOutputs& out,
+                 bool final) noexcept {
+  HealthRecord h;
+  h.t_s = t_s;
+  h.ticks = timing.ticks;
+  h.overruns = timing.overruns;
+  h.deadlines_skipped = timing.deadlines_skipped;
+  fill(window_wake, h.wake_latency_s);
+  fill(window_compute, h.compute_s);
+  h.ticks_dropped = out.ticks_dropped;
+  h.events_dropped = out.events_dropped;
+  h.mode = loop.mode();
+  h.comms_errors = loop.comms_errors();
+  h.fault_cause = loop.fault_cause();
+  h.faults = loop.faults();
+  h.final = final;
+  (void)out.health.try_push(h);
+  window_wake.reset();
+  window_compute.reset();
+}
+}  // namespace
+
 void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t deadlines,
               const std::atomic<bool>& stop_requested, LoopTiming& timing,
               const std::function<void()>& between_ticks, double health_period_s,
               LoopOutputs* health) {
   timing.period_s = period_s;
-  // Statistics of the current health period (the run's totals are in `timing`).
-  static thread_local TimingStats window_wake, window_compute;
   window_wake.reset();
   window_compute.reset();
   const auto health_every = health && health_period_s > 0.0
@@ -79,32 +103,24 @@ void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t de
     if (!clock.simulated()) {
       const double end = clock.now_s() - epoch;
       const double next = static_cast<double>(k) * period_s;
-      if (end > next) {  // overrun: skip the deadlines already passed
+      const bool overran = end > next;
+      if (overran) {  // skip the deadlines already passed
         ++timing.overruns;
         const auto resume = static_cast<std::uint64_t>(std::floor(end / period_s)) + 1;
         timing.deadlines_skipped += resume - k;
         k = resume;
       }
+      loop.note_overrun(overran);
     }
     if (health_every && timing.ticks >= next_health) {
       next_health += health_every;
-      HealthRecord h;
-      h.t_s = deadline;
-      h.ticks = timing.ticks;
-      h.overruns = timing.overruns;
-      h.deadlines_skipped = timing.deadlines_skipped;
-      fill(window_wake, h.wake_latency_s);
-      fill(window_compute, h.compute_s);
-      h.ticks_dropped = health->ticks_dropped;
-      h.events_dropped = health->events_dropped;
-      h.mode = loop.mode();
-      h.comms_errors = loop.comms_errors();
-      (void)health->health.try_push(h);
-      window_wake.reset();
-      window_compute.reset();
+      push_health(loop, timing, deadline, *health, false);
     }
     if (between_ticks) between_ticks();
   }
+  // The final record: the operator sees how the run ended (mode, cause, counters) even when it
+  // ended between two health periods.
+  if (health) push_health(loop, timing, static_cast<double>(k) * period_s, *health, true);
 }
 
 }  // namespace pneu::controller

@@ -22,7 +22,8 @@ ControlLoop::ControlLoop(const config::Config& config, hal::Backend& backend, Lo
       area_p_m2_(config.plant.geometry.area_p_m2()),
       area_n_m2_(config.plant.geometry.area_n_m2()),
       area_rod_m2_(config.plant.geometry.area_rod_m2()),
-      p_e_pa_(config.plant.gas.exhaust_pressure_pa) {}
+      p_e_pa_(config.plant.gas.exhaust_pressure_pa),
+      supervisor_(config) {}
 
 double ControlLoop::setpoint_at(double t_s) const noexcept {
   double y_d = config_.controller.initial_setpoint_m;
@@ -41,31 +42,26 @@ void ControlLoop::start(double t0_s) {
   stops_ = 0;
   y_d_m_ = config_.controller.initial_setpoint_m;
   mode_ = config_.controller.start_armed ? Mode::kArmed : Mode::kDisarmed;
+  fault_cause_ = kFaultNone;
+  faults_ = 0;
   schedule_active_ = true;
   out_.setpoint_m.store(y_d_m_, std::memory_order_relaxed);
   out_.mode.store(static_cast<std::uint8_t>(mode_), std::memory_order_relaxed);
+  out_.fault_cause.store(kFaultNone, std::memory_order_relaxed);
   hal::SensorFrame frame;
   (void)backend_.read(t0_s, frame);
   differentiator_.reset(frame.y_m);
   detector_.reset_at_rest(t0_s, frame.y_m);
   detector_last_y_ = frame.y_m;
   ticks_since_sample_ = 0;
-  bad_reads_in_a_row_ = 0;
-  comms_fault_reads_ = static_cast<std::uint64_t>(
-      std::ceil(config_.controller.comms_fault_after_s / config_.controller.period_s() - 1e-9));
+  supervisor_.reset(t0_s);
+  last_setpoint_t_s_ = t0_s;
+  t_s_ = t0_s;
   y_d_at_stop_m_ = y_d_m_;
 }
 
 void ControlLoop::push(const LoopEvent& e) noexcept {
   if (!out_.events.try_push(e)) ++out_.events_dropped;
-}
-
-const char* fault_text(std::uint8_t cause) noexcept {
-  switch (cause) {
-    case kFaultEStop: return "e-stop pressed: valve power off, outputs neutral until a fault reset once released";
-    case kFaultComms: return "sensor samples stale, invalid or lost (controller.comms_fault_after_s): valve power off until a fault reset with good samples";
-    default: return "fault";
-  }
 }
 
 // Commands were validated off the loop; here they only take effect. A set point leaves the soft
@@ -76,12 +72,16 @@ void ControlLoop::apply_commands(double y_m) noexcept {
   while (out_.commands.try_pop(cmd)) {
     switch (cmd.kind) {
       case LoopCommand::Kind::kSetPoint:
+        if (mode_ == Mode::kFault) break;  // queued before the fault: stale now
         y_d_m_ = std::clamp(cmd.value_m, c.soft_limit_min_m, c.soft_limit_max_m);
         schedule_active_ = false;
+        last_setpoint_t_s_ = t_s_;
         break;
       case LoopCommand::Kind::kSetPointStep:
+        if (mode_ == Mode::kFault) break;
         y_d_m_ = std::clamp(y_d_m_ + cmd.value_m, c.soft_limit_min_m, c.soft_limit_max_m);
         schedule_active_ = false;
+        last_setpoint_t_s_ = t_s_;
         break;
       case LoopCommand::Kind::kArm:
         if (mode_ == Mode::kDisarmed) {
@@ -91,6 +91,8 @@ void ControlLoop::apply_commands(double y_m) noexcept {
           // Bumpless: hold where the carriage is until told otherwise.
           y_d_m_ = std::clamp(y_m, c.soft_limit_min_m, c.soft_limit_max_m);
           schedule_active_ = false;
+          last_setpoint_t_s_ = t_s_;
+          supervisor_.on_arm();
         }
         break;
       case LoopCommand::Kind::kDisarm:
@@ -98,8 +100,12 @@ void ControlLoop::apply_commands(double y_m) noexcept {
         break;
       case LoopCommand::Kind::kFaultReset:
         // The cause must be gone: a reset while the e-stop is still pressed, or while the
-        // samples are still bad, keeps the fault.
-        if (mode_ == Mode::kFault && !estop_active_ && bad_reads_in_a_row_ == 0) mode_ = Mode::kDisarmed;
+        // samples are still bad, keeps the fault. A reset disarms: arming again is a separate,
+        // later command, and only what is measured from then on drives the valves.
+        if (mode_ == Mode::kFault && !supervisor_.cause_present()) {
+          mode_ = Mode::kDisarmed;
+          fault_cause_ = kFaultNone;
+        }
         break;
     }
   }
@@ -108,6 +114,8 @@ void ControlLoop::apply_commands(double y_m) noexcept {
 void ControlLoop::latch_fault(std::uint8_t cause, double t_s, double y_m) noexcept {
   if (mode_ == Mode::kFault) return;
   mode_ = Mode::kFault;
+  fault_cause_ = cause;
+  ++faults_;
   LoopEvent e;
   e.kind = LoopEvent::Kind::kFault;
   e.stop_index = stops_;
@@ -119,16 +127,23 @@ void ControlLoop::latch_fault(std::uint8_t cause, double t_s, double y_m) noexce
 }
 
 void ControlLoop::tick(double t_s) noexcept {
+  t_s_ = t_s;
   hal::SensorFrame frame;
-  const bool read_ok = backend_.read(t_s, frame) == hal::Status::kOk && frame.valid();
-  if (!read_ok) ++comms_errors_;  // counted for health
-  bad_reads_in_a_row_ = read_ok ? 0 : bad_reads_in_a_row_ + 1;
+  const hal::Status status = backend_.read(t_s, frame);
+  if (status != hal::Status::kOk) ++comms_errors_;  // counted for health
 
-  // The e-stop latches the fault (safe output) until an explicit reset once it is released; so
-  // do samples that stay bad (stale, link lost, out of range) for comms_fault_after_s.
-  estop_active_ = frame.estop;
-  if (estop_active_) latch_fault(kFaultEStop, t_s, frame.y_m);
-  if (bad_reads_in_a_row_ > comms_fault_reads_) latch_fault(kFaultComms, t_s, frame.y_m);
+  // The supervisor: e-stop, sensor readings, comms, soft limits, following error, timing, the
+  // set-point stream. A fault latches the safe output until a reset once the cause is gone.
+  SupervisedTick st;
+  st.t_s = t_s;
+  st.status = status;
+  st.frame = &frame;
+  st.armed = mode_ == Mode::kArmed;
+  st.y_d_m = y_d_m_;
+  st.last_setpoint_t_s = last_setpoint_t_s_;
+  const FaultCause cause = supervisor_.check(st);
+  const bool read_ok = supervisor_.sample_good();
+  if (cause != kFaultNone) latch_fault(cause, t_s, frame.y_m);
   // Without a good sample, keep the last position: a stale or invalid value must not reach the
   // differentiator or the detector.
   if (!read_ok) frame.y_m = detector_last_y_;
@@ -146,12 +161,16 @@ void ControlLoop::tick(double t_s) noexcept {
   detector_last_y_ = frame.y_m;
   const double v_hat = differentiator_.velocity_m_per_s();
   const double a_hat = differentiator_.acceleration_m_per_s2();
-  // Valve power follows the armed state; otherwise the outputs sit at the neutral voltage u_0.
+  // Valve power follows the armed state. Disarmed, the outputs sit at the neutral voltage u_0
+  // (F_e(u_0) = 0: the chambers hold); in fault, at the configured safe output.
   const bool armed = mode_ == Mode::kArmed;
   const double u = armed ? law_.control_v(y_d_m_, frame.y_m, v_hat, a_hat) : config_.controller.law.offset_v;
-  if (backend_.write(hal::ActuatorCommand::from_control(u, armed)) != hal::Status::kOk) ++comms_errors_;
+  const hal::ActuatorCommand command =
+      mode_ == Mode::kFault ? safe_command() : hal::ActuatorCommand::from_control(u, armed);
+  if (backend_.write(command) != hal::Status::kOk) ++comms_errors_;
   out_.setpoint_m.store(y_d_m_, std::memory_order_relaxed);
   out_.mode.store(static_cast<std::uint8_t>(mode_), std::memory_order_relaxed);
+  out_.fault_cause.store(fault_cause_, std::memory_order_relaxed);
 
   const double force = area_p_m2_ * frame.p_p_pa - area_n_m2_ * frame.p_n_pa - area_rod_m2_ * p_e_pa_;
   // Stops and starts are judged from good samples only (a snapshot must hold real pressures).
@@ -203,15 +222,21 @@ void ControlLoop::tick(double t_s) noexcept {
   r.p_p_pa = frame.p_p_pa;
   r.p_n_pa = frame.p_n_pa;
   r.force_n = force;
-  r.u_v = u;
+  r.u_v = command.u_p_v;
   r.stuck = detector_.stopped();
   r.mode = mode_;
   r.sensor_validity = frame.validity;
   if (!out_.ticks.try_push(r)) ++out_.ticks_dropped;
+  out_.heartbeat.store(seq_, std::memory_order_release);
 }
 
-void ControlLoop::stop() noexcept {
-  (void)backend_.write(hal::ActuatorCommand::from_control(config_.controller.law.offset_v, false));
+hal::ActuatorCommand ControlLoop::safe_command() const noexcept {
+  const auto& law = config_.controller.law;
+  if (config_.controller.supervisor.safe_output == config::SafeOutput::kExhaust)
+    return {-law.max_voltage_v, -law.max_voltage_v, false};  // both chambers to the exhaust
+  return hal::ActuatorCommand::from_control(law.offset_v, false);
 }
+
+void ControlLoop::stop() noexcept { (void)backend_.write(safe_command()); }
 
 }  // namespace pneu::controller

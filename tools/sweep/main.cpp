@@ -27,7 +27,7 @@ constexpr const char* kHelp = R"(pneu-sweep: the restart predictor against many 
 Usage:
   pneu-sweep [--config FILE] --out SWEEP.csv [--steps N] [--seed S] [--jobs J] [--duration S]
              [--step-time S] [--tail S] [--margin-m M] [--min-step-m D] [--friction-spread F] [--gain-spread G]
-             [--set KEY=VALUE ...] [--strict] [--quiet]
+             [--set KEY=VALUE ...] [--supervised] [--strict] [--quiet]
 
 Scenario i starts at rest at a random position y0 and steps the set point at --step-time
 (default 1 s) to y_d, the targets spread evenly over the stroke less --margin-m (default 0.02 m)
@@ -38,6 +38,11 @@ time, then --tail seconds more (default 1) in which no new stop is judged: a res
 before the end of the window is then seen or refuted by the signals rather than cut off (a
 breakaway with a force a hair beyond stiction moves the carriage by less than the detector's
 motion band for tens of milliseconds). --jobs threads (default: the cores) share the scenarios.
+
+The sweep studies the control law and the forecast, not the bench's protection: unless
+--supervised, the supervisor's motion and range checks are off (large steps slam the carriage
+into an end stop and push a chamber past the pressure sensor's range, which pneud would rightly
+latch as faults and so end the scenario).
 
 SWEEP.csv has one row per stop: the scenario, the stop, what happened, and each method's forecast
 with its verdict and error. The summary gives the confusion matrix of restart / no restart and the
@@ -98,13 +103,21 @@ int run(int argc, char** argv) {
   const cli::Args args(argc, argv, 1,
                        {"config", "out", "steps", "seed", "jobs", "duration", "step-time", "margin-m",
                         "min-step-m", "friction-spread", "gain-spread", "tail"},
-                       {"strict", "quiet", "help"}, {"set"});
+                       {"strict", "quiet", "help", "supervised"}, {"set"});
   if (args.flag("help")) {
     std::cout << kHelp;
     return cli::kExitOk;
   }
   const std::string config_path = args.value("config").value_or("");
   config::Config base = config::load_file_or_default(config_path, args.all("set"));
+  if (!args.flag("supervised")) {
+    auto& v = base.controller.supervisor;
+    v.position_min_m = v.pressure_min_pa = -1e300;
+    v.position_max_m = v.pressure_max_pa = 1e300;
+    v.overtravel_m = 1e300;
+    v.following_error_s = 0.0;
+    v.max_speed_m_per_s = 0.0;
+  }
   const std::string out_path = args.required("out");
   const double steps_d = args.number("steps", 200);
   const double seed_d = args.number("seed", 1);

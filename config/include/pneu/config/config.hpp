@@ -88,13 +88,16 @@ struct SupervisorConfig {
   double position_min_m = -0.255;   ///< a position reading below is out of range [m]
   double position_max_m = 0.255;    ///< ... above [m]
   double pressure_min_pa = 2.0e4;   ///< a pressure reading below is out of range [Pa abs]
-  double pressure_max_pa = 7.7e5;   ///< ... above [Pa abs]
+  double pressure_max_pa = 9.9e5;   ///< ... above [Pa abs]
   /// Two successive samples further apart than this speed allows: the position sensor jumped
   /// (a broken wiper, a rail) [m/s]; 0 = off.
   double max_speed_m_per_s = 5.0;
   /// A pressure reading unchanged bit for bit this long: the sensor or its converter is frozen
   /// [s]; 0 = off (ideal noiseless sensors legitimately repeat themselves).
   double frozen_after_s = 0.0;
+  /// Armed, the position may pass the soft limits (which bound the set points) by this much, an
+  /// overshoot, before it is a fault [m].
+  double overtravel_m = 0.008;
   double following_error_m = 0.01;  ///< |y_d - y| above this ... [m]
   double following_error_s = 2.0;   ///< ... for longer than this while armed latches a fault [s]; 0 = off
   std::uint32_t overruns_in_a_row = 10;  ///< this many overrunning ticks in a row latch a fault; 0 = off

@@ -12,6 +12,7 @@
 #include "pneu/controller/predictor.hpp"
 #include "pneu/controller/spsc_queue.hpp"
 #include "pneu/controller/stop_detector.hpp"
+#include "pneu/controller/supervisor.hpp"
 #include "pneu/hal/backend.hpp"
 
 namespace pneu::controller {
@@ -20,8 +21,8 @@ namespace pneu::controller {
 enum class Mode : std::uint8_t {
   kDisarmed = 0,  ///< valve power off, outputs at the neutral voltage u_0 (F_e(u_0) = 0)
   kArmed = 1,     ///< valve power on, the control law drives the valves
-  kFault = 2,     ///< latched (e-stop; the supervisor's faults later): as disarmed until a reset
-                  ///< received once the cause is gone
+  kFault = 2,     ///< latched by the supervisor: valve power off, the configured safe output,
+                  ///< until a reset received once the cause is gone (then disarmed)
 };
 
 /// Everything one tick computed: the per-tick telemetry record.
@@ -58,10 +59,6 @@ struct LoopEvent {
   std::uint8_t fault_cause = 0;  ///< fault: FaultCause
 };
 
-/// Why the loop latched a fault.
-enum FaultCause : std::uint8_t { kFaultNone = 0, kFaultEStop = 1, kFaultComms = 2 };
-[[nodiscard]] const char* fault_text(std::uint8_t cause) noexcept;
-
 
 /// A validated command for the loop (see CommandValidator).
 struct LoopCommand {
@@ -83,6 +80,9 @@ struct HealthRecord {
   std::uint64_t events_dropped = 0;
   std::uint64_t comms_errors = 0;  ///< backend reads and writes that did not return kOk, since start
   Mode mode = Mode::kArmed;
+  std::uint8_t fault_cause = 0;    ///< FaultCause latched (kFaultNone unless in fault)
+  std::uint64_t faults = 0;        ///< faults latched since start
+  bool final = false;              ///< the last record, sent as the loop stops
 };
 
 /// The loop's lock-free boundary with the non-real-time side. Records leave through
@@ -97,6 +97,8 @@ struct LoopOutputs {
   std::uint64_t events_dropped = 0;  ///< written by the loop thread only
   std::atomic<double> setpoint_m{0.0};  ///< the loop's current set point
   std::atomic<std::uint8_t> mode{static_cast<std::uint8_t>(Mode::kArmed)};
+  std::atomic<std::uint8_t> fault_cause{0};  ///< FaultCause latched
+  std::atomic<std::uint64_t> heartbeat{0};   ///< ticks run: the watchdog checks that it advances
 };
 
 /// The controller's tick. Construct and start() outside the loop; tick() is real-time safe.
@@ -109,8 +111,14 @@ class ControlLoop {
   void start(double t0_s);
   /// One tick at loop time `t_s`. Real-time safe.
   void tick(double t_s) noexcept;
-  /// Drives the safe output for the end of the run: valves at u_0, valve power off.
+  /// After each tick on the real clock: whether it overran its deadline (the supervisor counts
+  /// overruns in a row).
+  void note_overrun(bool overran) noexcept { supervisor_.note_overrun(overran); }
+  /// Drives the safe output for the end of the run (SIGTERM, end of the duration): the
+  /// configured safe voltages, valve power off.
   void stop() noexcept;
+  /// The fault output: valve power off and controller.supervisor.safe_output.
+  [[nodiscard]] hal::ActuatorCommand safe_command() const noexcept;
 
   [[nodiscard]] std::uint64_t ticks() const noexcept { return seq_; }
   [[nodiscard]] double setpoint_at(double t_s) const noexcept;
@@ -118,6 +126,8 @@ class ControlLoop {
   [[nodiscard]] Mode mode() const noexcept { return mode_; }
   /// Backend reads and writes that did not return kOk (stale samples, comms or device errors).
   [[nodiscard]] std::uint64_t comms_errors() const noexcept { return comms_errors_; }
+  [[nodiscard]] std::uint8_t fault_cause() const noexcept { return fault_cause_; }
+  [[nodiscard]] std::uint64_t faults() const noexcept { return faults_; }
 
  private:
   void push(const LoopEvent& e) noexcept;
@@ -140,10 +150,12 @@ class ControlLoop {
   double y_d_at_stop_m_ = 0.0;
   Mode mode_ = Mode::kArmed;
   bool schedule_active_ = true;  ///< a set-point command ends the configured schedule
-  bool estop_active_ = false;
+  Supervisor supervisor_;
+  std::uint8_t fault_cause_ = kFaultNone;
+  std::uint64_t faults_ = 0;
+  double last_setpoint_t_s_ = 0.0;        // loop time of the last set point received, or of arming
+  double t_s_ = 0.0;                      // the current tick's loop time
   std::uint64_t comms_errors_ = 0;
-  std::uint64_t bad_reads_in_a_row_ = 0;
-  std::uint64_t comms_fault_reads_ = 0;  // bad reads in a row that latch the comms fault
   std::uint64_t ticks_since_sample_ = 0;  // ticks since the differentiator took a new sample
   double detector_last_y_ = 0.0;         // the last good position
 };
