@@ -21,7 +21,7 @@ Status SimBackend::read(double t_s, SensorFrame& frame) noexcept {
   const double dt = t_s - plant_.state().t_s;
   // The simulated bench has no valve power relay (that is the GPIO decorator's line): the valves
   // see the commanded voltages, the safe ones included.
-  if (dt > 0.0) plant_.step(dt, command_.u_p_v);
+  if (dt > 0.0) plant_.step(dt, command_.u_p_v, command_.u_n_v);
   const auto& s = plant_.state();
   const auto m = sensors_.measure(s.y_m, s.p_p_pa, s.p_n_pa);
   frame = SensorFrame{t_s, m.y_m, m.p_p_pa, m.p_n_pa, 0.0, false, true, kSensorsValid};

@@ -1,0 +1,272 @@
+// The supervisor's checks on synthetic ticks: each fault cause is raised by its condition, within
+// its configured detection time, and not by the normal life of the bench around it.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "pneu/config/config.hpp"
+#include "pneu/controller/supervisor.hpp"
+
+namespace {
+
+using pneu::controller::FaultCause;
+using pneu::controller::Supervisor;
+namespace c = pneu::controller;
+namespace hal = pneu::hal;
+
+constexpr double kPeriod = 1e-3;
+
+class SupervisorChecks : public ::testing::Test {
+ protected:
+  SupervisorChecks() : config_(pneu::config::load_string(pneu::config::default_config_yaml())) {
+    // Every check on, as on a bench with real (noisy) sensors.
+    config_.controller.supervisor.frozen_after_s = 0.2;
+    config_.commands.setpoint_stream_timeout_s = 0.0;
+  }
+
+  Supervisor make() {
+    Supervisor s(config_);
+    s.reset(0.0);
+    return s;
+  }
+  // A good sample at time t: a slowly moving carriage, flickering pressures.
+  hal::SensorFrame good(double t) const {
+    hal::SensorFrame f;
+    f.t_s = t;
+    f.y_m = 0.1 + 0.01 * t;
+    f.p_p_pa = 4.0e5 + (static_cast<long>(std::llround(t / kPeriod)) % 2 ? 15.0 : 0.0);
+    f.p_n_pa = 3.5e5 + (static_cast<long>(std::llround(t / kPeriod)) % 2 ? 0.0 : 15.0);
+    return f;
+  }
+  FaultCause tick(Supervisor& s, double t, const hal::SensorFrame& f, hal::Status status = hal::Status::kOk,
+                  bool armed = true, double y_d = std::numeric_limits<double>::quiet_NaN(), double last_sp = 0.0) {
+    c::SupervisedTick st;
+    st.t_s = t;
+    st.status = status;
+    st.frame = &f;
+    st.armed = armed;
+    st.y_d_m = std::isnan(y_d) ? f.y_m : y_d;
+    st.last_setpoint_t_s = last_sp;
+    return s.check(st);
+  }
+  // Runs good ticks over [t0, t1) and returns the first fault.
+  FaultCause run_good(Supervisor& s, double t0, double t1) {
+    for (double t = t0; t < t1 - 1e-12; t += kPeriod)
+      if (const FaultCause f = tick(s, t, good(t)); f != c::kFaultNone) return f;
+    return c::kFaultNone;
+  }
+
+  pneu::config::Config config_;
+};
+
+TEST_F(SupervisorChecks, GoodSamplesOfAMovingCarriageRaiseNothing) {
+  Supervisor s = make();
+  EXPECT_EQ(run_good(s, 0.0, 5.0), c::kFaultNone);
+  EXPECT_TRUE(s.sample_good());
+  EXPECT_FALSE(s.cause_present());
+}
+
+TEST_F(SupervisorChecks, ANonFiniteReadingIsAFaultAtOnceAndTheSampleIsNotGood) {
+  for (int channel = 0; channel < 3; ++channel) {
+    Supervisor s = make();
+    ASSERT_EQ(run_good(s, 0.0, 0.1), c::kFaultNone);
+    hal::SensorFrame f = good(0.1);
+    (channel == 0 ? f.y_m : channel == 1 ? f.p_p_pa : f.p_n_pa) = std::numeric_limits<double>::quiet_NaN();
+    EXPECT_EQ(tick(s, 0.1, f), c::kFaultSensorNonFinite) << "channel " << channel;
+    EXPECT_FALSE(s.sample_good());
+    EXPECT_TRUE(s.cause_present()) << "a reset cannot clear it while the reading stays bad";
+  }
+}
+
+TEST_F(SupervisorChecks, APressureAtTheSensorsRailOrBelowThePlausibleRangeIsOutOfRange) {
+  Supervisor s = make();
+  hal::SensorFrame f = good(0.0);
+  f.p_p_pa = 1.0e6;  // the 10 bar transmitter's rail
+  EXPECT_EQ(tick(s, 0.0, f), c::kFaultSensorRange);
+  Supervisor s2 = make();
+  f = good(0.0);
+  f.p_n_pa = 0.0;  // the 0 V rail: no chamber holds a vacuum
+  EXPECT_EQ(tick(s2, 0.0, f), c::kFaultSensorRange);
+}
+
+TEST_F(SupervisorChecks, AReadingTheConverterFlagsInvalidIsOutOfRange) {
+  Supervisor s = make();
+  hal::SensorFrame f = good(0.0);
+  f.validity = hal::kPressurePInvalid;
+  EXPECT_EQ(tick(s, 0.0, f), c::kFaultSensorRange);
+}
+
+TEST_F(SupervisorChecks, AnEndStopIsNotOutOfRange) {
+  Supervisor s = make();
+  hal::SensorFrame f = good(0.0);
+  f.y_m = config_.plant.geometry.half_stroke_m();
+  EXPECT_EQ(tick(s, 0.0, f, hal::Status::kOk, /*armed=*/false), c::kFaultNone);
+}
+
+TEST_F(SupervisorChecks, APositionJumpFasterThanTheCarriageCanMoveIsASensorFault) {
+  Supervisor s = make();
+  ASSERT_EQ(run_good(s, 0.0, 0.1), c::kFaultNone);
+  hal::SensorFrame f = good(0.1);
+  f.y_m = config_.plant.geometry.half_stroke_m();  // the wiper jumped to the rail
+  EXPECT_EQ(tick(s, 0.1, f, hal::Status::kOk, /*armed=*/false), c::kFaultSensorJump);
+}
+
+TEST_F(SupervisorChecks, AMoveAtThePlausibleSpeedIsNoJump) {
+  Supervisor s = make();
+  const double v = 0.9 * config_.controller.supervisor.max_speed_m_per_s;
+  for (int k = 0; k < 100; ++k) {
+    hal::SensorFrame f = good(k * kPeriod);
+    f.y_m = -0.2 + v * k * kPeriod;
+    ASSERT_EQ(tick(s, k * kPeriod, f, hal::Status::kOk, false), c::kFaultNone) << k;
+  }
+}
+
+TEST_F(SupervisorChecks, APressureFrozenBitForBitIsAFaultAfterFrozenAfterS) {
+  Supervisor s = make();
+  ASSERT_EQ(run_good(s, 0.0, 0.5), c::kFaultNone);
+  const double frozen = config_.controller.supervisor.frozen_after_s;
+  double raised_at = -1.0;
+  for (double t = 0.5; t < 1.5; t += kPeriod) {
+    hal::SensorFrame f = good(t);
+    f.p_n_pa = 3.5e5;  // frozen
+    if (tick(s, t, f) == c::kFaultSensorFrozen) {
+      raised_at = t;
+      break;
+    }
+  }
+  ASSERT_GT(raised_at, 0.0) << "never raised";
+  EXPECT_NEAR(raised_at - 0.5, frozen, 2 * kPeriod);
+}
+
+TEST_F(SupervisorChecks, FrozenDetectionIsOffAtZero) {
+  config_.controller.supervisor.frozen_after_s = 0.0;
+  Supervisor s = make();
+  hal::SensorFrame f = good(0.0);
+  for (double t = 0.0; t < 2.0; t += kPeriod) {
+    f.t_s = t;
+    ASSERT_EQ(tick(s, t, f), c::kFaultNone);
+  }
+}
+
+TEST_F(SupervisorChecks, StaleSamplesBecomeACommsFaultOnlyAfterCommsFaultAfterS) {
+  Supervisor s = make();
+  ASSERT_EQ(run_good(s, 0.0, 0.1), c::kFaultNone);
+  const double limit = config_.controller.comms_fault_after_s;
+  double raised_at = -1.0;
+  for (double t = 0.1; t < 1.0; t += kPeriod) {
+    hal::SensorFrame f = good(t);
+    f.validity = hal::kSampleStale;
+    const FaultCause cause = tick(s, t, f, hal::Status::kStale);
+    EXPECT_FALSE(s.sample_good());
+    if (cause != c::kFaultNone) {
+      EXPECT_EQ(cause, c::kFaultComms);
+      raised_at = t;
+      break;
+    }
+  }
+  ASSERT_GT(raised_at, 0.0);
+  EXPECT_NEAR(raised_at - 0.1, limit, 1.5 * kPeriod);
+}
+
+TEST_F(SupervisorChecks, AShortRunOfStaleSamplesIsForgivenByTheNextGoodOne) {
+  Supervisor s = make();
+  for (int round = 0; round < 10; ++round) {
+    const double t0 = round * 0.1;
+    ASSERT_EQ(run_good(s, t0, t0 + 0.07), c::kFaultNone);
+    for (double t = t0 + 0.07; t < t0 + 0.1 - 1e-9; t += kPeriod) {
+      hal::SensorFrame f = good(t);
+      f.validity = hal::kSampleStale;
+      ASSERT_EQ(tick(s, t, f, hal::Status::kStale), c::kFaultNone) << "30 ms of stale samples < 50 ms";
+    }
+  }
+}
+
+TEST_F(SupervisorChecks, ThePositionBeyondTheSoftLimitsByMoreThanTheOvertravelIsAFaultWhenArmed) {
+  const double limit = config_.controller.soft_limit_max_m + config_.controller.supervisor.overtravel_m;
+  Supervisor s = make();
+  hal::SensorFrame f = good(0.0);
+  f.y_m = limit - 1e-4;
+  EXPECT_EQ(tick(s, 0.0, f), c::kFaultNone) << "an overshoot within the overtravel";
+  f.y_m = limit + 1e-4;
+  f.t_s = 0.1;
+  EXPECT_EQ(tick(s, 0.1, f), c::kFaultSoftLimit);
+  Supervisor d = make();
+  EXPECT_EQ(tick(d, 0.0, f, hal::Status::kOk, /*armed=*/false), c::kFaultNone) << "disarmed: not driven there";
+}
+
+TEST_F(SupervisorChecks, AFollowingErrorLastingLongerThanItsLimitIsAFault) {
+  Supervisor s = make();
+  const auto& v = config_.controller.supervisor;
+  double raised_at = -1.0;
+  for (double t = 0.0; t < 2 * v.following_error_s; t += kPeriod) {
+    const hal::SensorFrame f = good(t);
+    if (tick(s, t, f, hal::Status::kOk, true, f.y_m + 2 * v.following_error_m) != c::kFaultNone) {
+      raised_at = t;
+      break;
+    }
+  }
+  EXPECT_NEAR(raised_at, v.following_error_s, 2 * kPeriod);
+}
+
+TEST_F(SupervisorChecks, AMoveThatReachesTheWindowInTimeIsNoFollowingError) {
+  Supervisor s = make();
+  const auto& v = config_.controller.supervisor;
+  // Five moves, each outside the window for 80 % of the time limit, then within it.
+  const double move_s = 1.25 * v.following_error_s;
+  for (double t = 0.0; t < 5 * move_s; t += kPeriod) {
+    const hal::SensorFrame f = good(t);
+    const bool moving = std::fmod(t, move_s) < 0.8 * v.following_error_s;
+    ASSERT_EQ(tick(s, t, f, hal::Status::kOk, true, moving ? f.y_m + 0.1 : f.y_m), c::kFaultNone) << t;
+  }
+}
+
+TEST_F(SupervisorChecks, OverrunsInARowAndOneLongTickIntervalAreFaults) {
+  const auto& v = config_.controller.supervisor;
+  Supervisor s = make();
+  for (std::uint32_t k = 0; k + 1 < v.overruns_in_a_row; ++k) s.note_overrun(true);
+  s.note_overrun(false);  // the run is broken: counting starts again
+  for (std::uint32_t k = 0; k + 1 < v.overruns_in_a_row; ++k) s.note_overrun(true);
+  EXPECT_EQ(tick(s, 0.0, good(0.0)), c::kFaultNone);
+  s.note_overrun(true);
+  EXPECT_EQ(tick(s, kPeriod, good(kPeriod)), c::kFaultOverrun);
+
+  Supervisor t = make();
+  EXPECT_EQ(tick(t, 0.0, good(0.0)), c::kFaultNone);
+  EXPECT_EQ(tick(t, 0.5 * v.max_tick_interval_s, good(0.5 * v.max_tick_interval_s)), c::kFaultNone);
+  const double late = 0.5 * v.max_tick_interval_s + 1.1 * v.max_tick_interval_s;
+  EXPECT_EQ(tick(t, late, good(late)), c::kFaultOverrun);
+}
+
+TEST_F(SupervisorChecks, ASilentSetPointStreamIsAFaultWhenOneIsConfigured) {
+  config_.commands.setpoint_stream_timeout_s = 0.25;
+  config_.controller.supervisor.max_tick_interval_s = 0.0;  // ticks are sampled sparsely here
+  Supervisor s = make();
+  EXPECT_EQ(tick(s, 0.2, good(0.2), hal::Status::kOk, true, std::nan(""), 0.0), c::kFaultNone);
+  EXPECT_EQ(tick(s, 0.3, good(0.3), hal::Status::kOk, true, std::nan(""), 0.1), c::kFaultNone) << "a set point at 0.1 s";
+  EXPECT_EQ(tick(s, 0.36, good(0.36), hal::Status::kOk, true, std::nan(""), 0.1), c::kFaultCommandTimeout);
+  Supervisor d = make();
+  EXPECT_EQ(tick(d, 5.0, good(5.0), hal::Status::kOk, /*armed=*/false, std::nan(""), 0.0), c::kFaultNone)
+      << "disarmed, no stream is expected";
+}
+
+TEST_F(SupervisorChecks, TheEStopIsAFaultAndACausePresentWhilePressed) {
+  Supervisor s = make();
+  hal::SensorFrame f = good(0.0);
+  f.estop = true;
+  EXPECT_EQ(tick(s, 0.0, f), c::kFaultEStop);
+  EXPECT_TRUE(s.cause_present());
+  f.estop = false;
+  f.t_s = kPeriod;
+  EXPECT_EQ(tick(s, kPeriod, f), c::kFaultNone);
+  EXPECT_FALSE(s.cause_present());
+}
+
+TEST(FaultCauses, EveryCauseHasANameAndAText) {
+  for (std::uint8_t k = 1; k < c::kFaultCauseCount; ++k) {
+    EXPECT_STRNE(c::fault_name(k), "unknown") << int{k};
+    EXPECT_STRNE(c::fault_text(k), "fault") << int{k};
+  }
+}
+
+}  // namespace
