@@ -250,3 +250,67 @@ TEST_F(PneuPlantCli, NullFlowCurveIsTheEquilibriumForceOfEquation7) {
   }
   for (std::size_t i = 1; i < data.size(); ++i) EXPECT_GT(data[i][5], data[i - 1][5]) << "increasing in u";
 }
+
+// --- serve: fault injection and outputs record, refused before serving --------------------------
+
+namespace {
+std::string serve_hil() { return "serve --config " + std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml --duration 0.1 "; }
+}  // namespace
+
+TEST_F(PneuPlantCli, ServeHelpDocumentsFaultsAndTheOutputsRecord) {
+  const Outcome h = run("serve --help");
+  EXPECT_EQ(h.exit_code, 0);
+  for (const char* text : {"--outputs FILE", "t_s,u_p_v,u_n_v", "--fault SPEC", "CHANNEL:MODE@T", "rail-low", "rail-high",
+                           "raw=N", "volts=V", "freeze", "nan", "stuck=V", "valve_p -> u_P, valve_n -> u_N"})
+    EXPECT_THAT(h.out, HasSubstr(text));
+  EXPECT_THAT(run("--help").out, HasSubstr("[--outputs FILE] [--fault CHANNEL:MODE@T ...]"));
+}
+
+TEST_F(PneuPlantCli, ServeRefusesBadFaultSpecsNamingTheSpecAndTheReason) {
+  const std::vector<std::pair<std::string, std::string>> cases{
+      {"pressure_p", "expected CHANNEL:MODE@T"},
+      {"pressure_p:rail-high", "missing @T"},
+      {"pressure_q:rail-high@1", "unknown channel 'pressure_q'"},
+      {"pressure_p:melt@1", "unknown mode 'melt'"},
+      {"pressure_p:freeze@-0.5", "T must be >= 0"},
+      {"pressure_p:freeze@soon", "T must be a number of seconds"},
+      {"valve_p:rail-high@1", "rail-high is a sensor mode: a valve channel takes stuck=V only"},
+      {"valve_n:freeze@1", "freeze is a sensor mode"},
+      {"position:stuck=2@1", "stuck=V is a valve mode"},
+      {"pressure_p:nan@1", "nan needs a float32 channel"},
+      {"pressure_p:raw=65536@1", "raw=65536 does not fit the channel's unsigned 16-bit register"},
+      {"pressure_p:raw=-1@1", "raw=-1 does not fit the channel's unsigned 16-bit register"},
+      {"position:raw=7.5@1", "raw=7.5 does not fit the channel's unsigned 16-bit register (an integer"},
+      {"position:raw@1", "raw needs a value"},
+      {"position:volts=abc@1", "volts=abc: not a finite number of volts"},
+      {"position:freeze=1@1", "freeze takes no value"},
+      {"valve_p:stuck=@1", "stuck needs a value"},
+  };
+  for (const auto& [spec, reason] : cases) {
+    const Outcome r = run(serve_hil() + "--fault '" + spec + "'");
+    EXPECT_EQ(r.exit_code, 2) << spec;
+    EXPECT_THAT(r.err, HasSubstr("--fault '" + spec + "': " + reason)) << spec;
+    EXPECT_THAT(r.out, ::testing::Not(HasSubstr("listening"))) << spec << ": refused before serving";
+  }
+}
+
+TEST_F(PneuPlantCli, ServeTakesNanAndFloatRawValuesOnAFloat32Channel) {
+  // On a float32 channel nan is a valid fault and raw=N a float (beyond a single's range it does
+  // not fit). A valid spec would start serving: its acceptance shows as the --outputs refusal,
+  // which comes after the faults are parsed.
+  const std::string f32 = "--set hal.modbus.channels.pressure_p.format=float32 --set hal.modbus.channels.pressure_p.register=4 ";
+  const Outcome nan = run(serve_hil() + f32 + "--fault pressure_p:nan@1 --outputs " + (dir_ / "no/such/dir.csv").string());
+  EXPECT_EQ(nan.exit_code, 2);
+  EXPECT_THAT(nan.err, ::testing::Not(HasSubstr("--fault")));
+  EXPECT_THAT(nan.err, HasSubstr("--outputs"));
+  const Outcome big = run(serve_hil() + f32 + "--fault pressure_p:raw=1e39@1");
+  EXPECT_EQ(big.exit_code, 2);
+  EXPECT_THAT(big.err, HasSubstr("does not fit the channel's float32 register"));
+}
+
+TEST_F(PneuPlantCli, ServeRefusesAnOutputsFileItCannotOpenBeforeServing) {
+  const Outcome r = run(serve_hil() + "--outputs " + (dir_ / "no/such/dir/outputs.csv").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("--outputs " + (dir_ / "no/such/dir/outputs.csv").string() + ": cannot open for writing"));
+  EXPECT_THAT(r.out, ::testing::Not(HasSubstr("listening")));
+}

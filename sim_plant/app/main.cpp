@@ -25,7 +25,7 @@ Usage:
   pneu-plant simulate [--config FILE] --input U.csv --out TRAJ.csv [--set KEY=VALUE ...] [--sensors] [--quiet]
   pneu-plant characterize-valve [--config FILE] --out TABLE.csv [--voltage-step-v V] [--pressure-step-pa P]
   pneu-plant null-flow [--config FILE] --out CURVE.csv [--voltage-step-v V]
-  pneu-plant serve --config FILE [--set KEY=VALUE ...] [--duration S]
+  pneu-plant serve --config FILE [--set KEY=VALUE ...] [--duration S] [--outputs FILE] [--fault CHANNEL:MODE@T ...]
   pneu-plant COMMAND --help
   pneu-plant --version
 

@@ -10,14 +10,19 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <iostream>
+#include <optional>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
@@ -49,6 +54,126 @@ struct ModbusContext {
   }
 };
 
+// --- Fault injection (--fault CHANNEL:MODE@T) ---------------------------------------------------
+
+enum class FaultChannel { kPosition, kPressureP, kPressureN, kValveP, kValveN };
+enum class FaultMode { kRailLow, kRailHigh, kRaw, kVolts, kFreeze, kNan, kStuck };
+
+/// One --fault, parsed and validated against the register map before serving.
+struct Fault {
+  std::string spec;
+  FaultChannel channel = FaultChannel::kPosition;
+  FaultMode mode = FaultMode::kFreeze;
+  double t_s = 0.0;                    ///< acts from this time after start-up on
+  double stuck_v = 0.0;                ///< valve faults: the voltage the stuck spool drives
+  std::array<std::uint16_t, 2> words{};  ///< sensor faults: what the register(s) read (freeze: set on activation)
+};
+
+bool is_valve(FaultChannel c) { return c == FaultChannel::kValveP || c == FaultChannel::kValveN; }
+
+const config::RegisterChannel& channel_of(const config::ModbusConfig& mb, FaultChannel c) {
+  switch (c) {
+    case FaultChannel::kPosition: return mb.position;
+    case FaultChannel::kPressureP: return mb.pressure_p;
+    case FaultChannel::kPressureN: return mb.pressure_n;
+    case FaultChannel::kValveP: return mb.valve_p;
+    case FaultChannel::kValveN: return mb.valve_n;
+  }
+  return mb.position;
+}
+
+// A whole-string number (strtod: also "inf", "nan"), or nullopt.
+std::optional<double> parse_number(const std::string& text) {
+  if (text.empty() || std::isspace(static_cast<unsigned char>(text.front()))) return std::nullopt;
+  char* end = nullptr;
+  errno = 0;
+  const double v = std::strtod(text.c_str(), &end);
+  if (end != text.c_str() + text.size() || errno == ERANGE) return std::nullopt;
+  return v;
+}
+
+Fault parse_fault(const std::string& spec, const config::ModbusConfig& mb) {
+  const auto bad = [&](const std::string& why) { return cli::UsageError("--fault '" + spec + "': " + why); };
+  const auto colon = spec.find(':');
+  if (colon == std::string::npos) throw bad("expected CHANNEL:MODE@T, e.g. pressure_p:rail-high@2.5");
+  const std::string channel = spec.substr(0, colon);
+  const std::string rest = spec.substr(colon + 1);
+  const auto at = rest.rfind('@');
+  if (at == std::string::npos) throw bad("missing @T: the time from which the fault acts, in seconds after start-up");
+  const std::string mode_text = rest.substr(0, at);
+  const std::string t_text = rest.substr(at + 1);
+
+  Fault f;
+  f.spec = spec;
+  if (channel == "position") f.channel = FaultChannel::kPosition;
+  else if (channel == "pressure_p") f.channel = FaultChannel::kPressureP;
+  else if (channel == "pressure_n") f.channel = FaultChannel::kPressureN;
+  else if (channel == "valve_p") f.channel = FaultChannel::kValveP;
+  else if (channel == "valve_n") f.channel = FaultChannel::kValveN;
+  else throw bad("unknown channel '" + channel + "' (position, pressure_p, pressure_n, valve_p, valve_n)");
+
+  const auto t = parse_number(t_text);
+  if (!t || !std::isfinite(*t)) throw bad("T must be a number of seconds (got '" + t_text + "')");
+  if (*t < 0.0) throw bad("T must be >= 0 (got " + t_text + ")");
+  f.t_s = *t;
+
+  const auto eq = mode_text.find('=');
+  const std::string mode = mode_text.substr(0, eq);
+  const std::optional<std::string> arg =
+      eq == std::string::npos ? std::nullopt : std::optional<std::string>(mode_text.substr(eq + 1));
+  if (mode == "rail-low") f.mode = FaultMode::kRailLow;
+  else if (mode == "rail-high") f.mode = FaultMode::kRailHigh;
+  else if (mode == "raw") f.mode = FaultMode::kRaw;
+  else if (mode == "volts") f.mode = FaultMode::kVolts;
+  else if (mode == "freeze") f.mode = FaultMode::kFreeze;
+  else if (mode == "nan") f.mode = FaultMode::kNan;
+  else if (mode == "stuck") f.mode = FaultMode::kStuck;
+  else throw bad("unknown mode '" + mode + "' (sensors: rail-low, rail-high, raw=N, volts=V, freeze, nan; valves: stuck=V)");
+  const bool takes_value = f.mode == FaultMode::kRaw || f.mode == FaultMode::kVolts || f.mode == FaultMode::kStuck;
+  if (takes_value && (!arg || arg->empty())) throw bad(mode + " needs a value: " + mode + (f.mode == FaultMode::kRaw ? "=N" : "=V"));
+  if (!takes_value && arg) throw bad(mode + " takes no value");
+  if (is_valve(f.channel) && f.mode != FaultMode::kStuck)
+    throw bad(mode + " is a sensor mode: a valve channel takes stuck=V only");
+  if (!is_valve(f.channel) && f.mode == FaultMode::kStuck)
+    throw bad("stuck=V is a valve mode: a sensor channel takes rail-low, rail-high, raw=N, volts=V, freeze or nan");
+
+  const config::RegisterChannel& c = channel_of(mb, f.channel);
+  const bool is_float = c.format == config::RegisterFormat::kFloat32;
+  const std::string type = is_float ? "float32" : c.is_signed ? "signed 16-bit" : "unsigned 16-bit";
+  switch (f.mode) {
+    case FaultMode::kRailLow: (void)c.raw_to_words(c.raw_min, f.words.data()); break;
+    case FaultMode::kRailHigh: (void)c.raw_to_words(c.raw_max, f.words.data()); break;
+    case FaultMode::kRaw: {
+      const auto n = parse_number(*arg);
+      if (!n || std::isnan(*n)) throw bad("raw=" + *arg + ": not a number" + (is_float ? " (for NaN use the mode nan)" : ""));
+      if (!c.raw_to_words(*n, f.words.data()))
+        throw bad("raw=" + *arg + " does not fit the channel's " + type + " register" +
+                  (is_float ? "" : c.is_signed ? " (an integer in [-32768, 32767])" : " (an integer in [0, 65535])"));
+      break;
+    }
+    case FaultMode::kVolts: {
+      const auto v = parse_number(*arg);
+      if (!v || !std::isfinite(*v)) throw bad("volts=" + *arg + ": not a finite number of volts");
+      (void)c.raw_to_words(c.volts_to_raw(*v), f.words.data());  // saturates at the register type's limits
+      break;
+    }
+    case FaultMode::kNan:
+      if (!is_float)
+        throw bad("nan needs a float32 channel (hal.modbus.channels." + channel +
+                  ".format: float32): an int16 register cannot hold NaN");
+      (void)c.raw_to_words(std::nan(""), f.words.data());  // 0x7FC0 0x0000, a quiet NaN
+      break;
+    case FaultMode::kStuck: {
+      const auto v = parse_number(*arg);
+      if (!v || !std::isfinite(*v)) throw bad("stuck=" + *arg + ": not a finite number of volts");
+      f.stuck_v = *v;
+      break;
+    }
+    case FaultMode::kFreeze: break;
+  }
+  return f;
+}
+
 }  // namespace
 
 const char* const kServeHelpText = R"(pneu-plant serve: the simulated bench behind a Modbus server (hardware in the loop)
@@ -57,20 +182,42 @@ const char* const kServeHelpText = R"(pneu-plant serve: the simulated bench behi
                        config/sim.yaml, which has none: use config/hil.yaml)
   --set KEY=VALUE      override a config key (repeatable), e.g. --set hal.modbus.port=1502
   --duration S         stop after S seconds (default: run until SIGINT/SIGTERM)
+  --outputs FILE       record the valve voltages the clients write: CSV with the header
+                       t_s,u_p_v,u_n_v, one line at start-up (the registers' initial values) and
+                       one each time either received voltage changes (not per request); t_s in
+                       seconds since start-up, 6 decimals. Each line is flushed at once, so the
+                       file holds the last outputs received even after a SIGKILL.
+  --fault SPEC         fault injection (repeatable): SPEC is CHANNEL:MODE@T, acting from T seconds
+                       after start-up on. Sensor channels position, pressure_p, pressure_n:
+                         rail-low | rail-high  the register reads the channel's raw_min | raw_max
+                         raw=N                 the register reads the raw value N (may lie outside
+                                               [raw_min, raw_max]; must fit the register type)
+                         volts=V               the register reads V volts through the channel's
+                                               scaling, clamped only by the register type
+                         freeze                the register keeps the value it had at T
+                         nan                   the register reads NaN (float32 channels only)
+                       valve channels valve_p, valve_n:
+                         stuck=V               the plant's valve is driven at V volts whatever the
+                                               client writes (--outputs still records the writes)
+                       A later fault on the same channel replaces an earlier one. Each prints one
+                       line when it becomes active.
   --reply-delay-s D    fault injection: answer every request D seconds late ...
   --delay-after-s T    ... from T seconds after start-up on (default 0)
   --quiet              no start-up line
 
 The plant of plant.* runs in real time from rest at simulation.initial_position_m. Each request
 is answered from the sensor models of sensors.* (noise, clamp, ADC) scaled into the registers of
-hal.modbus.channels; the valve registers written by the client drive the valves (valve_p; u_N is
-assumed -u_P, as Eq. 1). TCP listens on hal.modbus.host:port (loopback by default) and serves one
-client at a time: a second one is accepted and closed at once. RTU serves hal.modbus.device as
-unit hal.modbus.unit_id. On exit it prints the last valve voltages it was sent.
+hal.modbus.channels (a float32 channel: two registers, high word first); the valve registers
+written by the client drive the valves, each its own: valve_p -> u_P, valve_n -> u_N. TCP listens
+on hal.modbus.host:port (loopback by default) and serves one client at a time: a second one is
+accepted and closed at once. RTU serves hal.modbus.device as unit hal.modbus.unit_id. On exit it
+prints the last valve voltages it was sent. Bad --fault specs and an --outputs file that cannot be
+opened are refused before serving, with exit code 2.
 )";
 
 int serve(int argc, char** argv) {
-  const cli::Args args(argc, argv, 2, {"config", "duration", "reply-delay-s", "delay-after-s"}, {"help", "quiet"}, {"set"});
+  const cli::Args args(argc, argv, 2, {"config", "duration", "reply-delay-s", "delay-after-s", "outputs"},
+                       {"help", "quiet"}, {"set", "fault"});
   if (args.flag("help")) {
     std::cout << kServeHelpText;
     return cli::kExitOk;
@@ -84,11 +231,29 @@ int serve(int argc, char** argv) {
   if (reply_delay < 0.0 || delay_after < 0.0) throw cli::UsageError("--reply-delay-s and --delay-after-s must be >= 0");
   const auto& mb = cfg.hal.modbus;
 
+  // Faults in the order they become active (ties: command-line order).
+  std::vector<Fault> faults;
+  for (const auto& spec : args.all("fault")) faults.push_back(parse_fault(spec, mb));
+  std::stable_sort(faults.begin(), faults.end(), [](const Fault& a, const Fault& b) { return a.t_s < b.t_s; });
+
+  std::FILE* outputs = nullptr;
+  struct Closer {
+    std::FILE*& f;
+    ~Closer() {
+      if (f) std::fclose(f);
+    }
+  } close_outputs{outputs};
+  if (const auto path = args.value("outputs")) {
+    outputs = std::fopen(path->c_str(), "w");
+    if (!outputs) throw cli::UsageError("--outputs " + *path + ": cannot open for writing: " + std::strerror(errno));
+  }
+
   plant::Plant plant(cfg.plant);
   plant::SensorSuite sensors(cfg.sensors);
   const double u_e = plant::equilibrium_voltage_v(plant.valve(), cfg.plant.geometry, cfg.plant.gas.exhaust_pressure_pa);
   plant.reset_at_rest(cfg.simulation.initial_position_m, u_e);
-  double u_p = u_e, u_n = -u_e;
+  double u_p = u_e, u_n = -u_e;  // what the client wrote (at first: the neutral voltages)
+  std::optional<double> stuck_p, stuck_n;  // a stuck spool drives its valve instead
 
   ModbusContext m;
   const bool tcp = mb.transport == config::ModbusTransport::kTcp;
@@ -96,13 +261,30 @@ int serve(int argc, char** argv) {
               : modbus_new_rtu(mb.device.c_str(), mb.baud, mb.parity, mb.data_bits, mb.stop_bits);
   if (!m.ctx) throw std::runtime_error(std::string("cannot create the Modbus server: ") + modbus_strerror(errno));
   modbus_set_slave(m.ctx, mb.unit_id);
-  const int top = std::max({mb.position.address, mb.pressure_p.address, mb.pressure_n.address, mb.valve_p.address,
-                            mb.valve_n.address}) + 1;
+  const int top = std::max({mb.position.last_address(), mb.pressure_p.last_address(), mb.pressure_n.last_address(),
+                            mb.valve_p.last_address(), mb.valve_n.last_address()}) + 1;
   m.map = modbus_mapping_new(0, 0, top, top);
   if (!m.map) throw std::runtime_error(std::string("cannot allocate the register map: ") + modbus_strerror(errno));
   uint16_t* sensor_regs = mb.sensor_table == config::SensorTable::kInput ? m.map->tab_input_registers : m.map->tab_registers;
   m.map->tab_registers[mb.valve_p.address] = mb.valve_p.to_word(u_p);
   m.map->tab_registers[mb.valve_n.address] = mb.valve_n.to_word(u_n);
+  std::uint16_t word_p = m.map->tab_registers[mb.valve_p.address], word_n = m.map->tab_registers[mb.valve_n.address];
+
+  // The sensor registers: from the sensor models, or what an active fault makes them read.
+  const Fault* sensor_fault[3] = {nullptr, nullptr, nullptr};  // position, pressure_p, pressure_n
+  const config::RegisterChannel* sensor_channel[3] = {&mb.position, &mb.pressure_p, &mb.pressure_n};
+  const auto update_sensor_registers = [&] {
+    const auto& s = plant.state();
+    const auto v = sensors.read_volts(s.y_m, s.p_p_pa, s.p_n_pa);
+    const double volts[3] = {v.y_m, v.p_p_pa, v.p_n_pa};
+    for (int i = 0; i < 3; ++i) {
+      const config::RegisterChannel& c = *sensor_channel[i];
+      std::uint16_t* w = &sensor_regs[c.address];
+      if (!sensor_fault[i]) c.to_words(volts[i], w);
+      else std::copy_n(sensor_fault[i]->words.begin(), c.register_count(), w);
+    }
+  };
+  update_sensor_registers();  // so that a fault frozen before the first request has a value to keep
 
   int listen_fd = -1, client_fd = -1;
   if (tcp) {
@@ -123,13 +305,47 @@ int serve(int argc, char** argv) {
   }
 
   const double t0 = mono_s();
+  const auto record_outputs = [&](double t) {
+    if (!outputs) return;
+    std::fprintf(outputs, "%.6f,%.6f,%.6f\n", t, mb.valve_p.to_volts(word_p), mb.valve_n.to_volts(word_n));
+    std::fflush(outputs);
+  };
+  if (outputs) {
+    std::fputs("t_s,u_p_v,u_n_v\n", outputs);
+    record_outputs(0.0);
+  }
+
+  // Real time: the plant catches up with the wall clock, the valves held since the last write;
+  // each fault takes effect at its own time inside the catch-up.
+  std::size_t next_fault = 0;
+  const auto drive_p = [&] { return stuck_p.value_or(u_p); };
+  const auto drive_n = [&] { return stuck_n.value_or(u_n); };
+  const auto advance_to = [&](double t) {
+    for (; next_fault < faults.size() && faults[next_fault].t_s <= t; ++next_fault) {
+      Fault& f = faults[next_fault];
+      if (f.t_s > plant.state().t_s) plant.step(f.t_s - plant.state().t_s, drive_p(), drive_n());
+      switch (f.channel) {
+        case FaultChannel::kValveP: stuck_p = f.stuck_v; break;
+        case FaultChannel::kValveN: stuck_n = f.stuck_v; break;
+        default: {
+          const int i = static_cast<int>(f.channel);
+          if (f.mode == FaultMode::kFreeze)
+            std::copy_n(&sensor_regs[sensor_channel[i]->address], sensor_channel[i]->register_count(), f.words.begin());
+          sensor_fault[i] = &f;
+        }
+      }
+      std::printf("pneu-plant serve: fault %s active at t = %.6f s\n", f.spec.c_str(), mono_s() - t0);
+      std::fflush(stdout);
+    }
+    if (t > plant.state().t_s) plant.step(t - plant.state().t_s, drive_p(), drive_n());
+  };
+
   std::uint64_t requests = 0, refused = 0, clients = 0, foreign = 0;
   uint8_t query[MODBUS_RTU_MAX_ADU_LENGTH > MODBUS_TCP_MAX_ADU_LENGTH ? MODBUS_RTU_MAX_ADU_LENGTH : MODBUS_TCP_MAX_ADU_LENGTH];
   while (!g_stop.load()) {
     const double now = mono_s() - t0;
     if (duration > 0.0 && now >= duration) break;
-    // Real time: the plant catches up with the wall clock, the valves held since the last write.
-    if (now > plant.state().t_s) plant.step(now - plant.state().t_s, u_p);
+    advance_to(now);
 
     fd_set fds;
     FD_ZERO(&fds);
@@ -151,12 +367,8 @@ int serve(int argc, char** argv) {
       } else if (rc > 0) {
         ++requests;
         const double t = mono_s() - t0;
-        if (t > plant.state().t_s) plant.step(t - plant.state().t_s, u_p);
-        const auto& s = plant.state();
-        const auto v = sensors.read_volts(s.y_m, s.p_p_pa, s.p_n_pa);
-        sensor_regs[mb.position.address] = mb.position.to_word(v.y_m);
-        sensor_regs[mb.pressure_p.address] = mb.pressure_p.to_word(v.p_p_pa);
-        sensor_regs[mb.pressure_n.address] = mb.pressure_n.to_word(v.p_n_pa);
+        advance_to(t);
+        update_sensor_registers();
         if (!tcp) {
           // A pty carries bytes at any speed: hold the reply for the time the request and the
           // reply take on a real line at this baud rate (10 bits a byte, 3.5-character silences),
@@ -181,8 +393,15 @@ int serve(int argc, char** argv) {
           }
         }
         modbus_reply(m.ctx, query, rc, m.map);
-        u_p = mb.valve_p.to_volts(m.map->tab_registers[mb.valve_p.address]);
-        u_n = mb.valve_n.to_volts(m.map->tab_registers[mb.valve_n.address]);
+        const std::uint16_t wp = m.map->tab_registers[mb.valve_p.address];
+        const std::uint16_t wn = m.map->tab_registers[mb.valve_n.address];
+        if (wp != word_p || wn != word_n) {  // each valve drives its own chamber (not Eq. 1's u_N = -u_P)
+          word_p = wp;
+          word_n = wn;
+          u_p = mb.valve_p.to_volts(wp);
+          u_n = mb.valve_n.to_volts(wn);
+          record_outputs(mono_s() - t0);
+        }
       } else if (rc == -1) {
         if (tcp) {
           ::close(client_fd);

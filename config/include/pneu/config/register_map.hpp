@@ -40,7 +40,7 @@ struct RegisterChannel {
   /// `address + 1` for float32). NaN and infinities of a float32 pass through.
   [[nodiscard]] double raw_of(const std::uint16_t* words) const noexcept {
     if (format == RegisterFormat::kFloat32) return static_cast<double>(float_of(words[0], words[1]));
-    return is_signed ? static_cast<double>(static_cast<std::int16_t>(words[0])) : static_cast<double>(words[0]);
+    return int16_raw(words[0]);
   }
   /// Raw value -> volts (linear; outside the raw range extrapolates, NaN stays NaN).
   [[nodiscard]] double raw_to_volts(double raw) const noexcept {
@@ -96,9 +96,13 @@ struct RegisterChannel {
     return fits;
   }
 
-  // One-register (int16) shorthands, as the valve channels use them.
+  // One-register shorthands for int16 channels (the valves; a float32 channel needs both words).
+  /// An int16 channel's count.
+  [[nodiscard]] double int16_raw(std::uint16_t word) const noexcept {
+    return is_signed ? static_cast<double>(static_cast<std::int16_t>(word)) : static_cast<double>(word);
+  }
   /// Register word -> volts (linear; outside the raw range extrapolates, the caller checks range).
-  [[nodiscard]] double to_volts(std::uint16_t word) const noexcept { return to_volts(&word); }
+  [[nodiscard]] double to_volts(std::uint16_t word) const noexcept { return raw_to_volts(int16_raw(word)); }
   /// Volts -> register word, rounded and clamped to [raw_min, raw_max].
   [[nodiscard]] std::uint16_t to_word(double volts) const noexcept {
     std::uint16_t words[2] = {};
@@ -106,7 +110,10 @@ struct RegisterChannel {
     return words[0];
   }
   /// Whether a word lies inside the configured raw range (a rail or a broken wire lies outside).
-  [[nodiscard]] bool in_range(std::uint16_t word) const noexcept { return in_range(&word); }
+  [[nodiscard]] bool in_range(std::uint16_t word) const noexcept {
+    const double raw = int16_raw(word);
+    return raw >= raw_min && raw <= raw_max;
+  }
 
   /// The float of two words in "ABCD" order.
   [[nodiscard]] static float float_of(std::uint16_t high, std::uint16_t low) noexcept {

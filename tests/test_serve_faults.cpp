@@ -1,0 +1,281 @@
+// Fault injection in `pneu-plant serve` (issue 6), read back with libmodbus as a client: sensor
+// registers at a rail, at a given raw value, frozen, NaN on a float32 channel; a stuck valve spool
+// that moves the plant whatever the client writes; and the --outputs record of what the client
+// wrote, which survives a SIGKILL. Real time: about 10 s in all.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <modbus.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstring>
+#include <fstream>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "pneu/config/config.hpp"
+#include "pneu/hal/modbus_backend.hpp"
+#include "support/child_process.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using pneu::test::Child;
+using pneu::test::Csv;
+using pneu::test::free_port;
+using pneu::test::slurp;
+using ::testing::HasSubstr;
+using Clock = std::chrono::steady_clock;
+
+std::string bin(const std::string& name) { return std::string(PNEU_BINARY_DIR) + "/bin/" + name; }
+std::string hil_yaml() { return std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml"; }
+
+// hil.yaml's registers: position 0, pressure_p 1, pressure_n 2 (unsigned, 0..65535 for 0..10 V),
+// valve_p 16, valve_n 17 (signed, -32767..32767 for -10..10 V).
+constexpr int kPosition = 0, kPressureP = 1, kPressureN = 2, kValveP = 16, kValveN = 17;
+
+std::vector<std::string> float32_overrides() {
+  std::ifstream in(std::string(PNEU_SOURCE_DIR) + "/tests/hil_float32_overrides.txt");
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);)
+    if (!line.empty()) lines.push_back(line);
+  return lines;
+}
+
+std::uint16_t valve_word(double volts) {  // hil.yaml's valve scaling
+  return static_cast<std::uint16_t>(static_cast<std::int16_t>(std::lround(volts / 10.0 * 32767.0)));
+}
+double valve_volts(std::uint16_t word) { return static_cast<std::int16_t>(word) * 10.0 / 32767.0; }
+
+// A libmodbus TCP client of unit 1 on loopback.
+class Client {
+ public:
+  explicit Client(int port) : ctx_(modbus_new_tcp("127.0.0.1", port)) {
+    modbus_set_slave(ctx_, 1);
+    modbus_set_response_timeout(ctx_, 0, 500000);
+    connected_ = modbus_connect(ctx_) == 0;
+  }
+  ~Client() {
+    modbus_close(ctx_);
+    modbus_free(ctx_);
+  }
+  Client(const Client&) = delete;
+  Client& operator=(const Client&) = delete;
+  [[nodiscard]] bool connected() const { return connected_; }
+
+  std::vector<std::uint16_t> read(int address, int count) {
+    std::vector<std::uint16_t> regs(static_cast<std::size_t>(count));
+    EXPECT_EQ(modbus_read_registers(ctx_, address, count, regs.data()), count) << modbus_strerror(errno);
+    return regs;
+  }
+  std::uint16_t read1(int address) { return read(address, 1)[0]; }
+  void write_valves(std::uint16_t p, std::uint16_t n) {
+    const std::uint16_t out[2] = {p, n};
+    EXPECT_EQ(modbus_write_registers(ctx_, kValveP, 2, out), 2) << modbus_strerror(errno);
+  }
+
+ private:
+  modbus_t* ctx_;
+  bool connected_ = false;
+};
+
+bool wait_listening(int port) {
+  for (int i = 0; i < 200; ++i) {
+    modbus_t* probe = modbus_new_tcp("127.0.0.1", port);
+    const bool ok = modbus_connect(probe) == 0;
+    modbus_close(probe);  // the server sees a client that leaves at once, and serves the next
+    modbus_free(probe);
+    if (ok) return true;
+    std::this_thread::sleep_for(10ms);
+  }
+  return false;
+}
+
+class ServeFaults : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("pneu_serve_faults_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
+            std::to_string(getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    port_ = free_port();
+  }
+  void TearDown() override {
+    if (!HasFailure()) fs::remove_all(dir_);
+  }
+  // Starts serve on hil.yaml at a free port with `extra` options; `started_` is taken before the
+  // spawn, so serve's own start-up (its t = 0) is later: a fault at T is active by started_ + T.
+  Child serve(const std::vector<std::string>& extra, double duration_s = 10.0) {
+    std::vector<std::string> args{bin("pneu-plant"), "serve", "--config", hil_yaml(), "--set",
+                                  "hal.modbus.port=" + std::to_string(port_), "--duration", std::to_string(duration_s)};
+    args.insert(args.end(), extra.begin(), extra.end());
+    started_ = Clock::now();
+    Child c = Child::spawn(args, dir_ / "serve.out", dir_ / "serve.err");
+    EXPECT_TRUE(wait_listening(port_)) << slurp(dir_ / "serve.err");
+    return c;
+  }
+  double since_start_s() const { return std::chrono::duration<double>(Clock::now() - started_).count(); }
+  void sleep_until_s(double t) const {
+    std::this_thread::sleep_until(started_ + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(t)));
+  }
+  std::vector<std::string> with_float32(std::vector<std::string> extra) const {
+    for (const auto& o : float32_overrides()) extra.insert(extra.begin(), {"--set", o});
+    return extra;
+  }
+
+  fs::path dir_;
+  int port_ = 0;
+  Clock::time_point started_;
+};
+
+TEST_F(ServeFaults, RailFaultsReadTheChannelsRawLimitsFromTheirTimeOn) {
+  Child plant = serve({"--fault", "pressure_p:rail-high@1", "--fault", "position:rail-low@1"});
+  Client c(port_);
+  ASSERT_TRUE(c.connected());
+  const auto before = c.read(kPosition, 3);
+  ASSERT_LT(since_start_s(), 1.0) << "read before the faults act";
+  EXPECT_GT(before[kPosition], 60000) << "at rest at 219.5 mm: about 9.39 V";
+  EXPECT_LT(before[kPressureP], 40000) << "about 3.4 bar: 3.4 V";
+
+  sleep_until_s(1.2);
+  const auto after = c.read(kPosition, 3);
+  EXPECT_EQ(after[kPressureP], 65535) << "raw_max";
+  EXPECT_EQ(after[kPosition], 0) << "raw_min";
+  EXPECT_NEAR(after[kPressureN], before[kPressureN], 100) << "the other channels read on";
+  const std::string out = slurp(dir_ / "serve.out");
+  EXPECT_THAT(out, HasSubstr("fault pressure_p:rail-high@1 active at t = "));
+  EXPECT_THAT(out, HasSubstr("fault position:rail-low@1 active at t = "));
+}
+
+TEST_F(ServeFaults, RawAndVoltsFaultsReadTheGivenValueEvenOutsideTheRawRange) {
+  // position's raw range narrowed to 60000: raw=65000 is a reading beyond it, as from a broken wire.
+  Child plant = serve({"--set", "hal.modbus.channels.position.raw_max=60000", "--fault", "position:raw=65000@0",
+                       "--fault", "pressure_n:volts=2.5@0", "--fault", "pressure_p:raw=12345@0"});
+  Client c(port_);
+  ASSERT_TRUE(c.connected());
+  const auto regs = c.read(kPosition, 3);
+  EXPECT_EQ(regs[kPosition], 65000);
+  EXPECT_EQ(regs[kPressureP], 12345);
+  EXPECT_EQ(regs[kPressureN], 16384) << "2.5 V of 0..10 V on 0..65535: 16383.75, rounded";
+}
+
+TEST_F(ServeFaults, FreezeKeepsTheValueTheRegisterHadAtItsTime) {
+  Child plant = serve({"--fault", "pressure_n:freeze@1"});
+  Client c(port_);
+  ASSERT_TRUE(c.connected());
+  std::set<std::uint16_t> live;
+  while (since_start_s() < 0.9) {
+    live.insert(c.read1(kPressureN));
+    std::this_thread::sleep_for(5ms);
+  }
+  EXPECT_GE(live.size(), 2u) << "not vacuous: 20 Pa of noise moves the live reading";
+
+  sleep_until_s(1.2);
+  const std::uint16_t frozen = c.read1(kPressureN);
+  std::set<std::uint16_t> later;
+  for (int i = 0; i < 60; ++i) {
+    later.insert(c.read1(kPressureN));
+    std::this_thread::sleep_for(5ms);
+  }
+  EXPECT_EQ(later, std::set<std::uint16_t>{frozen});
+  EXPECT_NEAR(frozen, *live.begin(), 50) << "frozen at a live value, not at some default";
+}
+
+TEST_F(ServeFaults, NanOnAFloat32ChannelReadsQuietNanBitsAndReachesTheFrameFlaggedInvalid) {
+  Child plant = serve(with_float32({"--fault", "pressure_p:nan@0"}));
+  {
+    Client c(port_);
+    ASSERT_TRUE(c.connected());
+    const auto regs = c.read(0, 8);  // position 0, pressure_p 4-5, pressure_n 6-7
+    EXPECT_EQ(regs[4], 0x7FC0);
+    EXPECT_EQ(regs[5], 0x0000);
+    const float p_n_volts = pneu::config::RegisterChannel::float_of(regs[6], regs[7]);
+    EXPECT_GT(p_n_volts, 4.0f) << "p_N at rest is about 4.9 bar: 4.9 V, and the float is the raw value";
+    EXPECT_LT(p_n_volts, 6.0f);
+  }  // serve takes one client at a time: leave the slot to the backend
+
+  // pneud's modbus backend on the same map: a non-finite pressure with its invalid flag set.
+  std::vector<std::string> overrides = float32_overrides();
+  overrides.push_back("hal.modbus.port=" + std::to_string(port_));
+  const pneu::config::Config cfg = pneu::config::load_file(hil_yaml(), overrides);
+  pneu::hal::ModbusBackend backend(cfg.hal.modbus, cfg.sensors);
+  ASSERT_NO_THROW(backend.open(0.0));
+  pneu::hal::SensorFrame frame;
+  (void)backend.read(0.0, frame);
+  backend.close();
+  EXPECT_TRUE(std::isnan(frame.p_p_pa));
+  EXPECT_TRUE(frame.validity & pneu::hal::kPressurePInvalid);
+  EXPECT_NEAR(frame.p_n_pa, 4.9e5, 0.5e5) << "the healthy float32 channel decodes to SI";
+  EXPECT_FALSE(frame.validity & pneu::hal::kPressureNInvalid);
+  EXPECT_FALSE(frame.validity & pneu::hal::kPositionInvalid);
+}
+
+TEST_F(ServeFaults, AStuckValveMovesThePlantWhileOutputsRecordWhatTheClientWrote) {
+  // The client holds the valves where serve started them (u_0 = u_e, the carriage at rest at
+  // complete equilibrium), one count off so that its writes are a change --outputs records; from
+  // 1 s valve P's spool is stuck at -3 V: chamber P vents and the carriage runs back.
+  Child plant = serve({"--outputs", (dir_ / "outputs.csv").string(), "--fault", "valve_p:stuck=-3@1"});
+  Client c(port_);
+  ASSERT_TRUE(c.connected());
+  const auto u0 = c.read(kValveP, 2);
+  const std::uint16_t held_p = static_cast<std::uint16_t>(u0[0] + 1), held_n = static_cast<std::uint16_t>(u0[1] - 1);
+  std::vector<std::uint16_t> positions_before, positions_after;
+  while (since_start_s() < 2.5) {
+    c.write_valves(held_p, held_n);
+    (since_start_s() < 0.9 ? positions_before : positions_after).push_back(c.read1(kPosition));
+    std::this_thread::sleep_for(5ms);
+  }
+  ASSERT_GE(positions_before.size(), 10u);
+  const auto [lo, hi] = std::minmax_element(positions_before.begin(), positions_before.end());
+  EXPECT_LE(*hi - *lo, 2) << "at rest under the client's u_0: within the ADC's last count";
+  // 1.5 s after the spool stuck: tens of millimetres back (20 V/m, 0.153 mV a count: 131 counts a mm).
+  EXPECT_LT(positions_after.back() + 2000, positions_before.front()) << "the stuck valve moved the carriage";
+  EXPECT_THAT(slurp(dir_ / "serve.out"), HasSubstr("fault valve_p:stuck=-3@1 active at t = "));
+
+  const Csv out = Csv::read(dir_ / "outputs.csv");
+  ASSERT_EQ(out.header, (std::vector<std::string>{"t_s", "u_p_v", "u_n_v"}));
+  ASSERT_EQ(out.rows.size(), 2u) << "the initial values, then one change: hundreds of writes of the same words";
+  EXPECT_EQ(std::stod(out.rows[0][out.col("t_s")]), 0.0);
+  EXPECT_NEAR(std::stod(out.rows[0][out.col("u_p_v")]), valve_volts(u0[0]), 1e-6);
+  EXPECT_NEAR(std::stod(out.rows[0][out.col("u_n_v")]), valve_volts(u0[1]), 1e-6);
+  EXPECT_NEAR(std::stod(out.rows[1][out.col("u_p_v")]), valve_volts(held_p), 1e-6) << "what the client wrote, not -3 V";
+  EXPECT_NEAR(std::stod(out.rows[1][out.col("u_n_v")]), valve_volts(held_n), 1e-6);
+  EXPECT_GT(std::stod(out.rows[1][out.col("t_s")]), 0.0);
+}
+
+TEST_F(ServeFaults, TheOutputsFileHoldsTheLastWrittenVoltagesAfterASigkill) {
+  Child plant = serve({"--outputs", (dir_ / "outputs.csv").string()});
+  Client c(port_);
+  ASSERT_TRUE(c.connected());
+  // Three settings, each written ten times: three change lines, not thirty.
+  const std::vector<std::pair<double, double>> settings{{1.0, -1.0}, {0.25, 2.5}, {-10.0, -10.0}};
+  for (const auto& [p, n] : settings)
+    for (int i = 0; i < 10; ++i) {
+      c.write_valves(valve_word(p), valve_word(n));
+      std::this_thread::sleep_for(2ms);
+    }
+  kill(plant.pid, SIGKILL);
+  EXPECT_EQ(plant.wait(), 128 + SIGKILL);
+
+  const Csv out = Csv::read(dir_ / "outputs.csv");
+  ASSERT_EQ(out.rows.size(), 1u + settings.size()) << slurp(dir_ / "outputs.csv");
+  double t_last = 0.0;
+  for (std::size_t i = 0; i < settings.size(); ++i) {
+    const auto& row = out.rows[i + 1];
+    EXPECT_NEAR(std::stod(row[out.col("u_p_v")]), settings[i].first, 1e-3) << "line " << i + 2;
+    EXPECT_NEAR(std::stod(row[out.col("u_n_v")]), settings[i].second, 1e-3) << "line " << i + 2;
+    const double t = std::stod(row[out.col("t_s")]);
+    EXPECT_GE(t, t_last) << "line " << i + 2;
+    t_last = t;
+  }
+  EXPECT_EQ(out.rows.back()[out.col("u_p_v")], "-10.000000") << "the exhaust-both safe state, 6 decimals";
+  EXPECT_EQ(out.rows.back()[out.col("u_n_v")], "-10.000000");
+}
+
+}  // namespace
