@@ -28,9 +28,35 @@ config::Config make_config() {
 
 CommandFields cmd(std::int64_t seq, std::int8_t kind, double value = 0.0) { return {0, seq, kind, value}; }
 
+TEST(CommandValidator, RefusesACommandStampedOutsideTheAgeLimitEitherWay) {
+  const config::Config c = make_config();
+  CommandValidator v(c);
+  const std::int64_t now_us = 1'800'000'000'000'000;
+  const auto age_us = static_cast<std::int64_t>(c.commands.max_age_s * 1e6);
+  auto r = v.validate({now_us - age_us - 1000, 1, telemetry::kWireSetPoint, 0.1}, 0.0, now_us, 0.0, Mode::kArmed);
+  EXPECT_EQ(r.rejection, Rejection::kStale) << "a captured command replayed later";
+  r = v.validate({now_us + age_us + 1000, 2, telemetry::kWireSetPoint, 0.1}, 0.1, now_us, 0.0, Mode::kArmed);
+  EXPECT_EQ(r.rejection, Rejection::kStale) << "stamped in the future";
+  r = v.validate({now_us - age_us / 2, 3, telemetry::kWireSetPoint, 0.1}, 0.2, now_us, 0.0, Mode::kArmed);
+  EXPECT_TRUE(r.accepted) << r.text;
+  EXPECT_EQ(v.counters().stale, 2u);
+}
+
+TEST(CommandValidator, RefusesASetPointChangeLargerThanTheStepLimit) {
+  config::Config c = make_config();
+  c.commands.max_setpoint_step_m = 0.05;
+  CommandValidator v(c);
+  auto r = v.validate(cmd(1, telemetry::kWireSetPoint, 0.16), 0.0, 0, 0.1, Mode::kArmed);
+  EXPECT_EQ(r.rejection, Rejection::kInvalid);
+  EXPECT_THAT(r.text, HasSubstr("max_setpoint_step_m"));
+  r = v.validate(cmd(2, telemetry::kWireSetPointStep, -0.06), 0.1, 0, 0.1, Mode::kArmed);
+  EXPECT_EQ(r.rejection, Rejection::kInvalid);
+  EXPECT_TRUE(v.validate(cmd(3, telemetry::kWireSetPoint, 0.14), 0.2, 0, 0.1, Mode::kArmed).accepted);
+}
+
 TEST(CommandValidator, AcceptsASetPointInsideTheSoftLimits) {
   CommandValidator v(make_config());
-  const auto r = v.validate(cmd(1, telemetry::kWireSetPoint, 0.15), 0.0, 0.0, Mode::kArmed);
+  const auto r = v.validate(cmd(1, telemetry::kWireSetPoint, 0.15), 0.0, 0, 0.0, Mode::kArmed);
   ASSERT_TRUE(r.accepted) << r.text;
   EXPECT_EQ(r.command.kind, LoopCommand::Kind::kSetPoint);
   EXPECT_DOUBLE_EQ(r.command.value_m, 0.15);
@@ -39,49 +65,49 @@ TEST(CommandValidator, AcceptsASetPointInsideTheSoftLimits) {
 
 TEST(CommandValidator, RefusesSetPointsOutsideTheSoftLimitsIncludingByAStep) {
   CommandValidator v(make_config());
-  auto r = v.validate(cmd(1, telemetry::kWireSetPoint, 0.21), 0.0, 0.0, Mode::kArmed);
+  auto r = v.validate(cmd(1, telemetry::kWireSetPoint, 0.21), 0.0, 0, 0.0, Mode::kArmed);
   EXPECT_FALSE(r.accepted);
   EXPECT_EQ(r.rejection, Rejection::kInvalid);
   EXPECT_THAT(r.text, HasSubstr("outside the soft limits"));
   // A step is judged by where it lands: 0.19 + 0.02 = 0.21 m.
-  r = v.validate(cmd(2, telemetry::kWireSetPointStep, 0.02), 0.1, 0.19, Mode::kArmed);
+  r = v.validate(cmd(2, telemetry::kWireSetPointStep, 0.02), 0.1, 0, 0.19, Mode::kArmed);
   EXPECT_FALSE(r.accepted);
-  r = v.validate(cmd(3, telemetry::kWireSetPointStep, -0.02), 0.2, 0.19, Mode::kArmed);
+  r = v.validate(cmd(3, telemetry::kWireSetPointStep, -0.02), 0.2, 0, 0.19, Mode::kArmed);
   EXPECT_TRUE(r.accepted) << r.text;
   EXPECT_EQ(v.counters().invalid, 2u);
 }
 
 TEST(CommandValidator, RefusesNonFiniteValuesAndUnknownKinds) {
   CommandValidator v(make_config());
-  EXPECT_EQ(v.validate(cmd(1, telemetry::kWireSetPoint, std::numeric_limits<double>::quiet_NaN()), 0, 0, Mode::kArmed)
+  EXPECT_EQ(v.validate(cmd(1, telemetry::kWireSetPoint, std::numeric_limits<double>::quiet_NaN()), 0, 0, 0, Mode::kArmed)
                 .rejection,
             Rejection::kInvalid);
-  EXPECT_EQ(v.validate(cmd(2, telemetry::kWireSetPoint, std::numeric_limits<double>::infinity()), 1, 0, Mode::kArmed)
+  EXPECT_EQ(v.validate(cmd(2, telemetry::kWireSetPoint, std::numeric_limits<double>::infinity()), 1, 0, 0, Mode::kArmed)
                 .rejection,
             Rejection::kInvalid);
-  const auto r = v.validate(cmd(3, 99), 2, 0, Mode::kArmed);
+  const auto r = v.validate(cmd(3, 99), 2, 0, 0, Mode::kArmed);
   EXPECT_EQ(r.rejection, Rejection::kInvalid);
   EXPECT_THAT(r.text, HasSubstr("unknown command kind 99"));
 }
 
 TEST(CommandValidator, RequiresIncreasingSequenceNumbers) {
   CommandValidator v(make_config());
-  ASSERT_TRUE(v.validate(cmd(10, telemetry::kWireSetPoint, 0.1), 0, 0, Mode::kArmed).accepted);
-  EXPECT_EQ(v.validate(cmd(10, telemetry::kWireSetPoint, 0.1), 1, 0, Mode::kArmed).rejection, Rejection::kSequence);
-  EXPECT_EQ(v.validate(cmd(9, telemetry::kWireSetPoint, 0.1), 2, 0, Mode::kArmed).rejection, Rejection::kSequence);
-  EXPECT_TRUE(v.validate(cmd(11, telemetry::kWireSetPoint, 0.1), 3, 0, Mode::kArmed).accepted);
+  ASSERT_TRUE(v.validate(cmd(10, telemetry::kWireSetPoint, 0.1), 0, 0, 0, Mode::kArmed).accepted);
+  EXPECT_EQ(v.validate(cmd(10, telemetry::kWireSetPoint, 0.1), 1, 0, 0, Mode::kArmed).rejection, Rejection::kSequence);
+  EXPECT_EQ(v.validate(cmd(9, telemetry::kWireSetPoint, 0.1), 2, 0, 0, Mode::kArmed).rejection, Rejection::kSequence);
+  EXPECT_TRUE(v.validate(cmd(11, telemetry::kWireSetPoint, 0.1), 3, 0, 0, Mode::kArmed).accepted);
 }
 
 TEST(CommandValidator, RateLimitAllowsTheBurstThenTheSustainedRate) {
   CommandValidator v(make_config());  // burst 3, 10 per second
   int accepted = 0;
   for (int i = 0; i < 6; ++i)  // six at the same instant: the burst passes, the rest do not
-    accepted += v.validate(cmd(i + 1, telemetry::kWireSetPoint, 0.1), 5.0, 0, Mode::kArmed).accepted;
+    accepted += v.validate(cmd(i + 1, telemetry::kWireSetPoint, 0.1), 5.0, 0, 0, Mode::kArmed).accepted;
   EXPECT_EQ(accepted, 3);
   EXPECT_EQ(v.counters().rate, 3u);
   // 0.125 s later 1.25 tokens are back (10 per second): one more command, not two.
-  EXPECT_TRUE(v.validate(cmd(10, telemetry::kWireSetPoint, 0.1), 5.125, 0, Mode::kArmed).accepted);
-  EXPECT_FALSE(v.validate(cmd(11, telemetry::kWireSetPoint, 0.1), 5.125, 0, Mode::kArmed).accepted);
+  EXPECT_TRUE(v.validate(cmd(10, telemetry::kWireSetPoint, 0.1), 5.125, 0, 0, Mode::kArmed).accepted);
+  EXPECT_FALSE(v.validate(cmd(11, telemetry::kWireSetPoint, 0.1), 5.125, 0, 0, Mode::kArmed).accepted);
 }
 
 TEST(CommandValidator, EachCommandIsAllowedOnlyInItsModes) {
@@ -90,7 +116,7 @@ TEST(CommandValidator, EachCommandIsAllowedOnlyInItsModes) {
   std::int64_t seq = 0;
   const auto check = [&](std::int8_t kind, Mode mode) {
     t += 1.0;  // never rate limited
-    return v.validate(cmd(++seq, kind, 0.0), t, 0.0, mode);
+    return v.validate(cmd(++seq, kind, 0.0), t, 0, 0.0, mode);
   };
   EXPECT_TRUE(check(telemetry::kWireArm, Mode::kDisarmed).accepted);
   EXPECT_THAT(check(telemetry::kWireArm, Mode::kArmed).text, HasSubstr("already armed"));

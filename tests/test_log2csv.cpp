@@ -440,6 +440,13 @@ TEST_F(Log2Csv, HealthAndCommandFieldsReadBack) {
   h.rejected_rate = 3;
   h.rejected_mode = 4;
   h.rejected_sequence = 5;
+  h.rejected_stale = 6;
+  h.rejected_foreign = 7;
+  h.rejected_oversized = 8;
+  h.deadlines_skipped = 9;
+  h.fault_cause = 10;
+  h.faults = 11;
+  h.final = true;
 
   std::vector<pneu_lcm::command_t> commands;
   const std::vector<std::string> names = {"set_point", "set_point_step", "arm",
@@ -468,7 +475,9 @@ TEST_F(Log2Csv, HealthAndCommandFieldsReadBack) {
   for (const auto& q : quantiles) expected_header.push_back("compute_us_" + q);
   for (const char* c : {"comms_errors", "telemetry_dropped", "commands_received",
                         "commands_accepted", "commands_rejected", "rejected_malformed",
-                        "rejected_invalid", "rejected_rate", "rejected_mode", "rejected_sequence"})
+                        "rejected_invalid", "rejected_rate", "rejected_mode", "rejected_sequence",
+                        "rejected_stale", "rejected_foreign", "rejected_oversized", "deadlines_skipped",
+                        "fault_cause", "faults", "final"})
     expected_header.emplace_back(c);
   EXPECT_EQ(health.header, expected_header);
   ASSERT_EQ(health.rows.size(), 1u);
@@ -485,8 +494,10 @@ TEST_F(Log2Csv, HealthAndCommandFieldsReadBack) {
   const std::int64_t counters[] = {h.comms_errors,      h.telemetry_dropped, h.commands_received,
                                    h.commands_accepted, h.commands_rejected, h.rejected_malformed,
                                    h.rejected_invalid,  h.rejected_rate,     h.rejected_mode,
-                                   h.rejected_sequence};
-  for (int i = 0; i < 10; ++i)
+                                   h.rejected_sequence, h.rejected_stale,   h.rejected_foreign,
+                                   h.rejected_oversized, h.deadlines_skipped, h.fault_cause,
+                                   h.faults,            h.final};
+  for (int i = 0; i < 17; ++i)
     expect_int(health.rows[0][static_cast<std::size_t>(14 + i)], counters[i],
                expected_header[static_cast<std::size_t>(14 + i)]);
 

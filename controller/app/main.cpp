@@ -7,10 +7,15 @@
 #include <iostream>
 #include <memory>
 #include <optional>
+#include <thread>
 
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
+#include "pneu/controller/realtime.hpp"
 #include "pneu/controller/session.hpp"
+#ifdef PNEU_WITH_SYSTEMD
+#include <systemd/sd-daemon.h>
+#endif
 #ifdef PNEU_WITH_LCM
 #include "pneu/telemetry/lcm_bridge.hpp"
 #endif
@@ -30,7 +35,8 @@ constexpr const char* kHelp = R"(pneud: real-time controller of the electropneum
 
 Usage:
   pneud [--config FILE] [--clock real|simulated] [--duration S] [--events FILE]
-        [--trajectory FILE] [--set KEY=VALUE ...] [--check-config] [--require-telemetry] [--quiet]
+        [--trajectory FILE] [--set KEY=VALUE ...] [--check-config] [--require-telemetry]
+        [--require-rt] [--quiet]
   pneud --help | --version
 
   --config FILE      YAML configuration (default: the embedded config/sim.yaml, the simulated bench
@@ -45,7 +51,14 @@ Usage:
   --set KEY=VALUE    override a config key by its dotted path, e.g. controller.law.position_gain_v_per_m=60
   --check-config     validate, print the effective configuration (u_0 resolved) and exit
   --require-telemetry  exit with an error when LCM cannot start, instead of running without it
+  --require-rt       exit with an error when controller.realtime cannot be applied (SCHED_FIFO,
+                     CPU affinity, mlockall), instead of warning and running without it
   --quiet            no summary
+
+Faults (controller.supervisor, the e-stop, comms) latch the safe output until a FAULT_RESET
+command once the cause is gone; the daemon then waits disarmed for an ARM command.
+Under systemd (Type=notify): READY=1 once the loop runs, WATCHDOG=1 while it ticks, STOPPING=1
+on SIGTERM/SIGINT, which write the safe output and publish a final health message before exit.
 
 Exit codes: 0 success, 1 run failure, 2 bad command line or configuration (nothing was run).
 )";
@@ -53,9 +66,57 @@ Exit codes: 0 success, 1 run failure, 2 bad command line or configuration (nothi
 std::atomic<bool> g_stop{false};
 extern "C" void on_signal(int) { g_stop.store(true); }
 
+// systemd's side of the service thread: READY=1 after the loop's first tick, WATCHDOG=1 only
+// while the loop's heartbeat advances, STATUS= on mode changes, STOPPING=1 once asked to stop.
+// Without NOTIFY_SOCKET (not under systemd) every call is a no-op.
+class SystemdNotifier {
+ public:
+  explicit SystemdNotifier(const controller::LoopOutputs& loop) : loop_(loop) {
+#ifdef PNEU_WITH_SYSTEMD
+    std::uint64_t usec = 0;
+    if (sd_watchdog_enabled(0, &usec) > 0) interval_s_ = static_cast<double>(usec) * 1e-6 / 4.0;
+#endif
+  }
+  void service() {
+#ifdef PNEU_WITH_SYSTEMD
+    const std::uint64_t beat = loop_.heartbeat.load(std::memory_order_acquire);
+    if (!ready_ && beat > 0) {
+      ready_ = true;
+      sd_notify(0, "READY=1");
+    }
+    const auto mode = loop_.mode.load(std::memory_order_relaxed);
+    const auto cause = loop_.fault_cause.load(std::memory_order_relaxed);
+    if (ready_ && (mode != last_mode_ || cause != last_cause_)) {
+      last_mode_ = mode;
+      last_cause_ = cause;
+      sd_notifyf(0, "STATUS=%s%s%s", mode == 0 ? "disarmed" : mode == 1 ? "armed" : "FAULT: ",
+                 mode == 2 ? controller::fault_name(cause) : "", mode == 0 ? " (send ARM to drive)" : "");
+    }
+    const auto now = std::chrono::steady_clock::now();
+    if (interval_s_ > 0.0 && std::chrono::duration<double>(now - last_check_).count() >= interval_s_) {
+      last_check_ = now;
+      if (beat != last_beat_) sd_notify(0, "WATCHDOG=1");  // the loop ticked since the last check
+      last_beat_ = beat;
+    }
+    if (!stopping_ && g_stop.load()) {
+      stopping_ = true;
+      sd_notify(0, "STOPPING=1\nSTATUS=stopping: safe output written, final health published");
+    }
+#endif
+  }
+
+ private:
+  const controller::LoopOutputs& loop_;
+  double interval_s_ = 0.0;
+  bool ready_ = false, stopping_ = false;
+  std::uint8_t last_mode_ = 255, last_cause_ = 255;
+  std::uint64_t last_beat_ = 0;
+  std::chrono::steady_clock::time_point last_check_{};
+};
+
 int run(int argc, char** argv) {
   const cli::Args args(argc, argv, 1, {"config", "clock", "duration", "events", "trajectory"},
-                       {"check-config", "quiet", "help", "version", "require-telemetry"}, {"set"});
+                       {"check-config", "quiet", "help", "version", "require-telemetry", "require-rt"}, {"set"});
   if (args.flag("help")) {
     std::cout << kHelp;
     return cli::kExitOk;
@@ -145,13 +206,14 @@ int run(int argc, char** argv) {
     run = controller::make_simulated_run(cfg, *valve, ev, tr);
   }
   std::function<void(int)> wait_for_input;
+  std::function<void(int)> handle_input;
 #ifdef PNEU_WITH_LCM
   std::unique_ptr<telemetry::LcmBridge> bridge;
   if (cfg.telemetry.enabled && (real_clock || cfg.telemetry.in_simulated_time)) {
     try {
       bridge = std::make_unique<telemetry::LcmBridge>(cfg, *run.outputs, real_clock && cfg.commands.enabled);
       run.report->set_listener(bridge.get());
-      wait_for_input = [&](int ms) { (void)bridge->handle(ms); };
+      handle_input = [&](int ms) { (void)bridge->handle(ms); };
     } catch (const telemetry::LcmError& e) {
       if (args.flag("require-telemetry")) throw;
       std::fprintf(stderr, "pneud: warning: telemetry off: %s\n", e.what());
@@ -161,8 +223,24 @@ int run(int argc, char** argv) {
   std::unique_ptr<controller::Clock> clock;
   if (cfg.controller.clock == config::ClockKind::kReal) clock = std::make_unique<controller::RealClock>();
   else clock = std::make_unique<controller::SimulatedClock>();
+  SystemdNotifier notifier(*run.outputs);
+  if (real_clock)
+    wait_for_input = [&](int ms) {
+      notifier.service();
+      if (handle_input) handle_input(ms);
+      else std::this_thread::sleep_for(std::chrono::milliseconds(ms));
+    };
+  const bool require_rt = args.flag("require-rt");
+  std::function<void()> on_loop_thread;
+  if (real_clock)
+    on_loop_thread = [&] {
+      const auto report = controller::setup_realtime_thread(cfg.controller.realtime, require_rt);
+      for (const auto& w : report.warnings) std::fprintf(stderr, "pneud: warning: real time: %s\n", w.c_str());
+    };
+  else if (require_rt)
+    throw cli::UsageError("--require-rt needs the real clock (the simulated clock runs as fast as it can)");
   const auto wall0 = std::chrono::steady_clock::now();
-  controller::execute(run, cfg, *clock, g_stop, wait_for_input);
+  controller::execute(run, cfg, *clock, g_stop, wait_for_input, on_loop_thread);
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
 
   if (events) events->flush();
@@ -179,11 +257,12 @@ int run(int argc, char** argv) {
 #ifdef PNEU_WITH_LCM
     if (bridge) {
       const auto& c = bridge->command_counters();
-      std::printf("telemetry: LCM %s, channels %s*; %llu publish errors; commands: %llu received, %llu accepted, %llu rejected\n",
-                  cfg.telemetry.lcm_url.c_str(), cfg.telemetry.channel_prefix.c_str(),
-                  static_cast<unsigned long long>(bridge->publish_errors()),
-                  static_cast<unsigned long long>(c.received), static_cast<unsigned long long>(c.accepted),
-                  static_cast<unsigned long long>(c.rejected));
+      const auto u = [](std::uint64_t v) { return static_cast<unsigned long long>(v); };
+      std::printf("telemetry: LCM %s, channels %s*; %llu publish errors; commands: %llu received, %llu accepted, %llu rejected "
+                  "(malformed %llu, oversized %llu, foreign %llu, stale %llu, sequence %llu, invalid %llu, rate %llu, mode %llu)\n",
+                  cfg.telemetry.lcm_url.c_str(), cfg.telemetry.channel_prefix.c_str(), u(bridge->publish_errors()),
+                  u(c.received), u(c.accepted), u(c.rejected), u(c.malformed), u(c.oversized), u(c.foreign), u(c.stale),
+                  u(c.sequence), u(c.invalid), u(c.rate), u(c.mode));
     }
 #endif
 #ifdef PNEU_WITH_MODBUS

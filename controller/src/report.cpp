@@ -107,9 +107,11 @@ void RunReport::on_event(const LoopEvent& e) {
     return;
   }
   if (e.kind == LoopEvent::Kind::kFault) {
+    faults_.push_back(e);
     if (events_)
       *events_ << "{\"event\":\"fault\",\"t\":" << num(e.t_s, 12) << ",\"y\":" << num(e.y_m, 12)
-               << ",\"cause\":\"" << fault_text(e.fault_cause) << "\"}\n";
+               << ",\"cause\":\"" << fault_name(e.fault_cause) << "\",\"text\":\"" << fault_text(e.fault_cause)
+               << "\"}\n";
     return;
   }
   if (events_) {
@@ -178,6 +180,9 @@ void RunReport::print_summary(std::FILE* out, const LoopTiming& timing) const {
                  cells[1].c_str());
   }
   if (stops_.empty()) std::fprintf(out, "  (none)\n");
+  for (const auto& f : faults_)
+    std::fprintf(out, "fault at %.4f s (y = %.3f mm): %s: %s\n", f.t_s, f.y_m * 1e3, fault_name(f.fault_cause),
+                 fault_text(f.fault_cause));
   const auto us = [](double s) { return s * 1e6; };
   std::fprintf(out, "loop: %llu ticks at %.0f Hz, %llu overruns (%llu deadlines skipped)\n",
                static_cast<unsigned long long>(timing.ticks), 1.0 / timing.period_s,

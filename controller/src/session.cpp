@@ -63,7 +63,8 @@ SimulatedRun make_hardware_run(const config::Config& config, const plant::ValveC
 
 void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
              const std::atomic<bool>& stop_requested,
-             const std::function<void(int timeout_ms)>& wait_for_input) {
+             const std::function<void(int timeout_ms)>& wait_for_input,
+             const std::function<void()>& on_loop_thread) {
   const double period = config.controller.period_s();
   const auto ticks = static_cast<std::uint64_t>(std::llround(config.controller.duration_s / period)) +
                      (config.controller.duration_s > 0.0 ? 1 : 0);  // both ends: t = 0 and t = duration
@@ -81,8 +82,10 @@ void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
       }
     });
     try {
+      if (on_loop_thread) on_loop_thread();
       run_loop(*run.loop, clock, period, ticks, stop_requested, run.timing, {}, health_s, run.outputs.get());
-    } catch (...) {  // the backend failed to open: stop the service thread before reporting
+    } catch (...) {  // real-time set-up refused, or the backend failed to open: stop the service
+                     // thread before reporting
       done.store(true, std::memory_order_release);
       service.join();
       throw;

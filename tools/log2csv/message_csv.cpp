@@ -187,7 +187,8 @@ std::string_view csv_header(MessageType type) {
              "wake_latency_us_p99,wake_latency_us_max,compute_us_min,compute_us_median,"
              "compute_us_p99,compute_us_max,comms_errors,telemetry_dropped,commands_received,"
              "commands_accepted,commands_rejected,rejected_malformed,rejected_invalid,"
-             "rejected_rate,rejected_mode,rejected_sequence";
+             "rejected_rate,rejected_mode,rejected_sequence,rejected_stale,rejected_foreign,"
+             "rejected_oversized,deadlines_skipped,fault_cause,faults,final";
     case MessageType::kCommand:
       return "log_utime,utime,seq,kind,kind_name,value";
     case MessageType::kUnknown:
@@ -301,6 +302,13 @@ RowInfo format_csv_row(std::int64_t log_utime, const void* data, std::int32_t si
           .integer(m.rejected_rate)
           .integer(m.rejected_mode)
           .integer(m.rejected_sequence)
+          .integer(m.rejected_stale)
+          .integer(m.rejected_foreign)
+          .integer(m.rejected_oversized)
+          .integer(m.deadlines_skipped)
+          .integer(m.fault_cause)
+          .integer(m.faults)
+          .boolean(m.final)
           .end();
       return {MessageType::kHealth, 0};
     }

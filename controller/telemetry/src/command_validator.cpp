@@ -28,6 +28,9 @@ const char* to_string(Rejection r) noexcept {
     case Rejection::kRate: return "rate";
     case Rejection::kMode: return "mode";
     case Rejection::kSequence: return "sequence";
+    case Rejection::kStale: return "stale";
+    case Rejection::kForeign: return "foreign";
+    case Rejection::kOversized: return "oversized";
   }
   return "?";
 }
@@ -37,6 +40,8 @@ CommandValidator::CommandValidator(const config::Config& config)
       max_m_(config.controller.soft_limit_max_m),
       rate_hz_(config.commands.max_rate_hz),
       burst_(config.commands.burst),
+      max_age_s_(config.commands.max_age_s),
+      max_step_m_(config.commands.max_setpoint_step_m),
       tokens_(config.commands.burst) {}
 
 Verdict CommandValidator::reject(Rejection why, std::string text) {
@@ -47,6 +52,9 @@ Verdict CommandValidator::reject(Rejection why, std::string text) {
     case Rejection::kRate: ++counters_.rate; break;
     case Rejection::kMode: ++counters_.mode; break;
     case Rejection::kSequence: ++counters_.sequence; break;
+    case Rejection::kStale: ++counters_.stale; break;
+    case Rejection::kForeign: ++counters_.foreign; break;
+    case Rejection::kOversized: ++counters_.oversized; break;
     case Rejection::kNone: break;
   }
   Verdict v;
@@ -60,13 +68,25 @@ Verdict CommandValidator::malformed(const std::string& why) {
   return reject(Rejection::kMalformed, "malformed command: " + why);
 }
 
-Verdict CommandValidator::validate(const CommandFields& c, double now_s, double setpoint_m, Mode mode) {
+Verdict CommandValidator::refuse(Rejection why, const std::string& text) {
+  ++counters_.received;
+  return reject(why, text);
+}
+
+Verdict CommandValidator::validate(const CommandFields& c, double now_s, std::int64_t now_unix_us,
+                                   double setpoint_m, Mode mode) {
   ++counters_.received;
   // Token bucket.
   if (last_refill_s_ >= 0.0) tokens_ = std::min(burst_, tokens_ + (now_s - last_refill_s_) * rate_hz_);
   last_refill_s_ = now_s;
   if (tokens_ < 1.0) return reject(Rejection::kRate, "rate limit: more than the allowed commands per second");
   tokens_ -= 1.0;
+
+  // Age: a command is meant for now. A replayed capture, or one held up in a queue, is not.
+  const double age_s = static_cast<double>(now_unix_us - c.utime) * 1e-6;
+  if (!(std::abs(age_s) <= max_age_s_))
+    return reject(Rejection::kStale, "stamped " + std::to_string(age_s) + " s from this host's clock (limit " +
+                                         std::to_string(max_age_s_) + " s)");
 
   if (have_seq_ && c.seq <= last_seq_)
     return reject(Rejection::kSequence, "sequence number " + std::to_string(c.seq) +
@@ -85,6 +105,9 @@ Verdict CommandValidator::validate(const CommandFields& c, double now_s, double 
       if (target < min_m_ || target > max_m_)
         return reject(Rejection::kInvalid, std::string(step ? "set-point step to " : "set point ") + mm(target) +
                                                " is outside the soft limits [" + mm(min_m_) + ", " + mm(max_m_) + "]");
+      if (std::abs(target - setpoint_m) > max_step_m_)
+        return reject(Rejection::kInvalid, "set-point change of " + mm(target - setpoint_m) +
+                                               " is larger than commands.max_setpoint_step_m (" + mm(max_step_m_) + ")");
       if (mode == Mode::kFault) return reject(Rejection::kMode, "set point refused: a fault is latched, reset it first");
       cmd.kind = step ? LoopCommand::Kind::kSetPointStep : LoopCommand::Kind::kSetPoint;
       what = "set point " + mm(target);

@@ -1,7 +1,15 @@
 #include "pneu/telemetry/lcm_bridge.hpp"
 
+#include <arpa/inet.h>
+#include <poll.h>
+
+#include <array>
+#include <cerrno>
 #include <cmath>
 #include <limits>
+#include <thread>
+
+#include "pneu/telemetry/command_datagram.hpp"
 
 #include "pneu_lcm/command_t.hpp"
 #include "pneu_lcm/event_t.hpp"
@@ -14,6 +22,8 @@ namespace pneu::telemetry {
 using controller::LoopEvent;
 
 namespace {
+constexpr int kRejectionEventsPerSecond = 20;
+
 std::int64_t unix_now_us() {
   return std::chrono::duration_cast<std::chrono::microseconds>(
              std::chrono::system_clock::now().time_since_epoch())
@@ -32,12 +42,34 @@ LcmBridge::LcmBridge(const config::Config& config, controller::LoopOutputs& loop
     throw LcmError("LCM could not start on '" + config.telemetry.lcm_url +
                    "' (no multicast route? e.g. `ip route add 224.0.0.0/4 dev lo` keeps it on this "
                    "host; or set telemetry.enabled=false)");
-  if (accept_commands) lcm_->subscribe(prefix_ + "COMMAND", &LcmBridge::on_command, this);
+  if (accept_commands) {
+    try {
+      commands_ = std::make_unique<CommandSocket>(config.telemetry.lcm_url);
+    } catch (const std::exception& e) {
+      throw LcmError(std::string("commands: ") + e.what());
+    }
+  }
 }
 
 LcmBridge::~LcmBridge() = default;
 
-bool LcmBridge::handle(int timeout_ms) { return lcm_->handleTimeout(timeout_ms) >= 0; }
+bool LcmBridge::handle(int timeout_ms) {
+  if (!commands_) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(timeout_ms));
+    return true;
+  }
+  pollfd p{commands_->fd(), POLLIN, 0};
+  const int ready = ::poll(&p, 1, timeout_ms);
+  if (ready < 0) return errno == EINTR;
+  if (ready == 0) return true;
+  // One byte more than any command: a longer datagram is seen as oversized (MSG_TRUNC gives
+  // its real length), and the buffer needs no more.
+  std::array<std::uint8_t, kMaxCommandDatagramBytes + 1> buffer{};
+  CommandSocket::Datagram d;
+  for (int k = 0; k < 256 && commands_->receive(buffer, d); ++k)
+    on_datagram(std::span<const std::uint8_t>(buffer.data(), d.stored), d);
+  return true;
+}
 
 std::int64_t LcmBridge::utime_of(double t_s) const noexcept {
   return epoch_utime_ + static_cast<std::int64_t>(std::llround(t_s * 1e6));
@@ -82,7 +114,7 @@ void LcmBridge::on_event(const LoopEvent& e) {
     m.text = "stop";
   } else if (e.kind == LoopEvent::Kind::kFault) {
     m.kind = pneu_lcm::event_t::KIND_FAULT;
-    m.text = controller::fault_text(e.fault_cause);
+    m.text = std::string("fault (") + controller::fault_name(e.fault_cause) + "): " + controller::fault_text(e.fault_cause);
   } else if (e.restart) {
     m.kind = pneu_lcm::event_t::KIND_RESTART;
     m.text = "restart after a stop, set point unchanged";
@@ -137,6 +169,13 @@ void LcmBridge::on_health(const controller::HealthRecord& h) {
   m.rejected_rate = static_cast<std::int64_t>(c.rate);
   m.rejected_mode = static_cast<std::int64_t>(c.mode);
   m.rejected_sequence = static_cast<std::int64_t>(c.sequence);
+  m.rejected_stale = static_cast<std::int64_t>(c.stale);
+  m.rejected_foreign = static_cast<std::int64_t>(c.foreign);
+  m.rejected_oversized = static_cast<std::int64_t>(c.oversized);
+  m.deadlines_skipped = static_cast<std::int64_t>(h.deadlines_skipped);
+  m.fault_cause = static_cast<std::int8_t>(h.fault_cause);
+  m.faults = static_cast<std::int64_t>(h.faults);
+  m.final = h.final;
   publish("HEALTH", m);
 }
 
@@ -157,30 +196,47 @@ void LcmBridge::publish_text_event(std::int8_t kind, const std::string& text) {
   publish("EVENT", m);
 }
 
-// Decoding happens here, on the service thread, inside a guard: command_t is fixed-size, so a
-// hostile packet can at worst fail to decode; nothing it says reaches the loop unvalidated.
-void LcmBridge::on_command(const lcm::ReceiveBuffer* buffer, const std::string&) {
+// Decoding happens here, on the service thread, in a total decoder (decode_command_datagram):
+// command_t is fixed-size, so a hostile datagram can at worst fail to decode, and nothing it says
+// reaches the loop unvalidated.
+void LcmBridge::on_datagram(std::span<const std::uint8_t> bytes, const CommandSocket::Datagram& d) {
+  const std::string command_channel = prefix_ + "COMMAND";
+  DecodedDatagram decoded = decode_command_datagram(bytes, command_channel);
+  if (d.bytes > bytes.size() && decoded.kind != DatagramKind::kOtherChannel) {
+    decoded.kind = DatagramKind::kOversized;  // cut by the buffer: longer than any command
+    decoded.why = "longer than any command_t datagram";
+  }
+  if (decoded.kind == DatagramKind::kOtherChannel) return;  // our own telemetry, another axis
   Verdict v;
-  try {
-    pneu_lcm::command_t c;
-    const int used = c.decode(buffer->data, 0, static_cast<int>(buffer->data_size));
-    if (used < 0) {
-      v = validator_.malformed("not a pneu_lcm.command_t (" + std::to_string(buffer->data_size) + " bytes)");
-    } else if (static_cast<std::uint32_t>(used) != buffer->data_size) {
-      v = validator_.malformed("trailing bytes after a command_t");
-    } else {
-      const double now_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
-      v = validator_.validate({c.utime, c.seq, c.kind, c.value}, now_s,
-                              loop_.setpoint_m.load(std::memory_order_relaxed),
-                              static_cast<controller::Mode>(loop_.mode.load(std::memory_order_relaxed)));
-    }
-  } catch (const std::exception& e) {
-    v = validator_.malformed(e.what());
+  char source[INET_ADDRSTRLEN] = "?";
+  inet_ntop(AF_INET, &d.source, source, sizeof source);
+  if (!d.from_this_host) {
+    v = validator_.refuse(Rejection::kForeign, std::string("a datagram from ") + source +
+                                                   ", another host: commands are accepted from this host only");
+  } else if (decoded.kind == DatagramKind::kOversized) {
+    v = validator_.refuse(Rejection::kOversized, "a datagram of " + std::to_string(d.bytes) + " bytes: " + decoded.why);
+  } else if (decoded.kind == DatagramKind::kMalformed) {
+    v = validator_.malformed(decoded.why);
+  } else {
+    const double now_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+    v = validator_.validate(decoded.fields, now_s, unix_now_us(), loop_.setpoint_m.load(std::memory_order_relaxed),
+                            static_cast<controller::Mode>(loop_.mode.load(std::memory_order_relaxed)));
   }
   if (v.accepted && !loop_.commands.try_push(v.command)) {
     ++commands_dropped_;
     v.accepted = false;
     v.text = "command queue to the loop is full: " + v.text + " dropped";
+  }
+  if (!v.accepted) {
+    const double now_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+    if (now_s - rejection_window_s_ >= 1.0) {
+      rejection_window_s_ = now_s;
+      rejection_events_in_window_ = 0;
+    }
+    if (++rejection_events_in_window_ > kRejectionEventsPerSecond) {
+      ++rejection_events_suppressed_;
+      return;
+    }
   }
   publish_text_event(v.accepted ? pneu_lcm::event_t::KIND_COMMAND_ACCEPTED : pneu_lcm::event_t::KIND_COMMAND_REJECTED,
                      v.accepted ? "accepted: " + v.text : "rejected (" + std::string(to_string(v.rejection)) + "): " + v.text);

@@ -76,6 +76,8 @@ class RunReport {
 
   [[nodiscard]] const std::vector<StopOutcome>& stops() const noexcept { return stops_; }
   [[nodiscard]] double end_time_s() const noexcept { return t_end_s_; }
+  /// The faults latched during the run (kind kFault events), in order.
+  [[nodiscard]] const std::vector<LoopEvent>& faults() const noexcept { return faults_; }
   [[nodiscard]] std::uint64_t ticks_seen() const noexcept { return ticks_seen_; }
   [[nodiscard]] std::uint64_t sequence_gaps() const noexcept { return sequence_gaps_; }
   /// The readable end-of-run summary.
@@ -91,6 +93,7 @@ class RunReport {
   std::ostream* trajectory_;
   ReportListener* listener_ = nullptr;
   std::vector<StopOutcome> stops_;
+  std::vector<LoopEvent> faults_;  // the faults latched, for the summary
   double t_end_s_ = 0.0;
   std::uint64_t ticks_seen_ = 0;
   std::uint64_t next_seq_ = 0;

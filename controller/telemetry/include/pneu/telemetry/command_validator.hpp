@@ -29,6 +29,9 @@ enum class Rejection : std::uint8_t {
   kRate,       ///< over the rate limit
   kMode,       ///< not allowed in the current mode
   kSequence,   ///< sequence number not above the last accepted one
+  kStale,      ///< stamped further than commands.max_age_s from this host's clock: a replay, a stuck sender
+  kForeign,    ///< sent from another host (commands are accepted from this host only)
+  kOversized,  ///< a datagram on the command channel longer than any command
 };
 
 struct Verdict {
@@ -41,27 +44,33 @@ struct Verdict {
 struct CommandCounters {
   std::uint64_t received = 0, accepted = 0, rejected = 0;
   std::uint64_t malformed = 0, invalid = 0, rate = 0, mode = 0, sequence = 0;
+  std::uint64_t stale = 0, foreign = 0, oversized = 0;
 };
 
-/// Checks, in order: rate (token bucket: `burst` back to back, `max_rate_hz` sustained), sequence
-/// (strictly increasing over accepted commands), values (finite, known kind, resulting set point
-/// inside the soft limits), mode (set points: armed or disarmed; arm: disarmed; disarm: armed;
-/// fault reset: fault). Not thread-safe: one command thread owns it.
+/// Checks, in order: rate (token bucket: `burst` back to back, `max_rate_hz` sustained), age
+/// (utime within commands.max_age_s of this host's clock, past or future), sequence (strictly
+/// increasing over accepted commands), values (finite, known kind, resulting set point inside the
+/// soft limits, a set-point change no larger than commands.max_setpoint_step_m), mode (set points:
+/// armed or disarmed; arm: disarmed; disarm: armed; fault reset: fault). Not thread-safe: one
+/// command thread owns it.
 class CommandValidator {
  public:
   explicit CommandValidator(const config::Config& config);
 
-  /// `now_s` on any monotonic clock; `setpoint_m` and `mode` as the loop last published them.
-  [[nodiscard]] Verdict validate(const CommandFields& command, double now_s, double setpoint_m,
-                                 controller::Mode mode);
+  /// `now_s` on any monotonic clock; `now_unix_us` this host's clock (Unix time, us) for the age
+  /// check; `setpoint_m` and `mode` as the loop last published them.
+  [[nodiscard]] Verdict validate(const CommandFields& command, double now_s, std::int64_t now_unix_us,
+                                 double setpoint_m, controller::Mode mode);
   /// Counts an undecodable message.
   [[nodiscard]] Verdict malformed(const std::string& why);
+  /// Counts a datagram refused before decoding (kForeign, kOversized, kMalformed).
+  [[nodiscard]] Verdict refuse(Rejection why, const std::string& text);
   [[nodiscard]] const CommandCounters& counters() const noexcept { return counters_; }
 
  private:
   Verdict reject(Rejection why, std::string text);
 
-  double min_m_, max_m_, rate_hz_, burst_;
+  double min_m_, max_m_, rate_hz_, burst_, max_age_s_, max_step_m_;
   double tokens_;
   double last_refill_s_ = -1.0;
   bool have_seq_ = false;

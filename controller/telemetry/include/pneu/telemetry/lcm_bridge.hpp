@@ -13,6 +13,7 @@
 
 #include "pneu/config/config.hpp"
 #include "pneu/controller/report.hpp"
+#include "pneu/telemetry/command_socket.hpp"
 #include "pneu/telemetry/command_validator.hpp"
 
 namespace pneu::telemetry {
@@ -25,11 +26,14 @@ class LcmError : public std::runtime_error {
 class LcmBridge final : public controller::ReportListener {
  public:
   /// Opens LCM on telemetry.lcm_url. Throws LcmError when LCM cannot start (bad URL, no
-  /// multicast route). With `accept_commands`, subscribes to <prefix>COMMAND.
+  /// multicast route). With `accept_commands`, opens the command socket for <prefix>COMMAND
+  /// (datagrams from this host only, see CommandSocket).
   LcmBridge(const config::Config& config, controller::LoopOutputs& loop, bool accept_commands);
   ~LcmBridge() override;
 
-  /// Handles inbound messages for up to `timeout_ms`. Returns false on an LCM failure.
+  /// Waits up to `timeout_ms` for command datagrams and handles those waiting (at most a bounded
+  /// number per call, so that a flood cannot starve the telemetry drain). Returns false on a
+  /// socket failure.
   bool handle(int timeout_ms);
 
   void on_tick(const controller::TickRecord& record) override;
@@ -45,13 +49,14 @@ class LcmBridge final : public controller::ReportListener {
   [[nodiscard]] std::string channel(const char* suffix) const { return prefix_ + suffix; }
 
  private:
-  void on_command(const lcm::ReceiveBuffer* buffer, const std::string& channel);
+  void on_datagram(std::span<const std::uint8_t> bytes, const CommandSocket::Datagram& d);
   void publish_text_event(std::int8_t kind, const std::string& text);
   [[nodiscard]] std::int64_t utime_of(double t_s) const noexcept;
   template <typename T>
   void publish(const char* suffix, const T& msg);
 
   std::unique_ptr<lcm::LCM> lcm_;
+  std::unique_ptr<CommandSocket> commands_;
   std::string prefix_;
   controller::LoopOutputs& loop_;
   CommandValidator validator_;
@@ -60,6 +65,11 @@ class LcmBridge final : public controller::ReportListener {
   std::chrono::steady_clock::time_point started_;
   std::uint64_t publish_errors_ = 0;
   std::uint64_t commands_dropped_ = 0;
+  // Rejection events are published at most kRejectionEventsPerSecond a second (a flood of bad
+  // datagrams must not become a flood of events); all are counted in health.
+  double rejection_window_s_ = -1.0;
+  int rejection_events_in_window_ = 0;
+  std::uint64_t rejection_events_suppressed_ = 0;
 };
 
 }  // namespace pneu::telemetry
