@@ -87,13 +87,12 @@ struct ModuleReport {
     r.complete = true;
     return r;
   }
-  // The last command written with the valves powered: a trailing (0 V, 0 V) run is the safe state
-  // pneud writes on stop (power off), not a control output.
+  // The command the module held for most of the run (the longest run of one command).
   [[nodiscard]] ValveRun last_control() const {
-    if (history.empty()) return {};
-    const ValveRun& tail = history.back();
-    const bool safe_state = tail.u_p_v == 0.0 && tail.u_n_v == 0.0;
-    return safe_state && history.size() >= 2 ? history[history.size() - 2] : tail;
+    ValveRun best{};
+    for (const auto& r : history)
+      if (r.writes >= best.writes) best = r;
+    return best;
   }
 };
 
@@ -197,12 +196,10 @@ class PymodbusInterop : public ::testing::Test {
     EXPECT_NEAR(sent.u_n_v, -u_last, kValveStepV) << "valve_n (register 17) = -u (Eq. 1)";
     EXPECT_GT(std::abs(u_last), 2 * kValveStepV)
         << "u_0 is not 0 V, so a sign error in either register shows";
-    // The registers' final content: that command, or the power-off safe state (0 V) after it.
-    const bool held = std::abs(module.last.u_p_v - u_last) <= kValveStepV &&
-                      std::abs(module.last.u_n_v + u_last) <= kValveStepV;
-    const bool safe = module.last.u_p_v == 0.0 && module.last.u_n_v == 0.0;
-    EXPECT_TRUE(held || safe) << "final valve registers " << module.last.u_p_v << " V, "
-                              << module.last.u_n_v << " V";
+    // The registers' final content: the neutral safe output (u_0, -u_0) pneud writes on stop,
+    // which is that same command here (set point = position).
+    EXPECT_NEAR(module.last.u_p_v, u_last, kValveStepV) << "valve_p";
+    EXPECT_NEAR(module.last.u_n_v, -u_last, kValveStepV) << "valve_n";
   }
 
   fs::path dir_;
@@ -234,16 +231,17 @@ TEST_F(PymodbusInterop, ReadHoldingPlusWriteMultipleExchangesInteroperateToo) {
   expect_both_directions_interoperate(module_report);
 }
 
-// The loop's stop() writes the power-off command (0 V on both valves) just before the backend
-// closes: close() delivers it in one last exchange, so the module is left in the safe state.
-TEST_F(PymodbusInterop, ThePowerOffSafeStateReachesTheModuleBeforePneudDisconnects) {
+// The loop's stop() writes the configured safe output just before the backend closes, and
+// close() delivers it in one last exchange, so the module is left in the safe state: here
+// "exhaust" (both valves at -u_max), which no control output of this run resembles.
+TEST_F(PymodbusInterop, TheSafeOutputReachesTheModuleBeforePneudDisconnects) {
   Child module = start_module();
-  Child pneud = run_pneud({});
+  Child pneud = run_pneud({"--set", "controller.supervisor.safe_output=exhaust"});
   ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
   const ModuleReport module_report = stop_module(module);
   ASSERT_TRUE(module_report.complete);
-  EXPECT_EQ(module_report.last.u_p_v, 0.0) << "valve_p";
-  EXPECT_EQ(module_report.last.u_n_v, 0.0) << "valve_n";
+  EXPECT_NEAR(module_report.last.u_p_v, -10.0, kValveStepV) << "valve_p";
+  EXPECT_NEAR(module_report.last.u_n_v, -10.0, kValveStepV) << "valve_n";
 }
 
 }  // namespace
