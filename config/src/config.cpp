@@ -506,6 +506,7 @@ void apply_override(YAML::Node& root, const std::string& assignment) {
     if (key.empty()) throw ConfigError(path, "override key has an empty component");
     keys.push_back(key);
   }
+  if (keys.empty()) throw ConfigError("", "override '" + assignment + "' has no key");
   // yaml-cpp nodes are handles: walk with copies of the handles, assign through the last one.
   std::vector<YAML::Node> chain{root};
   std::string walked;
