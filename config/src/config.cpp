@@ -542,8 +542,168 @@ Config decode(const YAML::Node& root) {
 
 }  // namespace
 
+namespace {
+
+// Hostile text is refused before yaml-cpp sees it. yaml-cpp 0.7 spends about 2 s and 250 MB per
+// MiB of a long flat list (20 MiB: 30 s and 4.9 GB), for configurations of about 12 KiB. Its
+// parser does refuse nesting beyond 500 levels by itself (no stack overflow), but only as "bad
+// file": the scan below says what is wrong, long before that.
+constexpr std::size_t kMaxDocumentBytes = std::size_t{1} << 20;  // 1 MiB
+constexpr std::size_t kMaxNesting = 64;
+
+// The first line of a YAML text nested deeper than `limit` levels, or 0, without parsing it:
+// block collections by their columns ("- " and "? " open a level at their own column, and a
+// block sequence may sit at its parent key's column), flow collections by their brackets,
+// outside comments, quoted scalars, plain scalars and block scalars. It errs towards counting
+// more (each line's own key or scalar is a level).
+std::size_t line_nested_deeper_than(std::string_view text, std::size_t limit) {
+  constexpr auto npos = std::string_view::npos;
+  struct Level {
+    std::size_t column;
+    bool sequence;
+  };
+  std::vector<Level> block;
+  std::size_t flow = 0;
+  char quote = 0;                 // inside a quoted scalar (which may span lines): its quote
+  long block_scalar_parent = -2;  // inside a block scalar: the column its lines are deeper than
+  bool node_start = true;         // the next character may start a node (not inside a plain scalar)
+  bool after_json_node = false;   // flow: just after a quoted scalar or a collection (":" follows)
+  long scalar_owner = -1;         // a plain scalar ending a line continues on lines deeper than this
+  std::size_t line_no = 0;
+  for (std::size_t begin = 0; begin < text.size();) {
+    std::size_t end = text.find('\n', begin);
+    if (end == npos) end = text.size();
+    std::string_view line = text.substr(begin, end - begin);
+    begin = end + 1;
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    const std::size_t indent = line.find_first_not_of(' ');
+    if (block_scalar_parent > -2) {
+      if (indent == npos || static_cast<long>(indent) > block_scalar_parent) continue;
+      block_scalar_parent = -2;
+    }
+    std::size_t pos = 0;
+    std::size_t last_level = npos;  // the column of the last level this line opened
+    if (quote == 0 && flow == 0) {
+      if (indent == npos || line[indent] == '#' || (indent == 0 && line[0] == '%')) continue;
+      pos = indent;
+      // A line deeper than the node owning the plain scalar that ended the last one continues it.
+      if (node_start || static_cast<long>(indent) <= scalar_owner) {
+        node_start = true;
+        if (indent == 0 && (line.starts_with("---") || line.starts_with("...")) &&
+            (line.size() == 3 || line[3] == ' ' || line[3] == '\t')) {
+          block.clear();  // the next document
+          pos = line.find_first_not_of(" \t", 3);
+          if (pos == npos || line[pos] == '#') continue;
+        }
+        for (;;) {
+          const char c = line[pos];
+          const bool indicator = (c == '-' || c == '?' || c == ':') &&
+                                 (pos + 1 == line.size() || line[pos + 1] == ' ' || line[pos + 1] == '\t');
+          const bool sequence = indicator && c == '-';
+          while (!block.empty() && (block.back().column > pos ||
+                                    (block.back().column == pos && block.back().sequence && !sequence)))
+            block.pop_back();
+          if (block.empty() || block.back().column < pos || block.back().sequence != sequence)
+            block.push_back({pos, sequence});
+          last_level = pos;
+          if (block.size() > limit) return line_no;
+          if (!indicator) break;
+          pos = line.find_first_not_of(" \t", pos + 1);
+          if (pos == npos || line[pos] == '#') break;
+        }
+        if (pos == npos) continue;
+        // The owner of a scalar on this line: the key before it, else the level holding it.
+        scalar_owner = block.size() < 2 ? -1 : static_cast<long>(block[block.size() - 2].column);
+      }
+    }
+    for (std::size_t i = pos; i < line.size(); ++i) {
+      const char c = line[i];
+      if (quote != 0) {
+        if (quote == '"' && c == '\\') ++i;
+        else if (quote == '\'' && c == '\'' && i + 1 < line.size() && line[i + 1] == '\'') ++i;
+        else if (c == quote) quote = 0, node_start = false, after_json_node = true;
+        continue;
+      }
+      if (c == ' ' || c == '\t') continue;
+      if (c == '#' && (i == 0 || line[i - 1] == ' ' || line[i - 1] == '\t')) break;
+      const bool space_next = i + 1 == line.size() || line[i + 1] == ' ' || line[i + 1] == '\t';
+      const bool flow_indicator_next = i + 1 < line.size() && std::string_view(",[]{}").find(line[i + 1]) != npos;
+      if (node_start) {
+        if (c == '"' || c == '\'') {
+          quote = c;
+          continue;
+        }
+        if (c == '&' || c == '!') {  // an anchor or a tag: the node follows
+          while (i + 1 < line.size() && line[i + 1] != ' ' && line[i + 1] != '\t' &&
+                 (flow == 0 || std::string_view(",[]{}").find(line[i + 1]) == npos))
+            ++i;
+          continue;
+        }
+        if (c == '[' || c == '{') {
+          if (block.size() + ++flow > limit) return line_no;
+          continue;
+        }
+        if ((c == '-' || c == '?') && space_next) continue;
+        if ((c == '|' || c == '>') && flow == 0) {
+          // A block scalar's header holds only indicators and a comment after the '|' or '>'.
+          const std::size_t rest = line.find_first_not_of("-+0123456789", i + 1);
+          const std::size_t more = rest == npos ? rest : line.find_first_not_of(" \t", rest);
+          if ((rest == npos || line[rest] == ' ' || line[rest] == '\t') && (more == npos || line[more] == '#')) {
+            // Its lines are deeper than the node holding it: the key before it, or the "- " entry.
+            const std::size_t owner = i == last_level ? block.size() - 1 : block.size();
+            block_scalar_parent = owner == 0 ? -1 : static_cast<long>(block[owner - 1].column);
+            break;
+          }
+        }
+      }
+      if (flow > 0) {
+        if (c == '[' || c == '{') {  // no plain scalar holds these in a flow collection
+          if (block.size() + ++flow > limit) return line_no;
+          node_start = true;
+          continue;
+        }
+        if (c == ']' || c == '}') {
+          --flow;
+          node_start = false;
+          after_json_node = true;
+          continue;
+        }
+        if (c == ',' || (c == ':' && (space_next || flow_indicator_next || after_json_node))) {
+          node_start = true;
+          after_json_node = false;
+          continue;
+        }
+      } else if (c == ':' && space_next) {
+        if (last_level != npos) scalar_owner = static_cast<long>(last_level);
+        node_start = true;
+        continue;
+      }
+      node_start = false;  // inside a plain scalar or an alias
+      after_json_node = false;
+    }
+  }
+  return 0;
+}
+
+// Refuses `text` (named `origin`) when it is too large or too deeply nested to hand to yaml-cpp.
+void refuse_hostile_text(std::string_view text, const std::string& origin) {
+  if (text.size() > kMaxDocumentBytes)
+    throw ConfigError(origin, "too large: " + std::to_string(text.size()) + " bytes, at most " +
+                                  std::to_string(kMaxDocumentBytes) + " (1 MiB)");
+  if (const std::size_t line = line_nested_deeper_than(text, kMaxNesting))
+    throw ConfigError(origin, "nested too deeply: more than " + std::to_string(kMaxNesting) +
+                                  " levels at line " + std::to_string(line));
+}
+
+}  // namespace
+
 Config load_string(std::string_view yaml, const std::vector<std::string>& overrides,
                    std::string_view origin) {
+  refuse_hostile_text(yaml, std::string(origin));
+  for (const auto& o : overrides)
+    if (const auto eq = o.find('='); eq != std::string::npos)
+      refuse_hostile_text(std::string_view(o).substr(eq + 1), o.substr(0, eq));
   YAML::Node root;
   try {
     root = YAML::Load(std::string(yaml));
@@ -559,11 +719,16 @@ Config load_string(std::string_view yaml, const std::vector<std::string>& overri
 Config load_file(const std::filesystem::path& path, const std::vector<std::string>& overrides) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) throw ConfigError(path.string(), "cannot open the file (no such file)");
-  std::ifstream in(path);
+  if (const auto size = std::filesystem::file_size(path, ec); !ec && size > kMaxDocumentBytes)
+    throw ConfigError(path.string(), "too large: " + std::to_string(size) + " bytes, at most " +
+                                         std::to_string(kMaxDocumentBytes) + " (1 MiB)");
+  std::ifstream in(path, std::ios::binary);
   if (!in) throw ConfigError(path.string(), "cannot open the file");
-  std::stringstream text;
-  text << in.rdbuf();
-  return load_string(text.str(), overrides, path.string());
+  // At most one byte beyond the limit: a file growing meanwhile is still refused, not read whole.
+  std::string text(kMaxDocumentBytes + 1, '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  text.resize(static_cast<std::size_t>(in.gcount()));
+  return load_string(text, overrides, path.string());
 }
 
 Config load_file_or_default(const std::filesystem::path& path,

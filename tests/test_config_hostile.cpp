@@ -1,0 +1,978 @@
+// Hostile configuration input (issue 6). A matrix generated from the shipped files, so that a key
+// added to config/sim.yaml or config/hil.yaml is covered without touching this file: every key
+// left out (refused naming its path, unless it is optional), given a value of the wrong type,
+// joined by an unknown sibling, and every number set to extreme values (loaded or refused as a
+// ConfigError, never another exception or a crash); values known to be out of range; documents
+// nested too deeply, too large or multiplied by aliases. Then a sample of the matrix through the
+// real pneud and `pneu-plant serve`: exit code 2, the key path and the reason on stderr, and
+// nothing driven (no connection to the I/O module, no output file).
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <random>
+#include <set>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "pneu/config/config.hpp"
+#include "support/child_process.hpp"
+
+namespace pneu::config {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::AllOf;
+using ::testing::HasSubstr;
+
+// ---------------------------------------------------------------------------------------------
+// The shipped files, their keys, and edits by key path
+
+// The files the matrix is generated from, by the name its cases carry.
+const std::vector<std::pair<std::string, std::string>> kShippedFiles = {{"Sim", "config/sim.yaml"},
+                                                                        {"Hil", "config/hil.yaml"}};
+
+std::string shipped_text(const std::string& file) {
+  for (const auto& [name, relative] : kShippedFiles)
+    if (name == file) {
+      const std::string text = test::slurp(fs::path(PNEU_SOURCE_DIR) / relative);
+      if (text.empty()) throw std::runtime_error("cannot read " + relative);
+      return text;
+    }
+  throw std::logic_error("no shipped file " + file);
+}
+
+// Keys the loader defaults (its *_or readers, config/src/config.cpp) although the shipped files
+// do not mark them optional ("Every key is required unless marked optional"): leaving one out
+// loads. A key marked "optional" in its comment is optional without being listed here.
+const std::set<std::string> kDefaultedButNotMarkedOptional = {
+    "controller.predictor.valve_table", "controller.setpoints.schedule",
+    "hal.modbus.host",                  "hal.modbus.port",
+    "hal.modbus.device",                "hal.modbus.baud",
+    "hal.modbus.parity",                "hal.modbus.data_bits",
+    "hal.modbus.stop_bits",             "hal.gpio.chip",
+    "hal.gpio.estop_line",              "hal.gpio.estop_active_low",
+    "hal.gpio.valve_power_line",        "hal.gpio.valve_power_active_low",
+    "hal.gpio.consumer"};
+
+enum class Kind { kNumber, kBoolean, kText, kList, kSection };
+
+// One key of a shipped file.
+struct Key {
+  std::string file;  // "Sim", "Hil"
+  std::string path;  // as ConfigError names it: "controller.setpoints.schedule[0].t_s"
+  Kind kind = Kind::kNumber;
+  bool optional = false;
+};
+
+Kind kind_of(const YAML::Node& value) {
+  if (value.IsMap()) return Kind::kSection;
+  if (value.IsSequence()) return Kind::kList;
+  const std::string& s = value.Scalar();
+  if (value.Tag() != "!") {  // plain, not quoted
+    if (s == "true" || s == "false") return Kind::kBoolean;
+    try {
+      (void)value.as<double>();
+      return Kind::kNumber;
+    } catch (const YAML::Exception&) {
+    }
+  }
+  return Kind::kText;
+}
+
+void collect(const YAML::Node& node, const std::string& path, const std::string& file,
+             const std::vector<std::string>& lines, std::vector<Key>& keys) {
+  if (node.IsSequence()) {  // list elements are not keys, but the keys of a list of mappings are
+    for (std::size_t i = 0; i < node.size(); ++i)
+      if (node[i].IsMap()) collect(node[i], path + "[" + std::to_string(i) + "]", file, lines, keys);
+    return;
+  }
+  for (const auto& kv : node) {
+    const std::string key = kv.first.Scalar();
+    const std::string child = path.empty() ? key : path + "." + key;
+    const std::size_t line = static_cast<std::size_t>(kv.first.Mark().line);
+    const std::string text = line < lines.size() ? lines[line] : std::string();
+    const auto hash = text.find(" #");
+    const bool marked = hash != std::string::npos && text.find("optional", hash) != std::string::npos;
+    keys.push_back({file, child, kind_of(kv.second), marked || kDefaultedButNotMarkedOptional.count(child) > 0});
+    if (kv.second.IsMap() || kv.second.IsSequence()) collect(kv.second, child, file, lines, keys);
+  }
+}
+
+// Every key of the shipped files; a key of hil.yaml that sim.yaml has too, of the same kind and
+// optionality, only once (from sim.yaml).
+const std::vector<Key>& shipped_keys() {
+  static const std::vector<Key> keys = [] {
+    std::vector<Key> all;
+    for (const auto& [file, relative] : kShippedFiles) {
+      const std::string text = shipped_text(file);
+      std::vector<std::string> lines;
+      std::istringstream in(text);
+      for (std::string l; std::getline(in, l);) lines.push_back(l);
+      std::vector<Key> these;
+      collect(YAML::Load(text), "", file, lines, these);
+      for (const Key& k : these) {
+        const bool seen = std::any_of(all.begin(), all.end(), [&](const Key& o) {
+          return o.path == k.path && o.kind == k.kind && o.optional == k.optional;
+        });
+        if (!seen) all.push_back(k);
+      }
+    }
+    return all;
+  }();
+  return keys;
+}
+
+// "a.b[0].c" as steps: a key, or the index of a list element.
+struct Step {
+  std::string key;
+  int index = -1;
+};
+
+std::vector<Step> steps_of(const std::string& path) {
+  std::vector<Step> steps;
+  std::stringstream ss(path);
+  for (std::string part; std::getline(ss, part, '.');) {
+    const auto bracket = part.find('[');
+    steps.push_back({part.substr(0, bracket)});
+    for (auto b = bracket; b != std::string::npos; b = part.find('[', b + 1))
+      steps.push_back({"", std::stoi(part.substr(b + 1))});
+  }
+  return steps;
+}
+
+// The parent of the node at `path`, and the key it has there. yaml-cpp nodes are handles: walk
+// with fresh copies, never by assigning one handle to another (that would overwrite the node).
+std::pair<YAML::Node, std::string> parent_of(YAML::Node root, const std::string& path) {
+  const std::vector<Step> steps = steps_of(path);
+  std::vector<YAML::Node> chain{root};
+  for (std::size_t i = 0; i + 1 < steps.size(); ++i)
+    chain.push_back(steps[i].index >= 0 ? chain.back()[steps[i].index] : chain.back()[steps[i].key]);
+  if (steps.back().index >= 0) throw std::logic_error("not a key: " + path);
+  return {chain.back(), steps.back().key};
+}
+
+// A shipped file, parsed, edited and written back to YAML (comments are lost).
+std::string edited(const std::string& file, const std::function<void(YAML::Node&)>& edit) {
+  YAML::Node root = YAML::Load(shipped_text(file));
+  edit(root);
+  return YAML::Dump(root) + "\n";
+}
+
+std::function<void(YAML::Node&)> removing(const std::string& path) {
+  return [path](YAML::Node& root) {
+    auto [parent, key] = parent_of(root, path);
+    if (!parent.remove(key)) throw std::logic_error("no key " + path);
+  };
+}
+
+// Sets the key at `path` to the YAML value `value` (creating it when absent).
+std::function<void(YAML::Node&)> setting(const std::string& path, const std::string& value) {
+  return [path, value](YAML::Node& root) {
+    auto [parent, key] = parent_of(root, path);
+    parent[key] = YAML::Load(value);
+  };
+}
+
+std::string test_name(std::string text) {
+  for (char& c : text)
+    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+  std::string out;
+  for (char c : text)
+    if (!(c == '_' && !out.empty() && out.back() == '_')) out += c;
+  while (!out.empty() && out.back() == '_') out.pop_back();
+  return out;
+}
+
+std::string key_name(const Key& k) { return test_name(k.file + "_" + k.path); }
+
+// ---------------------------------------------------------------------------------------------
+// Matchers
+
+// A ConfigError whose key_path() and what() match; what() reads "<key.path>: <reason>".
+MATCHER_P2(IsConfigError, key_path_matcher, message_matcher,
+           "is a ConfigError whose key path " +
+               ::testing::DescribeMatcher<std::string>(key_path_matcher) + " and whose message " +
+               ::testing::DescribeMatcher<std::string>(message_matcher)) {
+  *result_listener << "key path \"" << arg.key_path() << "\", message \"" << arg.what() << "\"";
+  return ::testing::Matches(key_path_matcher)(arg.key_path()) &&
+         ::testing::Matches(message_matcher)(std::string(arg.what()));
+}
+
+auto refuses(const std::string& key_path, const std::string& reason) {
+  return ::testing::Throws<ConfigError>(IsConfigError(
+      ::testing::Eq(key_path), AllOf(HasSubstr(key_path + ": "), HasSubstr(reason))));
+}
+
+auto loading(std::string yaml, std::vector<std::string> overrides = {}, std::string origin = "<string>") {
+  return [yaml = std::move(yaml), overrides = std::move(overrides), origin = std::move(origin)] {
+    (void)load_string(yaml, overrides, origin);
+  };
+}
+
+// ---------------------------------------------------------------------------------------------
+// The matrix: every key left out
+
+std::vector<Key> keys_where(const std::function<bool(const Key&)>& keep) {
+  std::vector<Key> out;
+  for (const Key& k : shipped_keys())
+    if (keep(k)) out.push_back(k);
+  return out;
+}
+
+void PrintTo(const Key& k, std::ostream* os) { *os << k.file << " " << k.path; }
+
+class RequiredKeyLeftOut : public ::testing::TestWithParam<Key> {};
+
+TEST_P(RequiredKeyLeftOut, IsRefusedNamingItsPath) {
+  const Key& k = GetParam();
+  EXPECT_THAT(loading(edited(k.file, removing(k.path))), refuses(k.path, "missing"));
+}
+
+INSTANTIATE_TEST_SUITE_P(ShippedFiles, RequiredKeyLeftOut,
+                         ::testing::ValuesIn(keys_where([](const Key& k) { return !k.optional; })),
+                         [](const auto& p) { return key_name(p.param); });
+
+class OptionalKeyLeftOut : public ::testing::TestWithParam<Key> {};
+
+TEST_P(OptionalKeyLeftOut, LoadsWithItsDefault) {
+  const Key& k = GetParam();
+  EXPECT_NO_THROW((void)load_string(edited(k.file, removing(k.path)))) << k.path;
+}
+
+INSTANTIATE_TEST_SUITE_P(ShippedFiles, OptionalKeyLeftOut,
+                         ::testing::ValuesIn(keys_where([](const Key& k) { return k.optional; })),
+                         [](const auto& p) { return key_name(p.param); });
+
+
+// The matrix covers both files and every kind of key.
+TEST(ShippedKeys, CoverBothFilesAndEveryKind) {
+  for (const auto& [file, relative] : kShippedFiles)
+    EXPECT_TRUE(std::any_of(shipped_keys().begin(), shipped_keys().end(),
+                            [&](const Key& k) { return k.file == file; }))
+        << relative;
+  for (Kind kind : {Kind::kNumber, Kind::kBoolean, Kind::kText, Kind::kList, Kind::kSection})
+    EXPECT_TRUE(std::any_of(shipped_keys().begin(), shipped_keys().end(),
+                            [&](const Key& k) { return k.kind == kind; }));
+  EXPECT_GT(shipped_keys().size(), 100u);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The matrix: every key given a value of the wrong type
+
+struct WrongType {
+  Key key;
+  std::string label;  // what is given instead
+  std::string value;  // YAML
+};
+
+void PrintTo(const WrongType& w, std::ostream* os) { *os << w.key.file << " " << w.key.path << " = " << w.value; }
+
+std::vector<WrongType> wrong_types() {
+  const WrongType mapping{{}, "AsAMapping", "{a: 1}"}, list{{}, "AsAList", "[1, 2]"},
+      text{{}, "AsText", "x"};
+  std::vector<WrongType> out;
+  for (const Key& k : shipped_keys()) {
+    std::vector<WrongType> wrong;
+    switch (k.kind) {
+      case Kind::kNumber:
+      case Kind::kBoolean: wrong = {mapping, list, text}; break;
+      case Kind::kText: wrong = {mapping, list}; break;  // "x" may be a fine text
+      case Kind::kList: wrong = {mapping, text}; break;
+      case Kind::kSection: wrong = {list, text}; break;
+    }
+    for (WrongType& w : wrong) {
+      w.key = k;
+      out.push_back(w);
+    }
+  }
+  return out;
+}
+
+class KeyOfTheWrongType : public ::testing::TestWithParam<WrongType> {};
+
+TEST_P(KeyOfTheWrongType, IsRefusedNamingItsPath) {
+  const WrongType& w = GetParam();
+  EXPECT_THAT(loading(edited(w.key.file, setting(w.key.path, w.value))), refuses(w.key.path, "expected"));
+}
+
+INSTANTIATE_TEST_SUITE_P(ShippedFiles, KeyOfTheWrongType, ::testing::ValuesIn(wrong_types()),
+                         [](const auto& p) { return key_name(p.param.key) + "_" + p.param.label; });
+
+// ---------------------------------------------------------------------------------------------
+// The matrix: an unknown key beside every key
+
+class UnknownKeyBesideAKnownOne : public ::testing::TestWithParam<Key> {};
+
+TEST_P(UnknownKeyBesideAKnownOne, IsRefusedNamingTheUnknownKey) {
+  const Key& k = GetParam();
+  const std::string unknown = k.path + "_unknown";
+  EXPECT_THAT(loading(edited(k.file, setting(unknown, "1"))), refuses(unknown, "unknown key"));
+}
+
+INSTANTIATE_TEST_SUITE_P(ShippedFiles, UnknownKeyBesideAKnownOne, ::testing::ValuesIn(shipped_keys()),
+                         [](const auto& p) { return key_name(p.param); });
+
+// ---------------------------------------------------------------------------------------------
+// The matrix: every number set to extreme values
+
+struct Extreme {
+  Key key;
+  std::string label;
+  std::string value;
+};
+
+void PrintTo(const Extreme& e, std::ostream* os) { *os << e.key.file << " " << e.key.path << " = " << e.value; }
+
+std::vector<Extreme> extremes() {
+  const std::vector<std::pair<std::string, std::string>> values = {
+      {"Minus1e300", "-1e300"}, {"1e300", "1e300"}, {"NaN", ".nan"}, {"Infinity", ".inf"},
+      {"MinusInfinity", "-.inf"}, {"MinusZero", "-0"}, {"Zero", "0"}};
+  std::vector<Extreme> out;
+  for (const Key& k : shipped_keys())
+    if (k.kind == Kind::kNumber)
+      for (const auto& [label, value] : values) out.push_back({k, label, value});
+  return out;
+}
+
+// Checks between two keys whose refusal names the other key of the pair and not this one (only
+// in words: "the stroke", "the supply pressure", "the soft limits"). The last one names the wrong
+// key: position_max_m too small is refused as "controller.supervisor.position_min_m: the range
+// must contain the stroke".
+const std::map<std::string, std::string> kRefusedUnderAnotherKey = {
+    {"plant.geometry.stroke_m", "controller.supervisor.position_min_m"},
+    {"plant.gas.supply_pressure_pa", "controller.supervisor.pressure_max_pa"},
+    {"controller.soft_limit_max_m", "controller.setpoints.initial_m"},
+    {"controller.supervisor.position_max_m", "controller.supervisor.position_min_m"},
+};
+
+class NumberSetToAnExtreme : public ::testing::TestWithParam<Extreme> {};
+
+// Loads, or is refused as a ConfigError naming the key: by its path, or in the message of a key
+// checked against it (as rod_diameter_m: "must be smaller than geometry.bore_diameter_m").
+TEST_P(NumberSetToAnExtreme, LoadsOrIsRefusedNamingTheKeyNeverOtherwise) {
+  const Extreme& e = GetParam();
+  const std::string yaml = edited(e.key.file, setting(e.key.path, e.value));
+  try {
+    (void)load_string(yaml);
+  } catch (const ConfigError& error) {
+    const std::string leaf = e.key.path.substr(e.key.path.rfind('.') + 1);
+    const auto other = kRefusedUnderAnotherKey.find(e.key.path);
+    EXPECT_TRUE(error.key_path() == e.key.path || std::string(error.what()).find(leaf) != std::string::npos ||
+                (other != kRefusedUnderAnotherKey.end() && error.key_path() == other->second))
+        << "refused, but naming neither " << e.key.path << " nor " << leaf << ": " << error.what();
+    if (e.value == ".nan" || e.value == ".inf" || e.value == "-.inf") {
+      EXPECT_EQ(error.key_path(), e.key.path) << error.what();
+    }
+  } catch (const std::exception& other) {
+    ADD_FAILURE() << "not a ConfigError: " << other.what();
+  } catch (...) {
+    ADD_FAILURE() << "not a ConfigError, not even a std::exception";
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(ShippedFiles, NumberSetToAnExtreme, ::testing::ValuesIn(extremes()),
+                         [](const auto& p) { return key_name(p.param.key) + "_" + p.param.label; });
+
+// The two lists of exceptions name keys of the shipped files only: they cannot hide a key that is
+// gone or renamed.
+TEST(ListedExceptions, AreAllKeysOfTheShippedFiles) {
+  const auto shipped = [](const std::string& path) {
+    return std::any_of(shipped_keys().begin(), shipped_keys().end(), [&](const Key& k) { return k.path == path; });
+  };
+  for (const std::string& path : kDefaultedButNotMarkedOptional) EXPECT_TRUE(shipped(path)) << path;
+  for (const auto& [path, other] : kRefusedUnderAnotherKey) {
+    EXPECT_TRUE(shipped(path)) << path;
+    EXPECT_TRUE(shipped(other)) << other;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Values known to be out of range
+
+struct OutOfRangeCase {
+  std::string name;
+  std::string file;
+  std::string path;    // the key set
+  std::string value;   // to this YAML value
+  std::string names;   // the key path the refusal names
+  std::string reason;  // and the reason it gives
+};
+
+void PrintTo(const OutOfRangeCase& c, std::ostream* os) { *os << c.path << " = " << c.value; }
+
+class OutOfRange : public ::testing::TestWithParam<OutOfRangeCase> {};
+
+TEST_P(OutOfRange, IsRefusedNamingTheKeyAndTheReason) {
+  const OutOfRangeCase& c = GetParam();
+  EXPECT_THAT(loading(edited(c.file, setting(c.path, c.value))), refuses(c.names, c.reason));
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Limits, OutOfRange,
+    ::testing::Values(
+        OutOfRangeCase{"LoopRateOfZero", "Sim", "controller.rate_hz", "0", "controller.rate_hz", "must be in [1, 20000]"},
+        OutOfRangeCase{"LoopRateAbove20kHz", "Sim", "controller.rate_hz", "20001", "controller.rate_hz", "must be in [1, 20000]"},
+        OutOfRangeCase{"NegativeMass", "Sim", "plant.mass_kg", "-1", "plant.mass_kg", "must be > 0 (got -1)"},
+        OutOfRangeCase{"ZeroMass", "Sim", "plant.mass_kg", "0", "plant.mass_kg", "must be > 0"},
+        OutOfRangeCase{"TcpPortBeyond65535", "Hil", "hal.modbus.port", "70000", "hal.modbus.port", "must be in [1, 65535]"},
+        OutOfRangeCase{"TcpPortZero", "Hil", "hal.modbus.port", "0", "hal.modbus.port", "must be in [1, 65535]"},
+        OutOfRangeCase{"FractionalTcpPort", "Hil", "hal.modbus.port", "1502.5", "hal.modbus.port", "expected an integer"},
+        OutOfRangeCase{"PressureCeilingBelowTheSupply", "Sim", "controller.supervisor.pressure_max_pa", "6.0e5",
+                       "controller.supervisor.pressure_max_pa", "must exceed the supply pressure"},
+        OutOfRangeCase{"PressureFloorAboveTheExhaust", "Sim", "controller.supervisor.pressure_min_pa", "1.5e5",
+                       "controller.supervisor.pressure_min_pa", "must lie below the exhaust pressure"},
+        OutOfRangeCase{"PositionRangeInsideTheStroke", "Sim", "controller.supervisor.position_max_m", "0.2",
+                       "controller.supervisor.position_min_m", "must contain the stroke"},
+        OutOfRangeCase{"TickIntervalCheckShorterThanTheLoopPeriod", "Sim", "controller.supervisor.max_tick_interval_s",
+                       "0.0005", "controller.supervisor.max_tick_interval_s", "must exceed the loop period"},
+        OutOfRangeCase{"NegativeOverrunCount", "Sim", "controller.supervisor.overruns_in_a_row", "-1",
+                       "controller.supervisor.overruns_in_a_row", "must be in [0, 1000000]"},
+        OutOfRangeCase{"RealtimePriority100", "Sim", "controller.realtime.priority", "100", "controller.realtime.priority",
+                       "must be in [0, 99]"},
+        OutOfRangeCase{"CpuBelowMinusOne", "Sim", "controller.realtime.cpu", "-2", "controller.realtime.cpu",
+                       "must be a CPU number"},
+        OutOfRangeCase{"UnitIdZero", "Hil", "hal.modbus.unit_id", "0", "hal.modbus.unit_id", "must be in [1, 247]"},
+        OutOfRangeCase{"UnitId248", "Hil", "hal.modbus.unit_id", "248", "hal.modbus.unit_id", "must be in [1, 247]"},
+        OutOfRangeCase{"BaudBelow300", "Hil", "hal.modbus.baud", "299", "hal.modbus.baud", "must be in [300, 4000000]"},
+        OutOfRangeCase{"NineDataBits", "Hil", "hal.modbus.data_bits", "9", "hal.modbus.data_bits", "must be in [5, 8]"},
+        OutOfRangeCase{"ThreeStopBits", "Hil", "hal.modbus.stop_bits", "3", "hal.modbus.stop_bits", "must be 1 or 2"},
+        OutOfRangeCase{"RegisterBeyond65535", "Hil", "hal.modbus.channels.position.register", "70000",
+                       "hal.modbus.channels.position.register", "must be in [0, 65535]"},
+        OutOfRangeCase{"RawCountBeyondAnUnsignedRegister", "Hil", "hal.modbus.channels.position.raw_max", "65536",
+                       "hal.modbus.channels.position.raw_max", "16-bit register"},
+        OutOfRangeCase{"ReconnectCeilingBelowItsFloor", "Hil", "hal.modbus.reconnect_max_s", "0.01",
+                       "hal.modbus.reconnect_max_s", "must be in [0.05, 600]"},
+        OutOfRangeCase{"AdcOf25Bits", "Sim", "sensors.position.adc_bits", "25", "sensors.position.adc_bits", "1..24"},
+        OutOfRangeCase{"NegativeSeed", "Sim", "sensors.seed", "-1", "sensors.seed", "must be >= 0"},
+        OutOfRangeCase{"PolytropicIndexBelowOne", "Sim", "plant.gas.polytropic_index", "0.9", "plant.gas.polytropic_index",
+                       "must be in [1, 1.4]"},
+        OutOfRangeCase{"CriticalPressureRatioOfOne", "Sim", "plant.valve.critical_pressure_ratio", "1",
+                       "plant.valve.critical_pressure_ratio", "must be in (0, "},
+        OutOfRangeCase{"SmoothingAboveOne", "Sim", "controller.differentiator.smoothing", "1.5",
+                       "controller.differentiator.smoothing", "must be in (0, 1]"},
+        OutOfRangeCase{"SoftLimitBeyondTheStroke", "Sim", "controller.soft_limit_max_m", "0.3",
+                       "controller.soft_limit_max_m", "must lie inside the stroke"},
+        OutOfRangeCase{"HealthPeriodOfZero", "Sim", "telemetry.health_period_s", "0", "telemetry.health_period_s",
+                       "must be in [0.01, 60]"},
+        OutOfRangeCase{"CommandBurstBelowOne", "Sim", "commands.burst", "0.5", "commands.burst", "must be in [1, 1000]"},
+        OutOfRangeCase{"EstopAndValvePowerOnOneLine", "Sim", "hal.gpio.valve_power_line", "17",
+                       "hal.gpio.valve_power_line", "must differ from estop_line"},
+        OutOfRangeCase{"MaxStepOfOneSecond", "Sim", "plant.max_step_s", "1", "plant.max_step_s", "must be in [1e-07, 0.01]"}),
+    [](const auto& p) { return p.param.name; });
+
+// ---------------------------------------------------------------------------------------------
+// Documents too deep, too large, or multiplied by aliases
+
+std::string repeated(const std::string& piece, std::size_t n) {
+  std::string s;
+  s.reserve(piece.size() * n);
+  for (std::size_t i = 0; i < n; ++i) s += piece;
+  return s;
+}
+
+// 100,000 levels in each way YAML nests. yaml-cpp 0.7 (Debian 12) recurses once per level but
+// stops itself at 500 with "bad file"; the loader refuses them first, saying why.
+struct DeepDocument {
+  std::string name;
+  std::function<std::string()> text;  // made when the test runs: gtest copies its parameters
+};
+
+void PrintTo(const DeepDocument& d, std::ostream* os) { *os << d.name; }
+
+std::vector<DeepDocument> deep_documents() {
+  constexpr std::size_t n = 100000;
+  return {
+      {"FlowSequences", [] { return "plant: " + std::string(n, '[') + std::string(n, ']') + "\n"; }},
+      {"UnclosedFlowSequences", [] { return "plant: " + std::string(n, '[') + "\n"; }},
+      {"FlowMappings", [] { return "plant: " + repeated("{a: ", n) + "1" + std::string(n, '}') + "\n"; }},
+      {"MixedFlowCollections", [] { return "plant: " + repeated("[{a: ", n / 2) + "\n"; }},
+      {"CompactBlockSequences", [] { return "plant:\n  " + repeated("- ", n) + "x\n"; }},
+      {"BlockMappingsByIndentation",
+       [] {  // one more space per level: 1,000 levels is 500 kB
+         std::string yaml = "plant:\n";
+         for (std::size_t i = 1; i <= 1000; ++i) yaml += std::string(i, ' ') + "a:\n";
+         return yaml;
+       }},
+      {"BlockSequencesAtTheirKeysColumn",
+       [] {  // "- a:" at the key's own column
+         std::string yaml = "plant:\n";
+         for (std::size_t i = 0; i < 500; ++i) yaml += std::string(2 * i, ' ') + "- a:\n";
+         return yaml;
+       }},
+      {"ExplicitKeys", [] { return repeated("? ", n) + "x\n"; }},
+      {"FlowSequencesAfterAnchorsAndTags", [] { return "plant: " + repeated("&a !!seq [", n) + "\n"; }},
+  };
+}
+
+class DeeplyNestedDocument : public ::testing::TestWithParam<DeepDocument> {};
+
+TEST_P(DeeplyNestedDocument, IsRefusedNamingTheOriginAndTheReason) {
+  EXPECT_THAT(loading(GetParam().text(), {}, "deep.yaml"), refuses("deep.yaml", "nested too deeply: more than 64 levels"));
+}
+
+INSTANTIATE_TEST_SUITE_P(HundredThousandLevels, DeeplyNestedDocument, ::testing::ValuesIn(deep_documents()),
+                         [](const auto& p) { return p.param.name; });
+
+TEST(NestingScan, NamesTheFirstLineBeyondTheLimit) {
+  std::string yaml = "plant:\n";
+  for (std::size_t i = 1; i <= 100; ++i) yaml += std::string(i, ' ') + "a:\n";
+  // Line 1 opens the first level, line k the k-th: line 65 is the first beyond 64.
+  EXPECT_THAT(loading(yaml, {}, "deep.yaml"), refuses("deep.yaml", "more than 64 levels at line 65"));
+}
+
+TEST(NestingScan, NestingWithinTheLimitIsParsedAndJudgedByTheSchema) {
+  // The top-level mapping and 60 flow sequences.
+  EXPECT_THAT(loading("plant: " + std::string(60, '[') + std::string(60, ']') + "\n"),
+              refuses("plant", "expected a mapping"));
+}
+
+TEST(NestingScan, BracketsInCommentsQuotesAndBlockScalarsDoNotCount) {
+  const std::string deep = std::string(200, '[');
+  const std::string yaml = edited("Sim", setting("hal.gpio.consumer", "\"" + deep + "\"")) +
+                           "# " + deep + "\n";
+  EXPECT_EQ(load_string(yaml).hal.gpio.consumer, deep);
+  // A block scalar whose text is deep in brackets and indentation, as the value of an unknown
+  // key: refused by the schema, not by the nesting scan.
+  std::string block = "notes: |\n";
+  for (int i = 0; i < 200; ++i) block += "  " + std::string(static_cast<std::size_t>(i), ' ') + "[{ line\n";
+  EXPECT_THAT(loading(shipped_text("Sim") + block), refuses("notes", "unknown key"));
+}
+
+// Random documents in every style yaml-cpp's emitter writes (block and flow collections,
+// collections as keys, text full of YAML's indicators quoted as needed, literal block scalars),
+// nested exactly `depth` collections deep along one path.
+std::string indicator_text(std::mt19937& rng) {
+  static const std::vector<std::string> pieces = {"a",  "[",  "]",  "{",  "}",   "#",  " #", "'",  "\"", "|", ">",
+                                                  "- ", "? ", ": ", ",",  "\n", "x y", "&a", "*a", "!!", "\\", "  "};
+  std::string s;
+  for (int n = std::uniform_int_distribution<int>(0, 5)(rng); n > 0; --n)
+    s += pieces[std::uniform_int_distribution<std::size_t>(0, pieces.size() - 1)(rng)];
+  return s;
+}
+
+void emit_nested(YAML::Emitter& e, std::mt19937& rng, int depth) {
+  const auto pick = [&](int n) { return std::uniform_int_distribution<int>(0, n - 1)(rng); };
+  if (depth == 0) {
+    const std::string text = indicator_text(rng);
+    const int style = pick(4);
+    if (style == 1 && text.find('\n') != std::string::npos) e << YAML::Literal;
+    else if (style == 2) e << YAML::DoubleQuoted;
+    else if (style == 3) e << YAML::SingleQuoted;
+    e << text;
+    return;
+  }
+  if (pick(3) == 0) e << YAML::Flow;
+  const int n = 1 + pick(3), deep = pick(n);
+  const auto sibling_depth = [&] { return pick(std::min(depth, 3)); };  // shallower than the path
+  if (pick(2) == 0) {
+    e << YAML::BeginSeq;
+    for (int i = 0; i < n; ++i) emit_nested(e, rng, i == deep ? depth - 1 : sibling_depth());
+    e << YAML::EndSeq;
+  } else {
+    e << YAML::BeginMap;
+    for (int i = 0; i < n; ++i) {
+      e << YAML::Key;
+      if (depth > 3 && pick(6) == 0) emit_nested(e, rng, 1 + pick(2));  // a collection as the key
+      else e << "k" + std::to_string(i) + indicator_text(rng);
+      e << YAML::Value;
+      emit_nested(e, rng, i == deep ? depth - 1 : sibling_depth());
+    }
+    e << YAML::EndMap;
+  }
+}
+
+// sim.yaml with a random document `depth` deep under the unknown key "extra": 1 + depth levels.
+std::string with_random_extra(std::mt19937& rng, int depth) {
+  YAML::Emitter e;
+  e.SetIndent(static_cast<std::size_t>(2 + std::uniform_int_distribution<int>(0, 2)(rng)));
+  emit_nested(e, rng, depth);
+  if (!e.good()) throw std::logic_error("emitter: " + e.GetLastError());
+  std::string extra = "extra:\n";
+  std::istringstream in(e.c_str());
+  for (std::string line; std::getline(in, line);) extra += "  " + line + "\n";
+  return shipped_text("Sim") + extra;
+}
+
+TEST(NestingScan, RandomDocumentsWithinTheLimitAreParsed) {
+  std::mt19937 rng(6);  // fixed seed: reproducible
+  for (int trial = 0; trial < 300; ++trial) {
+    const int depth = 1 + trial % 62;  // up to 63 levels with "extra"
+    const std::string yaml = with_random_extra(rng, depth);
+    EXPECT_THAT(loading(yaml), refuses("extra", "unknown key")) << "depth " << depth << ":\n" << yaml;
+  }
+}
+
+TEST(NestingScan, RandomDocumentsBeyondTheLimitAreRefusedBeforeParsing) {
+  std::mt19937 rng(66);
+  for (int trial = 0; trial < 300; ++trial) {
+    const int depth = 64 + trial % 100;  // from 65 levels with "extra" on
+    const std::string yaml = with_random_extra(rng, depth);
+    EXPECT_THAT(loading(yaml, {}, "deep.yaml"), refuses("deep.yaml", "nested too deeply")) << "depth " << depth;
+  }
+}
+
+TEST(NestingScan, InAnOverrideValueIsRefusedNamingTheKey) {
+  EXPECT_THAT(loading(shipped_text("Sim"), {"plant.mass_kg=" + std::string(100000, '[')}),
+              refuses("plant.mass_kg", "nested too deeply"));
+}
+
+TEST(NestingScan, ListOfListsBuiltByAnchorsIsNotNestedTextAndIsJudgedByTheSchema) {
+  // 20,000 levels of lists, each element an alias of the previous list: deep as a graph, flat as
+  // text (yaml-cpp shares an aliased node, it does not copy it).
+  std::string yaml = "l0: &l0 [x]\n";
+  for (int i = 1; i < 20000; ++i)
+    yaml += "l" + std::to_string(i) + ": &l" + std::to_string(i) + " [*l" + std::to_string(i - 1) + "]\n";
+  yaml += "plant: *l19999\n";
+  EXPECT_THAT(loading(yaml), refuses("plant", "expected a mapping"));
+}
+
+TEST(LargeDocument, AboveOneMebibyteIsRefusedBeforeParsing) {
+  // 2 MiB of one flat list: yaml-cpp would take seconds and about 500 MB to parse it.
+  std::string yaml = "plant: [";
+  while (yaml.size() < (2u << 20)) yaml += "0,";
+  yaml += "0]\n";
+  EXPECT_THAT(loading(yaml, {}, "large.yaml"), refuses("large.yaml", "too large: "));
+  EXPECT_THAT(loading(yaml, {}, "large.yaml"), refuses("large.yaml", "at most 1048576 (1 MiB)"));
+}
+
+TEST(LargeDocument, OfExactlyOneMebibyteIsParsed) {
+  std::string yaml = shipped_text("Sim");
+  yaml += repeated("#", (1u << 20) - yaml.size() - 1) + "\n";
+  ASSERT_EQ(yaml.size(), 1u << 20);
+  EXPECT_NO_THROW((void)load_string(yaml));
+}
+
+TEST(LargeDocument, FileAboveOneMebibyteIsRefusedByItsSizeNamingThePath) {
+  const fs::path path = fs::temp_directory_path() / ("pneu_large_" + std::to_string(::getpid()) + ".yaml");
+  {
+    std::ofstream out(path);
+    out << shipped_text("Sim") << repeated("# padding\n", 200000);
+  }
+  EXPECT_THAT([&] { (void)load_file(path); }, refuses(path.string(), "too large: "));
+  fs::remove(path);
+}
+
+TEST(LargeDocument, InAnOverrideValueIsRefusedNamingTheKey) {
+  EXPECT_THAT(loading(shipped_text("Sim"), {"controller.setpoints.schedule=[" + repeated("0,", 600000) + "0]"}),
+              refuses("controller.setpoints.schedule", "too large"));
+}
+
+// "Billion laughs": nine levels of ten aliases of the level below, 10^9 leaves if expanded.
+// yaml-cpp shares aliased nodes instead of copying them, and the loader only walks the keys of
+// its schema, so nothing is expanded.
+std::string laughs(const std::string& bottom) {
+  std::string yaml = "l0: &l0 " + bottom + "\n";
+  for (int i = 1; i <= 9; ++i) {
+    yaml += "l" + std::to_string(i) + ": &l" + std::to_string(i) + " [";
+    for (int j = 0; j < 10; ++j) yaml += std::string(j ? ", " : "") + "*l" + std::to_string(i - 1);
+    yaml += "]\n";
+  }
+  return yaml;
+}
+
+std::string indented(const std::string& text, const std::string& by) {
+  std::string out;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) out += by + line + "\n";
+  return out;
+}
+
+TEST(AliasExpansion, BillionLaughsUnderAnUnknownKeyIsRefusedNamingIt) {
+  EXPECT_THAT(loading(shipped_text("Sim") + "laughs:\n" + indented(laughs("[lol, lol, lol]"), "  ")),
+              refuses("laughs", "unknown key"));
+}
+
+TEST(AliasExpansion, BillionLaughsAsASectionIsRefusedNamingIt) {
+  EXPECT_THAT(loading(laughs("[lol]") + "plant: *l9\n"), refuses("plant", "expected a mapping"));
+}
+
+TEST(AliasExpansion, BillionLaughsAsAListOfTheSchemaIsRefusedAtItsFirstElement) {
+  const std::string methods = "methods: [linearized, nonlinear]";
+  std::string text = shipped_text("Sim");
+  ASSERT_NE(text.find(methods), std::string::npos);
+  text.replace(text.find(methods), methods.size(), "methods: *l9");
+  EXPECT_THAT(loading(laughs("lol") + text), refuses("controller.predictor.methods[0]", "unknown method"));
+}
+
+// An alias of an enclosing anchor makes the parsed document a cycle (yaml-cpp accepts it): the
+// loader walks the keys of its schema only, so it never goes round.
+TEST(AliasExpansion, RecursiveAliasAsASectionIsRefusedAtTheFirstMissingKey) {
+  EXPECT_THAT(loading("plant: &p {geometry: *p, gas: *p}\n"), refuses("plant.mass_kg", "missing"));
+  std::string text = shipped_text("Sim");
+  const std::string geometry = "  geometry:\n";
+  text.replace(text.find(geometry), geometry.size(), "  geometry: &g\n    again: *g\n");
+  EXPECT_THAT(loading(text), refuses("plant.geometry.again", "unknown key"));
+}
+
+TEST(AliasExpansion, RecursiveAliasAsAListOfTheSchemaIsRefusedAtItsFirstElement) {
+  const std::string methods = "methods: [linearized, nonlinear]";
+  std::string text = shipped_text("Sim");
+  text.replace(text.find(methods), methods.size(), "methods: &m [*m]");
+  EXPECT_THAT(loading(text), refuses("controller.predictor.methods[0]", "unknown method"));
+  text = shipped_text("Sim");
+  const std::string step = "- {t_s: 1.0, position_m: 0.170}";
+  ASSERT_NE(text.find(step), std::string::npos);
+  text.replace(text.find(step), step.size(), "- &s [*s]");
+  EXPECT_THAT(loading(text), refuses("controller.setpoints.schedule[0]", "expected a mapping"));
+}
+
+TEST(AliasExpansion, MappingsOfAliasedMappingsAsASectionAreRefusedAtTheFirstMissingKey) {
+  std::string yaml = "m0: &m0 {a: 1, b: 2}\n";
+  for (int i = 1; i <= 9; ++i) {
+    yaml += "m" + std::to_string(i) + ": &m" + std::to_string(i) + " {";
+    for (int j = 0; j < 10; ++j)
+      yaml += std::string(j ? ", " : "") + static_cast<char>('a' + j) + ": *m" + std::to_string(i - 1);
+    yaml += "}\n";
+  }
+  EXPECT_THAT(loading(yaml + "plant: *m9\n"), refuses("plant.mass_kg", "missing"));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Through the real binaries: exit code 2, the key path and the reason on stderr, nothing driven
+
+// One bad document for both binaries: from sim.yaml (for pneud on the sim backend) or from
+// hil.yaml (for pneud on the modbus backend, and for pneu-plant serve), or raw text.
+struct BinaryCase {
+  std::string name;
+  std::function<void(YAML::Node&)> edit;  // applied to either shipped file; empty: `raw`
+  std::function<std::string()> raw;       // the whole document, made when the test runs
+  std::string names;                      // the key path stderr names; empty: the file's path
+  std::string reason;
+};
+
+void PrintTo(const BinaryCase& c, std::ostream* os) { *os << c.name; }
+
+// A sample of the matrix: in each top-level section of sim.yaml, its first required key left
+// out; a wrong type, an unknown key, a value out of range; the deep, large and aliased documents.
+std::vector<BinaryCase> binary_cases() {
+  std::vector<BinaryCase> out;
+  std::set<std::string> sections;
+  for (const Key& k : shipped_keys()) {
+    if (k.file != "Sim" || k.optional || k.kind == Kind::kSection) continue;
+    const std::string section = k.path.substr(0, k.path.find('.'));
+    if (!sections.insert(section).second) continue;
+    out.push_back({"Missing_" + test_name(k.path), removing(k.path), nullptr, k.path, "missing"});
+  }
+  out.push_back({"WrongType_plant_mass_kg", setting("plant.mass_kg", "{a: 1}"), nullptr, "plant.mass_kg",
+                 "expected a number, got a mapping"});
+  out.push_back({"UnknownKey_controller_law_colour", setting("controller.law.colour", "red"), nullptr,
+                 "controller.law.colour", "unknown key"});
+  out.push_back({"OutOfRange_controller_rate_hz", setting("controller.rate_hz", "0"), nullptr, "controller.rate_hz",
+                 "must be in [1, 20000]"});
+  out.push_back({"DeepDocument", nullptr, [] { return "plant: " + std::string(100000, '[') + "\n"; }, "",
+                 "nested too deeply: more than 64 levels at line 1"});
+  out.push_back({"LargeDocument", nullptr,
+                 [] {
+                   std::string large = "plant: [";
+                   while (large.size() < (2u << 20)) large += "0,";
+                   return large + "0]\n";
+                 },
+                 "", "too large: "});
+  out.push_back({"BillionLaughs", nullptr, [] { return laughs("[lol]") + "plant: *l9\n"; }, "plant",
+                 "expected a mapping"});
+  out.push_back({"RecursiveAlias", nullptr, [] { return std::string("plant: &p {geometry: *p}\n"); }, "plant.mass_kg",
+                 "missing"});
+  return out;
+}
+
+// A TCP listener on a free loopback port, standing for the I/O module: any connection to it
+// would be pneud starting to drive the bench.
+class Listener {
+ public:
+  Listener() {
+    fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    a.sin_port = 0;  // a free port, as test::free_port, but held from now on
+    socklen_t len = sizeof a;
+    if (fd_ < 0 || ::bind(fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 || ::listen(fd_, 8) != 0 ||
+        ::getsockname(fd_, reinterpret_cast<sockaddr*>(&a), &len) != 0)
+      throw std::runtime_error("cannot listen on loopback");
+    port_ = ntohs(a.sin_port);
+  }
+  ~Listener() { ::close(fd_); }
+  Listener(const Listener&) = delete;
+  Listener& operator=(const Listener&) = delete;
+  [[nodiscard]] int port() const { return port_; }
+  // A connection has arrived (waiting up to `ms` for one).
+  [[nodiscard]] bool connected(int ms) const {
+    pollfd p{fd_, POLLIN, 0};
+    return ::poll(&p, 1, ms) > 0;
+  }
+
+ private:
+  int fd_ = -1;
+  int port_ = 0;
+};
+
+struct Outcome {
+  int exit_code = -1;  // -2: still running after the time limit (killed)
+  std::string out, err;
+};
+
+// Runs the programs of the build on documents written to a directory of its own.
+class BinaryHarness : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string name = ::testing::UnitTest::GetInstance()->current_test_info()->name();
+    std::replace(name.begin(), name.end(), '/', '_');
+    dir_ = fs::temp_directory_path() / ("pneu_hostile_" + std::to_string(::getpid()) + "_" + name);
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+
+  [[nodiscard]] fs::path file(const std::string& name) const { return dir_ / name; }
+
+  // The case's document from shipped file `base`, made safe to run should it be accepted: no
+  // telemetry, a short run, the I/O module at `port`. Written to a file; its path.
+  [[nodiscard]] fs::path bad_config(const BinaryCase& c, const std::string& base, int port) const {
+    std::string text;
+    if (c.raw) text = c.raw();
+    if (c.edit) {
+      text = edited(base, [&](YAML::Node& root) {
+        root["telemetry"]["enabled"] = false;
+        root["controller"]["duration_s"] = 0.5;
+        if (root["hal"]["modbus"]) root["hal"]["modbus"]["port"] = port;
+        c.edit(root);
+      });
+    }
+    const fs::path path = file(base + "_bad.yaml");
+    std::ofstream(path) << text;
+    return path;
+  }
+
+  // Runs a program of the build, killing it after `limit_s`.
+  [[nodiscard]] Outcome run(std::vector<std::string> args, double limit_s = 20.0) const {
+    args[0] = std::string(PNEU_BINARY_DIR) + "/bin/" + args[0];
+    const fs::path out = file("stdout.txt"), err = file("stderr.txt");
+    test::Child child = test::Child::spawn(args, out, err);
+    Outcome o;
+    if (child.pid <= 0) {
+      ADD_FAILURE() << "cannot start " << args[0];
+      return o;
+    }
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(limit_s);
+    for (;;) {
+      int status = 0;
+      const pid_t r = ::waitpid(child.pid, &status, WNOHANG);
+      if (r == child.pid) {
+        child.pid = -1;
+        o.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+        break;
+      }
+      if (std::chrono::steady_clock::now() > deadline) {
+        o.exit_code = -2;  // the Child's destructor kills it
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    if (o.exit_code == -2) {
+      ::kill(child.pid, SIGKILL);
+      (void)child.wait();
+    }
+    o.out = test::slurp(out);
+    o.err = test::slurp(err);
+    return o;
+  }
+
+  static void expect_refused(const Outcome& o, const std::string& program, const std::string& names,
+                             const std::string& reason) {
+    EXPECT_EQ(o.exit_code, 2) << o.out << o.err;
+    EXPECT_THAT(o.err, HasSubstr(program + ": config: " + names + ": "));
+    EXPECT_THAT(o.err, HasSubstr(reason));
+    EXPECT_EQ(o.out, "") << "nothing on stdout: nothing ran";
+  }
+
+  fs::path dir_;
+};
+
+class HostileConfigThroughTheBinaries : public BinaryHarness, public ::testing::WithParamInterface<BinaryCase> {};
+
+TEST_P(HostileConfigThroughTheBinaries, PneudOnTheSimBackendExitsTwoWritingNothing) {
+  const BinaryCase& c = GetParam();
+  const fs::path config = bad_config(c, "Sim", 0);
+  const fs::path events = file("events.jsonl"), trajectory = file("trajectory.csv");
+  const Outcome o = run({"pneud", "--config", config.string(), "--events", events.string(), "--trajectory",
+                         trajectory.string()});
+  expect_refused(o, "pneud", c.names.empty() ? config.string() : c.names, c.reason);
+  EXPECT_FALSE(fs::exists(events)) << "the events file was created";
+  EXPECT_FALSE(fs::exists(trajectory)) << "the trajectory file was created";
+}
+
+TEST_P(HostileConfigThroughTheBinaries, PneudOnTheModbusBackendExitsTwoNeverConnecting) {
+  const BinaryCase& c = GetParam();
+  const Listener module;
+  const fs::path config = bad_config(c, "Hil", module.port());
+  const fs::path events = file("events.jsonl"), trajectory = file("trajectory.csv");
+  const Outcome o = run({"pneud", "--config", config.string(), "--events", events.string(), "--trajectory",
+                         trajectory.string()});
+  expect_refused(o, "pneud", c.names.empty() ? config.string() : c.names, c.reason);
+  EXPECT_FALSE(module.connected(200)) << "pneud connected to the I/O module";
+  EXPECT_FALSE(fs::exists(events));
+  EXPECT_FALSE(fs::exists(trajectory));
+}
+
+TEST_P(HostileConfigThroughTheBinaries, PlantServerExitsTwoNeverListening) {
+  const BinaryCase& c = GetParam();
+  const int port = test::free_port();
+  const fs::path config = bad_config(c, "Hil", port);
+  const Outcome o = run({"pneu-plant", "serve", "--config", config.string(), "--duration", "1"});
+  expect_refused(o, "pneu-plant", c.names.empty() ? config.string() : c.names, c.reason);  // no "listening on"
+}
+
+INSTANTIATE_TEST_SUITE_P(Sample, HostileConfigThroughTheBinaries, ::testing::ValuesIn(binary_cases()),
+                         [](const auto& p) { return p.param.name; });
+
+// The controls: the same harness with a good document does drive, so the absences above mean
+// something.
+class GoodConfigThroughTheBinaries : public BinaryHarness {};
+
+TEST_F(GoodConfigThroughTheBinaries, PneudOnTheSimBackendWritesItsFiles) {
+  const fs::path config = bad_config({"Good", [](YAML::Node&) {}, nullptr, "", ""}, "Sim", 0);
+  const fs::path events = file("events.jsonl"), trajectory = file("trajectory.csv");
+  const Outcome o = run({"pneud", "--quiet", "--config", config.string(), "--events", events.string(),
+                         "--trajectory", trajectory.string()});
+  EXPECT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_TRUE(fs::exists(events));
+  EXPECT_TRUE(fs::exists(trajectory));
+}
+
+#ifdef PNEU_WITH_MODBUS
+TEST_F(GoodConfigThroughTheBinaries, PneudOnTheModbusBackendConnectsToTheModule) {
+  const Listener module;
+  const fs::path config = bad_config({"Good", [](YAML::Node&) {}, nullptr, "", ""}, "Hil", module.port());
+  const Outcome o = run({"pneud", "--quiet", "--config", config.string()});
+  EXPECT_NE(o.exit_code, -2) << "still running";
+  EXPECT_TRUE(module.connected(0)) << o.out << o.err;
+}
+#endif
+
+TEST_F(GoodConfigThroughTheBinaries, PlantServerListens) {
+  const fs::path config = bad_config({"Good", [](YAML::Node&) {}, nullptr, "", ""}, "Hil", test::free_port());
+  const Outcome o = run({"pneu-plant", "serve", "--config", config.string(), "--duration", "0.2"});
+  EXPECT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_THAT(o.out, HasSubstr("listening on 127.0.0.1:"));
+}
+
+}  // namespace
+}  // namespace pneu::config
