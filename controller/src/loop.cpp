@@ -102,9 +102,22 @@ void ControlLoop::apply_commands(double y_m) noexcept {
         // The cause must be gone: a reset while the e-stop is still pressed, or while the
         // samples are still bad, keeps the fault. A reset disarms: arming again is a separate,
         // later command, and only what is measured from then on drives the valves.
-        if (mode_ == Mode::kFault && !supervisor_.cause_present()) {
-          mode_ = Mode::kDisarmed;
-          fault_cause_ = kFaultNone;
+        if (mode_ == Mode::kFault) {
+          LoopEvent e;
+          e.stop_index = stops_;
+          e.t_s = t_s_;
+          e.y_m = y_m;
+          e.y_d_m = y_d_m_;
+          if (supervisor_.cause_present()) {
+            e.kind = LoopEvent::Kind::kResetRefused;
+            e.fault_cause = supervisor_.present_cause();
+          } else {
+            e.kind = LoopEvent::Kind::kFaultReset;
+            e.fault_cause = fault_cause_;
+            mode_ = Mode::kDisarmed;
+            fault_cause_ = kFaultNone;
+          }
+          push(e);
         }
         break;
     }

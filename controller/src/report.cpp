@@ -106,6 +106,12 @@ void RunReport::on_event(const LoopEvent& e) {
     stops_.push_back(s);
     return;
   }
+  if (e.kind == LoopEvent::Kind::kFaultReset || e.kind == LoopEvent::Kind::kResetRefused) {
+    if (events_)
+      *events_ << "{\"event\":\"" << (e.kind == LoopEvent::Kind::kFaultReset ? "fault_reset" : "fault_reset_refused")
+               << "\",\"t\":" << num(e.t_s, 12) << ",\"cause\":\"" << fault_name(e.fault_cause) << "\"}\n";
+    return;
+  }
   if (e.kind == LoopEvent::Kind::kFault) {
     faults_.push_back(e);
     if (events_)

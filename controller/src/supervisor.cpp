@@ -92,6 +92,7 @@ FaultCause Supervisor::check(const SupervisedTick& tick) noexcept {
                          (f.validity & (hal::kSampleStale | hal::kCommsError)) == 0;
   const FaultCause reading = delivered ? check_reading(f) : kFaultNone;
   sample_good_ = delivered && reading == kFaultNone;
+  sample_cause_ = sample_good_ ? kFaultNone : delivered ? reading : kFaultComms;
   if (!sample_good_) {
     ++bad_samples_;
     if (bad_since_s_ < 0.0) bad_since_s_ = t;

@@ -86,6 +86,10 @@ const char* event_kind_name(std::int8_t kind) {
       return "command_rejected";
     case E::KIND_END:
       return "end";
+    case E::KIND_FAULT_RESET:
+      return "fault_reset";
+    case E::KIND_FAULT_RESET_REFUSED:
+      return "fault_reset_refused";
     default:
       return "unknown";
   }

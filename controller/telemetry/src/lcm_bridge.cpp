@@ -112,6 +112,13 @@ void LcmBridge::on_event(const LoopEvent& e) {
   if (e.kind == LoopEvent::Kind::kStop) {
     m.kind = pneu_lcm::event_t::KIND_STOP;
     m.text = "stop";
+  } else if (e.kind == LoopEvent::Kind::kFaultReset) {
+    m.kind = pneu_lcm::event_t::KIND_FAULT_RESET;
+    m.text = std::string("fault (") + controller::fault_name(e.fault_cause) + ") reset: disarmed, send ARM to drive";
+  } else if (e.kind == LoopEvent::Kind::kResetRefused) {
+    m.kind = pneu_lcm::event_t::KIND_FAULT_RESET_REFUSED;
+    m.text = std::string("fault reset refused: the cause is still present (") + controller::fault_name(e.fault_cause) +
+             "): " + controller::fault_text(e.fault_cause);
   } else if (e.kind == LoopEvent::Kind::kFault) {
     m.kind = pneu_lcm::event_t::KIND_FAULT;
     m.text = std::string("fault (") + controller::fault_name(e.fault_cause) + "): " + controller::fault_text(e.fault_cause);

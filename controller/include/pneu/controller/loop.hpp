@@ -45,7 +45,9 @@ struct TickRecord {
 /// A start or stop of the carriage (with the snapshot the predictor needs at a stop), or a fault
 /// latched by the loop (cause: FaultCause).
 struct LoopEvent {
-  enum class Kind : std::uint8_t { kStop, kStart, kFault };
+  /// kFaultReset: a reset cleared the fault (now disarmed); kResetRefused: a reset came while
+  /// the cause was still present (fault_cause: which).
+  enum class Kind : std::uint8_t { kStop, kStart, kFault, kFaultReset, kResetRefused };
   Kind kind = Kind::kStop;
   std::uint64_t stop_index = 0;  ///< stops are numbered from 1; a start refers to the last stop (0: none)
   double t_s = 0.0;              ///< backdated to the signals (see StopDetector) [s]

@@ -59,6 +59,10 @@ class Supervisor {
   [[nodiscard]] bool sample_good() const noexcept { return sample_good_; }
   /// Whether a cause that a reset cannot clear is present now (e-stop pressed, bad samples).
   [[nodiscard]] bool cause_present() const noexcept { return estop_ || !sample_good_; }
+  /// The cause a reset would meet now: kFaultEStop, the bad sample's cause, or kFaultNone.
+  [[nodiscard]] FaultCause present_cause() const noexcept {
+    return estop_ ? kFaultEStop : !sample_good_ ? sample_cause_ : kFaultNone;
+  }
   [[nodiscard]] std::uint64_t bad_samples() const noexcept { return bad_samples_; }
 
  private:
@@ -71,6 +75,7 @@ class Supervisor {
   const double stream_timeout_s_;
   bool estop_ = false;
   bool sample_good_ = true;
+  FaultCause sample_cause_ = kFaultNone;  // why the last sample was not good
   std::uint64_t bad_samples_ = 0;       // reads not good, since start
   double bad_since_s_ = -1.0;           // first tick of the current run of bad reads
   bool have_last_y_ = false;

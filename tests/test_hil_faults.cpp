@@ -1,0 +1,491 @@
+// Fault injection over hardware in the loop: pneud (modbus backend, real clock) drives
+// `pneu-plant serve`, and the plant is killed, frozen, or made to serve a bad sensor, a late reply
+// or a stuck valve. For each fault: it is latched within its configured detection time, the safe
+// output reaches the plant (the plant's own record of the valve voltages it received), a fault
+// event and health are published on LCM, and the daemon recovers only through a reset once the
+// cause is gone, then an ARM. The safe output here is "exhaust" (both valves at -u_max), which
+// no control output of these runs resembles. On this bench, venting both chambers near an end
+// of the stroke drives the carriage into the end stop (the chamber pressures fall at different
+// rates); these runs therefore work around mid-stroke (start at 0, set point to -50 mm at 1 s),
+// where the vented carriage stays put.
+//
+// Runs inside a private network namespace (tests/in_private_netns.sh): LCM multicast and Modbus
+// stay on its loopback.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <lcm/lcm-cpp.hpp>
+#include <signal.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "pneu_lcm/command_t.hpp"
+#include "pneu_lcm/event_t.hpp"
+#include "pneu_lcm/health_t.hpp"
+#include "support/child_process.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using pneu::test::Child;
+using pneu::test::Csv;
+using pneu::test::free_port;
+using pneu::test::slurp;
+using ::testing::HasSubstr;
+
+constexpr const char* kUrl = "udpm://239.255.76.67:7667?ttl=0";
+constexpr double kPeriodS = 1e-3;
+constexpr double kSafeV = -10.0;       // exhaust: both valves at -u_max
+constexpr double kVoltStepV = 10.0 / 32767.0;
+// hil.yaml's detection times.
+constexpr double kCommsFaultAfterS = 0.05;
+constexpr double kFollowingErrorS = 2.0;
+constexpr std::int8_t kModeDisarmed = 0, kModeArmed = 1, kModeFault = 2;
+
+std::string bin(const std::string& name) { return std::string(PNEU_BINARY_DIR) + "/bin/" + name; }
+std::string hil_yaml() { return std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml"; }
+
+std::vector<std::string> float32_overrides() {
+  std::vector<std::string> sets;
+  std::ifstream in(std::string(PNEU_SOURCE_DIR) + "/tests/hil_float32_overrides.txt");
+  for (std::string line; std::getline(in, line);)
+    if (!line.empty()) sets.insert(sets.end(), {"--set", line});
+  return sets;
+}
+
+std::int64_t unix_us() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+// What pneud publishes, collected by an LCM subscriber of the test's own.
+class Telemetry {
+ public:
+  Telemetry() : lcm_(kUrl) {
+    lcm_.subscribe("PNEU_EVENT", &Telemetry::on_event, this);
+    lcm_.subscribe("PNEU_HEALTH", &Telemetry::on_health, this);
+    thread_ = std::thread([this] {
+      while (!done_) lcm_.handleTimeout(10);
+    });
+  }
+  ~Telemetry() {
+    done_ = true;
+    thread_.join();
+  }
+  bool good() { return lcm_.good(); }
+
+  void send(std::int8_t kind) {
+    pneu_lcm::command_t c;
+    c.utime = unix_us();
+    c.seq = ++seq_;
+    c.kind = kind;
+    c.value = 0.0;
+    lcm_.publish("PNEU_COMMAND", &c);
+  }
+  // Waits until `pred` holds of the last health message.
+  bool wait_health(const std::function<bool(const pneu_lcm::health_t&)>& pred, std::chrono::milliseconds limit) {
+    const auto until = std::chrono::steady_clock::now() + limit;
+    while (std::chrono::steady_clock::now() < until) {
+      {
+        std::lock_guard<std::mutex> l(m_);
+        if (have_health_ && pred(health_)) return true;
+      }
+      std::this_thread::sleep_for(5ms);
+    }
+    return false;
+  }
+  std::optional<pneu_lcm::event_t> wait_fault(std::chrono::milliseconds limit) {
+    const auto until = std::chrono::steady_clock::now() + limit;
+    while (std::chrono::steady_clock::now() < until) {
+      {
+        std::lock_guard<std::mutex> l(m_);
+        for (const auto& e : events_)
+          if (e.kind == pneu_lcm::event_t::KIND_FAULT) return e;
+      }
+      std::this_thread::sleep_for(5ms);
+    }
+    return std::nullopt;
+  }
+  pneu_lcm::health_t health() {
+    std::lock_guard<std::mutex> l(m_);
+    return health_;
+  }
+  std::vector<pneu_lcm::health_t> healths() {
+    std::lock_guard<std::mutex> l(m_);
+    return healths_;
+  }
+  bool has_event(std::int8_t kind) {
+    std::lock_guard<std::mutex> l(m_);
+    for (const auto& e : events_)
+      if (e.kind == kind) return true;
+    return false;
+  }
+  int faults_published() {
+    std::lock_guard<std::mutex> l(m_);
+    int n = 0;
+    for (const auto& e : events_) n += e.kind == pneu_lcm::event_t::KIND_FAULT;
+    return n;
+  }
+
+ private:
+  void on_event(const lcm::ReceiveBuffer*, const std::string&, const pneu_lcm::event_t* e) {
+    std::lock_guard<std::mutex> l(m_);
+    events_.push_back(*e);
+  }
+  void on_health(const lcm::ReceiveBuffer*, const std::string&, const pneu_lcm::health_t* h) {
+    std::lock_guard<std::mutex> l(m_);
+    health_ = *h;
+    healths_.push_back(*h);
+    have_health_ = true;
+  }
+
+  lcm::LCM lcm_;
+  std::mutex m_;
+  std::vector<pneu_lcm::event_t> events_;
+  std::vector<pneu_lcm::health_t> healths_;
+  pneu_lcm::health_t health_{};
+  bool have_health_ = false;
+  std::atomic<bool> done_{false};
+  std::thread thread_;
+  std::int64_t seq_ = 0;
+};
+
+struct Outputs {
+  double t_s = NAN, u_p_v = NAN, u_n_v = NAN;
+  bool safe() const { return std::abs(u_p_v - kSafeV) <= kVoltStepV && std::abs(u_n_v - kSafeV) <= kVoltStepV; }
+};
+
+class HilFaults : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("pneu_hilf_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
+            std::to_string(getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    port_ = free_port();
+    ASSERT_TRUE(telemetry_.good()) << "LCM could not start (run inside tests/in_private_netns.sh)";
+  }
+  void TearDown() override {
+    if (!HasFailure()) fs::remove_all(dir_);
+  }
+
+  // A plant on the test's port; `name` tells its files apart (a plant started again after a kill).
+  Child serve(const std::string& name, const std::vector<std::string>& extra = {}) {
+    std::vector<std::string> args{bin("pneu-plant"), "serve", "--config", hil_yaml(), "--set",
+                                  "hal.modbus.port=" + std::to_string(port_), "--set", "simulation.initial_position_m=0",
+                                  "--outputs", (dir_ / (name + ".outputs.csv")).string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    Child c = Child::spawn(args, dir_ / (name + ".out"), dir_ / (name + ".err"));
+    for (int i = 0; i < 300 && slurp(dir_ / (name + ".out")).find("listening") == std::string::npos; ++i)
+      std::this_thread::sleep_for(10ms);
+    EXPECT_THAT(slurp(dir_ / (name + ".out")), HasSubstr("listening")) << slurp(dir_ / (name + ".err"));
+    return c;
+  }
+  // pneud until SIGTERM, exhausting both chambers in fault, health every 0.1 s.
+  Child pneud(const std::vector<std::string>& extra = {}) {
+    std::vector<std::string> args{bin("pneud"), "--config", hil_yaml(), "--set", "hal.modbus.port=" + std::to_string(port_),
+                                  "--duration", "0", "--require-telemetry", "--set",
+                                  "controller.supervisor.safe_output=exhaust", "--set", "telemetry.health_period_s=0.1",
+                                  "--set", "controller.setpoints.initial_m=0", "--set",
+                                  "controller.setpoints.schedule=[{t_s: 1.0, position_m: -0.05}]",
+                                  "--events", (dir_ / "events.jsonl").string(), "--trajectory",
+                                  (dir_ / "traj.csv").string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return Child::spawn(args, dir_ / "pneud.out", dir_ / "pneud.err");
+  }
+  // The last complete line of the plant's record (it may be writing the next one).
+  Outputs last_outputs(const std::string& name) const {
+    const std::string text = slurp(dir_ / (name + ".outputs.csv"));
+    const auto end = text.rfind('\n');
+    if (end == std::string::npos) return {};
+    const auto begin = text.rfind('\n', end - 1);
+    Outputs o;
+    if (begin == std::string::npos ||
+        std::sscanf(text.c_str() + begin + 1, "%lf,%lf,%lf", &o.t_s, &o.u_p_v, &o.u_n_v) != 3)
+      return {};
+    return o;
+  }
+  bool wait_outputs(const std::string& name, bool safe, std::chrono::milliseconds limit) const {
+    const auto until = std::chrono::steady_clock::now() + limit;
+    while (std::chrono::steady_clock::now() < until) {
+      const Outputs o = last_outputs(name);
+      if (!std::isnan(o.u_p_v) && o.safe() == safe) return true;
+      std::this_thread::sleep_for(10ms);
+    }
+    return false;
+  }
+  bool wait_armed_and_running(double ticks) {
+    return telemetry_.wait_health([&](const auto& h) { return h.mode == kModeArmed && h.ticks >= ticks; }, 10s);
+  }
+  // SIGTERM: the daemon exits 0 promptly, having published a final health message.
+  void stop_pneud(Child& p) {
+    kill(p.pid, SIGTERM);
+    const auto t0 = std::chrono::steady_clock::now();
+    EXPECT_EQ(p.wait(), 0) << slurp(dir_ / "pneud.err");
+    EXPECT_LT(std::chrono::steady_clock::now() - t0, 2s) << "within the unit's stop timeout";
+    EXPECT_TRUE(telemetry_.wait_health([](const auto& h) { return h.final; }, 1s)) << "a final health message";
+  }
+
+  // The trajectory pneud recorded (after it stopped), its fault event, and the loop time of the
+  // first tick at or after `from_s` whose row satisfies `bad`.
+  struct Run {
+    Csv traj;
+    std::string fault_line;
+    double fault_t_s = NAN;
+  };
+  Run read_run() const {
+    Run r;
+    r.traj = Csv::read(dir_ / "traj.csv");
+    std::ifstream in(dir_ / "events.jsonl");
+    for (std::string line; std::getline(in, line);)
+      if (line.find("\"event\":\"fault\"") != std::string::npos && r.fault_line.empty()) {
+        r.fault_line = line;
+        r.fault_t_s = std::stod(line.substr(line.find("\"t\":") + 4));
+      }
+    return r;
+  }
+  static double first_tick(const Csv& traj, const std::function<bool(const std::vector<std::string>&)>& bad,
+                           double before_s) {
+    double first = NAN;
+    for (const auto& row : traj.rows) {
+      const double t = std::stod(row[1]);
+      if (t > before_s) break;
+      if (bad(row)) {
+        if (std::isnan(first)) first = t;
+      } else {
+        first = NAN;  // the last uninterrupted run of bad ticks before the fault
+      }
+    }
+    return first;
+  }
+
+  // The recovery, once the cause is gone: nothing happens without a reset; a reset disarms (valve
+  // power stays off, the outputs go to the neutral hold), an ARM drives again. The operator's
+  // reset is repeated until pneud accepts it: when the cause has just gone (a link still
+  // reconnecting), pneud refuses it and says so (event KIND_FAULT_RESET_REFUSED).
+  void reset(const std::string& plant) {
+    std::this_thread::sleep_for(500ms);
+    EXPECT_EQ(telemetry_.health().mode, kModeFault) << "no recovery without a reset";
+    bool reset = false;
+    for (int i = 0; i < 20 && !reset; ++i) {
+      telemetry_.send(pneu_lcm::command_t::KIND_FAULT_RESET);
+      reset = telemetry_.wait_health([](const auto& h) { return h.mode == kModeDisarmed && h.fault_cause == 0; }, 300ms);
+    }
+    ASSERT_TRUE(reset) << "a reset once the cause is gone disarms; mode " << int{telemetry_.health().mode};
+    EXPECT_TRUE(telemetry_.has_event(pneu_lcm::event_t::KIND_FAULT_RESET));
+    EXPECT_TRUE(wait_outputs(plant, /*safe=*/false, 3s)) << "disarmed: the neutral hold";
+  }
+  void reset_then_arm(const std::string& plant) {
+    reset(plant);
+    if (HasFatalFailure()) return;
+    telemetry_.send(pneu_lcm::command_t::KIND_ARM);
+    ASSERT_TRUE(telemetry_.wait_health([](const auto& h) { return h.mode == kModeArmed; }, 3s)) << "armed again";
+    EXPECT_TRUE(wait_outputs(plant, /*safe=*/false, 3s)) << "the law drives the valves again";
+  }
+  // A reset while the cause is still there keeps the fault, and pneud says why.
+  void reset_refused_while_the_cause_stays() {
+    telemetry_.send(pneu_lcm::command_t::KIND_FAULT_RESET);
+    std::this_thread::sleep_for(400ms);
+    EXPECT_EQ(telemetry_.health().mode, kModeFault) << "reset with the cause still there";
+    EXPECT_TRUE(telemetry_.has_event(pneu_lcm::event_t::KIND_FAULT_RESET_REFUSED));
+  }
+
+  fs::path dir_;
+  int port_ = 0;
+  Telemetry telemetry_;
+};
+
+// A number of a trajectory row (pneud writes a non-finite value as "null").
+double col(const std::vector<std::string>& row, int i);
+
+// pneud's own record of when the samples went bad: the validity column (stale, comms error).
+bool stale_row(const std::vector<std::string>& row) { return std::stoul(row[11]) != 0; }
+
+TEST_F(HilFaults, APlantKilledMidRunIsACommsFaultAndItsReplacementReceivesTheSafeOutput) {
+  Child plant = serve("plant1");
+  Child p = pneud();
+  ASSERT_TRUE(wait_armed_and_running(1300)) << slurp(dir_ / "pneud.err");
+  kill(plant.pid, SIGKILL);
+  plant.wait();
+  const auto fault = telemetry_.wait_fault(2s);
+  ASSERT_TRUE(fault) << "fault event published";
+  EXPECT_THAT(fault->text, HasSubstr("comms"));
+  ASSERT_TRUE(telemetry_.wait_health([](const auto& h) { return h.mode == kModeFault && h.fault_cause == 2; }, 2s))
+      << "health shows the fault and its cause";
+  reset_refused_while_the_cause_stays();
+
+  Child plant2 = serve("plant2");  // the module back on the same address
+  EXPECT_TRUE(wait_outputs("plant2", /*safe=*/true, 6s)) << "pneud reconnects and writes the safe output";
+  reset_then_arm("plant2");
+  stop_pneud(p);
+  EXPECT_TRUE(last_outputs("plant2").safe()) << "SIGTERM leaves the safe output";
+
+  const Run r = read_run();
+  const double bad_from = first_tick(r.traj, stale_row, r.fault_t_s);
+  EXPECT_NEAR(r.fault_t_s - bad_from, kCommsFaultAfterS, 2.5 * kPeriodS) << r.fault_line;
+}
+
+TEST_F(HilFaults, AFrozenPlantIsACommsFaultAndReceivesTheSafeOutputOnceItThaws) {
+  Child plant = serve("plant");
+  Child p = pneud();
+  ASSERT_TRUE(wait_armed_and_running(1300)) << slurp(dir_ / "pneud.err");
+  kill(plant.pid, SIGSTOP);
+  const auto fault = telemetry_.wait_fault(2s);
+  ASSERT_TRUE(fault) << "fault event published";
+  EXPECT_THAT(fault->text, HasSubstr("comms"));
+  EXPECT_FALSE(last_outputs("plant").safe()) << "frozen: nothing reached it yet";
+  reset_refused_while_the_cause_stays();
+  kill(plant.pid, SIGCONT);
+  // libmodbus 3.1.6 cannot resynchronise a TCP connection after a late reply: pneud's I/O
+  // thread reconnects, and the thawed plant then receives the safe output.
+  EXPECT_TRUE(wait_outputs("plant", /*safe=*/true, 6s)) << slurp(dir_ / "plant.err");
+  // The frozen module held the last command it had: the plant ran on under it while frozen (to
+  // an end stop, here), so the daemon is only reset; arming there would be refused (soft limits).
+  reset("plant");
+  stop_pneud(p);
+  EXPECT_TRUE(last_outputs("plant").safe());
+
+  const Run r = read_run();
+  EXPECT_NEAR(r.fault_t_s - first_tick(r.traj, stale_row, r.fault_t_s), kCommsFaultAfterS, 2.5 * kPeriodS)
+      << r.fault_line;
+}
+
+TEST_F(HilFaults, ALateReplyIsACommsFault) {
+  Child plant = serve("plant", {"--reply-delay-s", "0.1", "--delay-after-s", "1.5"});
+  Child p = pneud();
+  const auto fault = telemetry_.wait_fault(8s);
+  ASSERT_TRUE(fault) << slurp(dir_ / "pneud.err");
+  EXPECT_THAT(fault->text, HasSubstr("comms"));
+  EXPECT_TRUE(wait_outputs("plant", /*safe=*/true, 6s)) << "late, but the safe output gets through";
+  stop_pneud(p);
+  const Run r = read_run();
+  EXPECT_NEAR(r.fault_t_s - first_tick(r.traj, stale_row, r.fault_t_s), kCommsFaultAfterS, 2.5 * kPeriodS)
+      << r.fault_line;
+}
+
+// A sensor fault served by the plant from 1.5 s on: latched on the first bad reading, the safe
+// output reaches the (living) plant, a reset is refused while the plant still serves it, and a
+// plant without the fault lets the daemon recover.
+struct SensorCase {
+  const char* name;
+  std::vector<std::string> fault;   // serve's --fault and, for float32, the register overrides
+  bool float32;
+  const char* cause;                // fault_name() in the event text
+  std::function<bool(const std::vector<std::string>&)> bad;  // a trajectory row carrying it
+};
+
+class HilSensorFaults : public HilFaults, public ::testing::WithParamInterface<SensorCase> {};
+
+TEST_P(HilSensorFaults, AreLatchedOnTheFirstBadReadingAndClearOnlyByResetOnceGone) {
+  const SensorCase& c = GetParam();
+  std::vector<std::string> plant_args = c.fault;
+  std::vector<std::string> common = c.float32 ? float32_overrides() : std::vector<std::string>{};
+  plant_args.insert(plant_args.end(), common.begin(), common.end());
+  Child plant = serve("plant1", plant_args);
+  Child p = pneud(common);
+  const auto fault = telemetry_.wait_fault(8s);
+  ASSERT_TRUE(fault) << slurp(dir_ / "pneud.err");
+  EXPECT_THAT(fault->text, HasSubstr(c.cause));
+  EXPECT_TRUE(wait_outputs("plant1", /*safe=*/true, 2s)) << "the safe output reaches the plant";
+  ASSERT_TRUE(telemetry_.wait_health([](const auto& h) { return h.mode == kModeFault && h.fault_cause != 0; }, 2s));
+  reset_refused_while_the_cause_stays();
+  EXPECT_EQ(telemetry_.faults_published(), 1) << "one fault event, not one per tick";
+
+  kill(plant.pid, SIGKILL);  // a good sensor again: a plant without the fault
+  plant.wait();
+  Child plant2 = serve("plant2", common);
+  EXPECT_TRUE(wait_outputs("plant2", /*safe=*/true, 6s));
+  reset_then_arm("plant2");
+  stop_pneud(p);
+
+  const Run r = read_run();
+  const double bad_from = first_tick(r.traj, c.bad, r.fault_t_s);
+  ASSERT_FALSE(std::isnan(bad_from)) << "the bad reading is in the trajectory";
+  EXPECT_NEAR(r.fault_t_s, bad_from, 0.5 * kPeriodS) << "on the first bad reading: " << r.fault_line;
+}
+
+// A number of a trajectory row (pneud writes a non-finite value as "null").
+double col(const std::vector<std::string>& row, int i) {
+  const std::string& cell = row[static_cast<std::size_t>(i)];
+  return cell == "null" ? NAN : std::stod(cell);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Served, HilSensorFaults,
+    ::testing::Values(
+        SensorCase{"PressureStuckAtItsRail", {"--fault", "pressure_p:rail-high@1.5"}, false, "sensor-range",
+                   [](const auto& row) { return col(row, 6) >= 9.9e5; }},
+        SensorCase{"PressureOutOfItsPlausibleRange", {"--fault", "pressure_n:volts=0.1@1.5"}, false, "sensor-range",
+                   [](const auto& row) { return col(row, 7) < 2.0e4; }},
+        SensorCase{"PressureNaNFromAFloatRegister", {"--fault", "pressure_p:nan@1.5"}, true, "sensor-non-finite",
+                   [](const auto& row) { return std::isnan(col(row, 6)); }}),
+    [](const ::testing::TestParamInfo<SensorCase>& i) { return std::string(i.param.name); });
+
+// A potentiometer wiper that jumps to its rail: the jump is the fault (the carriage cannot move
+// that fast). The jump itself is over once it happened, so a reset is accepted; but the reading
+// (the +250 mm rail) sits outside the soft limits, and arming on it latches at once again: pneud
+// never drives on it.
+TEST_F(HilFaults, APositionJumpingToItsRailIsASensorFaultAndArmingOnItFaultsAgain) {
+  Child plant = serve("plant", {"--fault", "position:rail-high@1.5"});
+  Child p = pneud();
+  const auto fault = telemetry_.wait_fault(8s);
+  ASSERT_TRUE(fault) << slurp(dir_ / "pneud.err");
+  EXPECT_THAT(fault->text, HasSubstr("sensor-jump"));
+  EXPECT_TRUE(wait_outputs("plant", /*safe=*/true, 2s));
+  telemetry_.send(pneu_lcm::command_t::KIND_FAULT_RESET);
+  ASSERT_TRUE(telemetry_.wait_health([](const auto& h) { return h.mode == kModeDisarmed; }, 3s));
+  telemetry_.send(pneu_lcm::command_t::KIND_ARM);
+  ASSERT_TRUE(telemetry_.wait_health([](const auto& h) { return h.mode == kModeFault && h.fault_cause == 7; }, 3s))
+      << "soft-limit fault on arming";
+  EXPECT_TRUE(last_outputs("plant").safe());
+  stop_pneud(p);
+  const Run r = read_run();
+  const double jumped = first_tick(r.traj, [](const auto& row) { return std::stod(row[3]) > 0.249; }, r.fault_t_s);
+  EXPECT_NEAR(r.fault_t_s, jumped, 0.5 * kPeriodS) << "on the first sample at the rail: " << r.fault_line;
+}
+
+TEST_F(HilFaults, AStuckValveIsAFollowingErrorAfterItsTimeLimit) {
+  // Both valves stuck at the neutral voltage from 0.5 s: the carriage cannot follow the step to
+  // -50 mm at 1 s.
+  Child plant = serve("plant", {"--fault", "valve_p:stuck=-0.1925@0.5", "--fault", "valve_n:stuck=0.1925@0.5"});
+  Child p = pneud();
+  const auto fault = telemetry_.wait_fault(8s);
+  ASSERT_TRUE(fault) << slurp(dir_ / "pneud.err");
+  EXPECT_THAT(fault->text, HasSubstr("following-error"));
+  EXPECT_TRUE(wait_outputs("plant", /*safe=*/true, 2s)) << "the client's writes: the safe output";
+  stop_pneud(p);
+  const Run r = read_run();
+  const double window_m = 0.01;
+  const double from = first_tick(
+      r.traj, [&](const auto& row) { return std::abs(col(row, 2) - col(row, 3)) > window_m; }, r.fault_t_s);
+  EXPECT_NEAR(r.fault_t_s - from, kFollowingErrorS, 2.5 * kPeriodS) << r.fault_line;
+}
+
+TEST_F(HilFaults, SigtermMidMotionWritesTheSafeOutputBeforeExit) {
+  Child plant = serve("plant");
+  Child p = pneud();
+  // The step starts at 1 s; the carriage is moving at 1.1 s.
+  ASSERT_TRUE(wait_armed_and_running(1100)) << slurp(dir_ / "pneud.err");
+  EXPECT_FALSE(last_outputs("plant").safe());
+  stop_pneud(p);
+  EXPECT_TRUE(last_outputs("plant").safe()) << "the last voltages the plant received";
+  const auto hs = telemetry_.healths();
+  ASSERT_FALSE(hs.empty());
+  EXPECT_TRUE(hs.back().final);
+  EXPECT_EQ(hs.back().faults, 0) << "a clean stop is no fault";
+  const Csv traj = Csv::read(dir_ / "traj.csv");
+  ASSERT_FALSE(traj.rows.empty());
+  EXPECT_GT(std::abs(col(traj.rows.back(), 4)), 1e-3) << "it was moving when stopped (|v_hat| > 1 mm/s)";
+}
+
+}  // namespace
