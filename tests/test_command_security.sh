@@ -1,0 +1,124 @@
+#!/usr/bin/env bash
+# Untrusted commands (issue 6): malformed, oversized, replayed, stale, out-of-bounds and
+# foreign-host datagrams are rejected and counted, valid ones still accepted, a flood changes
+# nothing, and the loop records every tick throughout.
+#
+# Runs inside tests/in_private_netns.sh (a network namespace with only loopback, multicast routed
+# to it). A second namespace on a veth pair plays another host on the network (10.99.0.2).
+#   test_command_security.sh BIN_DIR SOURCE_DIR
+set -u
+B=$1
+S=$2
+PY=/usr/bin/python3
+D=$(mktemp -d /tmp/pneu_cmdsec.XXXXXX)
+FPID=
+cleanup() {
+  [ -n "$FPID" ] && kill "$FPID" 2>/dev/null
+  [ -n "${PNEUD:-}" ] && kill "$PNEUD" 2>/dev/null
+  wait 2>/dev/null
+}
+trap cleanup EXIT
+fail() {
+  echo "FAIL: $*"
+  echo "--- pneud output"; cat "$D/pneud.out" "$D/pneud.err" 2>/dev/null
+  exit 1
+}
+command -v nsenter >/dev/null || { echo "SKIPPED: nsenter (util-linux) is missing"; exit 77; }
+"$PY" -c 'import socket' 2>/dev/null || { echo "SKIPPED: $PY is missing"; exit 77; }
+
+# Another host: its own network namespace, linked to ours by a veth pair.
+ip link add vA type veth peer name vB 2>/dev/null || { echo "SKIPPED: cannot create a veth pair here"; exit 77; }
+unshare -n sleep 300 &
+FPID=$!
+sleep 0.2
+ip link set vB netns "$FPID" || fail "moving vB into the other host's namespace"
+ip addr add 10.99.0.1/24 dev vA && ip link set vA up || fail "vA"
+nsenter -t "$FPID" -n sh -c 'ip link set lo up && ip addr add 10.99.0.2/24 dev vB && ip link set vB up &&
+  ip route add 224.0.0.0/4 dev vB' || fail "configuring the other host"
+foreign() { nsenter -t "$FPID" -n "$@"; }
+
+start_pneud() {  # DURATION
+  "$B/pneud" --clock real --duration "$1" --require-telemetry --set "controller.setpoints.schedule=[]" \
+    --trajectory "$D/traj.csv" >"$D/pneud.out" 2>"$D/pneud.err" &
+  PNEUD=$!
+  sleep 0.8
+}
+wait_pneud() {
+  wait "$PNEUD" || fail "pneud exited with $?"
+  PNEUD=
+}
+# The summary's command counters: "NAME VALUE" lines.
+counters() {
+  grep '^telemetry:' "$D/pneud.out" | sed -E 's/.*commands: ([0-9]+) received, ([0-9]+) accepted, ([0-9]+) rejected \(malformed ([0-9]+), oversized ([0-9]+), foreign ([0-9]+), stale ([0-9]+), sequence ([0-9]+), invalid ([0-9]+), rate ([0-9]+), mode ([0-9]+)\)/received \1\naccepted \2\nrejected \3\nmalformed \4\noversized \5\nforeign \6\nstale \7\nsequence \8\ninvalid \9/'
+  grep '^telemetry:' "$D/pneud.out" | sed -E 's/.*rate ([0-9]+), mode ([0-9]+)\)/rate \1\nmode \2/'
+}
+expect() {  # NAME VALUE
+  local got
+  got=$(counters | awk -v n="$1" '$1 == n {print $2}')
+  [ "$got" = "$2" ] || fail "$1: expected $2, got '${got}'"
+  echo "ok: $1 = $2"
+}
+expect_at_least() {
+  local got
+  got=$(counters | awk -v n="$1" '$1 == n {print $2}')
+  [ -n "$got" ] && [ "$got" -ge "$2" ] || fail "$1: expected at least $2, got '${got}'"
+  echo "ok: $1 = $got (>= $2)"
+}
+# Every tick recorded, in order, none lost; every deadline of the run ticked or skipped.
+expect_every_tick() {  # DURATION_S
+  local rows ticks skipped
+  rows=$(($(wc -l <"$D/traj.csv") - 1))
+  ticks=$(sed -nE 's/^loop: ([0-9]+) ticks.*/\1/p' "$D/pneud.out")
+  skipped=$(sed -nE 's/^loop: .*\(([0-9]+) deadlines skipped\).*/\1/p' "$D/pneud.out")
+  [ "$rows" = "$ticks" ] || fail "trajectory has $rows rows for $ticks ticks"
+  awk -F, 'NR > 1 && $1 != NR - 2 {exit 1}' "$D/traj.csv" || fail "a gap in the tick sequence"
+  [ $((ticks + skipped)) = $(($1 * 1000 + 1)) ] || fail "ticks $ticks + skipped $skipped != $(($1 * 1000 + 1))"
+  ! grep -q "telemetry dropped" "$D/pneud.out" || fail "telemetry dropped"
+  echo "ok: $ticks ticks recorded without a gap ($skipped deadlines skipped by overruns)"
+}
+
+echo "== 1. multicast routed through lo (the documented posture)"
+start_pneud 6
+"$PY" "$S/tests/command_datagrams.py" capture "$D/template" &
+CAP=$!
+sleep 0.3
+"$B/pneu-command" set-point 0.16 || fail "pneu-command"
+wait "$CAP" || fail "no command datagram captured"
+for kind in replay stale future nan out-of-bounds truncated bad-fingerprint garbage oversized fragment valid; do
+  "$PY" "$S/tests/command_datagrams.py" send 0 "$kind" "$D/template" || fail "sending $kind"
+  sleep 0.1  # under the command rate limit (20/s): each datagram is judged on its content
+done
+# The other host sends a valid command to the group, and to this host's port directly: with the
+# group routed through lo, neither reaches pneud.
+foreign "$PY" "$S/tests/command_datagrams.py" send 1 valid "$D/template" || fail "foreign send"
+foreign "$PY" -c 'import socket, sys; socket.socket(socket.AF_INET, socket.SOCK_DGRAM).sendto(open(sys.argv[1], "rb").read(), ("10.99.0.1", 7667))' "$D/template" || fail "foreign unicast"
+"$PY" "$S/tests/command_datagrams.py" flood 0 3000 || fail "flood"
+sleep 0.3
+"$PY" "$S/tests/command_datagrams.py" send 0 valid "$D/template" || fail "valid after the flood"
+wait_pneud
+expect accepted 3        # pneu-command's, the crafted valid one, the one after the flood
+expect sequence 1        # the replayed datagram (its sequence number was used)
+expect stale 2           # stamped 10 s ago, stamped 10 s ahead
+expect invalid 2         # NaN, 0.9 m (outside the soft limits)
+expect oversized 1
+expect foreign 0         # never delivered: the group is joined on lo only, the socket bound to it
+expect rate 0
+expect mode 0
+expect_at_least malformed 5  # truncated, bad fingerprint, garbage, fragment, and the flood (the
+                             # kernel may drop part of it when the socket buffer is full)
+expect_every_tick 6
+
+echo "== 2. multicast routed through the LAN interface: the other host's datagrams arrive"
+ip route replace 224.0.0.0/4 dev vA || fail "route"
+start_pneud 3
+"$B/pneu-command" set-point 0.16 || fail "pneu-command"   # from 10.99.0.1: this host
+sleep 0.1
+foreign "$PY" "$S/tests/command_datagrams.py" send 1 valid "$D/template" || fail "foreign send"
+sleep 0.1
+foreign "$PY" "$S/tests/command_datagrams.py" send 1 garbage || fail "foreign send"
+wait_pneud
+expect accepted 1
+expect foreign 2
+expect malformed 0
+expect_every_tick 3
+echo "PASS"
