@@ -1,22 +1,29 @@
 #!/usr/bin/env bash
 # HIL soak: pneu-plant serve and pneud over Modbus TCP on loopback for SECONDS (default 60), with
 # cyclictest measuring the machine's wake-up latency floor at the same time.
-# Usage: bench/hil_soak.sh [SECONDS]
+# Usage: bench/hil_soak.sh [SECONDS] [--rt]   (--rt: pneud's loop thread SCHED_FIFO 80 on CPU 0
+#                                              with memory locked, cyclictest at priority 80)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 secs=${1:-60}
+pneud_rt=()
+cyc_rt=()
+if [ "${2:-}" = "--rt" ]; then
+  pneud_rt=(--set controller.realtime.priority=80 --set controller.realtime.cpu=0 --set controller.realtime.lock_memory=true --require-rt)
+  cyc_rt=(-p 80 -a 1)
+fi
 port=$((20000 + RANDOM % 20000))
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"; kill $(jobs -p) 2>/dev/null || true' EXIT
 build/bin/pneu-plant serve --config config/hil.yaml --set hal.modbus.port=$port --duration $((secs + 5)) --quiet \
   >"$tmp/serve.txt" 2>&1 &
 sleep 0.5
-cyclictest -m --default-system -i 1000 -l $((secs * 1000)) -q -h 20000 >"$tmp/cyclic.txt" 2>&1 &
+cyclictest -m --default-system -i 1000 -l $((secs * 1000)) -q -h 20000 "${cyc_rt[@]}" >"$tmp/cyclic.txt" 2>&1 &
 build/bin/pneud --config config/hil.yaml --set hal.modbus.port=$port --set telemetry.enabled=false \
-  --set controller.duration_s=$secs >"$tmp/pneud.txt"
+  --set controller.duration_s=$secs "${pneud_rt[@]}" >"$tmp/pneud.txt"
 wait %2 || true
 echo "pneud over Modbus TCP (HIL), ${secs} s at 1 kHz:"
-grep -E "^loop:|wake-up|compute|^modbus:" "$tmp/pneud.txt" | sed 's/^/  /'
+grep -E "^loop:|wake-up|compute|^modbus:|^fault" "$tmp/pneud.txt" | sed 's/^/  /'
 awk '/^[0-9]/ {n=$1+0; c=$2+0; if (c>0) {h[n]=c; tot+=c; if (n>mx) mx=n}}
      /# Max Latencies/ {mxl=$4+0}
      END { s=0; p50=-1; p99=-1; over=0;
