@@ -98,10 +98,15 @@ class SystemdNotifier {
       if (beat != last_beat_) sd_notify(0, "WATCHDOG=1");  // the loop ticked since the last check
       last_beat_ = beat;
     }
-    if (!stopping_ && g_stop.load()) {
-      stopping_ = true;
-      sd_notify(0, "STOPPING=1\nSTATUS=stopping: safe output written, final health published");
-    }
+    if (g_stop.load()) stopping();
+#endif
+  }
+  /// Asked to stop (SIGTERM/SIGINT): said once, from the service thread or after the run.
+  void stopping() {
+#ifdef PNEU_WITH_SYSTEMD
+    if (stopping_) return;
+    stopping_ = true;
+    sd_notify(0, "STOPPING=1\nSTATUS=stopping: safe output written, final health published");
 #endif
   }
 
@@ -241,6 +246,7 @@ int run(int argc, char** argv) {
     throw cli::UsageError("--require-rt needs the real clock (the simulated clock runs as fast as it can)");
   const auto wall0 = std::chrono::steady_clock::now();
   controller::execute(run, cfg, *clock, g_stop, wait_for_input, on_loop_thread);
+  if (g_stop.load()) notifier.stopping();
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
 
   if (events) events->flush();

@@ -1,0 +1,148 @@
+// pneud as a daemon: systemd's notification protocol (READY, WATCHDOG, STATUS, STOPPING) seen
+// from a fake NOTIFY_SOCKET, a clean SIGTERM, and the real-time set-up refused or warned about
+// when the process may not have it.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "support/child_process.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using pneu::test::Child;
+using pneu::test::slurp;
+using ::testing::HasSubstr;
+
+std::string bin(const std::string& name) { return std::string(PNEU_BINARY_DIR) + "/bin/" + name; }
+
+class PneudDaemon : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("pneu_daemon_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
+            std::to_string(getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override {
+    if (!HasFailure()) fs::remove_all(dir_);
+  }
+  fs::path dir_;
+};
+
+// The fake systemd end of NOTIFY_SOCKET: a datagram socket collecting the messages.
+class NotifySocket {
+ public:
+  explicit NotifySocket(const fs::path& path) : path_(path) {
+    fd_ = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+    sockaddr_un a{};
+    a.sun_family = AF_UNIX;
+    std::snprintf(a.sun_path, sizeof a.sun_path, "%s", path.c_str());
+    bound_ = bind(fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0;
+    timeval tv{0, 100000};
+    setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  }
+  ~NotifySocket() { close(fd_); }
+  bool bound() const { return bound_; }
+  // Messages received until `until` returns true or the time limit passes.
+  void collect(std::vector<std::string>& into, std::chrono::milliseconds limit,
+               const std::function<bool()>& until = [] { return false; }) {
+    const auto end = std::chrono::steady_clock::now() + limit;
+    char buf[4096];
+    while (std::chrono::steady_clock::now() < end && !until()) {
+      const ssize_t n = recv(fd_, buf, sizeof buf, 0);
+      if (n > 0) into.emplace_back(buf, static_cast<std::size_t>(n));
+    }
+  }
+
+ private:
+  fs::path path_;
+  int fd_ = -1;
+  bool bound_ = false;
+};
+
+int count_containing(const std::vector<std::string>& v, const std::string& s) {
+  int n = 0;
+  for (const auto& m : v) n += m.find(s) != std::string::npos;
+  return n;
+}
+
+TEST_F(PneudDaemon, UnderSystemdItSaysReadyPetsTheWatchdogWhileTickingAndSaysStoppingOnSigterm) {
+  NotifySocket notify(dir_ / "notify");
+  ASSERT_TRUE(notify.bound());
+  setenv("NOTIFY_SOCKET", (dir_ / "notify").c_str(), 1);
+  setenv("WATCHDOG_USEC", "200000", 1);  // 0.2 s: pneud pets every 50 ms while the loop ticks
+  Child p = Child::spawn({bin("pneud"), "--clock", "real", "--duration", "0", "--set", "telemetry.enabled=false",
+                          "--trajectory", (dir_ / "traj.csv").string()},
+                         dir_ / "pneud.out", dir_ / "pneud.err");
+  unsetenv("NOTIFY_SOCKET");
+  unsetenv("WATCHDOG_USEC");
+  std::vector<std::string> messages;
+  notify.collect(messages, 1500ms);
+  ASSERT_FALSE(messages.empty()) << slurp(dir_ / "pneud.err");
+  EXPECT_EQ(messages.front(), "READY=1") << "ready first, once the loop runs";
+  EXPECT_EQ(count_containing(messages, "READY=1"), 1);
+  EXPECT_GE(count_containing(messages, "WATCHDOG=1"), 15) << "about every 50 ms over 1.5 s";
+  EXPECT_GE(count_containing(messages, "STATUS=armed"), 1);
+  kill(p.pid, SIGTERM);
+  notify.collect(messages, 2000ms, [&] { return count_containing(messages, "STOPPING=1") > 0; });
+  EXPECT_EQ(p.wait(), 0) << slurp(dir_ / "pneud.err");
+  EXPECT_EQ(count_containing(messages, "STOPPING=1"), 1);
+}
+
+TEST_F(PneudDaemon, OutsideSystemdNothingIsNotifiedAndTheRunIsTheSame) {
+  unsetenv("NOTIFY_SOCKET");
+  Child p = Child::spawn({bin("pneud"), "--clock", "real", "--duration", "0.3", "--set", "telemetry.enabled=false"},
+                         dir_ / "pneud.out", dir_ / "pneud.err");
+  EXPECT_EQ(p.wait(), 0) << slurp(dir_ / "pneud.err");
+  EXPECT_THAT(slurp(dir_ / "pneud.out"), HasSubstr("loop: "));
+}
+
+// Real time for the loop thread needs RLIMIT_RTPRIO/RLIMIT_MEMLOCK or the capabilities: an
+// unprivileged user (setpriv, util-linux) has neither.
+class PneudRealtime : public PneudDaemon {
+ protected:
+  void SetUp() override {
+    PneudDaemon::SetUp();
+    if (geteuid() != 0) GTEST_SKIP() << "needs root to run pneud as an unprivileged user (setpriv)";
+    if (std::system("command -v setpriv >/dev/null") != 0) GTEST_SKIP() << "setpriv (util-linux) is missing";
+    fs::permissions(dir_, fs::perms::all);
+  }
+  Child unprivileged(const std::vector<std::string>& extra) {
+    std::vector<std::string> args{"setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", "--inh-caps=-all",
+                                  bin("pneud"), "--clock", "real", "--duration", "0.3", "--set",
+                                  "telemetry.enabled=false", "--set", "controller.realtime.priority=80", "--set",
+                                  "controller.realtime.lock_memory=true"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return Child::spawn(args, dir_ / "pneud.out", dir_ / "pneud.err");
+  }
+};
+
+TEST_F(PneudRealtime, WithoutPermissionItWarnsNamingTheLimitAndRunsAnyway) {
+  Child p = unprivileged({});
+  EXPECT_EQ(p.wait(), 0) << slurp(dir_ / "pneud.err");
+  const std::string err = slurp(dir_ / "pneud.err");
+  EXPECT_THAT(err, HasSubstr("warning: real time: SCHED_FIFO priority 80"));
+  EXPECT_THAT(err, HasSubstr("RLIMIT_RTPRIO"));
+  EXPECT_THAT(slurp(dir_ / "pneud.out"), HasSubstr("loop: "));
+}
+
+TEST_F(PneudRealtime, WithRequireRtItRefusesToRunWithoutIt) {
+  Child p = unprivileged({"--require-rt"});
+  EXPECT_EQ(p.wait(), 1);
+  EXPECT_THAT(slurp(dir_ / "pneud.err"), HasSubstr("--require-rt"));
+  EXPECT_THAT(slurp(dir_ / "pneud.out"), ::testing::Not(HasSubstr("loop: "))) << "the loop never started";
+}
+
+}  // namespace
