@@ -263,8 +263,10 @@ ControllerConfig read_controller(MapReader r, const plant::PlantParams& plant) {
     v.position_min_m = s.number("position_min_m");
     v.position_max_m = s.number("position_max_m");
     check(v.position_max_m > v.position_min_m, s.child_path("position_max_m"), "must exceed position_min_m");
-    check(v.position_min_m <= -half && v.position_max_m >= half, s.child_path("position_min_m"),
-          "the range must contain the stroke [" + fmt(-half) + ", " + fmt(half) + "] m: a carriage at an end stop is not a fault");
+    check(v.position_min_m <= -half, s.child_path("position_min_m"),
+          "must not exceed the stroke's lower end " + fmt(-half) + " m (the range must contain the stroke: a carriage at an end stop is not a fault)");
+    check(v.position_max_m >= half, s.child_path("position_max_m"),
+          "must not lie below the stroke's upper end " + fmt(half) + " m (the range must contain the stroke: a carriage at an end stop is not a fault)");
     v.pressure_min_pa = non_negative(s, "pressure_min_pa");
     v.pressure_max_pa = positive(s, "pressure_max_pa");
     check(v.pressure_max_pa > v.pressure_min_pa, s.child_path("pressure_max_pa"), "must exceed pressure_min_pa");
