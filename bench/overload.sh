@@ -50,7 +50,8 @@ PY
   [ ${#pids[@]} -gt 0 ] && kill "${pids[@]}" 2>/dev/null
   wait 2>/dev/null || true
   echo "== $label (${secs} s at 1 kHz)"
-  grep -E "^loop:|wake-up|compute|^telemetry" "$tmp/pneud.txt" | sed 's/^/  /'
+  grep -E "^loop:|wake-up|compute|^telemetry|dropped" "$tmp/pneud.txt" | sed 's/^/  /'
+  grep -q "dropped" "$tmp/pneud.txt" || echo "  no tick record or event dropped"
   grep -E "warning" "$tmp/pneud.txt" | sed 's/^/  /' || true
   awk '/^[0-9]/ {n=$1+0; c=$2+0; if (c>0) {h[n]=c; tot+=c; if (n>mx) mx=n}}
        /# Max Latencies/ {mxl=$4+0}
