@@ -454,6 +454,28 @@ TEST_F(HilFaults, APositionJumpingToItsRailIsASensorFaultAndArmingOnItFaultsAgai
   EXPECT_NEAR(r.fault_t_s, jumped, 0.5 * kPeriodS) << "on the first sample at the rail: " << r.fault_line;
 }
 
+// A converter that stops updating one pressure: real sensors flicker by a step or more, so a
+// reading unchanged bit for bit for frozen_after_s (0.2 s in hil.yaml) is a frozen sensor.
+TEST_F(HilFaults, APressureFrozenAtItsLastValueIsAFaultAfterFrozenAfterS) {
+  Child plant = serve("plant", {"--fault", "pressure_n:freeze@1.5"});
+  Child p = pneud();
+  const auto fault = telemetry_.wait_fault(8s);
+  ASSERT_TRUE(fault) << slurp(dir_ / "pneud.err");
+  EXPECT_THAT(fault->text, HasSubstr("sensor-frozen"));
+  EXPECT_TRUE(wait_outputs("plant", /*safe=*/true, 2s));
+  stop_pneud(p);
+  const Run r = read_run();
+  // The last tick whose p_N differed from the one before, up to the fault.
+  double last_change = NAN, previous = NAN;
+  for (const auto& row : r.traj.rows) {
+    const double t = col(row, 1), p_n = col(row, 7);
+    if (t > r.fault_t_s) break;
+    if (p_n != previous) last_change = t;
+    previous = p_n;
+  }
+  EXPECT_NEAR(r.fault_t_s - last_change, 0.2, 2.5 * kPeriodS) << r.fault_line;
+}
+
 TEST_F(HilFaults, AStuckValveIsAFollowingErrorAfterItsTimeLimit) {
   // Both valves stuck at the neutral voltage from 0.5 s: the carriage cannot follow the step to
   // -50 mm at 1 s.
