@@ -458,6 +458,18 @@ TEST_F(EStopLoop, AfterReleaseAResetDisarmsAndValvePowerFollowsTheArmedState) {
   EXPECT_TRUE(lines_.valve_power);
 }
 
+// Any latched fault, not the e-stop only: here the supervisor's overrun check (10 overrunning
+// ticks in a row) cuts valve power through the line and holds the neutral safe output.
+TEST_F(EStopLoop, AnyOtherFaultAlsoCutsValvePowerThroughTheLine) {
+  run_to_mid_run();
+  for (int i = 0; i < 10; ++i) loop_.note_overrun(true);
+  run_ticks(1);
+  EXPECT_EQ(mode(), Mode::kFault);
+  EXPECT_EQ(loop_.fault_cause(), controller::kFaultOverrun);
+  EXPECT_FALSE(lines_.valve_power);
+  EXPECT_EQ(last_u_v_, bench_.u_0()) << "safe_output: neutral";
+}
+
 TEST_F(EStopLoop, AFailedEStopReadLatchesTheFault) {
   run_to_mid_run();
   lines_.reads_fail = true;
