@@ -56,15 +56,7 @@ double field(const std::string& line, const std::string& key) {
 class Hil : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("pneu_hil_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
-            std::to_string(getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
     port_ = free_port();
-  }
-  void TearDown() override {
-    if (!HasFailure()) fs::remove_all(dir_);
   }
   Child serve(double duration_s, const std::vector<std::string>& extra = {}) {
     std::vector<std::string> args{bin("pneu-plant"), "serve", "--config", hil_yaml(), "--set",
@@ -80,7 +72,7 @@ class Hil : public ::testing::Test {
     args.insert(args.end(), extra.begin(), extra.end());
     return args;
   }
-  fs::path dir_;
+  pneu::test::TestDir dir_{"pneu_hil_"};
   int port_ = 0;
 };
 

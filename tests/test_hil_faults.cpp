@@ -167,16 +167,8 @@ struct Outputs {
 class HilFaults : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("pneu_hilf_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
-            std::to_string(getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
     port_ = free_port();
     ASSERT_TRUE(telemetry_.good()) << "LCM could not start (run inside tests/in_private_netns.sh)";
-  }
-  void TearDown() override {
-    if (!HasFailure()) fs::remove_all(dir_);
   }
 
   // A plant on the test's port; `name` tells its files apart (a plant started again after a kill).
@@ -300,7 +292,7 @@ class HilFaults : public ::testing::Test {
     EXPECT_TRUE(telemetry_.has_event(pneu_lcm::event_t::KIND_FAULT_RESET_REFUSED));
   }
 
-  fs::path dir_;
+  pneu::test::TestDir dir_{"pneu_hilf_"};
   int port_ = 0;
   Telemetry telemetry_;
 };

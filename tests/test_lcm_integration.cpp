@@ -47,17 +47,7 @@ std::string bin(const std::string& name) { return std::string(PNEU_BINARY_DIR) +
 
 class LcmIntegration : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("pneu_lcm_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
-            std::to_string(getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override {
-    if (!HasFailure()) fs::remove_all(dir_);
-  }
-  fs::path dir_;
+  pneu::test::TestDir dir_{"pneu_lcm_"};
 };
 
 TEST_F(LcmIntegration, LcmLoggerRecordsEveryTickInOrderWithEventsAndPredictions) {

@@ -149,15 +149,8 @@ double any_double(std::mt19937_64& rng) { return std::bit_cast<double>(rng()); }
 class Log2Csv : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("pneu_log2csv_" +
-            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
-            std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
     out_dir_ = dir_ / "out";
   }
-  void TearDown() override { fs::remove_all(dir_); }
 
   Outcome run(const std::string& args) const {
     const fs::path out = dir_ / "stdout.txt", err = dir_ / "stderr.txt";
@@ -200,7 +193,8 @@ class Log2Csv : public ::testing::Test {
     return names;
   }
 
-  fs::path dir_, out_dir_;
+  pneu::test::TestDir dir_{"pneu_log2csv_"};
+  fs::path out_dir_;
 };
 
 std::vector<pneu_lcm::state_t> random_states(int n, std::uint64_t seed) {

@@ -33,14 +33,6 @@ using pneu::test::slurp;
 
 class PneuPlantCli : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("pneu_cli_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) +
-            "_" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
 
   Outcome run(const std::string& args) const {
     const fs::path out = dir_ / "stdout.txt", err = dir_ / "stderr.txt";
@@ -77,7 +69,7 @@ class PneuPlantCli : public ::testing::Test {
     return out;
   }
 
-  fs::path dir_;
+  pneu::test::TestDir dir_{"pneu_cli_"};
 };
 
 std::string constant_input(double u, int samples, double dt) {

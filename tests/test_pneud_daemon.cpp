@@ -28,17 +28,7 @@ std::string bin(const std::string& name) { return std::string(PNEU_BINARY_DIR) +
 
 class PneudDaemon : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("pneu_daemon_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
-            std::to_string(getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override {
-    if (!HasFailure()) fs::remove_all(dir_);
-  }
-  fs::path dir_;
+  pneu::test::TestDir dir_{"pneu_daemon_"};
 };
 
 // The fake systemd end of NOTIFY_SOCKET: a datagram socket collecting the messages.

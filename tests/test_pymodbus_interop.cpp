@@ -105,16 +105,7 @@ class PymodbusInterop : public ::testing::Test {
           << kPython
           << " cannot import pymodbus (Debian package python3-pymodbus, 3.0): no third-party "
           << "Modbus server to test against";
-    dir_ = fs::temp_directory_path() /
-           ("pneu_pymodbus_" +
-            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
-            std::to_string(getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
     port_ = free_port();
-  }
-  void TearDown() override {
-    if (!dir_.empty() && !HasFailure()) fs::remove_all(dir_);
   }
 
   // Starts the module and waits for its "listening" line (a probe connection would be a client
@@ -202,7 +193,7 @@ class PymodbusInterop : public ::testing::Test {
     EXPECT_NEAR(module.last.u_n_v, -u_last, kValveStepV) << "valve_n";
   }
 
-  fs::path dir_;
+  pneu::test::TestDir dir_{"pneu_pymodbus_"};
   int port_ = 0;
 };
 

@@ -99,15 +99,7 @@ bool wait_listening(int port) {
 class ServeFaults : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("pneu_serve_faults_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
-            std::to_string(getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
     port_ = free_port();
-  }
-  void TearDown() override {
-    if (!HasFailure()) fs::remove_all(dir_);
   }
   // Starts serve on hil.yaml at a free port with `extra` options; `started_` is taken before the
   // spawn, so serve's own start-up (its t = 0) is later: a fault at T is active by started_ + T.
@@ -129,7 +121,7 @@ class ServeFaults : public ::testing::Test {
     return extra;
   }
 
-  fs::path dir_;
+  pneu::test::TestDir dir_{"pneu_serve_faults_"};
   int port_ = 0;
   Clock::time_point started_;
 };

@@ -32,6 +32,33 @@ inline std::string slurp(const fs::path& p) {
   return ss.str();
 }
 
+// A fresh directory for one test, named after it (and this process): removed when the test
+// passed, kept for a look when it failed. Construct it in the fixture (the test is known then).
+class TestDir {
+ public:
+  explicit TestDir(const std::string& prefix) {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    std::string name = info ? info->name() : "run";
+    for (char& ch : name)
+      if (ch == '/') ch = '_';  // parameterised tests: "Suite/Name/Param"
+    path_ = fs::temp_directory_path() / (prefix + name + "_" + std::to_string(getpid()));
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TestDir() {
+    std::error_code ignored;
+    if (!::testing::Test::HasFailure()) fs::remove_all(path_, ignored);
+  }
+  TestDir(const TestDir&) = delete;
+  TestDir& operator=(const TestDir&) = delete;
+  operator const fs::path&() const noexcept { return path_; }
+  [[nodiscard]] const fs::path& path() const noexcept { return path_; }
+  [[nodiscard]] fs::path operator/(const std::string& name) const { return path_ / name; }
+
+ private:
+  fs::path path_;
+};
+
 // A child process with its output in files; killed if still running when destroyed.
 struct Child {
   pid_t pid = -1;
