@@ -13,9 +13,12 @@
 #include <vector>
 
 #include "pneu/config/config.hpp"
+#include "support/config_error_matcher.hpp"
 
 namespace pneu::config {
 namespace {
+
+using pneu::test::IsConfigError;
 
 using ::testing::AllOf;
 using ::testing::Eq;
@@ -40,15 +43,6 @@ std::string shipped_yaml_edited(const std::function<void(YAML::Node&)>& edit) {
   return YAML::Dump(root);
 }
 
-// A ConfigError whose key_path() and what() match; what() reads "<key.path>: <reason>".
-MATCHER_P2(IsConfigError, key_path_matcher, message_matcher,
-           "is a ConfigError whose key path " +
-               ::testing::DescribeMatcher<std::string>(key_path_matcher) + " and whose message " +
-               ::testing::DescribeMatcher<std::string>(message_matcher)) {
-  *result_listener << "key path \"" << arg.key_path() << "\", message \"" << arg.what() << "\"";
-  return ::testing::Matches(key_path_matcher)(arg.key_path()) &&
-         ::testing::Matches(message_matcher)(std::string(arg.what()));
-}
 
 // Loading `yaml` with `overrides` must throw ConfigError with this key path, and a message naming
 // the key path and containing `reason`.

@@ -30,10 +30,13 @@
 #include <vector>
 
 #include "pneu/config/config.hpp"
+#include "support/config_error_matcher.hpp"
 #include "support/child_process.hpp"
 
 namespace pneu::config {
 namespace {
+
+using pneu::test::IsConfigError;
 
 namespace fs = std::filesystem;
 using ::testing::AllOf;
@@ -196,15 +199,6 @@ std::string key_name(const Key& k) { return test_name(k.file + "_" + k.path); }
 // ---------------------------------------------------------------------------------------------
 // Matchers
 
-// A ConfigError whose key_path() and what() match; what() reads "<key.path>: <reason>".
-MATCHER_P2(IsConfigError, key_path_matcher, message_matcher,
-           "is a ConfigError whose key path " +
-               ::testing::DescribeMatcher<std::string>(key_path_matcher) + " and whose message " +
-               ::testing::DescribeMatcher<std::string>(message_matcher)) {
-  *result_listener << "key path \"" << arg.key_path() << "\", message \"" << arg.what() << "\"";
-  return ::testing::Matches(key_path_matcher)(arg.key_path()) &&
-         ::testing::Matches(message_matcher)(std::string(arg.what()));
-}
 
 auto refuses(const std::string& key_path, const std::string& reason) {
   return ::testing::Throws<ConfigError>(IsConfigError(

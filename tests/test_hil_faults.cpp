@@ -159,6 +159,9 @@ class Telemetry {
   std::int64_t seq_ = 0;
 };
 
+// pneud's own record of when the samples went bad: the validity column (stale, comms error).
+bool stale_row(const std::vector<std::string>& row) { return std::stoul(row[11]) != 0; }
+
 struct Outputs {
   double t_s = NAN, u_p_v = NAN, u_n_v = NAN;
   bool safe() const { return std::abs(u_p_v - kSafeV) <= kVoltStepV && std::abs(u_n_v - kSafeV) <= kVoltStepV; }
@@ -261,6 +264,24 @@ class HilFaults : public ::testing::Test {
     return first;
   }
 
+  // The fault event is published within `limit` and names `cause`; where the plant is alive, the
+  // safe output reaches it.
+  void expect_fault(const std::string& cause, const std::string& plant, std::chrono::milliseconds limit = 8s) {
+    const auto fault = telemetry_.wait_fault(limit);
+    ASSERT_TRUE(fault) << "no fault event; pneud: " << slurp(dir_ / "pneud.err");
+    EXPECT_THAT(fault->text, HasSubstr(cause));
+    if (!plant.empty()) {
+      EXPECT_TRUE(wait_outputs(plant, /*safe=*/true, 6s)) << "the safe output reaches the plant";
+    }
+  }
+  // After the run: the comms fault latched comms_fault_after_s after the samples went bad, by
+  // pneud's own trajectory.
+  void expect_comms_detection_time() const {
+    const Run r = read_run();
+    EXPECT_NEAR(r.fault_t_s - first_tick(r.traj, stale_row, r.fault_t_s), kCommsFaultAfterS, 2.5 * kPeriodS)
+        << r.fault_line;
+  }
+
   // The recovery, once the cause is gone: nothing happens without a reset; a reset disarms (valve
   // power stays off, the outputs go to the neutral hold), an ARM drives again. The operator's
   // reset is repeated until pneud accepts it: when the cause has just gone (a link still
@@ -300,18 +321,13 @@ class HilFaults : public ::testing::Test {
 // A number of a trajectory row (pneud writes a non-finite value as "null").
 double col(const std::vector<std::string>& row, int i);
 
-// pneud's own record of when the samples went bad: the validity column (stale, comms error).
-bool stale_row(const std::vector<std::string>& row) { return std::stoul(row[11]) != 0; }
-
 TEST_F(HilFaults, APlantKilledMidRunIsACommsFaultAndItsReplacementReceivesTheSafeOutput) {
   Child plant = serve("plant1");
   Child p = pneud();
   ASSERT_TRUE(wait_armed_and_running(1300)) << slurp(dir_ / "pneud.err");
   kill(plant.pid, SIGKILL);
   plant.wait();
-  const auto fault = telemetry_.wait_fault(2s);
-  ASSERT_TRUE(fault) << "fault event published";
-  EXPECT_THAT(fault->text, HasSubstr("comms"));
+  expect_fault("comms", "", 2s);
   ASSERT_TRUE(telemetry_.wait_health([](const auto& h) { return h.mode == kModeFault && h.fault_cause == 2; }, 2s))
       << "health shows the fault and its cause";
   reset_refused_while_the_cause_stays();
@@ -321,10 +337,7 @@ TEST_F(HilFaults, APlantKilledMidRunIsACommsFaultAndItsReplacementReceivesTheSaf
   reset_then_arm("plant2");
   stop_pneud(p);
   EXPECT_TRUE(last_outputs("plant2").safe()) << "SIGTERM leaves the safe output";
-
-  const Run r = read_run();
-  const double bad_from = first_tick(r.traj, stale_row, r.fault_t_s);
-  EXPECT_NEAR(r.fault_t_s - bad_from, kCommsFaultAfterS, 2.5 * kPeriodS) << r.fault_line;
+  expect_comms_detection_time();
 }
 
 TEST_F(HilFaults, AFrozenPlantIsACommsFaultAndReceivesTheSafeOutputOnceItThaws) {
@@ -332,9 +345,7 @@ TEST_F(HilFaults, AFrozenPlantIsACommsFaultAndReceivesTheSafeOutputOnceItThaws) 
   Child p = pneud();
   ASSERT_TRUE(wait_armed_and_running(1300)) << slurp(dir_ / "pneud.err");
   kill(plant.pid, SIGSTOP);
-  const auto fault = telemetry_.wait_fault(2s);
-  ASSERT_TRUE(fault) << "fault event published";
-  EXPECT_THAT(fault->text, HasSubstr("comms"));
+  expect_fault("comms", "", 2s);
   EXPECT_FALSE(last_outputs("plant").safe()) << "frozen: nothing reached it yet";
   reset_refused_while_the_cause_stays();
   kill(plant.pid, SIGCONT);
@@ -346,23 +357,15 @@ TEST_F(HilFaults, AFrozenPlantIsACommsFaultAndReceivesTheSafeOutputOnceItThaws) 
   reset("plant");
   stop_pneud(p);
   EXPECT_TRUE(last_outputs("plant").safe());
-
-  const Run r = read_run();
-  EXPECT_NEAR(r.fault_t_s - first_tick(r.traj, stale_row, r.fault_t_s), kCommsFaultAfterS, 2.5 * kPeriodS)
-      << r.fault_line;
+  expect_comms_detection_time();
 }
 
 TEST_F(HilFaults, ALateReplyIsACommsFault) {
   Child plant = serve("plant", {"--reply-delay-s", "0.1", "--delay-after-s", "1.5"});
   Child p = pneud();
-  const auto fault = telemetry_.wait_fault(8s);
-  ASSERT_TRUE(fault) << slurp(dir_ / "pneud.err");
-  EXPECT_THAT(fault->text, HasSubstr("comms"));
-  EXPECT_TRUE(wait_outputs("plant", /*safe=*/true, 6s)) << "late, but the safe output gets through";
+  expect_fault("comms", "plant");  // late, but the safe output gets through
   stop_pneud(p);
-  const Run r = read_run();
-  EXPECT_NEAR(r.fault_t_s - first_tick(r.traj, stale_row, r.fault_t_s), kCommsFaultAfterS, 2.5 * kPeriodS)
-      << r.fault_line;
+  expect_comms_detection_time();
 }
 
 // A sensor fault served by the plant from 1.5 s on: latched on the first bad reading, the safe
@@ -385,10 +388,8 @@ TEST_P(HilSensorFaults, AreLatchedOnTheFirstBadReadingAndClearOnlyByResetOnceGon
   plant_args.insert(plant_args.end(), common.begin(), common.end());
   Child plant = serve("plant1", plant_args);
   Child p = pneud(common);
-  const auto fault = telemetry_.wait_fault(8s);
-  ASSERT_TRUE(fault) << slurp(dir_ / "pneud.err");
-  EXPECT_THAT(fault->text, HasSubstr(c.cause));
-  EXPECT_TRUE(wait_outputs("plant1", /*safe=*/true, 2s)) << "the safe output reaches the plant";
+  expect_fault(c.cause, "plant1");
+  if (HasFatalFailure()) return;
   ASSERT_TRUE(telemetry_.wait_health([](const auto& h) { return h.mode == kModeFault && h.fault_cause != 0; }, 2s));
   reset_refused_while_the_cause_stays();
   EXPECT_EQ(telemetry_.faults_published(), 1) << "one fault event, not one per tick";
@@ -430,10 +431,8 @@ INSTANTIATE_TEST_SUITE_P(
 TEST_F(HilFaults, APositionJumpingToItsRailIsASensorFaultAndArmingOnItFaultsAgain) {
   Child plant = serve("plant", {"--fault", "position:rail-high@1.5"});
   Child p = pneud();
-  const auto fault = telemetry_.wait_fault(8s);
-  ASSERT_TRUE(fault) << slurp(dir_ / "pneud.err");
-  EXPECT_THAT(fault->text, HasSubstr("sensor-jump"));
-  EXPECT_TRUE(wait_outputs("plant", /*safe=*/true, 2s));
+  expect_fault("sensor-jump", "plant");
+  if (HasFatalFailure()) return;
   telemetry_.send(pneu_lcm::command_t::KIND_FAULT_RESET);
   ASSERT_TRUE(telemetry_.wait_health([](const auto& h) { return h.mode == kModeDisarmed; }, 3s));
   telemetry_.send(pneu_lcm::command_t::KIND_ARM);
@@ -451,10 +450,8 @@ TEST_F(HilFaults, APositionJumpingToItsRailIsASensorFaultAndArmingOnItFaultsAgai
 TEST_F(HilFaults, APressureFrozenAtItsLastValueIsAFaultAfterFrozenAfterS) {
   Child plant = serve("plant", {"--fault", "pressure_n:freeze@1.5"});
   Child p = pneud();
-  const auto fault = telemetry_.wait_fault(8s);
-  ASSERT_TRUE(fault) << slurp(dir_ / "pneud.err");
-  EXPECT_THAT(fault->text, HasSubstr("sensor-frozen"));
-  EXPECT_TRUE(wait_outputs("plant", /*safe=*/true, 2s));
+  expect_fault("sensor-frozen", "plant");
+  if (HasFatalFailure()) return;
   stop_pneud(p);
   const Run r = read_run();
   // The last tick whose p_N differed from the one before, up to the fault.
@@ -473,10 +470,8 @@ TEST_F(HilFaults, AStuckValveIsAFollowingErrorAfterItsTimeLimit) {
   // -50 mm at 1 s.
   Child plant = serve("plant", {"--fault", "valve_p:stuck=-0.1925@0.5", "--fault", "valve_n:stuck=0.1925@0.5"});
   Child p = pneud();
-  const auto fault = telemetry_.wait_fault(8s);
-  ASSERT_TRUE(fault) << slurp(dir_ / "pneud.err");
-  EXPECT_THAT(fault->text, HasSubstr("following-error"));
-  EXPECT_TRUE(wait_outputs("plant", /*safe=*/true, 2s)) << "the client's writes: the safe output";
+  expect_fault("following-error", "plant");
+  if (HasFatalFailure()) return;
   stop_pneud(p);
   const Run r = read_run();
   const double window_m = 0.01;
