@@ -75,7 +75,7 @@ void push_health(const ControlLoop& loop, const LoopTiming& timing, double t_s, 
 void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t deadlines,
               const std::atomic<bool>& stop_requested, LoopTiming& timing,
               const std::function<void()>& between_ticks, double health_period_s,
-              LoopOutputs* health) {
+              LoopOutputs* health, const std::function<void()>& after_start) {
   timing.period_s = period_s;
   window_wake.reset();
   window_compute.reset();
@@ -84,6 +84,7 @@ void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t de
                                 : 0;
   std::uint64_t next_health = health_every;
   loop.start(0.0);  // opens the backend (a connect, a first exchange) before time starts
+  if (after_start) after_start();
   const double epoch = clock.now_s();
   std::uint64_t k = 0;  // deadline index: deadline k is at k * period (no accumulated rounding)
   while ((deadlines == 0 || k < deadlines) &&

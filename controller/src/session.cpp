@@ -82,10 +82,12 @@ void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
       }
     });
     try {
-      if (on_loop_thread) on_loop_thread();
-      run_loop(*run.loop, clock, period, ticks, stop_requested, run.timing, {}, health_s, run.outputs.get());
-    } catch (...) {  // real-time set-up refused, or the backend failed to open: stop the service
-                     // thread before reporting
+      run_loop(*run.loop, clock, period, ticks, stop_requested, run.timing, {}, health_s, run.outputs.get(),
+               on_loop_thread);
+    } catch (...) {  // the backend failed to open, or the real-time set-up was refused: the safe
+                     // output, the backend closed, the service thread stopped, then report
+      run.loop->stop();
+      if (run.hardware) run.hardware->close();
       done.store(true, std::memory_order_release);
       service.join();
       throw;

@@ -61,9 +61,12 @@ struct LoopTiming {
 /// `stop_requested`. `between_ticks`, when set, runs after each tick outside the timed part (the
 /// simulated clock's way of servicing the non-real-time side deterministically).
 /// Every `health_period_s` (0: never) the period's timing goes to `health` (a full queue drops it).
+/// `after_start`, when set, runs once the loop has started (its backend open, with any thread of
+/// its own already created) and before time starts: the place for the loop thread's real-time
+/// set-up, which threads created later would otherwise inherit.
 void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t deadlines,
               const std::atomic<bool>& stop_requested, LoopTiming& timing,
               const std::function<void()>& between_ticks = {}, double health_period_s = 0.0,
-              LoopOutputs* health = nullptr);
+              LoopOutputs* health = nullptr, const std::function<void()>& after_start = {});
 
 }  // namespace pneu::controller

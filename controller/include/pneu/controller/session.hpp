@@ -53,8 +53,9 @@ struct SimulatedRun {
 /// Runs it for controller.duration_s on `clock` (the simulated clock services the report between
 /// ticks; the real clock drains it from a service thread). `wait_for_input(timeout_ms)`, when set,
 /// is how the service thread waits between drains (LCM's handle); else it sleeps 2 ms.
-/// `on_loop_thread`, when set, runs on the loop thread just before the loop starts (real clock:
-/// its real-time set-up; what it throws ends the run before the backend opens).
+/// `on_loop_thread`, when set, runs on the loop thread once the backend is open, just before time
+/// starts (real clock: its real-time set-up, so that the backend's own I/O thread, created
+/// earlier, keeps the ordinary scheduling; what it throws ends the run, the backend closed).
 void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
              const std::atomic<bool>& stop_requested,
              const std::function<void(int timeout_ms)>& wait_for_input = {},
