@@ -145,24 +145,27 @@ void ControlLoop::tick(double t_s) noexcept {
   const hal::Status status = backend_.read(t_s, frame);
   if (status != hal::Status::kOk) ++comms_errors_;  // counted for health
 
-  // The supervisor: e-stop, sensor readings, comms, soft limits, following error, timing, the
-  // set-point stream. A fault latches the safe output until a reset once the cause is gone.
+  // The supervisor, first on the sample: e-stop, readings, comms. A fault latches the safe output
+  // until a reset once the cause is gone.
   SupervisedTick st;
   st.t_s = t_s;
   st.status = status;
   st.frame = &frame;
-  st.armed = mode_ == Mode::kArmed;
-  st.y_d_m = y_d_m_;
-  st.last_setpoint_t_s = last_setpoint_t_s_;
-  const FaultCause cause = supervisor_.check(st);
+  if (const FaultCause cause = supervisor_.check_sample(st); cause != kFaultNone) latch_fault(cause, t_s, frame.y_m);
   const bool read_ok = supervisor_.sample_good();
-  if (cause != kFaultNone) latch_fault(cause, t_s, frame.y_m);
+  const double y_measured_m = frame.y_m;
   // Without a good sample, keep the last position: a stale or invalid value must not reach the
   // differentiator or the detector.
   if (!read_ok) frame.y_m = detector_last_y_;
   apply_commands(frame.y_m);
   while (schedule_active_ && next_step_ < schedule_.size() && schedule_[next_step_].t_s <= t_s + 1e-9)
     y_d_m_ = schedule_[next_step_++].position_m;
+  // ... then on the motion, with this tick's commands and set point in force: soft limits,
+  // following error, timing, the set-point stream.
+  st.armed = mode_ == Mode::kArmed;
+  st.y_d_m = y_d_m_;
+  st.last_setpoint_t_s = last_setpoint_t_s_;
+  if (const FaultCause cause = supervisor_.check_motion(st); cause != kFaultNone) latch_fault(cause, t_s, y_measured_m);
 
   // Differentiate new samples only (a slow link repeats them), over the ticks since the last new
   // one: the loop's period keeps the arrival jitter of the samples out of the derivatives.

@@ -76,6 +76,12 @@ FaultCause Supervisor::check_reading(const hal::SensorFrame& f) noexcept {
 }
 
 FaultCause Supervisor::check(const SupervisedTick& tick) noexcept {
+  const FaultCause sample = check_sample(tick);
+  const FaultCause motion = check_motion(tick);
+  return sample != kFaultNone ? sample : motion;
+}
+
+FaultCause Supervisor::check_sample(const SupervisedTick& tick) noexcept {
   const hal::SensorFrame& f = *tick.frame;
   const double t = tick.t_s;
   FaultCause cause = kFaultNone;
@@ -127,6 +133,16 @@ FaultCause Supervisor::check(const SupervisedTick& tick) noexcept {
       first(kFaultSensorFrozen);
   }
 
+  return cause;
+}
+
+FaultCause Supervisor::check_motion(const SupervisedTick& tick) noexcept {
+  const hal::SensorFrame& f = *tick.frame;
+  const double t = tick.t_s;
+  FaultCause cause = kFaultNone;
+  const auto first = [&cause](FaultCause c) {
+    if (cause == kFaultNone) cause = c;
+  };
   if (tick.armed && sample_good_) {
     if (f.y_m < soft_min_m_ - cfg_.overtravel_m || f.y_m > soft_max_m_ + cfg_.overtravel_m) first(kFaultSoftLimit);
     if (cfg_.following_error_s > 0.0) {

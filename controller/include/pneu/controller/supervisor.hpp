@@ -51,8 +51,14 @@ class Supervisor {
   /// Tells the supervisor whether the tick just finished overran its deadline (real clock).
   void note_overrun(bool overran) noexcept;
 
-  /// Checks one tick; returns the first cause found (kFaultNone: all well).
+  /// Checks one tick; returns the first cause found (kFaultNone: all well). The same as
+  /// check_sample() then check_motion() on the same tick.
   [[nodiscard]] FaultCause check(const SupervisedTick& tick) noexcept;
+  /// What the sample says: the e-stop, the readings (finite, in range, no jump, not frozen), comms.
+  [[nodiscard]] FaultCause check_sample(const SupervisedTick& tick) noexcept;
+  /// What the loop does with it, once this tick's commands and set point are in force: soft
+  /// limits, following error, timing, the set-point stream.
+  [[nodiscard]] FaultCause check_motion(const SupervisedTick& tick) noexcept;
 
   /// Whether this tick's sample was good (read ok, every reading valid, finite and plausible):
   /// only good samples may reach the differentiator and the stop detector.
