@@ -83,12 +83,12 @@ class Telemetry {
   }
   bool good() { return lcm_.good(); }
 
-  void send(std::int8_t kind) {
+  void send(std::int8_t kind, double value = 0.0) {
     pneu_lcm::command_t c;
     c.utime = unix_us();
     c.seq = ++seq_;
     c.kind = kind;
-    c.value = 0.0;
+    c.value = value;
     lcm_.publish("PNEU_COMMAND", &c);
   }
   // Waits until `pred` holds of the last health message.
@@ -377,6 +377,13 @@ TEST_F(HilFaults, ALateReplyIsACommsFault) {
   Child plant = serve("plant", {"--reply-delay-s", "0.1", "--delay-after-s", "1.5"});
   Child p = pneud();
   expect_fault("comms", "plant");  // late, but the safe output gets through
+  if (HasFatalFailure()) return;
+  reset_refused_while_the_cause_stays();
+  kill(plant.pid, SIGKILL);  // a module that answers in time
+  plant.wait();
+  Child plant2 = serve("plant2");
+  EXPECT_TRUE(wait_outputs("plant2", /*safe=*/true, 6s));
+  reset_then_arm("plant2");
   stop_pneud(p);
   expect_comms_detection_time();
 }
@@ -465,6 +472,12 @@ TEST_F(HilFaults, APressureFrozenAtItsLastValueIsAFaultAfterFrozenAfterS) {
   Child p = pneud();
   expect_fault("sensor-frozen", "plant");
   if (HasFatalFailure()) return;
+  reset_refused_while_the_cause_stays();
+  kill(plant.pid, SIGKILL);  // a converter that updates again
+  plant.wait();
+  Child plant2 = serve("plant2");
+  EXPECT_TRUE(wait_outputs("plant2", /*safe=*/true, 6s));
+  reset_then_arm("plant2");
   stop_pneud(p);
   const Run r = read_run();
   // The last tick whose p_N differed from the one before, up to the fault.
@@ -485,6 +498,17 @@ TEST_F(HilFaults, AStuckValveIsAFollowingErrorAfterItsTimeLimit) {
   Child p = pneud();
   expect_fault("following-error", "plant");
   if (HasFatalFailure()) return;
+  // A stuck valve does not show while the carriage rests, so a reset is accepted and arming holds
+  // the present position; but the next move latches the fault again: the daemon never drives on
+  // with it.
+  telemetry_.send(pneu_lcm::command_t::KIND_FAULT_RESET);
+  ASSERT_TRUE(telemetry_.wait_health([](const auto& h) { return h.mode == kModeDisarmed; }, 3s));
+  telemetry_.send(pneu_lcm::command_t::KIND_ARM);
+  ASSERT_TRUE(telemetry_.wait_health([](const auto& h) { return h.mode == kModeArmed; }, 3s));
+  telemetry_.send(pneu_lcm::command_t::KIND_SET_POINT, 0.05);
+  EXPECT_TRUE(telemetry_.wait_health([](const auto& h) { return h.mode == kModeFault && h.faults == 2; }, 5s))
+      << "the next move: a following error again";
+  EXPECT_TRUE(wait_outputs("plant", /*safe=*/true, 2s));
   stop_pneud(p);
   const Run r = read_run();
   const double window_m = 0.01;

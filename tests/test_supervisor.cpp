@@ -137,6 +137,12 @@ TEST_F(SupervisorChecks, APressureFrozenBitForBitIsAFaultAfterFrozenAfterS) {
   }
   ASSERT_GT(raised_at, 0.0) << "never raised";
   EXPECT_NEAR(raised_at - 0.5, frozen, 2 * kPeriod);
+  EXPECT_TRUE(s.cause_present()) << "still frozen: a reset must not clear it";
+  EXPECT_EQ(s.present_cause(), c::kFaultSensorFrozen);
+  hal::SensorFrame thawed = good(raised_at + kPeriod);
+  thawed.p_n_pa = 3.5e5 + 30.0;
+  EXPECT_EQ(tick(s, raised_at + kPeriod, thawed), c::kFaultNone) << "flickering again";
+  EXPECT_FALSE(s.cause_present());
 }
 
 TEST_F(SupervisorChecks, FrozenDetectionIsOffAtZero) {

@@ -48,6 +48,7 @@ Supervisor::Supervisor(const config::Config& config)
 
 void Supervisor::reset(double t_s) noexcept {
   estop_ = false;
+  frozen_ = false;
   sample_good_ = true;
   bad_samples_ = 0;
   bad_since_s_ = -1.0;
@@ -128,9 +129,9 @@ FaultCause Supervisor::check_sample(const SupervisedTick& tick) noexcept {
       p_n_changed_s_ = t;
       last_p_n_pa_ = f.p_n_pa;
     }
-    if (cfg_.frozen_after_s > 0.0 &&
-        (t - p_p_changed_s_ > cfg_.frozen_after_s || t - p_n_changed_s_ > cfg_.frozen_after_s))
-      first(kFaultSensorFrozen);
+    frozen_ = cfg_.frozen_after_s > 0.0 &&
+              (t - p_p_changed_s_ > cfg_.frozen_after_s || t - p_n_changed_s_ > cfg_.frozen_after_s);
+    if (frozen_) first(kFaultSensorFrozen);
   }
 
   return cause;

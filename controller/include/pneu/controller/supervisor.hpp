@@ -63,11 +63,13 @@ class Supervisor {
   /// Whether this tick's sample was good (read ok, every reading valid, finite and plausible):
   /// only good samples may reach the differentiator and the stop detector.
   [[nodiscard]] bool sample_good() const noexcept { return sample_good_; }
-  /// Whether a cause that a reset cannot clear is present now (e-stop pressed, bad samples).
-  [[nodiscard]] bool cause_present() const noexcept { return estop_ || !sample_good_; }
-  /// The cause a reset would meet now: kFaultEStop, the bad sample's cause, or kFaultNone.
+  /// Whether a cause that a reset cannot clear is present now: the e-stop pressed, a bad sample,
+  /// a frozen pressure. (A jump, a following error, an overrun are events: once latched, a reset
+  /// clears them, and they latch again if they happen again.)
+  [[nodiscard]] bool cause_present() const noexcept { return estop_ || !sample_good_ || frozen_; }
+  /// The cause a reset would meet now (kFaultNone: none).
   [[nodiscard]] FaultCause present_cause() const noexcept {
-    return estop_ ? kFaultEStop : !sample_good_ ? sample_cause_ : kFaultNone;
+    return estop_ ? kFaultEStop : !sample_good_ ? sample_cause_ : frozen_ ? kFaultSensorFrozen : kFaultNone;
   }
   [[nodiscard]] std::uint64_t bad_samples() const noexcept { return bad_samples_; }
 
@@ -80,6 +82,7 @@ class Supervisor {
   const double soft_min_m_, soft_max_m_;
   const double stream_timeout_s_;
   bool estop_ = false;
+  bool frozen_ = false;                   // a pressure reading is frozen now
   bool sample_good_ = true;
   FaultCause sample_cause_ = kFaultNone;  // why the last sample was not good
   std::uint64_t bad_samples_ = 0;       // reads not good, since start
