@@ -136,3 +136,20 @@ TEST_F(PneudRealtime, WithRequireRtItRefusesToRunWithoutIt) {
 }
 
 }  // namespace
+
+namespace {
+
+// A run that cannot start (nobody answers at the module's address) leaves no empty outputs.
+TEST_F(PneudDaemon, ARunThatCannotStartLeavesNoOutputFilesBehind) {
+  const int port = pneu::test::free_port();  // nobody listens there
+  Child p = Child::spawn({bin("pneud"), "--config", std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", "--set",
+                          "hal.modbus.port=" + std::to_string(port), "--set", "telemetry.enabled=false", "--events",
+                          (dir_ / "events.jsonl").string(), "--trajectory", (dir_ / "traj.csv").string()},
+                         dir_ / "pneud.out", dir_ / "pneud.err");
+  EXPECT_EQ(p.wait(), 1);
+  EXPECT_THAT(slurp(dir_ / "pneud.err"), HasSubstr("cannot connect"));
+  EXPECT_FALSE(fs::exists(dir_ / "events.jsonl"));
+  EXPECT_FALSE(fs::exists(dir_ / "traj.csv"));
+}
+
+}  // namespace

@@ -146,6 +146,8 @@ int run(int argc, char** argv) {
                               "0 (run until stopped) needs the real clock; give a duration");
   if (cfg.hal.backend == config::BackendKind::kModbus && cfg.controller.clock != config::ClockKind::kReal)
     throw config::ConfigError("controller.clock", "the modbus backend runs on the real clock (--clock real)");
+  if (args.flag("require-rt") && cfg.controller.clock != config::ClockKind::kReal)
+    throw cli::UsageError("--require-rt needs the real clock (the simulated clock runs as fast as it can)");
   std::unique_ptr<plant::ValveCharacteristic> valve;
   try {
     valve = controller::make_valve_characteristic(
@@ -242,10 +244,23 @@ int run(int argc, char** argv) {
       const auto report = controller::setup_realtime_thread(cfg.controller.realtime, require_rt);
       for (const auto& w : report.warnings) std::fprintf(stderr, "pneud: warning: real time: %s\n", w.c_str());
     };
-  else if (require_rt)
-    throw cli::UsageError("--require-rt needs the real clock (the simulated clock runs as fast as it can)");
   const auto wall0 = std::chrono::steady_clock::now();
-  controller::execute(run, cfg, *clock, g_stop, wait_for_input, on_loop_thread);
+  try {
+    controller::execute(run, cfg, *clock, g_stop, wait_for_input, on_loop_thread);
+  } catch (...) {
+    // Nothing ran (the module unreachable, real time refused): leave no empty output behind.
+    if (run.outputs->heartbeat.load() == 0) {
+      const std::pair<std::optional<std::ofstream>*, const char*> outputs[] = {{&events, "events"},
+                                                                               {&trajectory, "trajectory"}};
+      for (const auto& [stream, option] : outputs)
+        if (*stream) {
+          (*stream)->close();
+          std::error_code ignored;
+          std::filesystem::remove(*args.value(option), ignored);
+        }
+    }
+    throw;
+  }
   if (g_stop.load()) notifier.stopping();
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
 
