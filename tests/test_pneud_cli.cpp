@@ -263,10 +263,18 @@ TEST_F(PneudCli, ShortRunOnTheRealClockCompletesAndReportsLoopTiming) {
 }
 
 TEST_F(PneudCli, AGpioChipThatDoesNotExistIsAClearStartUpError) {
-  const Outcome o = pneud("--set hal.gpio.enabled=true --set hal.gpio.chip=pneu-no-such-chip");
+  const Outcome o = pneud(
+      "--clock real --duration 0.1 --set telemetry.enabled=false --set hal.gpio.enabled=true --set "
+      "hal.gpio.chip=pneu-no-such-chip");
   EXPECT_EQ(o.exit_code, 1);
   EXPECT_THAT(o.err, HasSubstr("cannot open GPIO chip 'pneu-no-such-chip' (hal.gpio.chip)"));
   EXPECT_THAT(o.out, Not(HasSubstr("loop:"))) << "nothing ran";
+}
+
+TEST_F(PneudCli, GpioLinesWithTheSimulatedClockAreRefused) {
+  const Outcome o = pneud("--set hal.gpio.enabled=true");
+  EXPECT_EQ(o.exit_code, 2);
+  EXPECT_THAT(o.err, HasSubstr("hal.gpio.enabled: real lines (e-stop, valve power) need the real clock"));
 }
 
 }  // namespace

@@ -146,6 +146,8 @@ int run(int argc, char** argv) {
                               "0 (run until stopped) needs the real clock; give a duration");
   if (cfg.hal.backend == config::BackendKind::kModbus && cfg.controller.clock != config::ClockKind::kReal)
     throw config::ConfigError("controller.clock", "the modbus backend runs on the real clock (--clock real)");
+  if (cfg.hal.gpio.enabled && cfg.controller.clock != config::ClockKind::kReal)
+    throw config::ConfigError("hal.gpio.enabled", "real lines (e-stop, valve power) need the real clock (--clock real)");
   if (args.flag("require-rt") && cfg.controller.clock != config::ClockKind::kReal)
     throw cli::UsageError("--require-rt needs the real clock (the simulated clock runs as fast as it can)");
   std::unique_ptr<plant::ValveCharacteristic> valve;
