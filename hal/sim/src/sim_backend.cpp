@@ -10,18 +10,28 @@ SimBackend::SimBackend(const plant::PlantParams& plant, const plant::SensorParam
       initial_u_v_(initial_u_v),
       command_(ActuatorCommand::from_control(initial_u_v, true)) {
   plant_.reset_at_rest(initial_position_m_, initial_u_v_);
+  breakaways_.reserve(kMaxBreakaways);
 }
 
 void SimBackend::open(double t0_s) {
   plant_.reset_at_rest(initial_position_m_, initial_u_v_, t0_s);
   command_ = ActuatorCommand::from_control(initial_u_v_, true);
+  breakaways_.clear();
+  breakaways_dropped_ = 0;
 }
 
 Status SimBackend::read(double t_s, SensorFrame& frame) noexcept {
   const double dt = t_s - plant_.state().t_s;
   // The simulated bench has no valve power relay (that is the GPIO decorator's line): the valves
   // see the commanded voltages, the safe ones included.
-  if (dt > 0.0) plant_.step(dt, command_.u_p_v, command_.u_n_v);
+  if (dt > 0.0) {
+    plant_.step(dt, command_.u_p_v, command_.u_n_v);
+    for (const auto& e : plant_.last_events()) {
+      if (e.kind != plant::PlantEvent::Kind::kBreakaway) continue;
+      if (breakaways_.size() < kMaxBreakaways) breakaways_.push_back(e);  // within the reserved room
+      else ++breakaways_dropped_;
+    }
+  }
   const auto& s = plant_.state();
   const auto m = sensors_.measure(s.y_m, s.p_p_pa, s.p_n_pa);
   frame = SensorFrame{t_s, m.y_m, m.p_p_pa, m.p_n_pa, 0.0, false, true, kSensorsValid};

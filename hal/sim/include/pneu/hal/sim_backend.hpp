@@ -2,6 +2,11 @@
 // last command held (zero-order hold), sensors read through the sensor models.
 #pragma once
 
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
 #include "pneu/hal/backend.hpp"
 #include "pneu/sim_plant/plant.hpp"
 #include "pneu/sim_plant/sensors.hpp"
@@ -24,6 +29,12 @@ class SimBackend final : public Backend {
   /// The simulated truth, for tests and what-if runs.
   [[nodiscard]] const plant::Plant& plant() const noexcept { return plant_; }
   [[nodiscard]] const ActuatorCommand& held_command() const noexcept { return command_; }
+  /// The plant's breakaways since open(), in order: the true restarts, however small the motion
+  /// that follows (the stop detector sees a start only beyond its motion band). Up to
+  /// kMaxBreakaways are kept (room reserved up front: recording never allocates); more are counted.
+  [[nodiscard]] std::span<const plant::PlantEvent> breakaways() const noexcept { return breakaways_; }
+  [[nodiscard]] std::uint64_t breakaways_dropped() const noexcept { return breakaways_dropped_; }
+  static constexpr std::size_t kMaxBreakaways = 4096;
 
  private:
   plant::Plant plant_;
@@ -31,6 +42,8 @@ class SimBackend final : public Backend {
   double initial_position_m_;
   double initial_u_v_;
   ActuatorCommand command_;
+  std::vector<plant::PlantEvent> breakaways_;
+  std::uint64_t breakaways_dropped_ = 0;
 };
 
 }  // namespace pneu::hal
