@@ -7,6 +7,7 @@
 
 #include "pneu/config/config.hpp"
 #include "pneu/controller/supervisor.hpp"
+#include "pneu/controller/watchdog.hpp"
 
 namespace {
 
@@ -273,6 +274,34 @@ TEST(FaultCauses, EveryCauseHasANameAndAText) {
     EXPECT_STRNE(c::fault_name(k), "unknown") << int{k};
     EXPECT_STRNE(c::fault_text(k), "fault") << int{k};
   }
+}
+
+}  // namespace
+
+namespace {
+
+// systemd's watchdog is petted only while the loop ticks.
+TEST(WatchdogGate, PetsOncePerIntervalWhileTheHeartbeatAdvances) {
+  pneu::controller::WatchdogGate gate(0.5);
+  EXPECT_FALSE(gate.due(0, 0.0)) << "not before the first tick";
+  EXPECT_TRUE(gate.due(10, 0.1)) << "the loop runs";
+  EXPECT_FALSE(gate.due(20, 0.3)) << "within the interval";
+  EXPECT_TRUE(gate.due(600, 0.6));
+  EXPECT_TRUE(gate.due(1100, 1.1));
+}
+
+TEST(WatchdogGate, StopsPettingWhenTheLoopStopsTicking) {
+  pneu::controller::WatchdogGate gate(0.5);
+  EXPECT_TRUE(gate.due(100, 0.0));
+  EXPECT_FALSE(gate.due(100, 0.6)) << "a hung loop: no petting, systemd restarts the daemon";
+  EXPECT_FALSE(gate.due(100, 1.2));
+  EXPECT_TRUE(gate.due(101, 1.8)) << "ticking again";
+}
+
+TEST(WatchdogGate, IsOffWithoutAWatchdog) {
+  pneu::controller::WatchdogGate gate(0.0);
+  EXPECT_FALSE(gate.due(1, 0.0));
+  EXPECT_FALSE(gate.due(1000, 10.0));
 }
 
 }  // namespace

@@ -13,6 +13,7 @@
 #include "pneu/config/config.hpp"
 #include "pneu/controller/realtime.hpp"
 #include "pneu/controller/session.hpp"
+#include "pneu/controller/watchdog.hpp"
 #ifdef PNEU_WITH_SYSTEMD
 #include <systemd/sd-daemon.h>
 #endif
@@ -71,12 +72,7 @@ extern "C" void on_signal(int) { g_stop.store(true); }
 // Without NOTIFY_SOCKET (not under systemd) every call is a no-op.
 class SystemdNotifier {
  public:
-  explicit SystemdNotifier(const controller::LoopOutputs& loop) : loop_(loop) {
-#ifdef PNEU_WITH_SYSTEMD
-    std::uint64_t usec = 0;
-    if (sd_watchdog_enabled(0, &usec) > 0) interval_s_ = static_cast<double>(usec) * 1e-6 / 4.0;
-#endif
-  }
+  explicit SystemdNotifier(const controller::LoopOutputs& loop) : loop_(loop), watchdog_(watchdog_interval_s()) {}
   void service() {
 #ifdef PNEU_WITH_SYSTEMD
     const std::uint64_t beat = loop_.heartbeat.load(std::memory_order_acquire);
@@ -92,12 +88,8 @@ class SystemdNotifier {
       sd_notifyf(0, "STATUS=%s%s%s", mode == 0 ? "disarmed" : mode == 1 ? "armed" : "FAULT: ",
                  mode == 2 ? controller::fault_name(cause) : "", mode == 0 ? " (send ARM to drive)" : "");
     }
-    const auto now = std::chrono::steady_clock::now();
-    if (interval_s_ > 0.0 && std::chrono::duration<double>(now - last_check_).count() >= interval_s_) {
-      last_check_ = now;
-      if (beat != last_beat_) sd_notify(0, "WATCHDOG=1");  // the loop ticked since the last check
-      last_beat_ = beat;
-    }
+    const double now_s = std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+    if (watchdog_.due(beat, now_s)) sd_notify(0, "WATCHDOG=1");  // the loop ticked since the last check
     if (g_stop.load()) stopping();
 #endif
   }
@@ -111,12 +103,19 @@ class SystemdNotifier {
   }
 
  private:
+  // A quarter of WatchdogSec (systemd's WATCHDOG_USEC); 0 when the watchdog is off.
+  static double watchdog_interval_s() {
+#ifdef PNEU_WITH_SYSTEMD
+    std::uint64_t usec = 0;
+    if (sd_watchdog_enabled(0, &usec) > 0) return static_cast<double>(usec) * 1e-6 / 4.0;
+#endif
+    return 0.0;
+  }
+
   const controller::LoopOutputs& loop_;
-  double interval_s_ = 0.0;
+  controller::WatchdogGate watchdog_;
   bool ready_ = false, stopping_ = false;
   std::uint8_t last_mode_ = 255, last_cause_ = 255;
-  std::uint64_t last_beat_ = 0;
-  std::chrono::steady_clock::time_point last_check_{};
 };
 
 int run(int argc, char** argv) {
