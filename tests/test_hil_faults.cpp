@@ -31,6 +31,7 @@
 #include "pneu_lcm/event_t.hpp"
 #include "pneu_lcm/health_t.hpp"
 #include "support/child_process.hpp"
+#include "support/lcm_sniffer.hpp"
 
 namespace {
 
@@ -67,21 +68,32 @@ std::int64_t unix_us() {
       .count();
 }
 
-// What pneud publishes, collected by an LCM subscriber of the test's own.
+// What pneud publishes, read off the group by the test (see LcmSniffer), and the commands the
+// test sends through LCM.
 class Telemetry {
  public:
   Telemetry() : lcm_(kUrl) {
-    lcm_.subscribe("PNEU_EVENT", &Telemetry::on_event, this);
-    lcm_.subscribe("PNEU_HEALTH", &Telemetry::on_health, this);
     thread_ = std::thread([this] {
-      while (!done_) lcm_.handleTimeout(10);
+      std::string channel;
+      std::vector<std::uint8_t> payload;
+      while (!done_) {
+        if (!sniffer_.receive(channel, payload, 10)) continue;
+        const int size = static_cast<int>(payload.size());
+        if (channel == "PNEU_EVENT") {
+          pneu_lcm::event_t e;
+          if (e.decode(payload.data(), 0, size) == size) on_event(e);
+        } else if (channel == "PNEU_HEALTH") {
+          pneu_lcm::health_t h;
+          if (h.decode(payload.data(), 0, size) == size) on_health(h);
+        }
+      }
     });
   }
   ~Telemetry() {
     done_ = true;
     thread_.join();
   }
-  bool good() { return lcm_.good(); }
+  bool good() { return lcm_.good() && sniffer_.good(); }
 
   void send(std::int8_t kind, double value = 0.0) {
     pneu_lcm::command_t c;
@@ -137,18 +149,19 @@ class Telemetry {
   }
 
  private:
-  void on_event(const lcm::ReceiveBuffer*, const std::string&, const pneu_lcm::event_t* e) {
+  void on_event(const pneu_lcm::event_t& e) {
     std::lock_guard<std::mutex> l(m_);
-    events_.push_back(*e);
+    events_.push_back(e);
   }
-  void on_health(const lcm::ReceiveBuffer*, const std::string&, const pneu_lcm::health_t* h) {
+  void on_health(const pneu_lcm::health_t& h) {
     std::lock_guard<std::mutex> l(m_);
-    health_ = *h;
-    healths_.push_back(*h);
+    health_ = h;
+    healths_.push_back(h);
     have_health_ = true;
   }
 
   lcm::LCM lcm_;
+  pneu::test::LcmSniffer sniffer_;
   std::mutex m_;
   std::vector<pneu_lcm::event_t> events_;
   std::vector<pneu_lcm::health_t> healths_;
