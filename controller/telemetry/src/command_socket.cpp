@@ -69,6 +69,9 @@ CommandSocket::~CommandSocket() {
   if (fd_ >= 0) ::close(fd_);
 }
 
+// getifaddrs() needs a netlink socket: under the systemd unit (RestrictAddressFamilies without
+// AF_NETLINK) it fails, the list stays empty, and only loopback and zero sources count as this
+// host, which is what the unit's IPAddressAllow= lets in anyway.
 void CommandSocket::refresh_local_addresses() {
   local_.clear();
   ifaddrs* list = nullptr;
