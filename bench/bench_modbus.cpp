@@ -37,6 +37,7 @@
 
 #include "pneu/config/register_map.hpp"
 #include "pneu/hal/modbus_backend.hpp"
+#include "pneu/hal/monotonic.hpp"
 #include "pneu/sim_plant/sensors.hpp"
 
 namespace {
@@ -49,19 +50,8 @@ constexpr int kRegPosition = 0, kRegPressureP = 1, kRegPressureN = 2, kRegValveP
 const config::RegisterChannel kSensorChannel{0, false, 0.0, 65535.0, 0.0, 10.0};
 const config::RegisterChannel kValveChannel{0, true, -32767.0, 32767.0, -10.0, 10.0};
 
-double mono_s() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
-
-void sleep_until_mono(double t) noexcept {
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(t);
-  ts.tv_nsec = static_cast<long>((t - static_cast<double>(ts.tv_sec)) * 1e9);
-  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-  }
-}
+using pneu::hal::monotonic_s;
+using pneu::hal::sleep_until_monotonic_s;
 
 // The value at quantile q (0..1) of `v` (sorted in place).
 double quantile(std::vector<double>& v, double q) {
@@ -215,13 +205,13 @@ void Fc23RoundTripHistogram(benchmark::State& state) {
   std::vector<double> us(kRoundTrips);
   for (auto _ : state) {
     for (int i = 0; i < kRoundTrips; ++i) {
-      const double t0 = mono_s();
+      const double t0 = monotonic_s();
       if (!client.exchange(in)) {
         state.SkipWithError(
             (std::string("modbus_write_and_read_registers: ") + modbus_strerror(errno)).c_str());
         return;
       }
-      us[static_cast<std::size_t>(i)] = 1e6 * (mono_s() - t0);
+      us[static_cast<std::size_t>(i)] = 1e6 * (monotonic_s() - t0);
     }
   }
   state.counters["p50_us"] = quantile(us, 0.50);
@@ -238,10 +228,10 @@ void BackendExchangeRate(benchmark::State& state) {
     hal::ModbusBackend backend(hil_modbus(0.0), hil_calibration());
     backend.open(0.0);
     const std::uint64_t n0 = backend.counters().transactions.load();
-    const double t0 = mono_s();
-    sleep_until_mono(t0 + 1.0);
+    const double t0 = monotonic_s();
+    sleep_until_monotonic_s(t0 + 1.0);
     const std::uint64_t n1 = backend.counters().transactions.load();
-    const double t1 = mono_s();
+    const double t1 = monotonic_s();
     backend.close();
     per_s = static_cast<double>(n1 - n0) / (t1 - t0);
     errors = static_cast<double>(backend.counters().errors.load());
@@ -266,15 +256,15 @@ void BackendSampleAge(benchmark::State& state) {
     hal::ModbusBackend backend(hil_modbus(0.001), hil_calibration());
     backend.open(0.0);
     const std::uint64_t n0 = backend.counters().transactions.load();
-    const double t0 = mono_s();
+    const double t0 = monotonic_s();
     for (int i = 0; i < kReads; ++i) {
-      sleep_until_mono(t0 + (i + 1) * kPeriodS);
+      sleep_until_monotonic_s(t0 + (i + 1) * kPeriodS);
       hal::SensorFrame frame;
-      if (backend.read(mono_s() - t0, frame) != hal::Status::kOk) ++not_ok;
+      if (backend.read(monotonic_s() - t0, frame) != hal::Status::kOk) ++not_ok;
       age_us[static_cast<std::size_t>(i)] = 1e6 * frame.age_s;
       y_m = frame.y_m;
     }
-    per_s = static_cast<double>(backend.counters().transactions.load() - n0) / (mono_s() - t0);
+    per_s = static_cast<double>(backend.counters().transactions.load() - n0) / (monotonic_s() - t0);
     backend.close();
   }
   if (std::abs(y_m - 0.100) > 1e-5)

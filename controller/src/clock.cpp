@@ -1,8 +1,7 @@
 #include "pneu/controller/clock.hpp"
 
-#include <time.h>
+#include "pneu/hal/monotonic.hpp"
 
-#include <cerrno>
 #include <chrono>
 #include <algorithm>
 #include <cmath>
@@ -10,11 +9,7 @@
 namespace pneu::controller {
 
 namespace {
-double monotonic_s() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
+using hal::monotonic_s;
 double steady_s() noexcept {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
@@ -24,18 +19,7 @@ RealClock::RealClock() noexcept : epoch_s_(monotonic_s()) {}
 
 double RealClock::now_s() noexcept { return monotonic_s() - epoch_s_; }
 
-void RealClock::sleep_until(double t_s) noexcept {
-  const double abs_s = epoch_s_ + t_s;
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(std::floor(abs_s));
-  ts.tv_nsec = static_cast<long>((abs_s - std::floor(abs_s)) * 1e9);
-  if (ts.tv_nsec >= 1000000000L) {
-    ts.tv_sec += 1;
-    ts.tv_nsec -= 1000000000L;
-  }
-  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-  }
-}
+void RealClock::sleep_until(double t_s) noexcept { hal::sleep_until_monotonic_s(epoch_s_ + t_s); }
 
 namespace {
 void fill(const TimingStats& s, double (&out)[4]) noexcept {

@@ -26,6 +26,7 @@
 
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
+#include "pneu/hal/monotonic.hpp"
 #include "pneu/sim_plant/plant.hpp"
 #include "pneu/sim_plant/sensors.hpp"
 
@@ -36,11 +37,7 @@ namespace {
 std::atomic<bool> g_stop{false};
 extern "C" void on_stop_signal(int) { g_stop.store(true); }
 
-double mono_s() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
+using hal::monotonic_s;
 
 struct ModbusContext {
   modbus_t* ctx = nullptr;
@@ -304,7 +301,7 @@ int serve(int argc, char** argv) {
     std::fflush(stdout);
   }
 
-  const double t0 = mono_s();
+  const double t0 = monotonic_s();
   const auto record_outputs = [&](double t) {
     if (!outputs) return;
     std::fprintf(outputs, "%.6f,%.6f,%.6f\n", t, mb.valve_p.to_volts(word_p), mb.valve_n.to_volts(word_n));
@@ -334,7 +331,7 @@ int serve(int argc, char** argv) {
           sensor_fault[i] = &f;
         }
       }
-      std::printf("pneu-plant serve: fault %s active at t = %.6f s\n", f.spec.c_str(), mono_s() - t0);
+      std::printf("pneu-plant serve: fault %s active at t = %.6f s\n", f.spec.c_str(), monotonic_s() - t0);
       std::fflush(stdout);
     }
     if (t > plant.state().t_s) plant.step(t - plant.state().t_s, drive_p(), drive_n());
@@ -343,7 +340,7 @@ int serve(int argc, char** argv) {
   std::uint64_t requests = 0, refused = 0, clients = 0, foreign = 0;
   uint8_t query[MODBUS_RTU_MAX_ADU_LENGTH > MODBUS_TCP_MAX_ADU_LENGTH ? MODBUS_RTU_MAX_ADU_LENGTH : MODBUS_TCP_MAX_ADU_LENGTH];
   while (!g_stop.load()) {
-    const double now = mono_s() - t0;
+    const double now = monotonic_s() - t0;
     if (duration > 0.0 && now >= duration) break;
     advance_to(now);
 
@@ -366,7 +363,7 @@ int serve(int argc, char** argv) {
         ++foreign;  // another unit's request: a real module stays silent, the client times out
       } else if (rc > 0) {
         ++requests;
-        const double t = mono_s() - t0;
+        const double t = monotonic_s() - t0;
         advance_to(t);
         update_sensor_registers();
         if (!tcp) {
@@ -379,15 +376,15 @@ int serve(int argc, char** argv) {
                                                 : 0;
           const int reply_bytes = n_read > 0 ? 5 + 2 * n_read : 8;
           const double wire_s = (rc + reply_bytes + 7) * 10.0 / mb.baud;
-          const double until = mono_s() + wire_s;
-          while (mono_s() < until) {
+          const double until = monotonic_s() + wire_s;
+          while (monotonic_s() < until) {
             timespec ts{0, 50000};
             nanosleep(&ts, nullptr);
           }
         }
         if (reply_delay > 0.0 && t >= delay_after) {  // fault injection: a module that answers late
-          const double until = mono_s() + reply_delay;
-          while (mono_s() < until && !g_stop.load()) {
+          const double until = monotonic_s() + reply_delay;
+          while (monotonic_s() < until && !g_stop.load()) {
             timespec ts{0, 200000};
             nanosleep(&ts, nullptr);
           }
@@ -400,7 +397,7 @@ int serve(int argc, char** argv) {
           word_n = wn;
           u_p = mb.valve_p.to_volts(wp);
           u_n = mb.valve_n.to_volts(wn);
-          record_outputs(mono_s() - t0);
+          record_outputs(monotonic_s() - t0);
         }
       } else if (rc == -1) {
         if (tcp) {
@@ -425,7 +422,7 @@ int serve(int argc, char** argv) {
   }
   std::printf("pneu-plant serve: stopped after %.3f s; %llu requests from %llu clients, %llu refused, "
               "%llu for other units ignored; last valve voltages: u_P = %+.4f V, u_N = %+.4f V\n",
-              mono_s() - t0, static_cast<unsigned long long>(requests), static_cast<unsigned long long>(clients),
+              monotonic_s() - t0, static_cast<unsigned long long>(requests), static_cast<unsigned long long>(clients),
               static_cast<unsigned long long>(refused), static_cast<unsigned long long>(foreign), u_p, u_n);
   if (listen_fd >= 0) ::close(listen_fd);
   return cli::kExitOk;

@@ -1,7 +1,6 @@
 #include "pneu/hal/modbus_backend.hpp"
 
 #include <modbus.h>
-#include <time.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -10,27 +9,11 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "pneu/hal/monotonic.hpp"
+
 namespace pneu::hal {
 
 namespace {
-
-double mono_s() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
-
-void sleep_until_mono(double t) noexcept {
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(std::floor(t));
-  ts.tv_nsec = static_cast<long>((t - std::floor(t)) * 1e9);
-  if (ts.tv_nsec >= 1000000000L) {
-    ts.tv_sec += 1;
-    ts.tv_nsec -= 1000000000L;
-  }
-  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-  }
-}
 
 modbus_t* as_ctx(void* p) { return static_cast<modbus_t*>(p); }
 
@@ -136,7 +119,7 @@ bool ModbusBackend::exchange(std::string* why) noexcept {
     return false;
   }
   Sample s;
-  s.mono_s = mono_s();
+  s.mono_s = monotonic_s();
   // A channel's words (two for a float32: high word first). A NaN or infinite float32 reaches the
   // frame as a non-finite value, flagged invalid like any reading outside the raw range.
   const auto words = [&](const config::RegisterChannel& c) { return &in[c.address - read_start_]; };
@@ -185,14 +168,14 @@ void ModbusBackend::close() noexcept {
 
 void ModbusBackend::io_thread() noexcept {
   double backoff = cfg_.reconnect_min_s;
-  double next = mono_s();
+  double next = monotonic_s();
   std::string why;
   // Waits out the back-off in short slices, so that close() never waits for a long one, and
   // doubles it for the next failure.
   const auto back_off = [&] {
-    const double until = mono_s() + backoff;
-    while (running_.load(std::memory_order_relaxed) && mono_s() < until)
-      sleep_until_mono(std::min(until, mono_s() + 0.01));
+    const double until = monotonic_s() + backoff;
+    while (running_.load(std::memory_order_relaxed) && monotonic_s() < until)
+      sleep_until_monotonic_s(std::min(until, monotonic_s() + 0.01));
     backoff = std::min(2.0 * backoff, cfg_.reconnect_max_s);
   };
   int failures_in_a_row = 0;
@@ -229,8 +212,8 @@ void ModbusBackend::io_thread() noexcept {
       continue;
     }
     next += cfg_.min_exchange_period_s;
-    const double now = mono_s();
-    if (now < next) sleep_until_mono(next);
+    const double now = monotonic_s();
+    if (now < next) sleep_until_monotonic_s(next);
     else next = now;
   }
 }
@@ -242,7 +225,7 @@ Status ModbusBackend::read(double t_s, SensorFrame& frame) noexcept {
     frame = SensorFrame{t_s, 0.0, 0.0, 0.0, 0.0, false, false, kSampleStale | kCommsError};
     return Status::kCommsError;
   }
-  const double age = mono_s() - s.mono_s;
+  const double age = monotonic_s() - s.mono_s;
   frame = SensorFrame{t_s - age, s.y_m, s.p_p_pa, s.p_n_pa, age, false, fresh, s.validity};
   if (age > counters_.max_age_s.load(std::memory_order_relaxed)) counters_.max_age_s.store(age, std::memory_order_relaxed);
   const bool up = link_up_.load(std::memory_order_relaxed);
