@@ -5,6 +5,16 @@
 
 namespace pneu::controller {
 
+namespace {
+// Keeps the first cause a check reports in a tick: the order of the checks is their priority.
+struct FirstCause {
+  FaultCause cause = kFaultNone;
+  void operator()(FaultCause c) noexcept {
+    if (cause == kFaultNone) cause = c;
+  }
+};
+}  // namespace
+
 const char* fault_name(std::uint8_t cause) noexcept {
   switch (cause) {
     case kFaultNone: return "none";
@@ -85,10 +95,7 @@ FaultCause Supervisor::check(const SupervisedTick& tick) noexcept {
 FaultCause Supervisor::check_sample(const SupervisedTick& tick) noexcept {
   const hal::SensorFrame& f = *tick.frame;
   const double t = tick.t_s;
-  FaultCause cause = kFaultNone;
-  const auto first = [&cause](FaultCause c) {
-    if (cause == kFaultNone) cause = c;
-  };
+  FirstCause first;
 
   estop_ = f.estop;
   if (estop_) first(kFaultEStop);
@@ -134,16 +141,13 @@ FaultCause Supervisor::check_sample(const SupervisedTick& tick) noexcept {
     if (frozen_) first(kFaultSensorFrozen);
   }
 
-  return cause;
+  return first.cause;
 }
 
 FaultCause Supervisor::check_motion(const SupervisedTick& tick) noexcept {
   const hal::SensorFrame& f = *tick.frame;
   const double t = tick.t_s;
-  FaultCause cause = kFaultNone;
-  const auto first = [&cause](FaultCause c) {
-    if (cause == kFaultNone) cause = c;
-  };
+  FirstCause first;
   if (tick.armed && sample_good_) {
     if (f.y_m < soft_min_m_ - cfg_.overtravel_m || f.y_m > soft_max_m_ + cfg_.overtravel_m) first(kFaultSoftLimit);
     if (cfg_.following_error_s > 0.0) {
@@ -169,7 +173,7 @@ FaultCause Supervisor::check_motion(const SupervisedTick& tick) noexcept {
 
   if (tick.armed && stream_timeout_s_ > 0.0 && t - tick.last_setpoint_t_s > stream_timeout_s_)
     first(kFaultCommandTimeout);
-  return cause;
+  return first.cause;
 }
 
 }  // namespace pneu::controller
