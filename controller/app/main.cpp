@@ -194,10 +194,7 @@ int run(int argc, char** argv) {
     throw config::ConfigError("hal.backend", "this pneud was built without the modbus backend");
 #endif
   } else if (cfg.hal.gpio.enabled) {
-    const controller::ControlLaw law(cfg.controller.law);
-    inner = std::make_unique<hal::SimBackend>(
-        cfg.plant, cfg.sensors, cfg.simulation.initial_position_m,
-        law.resting_control_v(cfg.controller.initial_setpoint_m, cfg.simulation.initial_position_m));
+    inner = controller::make_sim_backend(cfg);
   }
   if (cfg.hal.gpio.enabled) {
 #ifdef PNEU_WITH_GPIOD

@@ -32,19 +32,31 @@ PredictorModel predictor_model(const config::Config& config, const plant::ValveC
   return m;
 }
 
-SimulatedRun make_simulated_run(const config::Config& config, const plant::ValveCharacteristic& valve,
-                                std::ostream* events, std::ostream* trajectory) {
-  SimulatedRun run;
+std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config) {
   const ControlLaw law(config.controller.law);
   const double u_initial =
       law.resting_control_v(config.controller.initial_setpoint_m, config.simulation.initial_position_m);
-  run.backend = std::make_unique<hal::SimBackend>(config.plant, config.sensors,
-                                                  config.simulation.initial_position_m, u_initial);
+  return std::make_unique<hal::SimBackend>(config.plant, config.sensors, config.simulation.initial_position_m,
+                                           u_initial);
+}
+
+namespace {
+// The loop, its outputs and the report around `backend`.
+void assemble(SimulatedRun& run, const config::Config& config, const plant::ValveCharacteristic& valve,
+              hal::Backend& backend, std::ostream* events, std::ostream* trajectory) {
   run.outputs = std::make_unique<LoopOutputs>();
-  run.loop = std::make_unique<ControlLoop>(config, *run.backend, *run.outputs);
+  run.loop = std::make_unique<ControlLoop>(config, backend, *run.outputs);
   const auto& p = config.controller.predictor;
   run.report = std::make_unique<RunReport>(predictor_model(config, valve), p.linearized, p.nonlinear,
                                            events, trajectory);
+}
+}  // namespace
+
+SimulatedRun make_simulated_run(const config::Config& config, const plant::ValveCharacteristic& valve,
+                                std::ostream* events, std::ostream* trajectory) {
+  SimulatedRun run;
+  run.backend = make_sim_backend(config);
+  assemble(run, config, valve, *run.backend, events, trajectory);
   return run;
 }
 
@@ -53,11 +65,7 @@ SimulatedRun make_hardware_run(const config::Config& config, const plant::ValveC
                                std::ostream* trajectory) {
   SimulatedRun run;
   run.hardware = std::move(backend);
-  run.outputs = std::make_unique<LoopOutputs>();
-  run.loop = std::make_unique<ControlLoop>(config, *run.hardware, *run.outputs);
-  const auto& p = config.controller.predictor;
-  run.report = std::make_unique<RunReport>(predictor_model(config, valve), p.linearized, p.nonlinear,
-                                           events, trajectory);
+  assemble(run, config, valve, *run.hardware, events, trajectory);
   return run;
 }
 

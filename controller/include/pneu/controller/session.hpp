@@ -39,6 +39,10 @@ struct SimulatedRun {
   LoopTiming timing;
 };
 
+/// The in-process simulated bench of `config`: the plant at rest at simulation.initial_position_m,
+/// at complete equilibrium for the loop's first output (offset already resolved).
+[[nodiscard]] std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config);
+
 /// Builds the run for `config` (offset already resolved). The plant starts at rest at
 /// simulation.initial_position_m, at complete equilibrium for the loop's first output.
 [[nodiscard]] SimulatedRun make_simulated_run(const config::Config& config,
