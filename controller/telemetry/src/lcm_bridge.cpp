@@ -34,6 +34,11 @@ std::int64_t unix_now_us() {
 LcmBridge::LcmBridge(const config::Config& config, controller::LoopOutputs& loop, bool accept_commands)
     : lcm_(std::make_unique<lcm::LCM>(config.telemetry.lcm_url)),
       prefix_(config.telemetry.channel_prefix),
+      state_channel_(prefix_ + "STATE"),
+      event_channel_(prefix_ + "EVENT"),
+      prediction_channel_(prefix_ + "PREDICTION"),
+      health_channel_(prefix_ + "HEALTH"),
+      command_channel_(prefix_ + "COMMAND"),
       loop_(loop),
       validator_(config),
       epoch_utime_(unix_now_us()),
@@ -76,8 +81,8 @@ std::int64_t LcmBridge::utime_of(double t_s) const noexcept {
 }
 
 template <typename T>
-void LcmBridge::publish(const char* suffix, const T& msg) {
-  if (lcm_->publish(prefix_ + suffix, &msg) != 0) ++publish_errors_;
+void LcmBridge::publish(const std::string& channel, const T& msg) {
+  if (lcm_->publish(channel, &msg) != 0) ++publish_errors_;
 }
 
 void LcmBridge::on_tick(const controller::TickRecord& r) {
@@ -97,7 +102,7 @@ void LcmBridge::on_tick(const controller::TickRecord& r) {
   m.stuck = r.stuck;
   m.mode = static_cast<std::int8_t>(r.mode);
   m.validity = static_cast<std::int32_t>(r.sensor_validity);
-  publish("STATE", m);
+  publish(state_channel_, m);
 }
 
 void LcmBridge::on_event(const LoopEvent& e) {
@@ -129,7 +134,7 @@ void LcmBridge::on_event(const LoopEvent& e) {
     m.kind = pneu_lcm::event_t::KIND_START;
     m.text = "start";
   }
-  publish("EVENT", m);
+  publish(event_channel_, m);
 }
 
 void LcmBridge::on_prediction(const controller::StopOutcome& s, const controller::Prediction& p) {
@@ -151,7 +156,7 @@ void LcmBridge::on_prediction(const controller::StopOutcome& s, const controller
   m.tau_n = p.tau_n_s;
   m.min_margin = p.min_margin_n;
   m.horizon_reached = p.horizon_reached;
-  publish("PREDICTION", m);
+  publish(prediction_channel_, m);
 }
 
 void LcmBridge::on_health(const controller::HealthRecord& h) {
@@ -183,7 +188,7 @@ void LcmBridge::on_health(const controller::HealthRecord& h) {
   m.fault_cause = static_cast<std::int8_t>(h.fault_cause);
   m.faults = static_cast<std::int64_t>(h.faults);
   m.final = h.final;
-  publish("HEALTH", m);
+  publish(health_channel_, m);
 }
 
 void LcmBridge::on_end(double t_end_s) {
@@ -200,20 +205,20 @@ void LcmBridge::publish_text_event(std::int8_t kind, const std::string& text) {
   m.y = m.force = m.y_d = std::numeric_limits<double>::quiet_NaN();
   m.direction = 0;
   m.text = text;
-  publish("EVENT", m);
+  publish(event_channel_, m);
 }
 
 // Decoding happens here, on the service thread, in a total decoder (decode_command_datagram):
 // command_t is fixed-size, so a hostile datagram can at worst fail to decode, and nothing it says
 // reaches the loop unvalidated.
 void LcmBridge::on_datagram(std::span<const std::uint8_t> bytes, const CommandSocket::Datagram& d) {
-  const std::string command_channel = prefix_ + "COMMAND";
-  DecodedDatagram decoded = decode_command_datagram(bytes, command_channel);
+  DecodedDatagram decoded = decode_command_datagram(bytes, command_channel_);
   if (d.bytes > bytes.size() && decoded.kind != DatagramKind::kOtherChannel) {
     decoded.kind = DatagramKind::kOversized;  // cut by the buffer: longer than any command
     decoded.why = "longer than any command_t datagram";
   }
   if (decoded.kind == DatagramKind::kOtherChannel) return;  // our own telemetry, another axis
+  const double now_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
   Verdict v;
   char source[INET_ADDRSTRLEN] = "?";
   inet_ntop(AF_INET, &d.source, source, sizeof source);
@@ -225,7 +230,6 @@ void LcmBridge::on_datagram(std::span<const std::uint8_t> bytes, const CommandSo
   } else if (decoded.kind == DatagramKind::kMalformed) {
     v = validator_.malformed(decoded.why);
   } else {
-    const double now_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
     v = validator_.validate(decoded.fields, now_s, unix_now_us(), loop_.setpoint_m.load(std::memory_order_relaxed),
                             static_cast<controller::Mode>(loop_.mode.load(std::memory_order_relaxed)));
   }
@@ -235,7 +239,6 @@ void LcmBridge::on_datagram(std::span<const std::uint8_t> bytes, const CommandSo
     v.text = "command queue to the loop is full: " + v.text + " dropped";
   }
   if (!v.accepted) {
-    const double now_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
     if (now_s - rejection_window_s_ >= 1.0) {
       rejection_window_s_ = now_s;
       rejection_events_in_window_ = 0;

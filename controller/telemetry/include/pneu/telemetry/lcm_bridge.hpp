@@ -53,11 +53,13 @@ class LcmBridge final : public controller::ReportListener {
   void publish_text_event(std::int8_t kind, const std::string& text);
   [[nodiscard]] std::int64_t utime_of(double t_s) const noexcept;
   template <typename T>
-  void publish(const char* suffix, const T& msg);
+  void publish(const std::string& channel, const T& msg);
 
   std::unique_ptr<lcm::LCM> lcm_;
   std::unique_ptr<CommandSocket> commands_;
   std::string prefix_;
+  // <prefix>STATE, ...: built once, not per message (STATE goes out every tick).
+  std::string state_channel_, event_channel_, prediction_channel_, health_channel_, command_channel_;
   controller::LoopOutputs& loop_;
   CommandValidator validator_;
   double last_t_s_ = 0.0;
