@@ -228,21 +228,22 @@ std::unique_ptr<hal::SimBackend> make_sim(const Bench& b) {
                                            b.config.simulation.initial_position_m, b.u_0());
 }
 
-TEST(GpioBackend, OpenSwitchesValvePowerOff) {
+// The decorator around the simulated bench, with fake lines, opened.
+class GpioBackend : public ::testing::Test {
+ protected:
+  GpioBackend() { backend.open(0.0); }
+
   Bench b;
-  auto sim = make_sim(b);
+  std::unique_ptr<hal::SimBackend> sim = make_sim(b);
   FakeLines lines;
-  hal::GpioBackend backend(*sim, lines);
-  backend.open(0.0);
+  hal::GpioBackend backend{*sim, lines};
+};
+
+TEST_F(GpioBackend, OpenSwitchesValvePowerOff) {
   EXPECT_FALSE(lines.valve_power);
 }
 
-TEST(GpioBackend, AddsTheEStopLineToTheInnerFrame) {
-  Bench b;
-  auto sim = make_sim(b);
-  FakeLines lines;
-  hal::GpioBackend backend(*sim, lines);
-  backend.open(0.0);
+TEST_F(GpioBackend, AddsTheEStopLineToTheInnerFrame) {
   hal::SensorFrame frame;
   ASSERT_EQ(backend.read(0.001, frame), Status::kOk);
   EXPECT_FALSE(frame.estop);
@@ -254,24 +255,14 @@ TEST(GpioBackend, AddsTheEStopLineToTheInnerFrame) {
   EXPECT_DOUBLE_EQ(frame.y_m, b.config.simulation.initial_position_m);
 }
 
-TEST(GpioBackend, AFailedEStopReadCountsAsPressedAndReportsADeviceError) {
-  Bench b;
-  auto sim = make_sim(b);
-  FakeLines lines;
-  hal::GpioBackend backend(*sim, lines);
-  backend.open(0.0);
+TEST_F(GpioBackend, AFailedEStopReadCountsAsPressedAndReportsADeviceError) {
   lines.reads_fail = true;
   hal::SensorFrame frame;
   EXPECT_EQ(backend.read(0.001, frame), Status::kDeviceError);
   EXPECT_TRUE(frame.estop);
 }
 
-TEST(GpioBackend, DrivesValvePowerFromTheCommandAndForwardsTheVoltages) {
-  Bench b;
-  auto sim = make_sim(b);
-  FakeLines lines;
-  hal::GpioBackend backend(*sim, lines);
-  backend.open(0.0);
+TEST_F(GpioBackend, DrivesValvePowerFromTheCommandAndForwardsTheVoltages) {
   hal::SensorFrame frame;
   ASSERT_EQ(backend.read(0.001, frame), Status::kOk);
 
@@ -287,12 +278,7 @@ TEST(GpioBackend, DrivesValvePowerFromTheCommandAndForwardsTheVoltages) {
   EXPECT_FALSE(sim->held_command().valve_power);
 }
 
-TEST(GpioBackend, ForcesValvePowerOffWhileTheEStopReadsPressed) {
-  Bench b;
-  auto sim = make_sim(b);
-  FakeLines lines;
-  hal::GpioBackend backend(*sim, lines);
-  backend.open(0.0);
+TEST_F(GpioBackend, ForcesValvePowerOffWhileTheEStopReadsPressed) {
   hal::SensorFrame frame;
   lines.estop_pressed = true;
   ASSERT_EQ(backend.read(0.001, frame), Status::kOk);
@@ -306,22 +292,12 @@ TEST(GpioBackend, ForcesValvePowerOffWhileTheEStopReadsPressed) {
   EXPECT_TRUE(lines.valve_power);
 }
 
-TEST(GpioBackend, KeepsValvePowerOffUntilTheFirstEStopReadAfterOpen) {
-  Bench b;
-  auto sim = make_sim(b);
-  FakeLines lines;
-  hal::GpioBackend backend(*sim, lines);
-  backend.open(0.0);
+TEST_F(GpioBackend, KeepsValvePowerOffUntilTheFirstEStopReadAfterOpen) {
   ASSERT_EQ(backend.write(hal::ActuatorCommand::from_control(1.0, true)), Status::kOk);
   EXPECT_FALSE(lines.valve_power);
 }
 
-TEST(GpioBackend, CloseSwitchesValvePowerOff) {
-  Bench b;
-  auto sim = make_sim(b);
-  FakeLines lines;
-  hal::GpioBackend backend(*sim, lines);
-  backend.open(0.0);
+TEST_F(GpioBackend, CloseSwitchesValvePowerOff) {
   hal::SensorFrame frame;
   ASSERT_EQ(backend.read(0.001, frame), Status::kOk);
   ASSERT_EQ(backend.write(hal::ActuatorCommand::from_control(1.0, true)), Status::kOk);
