@@ -25,15 +25,6 @@ ControlLoop::ControlLoop(const config::Config& config, hal::Backend& backend, Lo
       p_e_pa_(config.plant.gas.exhaust_pressure_pa),
       supervisor_(config) {}
 
-double ControlLoop::setpoint_at(double t_s) const noexcept {
-  double y_d = config_.controller.initial_setpoint_m;
-  for (const auto& s : schedule_) {
-    if (s.t_s > t_s) break;
-    y_d = s.position_m;
-  }
-  return y_d;
-}
-
 void ControlLoop::start(double t0_s) {
   backend_.open(t0_s);
   seq_ = 0;

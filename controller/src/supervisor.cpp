@@ -60,7 +60,6 @@ void Supervisor::reset(double t_s) noexcept {
   estop_ = false;
   frozen_ = false;
   sample_good_ = true;
-  bad_samples_ = 0;
   bad_since_s_ = -1.0;
   have_last_y_ = false;
   p_p_changed_s_ = p_n_changed_s_ = t_s;
@@ -108,7 +107,6 @@ FaultCause Supervisor::check_sample(const SupervisedTick& tick) noexcept {
   sample_good_ = delivered && reading == kFaultNone;
   sample_cause_ = sample_good_ ? kFaultNone : delivered ? reading : kFaultComms;
   if (!sample_good_) {
-    ++bad_samples_;
     if (bad_since_s_ < 0.0) bad_since_s_ = t;
   } else {
     bad_since_s_ = -1.0;

@@ -64,8 +64,7 @@ Verdict CommandValidator::reject(Rejection why, std::string text) {
 }
 
 Verdict CommandValidator::malformed(const std::string& why) {
-  ++counters_.received;
-  return reject(Rejection::kMalformed, "malformed command: " + why);
+  return refuse(Rejection::kMalformed, "malformed command: " + why);
 }
 
 Verdict CommandValidator::refuse(Rejection why, const std::string& text) {

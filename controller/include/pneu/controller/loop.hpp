@@ -123,7 +123,6 @@ class ControlLoop {
   [[nodiscard]] hal::ActuatorCommand safe_command() const noexcept;
 
   [[nodiscard]] std::uint64_t ticks() const noexcept { return seq_; }
-  [[nodiscard]] double setpoint_at(double t_s) const noexcept;
   [[nodiscard]] const ControlLaw& law() const noexcept { return law_; }
   [[nodiscard]] Mode mode() const noexcept { return mode_; }
   /// Backend reads and writes that did not return kOk (stale samples, comms or device errors).

@@ -71,7 +71,6 @@ class Supervisor {
   [[nodiscard]] FaultCause present_cause() const noexcept {
     return estop_ ? kFaultEStop : !sample_good_ ? sample_cause_ : frozen_ ? kFaultSensorFrozen : kFaultNone;
   }
-  [[nodiscard]] std::uint64_t bad_samples() const noexcept { return bad_samples_; }
 
  private:
   [[nodiscard]] FaultCause check_reading(const hal::SensorFrame& f) noexcept;
@@ -85,7 +84,6 @@ class Supervisor {
   bool frozen_ = false;                   // a pressure reading is frozen now
   bool sample_good_ = true;
   FaultCause sample_cause_ = kFaultNone;  // why the last sample was not good
-  std::uint64_t bad_samples_ = 0;       // reads not good, since start
   double bad_since_s_ = -1.0;           // first tick of the current run of bad reads
   bool have_last_y_ = false;
   double last_y_m_ = 0.0, last_y_t_s_ = 0.0;
