@@ -1,7 +1,6 @@
 #include "pneu/controller/loop.hpp"
 
 #include <algorithm>
-#include <cmath>
 
 namespace pneu::controller {
 
