@@ -277,6 +277,54 @@ TEST_P(PredictorWithLinearValve, ForceAlreadyBeyondABoundRestartsAtTheSnapshot) 
   EXPECT_EQ(down.t_restart_s, kStopTimeS);
 }
 
+// --- Following a forecast through the sticking phase (ForecastTrack) ----------------------------
+
+// With the linear valve both methods' pressures are exactly Eq. 24.
+TEST_P(PredictorWithLinearValve, TrackFollowsEquation24AndReachesTheBoundAtTheForecastRestart) {
+  const ExactForce g{-40.0, 5.0, 60.0};  // F(0) = 25 N, C = 60 N > F_S+: restarts +
+  const StopSnapshot s = stop_for(g);
+  const Prediction p = predict_stop(s);
+  ASSERT_TRUE(p.will_restart);
+  ForecastTrack track(GetParam(), model(), s);
+  EXPECT_EQ(track.method(), GetParam());
+  const double p_p_e = LinearValve::null_pressure(s.u_v), p_n_e = LinearValve::null_pressure(-s.u_v);
+  // Tick by tick, as the report asks for it, then one long jump.
+  for (double x : {0.0, 0.001, 0.002, 0.010, 0.050, 0.100, 0.333, 1.0}) {
+    SCOPED_TRACE(testing::Message() << "x = " << x << " s");
+    const ForecastPoint at = track.at(kStopTimeS + x);
+    // RK4 at tau/10: ~1e-7 relative per time constant on a pressure difference of ~1e5 Pa.
+    EXPECT_NEAR(at.p_p_pa, p_p_e + (s.p_p_pa - p_p_e) * std::exp(-x / kTauP), 0.05);
+    EXPECT_NEAR(at.p_n_pa, p_n_e + (s.p_n_pa - p_n_e) * std::exp(-x / kTauN), 0.05);
+    EXPECT_NEAR(at.force_n, g.at(x), 1e-4);
+  }
+  // A fresh track, asked once at the forecast restart: the force is on the bound F_S+.
+  ForecastTrack fresh(GetParam(), model(), s);
+  EXPECT_NEAR(fresh.at(p.t_restart_s).force_n, kForceSPlusN, 1e-4);
+}
+
+TEST_P(PredictorWithLinearValve, TrackBeforeTheSnapshotIsTheSnapshot) {
+  const StopSnapshot s = stop_for({-40.0, 5.0, 60.0});
+  ForecastTrack track(GetParam(), model(), s);
+  const ForecastPoint at = track.at(kStopTimeS - 0.5);
+  EXPECT_EQ(at.p_p_pa, s.p_p_pa);
+  EXPECT_EQ(at.p_n_pa, s.p_n_pa);
+  EXPECT_DOUBLE_EQ(at.force_n, force(s.p_p_pa, s.p_n_pa));
+}
+
+TEST(ForecastTrackNonlinear, IntegratesForwardOnlyAndIgnoresANonFiniteTime) {
+  LinearValve valve;
+  PredictorModel model;
+  model.valve = &valve;
+  const StopSnapshot s = stop_for({-40.0, 5.0, 60.0});
+  ForecastTrack track(PredictionMethod::kNonlinear, model, s);
+  const ForecastPoint later = track.at(kStopTimeS + 0.2);
+  // Asked for an earlier time, or for no time at all, it stays where it is.
+  const ForecastPoint earlier = track.at(kStopTimeS + 0.1);
+  EXPECT_EQ(earlier.p_p_pa, later.p_p_pa);
+  EXPECT_EQ(track.at(std::numeric_limits<double>::infinity()).p_p_pa, later.p_p_pa);
+  EXPECT_EQ(track.at(std::numeric_limits<double>::quiet_NaN()).p_n_pa, later.p_n_pa);
+}
+
 // --- With the real valve model (PlantParams defaults) -------------------------------------------
 
 class PredictorWithValveModel : public testing::TestWithParam<PredictionMethod> {
@@ -407,6 +455,73 @@ TEST(PredictorWithValveModelNonlinear, MatchesABruteForceIntegrationOfEquation19
     // bracket: measured 2e-8 s for both stops. 1 us is 1000 times finer than the sample period.
     EXPECT_NEAR(p.t_restart_s, s.t_s + reference.delay_s, 1.0e-6);
   }
+}
+
+// The nonlinear track holds the pressures of Eq. 19 as the brute-force integration gives them,
+// asked tick by tick over the sticking phase, and meets F_S- at its own forecast restart.
+TEST(ForecastTrackWithValveModel, NonlinearTrackIsEquation19AndMeetsTheBoundAtTheForecast) {
+  plant::PlantParams params;
+  const plant::ValveModel valve(params.valve, params.gas);
+  PredictorModel model;
+  model.valve = &valve;
+  StopSnapshot s = realistic_stop();
+  s.p_p_pa = 3.10e5;
+  s.p_n_pa = 5.35e5;
+  const Prediction p = predict_nonlinear(model, s);
+  ASSERT_TRUE(p.will_restart);
+  ForecastTrack track(PredictionMethod::kNonlinear, model, s);
+  // Brute force, RK4 at 1e-5 s, sampled every 1 ms (100 steps) up to the forecast restart.
+  constexpr double dt = 1.0e-5;
+  const double gain_p = kKrT / volume_p(s.y_m), gain_n = kKrT / volume_n(s.y_m);
+  const auto dp = [&](double w, double gain, double pr) { return gain * valve.mass_flow_kg_per_s(w, pr); };
+  const auto rk4 = [&](double w, double gain, double pr) {
+    const double k1 = dp(w, gain, pr), k2 = dp(w, gain, pr + 0.5 * dt * k1);
+    const double k3 = dp(w, gain, pr + 0.5 * dt * k2), k4 = dp(w, gain, pr + dt * k3);
+    return pr + dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+  };
+  double pp = s.p_p_pa, pn = s.p_n_pa, largest_gap_pa = 0.0;
+  const int ticks = static_cast<int>((p.t_restart_s - s.t_s) / 1e-3);
+  for (int k = 1; k <= ticks; ++k) {
+    for (int i = 0; i < 100; ++i) {
+      pp = rk4(s.u_v, gain_p, pp);
+      pn = rk4(-s.u_v, gain_n, pn);
+    }
+    const ForecastPoint at = track.at(s.t_s + k * 1e-3);
+    largest_gap_pa = std::max({largest_gap_pa, std::abs(at.p_p_pa - pp), std::abs(at.p_n_pa - pn)});
+  }
+  // Over ~1.4 s the two integrations agree to a few mPa (measured 2e-3 Pa; 1 Pa is 1e-5 of the
+  // pressure travel and 2e-4 N of force).
+  EXPECT_LT(largest_gap_pa, 1.0);
+  EXPECT_NEAR(track.at(p.t_restart_s).force_n, kForceSMinusN, 1e-3);
+}
+
+// On the curved valve the paper's tangent at the stop pressure is not the path's mean slope: the
+// linearized track leaves the exact one while the pressures travel, then both settle on the same
+// equilibrium. The stop is the paper scenario's second one (README: stuck 4.0 s at 171.8 mm).
+TEST(ForecastTrackWithValveModel, LinearizedTrackSharesTheEndsButNotThePathOfTheExactOne) {
+  plant::PlantParams params;
+  const plant::ValveModel valve(params.valve, params.gas);
+  PredictorModel model;
+  model.valve = &valve;
+  StopSnapshot s;
+  s.t_s = 2.013;
+  s.y_m = 0.17176454742;
+  s.p_p_pa = 344978.831;
+  s.p_n_pa = 479715.447;
+  s.u_v = -0.333630956;
+  ForecastTrack linearized(PredictionMethod::kLinearized, model, s);
+  ForecastTrack nonlinear(PredictionMethod::kNonlinear, model, s);
+  EXPECT_DOUBLE_EQ(linearized.at(s.t_s).force_n, nonlinear.at(s.t_s).force_n);
+  double largest_gap_n = 0.0;
+  for (int k = 1; k <= 4000; ++k) {
+    const double t = s.t_s + k * 1e-3;
+    largest_gap_n = std::max(largest_gap_n, std::abs(linearized.at(t).force_n - nonlinear.at(t).force_n));
+  }
+  EXPECT_GT(largest_gap_n, 0.5);  // measured 1.21 N: the linearized forecast restarts 2.9 % early
+  const double late = s.t_s + 60.0;
+  const Prediction p = predict_linearized(model, s);
+  EXPECT_NEAR(linearized.at(late).force_n, p.equilibrium_force_n, 1e-6);
+  EXPECT_NEAR(nonlinear.at(late).force_n, p.equilibrium_force_n, 1e-3);
 }
 
 }  // namespace

@@ -83,6 +83,37 @@ Prediction base(PredictionMethod method, const PredictorModel& m, const StopSnap
   return p;
 }
 
+struct P2 {
+  double pp, pn;
+};
+
+// The two pressure equations of Eq. 19 (Eq. 2 with v = 0) under the held control u*: each
+// chamber relaxes on its own towards its null-flow pressure.
+struct PressureOde {
+  const Common& c;
+  const plant::ValveCharacteristic& valve;
+  double u;
+
+  P2 rhs(const P2& x) const noexcept {
+    return {c.k_r_t / c.v_p * valve.mass_flow_kg_per_s(u, x.pp), c.k_r_t / c.v_n * valve.mass_flow_kg_per_s(-u, x.pn)};
+  }
+  P2 rk4(const P2& x, double h) const noexcept {
+    const P2 k1 = rhs(x);
+    const P2 k2 = rhs({x.pp + 0.5 * h * k1.pp, x.pn + 0.5 * h * k1.pn});
+    const P2 k3 = rhs({x.pp + 0.5 * h * k2.pp, x.pn + 0.5 * h * k2.pn});
+    const P2 k4 = rhs({x.pp + h * k3.pp, x.pn + h * k3.pn});
+    return {x.pp + h / 6.0 * (k1.pp + 2 * k2.pp + 2 * k3.pp + k4.pp),
+            x.pn + h / 6.0 * (k1.pn + 2 * k2.pn + 2 * k3.pn + k4.pn)};
+  }
+  // A tenth of the faster chamber's local time constant (RK4 error << 1e-6 relative), <= 10 ms.
+  double step_s(const P2& x) const noexcept {
+    constexpr double kStepFraction = 0.1;
+    constexpr double kMaxStep_s = 0.01;
+    const double slope = std::max(c.k_r_t / c.v_p * -valve.dq_dp(u, x.pp), c.k_r_t / c.v_n * -valve.dq_dp(-u, x.pn));
+    return std::min(kMaxStep_s, slope > 0.0 ? kStepFraction / slope : kMaxStep_s);
+  }
+};
+
 void mark_restart(Prediction& p, const StopSnapshot& s, double dt, double force,
                   const Bounds& b) noexcept {
   p.will_restart = true;
@@ -157,24 +188,8 @@ Prediction predict_nonlinear(const PredictorModel& m, const StopSnapshot& s) noe
   const Common c = common_of(m, s);
   Prediction p = base(PredictionMethod::kNonlinear, m, s, c);
   const Bounds b = bounds_of(m, s);
-  const plant::ValveCharacteristic& valve = *m.valve;
-  const double u = s.u_v;
-
-  struct P2 {
-    double pp, pn;
-  };
-  const auto rhs = [&](const P2& x) {
-    return P2{c.k_r_t / c.v_p * valve.mass_flow_kg_per_s(u, x.pp),
-              c.k_r_t / c.v_n * valve.mass_flow_kg_per_s(-u, x.pn)};
-  };
-  const auto rk4 = [&](const P2& x, double h) {
-    const P2 k1 = rhs(x);
-    const P2 k2 = rhs({x.pp + 0.5 * h * k1.pp, x.pn + 0.5 * h * k1.pn});
-    const P2 k3 = rhs({x.pp + 0.5 * h * k2.pp, x.pn + 0.5 * h * k2.pn});
-    const P2 k4 = rhs({x.pp + h * k3.pp, x.pn + h * k3.pn});
-    return P2{x.pp + h / 6.0 * (k1.pp + 2 * k2.pp + 2 * k3.pp + k4.pp),
-              x.pn + h / 6.0 * (k1.pn + 2 * k2.pn + 2 * k3.pn + k4.pn)};
-  };
+  const PressureOde ode{c, *m.valve, s.u_v};
+  const auto rk4 = [&](const P2& x, double h) { return ode.rk4(x, h); };
   const auto force = [&](const P2& x) { return c.force(x.pp, x.pn); };
 
   P2 x{s.p_p_pa, s.p_n_pa};
@@ -186,8 +201,6 @@ Prediction predict_nonlinear(const PredictorModel& m, const StopSnapshot& s) noe
   const double pe_p = p.p_p_equilibrium_pa, pe_n = p.p_n_equilibrium_pa;
   double min_margin = margin(b, f);
   double t = 0.0;
-  constexpr double kStepFraction = 0.1;  // of the local time constant: RK4 error << 1e-6 relative
-  constexpr double kMaxStep_s = 0.01;
   while (t < m.horizon_s) {
     // Each pressure relaxes monotonically towards its null-flow value (a scalar autonomous ODE
     // with q decreasing in p), so F stays inside the box spanned by the present and equilibrium
@@ -203,9 +216,7 @@ Prediction predict_nonlinear(const PredictorModel& m, const StopSnapshot& s) noe
         return p;
       }
     }
-    const double slope = std::max(c.k_r_t / c.v_p * -valve.dq_dp(u, x.pp),
-                                  c.k_r_t / c.v_n * -valve.dq_dp(-u, x.pn));
-    const double h = std::min(kMaxStep_s, slope > 0.0 ? kStepFraction / slope : kMaxStep_s);
+    const double h = ode.step_s(x);
     const P2 x1 = rk4(x, h);
     const double f1 = force(x1);
     if (excess(b, f1) > 0.0) {
@@ -227,6 +238,40 @@ Prediction predict_nonlinear(const PredictorModel& m, const StopSnapshot& s) noe
 Prediction predict(PredictionMethod method, const PredictorModel& model, const StopSnapshot& stop) noexcept {
   return method == PredictionMethod::kLinearized ? predict_linearized(model, stop)
                                                  : predict_nonlinear(model, stop);
+}
+
+ForecastTrack::ForecastTrack(PredictionMethod method, const PredictorModel& model, const StopSnapshot& stop) noexcept
+    : method_(method), model_(model), stop_(stop), t_s_(stop.t_s), p_p_pa_(stop.p_p_pa), p_n_pa_(stop.p_n_pa) {
+  const Prediction p = base(method, model, stop, common_of(model, stop));
+  p_p_equilibrium_pa_ = p.p_p_equilibrium_pa;
+  p_n_equilibrium_pa_ = p.p_n_equilibrium_pa;
+  tau_p_s_ = p.tau_p_s;
+  tau_n_s_ = p.tau_n_s;
+}
+
+ForecastPoint ForecastTrack::at(double t_s) noexcept {
+  const Common c = common_of(model_, stop_);
+  if (method_ == PredictionMethod::kLinearized) {
+    // Eq. 24: each pressure relaxes exponentially from its stop value to its equilibrium.
+    const double x = std::max(0.0, t_s - stop_.t_s);
+    const auto relax = [x](double p0, double pe, double tau) {
+      return std::isinf(tau) ? p0 : pe + (p0 - pe) * std::exp(-x / tau);
+    };
+    const double pp = relax(stop_.p_p_pa, p_p_equilibrium_pa_, tau_p_s_);
+    const double pn = relax(stop_.p_n_pa, p_n_equilibrium_pa_, tau_n_s_);
+    return {pp, pn, c.force(pp, pn)};
+  }
+  const PressureOde ode{c, *model_.valve, stop_.u_v};
+  P2 x{p_p_pa_, p_n_pa_};
+  while (std::isfinite(t_s) && t_s > t_s_) {
+    const double h = std::min(ode.step_s(x), t_s - t_s_);
+    x = ode.rk4(x, h);
+    // The last step lands on t_s exactly, not on t_s_ + h, which rounding can leave short.
+    t_s_ = h < t_s - t_s_ ? t_s_ + h : t_s;
+  }
+  p_p_pa_ = x.pp;
+  p_n_pa_ = x.pn;
+  return {x.pp, x.pn, c.force(x.pp, x.pn)};
 }
 
 bool snapshot_is_finite(const StopSnapshot& s) noexcept {

@@ -62,6 +62,38 @@ struct Prediction {
 [[nodiscard]] Prediction predict_nonlinear(const PredictorModel& model, const StopSnapshot& stop) noexcept;
 [[nodiscard]] Prediction predict(PredictionMethod method, const PredictorModel& model,
                                  const StopSnapshot& stop) noexcept;
+/// The chamber pressures and the pressure force a forecast expects at one instant of the
+/// sticking phase.
+struct ForecastPoint {
+  double p_p_pa = 0.0;
+  double p_n_pa = 0.0;
+  double force_n = 0.0;  ///< Eq. 14 [N]
+};
+
+/// Follows a forecast through the sticking phase, so that it can be held against the measured
+/// pressures and force as they come (the paper's Fig. 13): the linearized method's Eq. 24 and 17
+/// in closed form, the nonlinear method's pressure equations integrated forward with the same
+/// steps as predict_nonlinear. A value type: no allocation, no exception; the model's valve must
+/// outlive it.
+class ForecastTrack {
+ public:
+  ForecastTrack(PredictionMethod method, const PredictorModel& model, const StopSnapshot& stop) noexcept;
+
+  /// The forecast at `t_s` (absolute). Before the snapshot: the snapshot itself. The nonlinear
+  /// method only integrates forward: an earlier time than the last one asked gives the last point.
+  [[nodiscard]] ForecastPoint at(double t_s) noexcept;
+  [[nodiscard]] PredictionMethod method() const noexcept { return method_; }
+
+ private:
+  PredictionMethod method_;
+  PredictorModel model_;
+  StopSnapshot stop_;
+  double p_p_equilibrium_pa_ = 0.0, p_n_equilibrium_pa_ = 0.0;
+  double tau_p_s_ = 0.0, tau_n_s_ = 0.0;
+  double t_s_ = 0.0;                   // nonlinear: where the integration stands
+  double p_p_pa_ = 0.0, p_n_pa_ = 0.0;
+};
+
 /// A forecast needs finite inputs: callers skip the predictors otherwise (a NaN pressure would
 /// read as "no restart").
 [[nodiscard]] bool snapshot_is_finite(const StopSnapshot& stop) noexcept;
