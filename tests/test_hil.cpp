@@ -94,7 +94,8 @@ TEST_F(Hil, PaperScenarioOverModbusSticksRestartsAndTheNonlinearForecastHoldsWit
   for (std::string line; std::getline(lines, line);) {
     const int idx = static_cast<int>(field(line, "stop"));
     if (line.find("\"event\":\"stop\"") != std::string::npos) stops[idx].t = field(line, "t");
-    if (line.find("\"method\":\"nonlinear\"") != std::string::npos) stops[idx].nonlinear = field(line, "t_restart");
+    if (line.find("\"event\":\"prediction\"") != std::string::npos && line.find("\"method\":\"nonlinear\"") != std::string::npos)
+      stops[idx].nonlinear = field(line, "t_restart");  // made at the stop, not made again later
     if (line.find("\"event\":\"start\"") != std::string::npos && line.find("\"restart\":true") != std::string::npos)
       stops[idx].restart = field(line, "t");
   }

@@ -367,7 +367,12 @@ TEST_F(Log2Csv, PredictionWithoutRestartHasAnEmptyRestartTime) {
   none.tau_n = 0.0456;
   none.min_margin = 3.75;
   none.horizon_reached = 0;
+  none.force = -12.5;
+  none.stop_forecast_force = -12.5;
   pneu_lcm::prediction_t restart = none;
+  restart.update = 7;
+  restart.force = -49.875;
+  restart.stop_forecast_force = -48.0625;
   restart.method = pneu_lcm::prediction_t::METHOD_NONLINEAR;
   restart.will_restart = 1;
   restart.direction = -1;
@@ -381,9 +386,9 @@ TEST_F(Log2Csv, PredictionWithoutRestartHasAnEmptyRestartTime) {
   const Csv csv = read_csv("PNEU_PREDICTION.csv");
   EXPECT_EQ(csv.header,
             split_header(
-                "log_utime,utime,t,stop,t_stop,method,method_name,will_restart,direction,t_restart,"
+                "log_utime,utime,t,stop,t_stop,update,method,method_name,will_restart,direction,t_restart,"
                 "u_star,equilibrium_force,p_p_equilibrium,p_n_equilibrium,tau_p,tau_n,min_margin,"
-                "horizon_reached"));
+                "horizon_reached,force,stop_forecast_force"));
   ASSERT_EQ(csv.rows.size(), 2u);
   EXPECT_EQ(csv.at(0, "t_restart"), "");
   EXPECT_EQ(csv.at(0, "method_name"), "linearized");
@@ -396,6 +401,7 @@ TEST_F(Log2Csv, PredictionWithoutRestartHasAnEmptyRestartTime) {
     expect_double(csv.at(i, "t"), m.t, row + "t");
     expect_int(csv.at(i, "stop"), m.stop, row + "stop");
     expect_double(csv.at(i, "t_stop"), m.t_stop, row + "t_stop");
+    expect_int(csv.at(i, "update"), m.update, row + "update");
     expect_int(csv.at(i, "method"), m.method, row + "method");
     expect_int(csv.at(i, "will_restart"), m.will_restart, row + "will_restart");
     expect_int(csv.at(i, "direction"), m.direction, row + "direction");
@@ -408,6 +414,8 @@ TEST_F(Log2Csv, PredictionWithoutRestartHasAnEmptyRestartTime) {
     expect_double(csv.at(i, "tau_n"), m.tau_n, row + "tau_n");
     expect_double(csv.at(i, "min_margin"), m.min_margin, row + "min_margin");
     expect_int(csv.at(i, "horizon_reached"), m.horizon_reached, row + "horizon_reached");
+    expect_double(csv.at(i, "force"), m.force, row + "force");
+    expect_double(csv.at(i, "stop_forecast_force"), m.stop_forecast_force, row + "stop_forecast_force");
   }
 }
 

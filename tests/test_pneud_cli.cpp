@@ -140,6 +140,7 @@ TEST_F(PneudCli, EventsFileHoldsOneEventObjectPerLineWithConsistentStopsAndPredi
   ASSERT_FALSE(lines.empty());
   std::map<std::string, std::string> stop_time;  // stop index -> its event's "t", as written
   std::map<std::string, int> predictions_per_stop;
+  int reforecasts = 0;
   bool restart_seen = false;
   for (const std::string& line : lines) {
     SCOPED_TRACE(line);
@@ -163,6 +164,15 @@ TEST_F(PneudCli, EventsFileHoldsOneEventObjectPerLineWithConsistentStopsAndPredi
         EXPECT_TRUE(is_number(f.at("t_restart")));
       else
         EXPECT_TRUE(f.at("t_restart") == "null" || is_number(f.at("t_restart")));
+    } else if (kind == "\"reforecast\"") {
+      // The live predictor: made again while still stuck, after the stop's own forecasts.
+      ASSERT_EQ(predictions_per_stop[f.at("stop")], 2) << "a re-forecast follows its stop's forecasts";
+      EXPECT_EQ(f.at("t_stop"), stop_time.at(f.at("stop")));
+      EXPECT_GT(std::stod(f.at("t")), std::stod(f.at("t_stop")));
+      EXPECT_THAT(f.at("method"), ::testing::AnyOf("\"linearized\"", "\"nonlinear\""));
+      EXPECT_GE(std::stoi(f.at("update")), 1);
+      for (const char* key : {"force", "stop_forecast_force"}) EXPECT_TRUE(is_number(f.at(key))) << key;
+      ++reforecasts;
     } else if (kind == "\"start\"") {
       ASSERT_TRUE(f.contains("restart"));
       if (f.at("restart") == "true") restart_seen = true;
@@ -175,6 +185,7 @@ TEST_F(PneudCli, EventsFileHoldsOneEventObjectPerLineWithConsistentStopsAndPredi
     EXPECT_EQ(n, 2) << "stop " << stop;  // both methods
   EXPECT_EQ(predictions_per_stop.size(), stop_time.size());
   EXPECT_TRUE(restart_seen);
+  EXPECT_GT(reforecasts, 2 * 30) << "the 4 s sticking phase is forecast again every 0.1 s";
   EXPECT_EQ(lines.back(), "{\"event\":\"end\",\"t\":12}");
 }
 
@@ -184,7 +195,9 @@ TEST_F(PneudCli, TrajectoryFileHasAHeaderAndOneRowPerTick) {
   ASSERT_EQ(o.exit_code, 0) << o.err;
   const std::vector<std::string> lines = lines_of(slurp(trajectory));
   ASSERT_EQ(lines.size(), 1u + 12001u);
-  EXPECT_EQ(lines.front(), "seq,t,y_d,y,v_hat,a_hat,p_P,p_N,F,u,stuck,validity");
+  EXPECT_EQ(lines.front(),
+            "seq,t,y_d,y,v_hat,a_hat,p_P,p_N,F,u,stuck,validity,"
+            "p_P_linearized,p_N_linearized,F_linearized,p_P_nonlinear,p_N_nonlinear,F_nonlinear");
   EXPECT_THAT(lines.back(), ::testing::StartsWith("12000,12,"));
 }
 

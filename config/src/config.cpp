@@ -216,6 +216,8 @@ ControllerConfig read_controller(MapReader r, const plant::PlantParams& plant) {
     }
     c.predictor.valve_table = pr.string_or("valve_table", "");
     c.predictor.horizon_s = positive(pr, "horizon_s");
+    c.predictor.update_period_s = pr.has("update_period_s") ? non_negative(pr, "update_period_s")
+                                                            : c.predictor.update_period_s;
     pr.finish();
   }
   {
@@ -831,6 +833,7 @@ std::string to_yaml(const Config& c) {
   e << YAML::EndSeq;
   kv("valve_table", k.predictor.valve_table);
   kv("horizon_s", k.predictor.horizon_s);
+  kv("update_period_s", k.predictor.update_period_s);
   e << YAML::EndMap;
   e << YAML::Key << "setpoints" << YAML::Value << YAML::BeginMap;
   kv("initial_m", k.initial_setpoint_m);

@@ -47,8 +47,10 @@ Usage:
                      (same as --set controller.clock=C)
   --duration S       run length in seconds; 0 runs until SIGINT/SIGTERM (real clock)
                      (same as --set controller.duration_s=S)
-  --events FILE      one JSON object per line: start, stop, prediction, end
-  --trajectory FILE  one CSV row per tick: seq,t,y_d,y,v_hat,a_hat,p_P,p_N,F,u,stuck,validity
+  --events FILE      one JSON object per line: start, stop, prediction, reforecast, fault, end
+  --trajectory FILE  one CSV row per tick: seq,t,y_d,y,v_hat,a_hat,p_P,p_N,F,u,stuck,validity,
+                     then, while stuck, the pressures and force each forecast made at the stop
+                     expects (p_P_linearized,...,F_nonlinear; empty otherwise)
   --set KEY=VALUE    override a config key by its dotted path, e.g. controller.law.position_gain_v_per_m=60
   --check-config     validate, print the effective configuration (u_0 resolved) and exit
   --require-telemetry  exit with an error when LCM cannot start, instead of running without it

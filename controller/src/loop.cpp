@@ -50,7 +50,8 @@ void ControlLoop::start(double t0_s) {
   y_d_at_stop_m_ = y_d_m_;
 }
 
-void ControlLoop::push(const LoopEvent& e) noexcept {
+void ControlLoop::push(LoopEvent e) noexcept {
+  e.tick_seq = seq_;  // the record of this tick, pushed at its end, carries seq_
   if (!out_.events.try_push(e)) ++out_.events_dropped;
 }
 

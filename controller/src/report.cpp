@@ -1,7 +1,9 @@
 #include "pneu/controller/report.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 
 namespace pneu::controller {
 
@@ -12,6 +14,28 @@ std::string num(double v, int precision = 9) {
   if (!std::isfinite(v)) return "null";
   char buf[48];
   std::snprintf(buf, sizeof buf, "%.*g", precision, v);
+  return buf;
+}
+
+}  // namespace
+
+namespace {
+
+// One forecast against what happened, for the summary: the restart time and its error.
+std::string forecast_cell(const StopOutcome& s, const Prediction& p, double t_end_s) {
+  const Verdict v = judge(s, p, t_end_s);
+  char buf[64];
+  if (!p.will_restart)
+    std::snprintf(buf, sizeof buf, "none%s", v.kind == Verdict::Kind::kFalseNegative ? " (MISSED)" : "");
+  else if (v.kind == Verdict::Kind::kTruePositive && s.sticking_s() >= 0.5)
+    std::snprintf(buf, sizeof buf, "%c %.4f s (%.2f %%)%s", p.direction > 0 ? '+' : '-', p.t_restart_s,
+                  v.error_percent, v.direction_ok ? "" : " WRONG DIR");
+  else if (v.kind == Verdict::Kind::kTruePositive)
+    std::snprintf(buf, sizeof buf, "%c %.4f s (%+.1f ms)%s", p.direction > 0 ? '+' : '-', p.t_restart_s,
+                  v.error_s * 1e3, v.direction_ok ? "" : " WRONG DIR");
+  else
+    std::snprintf(buf, sizeof buf, "%c %.4f s%s", p.direction > 0 ? '+' : '-', p.t_restart_s,
+                  v.kind == Verdict::Kind::kFalsePositive ? " (FALSE)" : "");
   return buf;
 }
 
@@ -41,32 +65,108 @@ Verdict judge(const StopOutcome& s, const Prediction& p, double t_end_s) noexcep
   return v;
 }
 
-RunReport::RunReport(const PredictorModel& model, bool linearized, bool nonlinear,
-                     std::ostream* events, std::ostream* trajectory)
-    : model_(model), linearized_(linearized), nonlinear_(nonlinear), events_(events), trajectory_(trajectory) {
-  if (trajectory_) *trajectory_ << "seq,t,y_d,y,v_hat,a_hat,p_P,p_N,F,u,stuck,validity\n";
+RunReport::RunReport(const PredictorModel& model, bool linearized, bool nonlinear, std::ostream* events,
+                     std::ostream* trajectory, double update_period_s)
+    : model_(model),
+      linearized_(linearized),
+      nonlinear_(nonlinear),
+      update_period_s_(update_period_s),
+      events_(events),
+      trajectory_(trajectory) {
+  if (trajectory_)
+    *trajectory_ << "seq,t,y_d,y,v_hat,a_hat,p_P,p_N,F,u,stuck,validity,"
+                    "p_P_linearized,p_N_linearized,F_linearized,p_P_nonlinear,p_N_nonlinear,F_nonlinear\n";
 }
 
 void RunReport::drain(LoopOutputs& out) {
+  // Ticks and events come on two queues. The loop pushes a tick's events before its record, so
+  // the events raised up to a record are in their queue when the record is popped.
   TickRecord r;
   while (out.ticks.try_pop(r)) {
-    if (r.seq != next_seq_) ++sequence_gaps_;
-    next_seq_ = r.seq + 1;
-    ++ticks_seen_;
-    t_end_s_ = r.t_s;
-    if (listener_) listener_->on_tick(r);
-    if (trajectory_) {
-      *trajectory_ << r.seq << ',' << num(r.t_s, 12) << ',' << num(r.y_d_m) << ',' << num(r.y_m, 12) << ','
-                   << num(r.v_hat_m_per_s) << ',' << num(r.a_hat_m_per_s2) << ',' << num(r.p_p_pa) << ','
-                   << num(r.p_n_pa) << ',' << num(r.force_n) << ',' << num(r.u_v) << ','
-                   << (r.stuck ? 1 : 0) << ',' << r.sensor_validity << '\n';
+    for (const LoopEvent* e = out.events.front(); e && e->tick_seq <= r.seq; e = out.events.front()) {
+      const LoopEvent event = *e;
+      LoopEvent popped;
+      (void)out.events.try_pop(popped);
+      on_event(event);
     }
+    on_tick(r);
   }
   LoopEvent e;
   while (out.events.try_pop(e)) on_event(e);
   HealthRecord h;
   while (out.health.try_pop(h))
     if (listener_) listener_->on_health(h);
+}
+
+void RunReport::on_tick(const TickRecord& r) {
+  if (r.seq != next_seq_) ++sequence_gaps_;
+  next_seq_ = r.seq + 1;
+  ++ticks_seen_;
+  t_end_s_ = r.t_s;
+  if (listener_) listener_->on_tick(r);
+
+  // A forecast holds while the carriage stays stuck under the u* it assumed: armed, same set point.
+  constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  ForecastPoint expected[2] = {{kNaN, kNaN, kNaN}, {kNaN, kNaN, kNaN}};
+  if (following_) {
+    StopOutcome& s = stops_.back();
+    if (s.ended || !r.stuck || r.mode != Mode::kArmed || r.y_d_m != s.y_d_m) {
+      following_.reset();
+    } else if (r.t_s >= s.snapshot.t_s) {
+      double* gaps[2] = {&s.largest_gap_linearized_n, &s.largest_gap_nonlinear_n};
+      for (int i = 0; i < 2 && follow_; ++i) {
+        if (!following_->tracks[i]) continue;
+        expected[i] = following_->tracks[i]->at(r.t_s);
+        const double gap = std::abs(r.force_n - expected[i].force_n);
+        if (std::isfinite(gap)) *gaps[i] = std::isnan(*gaps[i]) ? gap : std::max(*gaps[i], gap);
+      }
+      if (update_period_s_ > 0.0 && r.t_s >= following_->next_update_s - 1e-9) {
+        reforecast(s, r, expected);
+        while (following_->next_update_s <= r.t_s + 1e-9) following_->next_update_s += update_period_s_;
+      }
+    }
+  }
+  if (trajectory_) {
+    *trajectory_ << r.seq << ',' << num(r.t_s, 12) << ',' << num(r.y_d_m) << ',' << num(r.y_m, 12) << ','
+                 << num(r.v_hat_m_per_s) << ',' << num(r.a_hat_m_per_s2) << ',' << num(r.p_p_pa) << ','
+                 << num(r.p_n_pa) << ',' << num(r.force_n) << ',' << num(r.u_v) << ',' << (r.stuck ? 1 : 0)
+                 << ',' << r.sensor_validity;
+    for (const ForecastPoint& x : expected) {
+      if (std::isnan(x.force_n)) *trajectory_ << ",,,";
+      else *trajectory_ << ',' << num(x.p_p_pa) << ',' << num(x.p_n_pa) << ',' << num(x.force_n);
+    }
+    *trajectory_ << '\n';
+  }
+}
+
+void RunReport::reforecast(StopOutcome& s, const TickRecord& r, const ForecastPoint (&expected)[2]) {
+  StopSnapshot now = s.snapshot;
+  now.t_s = r.t_s;
+  now.p_p_pa = r.p_p_pa;
+  now.p_n_pa = r.p_n_pa;
+  if (!snapshot_is_finite(now)) return;
+  ++following_->updates;
+  const bool enabled[2] = {linearized_, nonlinear_};
+  for (int i = 0; i < 2; ++i) {
+    if (!enabled[i]) continue;
+    Reforecast f;
+    f.update = following_->updates;
+    f.t_s = r.t_s;
+    f.force_n = r.force_n;
+    f.stop_forecast_force_n = expected[i].force_n;
+    f.prediction = i == 0 ? predict_linearized(model_, now) : predict_nonlinear(model_, now);
+    s.reforecasts.push_back(f);
+    if (listener_) listener_->on_reforecast(s, f);
+    if (!events_) continue;
+    const Prediction& p = f.prediction;
+    *events_ << "{\"event\":\"reforecast\",\"t\":" << num(f.t_s, 12) << ",\"stop\":" << s.index
+             << ",\"t_stop\":" << num(s.t_stop_s, 12) << ",\"update\":" << f.update << ",\"method\":\""
+             << to_string(p.method) << "\",\"will_restart\":" << (p.will_restart ? "true" : "false")
+             << ",\"direction\":" << p.direction << ",\"t_restart\":" << num(p.t_restart_s, 12)
+             << ",\"force\":" << num(f.force_n) << ",\"stop_forecast_force\":" << num(f.stop_forecast_force_n)
+             << ",\"min_margin\":" << num(p.min_margin_n)
+             << ",\"horizon_reached\":" << (p.horizon_reached ? "true" : "false") << "}\n";
+  }
 }
 
 void RunReport::write_prediction(const StopOutcome& s, const Prediction& p) {
@@ -104,6 +204,13 @@ void RunReport::on_event(const LoopEvent& e) {
     if (s.linearized) write_prediction(s, *s.linearized);
     if (s.nonlinear) write_prediction(s, *s.nonlinear);
     stops_.push_back(s);
+    following_.reset();
+    if (forecastable && (linearized_ || nonlinear_)) {
+      following_.emplace();
+      if (linearized_) following_->tracks[0].emplace(PredictionMethod::kLinearized, model_, s.snapshot);
+      if (nonlinear_) following_->tracks[1].emplace(PredictionMethod::kNonlinear, model_, s.snapshot);
+      following_->next_update_s = s.snapshot.t_s + update_period_s_;
+    }
     return;
   }
   if (e.kind == LoopEvent::Kind::kFaultReset || e.kind == LoopEvent::Kind::kResetRefused) {
@@ -113,6 +220,7 @@ void RunReport::on_event(const LoopEvent& e) {
     return;
   }
   if (e.kind == LoopEvent::Kind::kFault) {
+    following_.reset();  // the safe output replaces u*
     faults_.push_back(e);
     if (events_)
       *events_ << "{\"event\":\"fault\",\"t\":" << num(e.t_s, 12) << ",\"y\":" << num(e.y_m, 12)
@@ -126,6 +234,7 @@ void RunReport::on_event(const LoopEvent& e) {
              << ",\"y\":" << num(e.y_m, 12) << ",\"y_d\":" << num(e.y_d_m) << "}\n";
   }
   if (!stops_.empty() && stops_.back().index == e.stop_index && !stops_.back().ended) {
+    following_.reset();
     StopOutcome& s = stops_.back();
     s.ended = true;
     s.restarted = e.restart;
@@ -140,6 +249,31 @@ void RunReport::finish(double t_end_s) {
     if (!s.ended) s.t_end_s = t_end_s_;
   if (events_) *events_ << "{\"event\":\"end\",\"t\":" << num(t_end_s_, 12) << "}\n";
   if (listener_) listener_->on_end(t_end_s_);
+}
+
+void RunReport::print_live_summary(std::FILE* out) const {
+  const auto followed = [](const StopOutcome& s) {
+    return !std::isnan(s.largest_gap_linearized_n) || !std::isnan(s.largest_gap_nonlinear_n);
+  };
+  if (std::none_of(stops_.begin(), stops_.end(), followed)) return;
+  std::fprintf(out, "while stuck: the largest gap between the measured force and each forecast made at the stop, and\n"
+                    "the forecast made again from the pressures half-way through the sticking phase%s:\n",
+               update_period_s_ > 0.0 ? "" : " (off: controller.predictor.update_period_s = 0)");
+  std::fprintf(out, "  %3s %11s %12s %12s %7s  %-24s %-24s\n", "#", "stuck[s]", "gap lin[N]", "gap nl[N]",
+               "updates", "half-way linearized", "half-way nonlinear");
+  for (const auto& s : stops_) {
+    if (!followed(s)) continue;
+    std::string cells[2] = {"-", "-"};
+    std::uint32_t updates = 0;
+    for (const Reforecast& f : s.reforecasts) {
+      updates = std::max(updates, f.update);
+      if (f.t_s > s.t_stop_s + 0.5 * s.sticking_s()) continue;  // the last one made by half-way
+      cells[f.prediction.method == PredictionMethod::kLinearized ? 0 : 1] = forecast_cell(s, f.prediction, t_end_s_);
+    }
+    std::fprintf(out, "  %3llu %11.3f %12.3f %12.3f %7u  %-24s %-24s\n", static_cast<unsigned long long>(s.index),
+                 s.sticking_s(), s.largest_gap_linearized_n, s.largest_gap_nonlinear_n, updates, cells[0].c_str(),
+                 cells[1].c_str());
+  }
 }
 
 void RunReport::print_summary(std::FILE* out, const LoopTiming& timing) const {
@@ -158,27 +292,7 @@ void RunReport::print_summary(std::FILE* out, const LoopTiming& timing) const {
       std::snprintf(happened, sizeof happened, "set point moved at %.4f s", s.t_end_s);
     std::string cells[2];
     const std::optional<Prediction>* ps[2] = {&s.linearized, &s.nonlinear};
-    for (int i = 0; i < 2; ++i) {
-      if (!*ps[i]) {
-        cells[i].assign(1, '-');
-        continue;
-      }
-      const Prediction& p = **ps[i];
-      const Verdict v = judge(s, p, t_end_s_);
-      char buf[64];
-      if (!p.will_restart)
-        std::snprintf(buf, sizeof buf, "none%s", v.kind == Verdict::Kind::kFalseNegative ? " (MISSED)" : "");
-      else if (v.kind == Verdict::Kind::kTruePositive && s.sticking_s() >= 0.5)
-        std::snprintf(buf, sizeof buf, "%c %.4f s (%.2f %%)%s", p.direction > 0 ? '+' : '-', p.t_restart_s,
-                      v.error_percent, v.direction_ok ? "" : " WRONG DIR");
-      else if (v.kind == Verdict::Kind::kTruePositive)
-        std::snprintf(buf, sizeof buf, "%c %.4f s (%+.1f ms)%s", p.direction > 0 ? '+' : '-', p.t_restart_s,
-                      v.error_s * 1e3, v.direction_ok ? "" : " WRONG DIR");
-      else
-        std::snprintf(buf, sizeof buf, "%c %.4f s%s", p.direction > 0 ? '+' : '-', p.t_restart_s,
-                      v.kind == Verdict::Kind::kFalsePositive ? " (FALSE)" : "");
-      cells[i] = buf;
-    }
+    for (int i = 0; i < 2; ++i) cells[i] = *ps[i] ? forecast_cell(s, **ps[i], t_end_s_) : "-";
     const Prediction* any = s.nonlinear ? &*s.nonlinear : (s.linearized ? &*s.linearized : nullptr);
     std::fprintf(out, "  %3llu %9.4f %9.3f %8.2f %8.4f %8.2f  %-34s %-24s %-24s\n",
                  static_cast<unsigned long long>(s.index), s.t_stop_s, s.y_stop_m * 1e3, s.force_n,
@@ -186,6 +300,7 @@ void RunReport::print_summary(std::FILE* out, const LoopTiming& timing) const {
                  cells[1].c_str());
   }
   if (stops_.empty()) std::fprintf(out, "  (none)\n");
+  print_live_summary(out);
   for (const auto& f : faults_)
     std::fprintf(out, "fault at %.4f s (y = %.3f mm): %s: %s\n", f.t_s, f.y_m * 1e3, fault_name(f.fault_cause),
                  fault_text(f.fault_cause));

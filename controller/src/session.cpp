@@ -48,7 +48,7 @@ void assemble(SimulatedRun& run, const config::Config& config, const plant::Valv
   run.loop = std::make_unique<ControlLoop>(config, backend, *run.outputs);
   const auto& p = config.controller.predictor;
   run.report = std::make_unique<RunReport>(predictor_model(config, valve), p.linearized, p.nonlinear,
-                                           events, trajectory);
+                                           events, trajectory, p.update_period_s);
 }
 }  // namespace
 

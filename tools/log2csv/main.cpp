@@ -56,9 +56,9 @@ a pneu_lcm type. The first column is log_utime, when the logger received the mes
 the Unix epoch]; then the message's fields in the order and units of lcmtypes/*.lcm:
   state_t       log_utime,utime,seq,t,y_d,y,v_hat,a_hat,p_p,p_n,force,u,stuck,mode,validity
   event_t       log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,text
-  prediction_t  log_utime,utime,t,stop,t_stop,method,method_name,will_restart,direction,
+  prediction_t  log_utime,utime,t,stop,t_stop,update,method,method_name,will_restart,direction,
                 t_restart,u_star,equilibrium_force,p_p_equilibrium,p_n_equilibrium,tau_p,tau_n,
-                min_margin,horizon_reached
+                min_margin,horizon_reached,force,stop_forecast_force
   health_t      log_utime,utime,t,mode,ticks,overruns,wake_latency_us_{min,median,p99,max},
                 compute_us_{min,median,p99,max},comms_errors,telemetry_dropped,
                 commands_received,commands_accepted,commands_rejected,rejected_malformed,

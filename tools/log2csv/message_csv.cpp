@@ -183,9 +183,9 @@ std::string_view csv_header(MessageType type) {
     case MessageType::kEvent:
       return "log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,text";
     case MessageType::kPrediction:
-      return "log_utime,utime,t,stop,t_stop,method,method_name,will_restart,direction,t_restart,"
+      return "log_utime,utime,t,stop,t_stop,update,method,method_name,will_restart,direction,t_restart,"
              "u_star,equilibrium_force,p_p_equilibrium,p_n_equilibrium,tau_p,tau_n,min_margin,"
-             "horizon_reached";
+             "horizon_reached,force,stop_forecast_force";
     case MessageType::kHealth:
       return "log_utime,utime,t,mode,ticks,overruns,wake_latency_us_min,wake_latency_us_median,"
              "wake_latency_us_p99,wake_latency_us_max,compute_us_min,compute_us_median,"
@@ -273,6 +273,7 @@ RowInfo format_csv_row(std::int64_t log_utime, const void* data, std::int32_t si
           .number(m.t)
           .integer(m.stop)
           .number(m.t_stop)
+          .integer(m.update)
           .integer(m.method)
           .word(method_name(m.method))
           .boolean(m.will_restart)
@@ -286,6 +287,8 @@ RowInfo format_csv_row(std::int64_t log_utime, const void* data, std::int32_t si
           .number(m.tau_n)
           .number(m.min_margin)
           .boolean(m.horizon_reached)
+          .number(m.force)
+          .number(m.stop_forecast_force)
           .end();
       return {MessageType::kPrediction, 0};
     }

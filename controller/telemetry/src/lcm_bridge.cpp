@@ -137,12 +137,14 @@ void LcmBridge::on_event(const LoopEvent& e) {
   publish(event_channel_, m);
 }
 
-void LcmBridge::on_prediction(const controller::StopOutcome& s, const controller::Prediction& p) {
+void LcmBridge::publish_prediction(const controller::StopOutcome& s, const controller::Prediction& p, double t_s,
+                                   std::int32_t update, double force_n, double stop_forecast_force_n) {
   pneu_lcm::prediction_t m;
-  m.utime = utime_of(s.snapshot.t_s);
-  m.t = s.snapshot.t_s;
+  m.utime = utime_of(t_s);
+  m.t = t_s;
   m.stop = static_cast<std::int64_t>(s.index);
   m.t_stop = s.t_stop_s;
+  m.update = update;
   m.method = p.method == controller::PredictionMethod::kLinearized ? pneu_lcm::prediction_t::METHOD_LINEARIZED
                                                                     : pneu_lcm::prediction_t::METHOD_NONLINEAR;
   m.will_restart = p.will_restart;
@@ -156,7 +158,17 @@ void LcmBridge::on_prediction(const controller::StopOutcome& s, const controller
   m.tau_n = p.tau_n_s;
   m.min_margin = p.min_margin_n;
   m.horizon_reached = p.horizon_reached;
+  m.force = force_n;
+  m.stop_forecast_force = stop_forecast_force_n;
   publish(prediction_channel_, m);
+}
+
+void LcmBridge::on_prediction(const controller::StopOutcome& s, const controller::Prediction& p) {
+  publish_prediction(s, p, s.snapshot.t_s, 0, s.force_n, s.force_n);
+}
+
+void LcmBridge::on_reforecast(const controller::StopOutcome& s, const controller::Reforecast& f) {
+  publish_prediction(s, f.prediction, f.t_s, static_cast<std::int32_t>(f.update), f.force_n, f.stop_forecast_force_n);
 }
 
 void LcmBridge::on_health(const controller::HealthRecord& h) {

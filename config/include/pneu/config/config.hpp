@@ -66,6 +66,9 @@ struct PredictorConfig {
   bool nonlinear = true;            ///< controller.predictor.methods holds "nonlinear"
   std::string valve_table;          ///< table from `pneu-plant characterize-valve`; empty: the model
   double horizon_s = 600.0;         ///< the nonlinear method stops looking this long after a stop [s]
+  /// While stuck, the forecasts are made again from the pressures of the moment this often
+  /// (0: only at the stop) [s].
+  double update_period_s = 0.1;
 };
 
 /// One step of the set-point schedule.

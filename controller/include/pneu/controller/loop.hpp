@@ -59,6 +59,7 @@ struct LoopEvent {
   StopSnapshot snapshot;         ///< stop: state at confirmation, u* of Eq. 11
   bool controlled = true;        ///< stop: the law was driving (armed), so u* applies and a forecast makes sense
   std::uint8_t fault_cause = 0;  ///< fault: FaultCause
+  std::uint64_t tick_seq = 0;    ///< the tick that raised it (its TickRecord::seq)
 };
 
 
@@ -131,7 +132,7 @@ class ControlLoop {
   [[nodiscard]] std::uint64_t faults() const noexcept { return faults_; }
 
  private:
-  void push(const LoopEvent& e) noexcept;
+  void push(LoopEvent e) noexcept;
   void apply_commands(double y_m) noexcept;
   void latch_fault(std::uint8_t cause, double t_s, double y_m) noexcept;
 

@@ -1,8 +1,11 @@
 // The non-real-time side of a run: drains the loop's records, runs the restart predictors at each
-// stop, writes the events (JSON lines) and the trajectory, and judges each forecast at the end.
+// stop, follows their forecasts against the measurements while the carriage stays stuck and makes
+// them again from the pressures of the moment, writes the events (JSON lines) and the trajectory,
+// and judges each forecast made at a stop at the end.
 #pragma once
 
 #include <cstdio>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <ostream>
@@ -14,6 +17,16 @@
 #include "pneu/controller/predictor.hpp"
 
 namespace pneu::controller {
+
+/// A forecast made again while the carriage is still stuck, from the pressures of a later tick
+/// (same y*, same u*): the live predictor. Not judged; the one made at the stop is.
+struct Reforecast {
+  std::uint32_t update = 0;       ///< 1, 2, ... within its stop
+  double t_s = 0.0;               ///< the tick it was made from [s]
+  double force_n = 0.0;           ///< F measured at that tick [N]
+  double stop_forecast_force_n = std::numeric_limits<double>::quiet_NaN();  ///< F the same method's forecast made at the stop expected then [N]
+  Prediction prediction;
+};
 
 /// One sticking phase, what was forecast at its start and what happened.
 struct StopOutcome {
@@ -29,6 +42,11 @@ struct StopOutcome {
   bool restarted = false;          ///< ... and the set point had not changed (a true restart)
   double t_end_s = 0.0;            ///< the start's time, or the run's end
   int direction = 0;               ///< of the start
+  /// While the forecast held (stuck, armed, same set point): the largest |F measured - F forecast|
+  /// of each method's forecast made at the stop; NaN when none was followed [N].
+  double largest_gap_linearized_n = std::numeric_limits<double>::quiet_NaN();
+  double largest_gap_nonlinear_n = std::numeric_limits<double>::quiet_NaN();
+  std::vector<Reforecast> reforecasts;  ///< in time order, both methods interleaved
 
   [[nodiscard]] double sticking_s() const noexcept { return t_end_s - t_stop_s; }
 };
@@ -55,21 +73,28 @@ class ReportListener {
   virtual void on_tick(const TickRecord& record) = 0;
   virtual void on_event(const LoopEvent& event) = 0;
   virtual void on_prediction(const StopOutcome& stop, const Prediction& prediction) = 0;
+  virtual void on_reforecast(const StopOutcome& stop, const Reforecast& reforecast) = 0;
   virtual void on_health(const HealthRecord& health) = 0;
   virtual void on_end(double t_end_s) = 0;
 };
 
 class RunReport {
  public:
-  /// `events` (JSON lines) and `trajectory` (CSV) may be null.
+  /// `events` (JSON lines) and `trajectory` (CSV) may be null. While stuck, the forecasts are
+  /// made again every `update_period_s` (0: only at the stop).
   RunReport(const PredictorModel& model, bool linearized, bool nonlinear, std::ostream* events,
-            std::ostream* trajectory);
+            std::ostream* trajectory, double update_period_s = 0.0);
 
+  /// Whether each forecast made at a stop is followed tick by tick against the measured force
+  /// (the trajectory's forecast columns, the gaps of StopOutcome; on by default). The forecasts
+  /// made again every update period do not depend on it.
+  void set_follow_forecasts(bool on) noexcept { follow_ = on; }
   /// Forwards everything drained to `listener` (may be null; must outlive the report).
   void set_listener(ReportListener* listener) noexcept { listener_ = listener; }
 
-  /// Pops everything the loop queued. Not real-time: call from the service thread or between
-  /// simulated ticks.
+  /// Pops everything the loop queued, each event before the record of the tick that raised it,
+  /// so that the result does not depend on how often it is called. Not real-time: call from the
+  /// service thread or between simulated ticks.
   void drain(LoopOutputs& outputs);
   /// Closes the run at `t_end_s`.
   void finish(double t_end_s);
@@ -84,15 +109,28 @@ class RunReport {
   void print_summary(std::FILE* out, const LoopTiming& timing) const;
 
  private:
+  void on_tick(const TickRecord& r);
+  void print_live_summary(std::FILE* out) const;
   void on_event(const LoopEvent& e);
   void write_prediction(const StopOutcome& s, const Prediction& p);
+  void reforecast(StopOutcome& s, const TickRecord& r, const ForecastPoint (&expected)[2]);
+
+  // The forecasts of the open stop, followed while they hold.
+  struct Following {
+    std::optional<ForecastTrack> tracks[2];  // linearized, nonlinear
+    double next_update_s = 0.0;
+    std::uint32_t updates = 0;
+  };
 
   PredictorModel model_;
   bool linearized_, nonlinear_;
+  double update_period_s_;
+  bool follow_ = true;
   std::ostream* events_;
   std::ostream* trajectory_;
   ReportListener* listener_ = nullptr;
   std::vector<StopOutcome> stops_;
+  std::optional<Following> following_;
   std::vector<LoopEvent> faults_;  // the faults latched, for the summary
   double t_end_s_ = 0.0;
   std::uint64_t ticks_seen_ = 0;

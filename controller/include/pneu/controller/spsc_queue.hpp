@@ -38,6 +38,16 @@ class SpscQueue {
     tail_.store(tail + 1, std::memory_order_release);
     return true;
   }
+  /// Consumer side: the oldest element, left in place (valid until it is popped), or null when
+  /// empty.
+  [[nodiscard]] const T* front() noexcept {
+    const std::size_t tail = tail_.load(std::memory_order_relaxed);
+    if (tail == head_cache_) {
+      head_cache_ = head_.load(std::memory_order_acquire);
+      if (tail == head_cache_) return nullptr;
+    }
+    return &slots_[tail & (Capacity - 1)];
+  }
   [[nodiscard]] static constexpr std::size_t capacity() noexcept { return Capacity; }
 
  private:

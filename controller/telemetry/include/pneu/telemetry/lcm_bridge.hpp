@@ -39,6 +39,7 @@ class LcmBridge final : public controller::ReportListener {
   void on_tick(const controller::TickRecord& record) override;
   void on_event(const controller::LoopEvent& event) override;
   void on_prediction(const controller::StopOutcome& stop, const controller::Prediction& prediction) override;
+  void on_reforecast(const controller::StopOutcome& stop, const controller::Reforecast& reforecast) override;
   void on_health(const controller::HealthRecord& health) override;
   void on_end(double t_end_s) override;
 
@@ -51,6 +52,8 @@ class LcmBridge final : public controller::ReportListener {
  private:
   void on_datagram(std::span<const std::uint8_t> bytes, const CommandSocket::Datagram& d);
   void publish_text_event(std::int8_t kind, const std::string& text);
+  void publish_prediction(const controller::StopOutcome& s, const controller::Prediction& p, double t_s,
+                          std::int32_t update, double force_n, double stop_forecast_force_n);
   [[nodiscard]] std::int64_t utime_of(double t_s) const noexcept;
   template <typename T>
   void publish(const std::string& channel, const T& msg);
