@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 #include <sstream>
 #include <string>
@@ -35,11 +36,12 @@ struct LiveRun {
   std::ostringstream events, trajectory;
   controller::SimulatedRun run;
 
-  explicit LiveRun(const std::vector<std::string>& overrides = {}, int drain_every = 1)
+  explicit LiveRun(const std::vector<std::string>& overrides = {}, int drain_every = 1, bool keep = true)
       : config(config::load_string(config::default_config_yaml(), overrides)),
         valve(controller::make_valve_characteristic(config, {})) {
     controller::resolve_offset(config, *valve);
     run = controller::make_simulated_run(config, *valve, &events, &trajectory);
+    run.report->set_keep_reforecasts(keep);
     const double period = config.controller.period_s();
     const auto ticks = static_cast<int>(std::llround(config.controller.duration_s / period)) + 1;
     run.loop->start(0.0);
@@ -63,6 +65,8 @@ struct LiveRun {
     return *best;
   }
 };
+
+double r_period(const LiveRun& r) { return r.config.controller.predictor.update_period_s; }
 
 std::vector<std::string> lines_of(const std::string& text) {
   std::vector<std::string> lines;
@@ -121,6 +125,98 @@ TEST(LivePredictor, TheLinearizedForecastMadeAgainHalfWayIsCloserThanTheOneMadeA
   // From pressures that have travelled half-way, the tangent of Eq. 23 is taken nearer the path
   // still to come (measured 2.91 % at the stop, 0.21 % half-way).
   EXPECT_LT(again.error_percent, 0.5 * at_stop.error_percent);
+}
+
+TEST(LivePredictor, AnEndedStopKeepsOnlyItsHalfWayForecastsUnlessAskedToKeepAll) {
+  const LiveRun kept;
+  const LiveRun daemon({}, 1, false);
+  const StopOutcome& all = kept.longest_restart();
+  const StopOutcome& settled = daemon.longest_restart();
+  EXPECT_TRUE(settled.reforecasts.empty());  // a daemon at rest for days does not grow
+  EXPECT_EQ(settled.updates, all.updates);
+  ASSERT_TRUE(settled.halfway_linearized && settled.halfway_nonlinear);
+  // The half-way ones: the last made by half the sticking time, as the kept history shows.
+  const double half_s = all.t_stop_s + 0.5 * all.sticking_s();
+  for (const auto* h : {&settled.halfway_linearized, &settled.halfway_nonlinear}) {
+    const Reforecast& f = **h;
+    EXPECT_LE(f.t_s, half_s);
+    EXPECT_GT(f.t_s + r_period(kept), half_s);
+    const auto same = std::find_if(all.reforecasts.begin(), all.reforecasts.end(), [&](const Reforecast& g) {
+      return g.update == f.update && g.prediction.method == f.prediction.method;
+    });
+    ASSERT_NE(same, all.reforecasts.end());
+    EXPECT_EQ(same->prediction.t_restart_s, f.prediction.t_restart_s);
+  }
+}
+
+TEST(LivePredictor, ALongStickingPhaseKeepsABoundedEvenlyThinnedHistory) {
+  // Every 2 ms over the 4 s phase: about 2,000 updates, 4,000 forecasts made again.
+  const LiveRun r({"controller.predictor.update_period_s=0.002"});
+  const StopOutcome& s = r.longest_restart();
+  ASSERT_GT(s.updates, 1900u);
+  EXPECT_LE(s.reforecasts.size(), StopOutcome::kMaxReforecastsKept);
+  EXPECT_GE(s.reforecasts.size(), StopOutcome::kMaxReforecastsKept / 2 - 2);
+  // Kept: every stride-th update, both methods, the same stride all along the phase.
+  const std::uint32_t stride = s.reforecasts.front().update;
+  ASSERT_GT(stride, 1u);
+  for (std::size_t i = 0; i < s.reforecasts.size(); ++i)
+    EXPECT_EQ(s.reforecasts[i].update, (i / 2 + 1) * stride) << i;
+}
+
+// 20 mm steps back and forth every 0.5 s from t = 1 s for `seconds`: a stop or more per step.
+std::vector<std::string> back_and_forth(int seconds) {
+  std::string schedule = "controller.setpoints.schedule=[";
+  for (int k = 0; k < 2 * seconds; ++k)
+    schedule += (k ? ", " : "") + std::string("{t_s: ") + std::to_string(1.0 + 0.5 * k) +
+                ", position_m: " + (k % 2 ? "0.190" : "0.170") + "}";
+  return {schedule + "]", "controller.duration_s=" + std::to_string(seconds + 1)};
+}
+
+TEST(RunReport, KeepsTheLastStopsOfALongRunAndCountsTheOthers) {
+  auto overrides = back_and_forth(30);
+  overrides.push_back("controller.predictor.update_period_s=0");
+  const config::Config c = config::load_string(config::default_config_yaml(), overrides);
+  auto valve = controller::make_valve_characteristic(c, {});
+  config::Config resolved = c;
+  controller::resolve_offset(resolved, *valve);
+  auto run = controller::make_simulated_run(resolved, *valve, nullptr, nullptr);
+  run.report->set_max_stops_kept(8);
+  controller::SimulatedClock clock;
+  const std::atomic<bool> never{false};
+  controller::execute(run, resolved, clock, never);
+
+  const auto& stops = run.report->stops();
+  ASSERT_FALSE(stops.empty());
+  const std::uint64_t seen = stops.back().index;
+  ASSERT_GT(seen, 40u);
+  EXPECT_LE(stops.size(), 8u);
+  EXPECT_GE(stops.size(), 6u);
+  EXPECT_EQ(run.report->stops_forgotten() + stops.size(), seen);
+  for (std::size_t i = 0; i < stops.size(); ++i)  // the last ones, in order
+    EXPECT_EQ(stops[i].index, run.report->stops_forgotten() + 1 + i);
+  std::string summary(4096, '\0');
+  FILE* f = fmemopen(summary.data(), summary.size(), "w");
+  run.report->print_summary(f, run.timing);
+  std::fclose(f);
+  EXPECT_NE(summary.find("earlier stops, not kept"), std::string::npos) << summary;
+}
+
+// A stop during which the set point moves without moving the carriage: its forecast assumed the
+// u* of the old set point, so it is neither confirmed nor refuted.
+TEST(RunReport, AForecastWhoseSetPointMovedWhileStuckIsNotJudged) {
+  // During the 4 s sticking phase from 2.0 s, the set point moves by 0.2 mm at 4 s: 16 mV of u.
+  const LiveRun r({"controller.setpoints.schedule=[{t_s: 1.0, position_m: 0.170}, {t_s: 4.0, position_m: 0.1702}]"});
+  const StopOutcome* moved = nullptr;
+  for (const auto& s : r.stops())
+    if (s.t_stop_s < 4.0 && !std::isnan(s.forecast_void_at_s)) moved = &s;
+  ASSERT_NE(moved, nullptr);
+  EXPECT_NEAR(moved->forecast_void_at_s, 4.0, 1e-9);
+  ASSERT_GT(moved->t_end_s, 4.0) << "still stuck when the set point moved";
+  ASSERT_TRUE(moved->linearized && moved->nonlinear);
+  EXPECT_EQ(controller::judge(*moved, *moved->linearized, r.run.report->end_time_s()).kind,
+            controller::Verdict::Kind::kNotJudged);
+  EXPECT_EQ(controller::judge(*moved, *moved->nonlinear, r.run.report->end_time_s()).kind,
+            controller::Verdict::Kind::kNotJudged);
 }
 
 TEST(LivePredictor, ZeroUpdatePeriodMakesForecastsOnlyAtTheStop) {

@@ -48,6 +48,8 @@ double observation_tolerance_s(const StopOutcome& s) noexcept {
 Verdict judge(const StopOutcome& s, const Prediction& p, double t_end_s) noexcept {
   Verdict v;
   if (s.ended && !s.restarted) return v;  // the set point moved: the forecast no longer applies
+  // The forecast stopped holding while still stuck (u* changed) and the carriage had not left yet.
+  if (!std::isnan(s.forecast_void_at_s) && !(s.restarted && s.t_end_s <= s.forecast_void_at_s)) return v;
   const bool predicted = p.will_restart && p.t_restart_s <= t_end_s;
   if (s.restarted) {
     v.kind = predicted ? Verdict::Kind::kTruePositive : Verdict::Kind::kFalseNegative;
@@ -106,6 +108,9 @@ void RunReport::on_tick(const TickRecord& r) {
   if (listener_) listener_->on_tick(r);
 
   // A forecast holds while the carriage stays stuck under the u* it assumed: armed, same set point.
+  if (!stops_.empty() && !stops_.back().ended && std::isnan(stops_.back().forecast_void_at_s) &&
+      (r.mode != Mode::kArmed || r.y_d_m != stops_.back().y_d_m))
+    stops_.back().forecast_void_at_s = r.t_s;
   constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
   ForecastPoint expected[2] = {{kNaN, kNaN, kNaN}, {kNaN, kNaN, kNaN}};
   if (following_) {
@@ -145,17 +150,24 @@ void RunReport::reforecast(StopOutcome& s, const TickRecord& r, const ForecastPo
   now.p_p_pa = r.p_p_pa;
   now.p_n_pa = r.p_n_pa;
   if (!snapshot_is_finite(now)) return;
-  ++following_->updates;
+  ++s.updates;
+  // Bounded history: past the cap, every other update kept is let go, evenly over the phase.
+  if (s.reforecasts.size() + 2 > StopOutcome::kMaxReforecastsKept) {
+    following_->stride *= 2;
+    const std::uint32_t stride = following_->stride;
+    std::erase_if(s.reforecasts, [stride](const Reforecast& f) { return f.update % stride != 0; });
+  }
+  const bool keep = s.updates % following_->stride == 0;
   const bool enabled[2] = {linearized_, nonlinear_};
   for (int i = 0; i < 2; ++i) {
     if (!enabled[i]) continue;
     Reforecast f;
-    f.update = following_->updates;
+    f.update = s.updates;
     f.t_s = r.t_s;
     f.force_n = r.force_n;
     f.stop_forecast_force_n = expected[i].force_n;
     f.prediction = i == 0 ? predict_linearized(model_, now) : predict_nonlinear(model_, now);
-    s.reforecasts.push_back(f);
+    if (keep) s.reforecasts.push_back(f);
     if (listener_) listener_->on_reforecast(s, f);
     if (!events_) continue;
     const Prediction& p = f.prediction;
@@ -182,6 +194,18 @@ void RunReport::write_prediction(const StopOutcome& s, const Prediction& p) {
            << ",\"horizon_reached\":" << (p.horizon_reached ? "true" : "false") << "}\n";
 }
 
+// The stop has ended (or the run has): its half-way forecasts are settled, and its history goes
+// unless it is kept.
+void RunReport::settle(StopOutcome& s) const {
+  s.halfway_linearized.reset();
+  s.halfway_nonlinear.reset();
+  for (const Reforecast& f : s.reforecasts) {
+    if (f.t_s > s.t_stop_s + 0.5 * s.sticking_s()) break;
+    (f.prediction.method == PredictionMethod::kLinearized ? s.halfway_linearized : s.halfway_nonlinear) = f;
+  }
+  if (!keep_reforecasts_) std::vector<Reforecast>().swap(s.reforecasts);
+}
+
 void RunReport::on_event(const LoopEvent& e) {
   if (listener_) listener_->on_event(e);
   if (e.kind == LoopEvent::Kind::kStop) {
@@ -203,8 +227,13 @@ void RunReport::on_event(const LoopEvent& e) {
     if (nonlinear_ && forecastable) s.nonlinear = predict_nonlinear(model_, s.snapshot);
     if (s.linearized) write_prediction(s, *s.linearized);
     if (s.nonlinear) write_prediction(s, *s.nonlinear);
-    stops_.push_back(s);
     following_.reset();
+    if (stops_.size() >= max_stops_kept_) {  // a daemon's summary lists the last ones
+      const std::size_t n = stops_.size() - max_stops_kept_ + max_stops_kept_ / 4;
+      stops_.erase(stops_.begin(), stops_.begin() + static_cast<std::ptrdiff_t>(n));
+      stops_forgotten_ += n;
+    }
+    stops_.push_back(s);
     if (forecastable && (linearized_ || nonlinear_)) {
       following_.emplace();
       if (linearized_) following_->tracks[0].emplace(PredictionMethod::kLinearized, model_, s.snapshot);
@@ -240,13 +269,17 @@ void RunReport::on_event(const LoopEvent& e) {
     s.restarted = e.restart;
     s.t_end_s = e.t_s;
     s.direction = e.direction;
+    settle(s);
   }
 }
 
 void RunReport::finish(double t_end_s) {
   t_end_s_ = std::max(t_end_s_, t_end_s);
   for (auto& s : stops_)
-    if (!s.ended) s.t_end_s = t_end_s_;
+    if (!s.ended) {
+      s.t_end_s = t_end_s_;
+      settle(s);
+    }
   if (events_) *events_ << "{\"event\":\"end\",\"t\":" << num(t_end_s_, 12) << "}\n";
   if (listener_) listener_->on_end(t_end_s_);
 }
@@ -264,14 +297,11 @@ void RunReport::print_live_summary(std::FILE* out) const {
   for (const auto& s : stops_) {
     if (!followed(s)) continue;
     std::string cells[2] = {"-", "-"};
-    std::uint32_t updates = 0;
-    for (const Reforecast& f : s.reforecasts) {
-      updates = std::max(updates, f.update);
-      if (f.t_s > s.t_stop_s + 0.5 * s.sticking_s()) continue;  // the last one made by half-way
-      cells[f.prediction.method == PredictionMethod::kLinearized ? 0 : 1] = forecast_cell(s, f.prediction, t_end_s_);
-    }
+    const std::optional<Reforecast>* halfway[2] = {&s.halfway_linearized, &s.halfway_nonlinear};
+    for (int i = 0; i < 2; ++i)
+      if (*halfway[i]) cells[i] = forecast_cell(s, (*halfway[i])->prediction, t_end_s_);
     std::fprintf(out, "  %3llu %11.3f %12.3f %12.3f %7u  %-24s %-24s\n", static_cast<unsigned long long>(s.index),
-                 s.sticking_s(), s.largest_gap_linearized_n, s.largest_gap_nonlinear_n, updates, cells[0].c_str(),
+                 s.sticking_s(), s.largest_gap_linearized_n, s.largest_gap_nonlinear_n, s.updates, cells[0].c_str(),
                  cells[1].c_str());
   }
 }
@@ -283,7 +313,9 @@ void RunReport::print_summary(std::FILE* out, const LoopTiming& timing) const {
                "u*[V]", "F_e[N]", "what happened", "linearized", "nonlinear");
   for (const auto& s : stops_) {
     char happened[64];
-    if (!s.ended)
+    if (!s.ended && !std::isnan(s.forecast_void_at_s))
+      std::snprintf(happened, sizeof happened, "stuck; u* changed at %.4f s", s.forecast_void_at_s);
+    else if (!s.ended)
       std::snprintf(happened, sizeof happened, "stuck to the end (%.3f s)", s.sticking_s());
     else if (s.restarted)
       std::snprintf(happened, sizeof happened, "restart %c at %.4f s (%.3f s)", s.direction > 0 ? '+' : '-',
@@ -300,6 +332,8 @@ void RunReport::print_summary(std::FILE* out, const LoopTiming& timing) const {
                  cells[1].c_str());
   }
   if (stops_.empty()) std::fprintf(out, "  (none)\n");
+  if (stops_forgotten_ > 0)
+    std::fprintf(out, "  (and %llu earlier stops, not kept)\n", static_cast<unsigned long long>(stops_forgotten_));
   print_live_summary(out);
   for (const auto& f : faults_)
     std::fprintf(out, "fault at %.4f s (y = %.3f mm): %s: %s\n", f.t_s, f.y_m * 1e3, fault_name(f.fault_cause),

@@ -228,6 +228,7 @@ int run(int argc, char** argv) {
         controller::resolve_offset(cfg, *valve);
         auto sim = controller::make_simulated_run(cfg, *valve, nullptr, nullptr);
         sim.report->set_follow_forecasts(false);  // nobody sees the tick-by-tick comparison here
+        sim.report->set_keep_reforecasts(true);   // judged below against the plant's breakaways
         controller::SimulatedClock clock;
         std::atomic<bool> never{false};
         controller::execute(sim, cfg, clock, never);

@@ -4,6 +4,7 @@
 // and judges each forecast made at a stop at the end.
 #pragma once
 
+#include <algorithm>
 #include <cstdio>
 #include <limits>
 #include <memory>
@@ -42,11 +43,22 @@ struct StopOutcome {
   bool restarted = false;          ///< ... and the set point had not changed (a true restart)
   double t_end_s = 0.0;            ///< the start's time, or the run's end
   int direction = 0;               ///< of the start
+  /// When the forecast stopped holding while the carriage was still stuck: the set point moved,
+  /// or the loop was disarmed or faulted (u* no longer held); NaN if it held to the end [s].
+  double forecast_void_at_s = std::numeric_limits<double>::quiet_NaN();
   /// While the forecast held (stuck, armed, same set point): the largest |F measured - F forecast|
   /// of each method's forecast made at the stop; NaN when none was followed [N].
   double largest_gap_linearized_n = std::numeric_limits<double>::quiet_NaN();
   double largest_gap_nonlinear_n = std::numeric_limits<double>::quiet_NaN();
-  std::vector<Reforecast> reforecasts;  ///< in time order, both methods interleaved
+  std::uint32_t updates = 0;            ///< times the forecasts were made again while stuck
+  /// Each method's last forecast made again before half the sticking time, settled when the stop
+  /// ends (or the run does).
+  std::optional<Reforecast> halfway_linearized, halfway_nonlinear;
+  /// The forecasts made again, in time order, both methods interleaved: while the stop is open,
+  /// and after it only when the report keeps them (RunReport::set_keep_reforecasts). At most
+  /// kMaxReforecastsKept: a longer sticking phase keeps every 2nd, 4th, ... update.
+  std::vector<Reforecast> reforecasts;
+  static constexpr std::size_t kMaxReforecastsKept = 512;
 
   [[nodiscard]] double sticking_s() const noexcept { return t_end_s - t_stop_s; }
 };
@@ -62,8 +74,9 @@ struct Verdict {
 /// How far before the end of a run a forecast restart must lie to be judged: max(10 ms, 1 % of the
 /// sticking time), the acceptance tolerance.
 [[nodiscard]] double observation_tolerance_s(const StopOutcome& stop) noexcept;
-/// Stops ended by a set-point change, and restart forecasts within observation_tolerance_s() of
-/// the end of the run, are not judged.
+/// Stops ended by a set-point change, stops whose forecast stopped holding before the carriage
+/// left (forecast_void_at_s), and restart forecasts within observation_tolerance_s() of the end
+/// of the run, are not judged.
 [[nodiscard]] Verdict judge(const StopOutcome& stop, const Prediction& prediction, double t_end_s) noexcept;
 
 /// Receives what the report drains, in order, on the non-real-time side (LCM telemetry).
@@ -89,6 +102,9 @@ class RunReport {
   /// (the trajectory's forecast columns, the gaps of StopOutcome; on by default). The forecasts
   /// made again every update period do not depend on it.
   void set_follow_forecasts(bool on) noexcept { follow_ = on; }
+  /// Whether each stop keeps its forecasts made again after it ended (tests, the sweep); else
+  /// only its half-way ones, so that a daemon's memory does not grow with the time spent at rest.
+  void set_keep_reforecasts(bool on) noexcept { keep_reforecasts_ = on; }
   /// Forwards everything drained to `listener` (may be null; must outlive the report).
   void set_listener(ReportListener* listener) noexcept { listener_ = listener; }
 
@@ -99,7 +115,11 @@ class RunReport {
   /// Closes the run at `t_end_s`.
   void finish(double t_end_s);
 
+  /// The stops of the run, the last max_stops_kept of them (kMaxStopsKept unless set; at least 4).
   [[nodiscard]] const std::vector<StopOutcome>& stops() const noexcept { return stops_; }
+  [[nodiscard]] std::uint64_t stops_forgotten() const noexcept { return stops_forgotten_; }
+  static constexpr std::size_t kMaxStopsKept = 4096;
+  void set_max_stops_kept(std::size_t n) noexcept { max_stops_kept_ = std::max<std::size_t>(n, 4); }
   [[nodiscard]] double end_time_s() const noexcept { return t_end_s_; }
   /// The faults latched during the run (kind kFault events), in order.
   [[nodiscard]] const std::vector<LoopEvent>& faults() const noexcept { return faults_; }
@@ -114,18 +134,22 @@ class RunReport {
   void on_event(const LoopEvent& e);
   void write_prediction(const StopOutcome& s, const Prediction& p);
   void reforecast(StopOutcome& s, const TickRecord& r, const ForecastPoint (&expected)[2]);
+  void settle(StopOutcome& s) const;
 
   // The forecasts of the open stop, followed while they hold.
   struct Following {
     std::optional<ForecastTrack> tracks[2];  // linearized, nonlinear
     double next_update_s = 0.0;
-    std::uint32_t updates = 0;
+    std::uint32_t stride = 1;  // updates kept: every stride-th (thinned beyond kMaxReforecastsKept)
   };
 
   PredictorModel model_;
   bool linearized_, nonlinear_;
   double update_period_s_;
   bool follow_ = true;
+  bool keep_reforecasts_ = false;
+  std::uint64_t stops_forgotten_ = 0;
+  std::size_t max_stops_kept_ = kMaxStopsKept;
   std::ostream* events_;
   std::ostream* trajectory_;
   ReportListener* listener_ = nullptr;
