@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
-# The paper's two figures (tools/plots/pneu_plots.py) rendered from a paper-scenario run: from
+# The paper's figures (tools/plots/pneu_plots.py) rendered from a paper-scenario run: from
 # pneud's own output and from the same run laid out as pneu-log2csv writes an LCM log. The files
 # must exist, be real PNG/SVG of a sensible size, carry what the figures are about (areas, curve,
-# one stop marker per stop), and bad input must be refused with exit code 2.
+# one stop marker per stop), and bad input must be refused with exit code 2. The third figure
+# (Fig. 13: a sticking phase against its forecasts) needs the trajectory's forecast columns: it is
+# drawn from pneud's output, skipped with a note from the LCM CSVs and from an older trajectory.
 # Usage: test_plots.sh BUILD_BIN_DIR SOURCE_DIR   (exit 77: skipped, saying why)
 set -euo pipefail
 bin=$1
@@ -26,20 +28,24 @@ trap 'rm -rf "$tmp"' EXIT
 stops=$(grep -c '"event":"stop"' "$tmp/events.jsonl")
 [ "$stops" -ge 2 ] || fail "the paper run has $stops stops"
 
+check_figure() {  # DIR STEM: STEM.png and STEM.svg, real and of a sensible size
+  local png="$1/$2.png" svg="$1/$2.svg" size w h
+  [ -s "$png" ] || fail "$png missing"
+  [ -s "$svg" ] || fail "$svg missing"
+  [ "$(head -c 8 "$png" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ] || fail "$png is not a PNG"
+  size=$(stat -c %s "$png")
+  [ "$size" -gt 20000 ] || fail "$png is only $size bytes"
+  # IHDR: width and height, big-endian, at bytes 16..23.
+  read -r w h < <(od -An -tu1 -j16 -N8 "$png" | awk '{print $1*16777216+$2*65536+$3*256+$4, $5*16777216+$6*65536+$7*256+$8}')
+  [ "$w" -ge 800 ] && [ "$w" -le 3000 ] && [ "$h" -ge 600 ] && [ "$h" -le 3000 ] || fail "$png is ${w}x${h}"
+  grep -q "<svg" "$svg" || fail "$svg has no <svg>"
+  ! grep -q "<dc:date>" "$svg" || fail "$svg carries a date (not reproducible)"
+}
+
 check_figures() {  # DIR NAME
-  local dir=$1 name=$2 f png svg size w h
+  local dir=$1 name=$2 f
   for f in "${name}_time" "${name}_plane"; do
-    png="$dir/$f.png"; svg="$dir/$f.svg"
-    [ -s "$png" ] || fail "$png missing"
-    [ -s "$svg" ] || fail "$svg missing"
-    [ "$(head -c 8 "$png" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ] || fail "$png is not a PNG"
-    size=$(stat -c %s "$png")
-    [ "$size" -gt 20000 ] || fail "$png is only $size bytes"
-    # IHDR: width and height, big-endian, at bytes 16..23.
-    read -r w h < <(od -An -tu1 -j16 -N8 "$png" | awk '{print $1*16777216+$2*65536+$3*256+$4, $5*16777216+$6*65536+$7*256+$8}')
-    [ "$w" -ge 800 ] && [ "$w" -le 3000 ] && [ "$h" -ge 600 ] && [ "$h" -le 3000 ] || fail "$png is ${w}x${h}"
-    grep -q "<svg" "$svg" || fail "$svg has no <svg>"
-    ! grep -q "<dc:date>" "$svg" || fail "$svg carries a date (not reproducible)"
+    check_figure "$dir" "$f"
   done
   grep -q "no-restarting area" "$dir/${name}_plane.svg" || fail "the plane figure lacks the no-restarting area"
   grep -q "stop area" "$dir/${name}_plane.svg" || fail "the plane figure lacks the stop area"
@@ -58,10 +64,39 @@ check_figures() {  # DIR NAME
   --out-dir "$tmp/out" --name paper || fail "pneu_plots.py failed on pneud's output"
 check_figures "$tmp/out" paper
 
+check_forecast_figure() {  # DIR NAME: the Fig. 13 analogue, with its curves and restarts named
+  local svg="$1/$2_forecast.svg" text
+  check_figure "$1" "$2_forecast"
+  for text in "measured" "linearized forecast (Eq. 24/17)" "nonlinear forecast (Eq. 19)" \
+              "forecast restart, linearized" "forecast restart, nonlinear" "actual restart" \
+              "Brun et al. 2005, Fig. 13"; do
+    grep -qF "$text" "$svg" || fail "the forecast figure $svg lacks '$text'"
+  done
+}
+check_forecast_figure "$tmp/out" paper
+
 # Reproducible SVG: a second rendering is byte-identical.
 "$py" "$tool" --trajectory "$tmp/traj.csv" --events "$tmp/events.jsonl" --config "$tmp/config.yaml" \
   --pneu-plant "$bin/pneu-plant" --out-dir "$tmp/again" --name paper > /dev/null
 cmp -s "$tmp/out/paper_plane.svg" "$tmp/again/paper_plane.svg" || fail "two renderings of the plane SVG differ"
+cmp -s "$tmp/out/paper_forecast.svg" "$tmp/again/paper_forecast.svg" || fail "two renderings of the forecast SVG differ"
+
+# --time-range slices the forecast columns with the rest: the 4 s phase and its restart are kept.
+"$bin/pneu-plant" null-flow --config "$tmp/config.yaml" --out "$tmp/null_flow.csv"
+"$py" "$tool" --trajectory "$tmp/traj.csv" --events "$tmp/events.jsonl" --config "$tmp/config.yaml" \
+  --null-flow "$tmp/null_flow.csv" --time-range 1.9 6.3 --out-dir "$tmp/range" --name range > /dev/null \
+  || fail "pneu_plots.py failed with --time-range"
+check_forecast_figure "$tmp/range" range
+
+# An older pneud's trajectory (no forecast columns): the two figures, a note, no forecast figure.
+cut -d, -f1-12 "$tmp/traj.csv" > "$tmp/old.csv"
+"$py" "$tool" --trajectory "$tmp/old.csv" --events "$tmp/events.jsonl" --config "$tmp/config.yaml" \
+  --null-flow "$tmp/null_flow.csv" --out-dir "$tmp/old" --name old > /dev/null 2> "$tmp/old.err" \
+  || fail "pneu_plots.py failed on a trajectory without forecast columns: $(cat "$tmp/old.err")"
+check_figures "$tmp/old" old
+[ ! -e "$tmp/old/old_forecast.png" ] && [ ! -e "$tmp/old/old_forecast.svg" ] \
+  || fail "a forecast figure was drawn from a trajectory without forecast columns"
+grep -q "no forecast figure" "$tmp/old.err" || fail "no note on skipping the forecast figure: $(cat "$tmp/old.err")"
 
 # 2. The same run as pneu-log2csv lays out an LCM log (column sets of lcmtypes/*.lcm), with a
 #    null-flow curve given as a file.
@@ -81,9 +116,9 @@ ev = [json.loads(l) for l in open(f"{tmp}/events.jsonl")]
 with open(f"{d}/RUN1_EVENT.csv", "w", newline="") as o, open(f"{d}/RUN1_PREDICTION.csv", "w", newline="") as p:
     we, wp = csv.writer(o), csv.writer(p)
     we.writerow("log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,text".split(","))
-    wp.writerow(("log_utime,utime,t,stop,t_stop,method,method_name,will_restart,direction,t_restart,"
-                 "u_star,equilibrium_force,p_p_equilibrium,p_n_equilibrium,tau_p,tau_n,min_margin,"
-                 "horizon_reached").split(","))
+    wp.writerow(("log_utime,utime,t,stop,t_stop,update,method,method_name,will_restart,direction,"
+                 "t_restart,u_star,equilibrium_force,p_p_equilibrium,p_n_equilibrium,tau_p,tau_n,"
+                 "min_margin,horizon_reached,force,stop_forecast_force").split(","))
     for e in ev:
         us = 1_700_000_000_000_000 + round(e["t"] * 1e6)
         k = e["event"]
@@ -95,18 +130,29 @@ with open(f"{d}/RUN1_EVENT.csv", "w", newline="") as o, open(f"{d}/RUN1_PREDICTI
             we.writerow([us, us, 3, "stop", e["t"], e["stop"], e["y"], e["force"], e["y_d"], 0, ""])
         elif k == "end":
             we.writerow([us, us, 7, "end", e["t"], 0, "", "", "", 0, ""])
-        elif k == "prediction":
+        elif k in ("prediction", "reforecast"):  # the stop's forecast is update 0
             m = e["method"]
-            wp.writerow([us, us, e["t"], e["stop"], e["t_stop"], 1 if m == "linearized" else 2, m,
-                         int(e["will_restart"]), e["direction"],
-                         "" if e["t_restart"] is None else e["t_restart"], e["u_star"],
-                         e["equilibrium_force"], "", "", e["tau_p"], e["tau_n"], e["min_margin"],
-                         int(e["horizon_reached"])])
+            wp.writerow([us, us, e["t"], e["stop"], e["t_stop"], e.get("update", 0),
+                         1 if m == "linearized" else 2, m, int(e["will_restart"]), e["direction"],
+                         "" if e["t_restart"] is None else e["t_restart"], e.get("u_star", ""),
+                         e.get("equilibrium_force", ""), "", "", e.get("tau_p", ""),
+                         e.get("tau_n", ""), e["min_margin"], int(e["horizon_reached"]),
+                         e.get("force", ""), e.get("stop_forecast_force", "")])
 EOF
-"$bin/pneu-plant" null-flow --config "$tmp/config.yaml" --out "$tmp/null_flow.csv"
 "$py" "$tool" --log-csv "$tmp/log" --prefix RUN1_ --config "$tmp/config.yaml" \
-  --null-flow "$tmp/null_flow.csv" --out-dir "$tmp/out_lcm" --name lcm || fail "pneu_plots.py failed on the LCM CSVs"
+  --null-flow "$tmp/null_flow.csv" --out-dir "$tmp/out_lcm" --name lcm > "$tmp/lcm.out" 2> "$tmp/lcm.err" \
+  || fail "pneu_plots.py failed on the LCM CSVs: $(cat "$tmp/lcm.err")"
 check_figures "$tmp/out_lcm" lcm
+# Only the stops' forecasts (update 0) are the forecasts; the re-forecasts are not.
+predictions=$(grep -c '"event":"prediction"' "$tmp/events.jsonl")
+reforecasts=$(grep -c '"event":"reforecast"' "$tmp/events.jsonl")
+[ "$reforecasts" -gt 0 ] || fail "the paper run has no re-forecasts"
+grep -q " $predictions forecasts, $reforecasts re-forecasts;" "$tmp/lcm.out" \
+  || fail "the LCM forecasts are not $predictions forecasts and $reforecasts re-forecasts: $(cat "$tmp/lcm.out")"
+# The STATE channel carries no forecast columns: no forecast figure, a note saying why.
+[ ! -e "$tmp/out_lcm/lcm_forecast.png" ] && [ ! -e "$tmp/out_lcm/lcm_forecast.svg" ] \
+  || fail "a forecast figure was drawn from the LCM CSVs"
+grep -q "no forecast figure: the LCM STATE channel" "$tmp/lcm.err" || fail "no note on the forecast figure: $(cat "$tmp/lcm.err")"
 
 # 3. Bad input is refused with exit code 2 and a message naming the problem.
 expect_refusal() {  # WHAT PATTERN ARGS...
@@ -129,4 +175,5 @@ expect_refusal "both inputs" "not both" --log-csv "$tmp/log" --trajectory "$tmp/
   --events "$tmp/events.jsonl"
 [ ! -e "$tmp/bad" ] || [ -z "$(ls -A "$tmp/bad")" ] || fail "a refused run left files in its --out-dir"
 
-echo "plots: $stops stops; paper_time and paper_plane (PNG and SVG) from pneud's output and from LCM CSVs; bad input refused"
+echo "plots: $stops stops; paper_time, paper_plane and paper_forecast (PNG and SVG) from pneud's output," \
+     "the first two from LCM CSVs and from a trajectory without forecast columns; bad input refused"

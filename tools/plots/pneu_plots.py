@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""pneu_plots: the figures of a pneud run, after Brun et al. 2005 (Fig. 8 and Fig. 7/10/11).
+"""pneu_plots: the figures of a pneud run, after Brun et al. 2005 (Fig. 8, 7/10/11 and 13).
 
 Reads either pneud's own output (--trajectory T.csv --events E.jsonl) or the CSV files that
 pneu-log2csv converts from an LCM log (--log-csv DIR), and writes
@@ -10,7 +10,15 @@ pneu-log2csv converts from an LCM log (--log-csv DIR), and writes
   OUT/<name>_plane.png/.svg  the pressure-force plane: x = S_P p_P, y = S_N p_N + S_r p_E [N],
                              with the stop area (Eq. 12), the no-restarting area (Eq. 13), the
                              null-flow curve and the run's trajectory, plus a zoom on the longest
-                             sticking phase.
+                             sticking phase;
+  OUT/<name>_forecast.png/.svg  the longest sticking phase with forecast columns (cf. Fig. 13):
+                             measured chamber pressures and pressure force against what the two
+                             forecasts made at the stop expected (linearized, Eq. 24/17; nonlinear,
+                             Eq. 19 integrated), their difference, the stiction bounds, the forecast
+                             and actual restarts, and the restart time forecast again while stuck
+                             (reforecast events). Only from pneud's output with the forecast
+                             columns: older trajectories and --log-csv input (the LCM STATE channel
+                             carries no forecast) skip it with a note on stderr.
 
 Geometry and friction come from the YAML configuration (--config, default config/sim.yaml of
 the source tree); the null-flow curve from --null-flow CURVE.csv or, without it, from running
@@ -70,8 +78,9 @@ def _parse_bool(text, path, line, column):
     raise InputError(f"{path}:{line}: column '{column}': not a boolean: '{text}'")
 
 
-def read_csv_columns(path, numeric, text=(), what="CSV"):
-    """Returns {column: list} for the numeric columns (floats) and text columns (str)."""
+def read_csv_columns(path, numeric, text=(), what="CSV", optional=()):
+    """Returns {column: list} for the numeric columns (floats) and text columns (str), and for
+    the optional numeric columns the file has (absent from the result otherwise)."""
     _require_file(path, what)
     with open(path, newline="", encoding="utf-8") as f:
         # comment lines may precede the header (pneu-plant's tables); quoted cells after it may
@@ -86,7 +95,8 @@ def read_csv_columns(path, numeric, text=(), what="CSV"):
         if missing:
             raise InputError(f"{path}: missing column(s) {', '.join(missing)} "
                              f"(header has: {', '.join(header)})")
-        index = {c: header.index(c) for c in list(numeric) + list(text)}
+        numeric = list(numeric) + [c for c in optional if c in header]
+        index = {c: header.index(c) for c in numeric + list(text)}
         out = {c: [] for c in index}
         for n, row in enumerate(reader, start=2):
             if not row:
@@ -109,18 +119,44 @@ class Run:
         self.starts = []       # dicts: index, t, y, restart, direction
         self.predictions = []  # dicts: stop, t, t_stop, method, will_restart, direction,
         #                               t_restart (None), u_star, p_p_e/p_n_e (None if unknown)
+        self.reforecasts = []  # the same made again while stuck, plus update (1, 2, ...)
+        self.forecast = None   # {method: {"p_p", "p_n", "force": per-tick arrays, NaN where
+        #                        no forecast is followed}}, None when the input has no such columns
         self.source = ""
+
+
+# The trajectory's forecast columns: what the forecast made at the stop expects at each tick.
+FORECAST_COLUMNS = {"linearized": ("p_P_linearized", "p_N_linearized", "F_linearized"),
+                    "nonlinear": ("p_P_nonlinear", "p_N_nonlinear", "F_nonlinear")}
+
+
+def _prediction(ev, update=0):
+    """A prediction or reforecast record from an event (pneud) or a PREDICTION row (LCM)."""
+    return {"stop": ev.get("stop", 0), "t": ev.get("t", ev["t_stop"]), "t_stop": ev["t_stop"],
+            "update": update, "method": ev["method"], "will_restart": bool(ev["will_restart"]),
+            "direction": ev.get("direction", 0), "t_restart": ev["t_restart"],
+            "u_star": ev.get("u_star"), "p_p_e": ev.get("p_p_e"), "p_n_e": ev.get("p_n_e"),
+            "tau_p": ev.get("tau_p"), "tau_n": ev.get("tau_n"), "force": ev.get("force"),
+            "stop_forecast_force": ev.get("stop_forecast_force")}
 
 
 def load_pneud_output(trajectory_path, events_path):
     import numpy as np
 
+    forecast_cols = [c for cs in FORECAST_COLUMNS.values() for c in cs]
     cols = read_csv_columns(trajectory_path, ["t", "y_d", "y", "p_P", "p_N", "F", "u", "stuck"],
-                            what="--trajectory")
+                            what="--trajectory", optional=forecast_cols)
     run = Run()
     run.t, run.y_d, run.y = (np.array(cols[c]) for c in ("t", "y_d", "y"))
     run.p_p, run.p_n, run.force, run.u = (np.array(cols[c]) for c in ("p_P", "p_N", "F", "u"))
     run.stuck = np.array(cols["stuck"]) > 0.5
+    missing = [c for c in forecast_cols if c not in cols]
+    if len(missing) < len(forecast_cols):  # older pneud writes none of them
+        if missing:
+            raise InputError(f"{trajectory_path}: missing column(s) {', '.join(missing)} "
+                             f"(the forecast columns come all together)")
+        run.forecast = {m: {k: np.array(cols[c]) for k, c in zip(("p_p", "p_n", "force"), cs)}
+                        for m, cs in FORECAST_COLUMNS.items()}
     _require_file(events_path, "--events")
     with open(events_path, encoding="utf-8") as f:
         for n, line in enumerate(f, start=1):
@@ -146,15 +182,12 @@ def load_pneud_output(trajectory_path, events_path):
                 run.starts.append({"index": ev.get("stop", 0), "t": ev["t"], "y": ev["y"],
                                    "restart": bool(ev["restart"]),
                                    "direction": ev.get("direction", 0)})
-            elif kind == "prediction":
+            elif kind == "prediction":  # the forecast made at the stop
                 need("t_stop", "method", "will_restart", "t_restart")
-                run.predictions.append({
-                    "stop": ev.get("stop", 0), "t": ev.get("t", ev["t_stop"]),
-                    "t_stop": ev["t_stop"], "method": ev["method"],
-                    "will_restart": bool(ev["will_restart"]),
-                    "direction": ev.get("direction", 0), "t_restart": ev["t_restart"],
-                    "u_star": ev.get("u_star"), "p_p_e": None, "p_n_e": None,
-                    "tau_p": ev.get("tau_p"), "tau_n": ev.get("tau_n")})
+                run.predictions.append(_prediction(ev))
+            elif kind == "reforecast":  # the same made again while stuck (live predictor)
+                need("t", "t_stop", "update", "method", "will_restart", "t_restart")
+                run.reforecasts.append(_prediction(ev, update=ev["update"]))
     run.source = os.path.basename(trajectory_path)
     return run
 
@@ -190,10 +223,18 @@ def load_log_csv(directory, prefix):
                                             "u_star", "p_p_equilibrium", "p_n_equilibrium",
                                             "tau_p", "tau_n"],
                                 ["method_name", "will_restart"],
-                                what=f"--log-csv ({prefix}PREDICTION.csv)")
+                                what=f"--log-csv ({prefix}PREDICTION.csv)",
+                                optional=["update", "force", "stop_forecast_force"])
+        rows = len(pred["method_name"])
+        forces = pred.get("force", [None] * rows)
+        stop_forecast_forces = pred.get("stop_forecast_force", [None] * rows)
         for i, method in enumerate(pred["method_name"]):
             t_restart = pred["t_restart"][i]
-            run.predictions.append({
+            # update 0 (or no such column: older logs) is the forecast made at the stop; the
+            # others are the live predictor's re-forecasts
+            update = pred["update"][i] if "update" in pred else 0.0
+            update = 0 if math.isnan(update) else int(update)
+            record = _prediction({
                 "stop": int(pred["stop"][i]), "t": pred["t"][i], "t_stop": pred["t_stop"][i],
                 "method": method,
                 "will_restart": _parse_bool(pred["will_restart"][i], pred_path, i + 2,
@@ -202,7 +243,9 @@ def load_log_csv(directory, prefix):
                 "t_restart": None if math.isnan(t_restart) else t_restart,
                 "u_star": pred["u_star"][i], "p_p_e": pred["p_p_equilibrium"][i],
                 "p_n_e": pred["p_n_equilibrium"][i], "tau_p": pred["tau_p"][i],
-                "tau_n": pred["tau_n"][i]})
+                "tau_n": pred["tau_n"][i], "force": forces[i],
+                "stop_forecast_force": stop_forecast_forces[i]}, update=update)
+            (run.reforecasts if update > 0 else run.predictions).append(record)
     else:
         print(f"pneu_plots: note: no {pred_path}: no forecasts drawn", file=sys.stderr)
     run.source = os.path.basename(os.path.normpath(directory)) + "/" + prefix + "*.csv"
@@ -213,9 +256,14 @@ def restrict_to_time_range(run, t0, t1):
     keep = (run.t >= t0) & (run.t <= t1)
     for name in ("t", "y_d", "y", "p_p", "p_n", "force", "u", "stuck"):
         setattr(run, name, getattr(run, name)[keep])
+    if run.forecast:
+        run.forecast = {m: {k: v[keep] for k, v in cols.items()}
+                        for m, cols in run.forecast.items()}
     run.stops = [s for s in run.stops if t0 <= s["t"] <= t1]
     run.starts = [s for s in run.starts if t0 <= s["t"] <= t1]
     run.predictions = [p for p in run.predictions if t0 <= p["t_stop"] <= t1]
+    run.reforecasts = [p for p in run.reforecasts
+                       if t0 <= p["t_stop"] <= t1 and t0 <= p["t"] <= t1]
 
 
 class Bench:
@@ -703,13 +751,316 @@ def plane_figure(run, bench, curve, name, plt):
     return fig
 
 
+FORECAST_STYLE = {  # the forecast figure's curves, in the colours of METHOD_STYLE
+    "linearized": {"ls": (0, (5.0, 2.2)), "lw": 1.5,
+                   "label": "linearized forecast (Eq. 24/17), made at the stop"},
+    "nonlinear": {"ls": (0, (1.0, 1.6)), "lw": 2.1,
+                  "label": "nonlinear forecast (Eq. 19), made at the stop"},
+}
+
+
+def _newtons(f):
+    """A small force difference [N], signed, without a '-0.00'."""
+    return f"{f:+.2f}" if abs(f) >= 0.095 else f"{f:+.3f}" if abs(f) >= 0.0005 else "0"
+
+
+def _ms(dt):
+    """A time difference [s] in signed milliseconds, with a decimal when small."""
+    return f"{dt * 1e3:+.1f}" if abs(dt) < 0.01 else f"{dt * 1e3:+.0f}"
+
+
+def forecast_phase(run):
+    """The longest sticking phase whose forecast columns hold values: (stop, end, restart,
+    ticks of its forecast), or None. Its forecast runs from the stop's confirmation until the
+    start is seen, which may be a little after the start's time; it ends before the next stop."""
+    import numpy as np
+    if not run.forecast:
+        return None
+    held = np.zeros(len(run.t), dtype=bool)
+    for cols in run.forecast.values():
+        held |= np.isfinite(cols["force"])
+    best = None
+    for s, end, restart in sticking_phases(run):
+        later = [o["t"] for o in run.stops if o["t"] > s["t"]]
+        ticks = held & (run.t >= s["t"]) & (run.t < (min(later) if later else math.inf))
+        longer = best is None or end - s["t"] > best[1] - best[0]["t"]
+        if longer and np.any(ticks & (run.t <= end)):
+            best = (s, end, restart, ticks)
+    return best
+
+
+def forecast_figure(run, bench, name, plt):
+    """The longest sticking phase against the forecasts made at its stop (cf. Fig. 13), or None
+    when the run has no forecast columns or no sticking phase with forecast values."""
+    import numpy as np
+    from mpl_toolkits.axes_grid1.inset_locator import mark_inset
+
+    phase = forecast_phase(run)
+    if phase is None:
+        return None
+    s, end, restart, ticks = phase
+    k = s["index"]
+    span = end - s["t"]
+    t_last = max(end, float(run.t[ticks][-1]))
+    t0 = max(s["t"] - 0.05 * span, float(run.t[0]))
+    t1 = min(t_last + 0.05 * span, float(run.t[-1]))
+    win = (run.t >= t0) & (run.t <= t1)
+    t = run.t[win]
+    fc = {m: {c: np.where(ticks, v, np.nan)[win] for c, v in cols.items()}
+          for m, cols in run.forecast.items()}
+    methods = [m for m in list(FORECAST_STYLE) + sorted(set(fc) - set(FORECAST_STYLE))
+               if m in fc and np.any(np.isfinite(fc[m]["force"]))]
+    p_p, p_n, force = run.p_p[win], run.p_n[win], run.force[win]
+    stuck = (t >= s["t"]) & (t <= end)  # the gaps that matter: the forecasts assume v = 0
+    pred = {p["method"]: p for p in run.predictions if p["stop"] == k}
+    refc = [p for p in run.reforecasts if p["stop"] == k]
+    direction = (restart or {}).get("direction") or next(
+        (p["direction"] for p in pred.values() if p["will_restart"]), 0)
+    bound = bench.fs_pos if direction > 0 else bench.fs_neg
+    t_act = restart["t"] if restart else None
+    restarts = {m: p["t_restart"] for m, p in pred.items()
+                if p["will_restart"] and p["t_restart"] is not None}
+
+    # the restart time each method forecast, against when: at the stop, then while stuck
+    made = {m: sorted((p["t"], p["t_restart"]) for p in ([pred[m]] if m in pred else [])
+                      + [r for r in refc if r["method"] == m]
+                      if p["will_restart"] and p["t_restart"] is not None) for m in methods}
+    made = {m: pts for m, pts in made.items() if pts}
+
+    def style(m):
+        return dict(_method_style(m), **FORECAST_STYLE.get(
+            m, {"ls": "--", "lw": 1.3, "label": f"{m} forecast, made at the stop"}))
+
+    panels = 4 if refc and made else 3
+    fig, axes = plt.subplots(panels, 1, sharex=True, figsize=(10.0, 11.2 if refc else 9.4),
+                             gridspec_kw={"height_ratios": [1.45, 2.1, 1.1, 1.3][:panels]})
+    ax_p, ax_f, ax_e = axes[:3]
+    for ax in axes:
+        ax.axvspan(s["t"], end, color=C_STUCK_SPAN, alpha=0.28, lw=0,
+                   label="sticking phase (stop to start)" if ax is ax_p else None)
+        ax.axvline(s["t"], color=C_STOP, lw=0.9, ls=":",
+                   label=f"stop {k}: t_stop = {s['t']:.3f} s at y* = {s['y'] * 1e3:.2f} mm"
+                   if ax is ax_p else None)
+        if panels == 4 and ax is axes[-1]:
+            continue  # the last panel shows these times on its y axis
+        for m, tr in restarts.items():
+            ax.axvline(tr, color=style(m)["color"], lw=1.1, ls="--", zorder=1.8)
+        if t_act is not None:
+            ax.axvline(t_act, color=C_RESTART, lw=1.2, zorder=1.9)
+
+    # a) the chamber pressures
+    gaps = []
+    for values, c, lab in ((p_p, C_PP, "p_P measured (chamber P, bore side)"),
+                           (p_n, C_PN, "p_N measured (chamber N, rod side)")):
+        ax_p.plot(t, values / 1e5, color=c, lw=2.6, alpha=0.55, zorder=2, label=lab)
+    for m in methods:
+        st = style(m)
+        for i, (key, values) in enumerate((("p_p", p_p), ("p_n", p_n))):
+            ax_p.plot(t, fc[m][key] / 1e5, color=st["color"], ls=st["ls"], lw=st["lw"],
+                      zorder=3, label=st["label"] if i == 0 else None)
+        gap = np.nanmax(np.abs(np.concatenate([fc[m]["p_p"] - p_p, fc[m]["p_n"] - p_n])[
+            np.concatenate([stuck, stuck])]))
+        gaps.append(f"{m} {gap / 100:.2f} mbar")
+    ax_p.set_ylabel("pressure [bar abs]")
+    ax_p.ticklabel_format(axis="y", useOffset=False)
+    ax_p.set_title("a/ chamber pressures; the forecasts' largest gap to the measure while "
+                   "stuck: " + ", ".join(gaps), loc="left", fontsize=9.5)
+    # which curve is which chamber, half-way through the sticking phase, between the two
+    i_lab = int(np.searchsorted(t, s["t"] + 0.5 * span))
+    if i_lab < len(t):
+        upper = p_n[i_lab] > p_p[i_lab]
+        for values, c, text, high in ((p_p, C_PP, "p_P", not upper), (p_n, C_PN, "p_N", upper)):
+            ax_p.annotate(text, (t[i_lab], values[i_lab] / 1e5), xytext=(0, -5 if high else 5),
+                          textcoords="offset points", color=c, fontsize=9, fontweight="bold",
+                          ha="center", va="top" if high else "bottom")
+    t_zero = s["t"]
+    top = ax_p.secondary_xaxis("top", functions=(lambda x: x - t_zero, lambda x: x + t_zero))
+    top.set_xlabel("time since the stop t - t_stop [s] (Fig. 13's time reference)", fontsize=8.5)
+    top.tick_params(labelsize=8)
+
+    # b) the pressure force, the bound it restarts at and the restarts
+    def force_panel(ax, lw_scale=1.0):
+        ax.plot(t, force, color=C_F, lw=2.6 * lw_scale, alpha=0.55, zorder=2,
+                label="F measured (Eq. 14, from the measured pressures)")
+        for m in methods:
+            st = style(m)
+            ax.plot(t, fc[m]["force"], color=st["color"], ls=st["ls"], lw=st["lw"] * lw_scale,
+                    zorder=3)
+        for m, tr in restarts.items():
+            st = style(m)
+            ax.plot(tr, bound, st["marker"], color=st["color"], ms=7, mfc="white", mew=1.5,
+                    zorder=6)
+        if t_act is not None:
+            ax.plot(t_act, _interp(run, t_act, run.force), "x", color=C_RESTART, ms=9, mew=2.0,
+                    zorder=7)
+
+    force_panel(ax_f)
+    lo = min(float(np.nanmin(force)), *(float(np.nanmin(fc[m]["force"])) for m in methods))
+    hi = max(float(np.nanmax(force)), *(float(np.nanmax(fc[m]["force"])) for m in methods))
+    pad = 0.06 * (hi - lo)
+    # the bound the restart is forecast (or seen) at and any other one near the force; both
+    # when no restart is forecast: the force staying between them is the point (Eq. 16)
+    shown = [(f, n) for f, n in ((bench.fs_pos, "F_S+"), (bench.fs_neg, "F_S-"))
+             if lo - 4 * pad <= f <= hi + 4 * pad or not direction or f == bound]
+    for f, _ in shown:
+        ax_f.axhline(f, color="0.25", lw=1.0, ls="--", zorder=1.5)
+    if shown:
+        ax_f.plot([], [], color="0.25", lw=1.0, ls="--",
+                  label=("stiction bounds " if len(shown) > 1 else "stiction bound ")
+                  + ", ".join(f"{n} = {f:g} N" for f, n in shown))
+    lo, hi = min([lo] + [f for f, _ in shown]), max([hi] + [f for f, _ in shown])
+    ax_f.set_ylim(lo - pad, hi + pad)
+    ax_f.ticklabel_format(axis="y", useOffset=False)
+    ax_f.set_ylabel("pressure force F [N]")
+    ax_f.set_title("b/ pressure force F = S_P p_P - S_N p_N - S_r p_E, and "
+                   + (f"the restart at {'F_S+' if bound > 0 else 'F_S-'} = {bound:g} N "
+                      f"(Eq. 16-17, 25)" if direction else
+                      "the stiction bounds (Eq. 16): no restart forecast"),
+                   loc="left", fontsize=9.5)
+    for m, tr in restarts.items():
+        st = _method_style(m)
+        late = f", {_ms(tr - t_act)} ms from the actual one" if t_act is not None else ""
+        ax_f.plot([], [], st["marker"], color=st["color"], ms=7, mfc="white", mew=1.5, ls="--",
+                  lw=1.1, label=f"{st['label']}: t = {tr:.3f} s{late}")
+    if t_act is not None:
+        ax_f.plot([], [], "x", color=C_RESTART, ms=9, mew=2.0, ls="-", lw=1.2,
+                  label=f"actual restart: t = {t_act:.4f} s, {t_act - s['t']:.3f} s after the stop")
+
+    # the zoom a control engineer wants: how much earlier each forecast reaches the bound
+    if t_act is not None and restarts:
+        times = list(restarts.values()) + [t_act]
+        z_pad = max(0.35 * (max(times) - min(times)), 0.01)
+        z0, z1 = max(min(times) - z_pad, t0), min(max(times) + z_pad, t1)
+        zsel = (t >= z0) & (t <= z1)
+        zvals = np.concatenate([force[zsel]] + [fc[m]["force"][zsel] for m in methods] + [[bound]])
+        z_lo, z_hi = float(np.nanmin(zvals)), float(np.nanmax(zvals))
+        z_lo, z_hi = z_lo - 0.12 * (z_hi - z_lo), z_hi + 0.12 * (z_hi - z_lo)
+        if (z_hi - z_lo) < 0.25 * (hi - lo):
+            corner = [0.52, 0.37, 0.46, 0.56] if bound < 0 else [0.52, 0.07, 0.46, 0.56]
+            ins = ax_f.inset_axes(corner)
+            ins.axhline(bound, color="0.25", lw=1.0, ls="--", zorder=1.5)
+            for m, tr in restarts.items():
+                ins.axvline(tr, color=style(m)["color"], lw=1.1, ls="--", zorder=1.8)
+            ins.axvline(t_act, color=C_RESTART, lw=1.2, zorder=1.9)
+            force_panel(ins, lw_scale=1.15)
+            ins.set_xlim(z0, z1)
+            ins.set_ylim(z_lo, z_hi)
+            ins.set_facecolor("white")
+            ins.tick_params(labelsize=7.5)
+            ins.ticklabel_format(useOffset=False)
+            ins.set_title("zoom on the restart [N]", fontsize=8.5, pad=3)
+            notes, worst = [], 0.0
+            for m, tr in restarts.items():
+                gap = (_interp(run, t_act, run.forecast[m]["force"]) if m in run.forecast
+                       else math.nan) - _interp(run, t_act, run.force)
+                if not math.isnan(gap):
+                    worst = max(worst, abs(gap))
+                dt = abs(tr - t_act) * 1e3
+                notes.append(f"{m}: " + ("" if math.isnan(gap) else f"{_newtons(gap)} N off, ")
+                             + f"crosses {bound:g} N {dt:.{1 if dt < 10 else 0}f} ms "
+                             + ("early" if tr < t_act else "late"))
+            i0 = int(np.searchsorted(run.t, t_act - 0.02))
+            i1 = min(int(np.searchsorted(run.t, t_act)), len(run.t) - 1)
+            if i1 > i0 and worst >= 0.01:
+                slope = (run.force[i1] - run.force[i0]) / (run.t[i1] - run.t[i0])
+                notes.append(f"F moves only {slope:+.2f} N/s there: a gap of\n{worst:.2f} N "
+                             f"is {worst / max(abs(slope), 1e-9):.2f} s of sticking time")
+            # beside the inset, where the force has already left (falling) or not yet reached
+            # (rising) that height
+            ax_f.text(0.075, 0.93 if bound < 0 else 0.07,
+                      "forecast at the actual restart (zoom):\n" + "\n".join(notes),
+                      transform=ax_f.transAxes,
+                      fontsize=7.8, va="top" if bound < 0 else "bottom", ha="left", zorder=9,
+                      bbox={"boxstyle": "round,pad=0.35", "fc": "white", "ec": "0.7",
+                            "alpha": 0.92})
+            # the connectors leave the inset's edge that faces the zoomed region
+            mark_inset(ax_f, ins, loc1=3 if bound < 0 else 2, loc2=4 if bound < 0 else 1,
+                       fc="none", ec="0.55", lw=0.7)
+
+    # c) where the forecasts leave the measure
+    ax_e.axhline(0.0, color="0.3", lw=0.8)
+    worst_gaps = []
+    for m in methods:
+        st = style(m)
+        err = fc[m]["force"] - force
+        ax_e.plot(t, err, color=st["color"], ls=st["ls"], lw=st["lw"], zorder=3)
+        if np.any(np.isfinite(err[stuck])):
+            i = int(np.nanargmax(np.where(stuck, np.abs(err), np.nan)))
+            ax_e.plot(t[i], err[i], "o", color=st["color"], ms=4.5, zorder=4)
+            worst_gaps.append((m, t[i], err[i]))
+    # the largest gaps (the dots) named on the side the curves leave free
+    low = max((e for _, _, e in worst_gaps), key=abs, default=1.0) > 0
+    for n, (m, tw, ew) in enumerate(worst_gaps):
+        ax_e.text(0.3, (0.05 + 0.13 * (len(worst_gaps) - 1 - n)) if low else (0.95 - 0.13 * n),
+                  f"{m}: largest gap while stuck {_newtons(ew)} N, at t = {tw:.3f} s (dot)",
+                  transform=ax_e.transAxes, fontsize=8, color=style(m)["color"],
+                  va="bottom" if low else "top", zorder=5)
+    e_lim = max([abs(e) for _, _, e in worst_gaps] + [0.0])
+    ax_e.set_ylim(-1.45 * max(e_lim, 0.05), 1.45 * max(e_lim, 0.05))
+    ax_e.set_ylabel("forecast - measured\nforce [N]")
+    ax_e.set_title("c/ forecast minus measured force: where each forecast leaves the measure",
+                   loc="left", fontsize=9.5)
+
+    # d) the live predictor: the restart time forecast again while stuck
+    if panels == 4:
+        ax_r = axes[3]
+        for m, pts in made.items():
+            st = style(m)
+            ax_r.plot(*zip(*pts), color=st["color"], ls="-", lw=1.0, marker=st["marker"],
+                      ms=4, mfc="white", mew=1.1, zorder=3,
+                      label=f"{m} (first point: the forecast made at the stop)")
+        none = sum(1 for r in refc if not (r["will_restart"] and r["t_restart"] is not None))
+        if t_act is not None:
+            ax_r.axhline(t_act, color=C_RESTART, lw=1.2, zorder=2)
+            ax_r.secondary_yaxis("right", functions=(lambda x: (x - t_act) * 1e3,
+                                                     lambda x: x / 1e3 + t_act)) \
+                .set_ylabel("minus actual\nrestart [ms]")
+        ax_r.set_ylabel("forecast restart\ntime [s]")
+        ax_r.set_title("d/ forecast restart time vs when it was made (the stop's forecast, then "
+                       "the re-forecasts while stuck)"
+                       + (f"; {none} forecast no restart" if none else ""),
+                       loc="left", fontsize=9.5)
+        ax_r.legend(loc="lower right", fontsize=7.8, framealpha=0.92)
+    axes[-1].set_xlabel("time t [s]")
+    axes[-1].set_xlim(t0, t1)
+
+    handles, labels = [], []
+    for ax in (ax_p, ax_f):
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            if lab not in labels:
+                handles.append(h)
+                labels.append(lab)
+    # measured first, then the forecasts, then the rest
+    order = sorted(range(len(labels)), key=lambda i: (0 if "measured" in labels[i] else
+                                                      1 if "forecast (" in labels[i] else 2, i))
+    how_it_ends = "" if restart else \
+        " (then a start, not a restart)" if any(s["t"] < o["t"] <= end for o in run.starts) else \
+        " (no start before the end of the plotted record)"
+    fig.suptitle(f"{name}: sticking phase {k}, measured vs forecast pressures and force "
+                 f"(cf. Brun et al. 2005, Fig. 13)\n{run.source}; both forecasts made at the stop "
+                 f"(t = {next(iter(pred.values()))['t'] if pred else s['t']:.3f} s), "
+                 f"stuck {span:.3f} s{how_it_ends}", fontsize=11)
+    leg = fig.legend([handles[i] for i in order], [labels[i] for i in order], loc="upper center",
+                     bbox_to_anchor=(0.5, 0.945), ncol=2, framealpha=0.95, fontsize=8.2)
+    fig.canvas.draw()
+    to_fig = fig.transFigure.inverted()
+    below_legend = leg.get_window_extent().transformed(to_fig).y0 - 0.008
+    fig.tight_layout(rect=(0, 0, 1, below_legend))
+    # tight_layout leaves room above the top panel as if its secondary axis were not there:
+    # lift the panels until the top panel's title meets the legend
+    top = ax_p.get_tightbbox(fig.canvas.get_renderer()).transformed(to_fig).y1
+    fig.subplots_adjust(top=fig.subplotpars.top + below_legend - top)
+    return fig
+
+
 # --------------------------------------------------------------------------------------------
 
 
 def parse_args(argv):
     p = argparse.ArgumentParser(
-        description="Figures of a pneud run: time traces (Fig. 8) and the pressure-force plane "
-                    "(Fig. 7/10/11) of Brun et al. 2005.")
+        description="Figures of a pneud run: time traces (Fig. 8), the pressure-force plane "
+                    "(Fig. 7/10/11) and the forecasts against the measure during the longest "
+                    "sticking phase (Fig. 13) of Brun et al. 2005.")
     src = p.add_argument_group("input (one of)")
     src.add_argument("--trajectory", metavar="T.csv", help="pneud --trajectory output")
     src.add_argument("--events", metavar="E.jsonl", help="pneud --events output (with --trajectory)")
@@ -775,6 +1126,21 @@ def main(argv):
         fig = plane_figure(run, bench, curve, args.name, plt)
         written += _save(fig, args.out_dir, f"{args.name}_plane", args.dpi)
         plt.close(fig)
+        fig = forecast_figure(run, bench, args.name, plt)
+        if fig is not None:
+            written += _save(fig, args.out_dir, f"{args.name}_forecast", args.dpi)
+            plt.close(fig)
+        elif args.log_csv:
+            print("pneu_plots: note: no forecast figure: the LCM STATE channel carries no "
+                  "forecast columns (draw it from pneud --trajectory/--events output)",
+                  file=sys.stderr)
+        elif run.forecast is None:
+            print(f"pneu_plots: note: no forecast figure: {args.trajectory} has no forecast "
+                  f"columns (p_P_linearized ... F_nonlinear: the trajectory of an older pneud)",
+                  file=sys.stderr)
+        else:
+            print("pneu_plots: note: no forecast figure: no sticking phase with forecast values "
+                  "in the plotted range", file=sys.stderr)
     except InputError as e:
         print(f"pneu_plots: {e}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -782,7 +1148,8 @@ def main(argv):
         print(f"pneu_plots: {e}", file=sys.stderr)
         return EXIT_BAD_INPUT if isinstance(e, (FileNotFoundError, PermissionError)) else 1
     print(f"pneu_plots: {len(run.stops)} stops, {sum(s['restart'] for s in run.starts)} restarts, "
-          f"{len(run.predictions)} forecasts; wrote {', '.join(written)}")
+          f"{len(run.predictions)} forecasts, {len(run.reforecasts)} re-forecasts; "
+          f"wrote {', '.join(written)}")
     return 0
 
 
