@@ -1,6 +1,8 @@
 #include "pneu/controller/report.hpp"
 
 #include <algorithm>
+#include <charconv>
+#include <cstring>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -9,12 +11,25 @@ namespace pneu::controller {
 
 namespace {
 
-// JSON number, or null for NaN / infinity.
-std::string num(double v, int precision = 9) {
-  if (!std::isfinite(v)) return "null";
-  char buf[48];
-  std::snprintf(buf, sizeof buf, "%.*g", precision, v);
-  return buf;
+// JSON number (printf's %.*g, by std::to_chars: the same text, several times faster), or null
+// for NaN / infinity. Streamed without building a string: the trajectory writes 18 per tick.
+struct Num {
+  char text[32];
+  std::size_t size;
+};
+Num num(double v, int precision = 9) {
+  Num n{};
+  if (!std::isfinite(v)) {
+    std::memcpy(n.text, "null", 4);
+    n.size = 4;
+    return n;
+  }
+  const auto r = std::to_chars(n.text, n.text + sizeof n.text, v, std::chars_format::general, precision);
+  n.size = static_cast<std::size_t>(r.ptr - n.text);
+  return n;
+}
+std::ostream& operator<<(std::ostream& os, const Num& n) {
+  return os.write(n.text, static_cast<std::streamsize>(n.size));
 }
 
 }  // namespace
