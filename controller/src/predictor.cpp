@@ -241,12 +241,26 @@ Prediction predict(PredictionMethod method, const PredictorModel& model, const S
 }
 
 ForecastTrack::ForecastTrack(PredictionMethod method, const PredictorModel& model, const StopSnapshot& stop) noexcept
-    : method_(method), model_(model), stop_(stop), t_s_(stop.t_s), p_p_pa_(stop.p_p_pa), p_n_pa_(stop.p_n_pa) {
+    : method_(method),
+      model_(model),
+      stop_(stop),
+      t_asked_s_(stop.t_s),
+      p_p_pa_(stop.p_p_pa),
+      p_n_pa_(stop.p_n_pa),
+      step_start_s_(stop.t_s),
+      step_end_s_(stop.t_s),
+      start_{stop.p_p_pa, stop.p_n_pa},
+      end_{stop.p_p_pa, stop.p_n_pa} {
   const Prediction p = base(method, model, stop, common_of(model, stop));
   p_p_equilibrium_pa_ = p.p_p_equilibrium_pa;
   p_n_equilibrium_pa_ = p.p_n_equilibrium_pa;
   tau_p_s_ = p.tau_p_s;
   tau_n_s_ = p.tau_n_s;
+  if (method == PredictionMethod::kNonlinear) {
+    const Common c = common_of(model, stop);
+    const P2 dx = PressureOde{c, *model.valve, stop.u_v}.rhs({stop.p_p_pa, stop.p_n_pa});
+    start_slope_ = end_slope_ = {dx.pp, dx.pn};
+  }
 }
 
 ForecastPoint ForecastTrack::at(double t_s) noexcept {
@@ -261,17 +275,31 @@ ForecastPoint ForecastTrack::at(double t_s) noexcept {
     const double pn = relax(stop_.p_n_pa, p_n_equilibrium_pa_, tau_n_s_);
     return {pp, pn, c.force(pp, pn)};
   }
+  if (!(t_s >= t_asked_s_)) return {p_p_pa_, p_n_pa_, c.force(p_p_pa_, p_n_pa_)};  // backwards, or NaN
+  t_asked_s_ = t_s;
+  // The steps of predict_nonlinear from the snapshot; between their ends, the cubic Hermite
+  // interpolant (from the values and slopes there: as accurate as the RK4 step, far cheaper than
+  // a step per tick).
   const PressureOde ode{c, *model_.valve, stop_.u_v};
-  P2 x{p_p_pa_, p_n_pa_};
-  while (std::isfinite(t_s) && t_s > t_s_) {
-    const double h = std::min(ode.step_s(x), t_s - t_s_);
-    x = ode.rk4(x, h);
-    // The last step lands on t_s exactly, not on t_s_ + h, which rounding can leave short.
-    t_s_ = h < t_s - t_s_ ? t_s_ + h : t_s;
+  while (std::isfinite(t_s) && t_s > step_end_s_) {
+    step_start_s_ = step_end_s_;
+    start_ = end_;
+    start_slope_ = end_slope_;
+    const double h = ode.step_s({start_[0], start_[1]});
+    const P2 x = ode.rk4({start_[0], start_[1]}, h);
+    const P2 dx = ode.rhs(x);
+    step_end_s_ = step_start_s_ + h;
+    end_ = {x.pp, x.pn};
+    end_slope_ = {dx.pp, dx.pn};
   }
-  p_p_pa_ = x.pp;
-  p_n_pa_ = x.pn;
-  return {x.pp, x.pn, c.force(x.pp, x.pn)};
+  if (!std::isfinite(t_s)) return {p_p_pa_, p_n_pa_, c.force(p_p_pa_, p_n_pa_)};
+  const double h = step_end_s_ - step_start_s_;
+  const double u = h > 0.0 ? (t_s - step_start_s_) / h : 1.0;
+  const double h00 = (1.0 + 2.0 * u) * (1.0 - u) * (1.0 - u), h10 = u * (1.0 - u) * (1.0 - u);
+  const double h01 = u * u * (3.0 - 2.0 * u), h11 = u * u * (u - 1.0);
+  p_p_pa_ = h00 * start_[0] + h10 * h * start_slope_[0] + h01 * end_[0] + h11 * h * end_slope_[0];
+  p_n_pa_ = h00 * start_[1] + h10 * h * start_slope_[1] + h01 * end_[1] + h11 * h * end_slope_[1];
+  return {p_p_pa_, p_n_pa_, c.force(p_p_pa_, p_n_pa_)};
 }
 
 bool snapshot_is_finite(const StopSnapshot& s) noexcept {

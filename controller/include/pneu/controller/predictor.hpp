@@ -3,6 +3,7 @@
 // A pure library: no state, no allocation, no exception.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <limits>
 
@@ -72,15 +73,17 @@ struct ForecastPoint {
 
 /// Follows a forecast through the sticking phase, so that it can be held against the measured
 /// pressures and force as they come (the paper's Fig. 13): the linearized method's Eq. 24 and 17
-/// in closed form, the nonlinear method's pressure equations integrated forward with the same
-/// steps as predict_nonlinear. A value type: no allocation, no exception; the model's valve must
-/// outlive it.
+/// in closed form, the nonlinear method's pressure equations integrated forward with the steps
+/// of predict_nonlinear and interpolated between them (cubic Hermite: RK4's accuracy, one step
+/// per several ticks). A value type: no allocation, no exception; the model's valve must outlive
+/// it.
 class ForecastTrack {
  public:
   ForecastTrack(PredictionMethod method, const PredictorModel& model, const StopSnapshot& stop) noexcept;
 
   /// The forecast at `t_s` (absolute). Before the snapshot: the snapshot itself. The nonlinear
-  /// method only integrates forward: an earlier time than the last one asked gives the last point.
+  /// method only goes forward: an earlier time than the last one asked (or NaN, or infinity)
+  /// gives the last point.
   [[nodiscard]] ForecastPoint at(double t_s) noexcept;
   [[nodiscard]] PredictionMethod method() const noexcept { return method_; }
 
@@ -90,8 +93,11 @@ class ForecastTrack {
   StopSnapshot stop_;
   double p_p_equilibrium_pa_ = 0.0, p_n_equilibrium_pa_ = 0.0;
   double tau_p_s_ = 0.0, tau_n_s_ = 0.0;
-  double t_s_ = 0.0;                   // nonlinear: where the integration stands
+  // Nonlinear: the last point asked, and the integration step that holds it.
+  double t_asked_s_ = 0.0;
   double p_p_pa_ = 0.0, p_n_pa_ = 0.0;
+  double step_start_s_ = 0.0, step_end_s_ = 0.0;
+  std::array<double, 2> start_{}, start_slope_{}, end_{}, end_slope_{};  // p_P, p_N and their rates
 };
 
 /// A forecast needs finite inputs: callers skip the predictors otherwise (a NaN pressure would
