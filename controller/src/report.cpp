@@ -304,8 +304,8 @@ void RunReport::print_live_summary(std::FILE* out) const {
     return !std::isnan(s.largest_gap_linearized_n) || !std::isnan(s.largest_gap_nonlinear_n);
   };
   if (std::none_of(stops_.begin(), stops_.end(), followed)) return;
-  std::fprintf(out, "while stuck: the largest gap between the measured force and each forecast made at the stop, and\n"
-                    "the forecast made again from the pressures half-way through the sticking phase%s:\n",
+  std::fprintf(out, "while stuck: the largest gap between the measured force and each forecast made at the stop (until\n"
+                    "the start is seen), and the forecast made again from the pressures half-way through the phase%s:\n",
                update_period_s_ > 0.0 ? "" : " (off: controller.predictor.update_period_s = 0)");
   std::fprintf(out, "  %3s %11s %12s %12s %7s  %-24s %-24s\n", "#", "stuck[s]", "gap lin[N]", "gap nl[N]",
                "updates", "half-way linearized", "half-way nonlinear");

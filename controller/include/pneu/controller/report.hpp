@@ -46,8 +46,10 @@ struct StopOutcome {
   /// When the forecast stopped holding while the carriage was still stuck: the set point moved,
   /// or the loop was disarmed or faulted (u* no longer held); NaN if it held to the end [s].
   double forecast_void_at_s = std::numeric_limits<double>::quiet_NaN();
-  /// While the forecast held (stuck, armed, same set point): the largest |F measured - F forecast|
-  /// of each method's forecast made at the stop; NaN when none was followed [N].
+  /// From the snapshot until the start is seen (a breakaway is seen once the carriage has moved
+  /// the detector's motion band, up to tens of ms later), while the forecast held (armed, same set
+  /// point): the largest |F measured - F forecast| of each method's forecast made at the stop;
+  /// NaN when none was followed [N].
   double largest_gap_linearized_n = std::numeric_limits<double>::quiet_NaN();
   double largest_gap_nonlinear_n = std::numeric_limits<double>::quiet_NaN();
   std::uint32_t updates = 0;            ///< times the forecasts were made again while stuck
