@@ -2,9 +2,9 @@
 
 #include <algorithm>
 #include <charconv>
-#include <cstring>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 
 namespace pneu::controller {
@@ -31,10 +31,6 @@ Num num(double v, int precision = 9) {
 std::ostream& operator<<(std::ostream& os, const Num& n) {
   return os.write(n.text, static_cast<std::streamsize>(n.size));
 }
-
-}  // namespace
-
-namespace {
 
 // One forecast against what happened, for the summary: the restart time and its error.
 std::string forecast_cell(const StopOutcome& s, const Prediction& p, double t_end_s) {

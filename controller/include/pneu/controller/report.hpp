@@ -25,7 +25,9 @@ struct Reforecast {
   std::uint32_t update = 0;       ///< 1, 2, ... within its stop
   double t_s = 0.0;               ///< the tick it was made from [s]
   double force_n = 0.0;           ///< F measured at that tick [N]
-  double stop_forecast_force_n = std::numeric_limits<double>::quiet_NaN();  ///< F the same method's forecast made at the stop expected then [N]
+  /// F the same method's forecast made at the stop expected then (NaN when the report does not
+  /// follow the forecasts, RunReport::set_follow_forecasts) [N]
+  double stop_forecast_force_n = std::numeric_limits<double>::quiet_NaN();
   Prediction prediction;
 };
 
