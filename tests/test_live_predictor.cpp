@@ -219,6 +219,18 @@ TEST(RunReport, AForecastWhoseSetPointMovedWhileStuckIsNotJudged) {
             controller::Verdict::Kind::kNotJudged);
 }
 
+TEST(LivePredictor, AnUpdatePeriodUnderTheLoopsMakesTheForecastsAgainEveryTick) {
+  const LiveRun r({"controller.predictor.update_period_s=1e-9"});
+  const StopOutcome& s = r.longest_restart();
+  ASSERT_GE(s.updates, static_cast<std::uint32_t>((s.t_end_s - s.snapshot.t_s) / 1e-3));
+  // Thinned past the cap, but every kept one a whole number of ticks after the snapshot.
+  for (const Reforecast& f : s.reforecasts) {
+    const double ticks = (f.t_s - s.snapshot.t_s) / 1e-3;
+    EXPECT_NEAR(ticks, std::round(ticks), 1e-6);
+    EXPECT_EQ(static_cast<long>(std::round(ticks)), static_cast<long>(f.update));
+  }
+}
+
 TEST(LivePredictor, ZeroUpdatePeriodMakesForecastsOnlyAtTheStop) {
   const LiveRun r({"controller.predictor.update_period_s=0"});
   for (const auto& s : r.stops()) EXPECT_TRUE(s.reforecasts.empty()) << "stop " << s.index;

@@ -136,9 +136,12 @@ void RunReport::on_tick(const TickRecord& r) {
         const double gap = std::abs(r.force_n - expected[i].force_n);
         if (std::isfinite(gap)) *gaps[i] = std::isnan(*gaps[i]) ? gap : std::max(*gaps[i], gap);
       }
-      if (update_period_s_ > 0.0 && r.t_s >= following_->next_update_s - 1e-9) {
+      // (Not at the snapshot's own tick: that forecast is the stop's.)
+      if (update_period_s_ > 0.0 && r.t_s > s.snapshot.t_s && r.t_s >= following_->next_update_s - 1e-9) {
         reforecast(s, r, expected);
-        while (following_->next_update_s <= r.t_s + 1e-9) following_->next_update_s += update_period_s_;
+        // The next whole period after this tick (a period under the loop's: every tick).
+        const double periods = std::floor((r.t_s - s.snapshot.t_s) / update_period_s_ + 1e-6) + 1.0;
+        following_->next_update_s = s.snapshot.t_s + periods * update_period_s_;
       }
     }
   }
