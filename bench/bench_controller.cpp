@@ -256,6 +256,24 @@ void BM_PredictNonlinearLongStop(benchmark::State& state) {
 }
 BENCHMARK(BM_PredictNonlinearLongStop)->Unit(benchmark::kMicrosecond);
 
+// (d) The live predictor's per-tick work: following the forecast made at the long stop through
+// its whole sticking phase, one point per 1 ms tick (reported per tick).
+void follow_long_stop(benchmark::State& state, controller::PredictionMethod method) {
+  const Recording& rec = *g_rec;
+  const auto ticks = static_cast<std::int64_t>(rec.long_stop_sticking_s / 1e-3);
+  for (auto _ : state) {
+    controller::ForecastTrack track(method, rec.model, rec.long_stop);
+    double f = 0.0;
+    for (std::int64_t k = 1; k <= ticks; ++k) f += track.at(rec.long_stop.t_s + static_cast<double>(k) * 1e-3).force_n;
+    benchmark::DoNotOptimize(f);
+  }
+  state.SetItemsProcessed(state.iterations() * ticks);  // items: ticks followed
+}
+void BM_FollowLinearizedLongStop(benchmark::State& state) { follow_long_stop(state, controller::PredictionMethod::kLinearized); }
+void BM_FollowNonlinearLongStop(benchmark::State& state) { follow_long_stop(state, controller::PredictionMethod::kNonlinear); }
+BENCHMARK(BM_FollowLinearizedLongStop)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_FollowNonlinearLongStop)->Unit(benchmark::kMicrosecond);
+
 }  // namespace
 
 int main(int argc, char** argv) {
