@@ -431,16 +431,35 @@ BruteForceRestart integrate_until_restart(const plant::ValveCharacteristic& valv
   return {};
 }
 
-TEST(PredictorWithValveModelNonlinear, MatchesABruteForceIntegrationOfEquation19) {
+// The realistic stop 5.7 N inside F_S-: it creeps for ~1.4 s before it restarts.
+StopSnapshot slow_stop() {
+  StopSnapshot s = realistic_stop();
+  s.p_p_pa = 3.10e5;
+  s.p_n_pa = 5.35e5;
+  return s;
+}
+
+// The predictors' view of the paper bench with its valve model (the model points at the valve:
+// not copyable).
+struct ValveModelBench {
+  ValveModelBench() = default;
+  ValveModelBench(const ValveModelBench&) = delete;
+  ValveModelBench& operator=(const ValveModelBench&) = delete;
   plant::PlantParams params;
-  const plant::ValveModel valve(params.valve, params.gas);
-  PredictorModel model;
-  model.valve = &valve;
-  // The stop above restarts within 0.1 s; the second one, 5.7 N inside F_S-, creeps for ~1.4 s.
-  StopSnapshot slow = realistic_stop();
-  slow.p_p_pa = 3.10e5;
-  slow.p_n_pa = 5.35e5;
-  for (const StopSnapshot& s : {realistic_stop(), slow}) {
+  plant::ValveModel valve{params.valve, params.gas};
+  PredictorModel model = [this] {
+    PredictorModel m;
+    m.valve = &valve;
+    return m;
+  }();
+};
+
+TEST(PredictorWithValveModelNonlinear, MatchesABruteForceIntegrationOfEquation19) {
+  const ValveModelBench bench;
+  const auto& valve = bench.valve;
+  const auto& model = bench.model;
+  // The realistic stop restarts within 0.1 s; the slow one creeps for ~1.4 s.
+  for (const StopSnapshot& s : {realistic_stop(), slow_stop()}) {
     SCOPED_TRACE(testing::Message() << "p_P " << s.p_p_pa << ", p_N " << s.p_n_pa);
     ASSERT_LT(std::abs(force(s.p_p_pa, s.p_n_pa) - kForceSMinusN),
               10.0);  // starts inside, near F_S-
@@ -460,13 +479,10 @@ TEST(PredictorWithValveModelNonlinear, MatchesABruteForceIntegrationOfEquation19
 // The nonlinear track holds the pressures of Eq. 19 as the brute-force integration gives them,
 // asked tick by tick over the sticking phase, and meets F_S- at its own forecast restart.
 TEST(ForecastTrackWithValveModel, NonlinearTrackIsEquation19AndMeetsTheBoundAtTheForecast) {
-  plant::PlantParams params;
-  const plant::ValveModel valve(params.valve, params.gas);
-  PredictorModel model;
-  model.valve = &valve;
-  StopSnapshot s = realistic_stop();
-  s.p_p_pa = 3.10e5;
-  s.p_n_pa = 5.35e5;
+  const ValveModelBench bench;
+  const auto& valve = bench.valve;
+  const auto& model = bench.model;
+  const StopSnapshot s = slow_stop();
   const Prediction p = predict_nonlinear(model, s);
   ASSERT_TRUE(p.will_restart);
   ForecastTrack track(PredictionMethod::kNonlinear, model, s);
@@ -499,10 +515,8 @@ TEST(ForecastTrackWithValveModel, NonlinearTrackIsEquation19AndMeetsTheBoundAtTh
 // linearized track leaves the exact one while the pressures travel, then both settle on the same
 // equilibrium. The stop is the paper scenario's second one (README: stuck 4.0 s at 171.8 mm).
 TEST(ForecastTrackWithValveModel, LinearizedTrackSharesTheEndsButNotThePathOfTheExactOne) {
-  plant::PlantParams params;
-  const plant::ValveModel valve(params.valve, params.gas);
-  PredictorModel model;
-  model.valve = &valve;
+  const ValveModelBench bench;
+  const auto& model = bench.model;
   StopSnapshot s;
   s.t_s = 2.013;
   s.y_m = 0.17176454742;
