@@ -129,6 +129,10 @@ void RunReport::on_tick(const TickRecord& r) {
     if (s.ended || !r.stuck || r.mode != Mode::kArmed || r.y_d_m != s.y_d_m) {
       following_.reset();
     } else if (r.t_s >= s.snapshot.t_s) {
+      if (std::isfinite(r.y_m)) {
+        following_->sum_y_m += r.y_m;
+        ++following_->readings;
+      }
       double* gaps[2] = {&s.largest_gap_linearized_n, &s.largest_gap_nonlinear_n};
       for (int i = 0; i < 2 && follow_; ++i) {
         if (!following_->tracks[i]) continue;
@@ -163,6 +167,10 @@ void RunReport::reforecast(StopOutcome& s, const TickRecord& r, const ForecastPo
   now.t_s = r.t_s;
   now.p_p_pa = r.p_p_pa;
   now.p_n_pa = r.p_n_pa;
+  if (law_ && following_->readings > 0) {
+    now.y_m = following_->sum_y_m / static_cast<double>(following_->readings);
+    now.u_v = law_->resting_control_v(s.y_d_m, now.y_m);
+  }
   if (!snapshot_is_finite(now)) return;
   ++s.updates;
   // Bounded history: past the cap, every other update kept is let go, evenly over the phase.
@@ -179,6 +187,7 @@ void RunReport::reforecast(StopOutcome& s, const TickRecord& r, const ForecastPo
     f.update = s.updates;
     f.t_s = r.t_s;
     f.force_n = r.force_n;
+    f.u_star_v = now.u_v;
     f.stop_forecast_force_n = expected[i].force_n;
     f.prediction = i == 0 ? predict_linearized(model_, now) : predict_nonlinear(model_, now);
     if (keep) s.reforecasts.push_back(f);
@@ -189,7 +198,8 @@ void RunReport::reforecast(StopOutcome& s, const TickRecord& r, const ForecastPo
              << ",\"t_stop\":" << num(s.t_stop_s, 12) << ",\"update\":" << f.update << ",\"method\":\""
              << to_string(p.method) << "\",\"will_restart\":" << (p.will_restart ? "true" : "false")
              << ",\"direction\":" << p.direction << ",\"t_restart\":" << num(p.t_restart_s, 12)
-             << ",\"force\":" << num(f.force_n) << ",\"stop_forecast_force\":" << num(f.stop_forecast_force_n)
+             << ",\"u_star\":" << num(f.u_star_v) << ",\"force\":" << num(f.force_n)
+             << ",\"stop_forecast_force\":" << num(f.stop_forecast_force_n)
              << ",\"min_margin\":" << num(p.min_margin_n)
              << ",\"horizon_reached\":" << (p.horizon_reached ? "true" : "false") << "}\n";
   }

@@ -49,6 +49,7 @@ void assemble(SimulatedRun& run, const config::Config& config, const plant::Valv
   const auto& p = config.controller.predictor;
   run.report = std::make_unique<RunReport>(predictor_model(config, valve), p.linearized, p.nonlinear,
                                            events, trajectory, p.update_period_s);
+  run.report->set_control_law(ControlLaw(config.controller.law));  // offset resolved by now
 }
 }  // namespace
 

@@ -138,7 +138,8 @@ void LcmBridge::on_event(const LoopEvent& e) {
 }
 
 void LcmBridge::publish_prediction(const controller::StopOutcome& s, const controller::Prediction& p, double t_s,
-                                   std::int32_t update, double force_n, double stop_forecast_force_n) {
+                                   std::int32_t update, double u_star_v, double force_n,
+                                   double stop_forecast_force_n) {
   pneu_lcm::prediction_t m;
   m.utime = utime_of(t_s);
   m.t = t_s;
@@ -150,7 +151,7 @@ void LcmBridge::publish_prediction(const controller::StopOutcome& s, const contr
   m.will_restart = p.will_restart;
   m.direction = static_cast<std::int8_t>(p.direction);
   m.t_restart = p.t_restart_s;
-  m.u_star = s.snapshot.u_v;
+  m.u_star = u_star_v;
   m.equilibrium_force = p.equilibrium_force_n;
   m.p_p_equilibrium = p.p_p_equilibrium_pa;
   m.p_n_equilibrium = p.p_n_equilibrium_pa;
@@ -164,11 +165,12 @@ void LcmBridge::publish_prediction(const controller::StopOutcome& s, const contr
 }
 
 void LcmBridge::on_prediction(const controller::StopOutcome& s, const controller::Prediction& p) {
-  publish_prediction(s, p, s.snapshot.t_s, 0, s.force_n, s.force_n);
+  publish_prediction(s, p, s.snapshot.t_s, 0, s.snapshot.u_v, s.force_n, s.force_n);
 }
 
 void LcmBridge::on_reforecast(const controller::StopOutcome& s, const controller::Reforecast& f) {
-  publish_prediction(s, f.prediction, f.t_s, static_cast<std::int32_t>(f.update), f.force_n, f.stop_forecast_force_n);
+  publish_prediction(s, f.prediction, f.t_s, static_cast<std::int32_t>(f.update), f.u_star_v, f.force_n,
+                     f.stop_forecast_force_n);
 }
 
 void LcmBridge::on_health(const controller::HealthRecord& h) {

@@ -14,17 +14,21 @@
 #include <vector>
 
 #include "pneu/controller/clock.hpp"
+#include "pneu/controller/control_law.hpp"
 #include "pneu/controller/loop.hpp"
 #include "pneu/controller/predictor.hpp"
 
 namespace pneu::controller {
 
-/// A forecast made again while the carriage is still stuck, from the pressures of a later tick
-/// (same y*, same u*): the live predictor. Not judged; the one made at the stop is.
+/// A forecast made again while the carriage is still stuck, from the pressures of a later tick:
+/// the live predictor. Not judged; the one made at the stop is.
 struct Reforecast {
   std::uint32_t update = 0;       ///< 1, 2, ... within its stop
   double t_s = 0.0;               ///< the tick it was made from [s]
   double force_n = 0.0;           ///< F measured at that tick [N]
+  /// u* it assumed: from the mean position read since the snapshot when the report knows the law
+  /// (RunReport::set_control_law), else the snapshot's [V]
+  double u_star_v = 0.0;
   /// F the same method's forecast made at the stop expected then (NaN when the report does not
   /// follow the forecasts, RunReport::set_follow_forecasts) [N]
   double stop_forecast_force_n = std::numeric_limits<double>::quiet_NaN();
@@ -109,6 +113,11 @@ class RunReport {
   /// Whether each stop keeps its forecasts made again after it ended (tests, the sweep); else
   /// only its half-way ones, so that a daemon's memory does not grow with the time spent at rest.
   void set_keep_reforecasts(bool on) noexcept { keep_reforecasts_ = on; }
+  /// The law the loop runs: the forecasts made again while stuck then take u* (Eq. 11) at the
+  /// mean position read since the stop, not at the one sample the stop's snapshot had. With a
+  /// quantised or noisy potentiometer the reading toggles between codes while the carriage is
+  /// still, the law's output with it, and the valves follow the mean.
+  void set_control_law(const ControlLaw& law) noexcept { law_ = law; }
   /// Forwards everything drained to `listener` (may be null; must outlive the report).
   void set_listener(ReportListener* listener) noexcept { listener_ = listener; }
 
@@ -144,6 +153,8 @@ class RunReport {
   struct Following {
     std::optional<ForecastTrack> tracks[2];  // linearized, nonlinear
     double next_update_s = 0.0;
+    double sum_y_m = 0.0;      // readings since the snapshot, for u*
+    std::uint64_t readings = 0;
     std::uint32_t stride = 1;  // updates kept: every stride-th (thinned beyond kMaxReforecastsKept)
   };
 
@@ -157,6 +168,7 @@ class RunReport {
   std::ostream* events_;
   std::ostream* trajectory_;
   ReportListener* listener_ = nullptr;
+  std::optional<ControlLaw> law_;
   std::vector<StopOutcome> stops_;
   std::optional<Following> following_;
   std::vector<LoopEvent> faults_;  // the faults latched, for the summary

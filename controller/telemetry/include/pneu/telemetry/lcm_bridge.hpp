@@ -53,7 +53,7 @@ class LcmBridge final : public controller::ReportListener {
   void on_datagram(std::span<const std::uint8_t> bytes, const CommandSocket::Datagram& d);
   void publish_text_event(std::int8_t kind, const std::string& text);
   void publish_prediction(const controller::StopOutcome& s, const controller::Prediction& p, double t_s,
-                          std::int32_t update, double force_n, double stop_forecast_force_n);
+                          std::int32_t update, double u_star_v, double force_n, double stop_forecast_force_n);
   [[nodiscard]] std::int64_t utime_of(double t_s) const noexcept;
   template <typename T>
   void publish(const std::string& channel, const T& msg);
