@@ -47,9 +47,11 @@ into an end stop and push a chamber past the pressure sensor's range, which pneu
 latch as faults and so end the scenario).
 
 Stops are those pneud's stop detector sees; what happened after each is the simulated truth: the
-plant's first breakaway after the stop is the restart, timed exactly, even when it moves the
-carriage less than the detector's motion band (a set-point change before it ends the stop
-unjudged). SWEEP.csv has one row per stop: the scenario, the stop, what happened, and each
+plant's first breakaway after the forecast was made is the restart, timed exactly, even when it
+moves the carriage less than the detector's motion band (a set-point change before it ends the
+stop unjudged). With noisy sensors (e.g. --config config/hil.yaml --set hal.backend=sim) the
+detector may confirm a stop while the plant still slides within its rest band: counted, not
+judged (outcome plant_not_at_rest). SWEEP.csv has one row per stop: the scenario, the stop, what happened, and each
 method's forecast with its verdict and error. The summary gives the confusion matrix of restart / no restart and the
 error percentiles per method. Acceptance: restarts after >= 0.5 s of sticking within 1 % of the
 sticking time (nonlinear) and 5 % (linearized), shorter ones within 10 ms; --strict exits 1 when
@@ -64,34 +66,52 @@ struct Scenario {
   double y0_m = 0.0, y_d_m = 0.0, friction_scale = 1.0, gain_scale = 1.0;
 };
 
+struct Truth {
+  bool unseen = false;       // a true restart the stop detector did not see
+  bool not_at_rest = false;  // the plant was sliding when the stop was confirmed: not judged
+};
+
 struct ScenarioResult {
   Scenario scenario;
   std::vector<controller::StopOutcome> stops;
-  std::vector<bool> unseen_restart;  // per stop: a true restart the stop detector did not see
+  std::vector<Truth> truth;  // per stop
   double t_end_s = 0.0;
 };
 
-// What happened, by the simulated truth: the plant's first breakaway after the stop is the
-// restart. The stop detector sees a start only once the carriage has moved beyond its motion band;
-// a breakaway under a force a hair beyond stiction can move it less than that before the
-// pneumatic stiffness stops it again, a restart all the same. Returns whether the detector had
-// missed it. Stops ended by a set-point change keep that outcome.
-bool apply_plant_truth(controller::StopOutcome& s, std::span<const plant::PlantEvent> breakaways, double run_end_s,
-                       double period_s) {
-  if (s.ended && !s.restarted) return false;
+// What happened, by the simulated truth: the plant's first breakaway after the forecast was made
+// (the stop's confirmation) is the restart. The stop detector sees a start only once the carriage
+// has moved beyond its motion band; a breakaway under a force a hair beyond stiction can move it
+// less than that before the pneumatic stiffness stops it again, a restart all the same. With
+// noisy sensors the detector can also confirm a stop while the plant still slides slowly within
+// its rest band: a forecast made then assumed a rest that was not there, and is not judged.
+// Stops ended by a set-point change keep that outcome.
+Truth apply_plant_truth(controller::StopOutcome& s, std::span<const plant::PlantEvent> events, double run_end_s,
+                        double period_s) {
+  using Kind = plant::PlantEvent::Kind;
+  Truth truth;
+  if (s.ended && !s.restarted) return truth;
+  bool at_rest = true;  // runs start at rest
+  for (const auto& e : events) {
+    if (e.t_s > s.snapshot.t_s) break;
+    at_rest = e.kind != Kind::kBreakaway;
+  }
+  if (!at_rest) {
+    truth.not_at_rest = true;
+    return truth;
+  }
   // The detector dates a start midway between the last sample at rest and the first that moved:
   // the breakaway may lie up to a period after that.
   const double limit_s = s.ended ? s.t_end_s + period_s : run_end_s;
-  for (const auto& b : breakaways) {
-    if (b.t_s <= s.t_stop_s) continue;
-    if (b.t_s > limit_s) break;
-    const bool unseen = !s.ended;
+  for (const auto& e : events) {
+    if (e.kind != Kind::kBreakaway || e.t_s <= s.snapshot.t_s) continue;
+    if (e.t_s > limit_s) break;
+    truth.unseen = !s.ended;
     s.ended = s.restarted = true;
-    s.t_end_s = b.t_s;
-    s.direction = b.direction;
-    return unseen;
+    s.t_end_s = e.t_s;
+    s.direction = e.direction;
+    return truth;
   }
-  return false;
+  return truth;
 }
 
 struct MethodStats {
@@ -236,12 +256,11 @@ int run(int argc, char** argv) {
         // Stops from the tail are not judged: the tail only lets the carriage show what it did
         // after the stops of the judged window.
         ScenarioResult r{s, {}, {}, sim.report->end_time_s()};
-        if (sim.backend->breakaways_dropped() > 0)
-          throw std::runtime_error("scenario " + std::to_string(s.index) + ": more plant breakaways than recorded");
+        if (sim.backend->motion_events_dropped() > 0)
+          throw std::runtime_error("scenario " + std::to_string(s.index) + ": more plant events than recorded");
         for (auto stop : sim.report->stops()) {
           if (stop.t_stop_s > duration) continue;
-          r.unseen_restart.push_back(
-              apply_plant_truth(stop, sim.backend->breakaways(), r.t_end_s, cfg.controller.period_s()));
+          r.truth.push_back(apply_plant_truth(stop, sim.backend->motion_events(), r.t_end_s, cfg.controller.period_s()));
           r.stops.push_back(stop);
         }
         results[static_cast<std::size_t>(i)] = std::move(r);
@@ -290,15 +309,19 @@ int run(int argc, char** argv) {
        << m << "_error_ms," << m << "_error_percent," << m << "_within_criteria";
   os << ",lin_halfway_error_percent,nl_halfway_error_percent\n";
   MethodStats stats[2];
-  std::uint64_t stops = 0, restarts = 0, long_restarts = 0, longest_restart_count_1s = 0, unseen = 0;
+  std::uint64_t stops = 0, restarts = 0, long_restarts = 0, longest_restart_count_1s = 0, unseen = 0, not_at_rest = 0;
   char buf[512];
   for (const auto& r : results) {
     for (std::size_t k = 0; k < r.stops.size(); ++k) {
       const auto& s = r.stops[k];
       ++stops;
-      if (r.unseen_restart[k]) ++unseen;
-      const char* outcome = !s.ended ? "stuck_to_end" : (s.restarted ? "restart" : "setpoint_changed");
-      if (s.restarted) {
+      if (r.truth[k].unseen) ++unseen;
+      const bool judged = !r.truth[k].not_at_rest;  // else the forecast's premise, rest, was not there
+      if (!judged) ++not_at_rest;
+      const char* outcome = !judged    ? "plant_not_at_rest"
+                            : !s.ended ? "stuck_to_end"
+                                       : (s.restarted ? "restart" : "setpoint_changed");
+      if (judged && s.restarted) {
         ++restarts;
         if (s.sticking_s() >= kLongSticking_s) ++long_restarts;
         if (s.sticking_s() >= 1.0) ++longest_restart_count_1s;
@@ -317,7 +340,7 @@ int run(int argc, char** argv) {
           continue;
         }
         const auto& p = **ps[m];
-        const Verdict v = controller::judge(s, p, r.t_end_s);
+        const Verdict v = judged ? controller::judge(s, p, r.t_end_s) : Verdict{};
         const bool ok = within_criteria(s, v, m == 1);
         MethodStats& st = stats[m];
         switch (v.kind) {
@@ -343,7 +366,7 @@ int run(int argc, char** argv) {
       // sticking time (restarts after >= 0.5 s only; not an acceptance figure).
       for (int m = 0; m < 2; ++m) {
         const controller::Reforecast* halfway = nullptr;
-        if (s.restarted && s.sticking_s() >= kLongSticking_s)
+        if (judged && s.restarted && s.sticking_s() >= kLongSticking_s)
           for (const auto& f : s.reforecasts)
             if (f.prediction.method == kMethods[m] && f.t_s <= s.t_stop_s + 0.5 * s.sticking_s()) halfway = &f;
         const Verdict v = halfway ? controller::judge(s, halfway->prediction, r.t_end_s) : Verdict{};
@@ -366,6 +389,10 @@ int run(int argc, char** argv) {
               static_cast<unsigned long long>(stops), static_cast<unsigned long long>(restarts),
               static_cast<unsigned long long>(long_restarts), static_cast<unsigned long long>(longest_restart_count_1s),
               static_cast<unsigned long long>(unseen));
+  if (not_at_rest > 0)
+    std::printf("  %llu stops were confirmed while the plant was still sliding within the detector's rest band: "
+                "their forecasts are not judged\n",
+                static_cast<unsigned long long>(not_at_rest));
   std::printf("  %.2f s wall on %d threads: %.1f scenarios/s\n", wall_s, jobs, n / wall_s);
   const char* names[2] = {"linearized", "nonlinear"};
   for (int m = 0; m < 2; ++m) {

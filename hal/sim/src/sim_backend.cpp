@@ -10,14 +10,14 @@ SimBackend::SimBackend(const plant::PlantParams& plant, const plant::SensorParam
       initial_u_v_(initial_u_v),
       command_(ActuatorCommand::from_control(initial_u_v, true)) {
   plant_.reset_at_rest(initial_position_m_, initial_u_v_);
-  breakaways_.reserve(kMaxBreakaways);
+  motion_events_.reserve(kMaxMotionEvents);
 }
 
 void SimBackend::open(double t0_s) {
   plant_.reset_at_rest(initial_position_m_, initial_u_v_, t0_s);
   command_ = ActuatorCommand::from_control(initial_u_v_, true);
-  breakaways_.clear();
-  breakaways_dropped_ = 0;
+  motion_events_.clear();
+  motion_events_dropped_ = 0;
 }
 
 Status SimBackend::read(double t_s, SensorFrame& frame) noexcept {
@@ -27,9 +27,9 @@ Status SimBackend::read(double t_s, SensorFrame& frame) noexcept {
   if (dt > 0.0) {
     plant_.step(dt, command_.u_p_v, command_.u_n_v);
     for (const auto& e : plant_.last_events()) {
-      if (e.kind != plant::PlantEvent::Kind::kBreakaway) continue;
-      if (breakaways_.size() < kMaxBreakaways) breakaways_.push_back(e);  // within the reserved room
-      else ++breakaways_dropped_;
+      if (e.kind == plant::PlantEvent::Kind::kReversal) continue;  // sliding on: no change
+      if (motion_events_.size() < kMaxMotionEvents) motion_events_.push_back(e);  // within the reserved room
+      else ++motion_events_dropped_;
     }
   }
   const auto& s = plant_.state();

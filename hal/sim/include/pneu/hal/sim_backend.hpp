@@ -29,12 +29,13 @@ class SimBackend final : public Backend {
   /// The simulated truth, for tests and what-if runs.
   [[nodiscard]] const plant::Plant& plant() const noexcept { return plant_; }
   [[nodiscard]] const ActuatorCommand& held_command() const noexcept { return command_; }
-  /// The plant's breakaways since open(), in order: the true restarts, however small the motion
-  /// that follows (the stop detector sees a start only beyond its motion band). Up to
-  /// kMaxBreakaways are kept (room reserved up front: recording never allocates); more are counted.
-  [[nodiscard]] std::span<const plant::PlantEvent> breakaways() const noexcept { return breakaways_; }
-  [[nodiscard]] std::uint64_t breakaways_dropped() const noexcept { return breakaways_dropped_; }
-  static constexpr std::size_t kMaxBreakaways = 4096;
+  /// The plant's changes between rest and motion since open(), in order: breakaways (the true
+  /// restarts, however small the motion that follows: the stop detector sees a start only beyond
+  /// its motion band), sticks and end stops. The plant starts at rest. Up to kMaxMotionEvents are
+  /// kept (room reserved up front: recording never allocates); more are counted.
+  [[nodiscard]] std::span<const plant::PlantEvent> motion_events() const noexcept { return motion_events_; }
+  [[nodiscard]] std::uint64_t motion_events_dropped() const noexcept { return motion_events_dropped_; }
+  static constexpr std::size_t kMaxMotionEvents = 8192;
 
  private:
   plant::Plant plant_;
@@ -42,8 +43,8 @@ class SimBackend final : public Backend {
   double initial_position_m_;
   double initial_u_v_;
   ActuatorCommand command_;
-  std::vector<plant::PlantEvent> breakaways_;
-  std::uint64_t breakaways_dropped_ = 0;
+  std::vector<plant::PlantEvent> motion_events_;
+  std::uint64_t motion_events_dropped_ = 0;
 };
 
 }  // namespace pneu::hal
