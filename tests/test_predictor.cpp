@@ -323,6 +323,8 @@ TEST(ForecastTrackNonlinear, IntegratesForwardOnlyAndIgnoresANonFiniteTime) {
   EXPECT_EQ(earlier.p_p_pa, later.p_p_pa);
   EXPECT_EQ(track.at(std::numeric_limits<double>::infinity()).p_p_pa, later.p_p_pa);
   EXPECT_EQ(track.at(std::numeric_limits<double>::quiet_NaN()).p_n_pa, later.p_n_pa);
+  // ... and goes on from there when asked for a later time again.
+  EXPECT_NE(track.at(kStopTimeS + 0.3).p_p_pa, later.p_p_pa);
 }
 
 // --- With the real valve model (PlantParams defaults) -------------------------------------------

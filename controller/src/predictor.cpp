@@ -275,13 +275,13 @@ ForecastPoint ForecastTrack::at(double t_s) noexcept {
     const double pn = relax(stop_.p_n_pa, p_n_equilibrium_pa_, tau_n_s_);
     return {pp, pn, c.force(pp, pn)};
   }
-  if (!(t_s >= t_asked_s_)) return {p_p_pa_, p_n_pa_, c.force(p_p_pa_, p_n_pa_)};  // backwards, or NaN
+  if (!std::isfinite(t_s) || t_s < t_asked_s_) return {p_p_pa_, p_n_pa_, c.force(p_p_pa_, p_n_pa_)};
   t_asked_s_ = t_s;
   // The steps of predict_nonlinear from the snapshot; between their ends, the cubic Hermite
   // interpolant (from the values and slopes there: as accurate as the RK4 step, far cheaper than
   // a step per tick).
   const PressureOde ode{c, *model_.valve, stop_.u_v};
-  while (std::isfinite(t_s) && t_s > step_end_s_) {
+  while (t_s > step_end_s_) {
     step_start_s_ = step_end_s_;
     start_ = end_;
     start_slope_ = end_slope_;
@@ -292,7 +292,6 @@ ForecastPoint ForecastTrack::at(double t_s) noexcept {
     end_ = {x.pp, x.pn};
     end_slope_ = {dx.pp, dx.pn};
   }
-  if (!std::isfinite(t_s)) return {p_p_pa_, p_n_pa_, c.force(p_p_pa_, p_n_pa_)};
   const double h = step_end_s_ - step_start_s_;
   const double u = h > 0.0 ? (t_s - step_start_s_) / h : 1.0;
   const double h00 = (1.0 + 2.0 * u) * (1.0 - u) * (1.0 - u), h10 = u * (1.0 - u) * (1.0 - u);

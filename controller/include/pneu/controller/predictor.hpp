@@ -82,8 +82,8 @@ class ForecastTrack {
   ForecastTrack(PredictionMethod method, const PredictorModel& model, const StopSnapshot& stop) noexcept;
 
   /// The forecast at `t_s` (absolute). Before the snapshot: the snapshot itself. The nonlinear
-  /// method only goes forward: an earlier time than the last one asked (or NaN, or infinity)
-  /// gives the last point.
+  /// method only goes forward, one RK4 step per 10 ms or less of the span it covers: an earlier
+  /// time than the last one asked (or NaN, or infinity) gives the last point.
   [[nodiscard]] ForecastPoint at(double t_s) noexcept;
   [[nodiscard]] PredictionMethod method() const noexcept { return method_; }
 
