@@ -404,7 +404,7 @@ int run(int argc, char** argv) {
                 static_cast<unsigned long long>(st.fp));
     std::printf("      forecast none      %14llu  %11llu\n", static_cast<unsigned long long>(st.fn),
                 static_cast<unsigned long long>(st.tn));
-    std::printf("    not judged: %llu (the set point moved, or the forecast restart falls after the run)\n",
+    std::printf("    not judged: %llu (the set point moved, the plant was not at rest, or the forecast restart falls after the run)\n",
                 static_cast<unsigned long long>(st.not_judged));
     std::printf("    wrong direction: %llu\n", static_cast<unsigned long long>(st.wrong_direction));
     std::printf("    error, sticking >= 0.5 s (%zu): p50 %.3f %%  p90 %.3f %%  p99 %.3f %%  max %.3f %% of the sticking time\n",
