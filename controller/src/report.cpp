@@ -78,6 +78,15 @@ Verdict judge(const StopOutcome& s, const Prediction& p, double t_end_s) noexcep
   return v;
 }
 
+const Reforecast* halfway_reforecast(const StopOutcome& s, PredictionMethod method) noexcept {
+  const Reforecast* last = nullptr;
+  for (const Reforecast& f : s.reforecasts) {
+    if (f.t_s > s.t_stop_s + 0.5 * s.sticking_s()) break;  // in time order
+    if (f.prediction.method == method) last = &f;
+  }
+  return last;
+}
+
 RunReport::RunReport(const PredictorModel& model, bool linearized, bool nonlinear, std::ostream* events,
                      std::ostream* trajectory, double update_period_s)
     : model_(model),
@@ -97,9 +106,8 @@ void RunReport::drain(LoopOutputs& out) {
   TickRecord r;
   while (out.ticks.try_pop(r)) {
     for (const LoopEvent* e = out.events.front(); e && e->tick_seq <= r.seq; e = out.events.front()) {
-      const LoopEvent event = *e;
-      LoopEvent popped;
-      (void)out.events.try_pop(popped);
+      LoopEvent event;
+      (void)out.events.try_pop(event);  // the one front() showed
       on_event(event);
     }
     on_tick(r);
@@ -126,7 +134,7 @@ void RunReport::on_tick(const TickRecord& r) {
   ForecastPoint expected[2] = {{kNaN, kNaN, kNaN}, {kNaN, kNaN, kNaN}};
   if (following_) {
     StopOutcome& s = stops_.back();
-    if (s.ended || !r.stuck || r.mode != Mode::kArmed || r.y_d_m != s.y_d_m) {
+    if (s.ended || !r.stuck || !std::isnan(s.forecast_void_at_s)) {
       following_.reset();
     } else if (r.t_s >= s.snapshot.t_s) {
       if (std::isfinite(r.y_m)) {
@@ -223,10 +231,8 @@ void RunReport::write_prediction(const StopOutcome& s, const Prediction& p) {
 void RunReport::settle(StopOutcome& s) const {
   s.halfway_linearized.reset();
   s.halfway_nonlinear.reset();
-  for (const Reforecast& f : s.reforecasts) {
-    if (f.t_s > s.t_stop_s + 0.5 * s.sticking_s()) break;
-    (f.prediction.method == PredictionMethod::kLinearized ? s.halfway_linearized : s.halfway_nonlinear) = f;
-  }
+  if (const Reforecast* f = halfway_reforecast(s, PredictionMethod::kLinearized)) s.halfway_linearized = *f;
+  if (const Reforecast* f = halfway_reforecast(s, PredictionMethod::kNonlinear)) s.halfway_nonlinear = *f;
   if (!keep_reforecasts_) std::vector<Reforecast>().swap(s.reforecasts);
 }
 

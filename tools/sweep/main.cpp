@@ -365,10 +365,10 @@ int run(int argc, char** argv) {
       // The live predictor: the forecast made again from the last pressures before half the
       // sticking time (restarts after >= 0.5 s only; not an acceptance figure).
       for (int m = 0; m < 2; ++m) {
-        const controller::Reforecast* halfway = nullptr;
-        if (judged && s.restarted && s.sticking_s() >= kLongSticking_s)
-          for (const auto& f : s.reforecasts)
-            if (f.prediction.method == kMethods[m] && f.t_s <= s.t_stop_s + 0.5 * s.sticking_s()) halfway = &f;
+        // (The half-way of the plant's truth: the report settled its own by the detector's.)
+        const controller::Reforecast* halfway = judged && s.restarted && s.sticking_s() >= kLongSticking_s
+                                                    ? controller::halfway_reforecast(s, kMethods[m])
+                                                    : nullptr;
         const Verdict v = halfway ? controller::judge(s, halfway->prediction, r.t_end_s) : Verdict{};
         if (v.kind == Verdict::Kind::kTruePositive) {
           stats[m].halfway_error_pct.push_back(v.error_percent);

@@ -87,6 +87,10 @@ struct Verdict {
 /// of the run, are not judged.
 [[nodiscard]] Verdict judge(const StopOutcome& stop, const Prediction& prediction, double t_end_s) noexcept;
 
+/// The last forecast of `method` made again before half the stop's sticking time (as its
+/// t_end_s stands), from its kept `reforecasts`; null when none.
+[[nodiscard]] const Reforecast* halfway_reforecast(const StopOutcome& stop, PredictionMethod method) noexcept;
+
 /// Receives what the report drains, in order, on the non-real-time side (LCM telemetry).
 class ReportListener {
  public:
