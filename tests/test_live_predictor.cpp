@@ -24,6 +24,7 @@
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/report.hpp"
 #include "pneu/controller/session.hpp"
+#include "support/child_process.hpp"
 
 namespace {
 
@@ -31,6 +32,7 @@ using namespace pneu;
 using controller::PredictionMethod;
 using controller::Reforecast;
 using controller::StopOutcome;
+using pneu::test::Csv;
 namespace fs = std::filesystem;
 
 // One simulated run of the default configuration, drained every `drain_every` ticks.
@@ -76,13 +78,6 @@ struct LiveRun {
 };
 
 double r_period(const LiveRun& r) { return r.config.controller.predictor.update_period_s; }
-
-std::vector<std::string> lines_of(const std::string& text) {
-  std::vector<std::string> lines;
-  std::istringstream in(text);
-  for (std::string line; std::getline(in, line);) lines.push_back(line);
-  return lines;
-}
 
 TEST(LivePredictor, TheNonlinearForecastFollowsTheSimulatedForceThroughTheLongStickingPhase) {
   const LiveRun r;
@@ -252,14 +247,10 @@ TEST(LivePredictor, WithAQuantisedPotentiometerTheForecastsMadeAgainTakeUStarAtT
   ASSERT_GE(s.sticking_s(), 1.0);
   ASSERT_FALSE(s.reforecasts.empty());
   // The readings the report saw from the snapshot to each re-forecast, from the trajectory.
+  const Csv traj = Csv::parse(r.trajectory.str());
+  const std::size_t t_col = traj.col("t"), y_col = traj.col("y");
   std::vector<std::pair<double, double>> readings;  // t, y
-  for (const auto& line : lines_of(r.trajectory.str())) {
-    if (line.rfind("seq", 0) == 0) continue;
-    std::vector<std::string> cells;
-    std::istringstream in(line);
-    for (std::string c; std::getline(in, c, ',');) cells.push_back(c);
-    readings.emplace_back(std::stod(cells[1]), std::stod(cells[3]));
-  }
+  for (const auto& row : traj.rows) readings.emplace_back(std::stod(row[t_col]), std::stod(row[y_col]));
   const controller::ControlLaw law(r.config.controller.law);
   std::set<double> codes;
   for (const Reforecast& f : s.reforecasts) {
@@ -304,12 +295,12 @@ TEST(LivePredictor, ASetPointChangeWhileStuckEndsTheFollowingOfThatStop) {
   // In the trajectory, the forecast columns are empty from the change until the next stop.
   const double next_stop_s = stuck_at_4s->index < r.stops().size() ? r.stops()[stuck_at_4s->index].t_stop_s : 1e9;
   int rows_checked = 0;
-  for (const auto& line : lines_of(r.trajectory.str())) {
-    if (line.rfind("seq", 0) == 0) continue;
-    const auto c1 = line.find(','), c2 = line.find(',', c1 + 1);
-    const double t = std::stod(line.substr(c1 + 1, c2 - c1 - 1));
+  const Csv traj = Csv::parse(r.trajectory.str());
+  const std::size_t t_col = traj.col("t"), first_forecast_col = traj.col("p_P_linearized");
+  for (const auto& row : traj.rows) {
+    const double t = std::stod(row[t_col]);
     if (t < 4.0 - 1e-9 || t >= next_stop_s) continue;
-    EXPECT_TRUE(line.ends_with(",,,,,,")) << line;
+    for (std::size_t c = first_forecast_col; c < row.size(); ++c) EXPECT_EQ(row[c], "") << "t = " << t;
     ++rows_checked;
   }
   EXPECT_GT(rows_checked, 100);
@@ -329,20 +320,20 @@ TEST(LivePredictor, WhatTheReportWritesDoesNotDependOnHowOftenItDrains) {
 TEST(LivePredictor, TheTrajectoryHoldsEachForecastFromItsSnapshotToTheStart) {
   const LiveRun r;
   const StopOutcome& s = r.longest_restart();
-  const auto lines = lines_of(r.trajectory.str());
-  ASSERT_FALSE(lines.empty());
-  EXPECT_TRUE(lines.front().ends_with(
-      ",p_P_linearized,p_N_linearized,F_linearized,p_P_nonlinear,p_N_nonlinear,F_nonlinear"));
+  const Csv traj = Csv::parse(r.trajectory.str());
+  EXPECT_EQ(std::vector<std::string>(traj.header.end() - 6, traj.header.end()),
+            (std::vector<std::string>{"p_P_linearized", "p_N_linearized", "F_linearized", "p_P_nonlinear",
+                                      "p_N_nonlinear", "F_nonlinear"}));
+  const std::size_t t_col = traj.col("t"), first_forecast_col = traj.col("p_P_linearized");
   int filled = 0;
-  for (std::size_t i = 1; i < lines.size(); ++i) {
-    const auto c1 = lines[i].find(','), c2 = lines[i].find(',', c1 + 1);
-    const double t = std::stod(lines[i].substr(c1 + 1, c2 - c1 - 1));
-    const bool empty = lines[i].ends_with(",,,,,,");
-    if (t < s.snapshot.t_s - 1e-9 || t > s.t_end_s + 0.5) continue;
-    if (t <= s.t_end_s) {
-      EXPECT_FALSE(empty) << lines[i];  // from the snapshot to the breakaway: followed
-      filled += empty ? 0 : 1;
-    }
+  for (const auto& row : traj.rows) {
+    const double t = std::stod(row[t_col]);
+    if (t < s.snapshot.t_s - 1e-9 || t > s.t_end_s) continue;
+    // From the snapshot to the breakaway: followed, every forecast column filled.
+    bool all = true;
+    for (std::size_t c = first_forecast_col; c < row.size(); ++c) all = all && !row[c].empty();
+    EXPECT_TRUE(all) << "t = " << t;
+    filled += all ? 1 : 0;
   }
   EXPECT_GE(filled, static_cast<int>((s.t_end_s - s.snapshot.t_s) / 1e-3));
 }

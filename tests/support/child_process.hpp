@@ -100,8 +100,15 @@ struct Csv {
     return 0;
   }
   static Csv read(const fs::path& p) {
-    Csv c;
     std::ifstream in(p);
+    return parse(in);
+  }
+  static Csv parse(const std::string& text) {
+    std::istringstream in(text);
+    return parse(in);
+  }
+  static Csv parse(std::istream& in) {
+    Csv c;
     std::string line;
     bool first = true;
     while (std::getline(in, line)) {
