@@ -70,7 +70,7 @@ class Hil : public ::testing::Test {
     std::vector<std::string> args{bin("pneud"), "--config", hil_yaml(), "--set", "hal.modbus.port=" + std::to_string(port_),
                                   "--set", "telemetry.enabled=false"};
     args.insert(args.end(), extra.begin(), extra.end());
-    return args;
+    return pneu::test::loop_timing_faults_off(std::move(args));
   }
   pneu::test::TestDir dir_{"pneu_hil_"};
   int port_ = 0;

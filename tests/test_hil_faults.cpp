@@ -209,7 +209,7 @@ class HilFaults : public ::testing::Test {
                                   "--events", (dir_ / "events.jsonl").string(), "--trajectory",
                                   (dir_ / "traj.csv").string()};
     args.insert(args.end(), extra.begin(), extra.end());
-    return Child::spawn(args, dir_ / "pneud.out", dir_ / "pneud.err");
+    return Child::spawn(pneu::test::loop_timing_faults_off(std::move(args)), dir_ / "pneud.out", dir_ / "pneud.err");
   }
   // The last complete line of the plant's record (it may be writing the next one).
   Outputs last_outputs(const std::string& name) const {

@@ -38,6 +38,7 @@ namespace {
 namespace fs = std::filesystem;
 using pneu::test::Child;
 using pneu::test::Csv;
+using pneu::test::loop_timing_faults_off;
 using pneu::test::slurp;
 using ::testing::HasSubstr;
 using namespace std::chrono_literals;
@@ -58,8 +59,9 @@ TEST_F(LcmIntegration, LcmLoggerRecordsEveryTickInOrderWithEventsAndPredictions)
   ASSERT_GT(logger.pid, 0) << "lcm-logger (package liblcm-bin) did not start";
   std::this_thread::sleep_for(500ms);  // subscribed before the first tick
 
-  Child pneud = Child::spawn({bin("pneud"), "--clock", "real", "--duration", "3", "--require-telemetry",
-                              "--trajectory", (dir_ / "traj.csv").string(), "--events", (dir_ / "events.jsonl").string()},
+  Child pneud = Child::spawn(loop_timing_faults_off({bin("pneud"), "--clock", "real", "--duration", "3",
+                                                     "--require-telemetry", "--trajectory", (dir_ / "traj.csv").string(),
+                                                     "--events", (dir_ / "events.jsonl").string()}),
                              dir_ / "pneud.out", dir_ / "pneud.err");
   ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
   std::this_thread::sleep_for(500ms);  // the logger flushes every 100 ms
@@ -192,10 +194,11 @@ TEST_F(LcmIntegration, CommandsAreValidatedAndOnlyValidOnesReachTheLoop) {
   });
 
   // No schedule: the carriage holds 219.5 mm until commanded.
-  Child pneud = Child::spawn({bin("pneud"), "--clock", "real", "--duration", "4", "--require-telemetry",
-                              "--set", "controller.setpoints.schedule=[]", "--set", "telemetry.health_period_s=0.5",
-                              "--set", "commands.max_rate_hz=100", "--set", "commands.burst=5",
-                              "--trajectory", (dir_ / "traj.csv").string()},
+  Child pneud = Child::spawn(loop_timing_faults_off({bin("pneud"), "--clock", "real", "--duration", "4",
+                                                     "--require-telemetry", "--set", "controller.setpoints.schedule=[]",
+                                                     "--set", "telemetry.health_period_s=0.5", "--set",
+                                                     "commands.max_rate_hz=100", "--set", "commands.burst=5",
+                                                     "--trajectory", (dir_ / "traj.csv").string()}),
                              dir_ / "pneud.out", dir_ / "pneud.err");
   std::this_thread::sleep_for(800ms);
   using C = pneu_lcm::command_t;

@@ -23,6 +23,7 @@ using namespace std::chrono_literals;
 using pneu::test::Child;
 using pneu::test::slurp;
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 std::string bin(const std::string& name) { return std::string(PNEU_BINARY_DIR) + "/bin/" + name; }
 
@@ -97,6 +98,48 @@ TEST_F(PneudDaemon, OutsideSystemdNothingIsNotifiedAndTheRunIsTheSame) {
                          dir_ / "pneud.out", dir_ / "pneud.err");
   EXPECT_EQ(p.wait(), 0) << slurp(dir_ / "pneud.err");
   EXPECT_THAT(slurp(dir_ / "pneud.out"), HasSubstr("loop: "));
+}
+
+// A loop that stops for 0.3 s (the whole process stopped by SIGSTOP, as a machine stall would) is
+// caught by the supervisor when it runs again: an overrun fault, latched once, in the summary and
+// the events. With the timing supervision off (what tests of other things run on the real clock
+// use, see loop_timing_faults_off), the same stall skips its deadlines and latches nothing.
+class PneudStall : public PneudDaemon {
+ protected:
+  std::string stalled_run(std::vector<std::string> args) {
+    args.insert(args.end(), {"--events", (dir_ / "events.jsonl").string()});
+    Child p = Child::spawn(args, dir_ / "pneud.out", dir_ / "pneud.err");
+    std::this_thread::sleep_for(300ms);
+    kill(p.pid, SIGSTOP);
+    std::this_thread::sleep_for(300ms);
+    kill(p.pid, SIGCONT);
+    std::this_thread::sleep_for(300ms);
+    kill(p.pid, SIGTERM);
+    EXPECT_EQ(p.wait(), 0) << slurp(dir_ / "pneud.err");
+    return slurp(dir_ / "pneud.out");
+  }
+  const std::vector<std::string> pneud_{bin("pneud"), "--clock", "real", "--duration", "0", "--set",
+                                        "telemetry.enabled=false", "--set", "controller.setpoints.schedule=[]"};
+};
+
+TEST_F(PneudStall, AStalledLoopLatchesTheOverrunFault) {
+  const std::string out = stalled_run(pneud_);
+  EXPECT_THAT(out, HasSubstr("): overrun: the loop overran its deadlines")) << out;
+  const auto s = pneu::test::PneudSummary::parse(out);
+  ASSERT_TRUE(s.has_loop) << out;
+  EXPECT_GE(s.skipped, 250u) << "the 0.3 s stopped are deadlines skipped, not ticks made up\n" << out;
+  const std::string events = slurp(dir_ / "events.jsonl");
+  EXPECT_THAT(events, HasSubstr("\"event\":\"fault\"")) << events;
+  EXPECT_THAT(events, HasSubstr("\"cause\":\"overrun\"")) << events;
+}
+
+TEST_F(PneudStall, WithTheTimingSupervisionOffTheSameStallLatchesNothing) {
+  const std::string out = stalled_run(pneu::test::loop_timing_faults_off(pneud_));
+  EXPECT_THAT(out, Not(HasSubstr("fault at"))) << out;
+  const auto s = pneu::test::PneudSummary::parse(out);
+  ASSERT_TRUE(s.has_loop) << out;
+  EXPECT_GE(s.skipped, 250u) << out;
+  EXPECT_THAT(slurp(dir_ / "events.jsonl"), Not(HasSubstr("\"event\":\"fault\"")));
 }
 
 // Real time for the loop thread needs RLIMIT_RTPRIO/RLIMIT_MEMLOCK or the capabilities: an

@@ -146,7 +146,7 @@ class PymodbusInterop : public ::testing::Test {
                                   "--trajectory",
                                   (dir_ / "trajectory.csv").string()};
     args.insert(args.end(), extra.begin(), extra.end());
-    return Child::spawn(args, dir_ / "pneud.out", dir_ / "pneud.err");
+    return Child::spawn(pneu::test::loop_timing_faults_off(std::move(args)), dir_ / "pneud.out", dir_ / "pneud.err");
   }
 
   // The checks both function-code variants share: a clean 2 s run at about 1 kHz, every sample

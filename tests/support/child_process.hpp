@@ -153,6 +153,18 @@ inline int free_port() {
   return port;
 }
 
+/// pneud arguments that turn its loop-timing supervision off (controller.supervisor.overruns_in_a_row
+/// and max_tick_interval_s set to 0), for tests of something else run on the real clock. A shared
+/// machine stalls a process for tens of milliseconds now and then (62 ms in one CI run). On a bench
+/// that rightly latches an overrun fault, but it would fail a test about commands or Modbus. The
+/// supervision itself is tested in test_supervisor, and end to end by PneudDaemon's SIGSTOP test.
+inline std::vector<std::string> loop_timing_faults_off(std::vector<std::string> args) {
+  for (const char* a : {"--set", "controller.supervisor.overruns_in_a_row=0", "--set",
+                        "controller.supervisor.max_tick_interval_s=0"})
+    args.emplace_back(a);
+  return args;
+}
+
 /// The loop and modbus lines of pneud's end-of-run summary.
 struct PneudSummary {
   bool has_loop = false, has_modbus = false;
