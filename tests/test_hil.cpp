@@ -213,6 +213,11 @@ TEST_F(Hil, AModuleThatAnswersLateIsACountedCommsFaultAndTheLoopNeverWaits) {
   EXPECT_GT(summary.stale, 1000u) << "the loop saw the samples go stale: flagged, not waited for";
   EXPECT_EQ(summary.ticks + summary.skipped, 3001u) << "every deadline of the 3 s run was met or accounted for";
   EXPECT_LT(summary.skipped, 100u) << "the loop did not stall on the module";
+  // The safe output is tried three times on closing, each on a fresh connection; none is answered
+  // in time, and pneud says so, on stderr too (the journal's).
+  EXPECT_THAT(out, HasSubstr("safe output on closing: NOT confirmed by the module after 3 attempts"));
+  EXPECT_THAT(slurp(dir_ / "pneud.err"),
+              HasSubstr("the module did not confirm the safe output on closing (3 attempts, last error: "));
 }
 
 TEST_F(Hil, RtuOverAPtyPairAt115200BaudKeepsTheLoopRateAndFreshSamples) {
@@ -227,7 +232,9 @@ TEST_F(Hil, RtuOverAPtyPairAt115200BaudKeepsTheLoopRateAndFreshSamples) {
   Child plant = Child::spawn({bin("pneu-plant"), "serve", "--config", hil_yaml(), "--set", "hal.modbus.transport=rtu",
                               "--set", "hal.modbus.device=" + a.string(), "--duration", "6"},
                              dir_ / "serve.out", dir_ / "serve.err");
-  std::this_thread::sleep_for(300ms);
+  for (int i = 0; i < 300 && slurp(dir_ / "serve.out").find("serving") == std::string::npos; ++i)
+    std::this_thread::sleep_for(10ms);
+  ASSERT_THAT(slurp(dir_ / "serve.out"), HasSubstr("serving")) << slurp(dir_ / "serve.err");
   Child pneud = Child::spawn(pneud_args({"--duration", "3", "--set", "hal.modbus.transport=rtu", "--set",
                                          "hal.modbus.device=" + b.string()}),
                              dir_ / "pneud.out", dir_ / "pneud.err");

@@ -537,7 +537,9 @@ TEST_F(HilFaults, SigtermMidMotionWritesTheSafeOutputBeforeExit) {
   ASSERT_TRUE(wait_armed_and_running(1100)) << slurp(dir_ / "pneud.err");
   EXPECT_FALSE(last_outputs("plant").safe());
   stop_pneud(p);
-  EXPECT_TRUE(last_outputs("plant").safe()) << "the last voltages the plant received";
+  // The plant records a write after it has replied to it: give a loaded machine time to write it.
+  EXPECT_TRUE(wait_outputs("plant", /*safe=*/true, 2s)) << "the last voltages the plant received";
+  EXPECT_THAT(slurp(dir_ / "pneud.out"), HasSubstr("safe output on closing: delivered to the module on attempt 1 of 3"));
   const auto hs = telemetry_.healths();
   ASSERT_FALSE(hs.empty());
   EXPECT_TRUE(hs.back().final);

@@ -262,6 +262,14 @@ int run(int argc, char** argv) {
     throw;
   }
   if (g_stop.load()) notifier.stopping();
+#ifdef PNEU_WITH_MODBUS
+  const auto* modbus = dynamic_cast<const hal::ModbusBackend*>(inner ? inner.get() : run.hardware.get());
+  if (modbus && !modbus->safe_output_delivery().delivered)  // the journal's, quiet or not
+    std::fprintf(stderr,
+                 "pneud: warning: the module did not confirm the safe output on closing (%d attempts, last error: %s): "
+                 "it may still hold the last command\n",
+                 modbus->safe_output_delivery().attempts, modbus->last_error().c_str());
+#endif
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
 
   if (events) events->flush();
@@ -287,7 +295,7 @@ int run(int argc, char** argv) {
     }
 #endif
 #ifdef PNEU_WITH_MODBUS
-    if (auto* mb = dynamic_cast<hal::ModbusBackend*>(inner ? inner.get() : run.hardware.get())) {
+    if (const auto* mb = modbus) {
       const auto& c = mb->counters();
       std::printf("modbus: %llu transactions (%.0f per second), %llu errors, %llu reconnects, %llu samples out of range, "
                   "%llu stale reads, oldest sample %.2f ms%s%s\n",
@@ -297,6 +305,12 @@ int run(int argc, char** argv) {
                   static_cast<unsigned long long>(c.reconnects.load()), static_cast<unsigned long long>(c.out_of_range.load()),
                   static_cast<unsigned long long>(c.stale_reads.load()), c.max_age_s.load() * 1e3,
                   c.errors.load() ? "; last error: " : "", c.errors.load() ? mb->last_error().c_str() : "");
+      const auto d = mb->safe_output_delivery();
+      if (d.delivered)
+        std::printf("  safe output on closing: delivered to the module on attempt %d of %d\n", d.attempts,
+                    hal::ModbusBackend::kSafeOutputAttempts);
+      else
+        std::printf("  safe output on closing: NOT confirmed by the module after %d attempts\n", d.attempts);
     }
 #endif
     if (run.outputs->ticks_dropped || run.outputs->events_dropped)

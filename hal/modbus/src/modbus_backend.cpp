@@ -154,13 +154,33 @@ void ModbusBackend::open(double) {
 }
 
 void ModbusBackend::close() noexcept {
-  if (running_.exchange(false) && thread_.joinable()) thread_.join();
-  // The caller wrote its safe state just before closing: deliver it in one last exchange, so the
-  // module holds it after we are gone.
-  if (ctx_ && link_up_.load()) {
-    std::string why;
+  const bool was_running = running_.exchange(false);
+  if (was_running && thread_.joinable()) thread_.join();
+  // The caller wrote its safe state just before closing: deliver it, so that the module holds it
+  // after we are gone. A request or reply can be lost (a CRC error on the line, a module busy past
+  // the response timeout), and the link may be down at this moment: each failed attempt is made
+  // again on a fresh connection, as the I/O thread does (libmodbus issue #255), up to
+  // kSafeOutputAttempts, each bounded by the response timeout.
+  if (was_running) {
     (void)command_.load(io_command_);
-    if (!exchange(&why)) counters_.errors.fetch_add(1, std::memory_order_relaxed);
+    SafeOutputDelivery d;
+    std::string why;
+    while (!d.delivered && d.attempts < kSafeOutputAttempts) {
+      ++d.attempts;
+      if ((!ctx_ || !link_up_.load()) && !connect_once(&why)) {
+        link_up_.store(false);
+        continue;
+      }
+      link_up_.store(true);
+      d.delivered = exchange(&why);
+      if (!d.delivered) {
+        counters_.errors.fetch_add(1, std::memory_order_relaxed);
+        disconnect();
+        link_up_.store(false);
+      }
+    }
+    if (!d.delivered) set_error(why);
+    safe_output_ = d;
   }
   disconnect();
   link_up_.store(false);

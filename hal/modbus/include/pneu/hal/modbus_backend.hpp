@@ -29,14 +29,26 @@ struct ModbusCounters {
   std::atomic<double> max_age_s{0.0};           ///< oldest sample the loop took [s]
 };
 
+/// How the safe output written just before close() reached the module.
+struct SafeOutputDelivery {
+  int attempts = 0;        ///< exchanges tried (0: the backend never ran)
+  bool delivered = false;  ///< one of them was answered
+};
+
 class ModbusBackend final : public Backend {
  public:
+  /// close() tries this many exchanges, each on a fresh connection after a failure, to deliver the
+  /// safe output before letting go of the module.
+  static constexpr int kSafeOutputAttempts = 3;
+
   ModbusBackend(const config::ModbusConfig& modbus, const plant::SensorParams& calibration);
   ~ModbusBackend() override;
 
   /// Connects (throws std::runtime_error naming the host/device and the reason) and starts the
   /// I/O thread after a first successful exchange (so a wrong unit id or register map fails here).
   void open(double t0_s) override;
+  /// Stops the I/O thread, then delivers the last command written (the caller's safe output) to
+  /// the module: see safe_output_delivery().
   void close() noexcept override;
   /// The newest sample and its age; kStale (and kSampleStale) when older than max_sample_age_s,
   /// kCommsError while the link is down. Real-time safe.
@@ -45,6 +57,8 @@ class ModbusBackend final : public Backend {
   [[nodiscard]] Status write(const ActuatorCommand& command) noexcept override;
 
   [[nodiscard]] const ModbusCounters& counters() const noexcept { return counters_; }
+  /// After close(): whether the last command reached the module, in how many attempts.
+  [[nodiscard]] SafeOutputDelivery safe_output_delivery() const noexcept { return safe_output_; }
   /// Human-readable description of the last failure (I/O thread's; for start-up and summaries).
   [[nodiscard]] std::string last_error() const;
 
@@ -69,6 +83,7 @@ class ModbusBackend final : public Backend {
   std::atomic<bool> running_{false};
   std::thread thread_;
   ModbusCounters counters_;
+  SafeOutputDelivery safe_output_{};  // written by close(), after the I/O thread has stopped
   int read_start_ = 0, read_count_ = 0, write_start_ = 0, write_count_ = 0;
   void set_error(const std::string& why);
   mutable std::mutex error_mutex_;  // taken by the I/O thread and by readers of last_error()
