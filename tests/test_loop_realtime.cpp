@@ -367,3 +367,51 @@ TEST(ControlLoop, CountsBackendFailuresAndHandsThemToHealth) {
 }
 
 }  // namespace
+
+namespace {
+
+// A clock that is not simulated (the runner measures overruns on it) and never sleeps: time jumps
+// to each deadline asked for, and `stall_s` more whenever a test adds it (a stall of the machine).
+class StallingClock final : public pneu::controller::Clock {
+ public:
+  double now_s() noexcept override { return now_s_; }
+  void sleep_until(double t_s) noexcept override {
+    if (t_s > now_s_) now_s_ = t_s;
+  }
+  bool simulated() const noexcept override { return false; }
+  void stall(double s) { now_s_ += s; }
+
+ private:
+  double now_s_ = 0.0;
+};
+
+// Every deadline of a run is either ticked or skipped, once: a stall skips the deadlines it
+// passed, those of the run only, however close to its end it comes.
+class LoopDeadlines : public ::testing::TestWithParam<int> {};
+
+TEST_P(LoopDeadlines, AreEachTickedOrSkippedOnceWhereverAStallComes) {
+  auto config = pneu::config::load_string(pneu::config::default_config_yaml());
+  config.controller.supervisor.overruns_in_a_row = 0;
+  config.controller.supervisor.max_tick_interval_s = 0.0;
+  FlakyBackend backend;
+  auto outputs = std::make_unique<pneu::controller::LoopOutputs>();
+  pneu::controller::ControlLoop loop(config, backend, *outputs);
+  StallingClock clock;
+  pneu::controller::LoopTiming timing;
+  const std::atomic<bool> never{false};
+  const int stall_after_tick = GetParam();
+  int k = 0;
+  // A 5.5-period stall after the given tick (between it and the next deadline), of a run of 20
+  // deadlines: the next deadline is ticked late, the 4 the late tick ends past are skipped.
+  pneu::controller::run_loop(loop, clock, 1e-3, 20, never, timing, [&] {
+    if (++k == stall_after_tick) clock.stall(5.5e-3);
+  });
+  EXPECT_EQ(timing.overruns, 1u);
+  EXPECT_EQ(timing.ticks + timing.deadlines_skipped, 20u) << timing.ticks << " ticks";
+  EXPECT_EQ(timing.deadlines_skipped, static_cast<std::uint64_t>(std::min(4, 19 - stall_after_tick)));
+}
+
+INSTANTIATE_TEST_SUITE_P(StallAfterTick, LoopDeadlines, ::testing::Values(1, 10, 15, 17, 19),
+                         [](const auto& p) { return "Tick" + std::to_string(p.param); });
+
+}  // namespace

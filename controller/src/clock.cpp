@@ -91,7 +91,8 @@ void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t de
       const bool overran = end > next;
       if (overran) {  // skip the deadlines already passed
         ++timing.overruns;
-        const auto resume = static_cast<std::uint64_t>(std::floor(end / period_s)) + 1;
+        auto resume = static_cast<std::uint64_t>(std::floor(end / period_s)) + 1;
+        if (deadlines != 0) resume = std::min(resume, deadlines);  // the run's own deadlines only
         timing.deadlines_skipped += resume - k;
         k = resume;
       }
