@@ -146,6 +146,39 @@ TEST_F(SupervisorChecks, APressureFrozenBitForBitIsAFaultAfterFrozenAfterS) {
   EXPECT_FALSE(s.cause_present());
 }
 
+// A module sampling at the loop's rate but not in phase with it: now and then a tick finds no new
+// sample and sees the last one again. The fault still latches on the first tick past the limit,
+// repeated sample or not.
+TEST_F(SupervisorChecks, AFrozenPressureLatchesOnTheFirstTickPastTheLimitEvenOnARepeatedSample) {
+  // Between two ticks (no rounding question), and 202 ticks: not a multiple of the repetition.
+  config_.controller.supervisor.frozen_after_s = 0.2015;
+  const double frozen = config_.controller.supervisor.frozen_after_s;
+  for (const int offset : {0, 1, 2}) {
+    Supervisor s = make();
+    double last_change = -1.0, last_p_n = NAN;
+    hal::SensorFrame f = good(0.0);
+    for (int k = 0; k < 1500; ++k) {
+      const double t = k * kPeriod;
+      if (k == 0 || k % 3 != offset) {  // a new sample; every third tick after the first repeats the last
+        f = good(t);
+        if (t >= 0.5) f.p_n_pa = 3.5e5;  // frozen from 0.5 s on
+        if (f.p_n_pa != last_p_n) last_change = t, last_p_n = f.p_n_pa;
+        f.fresh = true;
+      } else {
+        f.fresh = false;
+      }
+      const FaultCause cause = tick(s, t, f);
+      if (t - last_change < frozen) {
+        ASSERT_EQ(cause, c::kFaultNone) << "offset " << offset << ", t = " << t;
+      } else {
+        EXPECT_EQ(cause, c::kFaultSensorFrozen) << "offset " << offset << ": the first tick past the limit, t = " << t
+                                                << (f.fresh ? " (a new sample)" : " (a repeated sample)");
+        break;
+      }
+    }
+  }
+}
+
 TEST_F(SupervisorChecks, FrozenDetectionIsOffAtZero) {
   config_.controller.supervisor.frozen_after_s = 0.0;
   Supervisor s = make();

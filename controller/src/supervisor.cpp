@@ -134,6 +134,11 @@ FaultCause Supervisor::check_sample(const SupervisedTick& tick) noexcept {
       p_n_changed_s_ = t;
       last_p_n_pa_ = f.p_n_pa;
     }
+  }
+  // Judged on every tick with a good sample, a repeated one too (the module's and the loop's 1 kHz
+  // are not in phase: now and then a tick finds no new sample), so that the fault latches on the
+  // first tick past the limit.
+  if (sample_good_) {
     frozen_ = cfg_.frozen_after_s > 0.0 &&
               (t - p_p_changed_s_ > cfg_.frozen_after_s || t - p_n_changed_s_ > cfg_.frozen_after_s);
     if (frozen_) first(kFaultSensorFrozen);
