@@ -165,6 +165,16 @@ inline std::vector<std::string> loop_timing_faults_off(std::vector<std::string> 
   return args;
 }
 
+/// pneud arguments, to put before a test's own, for HIL tests whose subject is not the Modbus link:
+/// a response timeout and a sample age limit of 0.5 s, and a comms fault after 2 s of bad
+/// samples. hil.yaml's 20 ms, 20 ms and 50 ms are a bench's: on a shared machine a stall of the
+/// plant's process past 20 ms is a timeout, the reconnection backs off, and the samples stay bad
+/// past 50 ms, a comms fault in a test of something else. Tests of the link keep hil.yaml's values.
+inline std::vector<std::string> link_stalls_tolerated() {
+  return {"--set", "hal.modbus.response_timeout_s=0.5", "--set", "hal.modbus.max_sample_age_s=0.5", "--set",
+          "controller.comms_fault_after_s=2"};
+}
+
 /// The loop and modbus lines of pneud's end-of-run summary.
 struct PneudSummary {
   bool has_loop = false, has_modbus = false;
