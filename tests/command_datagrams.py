@@ -56,6 +56,7 @@ def main():
         s.setsockopt(socket.IPPROTO_IP, socket.IP_ADD_MEMBERSHIP,
                      socket.inet_aton(GROUP) + socket.inet_aton("0.0.0.0"))
         s.settimeout(10)
+        print("ready", flush=True)  # joined: the caller may send now
         while True:
             d, _ = s.recvfrom(65536)
             if d[:4] == b"LC02" and split(d)[0][8:-1] == CHANNEL:

@@ -41,11 +41,19 @@ foreign() { nsenter -t "$FPID" -n "$@"; }
 # an overrun fault and every command after it would be refused for the mode. Timing is not this
 # test's subject (tests/support/child_process.hpp, loop_timing_faults_off).
 start_pneud() {  # DURATION
+  rm -f "$D/traj.csv"  # the last run's
   "$B/pneud" --clock real --duration "$1" --require-telemetry --set "controller.setpoints.schedule=[]" \
     --set controller.supervisor.overruns_in_a_row=0 --set controller.supervisor.max_tick_interval_s=0 \
     --trajectory "$D/traj.csv" >"$D/pneud.out" 2>"$D/pneud.err" &
   PNEUD=$!
-  sleep 0.8
+  # Subscribed once the loop ticks: the trajectory has rows (up to 10 s on a loaded machine).
+  for _ in $(seq 200); do [ "$(wc -l <"$D/traj.csv" 2>/dev/null || echo 0)" -gt 1 ] && break; sleep 0.05; done
+  [ "$(wc -l <"$D/traj.csv" 2>/dev/null || echo 0)" -gt 1 ] || fail "pneud did not start ticking"
+}
+# Until FILE holds "ready" (a capture that has joined the group), up to 10 s.
+wait_ready() {
+  for _ in $(seq 200); do grep -q ready "$1" 2>/dev/null && return 0; sleep 0.05; done
+  fail "the capture did not join the group"
 }
 wait_pneud() {
   wait "$PNEUD" || fail "pneud exited with $?"
@@ -83,9 +91,9 @@ expect_every_tick() {  # DURATION_S
 
 echo "== 1. multicast routed through lo (the documented posture)"
 start_pneud 6
-"$PY" "$S/tests/command_datagrams.py" capture "$D/template" &
+"$PY" "$S/tests/command_datagrams.py" capture "$D/template" >"$D/capture.out" &
 CAP=$!
-sleep 0.3
+wait_ready "$D/capture.out"
 "$B/pneu-command" set-point 0.16 || fail "pneu-command"
 wait "$CAP" || fail "no command datagram captured"
 for kind in replay stale future nan out-of-bounds truncated bad-fingerprint garbage oversized fragment valid; do

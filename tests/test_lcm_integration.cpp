@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -169,6 +170,18 @@ struct Listener {
       }
     }
   }
+  // Whether `seen` (called under the lock) holds within `limit`, while another thread polls.
+  bool wait_for(const std::function<bool()>& seen, std::chrono::milliseconds limit) {
+    const auto until = std::chrono::steady_clock::now() + limit;
+    for (;;) {
+      {
+        std::lock_guard<std::mutex> l(m);
+        if (seen()) return true;
+      }
+      if (std::chrono::steady_clock::now() > until) return false;
+      std::this_thread::sleep_for(5ms);
+    }
+  }
 };
 
 pneu_lcm::command_t command(int64_t seq, int8_t kind, double value) {
@@ -200,13 +213,20 @@ TEST_F(LcmIntegration, CommandsAreValidatedAndOnlyValidOnesReachTheLoop) {
                                                      "commands.max_rate_hz=100", "--set", "commands.burst=5",
                                                      "--trajectory", (dir_ / "traj.csv").string()}),
                              dir_ / "pneud.out", dir_ / "pneud.err");
-  std::this_thread::sleep_for(800ms);
+  ASSERT_TRUE(listener.wait_for([&] { return listener.health_count > 0; }, 10s)) << "pneud up, its loop ticking";
   using C = pneu_lcm::command_t;
-  // Paced a few milliseconds apart: UDP has no flow control, and a burst beyond the receiver's
-  // socket buffer is dropped by the kernel before pneud sees it (the burst below stays small).
+  // One at a time: each is judged (one event, accepted or rejected) before the next is sent, and
+  // 20 ms later, so that a stall of the machine cannot bunch them over the rate limit (100 per
+  // second here); and UDP has no flow control.
   const auto send = [&](const C& c) {
+    std::size_t before = 0;
+    {
+      std::lock_guard<std::mutex> l(listener.m);
+      before = listener.events.size();
+    }
     ASSERT_EQ(lcm.publish("PNEU_COMMAND", &c), 0);
-    std::this_thread::sleep_for(20ms);  // 50 per second, under the 100 per second allowed here
+    ASSERT_TRUE(listener.wait_for([&] { return listener.events.size() > before; }, 5s)) << "command " << c.seq;
+    std::this_thread::sleep_for(20ms);
   };
   send(command(10, C::KIND_SET_POINT, 0.170));          // valid (the paper's step: settled within 1 s)
   send(command(11, C::KIND_SET_POINT, 0.900));          // outside the soft limits
@@ -229,7 +249,7 @@ TEST_F(LcmIntegration, CommandsAreValidatedAndOnlyValidOnesReachTheLoop) {
     ASSERT_EQ(lcm.publish("PNEU_COMMAND", &c), 0);
   }
   ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
-  std::this_thread::sleep_for(300ms);
+  EXPECT_TRUE(listener.wait_for([&] { return listener.last_health.final; }, 2s)) << "the final health message";
   done = true;
   handler.join();
 
