@@ -22,7 +22,9 @@ using pneu::test::IsConfigError;
 
 using ::testing::AllOf;
 using ::testing::Eq;
+using ::testing::ContainsRegex;
 using ::testing::HasSubstr;
+using ::testing::Not;
 using ::testing::Throws;
 
 const std::filesystem::path kShippedConfig =
@@ -57,8 +59,8 @@ auto loading(std::string yaml, std::vector<std::string> overrides = {}) {
   };
 }
 
-// Every field, compared exactly: to_yaml() writes 17 significant digits, enough to give back the
-// very same double.
+// Every field, compared exactly: to_yaml() writes the shortest text that gives back the very same
+// double.
 void expect_same_values(const Config& a, const Config& b) {
   const auto& pa = a.plant;
   const auto& pb = b.plant;
@@ -251,6 +253,17 @@ TEST(ToYaml, RoundTripsArbitraryDoublesBitForBit) {
     SCOPED_TRACE("trial " + std::to_string(trial));
     expect_same_values(reloaded, c);
   }
+}
+
+// For the people who read it: 0.032 as 0.032 (not yaml-cpp's 0.032000000000000001), 700000 without
+// an exponent; the round trip above is still exact.
+TEST(ToYaml, WritesEachNumberAsItsShortestExactText) {
+  const std::string yaml = to_yaml(load_file(kShippedConfig));
+  EXPECT_THAT(yaml, HasSubstr("    bore_diameter_m: 0.032\n"));
+  EXPECT_THAT(yaml, HasSubstr("    supply_pressure_pa: 700000\n"));
+  EXPECT_THAT(yaml, HasSubstr("    temperature_k: 293.15\n"));
+  EXPECT_THAT(yaml, HasSubstr("    leak_conductance_out_m3_per_s_pa: 1.28e-09\n"));
+  EXPECT_THAT(yaml, Not(ContainsRegex("[0-9]{12}")));  // no 17-digit tails anywhere
 }
 
 TEST(OptionalKeys, ValveReferenceAtmosphereDefaultsToIso6358WhenAbsent) {

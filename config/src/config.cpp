@@ -4,6 +4,9 @@
 
 #include <algorithm>
 #include <cctype>
+#include <charconv>
+#include <cmath>
+#include <type_traits>
 #include <fstream>
 #include <sstream>
 
@@ -742,15 +745,30 @@ Config load_file_or_default(const std::filesystem::path& path,
 }
 
 namespace {
+// A double as the shortest text that reads back as the same double: 0.032, where yaml-cpp writes
+// 0.032000000000000001; without an exponent from 1e-4 to 1e9 (700000, not 7e+05). The dump is
+// for people, and reads back exactly. (Non-finite values keep yaml-cpp's .inf/.nan.)
+struct Shortest {
+  double v;
+};
+YAML::Emitter& operator<<(YAML::Emitter& e, Shortest s) {
+  if (!std::isfinite(s.v)) return e << s.v;
+  char buf[64];
+  const double a = std::fabs(s.v);
+  const auto r = a == 0.0 || (a >= 1e-4 && a < 1e9) ? std::to_chars(buf, buf + sizeof buf, s.v, std::chars_format::fixed)
+                                                     : std::to_chars(buf, buf + sizeof buf, s.v);
+  return e << std::string(buf, r.ptr);
+}
+
 void emit_channel(YAML::Emitter& e, const char* name, const char* gain_key,
                   const plant::SensorChannelParams& c) {
   e << YAML::Key << name << YAML::Value << YAML::BeginMap;
-  e << YAML::Key << gain_key << YAML::Value << c.gain_v_per_unit;
-  e << YAML::Key << "offset_v" << YAML::Value << c.offset_v;
-  e << YAML::Key << "noise_std_v" << YAML::Value << c.noise_std_v;
+  e << YAML::Key << gain_key << YAML::Value << Shortest{c.gain_v_per_unit};
+  e << YAML::Key << "offset_v" << YAML::Value << Shortest{c.offset_v};
+  e << YAML::Key << "noise_std_v" << YAML::Value << Shortest{c.noise_std_v};
   e << YAML::Key << "adc_bits" << YAML::Value << c.adc_bits;
-  e << YAML::Key << "range_min_v" << YAML::Value << c.range_min_v;
-  e << YAML::Key << "range_max_v" << YAML::Value << c.range_max_v;
+  e << YAML::Key << "range_min_v" << YAML::Value << Shortest{c.range_min_v};
+  e << YAML::Key << "range_max_v" << YAML::Value << Shortest{c.range_max_v};
   e << YAML::EndMap;
 }
 }  // namespace
@@ -758,7 +776,12 @@ void emit_channel(YAML::Emitter& e, const char* name, const char* gain_key,
 std::string to_yaml(const Config& c) {
   YAML::Emitter e;
   e.SetDoublePrecision(17);
-  const auto kv = [&](const char* k, auto v) { e << YAML::Key << k << YAML::Value << v; };
+  const auto kv = [&](const char* k, auto v) {
+    if constexpr (std::is_floating_point_v<decltype(v)>)
+      e << YAML::Key << k << YAML::Value << Shortest{static_cast<double>(v)};
+    else
+      e << YAML::Key << k << YAML::Value << v;
+  };
   e << YAML::BeginMap;
   e << YAML::Key << "plant" << YAML::Value << YAML::BeginMap;
   kv("mass_kg", c.plant.mass_kg);
