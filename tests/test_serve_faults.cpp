@@ -116,6 +116,16 @@ class ServeFaults : public ::testing::Test {
   void sleep_until_s(double t) const {
     std::this_thread::sleep_until(started_ + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(t)));
   }
+  // Until serve says the fault `spec` is active (its start-up may lag started_ on a loaded
+  // machine), up to 5 s.
+  bool wait_active(const std::string& spec) const {
+    const std::string line = "fault " + spec + " active at t = ";
+    for (int i = 0; i < 500; ++i) {
+      if (slurp(dir_ / "serve.out").find(line) != std::string::npos) return true;
+      std::this_thread::sleep_for(10ms);
+    }
+    return false;
+  }
   std::vector<std::string> with_float32(std::vector<std::string> extra) const {
     for (const auto& o : float32_overrides()) extra.insert(extra.begin(), {"--set", o});
     return extra;
@@ -136,6 +146,7 @@ TEST_F(ServeFaults, RailFaultsReadTheChannelsRawLimitsFromTheirTimeOn) {
   EXPECT_LT(before[kPressureP], 40000) << "about 3.4 bar: 3.4 V";
 
   sleep_until_s(1.2);
+  ASSERT_TRUE(wait_active("pressure_p:rail-high@1") && wait_active("position:rail-low@1")) << slurp(dir_ / "serve.out");
   const auto after = c.read(kPosition, 3);
   EXPECT_EQ(after[kPressureP], 65535) << "raw_max";
   EXPECT_EQ(after[kPosition], 0) << "raw_min";
@@ -169,6 +180,7 @@ TEST_F(ServeFaults, FreezeKeepsTheValueTheRegisterHadAtItsTime) {
   EXPECT_GE(live.size(), 2u) << "not vacuous: 20 Pa of noise moves the live reading";
 
   sleep_until_s(1.2);
+  ASSERT_TRUE(wait_active("pressure_n:freeze@1")) << slurp(dir_ / "serve.out");
   const std::uint16_t frozen = c.read1(kPressureN);
   std::set<std::uint16_t> later;
   for (int i = 0; i < 60; ++i) {
