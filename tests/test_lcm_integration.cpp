@@ -53,19 +53,40 @@ class LcmIntegration : public ::testing::Test {
   pneu::test::TestDir dir_{"pneu_lcm_"};
 };
 
+// How many events on `channel` an LCM log holds so far (0 while it does not exist yet).
+int events_in_log(const fs::path& log, const std::string& channel) {
+  lcm::LogFile file(log.string(), "r");
+  if (!file.good()) return 0;
+  int n = 0;
+  for (const lcm::LogEvent* e = file.readNextEvent(); e; e = file.readNextEvent()) n += e->channel == channel;
+  return n;
+}
+
 TEST_F(LcmIntegration, LcmLoggerRecordsEveryTickInOrderWithEventsAndPredictions) {
   const fs::path log = dir_ / "run.lcm";
   Child logger = Child::spawn({"lcm-logger", "-q", "-f", std::string("--lcm-url=") + kUrl, "-c", "PNEU_.*", log.string()},
                               dir_ / "logger.out", dir_ / "logger.err");
   ASSERT_GT(logger.pid, 0) << "lcm-logger (package liblcm-bin) did not start";
-  std::this_thread::sleep_for(500ms);  // subscribed before the first tick
+  // Subscribed before the first tick: a probe on a channel of its own, until one is in the log
+  // (the logger flushes every 100 ms).
+  lcm::LCM probe(kUrl);
+  ASSERT_TRUE(probe.good());
+  const char probe_data[1] = {0};
+  for (int i = 0; i < 100 && events_in_log(log, "PNEU_PROBE") == 0; ++i) {
+    probe.publish("PNEU_PROBE", probe_data, sizeof probe_data);
+    std::this_thread::sleep_for(100ms);
+  }
+  ASSERT_GT(events_in_log(log, "PNEU_PROBE"), 0) << "lcm-logger did not subscribe within 10 s";
 
   Child pneud = Child::spawn(loop_timing_faults_off({bin("pneud"), "--clock", "real", "--duration", "3",
                                                      "--require-telemetry", "--trajectory", (dir_ / "traj.csv").string(),
                                                      "--events", (dir_ / "events.jsonl").string()}),
                              dir_ / "pneud.out", dir_ / "pneud.err");
   ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
-  std::this_thread::sleep_for(500ms);  // the logger flushes every 100 ms
+  // Until the logger has written every tick's state it will get (up to 10 s), then stop it.
+  const std::size_t ticks_recorded = Csv::read(dir_ / "traj.csv").rows.size();
+  for (int i = 0; i < 100 && events_in_log(log, "PNEU_STATE") < static_cast<int>(ticks_recorded); ++i)
+    std::this_thread::sleep_for(100ms);
   kill(logger.pid, SIGINT);
   ASSERT_EQ(logger.wait(), 0) << slurp(dir_ / "logger.err");
 
