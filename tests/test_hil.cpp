@@ -83,44 +83,50 @@ class Hil : public ::testing::Test {
 };
 
 TEST_F(Hil, PaperScenarioOverModbusSticksRestartsAndTheNonlinearForecastHoldsWithin2Percent) {
-  Child plant = serve(15.0);
-  Child pneud = Child::spawn(pneud_args({"--events", (dir_ / "events.jsonl").string()}), dir_ / "pneud.out",
-                             dir_ / "pneud.err");
-  ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
-  kill(plant.pid, SIGINT);
-  ASSERT_EQ(plant.wait(), 0) << slurp(dir_ / "serve.err");
-  EXPECT_THAT(slurp(dir_ / "serve.out"), HasSubstr("last valve voltages: u_P ="));
-  EXPECT_THAT(slurp(dir_ / "pneud.out"), HasSubstr("0 errors, 0 reconnects"));
+  // Over Modbus the stop lands a little elsewhere each run (I/O timing, noise, the machine's
+  // stalls), and how long the pressures take to break stiction depends steeply on where: 0.7 to
+  // 4.6 s over our runs, or never when the equilibrium force lies inside the stiction band (both
+  // methods then forecast no restart). Every run's restarts are judged; the phenomenon, a stop of
+  // half a second or more under constant control then a restart, must show in one of 3 runs.
+  int long_restarts = 0, runs = 0;
+  for (; runs < 3 && long_restarts == 0; ++runs) {
+    const std::string events = "events" + std::to_string(runs) + ".jsonl";
+    Child plant = serve(15.0);
+    Child pneud = Child::spawn(pneud_args({"--events", (dir_ / events).string()}), dir_ / "pneud.out",
+                               dir_ / "pneud.err");
+    ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
+    kill(plant.pid, SIGINT);
+    ASSERT_EQ(plant.wait(), 0) << slurp(dir_ / "serve.err");
+    EXPECT_THAT(slurp(dir_ / "serve.out"), HasSubstr("last valve voltages: u_P ="));
+    EXPECT_THAT(slurp(dir_ / "pneud.out"), HasSubstr("0 errors, 0 reconnects"));
 
-  struct Stop {
-    double t = NAN, nonlinear = NAN, restart = NAN;
-  };
-  std::map<int, Stop> stops;
-  std::istringstream lines(slurp(dir_ / "events.jsonl"));
-  for (std::string line; std::getline(lines, line);) {
-    const int idx = static_cast<int>(field(line, "stop"));
-    if (line.find("\"event\":\"stop\"") != std::string::npos) stops[idx].t = field(line, "t");
-    if (line.find("\"event\":\"prediction\"") != std::string::npos && line.find("\"method\":\"nonlinear\"") != std::string::npos)
-      stops[idx].nonlinear = field(line, "t_restart");  // made at the stop, not made again later
-    if (line.find("\"event\":\"start\"") != std::string::npos && line.find("\"restart\":true") != std::string::npos)
-      stops[idx].restart = field(line, "t");
+    struct Stop {
+      double t = NAN, nonlinear = NAN, restart = NAN;
+    };
+    std::map<int, Stop> stops;
+    std::istringstream lines(slurp(dir_ / events));
+    for (std::string line; std::getline(lines, line);) {
+      const int idx = static_cast<int>(field(line, "stop"));
+      if (line.find("\"event\":\"stop\"") != std::string::npos) stops[idx].t = field(line, "t");
+      if (line.find("\"event\":\"prediction\"") != std::string::npos && line.find("\"method\":\"nonlinear\"") != std::string::npos)
+        stops[idx].nonlinear = field(line, "t_restart");  // made at the stop, not made again later
+      if (line.find("\"event\":\"start\"") != std::string::npos && line.find("\"restart\":true") != std::string::npos)
+        stops[idx].restart = field(line, "t");
+    }
+    for (const auto& [idx, s] : stops) {
+      if (std::isnan(s.restart)) continue;
+      const double sticking = s.restart - s.t;
+      if (sticking < 0.5) continue;  // the 2 % bound is for the sticking phases of the phenomenon
+      ++long_restarts;
+      ASSERT_FALSE(std::isnan(s.nonlinear)) << "run " << runs << ", stop " << idx << ": no restart forecast";
+      EXPECT_LE(std::abs(s.nonlinear - s.restart), 0.02 * sticking)
+          << "run " << runs << ", stop " << idx << " at " << s.t << " s: forecast " << s.nonlinear << " s, restart "
+          << s.restart << " s";
+    }
+    if (long_restarts == 0) std::printf("run %d: no sticking phase of 0.5 s or more ended in a restart\n%s", runs,
+                                        slurp(dir_ / "pneud.out").c_str());
   }
-  int long_restarts = 0, judged = 0;
-  for (const auto& [idx, s] : stops) {
-    if (std::isnan(s.restart)) continue;
-    const double sticking = s.restart - s.t;
-    if (sticking >= 0.5) ++long_restarts;
-    if (sticking < 0.5) continue;  // the 2 % bound is for the sticking phases of the phenomenon
-    ++judged;
-    ASSERT_FALSE(std::isnan(s.nonlinear)) << "stop " << idx << ": no restart forecast";
-    EXPECT_LE(std::abs(s.nonlinear - s.restart), 0.02 * sticking)
-        << "stop " << idx << " at " << s.t << " s: forecast " << s.nonlinear << " s, restart " << s.restart << " s";
-  }
-  // The phenomenon: a stop of half a second or more under constant control, then a restart. Over
-  // Modbus the stop lands a little elsewhere each run (I/O timing, noise), and how long the
-  // pressures take to break stiction depends steeply on where (0.7 to 4.6 s over our runs).
-  EXPECT_GE(long_restarts, 1) << "a sticking phase of 0.5 s or more ending in a restart";
-  EXPECT_GE(judged, 1);
+  EXPECT_GE(long_restarts, 1) << "a sticking phase of 0.5 s or more ending in a restart, in " << runs << " runs";
 }
 
 TEST_F(Hil, ServesOneClientAtATimeAndRefusesASecondCleanly) {
