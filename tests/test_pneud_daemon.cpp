@@ -109,9 +109,12 @@ TEST_F(PneudDaemon, OutsideSystemdNothingIsNotifiedAndTheRunIsTheSame) {
 class PneudStall : public PneudDaemon {
  protected:
   std::string stalled_run(std::vector<std::string> args) {
-    args.insert(args.end(), {"--events", (dir_ / "events.jsonl").string()});
+    args.insert(args.end(), {"--events", (dir_ / "events.jsonl").string(), "--trajectory", (dir_ / "traj.csv").string()});
     Child p = Child::spawn(args, dir_ / "pneud.out", dir_ / "pneud.err");
-    std::this_thread::sleep_for(300ms);
+    // The loop ticks (its trajectory grows past the header) before the stall, up to 10 s.
+    for (int i = 0; i < 1000 && slurp(dir_ / "traj.csv").find('\n') == slurp(dir_ / "traj.csv").rfind('\n'); ++i)
+      std::this_thread::sleep_for(10ms);
+    std::this_thread::sleep_for(100ms);
     kill(p.pid, SIGSTOP);
     std::this_thread::sleep_for(300ms);
     kill(p.pid, SIGCONT);

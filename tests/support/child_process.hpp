@@ -157,7 +157,7 @@ inline int free_port() {
 /// and max_tick_interval_s set to 0), for tests of something else run on the real clock. A shared
 /// machine stalls a process for tens of milliseconds now and then (62 ms in one CI run). On a bench
 /// that rightly latches an overrun fault, but it would fail a test about commands or Modbus. The
-/// supervision itself is tested in test_supervisor, and end to end by PneudDaemon's SIGSTOP test.
+/// supervision itself is tested in test_supervisor, and end to end by the PneudStall tests (SIGSTOP).
 inline std::vector<std::string> loop_timing_faults_off(std::vector<std::string> args) {
   for (const char* a : {"--set", "controller.supervisor.overruns_in_a_row=0", "--set",
                         "controller.supervisor.max_tick_interval_s=0"})
