@@ -245,9 +245,7 @@ TEST_F(Hil, RtuOverAPtyPairAt115200BaudKeepsTheLoopRateAndFreshSamples) {
   Child plant = Child::spawn({bin("pneu-plant"), "serve", "--config", hil_yaml(), "--set", "hal.modbus.transport=rtu",
                               "--set", "hal.modbus.device=" + a.string(), "--duration", "6"},
                              dir_ / "serve.out", dir_ / "serve.err");
-  for (int i = 0; i < 300 && slurp(dir_ / "serve.out").find("serving") == std::string::npos; ++i)
-    std::this_thread::sleep_for(10ms);
-  ASSERT_THAT(slurp(dir_ / "serve.out"), HasSubstr("serving")) << slurp(dir_ / "serve.err");
+  ASSERT_TRUE(pneu::test::wait_for_text(dir_ / "serve.out", "serving", 3s)) << slurp(dir_ / "serve.err");
   // The sample age limit is hil.yaml's 20 ms, this test's subject; a stall of the plant or of
   // socat shorter than the tolerant response timeout is no comms error (see link_stalls_tolerated).
   Child pneud = Child::spawn(pneud_args({"--duration", "3", "--set", "hal.modbus.transport=rtu", "--set",

@@ -194,9 +194,7 @@ class HilFaults : public ::testing::Test {
                                   "--outputs", (dir_ / (name + ".outputs.csv")).string()};
     args.insert(args.end(), extra.begin(), extra.end());
     Child c = Child::spawn(args, dir_ / (name + ".out"), dir_ / (name + ".err"));
-    for (int i = 0; i < 300 && slurp(dir_ / (name + ".out")).find("listening") == std::string::npos; ++i)
-      std::this_thread::sleep_for(10ms);
-    EXPECT_THAT(slurp(dir_ / (name + ".out")), HasSubstr("listening")) << slurp(dir_ / (name + ".err"));
+    EXPECT_TRUE(pneu::test::wait_for_text(dir_ / (name + ".out"), "listening", 3s)) << slurp(dir_ / (name + ".err"));
     return c;
   }
   // pneud until SIGTERM, exhausting both chambers in fault, health every 0.1 s. The link's timing

@@ -114,11 +114,8 @@ class PymodbusInterop : public ::testing::Test {
     Child c = Child::spawn({kPython, src("tests/pymodbus_io_module.py"), "--port",
                             std::to_string(port_), "--duration", "60"},
                            dir_ / "module.out", dir_ / "module.err");
-    for (int i = 0;
-         i < 1000 && slurp(dir_ / "module.err").find("listening on") == std::string::npos; ++i)
-      std::this_thread::sleep_for(10ms);
-    EXPECT_THAT(slurp(dir_ / "module.err"), HasSubstr("listening on"))
-        << "the module did not start within 10 s";
+    EXPECT_TRUE(pneu::test::wait_for_text(dir_ / "module.err", "listening on", 10s))
+        << "the module did not start within 10 s: " << slurp(dir_ / "module.err");
     return c;
   }
   ModuleReport stop_module(Child& module) {

@@ -119,12 +119,7 @@ class ServeFaults : public ::testing::Test {
   // Until serve says the fault `spec` is active (its start-up may lag started_ on a loaded
   // machine), up to 5 s.
   bool wait_active(const std::string& spec) const {
-    const std::string line = "fault " + spec + " active at t = ";
-    for (int i = 0; i < 500; ++i) {
-      if (slurp(dir_ / "serve.out").find(line) != std::string::npos) return true;
-      std::this_thread::sleep_for(10ms);
-    }
-    return false;
+    return pneu::test::wait_for_text(dir_ / "serve.out", "fault " + spec + " active at t = ", 5s);
   }
   std::vector<std::string> with_float32(std::vector<std::string> extra) const {
     for (const auto& o : float32_overrides()) extra.insert(extra.begin(), {"--set", o});
