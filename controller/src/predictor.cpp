@@ -251,13 +251,13 @@ ForecastTrack::ForecastTrack(PredictionMethod method, const PredictorModel& mode
       step_end_s_(stop.t_s),
       start_{stop.p_p_pa, stop.p_n_pa},
       end_{stop.p_p_pa, stop.p_n_pa} {
-  const Prediction p = base(method, model, stop, common_of(model, stop));
+  const Common c = common_of(model, stop);
+  const Prediction p = base(method, model, stop, c);
   p_p_equilibrium_pa_ = p.p_p_equilibrium_pa;
   p_n_equilibrium_pa_ = p.p_n_equilibrium_pa;
   tau_p_s_ = p.tau_p_s;
   tau_n_s_ = p.tau_n_s;
   if (method == PredictionMethod::kNonlinear) {
-    const Common c = common_of(model, stop);
     const P2 dx = PressureOde{c, *model.valve, stop.u_v}.rhs({stop.p_p_pa, stop.p_n_pa});
     start_slope_ = end_slope_ = {dx.pp, dx.pn};
   }

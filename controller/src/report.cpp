@@ -197,7 +197,7 @@ void RunReport::reforecast(StopOutcome& s, const TickRecord& r, const ForecastPo
     f.force_n = r.force_n;
     f.u_star_v = now.u_v;
     f.stop_forecast_force_n = expected[i].force_n;
-    f.prediction = i == 0 ? predict_linearized(model_, now) : predict_nonlinear(model_, now);
+    f.prediction = predict(i == 0 ? PredictionMethod::kLinearized : PredictionMethod::kNonlinear, model_, now);
     if (keep) s.reforecasts.push_back(f);
     if (listener_) listener_->on_reforecast(s, f);
     if (!events_) continue;

@@ -376,11 +376,7 @@ int serve(int argc, char** argv) {
                                                 : 0;
           const int reply_bytes = n_read > 0 ? 5 + 2 * n_read : 8;
           const double wire_s = (rc + reply_bytes + 7) * 10.0 / mb.baud;
-          const double until = monotonic_s() + wire_s;
-          while (monotonic_s() < until) {
-            timespec ts{0, 50000};
-            nanosleep(&ts, nullptr);
-          }
+          hal::sleep_until_monotonic_s(monotonic_s() + wire_s);
         }
         if (reply_delay > 0.0 && t >= delay_after) {  // fault injection: a module that answers late
           const double until = monotonic_s() + reply_delay;
