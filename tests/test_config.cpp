@@ -125,6 +125,8 @@ void expect_same_values(const Config& a, const Config& b) {
   EXPECT_EQ(ka.predictor.nonlinear, kb.predictor.nonlinear);
   EXPECT_EQ(ka.predictor.valve_table, kb.predictor.valve_table);
   EXPECT_EQ(ka.predictor.horizon_s, kb.predictor.horizon_s);
+  EXPECT_EQ(ka.predictor.linearized_slope, kb.predictor.linearized_slope);
+  EXPECT_EQ(ka.predictor.update_period_s, kb.predictor.update_period_s);
   EXPECT_EQ(ka.initial_setpoint_m, kb.initial_setpoint_m);
   ASSERT_EQ(ka.schedule.size(), kb.schedule.size());
   for (std::size_t i = 0; i < ka.schedule.size(); ++i) {
@@ -200,6 +202,8 @@ TEST(ShippedConfig, LoadsWithTheDocumentedPaperBenchValues) {
   EXPECT_TRUE(c.controller.predictor.nonlinear);
   EXPECT_EQ(c.controller.predictor.valve_table, "");
   EXPECT_EQ(c.controller.predictor.horizon_s, 600.0);
+  EXPECT_EQ(c.controller.predictor.linearized_slope, LinearizedSlope::kStopTangent);  // the paper's Eq. 23
+  EXPECT_EQ(c.controller.predictor.update_period_s, 0.1);
   EXPECT_EQ(c.controller.initial_setpoint_m, 0.2195);
   ASSERT_EQ(c.controller.schedule.size(), 1u);
   EXPECT_EQ(c.controller.schedule[0].t_s, 1.0);
@@ -441,6 +445,33 @@ TEST(ConfigRefusal, UnknownPredictorMethodIsNamedByItsIndex) {
 
   EXPECT_THAT(loading(yaml),
               refuses("controller.predictor.methods[1]", "unknown method 'psychic'"));
+}
+
+TEST(ConfigRefusal, UnknownLinearizedSlopeNamesTheChoices) {
+  const std::string yaml = shipped_yaml_edited(
+      [](YAML::Node& root) { root["controller"]["predictor"]["linearized_slope"] = "secant"; });
+
+  EXPECT_THAT(loading(yaml), refuses("controller.predictor.linearized_slope",
+                                     "must be 'stop', 'chord' or 'equilibrium' (got 'secant')"));
+}
+
+TEST(ConfigDefaults, LinearizedSlopeAbsentIsThePapersTangentAtTheStop) {
+  const std::string yaml =
+      shipped_yaml_edited([](YAML::Node& root) { root["controller"]["predictor"].remove("linearized_slope"); });
+
+  EXPECT_EQ(load_string(yaml).controller.predictor.linearized_slope, LinearizedSlope::kStopTangent);
+}
+
+TEST(ConfigOverride, EachLinearizedSlopeIsReadAndWrittenBack) {
+  const std::pair<const char*, LinearizedSlope> slopes[] = {{"stop", LinearizedSlope::kStopTangent},
+                                                            {"chord", LinearizedSlope::kChord},
+                                                            {"equilibrium", LinearizedSlope::kEquilibriumTangent}};
+  for (const auto& [name, slope] : slopes) {
+    const Config c = load_string(shipped_yaml(), {std::string("controller.predictor.linearized_slope=") + name});
+
+    EXPECT_EQ(c.controller.predictor.linearized_slope, slope) << name;
+    EXPECT_EQ(load_string(to_yaml(c)).controller.predictor.linearized_slope, slope) << name;
+  }
 }
 
 TEST(ConfigRefusal, SetPointScheduleGoingBackInTimeIsRejected) {

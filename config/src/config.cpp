@@ -219,6 +219,12 @@ ControllerConfig read_controller(MapReader r, const plant::PlantParams& plant) {
     }
     c.predictor.valve_table = pr.string_or("valve_table", "");
     c.predictor.horizon_s = positive(pr, "horizon_s");
+    const std::string slope = pr.string_or("linearized_slope", "stop");
+    if (slope == "stop") c.predictor.linearized_slope = LinearizedSlope::kStopTangent;
+    else if (slope == "chord") c.predictor.linearized_slope = LinearizedSlope::kChord;
+    else if (slope == "equilibrium") c.predictor.linearized_slope = LinearizedSlope::kEquilibriumTangent;
+    else throw ConfigError(pr.child_path("linearized_slope"),
+                           "must be 'stop', 'chord' or 'equilibrium' (got '" + slope + "')");
     c.predictor.update_period_s = pr.has("update_period_s") ? non_negative(pr, "update_period_s")
                                                             : c.predictor.update_period_s;
     pr.finish();
@@ -856,6 +862,9 @@ std::string to_yaml(const Config& c) {
   e << YAML::EndSeq;
   kv("valve_table", k.predictor.valve_table);
   kv("horizon_s", k.predictor.horizon_s);
+  kv("linearized_slope", k.predictor.linearized_slope == LinearizedSlope::kChord                ? "chord"
+                         : k.predictor.linearized_slope == LinearizedSlope::kEquilibriumTangent ? "equilibrium"
+                                                                                                : "stop");
   kv("update_period_s", k.predictor.update_period_s);
   e << YAML::EndMap;
   e << YAML::Key << "setpoints" << YAML::Value << YAML::BeginMap;

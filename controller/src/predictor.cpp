@@ -68,6 +68,23 @@ double bracketed_root(F&& f, double a, double b, double fa, double fb, double to
   return b;
 }
 
+// C_p of Eq. 23 for one chamber, valve voltage w, from its stop pressure to its null-flow one.
+double flow_slope(const PredictorModel& m, double w, double p_stop_pa, double p_null_pa) noexcept {
+  // Below this the chord is 0/0: the chamber is at its null already and the tangent is the chord.
+  constexpr double kChordMin_pa = 1.0;
+  switch (m.linearized_slope) {
+    case LinearizedSlope::kChord:
+      if (std::abs(p_null_pa - p_stop_pa) >= kChordMin_pa)
+        return m.valve->mass_flow_kg_per_s(w, p_stop_pa) / (p_null_pa - p_stop_pa);
+      break;
+    case LinearizedSlope::kEquilibriumTangent:
+      return -m.valve->dq_dp(w, p_null_pa);
+    case LinearizedSlope::kStopTangent:
+      break;
+  }
+  return -m.valve->dq_dp(w, p_stop_pa);
+}
+
 // Fills the fields every method shares: equilibrium pressures and force, Eq. 23 time constants.
 Prediction base(PredictionMethod method, const PredictorModel& m, const StopSnapshot& s,
                 const Common& c) noexcept {
@@ -76,8 +93,8 @@ Prediction base(PredictionMethod method, const PredictorModel& m, const StopSnap
   p.p_p_equilibrium_pa = m.valve->null_pressure_pa(s.u_v);
   p.p_n_equilibrium_pa = m.valve->null_pressure_pa(-s.u_v);
   p.equilibrium_force_n = c.force(p.p_p_equilibrium_pa, p.p_n_equilibrium_pa);
-  const double c_pp = -m.valve->dq_dp(s.u_v, s.p_p_pa);
-  const double c_pn = -m.valve->dq_dp(-s.u_v, s.p_n_pa);
+  const double c_pp = flow_slope(m, s.u_v, s.p_p_pa, p.p_p_equilibrium_pa);
+  const double c_pn = flow_slope(m, -s.u_v, s.p_n_pa, p.p_n_equilibrium_pa);
   p.tau_p_s = c_pp > 0.0 ? c.v_p / (c.k_r_t * c_pp) : std::numeric_limits<double>::infinity();
   p.tau_n_s = c_pn > 0.0 ? c.v_n / (c.k_r_t * c_pn) : std::numeric_limits<double>::infinity();
   return p;
@@ -126,6 +143,15 @@ void mark_restart(Prediction& p, const StopSnapshot& s, double dt, double force,
 
 const char* to_string(PredictionMethod m) noexcept {
   return m == PredictionMethod::kLinearized ? "linearized" : "nonlinear";
+}
+
+const char* to_string(LinearizedSlope s) noexcept {
+  switch (s) {
+    case LinearizedSlope::kChord: return "chord";
+    case LinearizedSlope::kEquilibriumTangent: return "equilibrium";
+    case LinearizedSlope::kStopTangent: break;
+  }
+  return "stop";
 }
 
 Prediction predict_linearized(const PredictorModel& m, const StopSnapshot& s) noexcept {

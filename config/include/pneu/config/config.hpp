@@ -60,12 +60,21 @@ struct StopDetectorParams {
   double hold_s = 0.005;
 };
 
+/// Where the linearized method takes each chamber's flow slope of Eq. 23
+/// (controller.predictor.linearized_slope; see pneu::controller::LinearizedSlope).
+enum class LinearizedSlope {
+  kStopTangent,         ///< "stop": the tangent at the stop pressure, the paper's (default)
+  kChord,               ///< "chord": the secant from the stop pressure to the null-flow pressure
+  kEquilibriumTangent,  ///< "equilibrium": the tangent at the null-flow pressure
+};
+
 /// Which predictors run at each stop, and with which valve characteristic.
 struct PredictorConfig {
   bool linearized = true;           ///< controller.predictor.methods holds "linearized"
   bool nonlinear = true;            ///< controller.predictor.methods holds "nonlinear"
   std::string valve_table;          ///< table from `pneu-plant characterize-valve`; empty: the model
   double horizon_s = 600.0;         ///< the nonlinear method stops looking this long after a stop [s]
+  LinearizedSlope linearized_slope = LinearizedSlope::kStopTangent;  ///< optional key
   /// While stuck, the forecasts are made again from the pressures of the moment this often
   /// (0: only at the stop) [s].
   double update_period_s = 0.1;

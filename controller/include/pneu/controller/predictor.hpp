@@ -19,6 +19,19 @@ enum class PredictionMethod : std::uint8_t {
 
 [[nodiscard]] const char* to_string(PredictionMethod m) noexcept;
 
+/// Where the linearized method takes each chamber's flow slope C_p of Eq. 23 (its time constant
+/// tau = V(y*) / (k r T C_p)). Every choice relaxes each pressure exponentially from its stop value
+/// to p_null(+-u*) (Eq. 24) and keeps Eq. 16/17/25; only tau differs.
+enum class LinearizedSlope : std::uint8_t {
+  kStopTangent,         ///< "stop": -dq/dp at the stop pressure, the paper's Eq. 23
+  kChord,               ///< "chord": q(p_stop) / (p_null - p_stop), the secant from the stop
+                        ///< pressure to the null-flow pressure: the forecast starts at the model's
+                        ///< own rate dp/dt and ends where the model does
+  kEquilibriumTangent,  ///< "equilibrium": -dq/dp at the null-flow pressure p_null(+-u*)
+};
+
+[[nodiscard]] const char* to_string(LinearizedSlope s) noexcept;
+
 /// What the predictor knows of the bench.
 struct PredictorModel {
   plant::Geometry geometry;
@@ -26,6 +39,8 @@ struct PredictorModel {
   plant::FrictionParams friction;                 ///< the stiction bounds F_S+, F_S-
   const plant::ValveCharacteristic* valve = nullptr;  ///< model or measured table; must outlive use
   double horizon_s = 600.0;  ///< the nonlinear method gives up (no restart) this long after the stop
+  /// The time constants' slope (the linearized method's; both methods report the time constants).
+  LinearizedSlope linearized_slope = LinearizedSlope::kStopTangent;
 };
 
 /// The snapshot taken when the stop is confirmed.
@@ -47,15 +62,15 @@ struct Prediction {
   double equilibrium_force_n = 0.0;   ///< F at complete equilibrium under u*, Eq. 17 at t -> inf [N]
   double p_p_equilibrium_pa = 0.0;    ///< p_null(u*) [Pa]
   double p_n_equilibrium_pa = 0.0;    ///< p_null(-u*) [Pa]
-  double tau_p_s = 0.0;               ///< time constant of chamber P, Eq. 23 [s]
-  double tau_n_s = 0.0;               ///< time constant of chamber N, Eq. 23 [s]
+  double tau_p_s = 0.0;               ///< time constant of chamber P, Eq. 23, with the model's linearized_slope [s]
+  double tau_n_s = 0.0;               ///< time constant of chamber N, Eq. 23, with the model's linearized_slope [s]
   /// Smallest distance of F(t) to the nearer stiction bound it can cross (an end stop blocks
   /// one) from the snapshot up to the restart, or forever when none [N]; 0 at a restart.
   double min_margin_n = 0.0;
   bool horizon_reached = false;       ///< nonlinear: undecided at the horizon, reported as no restart
 };
 
-/// Eq. 16/17/25 with the time constants of Eq. 23; the condition is checked exactly over all
+/// Eq. 16/17/25 with the time constants of Eq. 23 (slope: model.linearized_slope); the condition is checked exactly over all
 /// t >= t_stop (F(t) is monotone on both sides of its one possible extremum).
 [[nodiscard]] Prediction predict_linearized(const PredictorModel& model, const StopSnapshot& stop) noexcept;
 /// Integrates dp/dt = k r T / V(y*) q(+-u*, p) for both chambers (RK4, step a fraction of the
