@@ -339,6 +339,12 @@ void RunReport::print_live_summary(std::FILE* out) const {
 void RunReport::print_summary(std::FILE* out, const LoopTiming& timing) const {
   std::fprintf(out, "stops (sticking phases) and their restart forecasts; forecast error in %% of the sticking\n"
                     "time when it lasted 0.5 s or more, in ms (forecast - actual) otherwise:\n");
+  if (linearized_ && model_.linearized_slope != LinearizedSlope::kStopTangent)
+    std::fprintf(out, "(linearized: Eq. 23's flow slope is the %s (controller.predictor.linearized_slope: %s),\n"
+                      " not the paper's tangent at the stop pressure)\n",
+                 model_.linearized_slope == LinearizedSlope::kChord ? "chord from the stop pressure to p_null(u*)"
+                                                                     : "tangent at p_null(u*)",
+                 to_string(model_.linearized_slope));
   std::fprintf(out, "  %3s %9s %9s %8s %8s %8s  %-34s %-24s %-24s\n", "#", "t_stop[s]", "y*[mm]", "F[N]",
                "u*[V]", "F_e[N]", "what happened", "linearized", "nonlinear");
   for (const auto& s : stops_) {

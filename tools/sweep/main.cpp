@@ -394,11 +394,15 @@ int run(int argc, char** argv) {
                 "their forecasts are not judged\n",
                 static_cast<unsigned long long>(not_at_rest));
   std::printf("  %.2f s wall on %d threads: %.1f scenarios/s\n", wall_s, jobs, n / wall_s);
-  const char* names[2] = {"linearized", "nonlinear"};
+  const controller::LinearizedSlope slope = controller::linearized_slope(base.controller.predictor);
+  const std::string names[2] = {slope == controller::LinearizedSlope::kStopTangent
+                                    ? std::string("linearized")
+                                    : std::string("linearized (slope: ") + controller::to_string(slope) + ")",
+                                "nonlinear"};
   for (int m = 0; m < 2; ++m) {
     const MethodStats& st = stats[m];
     if (st.tp + st.tn + st.fp + st.fn == 0) continue;
-    std::printf("  %s:\n", names[m]);
+    std::printf("  %s:\n", names[m].c_str());
     std::printf("    confusion            actual restart  actual none\n");
     std::printf("      forecast restart   %14llu  %11llu\n", static_cast<unsigned long long>(st.tp),
                 static_cast<unsigned long long>(st.fp));
