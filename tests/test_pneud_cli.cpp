@@ -130,6 +130,17 @@ TEST_F(PneudCli, DefaultRunPrintsTheSummaryOfTheTwelveSecondPaperScenario) {
   EXPECT_THAT(o.out, Not(HasSubstr("telemetry dropped")));
 }
 
+// The summary says when the linearized forecasts are not the paper's (Eq. 23 at the stop).
+TEST_F(PneudCli, SummaryNamesALinearizedSlopeOtherThanThePapers) {
+  const Outcome paper = pneud("");
+  const Outcome chord = pneud("--set controller.predictor.linearized_slope=chord");
+  ASSERT_EQ(paper.exit_code, 0) << paper.err;
+  ASSERT_EQ(chord.exit_code, 0) << chord.err;
+  EXPECT_THAT(paper.out, Not(HasSubstr("linearized_slope")));
+  EXPECT_THAT(chord.out, HasSubstr("(controller.predictor.linearized_slope: chord)"));
+  EXPECT_THAT(chord.out, HasSubstr("not the paper's tangent at the stop pressure"));
+}
+
 TEST_F(PneudCli, EventsFileHoldsOneEventObjectPerLineWithConsistentStopsAndPredictions) {
   const fs::path events = file("events.jsonl");
   const Outcome o = pneud("--quiet --events " + quoted(events));
@@ -253,6 +264,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"OutOfRange", "--set controller.law.max_voltage_v=-1",
                  "controller.law.max_voltage_v", "must be > 0"},
         BadInput{"ConfigFileMissingAKey", "--config @BAD_CONFIG@", "plant.mass_kg", "missing"},
+        BadInput{"UnknownLinearizedSlope", "--set controller.predictor.linearized_slope=secant",
+                 "controller.predictor.linearized_slope", "must be 'stop', 'chord' or 'equilibrium'"},
         BadInput{"UnknownClock", "--clock bogus", "--clock", "real or simulated"},
         BadInput{"DurationNotANumber", "--duration abc", "--duration", "not a finite number"},
         BadInput{"ZeroDurationOnTheSimulatedClock", "--duration 0", "controller.duration_s",
