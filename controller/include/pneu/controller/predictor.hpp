@@ -62,16 +62,18 @@ struct Prediction {
   double equilibrium_force_n = 0.0;   ///< F at complete equilibrium under u*, Eq. 17 at t -> inf [N]
   double p_p_equilibrium_pa = 0.0;    ///< p_null(u*) [Pa]
   double p_n_equilibrium_pa = 0.0;    ///< p_null(-u*) [Pa]
-  double tau_p_s = 0.0;               ///< time constant of chamber P, Eq. 23, with the model's linearized_slope [s]
-  double tau_n_s = 0.0;               ///< time constant of chamber N, Eq. 23, with the model's linearized_slope [s]
+  /// The time constants of chambers P and N, Eq. 23 with the model's linearized_slope [s].
+  double tau_p_s = 0.0;
+  double tau_n_s = 0.0;
   /// Smallest distance of F(t) to the nearer stiction bound it can cross (an end stop blocks
   /// one) from the snapshot up to the restart, or forever when none [N]; 0 at a restart.
   double min_margin_n = 0.0;
   bool horizon_reached = false;       ///< nonlinear: undecided at the horizon, reported as no restart
 };
 
-/// Eq. 16/17/25 with the time constants of Eq. 23 (slope: model.linearized_slope); the condition is checked exactly over all
-/// t >= t_stop (F(t) is monotone on both sides of its one possible extremum).
+/// Eq. 16/17/25 with the time constants of Eq. 23 (slope: model.linearized_slope); the condition
+/// is checked exactly over all t >= t_stop (F(t) is monotone on both sides of its one possible
+/// extremum).
 [[nodiscard]] Prediction predict_linearized(const PredictorModel& model, const StopSnapshot& stop) noexcept;
 /// Integrates dp/dt = k r T / V(y*) q(+-u*, p) for both chambers (RK4, step a fraction of the
 /// local time constant) and locates the first crossing of a stiction bound inside the step.
