@@ -532,18 +532,24 @@ TEST(ForecastTrackWithValveModel, NonlinearTrackIsEquation19AndMeetsTheBoundAtTh
   EXPECT_NEAR(track.at(p.t_restart_s).force_n, kForceSMinusN, 1e-3);
 }
 
-// On the curved valve the paper's tangent at the stop pressure is not the path's mean slope: the
-// linearized track leaves the exact one while the pressures travel, then both settle on the same
-// equilibrium. The stop is the paper scenario's second one (README: stuck 4.0 s at 171.8 mm).
-TEST(ForecastTrackWithValveModel, LinearizedTrackSharesTheEndsButNotThePathOfTheExactOne) {
-  const ValveModelBench bench;
-  const auto& model = bench.model;
+// The paper scenario's second stop (README: stuck 4.0 s at 171.8 mm), on the curved valve model.
+StopSnapshot papers_long_stop() {
   StopSnapshot s;
   s.t_s = 2.013;
   s.y_m = 0.17176454742;
   s.p_p_pa = 344978.831;
   s.p_n_pa = 479715.447;
   s.u_v = -0.333630956;
+  return s;
+}
+
+// On the curved valve the paper's tangent at the stop pressure is not the path's mean slope: the
+// linearized track leaves the exact one while the pressures travel, then both settle on the same
+// equilibrium.
+TEST(ForecastTrackWithValveModel, LinearizedTrackSharesTheEndsButNotThePathOfTheExactOne) {
+  const ValveModelBench bench;
+  const auto& model = bench.model;
+  const StopSnapshot s = papers_long_stop();
   ForecastTrack linearized(PredictionMethod::kLinearized, model, s);
   ForecastTrack nonlinear(PredictionMethod::kNonlinear, model, s);
   EXPECT_DOUBLE_EQ(linearized.at(s.t_s).force_n, nonlinear.at(s.t_s).force_n);
@@ -559,19 +565,7 @@ TEST(ForecastTrackWithValveModel, LinearizedTrackSharesTheEndsButNotThePathOfThe
   EXPECT_NEAR(nonlinear.at(late).force_n, p.equilibrium_force_n, 1e-3);
 }
 
-
 // --- Where the linearized method takes its slope (controller.predictor.linearized_slope) --------
-
-// The paper scenario's long stop (as above), on the curved valve model.
-StopSnapshot papers_long_stop() {
-  StopSnapshot s;
-  s.t_s = 2.013;
-  s.y_m = 0.17176454742;
-  s.p_p_pa = 344978.831;
-  s.p_n_pa = 479715.447;
-  s.u_v = -0.333630956;
-  return s;
-}
 
 struct P2Rates {
   double p_pa_per_s, n_pa_per_s;
