@@ -8,6 +8,7 @@
 #include <cmath>
 #include <type_traits>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 
 #include "yaml_reader.hpp"
@@ -18,7 +19,19 @@ using detail::check;
 using detail::fmt;
 using detail::MapReader;
 
+const char* to_string(LinearizedSlope s) noexcept {
+  switch (s) {
+    case LinearizedSlope::kChord: return "chord";
+    case LinearizedSlope::kEquilibriumTangent: return "equilibrium";
+    case LinearizedSlope::kStopTangent: break;
+  }
+  return "stop";
+}
+
 namespace {
+
+constexpr LinearizedSlope kLinearizedSlopes[] = {LinearizedSlope::kStopTangent, LinearizedSlope::kChord,
+                                                 LinearizedSlope::kEquilibriumTangent};
 
 double positive(MapReader& r, const std::string& key) {
   const double v = r.number(key);
@@ -219,12 +232,13 @@ ControllerConfig read_controller(MapReader r, const plant::PlantParams& plant) {
     }
     c.predictor.valve_table = pr.string_or("valve_table", "");
     c.predictor.horizon_s = positive(pr, "horizon_s");
-    const std::string slope = pr.string_or("linearized_slope", "stop");
-    if (slope == "stop") c.predictor.linearized_slope = LinearizedSlope::kStopTangent;
-    else if (slope == "chord") c.predictor.linearized_slope = LinearizedSlope::kChord;
-    else if (slope == "equilibrium") c.predictor.linearized_slope = LinearizedSlope::kEquilibriumTangent;
-    else throw ConfigError(pr.child_path("linearized_slope"),
-                           "must be 'stop', 'chord' or 'equilibrium' (got '" + slope + "')");
+    const std::string slope = pr.string_or("linearized_slope", to_string(LinearizedSlope::kStopTangent));
+    const auto known = std::find_if(std::begin(kLinearizedSlopes), std::end(kLinearizedSlopes),
+                                    [&](LinearizedSlope s) { return slope == to_string(s); });
+    if (known == std::end(kLinearizedSlopes))
+      throw ConfigError(pr.child_path("linearized_slope"),
+                        "must be 'stop', 'chord' or 'equilibrium' (got '" + slope + "')");
+    c.predictor.linearized_slope = *known;
     c.predictor.update_period_s = pr.has("update_period_s") ? non_negative(pr, "update_period_s")
                                                             : c.predictor.update_period_s;
     pr.finish();
@@ -862,9 +876,7 @@ std::string to_yaml(const Config& c) {
   e << YAML::EndSeq;
   kv("valve_table", k.predictor.valve_table);
   kv("horizon_s", k.predictor.horizon_s);
-  kv("linearized_slope", k.predictor.linearized_slope == LinearizedSlope::kChord                ? "chord"
-                         : k.predictor.linearized_slope == LinearizedSlope::kEquilibriumTangent ? "equilibrium"
-                                                                                                : "stop");
+  kv("linearized_slope", to_string(k.predictor.linearized_slope));
   kv("update_period_s", k.predictor.update_period_s);
   e << YAML::EndMap;
   e << YAML::Key << "setpoints" << YAML::Value << YAML::BeginMap;

@@ -145,15 +145,6 @@ const char* to_string(PredictionMethod m) noexcept {
   return m == PredictionMethod::kLinearized ? "linearized" : "nonlinear";
 }
 
-const char* to_string(LinearizedSlope s) noexcept {
-  switch (s) {
-    case LinearizedSlope::kChord: return "chord";
-    case LinearizedSlope::kEquilibriumTangent: return "equilibrium";
-    case LinearizedSlope::kStopTangent: break;
-  }
-  return "stop";
-}
-
 Prediction predict_linearized(const PredictorModel& m, const StopSnapshot& s) noexcept {
   const Common c = common_of(m, s);
   Prediction p = base(PredictionMethod::kLinearized, m, s, c);
@@ -215,7 +206,7 @@ Prediction predict_nonlinear(const PredictorModel& m, const StopSnapshot& s) noe
   Prediction p = base(PredictionMethod::kNonlinear, m, s, c);
   const Bounds b = bounds_of(m, s);
   const PressureOde ode{c, *m.valve, s.u_v};
-  const auto rk4 = [&](const P2& x, double h) { return ode.rk4(x, h); };
+  const auto rk4 = [&](const P2& x, double h) { return rk4(x, h); };
   const auto force = [&](const P2& x) { return c.force(x.pp, x.pn); };
 
   P2 x{s.p_p_pa, s.p_n_pa};

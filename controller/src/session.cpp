@@ -22,15 +22,6 @@ void resolve_offset(config::Config& config, const plant::ValveCharacteristic& va
         plant::equilibrium_voltage_v(valve, config.plant.geometry, config.plant.gas.exhaust_pressure_pa);
 }
 
-LinearizedSlope linearized_slope(const config::PredictorConfig& predictor) noexcept {
-  switch (predictor.linearized_slope) {
-    case config::LinearizedSlope::kChord: return LinearizedSlope::kChord;
-    case config::LinearizedSlope::kEquilibriumTangent: return LinearizedSlope::kEquilibriumTangent;
-    case config::LinearizedSlope::kStopTangent: break;
-  }
-  return LinearizedSlope::kStopTangent;
-}
-
 PredictorModel predictor_model(const config::Config& config, const plant::ValveCharacteristic& valve) {
   PredictorModel m;
   m.geometry = config.plant.geometry;
@@ -38,7 +29,7 @@ PredictorModel predictor_model(const config::Config& config, const plant::ValveC
   m.friction = config.plant.friction;
   m.valve = &valve;
   m.horizon_s = config.controller.predictor.horizon_s;
-  m.linearized_slope = linearized_slope(config.controller.predictor);
+  m.linearized_slope = config.controller.predictor.linearized_slope;
   return m;
 }
 

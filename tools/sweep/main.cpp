@@ -394,10 +394,10 @@ int run(int argc, char** argv) {
                 "their forecasts are not judged\n",
                 static_cast<unsigned long long>(not_at_rest));
   std::printf("  %.2f s wall on %d threads: %.1f scenarios/s\n", wall_s, jobs, n / wall_s);
-  const controller::LinearizedSlope slope = controller::linearized_slope(base.controller.predictor);
-  const std::string names[2] = {slope == controller::LinearizedSlope::kStopTangent
+  const config::LinearizedSlope slope = base.controller.predictor.linearized_slope;
+  const std::string names[2] = {slope == config::LinearizedSlope::kStopTangent
                                     ? std::string("linearized")
-                                    : std::string("linearized (slope: ") + controller::to_string(slope) + ")",
+                                    : std::string("linearized (slope: ") + config::to_string(slope) + ")",
                                 "nonlinear"};
   for (int m = 0; m < 2; ++m) {
     const MethodStats& st = stats[m];

@@ -60,13 +60,20 @@ struct StopDetectorParams {
   double hold_s = 0.005;
 };
 
-/// Where the linearized method takes each chamber's flow slope of Eq. 23
-/// (controller.predictor.linearized_slope; see pneu::controller::LinearizedSlope).
-enum class LinearizedSlope {
-  kStopTangent,         ///< "stop": the tangent at the stop pressure, the paper's (default)
-  kChord,               ///< "chord": the secant from the stop pressure to the null-flow pressure
-  kEquilibriumTangent,  ///< "equilibrium": the tangent at the null-flow pressure
+/// Where the linearized restart predictor takes each chamber's flow slope C_p of Eq. 23 (its time
+/// constant tau = V(y*) / (k r T C_p)), controller.predictor.linearized_slope. Every choice relaxes
+/// each pressure exponentially from its stop value to p_null(+-u*) (Eq. 24) and keeps Eq.
+/// 16/17/25; only tau differs.
+enum class LinearizedSlope : std::uint8_t {
+  kStopTangent,         ///< "stop": -dq/dp at the stop pressure, the paper's Eq. 23 (default)
+  kChord,               ///< "chord": q(p_stop) / (p_null - p_stop), the secant from the stop
+                        ///< pressure to the null-flow pressure: the forecast starts at the model's
+                        ///< own rate dp/dt and ends where the model does
+  kEquilibriumTangent,  ///< "equilibrium": -dq/dp at the null-flow pressure p_null(+-u*)
 };
+
+/// The key's value: "stop", "chord" or "equilibrium".
+[[nodiscard]] const char* to_string(LinearizedSlope s) noexcept;
 
 /// Which predictors run at each stop, and with which valve characteristic.
 struct PredictorConfig {

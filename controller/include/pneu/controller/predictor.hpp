@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <limits>
 
+#include "pneu/config/config.hpp"
 #include "pneu/sim_plant/params.hpp"
 #include "pneu/sim_plant/valve.hpp"
 
@@ -19,18 +20,8 @@ enum class PredictionMethod : std::uint8_t {
 
 [[nodiscard]] const char* to_string(PredictionMethod m) noexcept;
 
-/// Where the linearized method takes each chamber's flow slope C_p of Eq. 23 (its time constant
-/// tau = V(y*) / (k r T C_p)). Every choice relaxes each pressure exponentially from its stop value
-/// to p_null(+-u*) (Eq. 24) and keeps Eq. 16/17/25; only tau differs.
-enum class LinearizedSlope : std::uint8_t {
-  kStopTangent,         ///< "stop": -dq/dp at the stop pressure, the paper's Eq. 23
-  kChord,               ///< "chord": q(p_stop) / (p_null - p_stop), the secant from the stop
-                        ///< pressure to the null-flow pressure: the forecast starts at the model's
-                        ///< own rate dp/dt and ends where the model does
-  kEquilibriumTangent,  ///< "equilibrium": -dq/dp at the null-flow pressure p_null(+-u*)
-};
-
-[[nodiscard]] const char* to_string(LinearizedSlope s) noexcept;
+/// Where the linearized method takes each chamber's flow slope of Eq. 23 (the config's key).
+using LinearizedSlope = config::LinearizedSlope;
 
 /// What the predictor knows of the bench.
 struct PredictorModel {

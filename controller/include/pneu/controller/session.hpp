@@ -24,9 +24,6 @@ namespace pneu::controller {
 /// Fills controller.law.offset_v with u_e of Eq. 7 when it is "auto".
 void resolve_offset(config::Config& config, const plant::ValveCharacteristic& valve);
 
-/// controller.predictor.linearized_slope as the predictor's enum.
-[[nodiscard]] LinearizedSlope linearized_slope(const config::PredictorConfig& predictor) noexcept;
-
 /// The predictors' view of the bench.
 [[nodiscard]] PredictorModel predictor_model(const config::Config& config,
                                              const plant::ValveCharacteristic& valve);
