@@ -206,7 +206,6 @@ Prediction predict_nonlinear(const PredictorModel& m, const StopSnapshot& s) noe
   Prediction p = base(PredictionMethod::kNonlinear, m, s, c);
   const Bounds b = bounds_of(m, s);
   const PressureOde ode{c, *m.valve, s.u_v};
-  const auto rk4 = [&](const P2& x, double h) { return rk4(x, h); };
   const auto force = [&](const P2& x) { return c.force(x.pp, x.pn); };
 
   P2 x{s.p_p_pa, s.p_n_pa};
@@ -234,12 +233,12 @@ Prediction predict_nonlinear(const PredictorModel& m, const StopSnapshot& s) noe
       }
     }
     const double h = ode.step_s(x);
-    const P2 x1 = rk4(x, h);
+    const P2 x1 = ode.rk4(x, h);
     const double f1 = force(x1);
     if (excess(b, f1) > 0.0) {
-      const auto g = [&](double th) { return excess(b, force(rk4(x, th * h))); };
+      const auto g = [&](double th) { return excess(b, force(ode.rk4(x, th * h))); };
       const double th = bracketed_root(g, 0.0, 1.0, excess(b, f), excess(b, f1), kTimeTolerance_s / h);
-      mark_restart(p, s, t + th * h, force(rk4(x, th * h)), b);
+      mark_restart(p, s, t + th * h, force(ode.rk4(x, th * h)), b);
       return p;
     }
     min_margin = std::min(min_margin, margin(b, f1));
