@@ -71,10 +71,7 @@ class Hil : public ::testing::Test {
   std::vector<std::string> pneud_args(const std::vector<std::string>& extra, bool bench_link = false) const {
     std::vector<std::string> args{bin("pneud"), "--config", hil_yaml(), "--set", "hal.modbus.port=" + std::to_string(port_),
                                   "--set", "telemetry.enabled=false"};
-    if (!bench_link) {
-      const auto tolerant = pneu::test::link_stalls_tolerated();
-      args.insert(args.end(), tolerant.begin(), tolerant.end());
-    }
+    if (!bench_link) args = pneu::test::link_stalls_tolerated(std::move(args));
     args.insert(args.end(), extra.begin(), extra.end());
     return pneu::test::loop_timing_faults_off(std::move(args));
   }
@@ -238,8 +235,7 @@ TEST_F(Hil, RtuOverAPtyPairAt115200BaudKeepsTheLoopRateAndFreshSamples) {
   const fs::path a = dir_ / "ttyA", b = dir_ / "ttyB";
   Child pty = Child::spawn({"socat", "pty,raw,echo=0,link=" + a.string(), "pty,raw,echo=0,link=" + b.string()},
                            dir_ / "socat.out", dir_ / "socat.err");
-  for (int i = 0; i < 200 && !(fs::exists(a) && fs::exists(b)); ++i) std::this_thread::sleep_for(10ms);
-  ASSERT_TRUE(fs::exists(a) && fs::exists(b)) << slurp(dir_ / "socat.err");
+  ASSERT_TRUE(pneu::test::eventually([&] { return fs::exists(a) && fs::exists(b); }, 2s)) << slurp(dir_ / "socat.err");
   // The server holds each reply for the time it takes on a real 115200 baud line (a pty has no
   // speed of its own): a function-23 exchange of 28 bytes plus silences takes about 3 ms.
   Child plant = Child::spawn({bin("pneu-plant"), "serve", "--config", hil_yaml(), "--set", "hal.modbus.transport=rtu",

@@ -207,10 +207,7 @@ class HilFaults : public ::testing::Test {
                                   "controller.setpoints.schedule=[{t_s: 1.0, position_m: -0.05}]",
                                   "--events", (dir_ / "events.jsonl").string(), "--trajectory",
                                   (dir_ / "traj.csv").string()};
-    if (!bench_link) {
-      const auto tolerant = pneu::test::link_stalls_tolerated();
-      args.insert(args.end(), tolerant.begin(), tolerant.end());
-    }
+    if (!bench_link) args = pneu::test::link_stalls_tolerated(std::move(args));
     args.insert(args.end(), extra.begin(), extra.end());
     return Child::spawn(pneu::test::loop_timing_faults_off(std::move(args)), dir_ / "pneud.out", dir_ / "pneud.err");
   }
@@ -227,13 +224,12 @@ class HilFaults : public ::testing::Test {
     return o;
   }
   bool wait_outputs(const std::string& name, bool safe, std::chrono::milliseconds limit) const {
-    const auto until = std::chrono::steady_clock::now() + limit;
-    while (std::chrono::steady_clock::now() < until) {
-      const Outputs o = last_outputs(name);
-      if (!std::isnan(o.u_p_v) && o.safe() == safe) return true;
-      std::this_thread::sleep_for(10ms);
-    }
-    return false;
+    return pneu::test::eventually(
+        [&] {
+          const Outputs o = last_outputs(name);
+          return !std::isnan(o.u_p_v) && o.safe() == safe;
+        },
+        limit);
   }
   bool wait_armed_and_running(double ticks) {
     return telemetry_.wait_health([&](const auto& h) { return h.mode == kModeArmed && h.ticks >= ticks; }, 10s);

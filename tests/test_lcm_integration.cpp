@@ -85,8 +85,8 @@ TEST_F(LcmIntegration, LcmLoggerRecordsEveryTickInOrderWithEventsAndPredictions)
   ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
   // Until the logger has written every tick's state it will get (up to 10 s), then stop it.
   const std::size_t ticks_recorded = Csv::read(dir_ / "traj.csv").rows.size();
-  for (int i = 0; i < 100 && events_in_log(log, "PNEU_STATE") < static_cast<int>(ticks_recorded); ++i)
-    std::this_thread::sleep_for(100ms);
+  (void)pneu::test::eventually(
+      [&] { return events_in_log(log, "PNEU_STATE") >= static_cast<int>(ticks_recorded); }, 10s, 100ms);  // judged below
   kill(logger.pid, SIGINT);
   ASSERT_EQ(logger.wait(), 0) << slurp(dir_ / "logger.err");
 
@@ -193,15 +193,12 @@ struct Listener {
   }
   // Whether `seen` (called under the lock) holds within `limit`, while another thread polls.
   bool wait_for(const std::function<bool()>& seen, std::chrono::milliseconds limit) {
-    const auto until = std::chrono::steady_clock::now() + limit;
-    for (;;) {
-      {
-        std::lock_guard<std::mutex> l(m);
-        if (seen()) return true;
-      }
-      if (std::chrono::steady_clock::now() > until) return false;
-      std::this_thread::sleep_for(5ms);
-    }
+    return pneu::test::eventually(
+        [&] {
+          std::lock_guard<std::mutex> l(m);
+          return seen();
+        },
+        limit, 5ms);
   }
 };
 

@@ -112,8 +112,13 @@ class PneudStall : public PneudDaemon {
     args.insert(args.end(), {"--events", (dir_ / "events.jsonl").string(), "--trajectory", (dir_ / "traj.csv").string()});
     Child p = Child::spawn(args, dir_ / "pneud.out", dir_ / "pneud.err");
     // The loop ticks (its trajectory grows past the header) before the stall, up to 10 s.
-    for (int i = 0; i < 1000 && slurp(dir_ / "traj.csv").find('\n') == slurp(dir_ / "traj.csv").rfind('\n'); ++i)
-      std::this_thread::sleep_for(10ms);
+    EXPECT_TRUE(pneu::test::eventually(
+        [&] {
+          const std::string traj = slurp(dir_ / "traj.csv");
+          return traj.find('\n') != traj.rfind('\n');
+        },
+        10s))
+        << "the loop did not tick";
     std::this_thread::sleep_for(100ms);
     kill(p.pid, SIGSTOP);
     std::this_thread::sleep_for(300ms);

@@ -142,8 +142,7 @@ class PymodbusInterop : public ::testing::Test {
                                   "2",
                                   "--trajectory",
                                   (dir_ / "trajectory.csv").string()};
-    const auto tolerant = pneu::test::link_stalls_tolerated();  // interoperability, not the link's timing
-    args.insert(args.end(), tolerant.begin(), tolerant.end());
+    args = pneu::test::link_stalls_tolerated(std::move(args));  // interoperability, not the link's timing
     args.insert(args.end(), extra.begin(), extra.end());
     return Child::spawn(pneu::test::loop_timing_faults_off(std::move(args)), dir_ / "pneud.out", dir_ / "pneud.err");
   }

@@ -34,15 +34,23 @@ inline std::string slurp(const fs::path& p) {
   return ss.str();
 }
 
+/// Whether `holds()` is true within `limit`, asked every `every` (and once at the limit): the
+/// tests' wait for a sign from a child instead of a sleep.
+template <typename Predicate>
+bool eventually(Predicate&& holds, std::chrono::milliseconds limit,
+                std::chrono::milliseconds every = std::chrono::milliseconds(10)) {
+  const auto until = std::chrono::steady_clock::now() + limit;
+  for (;;) {
+    if (holds()) return true;
+    if (std::chrono::steady_clock::now() >= until) return false;
+    std::this_thread::sleep_for(every);
+  }
+}
+
 /// Whether the file at `p` holds `text` within `limit`, polled every 10 ms: a child's sign that it
 /// is ready, or that something happened.
 inline bool wait_for_text(const fs::path& p, const std::string& text, std::chrono::milliseconds limit) {
-  const auto until = std::chrono::steady_clock::now() + limit;
-  for (;;) {
-    if (slurp(p).find(text) != std::string::npos) return true;
-    if (std::chrono::steady_clock::now() >= until) return false;
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
+  return eventually([&] { return slurp(p).find(text) != std::string::npos; }, limit);
 }
 
 // A fresh directory for one test, named after it (and this process): removed when the test
@@ -178,14 +186,17 @@ inline std::vector<std::string> loop_timing_faults_off(std::vector<std::string> 
   return args;
 }
 
-/// pneud arguments, to put before a test's own, for HIL tests whose subject is not the Modbus link:
-/// a response timeout and a sample age limit of 0.5 s, and a comms fault after 2 s of bad
-/// samples. hil.yaml's 20 ms, 20 ms and 50 ms are a bench's: on a shared machine a stall of the
-/// plant's process past 20 ms is a timeout, the reconnection backs off, and the samples stay bad
-/// past 50 ms, a comms fault in a test of something else. Tests of the link keep hil.yaml's values.
-inline std::vector<std::string> link_stalls_tolerated() {
-  return {"--set", "hal.modbus.response_timeout_s=0.5", "--set", "hal.modbus.max_sample_age_s=0.5", "--set",
-          "controller.comms_fault_after_s=2"};
+/// pneud arguments `args` and, after them (so that a test's own, added next, still win), those for
+/// HIL tests whose subject is not the Modbus link: a response timeout and a sample age limit of
+/// 0.5 s, and a comms fault after 2 s of bad samples. hil.yaml's 20 ms, 20 ms and 50 ms are a
+/// bench's: on a shared machine a stall of the plant's process past 20 ms is a timeout, the
+/// reconnection backs off, and the samples stay bad past 50 ms, a comms fault in a test of
+/// something else. Tests of the link keep hil.yaml's values.
+inline std::vector<std::string> link_stalls_tolerated(std::vector<std::string> args) {
+  for (const char* a : {"--set", "hal.modbus.response_timeout_s=0.5", "--set", "hal.modbus.max_sample_age_s=0.5",
+                        "--set", "controller.comms_fault_after_s=2"})
+    args.emplace_back(a);
+  return args;
 }
 
 /// The loop and modbus lines of pneud's end-of-run summary.
