@@ -93,7 +93,7 @@ TEST(LivePredictor, TheNonlinearForecastFollowsTheSimulatedForceThroughTheLongSt
 
 TEST(LivePredictor, MakesBothForecastsAgainEveryUpdatePeriodWhileStuck) {
   const LiveRun r;
-  const double period = r.config.controller.predictor.update_period_s;
+  const double period = r_period(r);
   ASSERT_GT(period, 0.0);
   const StopOutcome& s = r.longest_restart();
   ASSERT_FALSE(s.reforecasts.empty());
@@ -118,10 +118,7 @@ TEST(LivePredictor, MakesBothForecastsAgainEveryUpdatePeriodWhileStuck) {
 TEST(LivePredictor, TheLinearizedForecastMadeAgainHalfWayIsCloserThanTheOneMadeAtTheStop) {
   const LiveRun r;
   const StopOutcome& s = r.longest_restart();
-  const Reforecast* halfway = nullptr;
-  for (const auto& f : s.reforecasts)
-    if (f.prediction.method == PredictionMethod::kLinearized && f.t_s <= s.t_stop_s + 0.5 * s.sticking_s())
-      halfway = &f;
+  const Reforecast* halfway = controller::halfway_reforecast(s, PredictionMethod::kLinearized);
   ASSERT_NE(halfway, nullptr);
   ASSERT_TRUE(s.linearized.has_value());
   const auto at_stop = controller::judge(s, *s.linearized, r.run.report->end_time_s());
