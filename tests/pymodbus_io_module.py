@@ -18,7 +18,9 @@ On SIGTERM/SIGINT, or after --duration seconds, it prints to stdout
   valve history: (u_P, u_N) V x count, ... (the runs of equal values, oldest first, at most 8)
   last valve voltages: u_P = +x.xxxxxx V, u_N = +x.xxxxxx V (words a, b)
 
-and exits 0. Loopback only. Run with /usr/bin/python3 (Debian's python3-pymodbus).
+and exits 0. Loopback only. Run with /usr/bin/python3 (Debian's python3-pymodbus). With --check it
+only imports what it needs and exits 0; a module that cannot be imported exits 3 at once, naming the
+Debian package to install (stderr).
 """
 
 import argparse
@@ -27,9 +29,22 @@ import logging
 import signal
 import sys
 
-from pymodbus.datastore import (ModbusSequentialDataBlock, ModbusServerContext,
-                                ModbusSlaveContext)
-from pymodbus.server import StartAsyncTcpServer
+# The Debian package of each third-party module this imports, directly or through pymodbus 3.0's
+# server (which needs serial_asyncio, only a Recommends of python3-pymodbus).
+DEBIAN_PACKAGES = {"pymodbus": "python3-pymodbus", "serial_asyncio": "python3-serial-asyncio",
+                   "serial": "python3-serial"}
+EXIT_MISSING_MODULE = 3
+
+try:
+    from pymodbus.datastore import (ModbusSequentialDataBlock, ModbusServerContext,
+                                    ModbusSlaveContext)
+    from pymodbus.server import StartAsyncTcpServer
+except ImportError as error:
+    missing = (getattr(error, "name", None) or "?").split(".")[0]
+    print(f"pymodbus_io_module: cannot import {missing}: install the Debian package "
+          f"{DEBIAN_PACKAGES.get(missing, 'that provides it')} (scripts/deps installs it) [{error}]",
+          file=sys.stderr, flush=True)
+    sys.exit(EXIT_MISSING_MODULE)
 
 # The register map of config/hil.yaml.
 REG_POSITION, REG_PRESSURE_P, REG_PRESSURE_N = 0, 1, 2
@@ -173,10 +188,15 @@ async def serve(args):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--port", type=int, required=True, help="TCP port on 127.0.0.1")
+    parser.add_argument("--check", action="store_true", help="only check that the imports succeed, exit 0")
+    parser.add_argument("--port", type=int, help="TCP port on 127.0.0.1")
     parser.add_argument("--unit", type=int, default=1, help="unit (slave) identifier, default 1")
     parser.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0: on a signal)")
     args = parser.parse_args()
+    if args.check:
+        return 0
+    if args.port is None:
+        parser.error("--port is required")
     # pymodbus 3.0 configures the root logger at import and logs every closed session as an error.
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
     asyncio.run(serve(args))

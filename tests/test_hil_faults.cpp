@@ -240,7 +240,7 @@ class HilFaults : public ::testing::Test {
     const auto t0 = std::chrono::steady_clock::now();
     EXPECT_EQ(p.wait(), 0) << slurp(dir_ / "pneud.err");
     EXPECT_LT(std::chrono::steady_clock::now() - t0, 2s) << "within the unit's stop timeout";
-    EXPECT_TRUE(telemetry_.wait_health([](const auto& h) { return h.final; }, 1s)) << "a final health message";
+    EXPECT_TRUE(telemetry_.wait_health([](const auto& h) { return h.is_final; }, 1s)) << "a final health message";
   }
 
   // The trajectory pneud recorded (after it stopped), its fault event, and the loop time of the
@@ -541,7 +541,7 @@ TEST_F(HilFaults, SigtermMidMotionWritesTheSafeOutputBeforeExit) {
   EXPECT_THAT(slurp(dir_ / "pneud.out"), HasSubstr("safe output on closing: delivered to the module on attempt "));
   const auto hs = telemetry_.healths();
   ASSERT_FALSE(hs.empty());
-  EXPECT_TRUE(hs.back().final);
+  EXPECT_TRUE(hs.back().is_final);
   EXPECT_EQ(hs.back().faults, 0) << "a clean stop is no fault";
   const Csv traj = Csv::read(dir_ / "traj.csv");
   ASSERT_FALSE(traj.rows.empty());

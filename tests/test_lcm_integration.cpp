@@ -267,7 +267,7 @@ TEST_F(LcmIntegration, CommandsAreValidatedAndOnlyValidOnesReachTheLoop) {
     ASSERT_EQ(lcm.publish("PNEU_COMMAND", &c), 0);
   }
   ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
-  EXPECT_TRUE(listener.wait_for([&] { return listener.last_health.final; }, 2s)) << "the final health message";
+  EXPECT_TRUE(listener.wait_for([&] { return listener.last_health.is_final; }, 2s)) << "the final health message";
   done = true;
   handler.join();
 

@@ -448,7 +448,7 @@ TEST_F(Log2Csv, HealthAndCommandFieldsReadBack) {
   h.deadlines_skipped = 9;
   h.fault_cause = 10;
   h.faults = 11;
-  h.final = true;
+  h.is_final = true;
 
   std::vector<pneu_lcm::command_t> commands;
   const std::vector<std::string> names = {"set_point", "set_point_step", "arm",
@@ -479,7 +479,7 @@ TEST_F(Log2Csv, HealthAndCommandFieldsReadBack) {
                         "commands_accepted", "commands_rejected", "rejected_malformed",
                         "rejected_invalid", "rejected_rate", "rejected_mode", "rejected_sequence",
                         "rejected_stale", "rejected_foreign", "rejected_oversized", "deadlines_skipped",
-                        "fault_cause", "faults", "final"})
+                        "fault_cause", "faults", "is_final"})
     expected_header.emplace_back(c);
   EXPECT_EQ(health.header, expected_header);
   ASSERT_EQ(health.rows.size(), 1u);
@@ -498,7 +498,7 @@ TEST_F(Log2Csv, HealthAndCommandFieldsReadBack) {
                                    h.rejected_invalid,  h.rejected_rate,     h.rejected_mode,
                                    h.rejected_sequence, h.rejected_stale,   h.rejected_foreign,
                                    h.rejected_oversized, h.deadlines_skipped, h.fault_cause,
-                                   h.faults,            h.final};
+                                   h.faults,            h.is_final};
   for (int i = 0; i < 17; ++i)
     expect_int(health.rows[0][static_cast<std::size_t>(14 + i)], counters[i],
                expected_header[static_cast<std::size_t>(14 + i)]);

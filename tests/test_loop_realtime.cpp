@@ -360,7 +360,7 @@ TEST(ControlLoop, CountsBackendFailuresAndHandsThemToHealth) {
   int n = 0;
   while (outputs->health.try_pop(h)) last = h, ++n;
   ASSERT_EQ(n, 4) << "three periodic records and the final one";
-  EXPECT_TRUE(last.final);
+  EXPECT_TRUE(last.is_final);
   EXPECT_EQ(last.comms_errors, 60u) << "the last health record saw every failure so far";
   EXPECT_EQ(last.mode, pneu::controller::Mode::kFault) << "50 ms of stale samples latch the comms fault";
   EXPECT_EQ(last.fault_cause, pneu::controller::kFaultComms);

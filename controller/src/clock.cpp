@@ -35,7 +35,7 @@ namespace {
 thread_local TimingStats window_wake, window_compute;
 
 void push_health(const ControlLoop& loop, const LoopTiming& timing, double t_s, LoopOutputs& out,
-                 bool final) noexcept {
+                 bool is_final) noexcept {
   HealthRecord h;
   h.t_s = t_s;
   h.ticks = timing.ticks;
@@ -49,7 +49,7 @@ void push_health(const ControlLoop& loop, const LoopTiming& timing, double t_s, 
   h.comms_errors = loop.comms_errors();
   h.fault_cause = loop.fault_cause();
   h.faults = loop.faults();
-  h.final = final;
+  h.is_final = is_final;
   (void)out.health.try_push(h);
   window_wake.reset();
   window_compute.reset();

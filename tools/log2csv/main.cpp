@@ -63,7 +63,7 @@ the Unix epoch]; then the message's fields in the order and units of lcmtypes/*.
                 compute_us_{min,median,p99,max},comms_errors,telemetry_dropped,
                 commands_received,commands_accepted,commands_rejected,rejected_malformed,
                 rejected_invalid,rejected_rate,rejected_mode,rejected_sequence,rejected_stale,
-                rejected_foreign,rejected_oversized,deadlines_skipped,fault_cause,faults,final
+                rejected_foreign,rejected_oversized,deadlines_skipped,fault_cause,faults,is_final
   command_t     log_utime,utime,seq,kind,kind_name,value
   unknown       log_utime,bytes,fingerprint_hex: a message of another type, or one that does not
                 decode as the type its fingerprint names (too short, or bytes left over); bytes

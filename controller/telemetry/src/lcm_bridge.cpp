@@ -201,7 +201,7 @@ void LcmBridge::on_health(const controller::HealthRecord& h) {
   m.deadlines_skipped = static_cast<std::int64_t>(h.deadlines_skipped);
   m.fault_cause = static_cast<std::int8_t>(h.fault_cause);
   m.faults = static_cast<std::int64_t>(h.faults);
-  m.final = h.final;
+  m.is_final = h.is_final;
   publish(health_channel_, m);
 }
 

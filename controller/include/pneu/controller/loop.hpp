@@ -85,7 +85,7 @@ struct HealthRecord {
   Mode mode = Mode::kArmed;
   std::uint8_t fault_cause = 0;    ///< FaultCause latched (kFaultNone unless in fault)
   std::uint64_t faults = 0;        ///< faults latched since start
-  bool final = false;              ///< the last record, sent as the loop stops
+  bool is_final = false;           ///< the last record, sent as the loop stops
 };
 
 /// The loop's lock-free boundary with the non-real-time side. Records leave through
