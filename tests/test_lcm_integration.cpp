@@ -288,6 +288,17 @@ TEST_F(LcmIntegration, CommandsAreValidatedAndOnlyValidOnesReachTheLoop) {
   EXPECT_TRUE(any(rejected, "already armed"));
   EXPECT_TRUE(any(rejected, "not a pneu_lcm.command_t"));
   EXPECT_TRUE(any(rejected, "rate limit"));
+  // Each verdict names its command by sequence number; a datagram that is no command has none (0).
+  for (const auto& e : listener.events) {
+    if (e.kind != pneu_lcm::event_t::KIND_COMMAND_ACCEPTED && e.kind != pneu_lcm::event_t::KIND_COMMAND_REJECTED)
+      continue;
+    const std::pair<const char*, int64_t> seq_of[] = {
+        {"set point 170.000 mm", 10}, {"not a finite number", 12}, {"already armed", 14}, {"malformed", 0}};
+    for (const auto& [text, seq] : seq_of)
+      if (e.text.find(text) != std::string::npos) {
+        EXPECT_EQ(e.seq, seq) << e.text;
+      }
+  }
 
   // Counted and published in health (the last health message counts everything sent above).
   ASSERT_GE(listener.health_count, 2);
