@@ -288,6 +288,17 @@ TEST_F(LcmIntegration, CommandsAreValidatedAndOnlyValidOnesReachTheLoop) {
   EXPECT_TRUE(any(rejected, "already armed"));
   EXPECT_TRUE(any(rejected, "not a pneu_lcm.command_t"));
   EXPECT_TRUE(any(rejected, "rate limit"));
+  // Each verdict names its command by sequence number; a datagram that is no command has none (0).
+  for (const auto& e : listener.events) {
+    if (e.kind != pneu_lcm::event_t::KIND_COMMAND_ACCEPTED && e.kind != pneu_lcm::event_t::KIND_COMMAND_REJECTED)
+      continue;
+    const std::pair<const char*, int64_t> seq_of[] = {
+        {"set point 170.000 mm", 10}, {"not a finite number", 12}, {"already armed", 14}, {"malformed", 0}};
+    for (const auto& [text, seq] : seq_of)
+      if (e.text.find(text) != std::string::npos) {
+        EXPECT_EQ(e.seq, seq) << e.text;
+      }
+  }
 
   // Counted and published in health (the last health message counts everything sent above).
   ASSERT_GE(listener.health_count, 2);
@@ -321,6 +332,132 @@ TEST_F(LcmIntegration, CommandsAreValidatedAndOnlyValidOnesReachTheLoop) {
   const auto ticks = summary.ticks, skipped = summary.skipped;
   EXPECT_EQ(ticks + skipped, 4001u);
   EXPECT_EQ(ticks, traj.rows.size());
+}
+
+// pneu-command run to its end: exit code, stdout, stderr.
+struct CommandRun {
+  int exit_code = -1;
+  std::string out, err;
+  std::chrono::duration<double> took{};
+};
+CommandRun pneu_command(const pneu::test::TestDir& dir, const std::vector<std::string>& args) {
+  static int n = 0;
+  const std::string tag = "command" + std::to_string(++n);
+  std::vector<std::string> argv = {bin("pneu-command")};
+  argv.insert(argv.end(), args.begin(), args.end());
+  const auto t0 = std::chrono::steady_clock::now();
+  Child c = Child::spawn(argv, dir / (tag + ".out"), dir / (tag + ".err"));
+  CommandRun r;
+  r.exit_code = c.wait();
+  r.took = std::chrono::steady_clock::now() - t0;
+  r.out = slurp(dir / (tag + ".out"));
+  r.err = slurp(dir / (tag + ".err"));
+  return r;
+}
+
+// The "command" lines of a pneud events file.
+std::vector<std::string> command_events(const fs::path& events) {
+  std::vector<std::string> lines;
+  std::istringstream in(slurp(events));
+  for (std::string line; std::getline(in, line);)
+    if (line.starts_with("{\"event\":\"command\",")) lines.push_back(line);
+  return lines;
+}
+
+// The verdict comes back to the command's sender (a generous limit: the test is about the answer,
+// not its delay, and a shared machine stalls processes now and then).
+TEST_F(LcmIntegration, PneuCommandPrintsTheDaemonsVerdictAndExitsNonZeroOnARejection) {
+  pneu::test::LcmSniffer sniffer;
+  ASSERT_TRUE(sniffer.good());
+  const fs::path events = dir_ / "events.jsonl";
+  // No schedule: armed, holding 219.5 mm until commanded; runs until SIGTERM.
+  Child pneud = Child::spawn(loop_timing_faults_off({bin("pneud"), "--clock", "real", "--duration", "0",
+                                                     "--require-telemetry", "--set", "controller.setpoints.schedule=[]",
+                                                     "--events", events.string()}),
+                             dir_ / "pneud.out", dir_ / "pneud.err");
+  std::string channel;
+  std::vector<std::uint8_t> payload;
+  ASSERT_TRUE(pneu::test::eventually([&] { return sniffer.receive(channel, payload, 100) && channel == "PNEU_STATE"; },
+                                     10s, 1ms))
+      << "pneud up, its loop ticking";
+
+  const CommandRun accepted = pneu_command(dir_, {"--seq", "10", "--timeout-s", "10", "set-point", "0.17"});
+  EXPECT_EQ(accepted.exit_code, 0) << accepted.err;
+  EXPECT_EQ(accepted.out, "pneud accepted: set point 170.000 mm\n");
+  EXPECT_EQ(accepted.err, "");
+
+  const CommandRun outside = pneu_command(dir_, {"--seq", "11", "--timeout-s", "10", "set-point", "0.9"});
+  EXPECT_EQ(outside.exit_code, 3);
+  EXPECT_EQ(outside.out, "");
+  EXPECT_THAT(outside.err, HasSubstr("pneud rejected (invalid): set point 900.000 mm is outside the soft limits"));
+
+  const CommandRun armed = pneu_command(dir_, {"--seq", "12", "--timeout-s", "10", "arm"});
+  EXPECT_EQ(armed.exit_code, 3);
+  EXPECT_THAT(armed.err, HasSubstr("pneud rejected (mode): arm refused: already armed"));
+
+  kill(pneud.pid, SIGTERM);
+  ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
+  // The events file holds each verdict, in the order given.
+  const std::vector<std::string> lines = command_events(events);
+  ASSERT_EQ(lines.size(), 3u) << slurp(events);
+  EXPECT_THAT(lines[0], HasSubstr(",\"verdict\":\"accepted\",\"reason\":null,\"kind\":\"set_point\",\"seq\":10,"
+                                  "\"value\":0.17,\"text\":\"set point 170.000 mm\"}"));
+  EXPECT_THAT(lines[1], HasSubstr(",\"verdict\":\"rejected\",\"reason\":\"invalid\",\"kind\":\"set_point\",\"seq\":11,"
+                                  "\"value\":0.9,\"text\":\"set point 900.000 mm is outside the soft limits"));
+  EXPECT_THAT(lines[2], HasSubstr(",\"verdict\":\"rejected\",\"reason\":\"mode\",\"kind\":\"arm\",\"seq\":12,"
+                                  "\"value\":0,\"text\":\"arm refused: already armed\"}"));
+}
+
+TEST_F(LcmIntegration, PneuCommandWithoutADaemonExitsWithNoAnswerAfterItsTimeout) {
+  const CommandRun r = pneu_command(dir_, {"--timeout-s", "1", "arm"});
+  EXPECT_EQ(r.exit_code, 4);
+  EXPECT_GE(r.took.count(), 1.0) << "it waited for the verdict";
+  EXPECT_LT(r.took.count(), 10.0) << "and not much longer";  // generous: a loaded machine
+  EXPECT_EQ(r.out, "");
+  EXPECT_THAT(r.err, HasSubstr("no answer from pneud within 1 s"));
+  EXPECT_THAT(r.err, HasSubstr("whether it was applied is unknown"));
+  EXPECT_THAT(r.err, HasSubstr("not running"));
+  EXPECT_THAT(r.err, HasSubstr("another LCM URL or channel prefix"));
+  EXPECT_THAT(r.err, HasSubstr("at most 20 rejection events a second"));
+}
+
+// The test plays pneud: to each command it answers first with a verdict on another sequence
+// number and a non-verdict event carrying this one, then with the verdict on this command.
+TEST_F(LcmIntegration, PneuCommandTakesOnlyTheVerdictOnItsOwnSequenceNumber) {
+  pneu::test::LcmSniffer sniffer;
+  ASSERT_TRUE(sniffer.good());
+  lcm::LCM lcm(kUrl);
+  ASSERT_TRUE(lcm.good());
+  std::atomic<bool> done{false};
+  std::atomic<int> answered{0};
+  std::thread daemon([&] {
+    std::string channel;
+    std::vector<std::uint8_t> payload;
+    while (!done) {
+      if (!sniffer.receive(channel, payload, 20) || channel != "PNEU_COMMAND") continue;
+      pneu_lcm::command_t c;
+      if (c.decode(payload.data(), 0, static_cast<int>(payload.size())) < 0) continue;
+      using E = pneu_lcm::event_t;
+      const auto event = [&](std::int8_t kind, std::int64_t seq, const std::string& text) {
+        E e{};
+        e.utime = c.utime;
+        e.kind = kind;
+        e.seq = seq;
+        e.text = text;
+        lcm.publish("PNEU_EVENT", &e);
+      };
+      event(E::KIND_COMMAND_ACCEPTED, c.seq + 1, "accepted: another command");
+      event(E::KIND_STOP, c.seq, "stop");
+      event(E::KIND_COMMAND_REJECTED, c.seq, "rejected (mode): the test says no");
+      ++answered;
+    }
+  });
+  const CommandRun r = pneu_command(dir_, {"--seq", "100", "--timeout-s", "10", "disarm"});
+  done = true;
+  daemon.join();
+  EXPECT_EQ(answered, 1);
+  EXPECT_EQ(r.exit_code, 3) << r.out << r.err;
+  EXPECT_EQ(r.err, "pneu-command: pneud rejected (mode): the test says no\n");
 }
 
 }  // namespace

@@ -318,6 +318,7 @@ TEST_F(Log2Csv, EventTextIsQuotedWithQuotesDoubledAndKindsNamed) {
     e.force = 12.5e-300;
     e.y_d = i == 3 ? kNaN : 0.02;
     e.direction = i % 2 == 0 ? 1 : -1;
+    e.seq = i == 4 || i == 5 ? 1'718'000'000'000'000 + static_cast<std::int64_t>(i) : 0;  // command events
     e.text = texts[i];
     events.push_back(e);
     log.push_back({"PNEU_EVENT", kLogStart + 100 + static_cast<std::int64_t>(i), encode(e)});
@@ -330,7 +331,7 @@ TEST_F(Log2Csv, EventTextIsQuotedWithQuotesDoubledAndKindsNamed) {
   EXPECT_THAT(raw, HasSubstr(",\"\"\n"));  // empty text: still quoted
   const Csv csv = parse_csv(raw);
   EXPECT_EQ(csv.header,
-            split_header("log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,text"));
+            split_header("log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,seq,text"));
   ASSERT_EQ(csv.rows.size(), events.size());
   for (std::size_t i = 0; i < events.size(); ++i) {
     const auto& e = events[i];
@@ -345,6 +346,7 @@ TEST_F(Log2Csv, EventTextIsQuotedWithQuotesDoubledAndKindsNamed) {
     expect_double(csv.at(i, "force"), e.force, row + "force");
     expect_double(csv.at(i, "y_d"), e.y_d, row + "y_d");
     expect_int(csv.at(i, "direction"), e.direction, row + "direction");
+    expect_int(csv.at(i, "seq"), e.seq, row + "seq");
     EXPECT_EQ(csv.at(i, "text"), e.text) << row;
   }
 }

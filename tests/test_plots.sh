@@ -115,7 +115,7 @@ with open(f"{tmp}/traj.csv") as f, open(f"{d}/RUN1_STATE.csv", "w", newline="") 
 ev = [json.loads(l) for l in open(f"{tmp}/events.jsonl")]
 with open(f"{d}/RUN1_EVENT.csv", "w", newline="") as o, open(f"{d}/RUN1_PREDICTION.csv", "w", newline="") as p:
     we, wp = csv.writer(o), csv.writer(p)
-    we.writerow("log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,text".split(","))
+    we.writerow("log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,seq,text".split(","))
     wp.writerow(("log_utime,utime,t,stop,t_stop,update,method,method_name,will_restart,direction,"
                  "t_restart,u_star,equilibrium_force,p_p_equilibrium,p_n_equilibrium,tau_p,tau_n,"
                  "min_margin,horizon_reached,force,stop_forecast_force").split(","))
@@ -125,11 +125,11 @@ with open(f"{d}/RUN1_EVENT.csv", "w", newline="") as o, open(f"{d}/RUN1_PREDICTI
         if k == "start":
             name = "restart" if e["restart"] else "start"
             we.writerow([us, us, 2 if e["restart"] else 1, name, e["t"], e["stop"], e["y"], "",
-                         e["y_d"], e["direction"], 'left rest, "quoted", with a comma\nand a newline'])
+                         e["y_d"], e["direction"], 0, 'left rest, "quoted", with a comma\nand a newline'])
         elif k == "stop":
-            we.writerow([us, us, 3, "stop", e["t"], e["stop"], e["y"], e["force"], e["y_d"], 0, ""])
+            we.writerow([us, us, 3, "stop", e["t"], e["stop"], e["y"], e["force"], e["y_d"], 0, 0, ""])
         elif k == "end":
-            we.writerow([us, us, 7, "end", e["t"], 0, "", "", "", 0, ""])
+            we.writerow([us, us, 7, "end", e["t"], 0, "", "", "", 0, 0, ""])
         elif k in ("prediction", "reforecast"):  # the stop's forecast is update 0
             m = e["method"]
             wp.writerow([us, us, e["t"], e["stop"], e["t_stop"], e.get("update", 0),

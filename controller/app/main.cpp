@@ -47,7 +47,8 @@ Usage:
                      (same as --set controller.clock=C)
   --duration S       run length in seconds; 0 runs until SIGINT/SIGTERM (real clock)
                      (same as --set controller.duration_s=S)
-  --events FILE      one JSON object per line: start, stop, prediction, reforecast, fault, end
+  --events FILE      one JSON object per line: start, stop, prediction, reforecast, fault,
+                     fault_reset, fault_reset_refused, command (each command's verdict), end
   --trajectory FILE  one CSV row per tick: seq,t,y_d,y,v_hat,a_hat,p_P,p_N,F,u,stuck,validity,
                      then, while stuck, the pressures and force each forecast made at the stop
                      expects (p_P_linearized,...,F_nonlinear; empty otherwise)
@@ -220,6 +221,7 @@ int run(int argc, char** argv) {
     try {
       bridge = std::make_unique<telemetry::LcmBridge>(cfg, *run.outputs, real_clock && cfg.commands.enabled);
       run.report->set_listener(bridge.get());
+      bridge->set_command_log(run.report.get());  // both on the service thread (execute)
       handle_input = [&](int ms) { (void)bridge->handle(ms); };
     } catch (const telemetry::LcmError& e) {
       if (args.flag("require-telemetry")) throw;

@@ -32,6 +32,26 @@ std::ostream& operator<<(std::ostream& os, const Num& n) {
   return os.write(n.text, static_cast<std::streamsize>(n.size));
 }
 
+// A JSON string: quotes, backslashes and control characters escaped (RFC 8259).
+struct Str {
+  std::string_view text;
+};
+std::ostream& operator<<(std::ostream& os, const Str& s) {
+  os << '"';
+  for (const char c : s.text) {
+    if (c == '"' || c == '\\') {
+      os << '\\' << c;
+    } else if (static_cast<unsigned char>(c) < 0x20) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\u%04x", static_cast<unsigned>(c));
+      os << buf;
+    } else {
+      os << c;
+    }
+  }
+  return os << '"';
+}
+
 // One forecast against what happened, for the summary: the restart time and its error.
 std::string forecast_cell(const StopOutcome& s, const Prediction& p, double t_end_s) {
   const Verdict v = judge(s, p, t_end_s);
@@ -312,6 +332,18 @@ void RunReport::finish(double t_end_s) {
     }
   if (events_) *events_ << "{\"event\":\"end\",\"t\":" << num(t_end_s_, 12) << "}\n";
   if (listener_) listener_->on_end(t_end_s_);
+}
+
+void RunReport::record_command(const CommandRecord& c) {
+  if (!events_) return;
+  *events_ << "{\"event\":\"command\",\"t\":" << num(t_end_s_, 12) << ",\"verdict\":\""
+           << (c.accepted ? "accepted" : "rejected") << "\",\"reason\":";
+  if (c.accepted) *events_ << "null";
+  else *events_ << Str{c.reason};
+  *events_ << ",\"kind\":";
+  if (c.decoded) *events_ << Str{c.kind} << ",\"seq\":" << c.seq << ",\"value\":" << num(c.value);
+  else *events_ << "null,\"seq\":null,\"value\":null";
+  *events_ << ",\"text\":" << Str{c.text} << "}\n";
 }
 
 void RunReport::print_live_summary(std::FILE* out) const {

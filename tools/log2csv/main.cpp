@@ -55,7 +55,7 @@ name order gets "-2", "-3", ...). Each message is decoded by its fingerprint (it
 a pneu_lcm type. The first column is log_utime, when the logger received the message [us since
 the Unix epoch]; then the message's fields in the order and units of lcmtypes/*.lcm:
   state_t       log_utime,utime,seq,t,y_d,y,v_hat,a_hat,p_p,p_n,force,u,stuck,mode,validity
-  event_t       log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,text
+  event_t       log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,seq,text
   prediction_t  log_utime,utime,t,stop,t_stop,update,method,method_name,will_restart,direction,
                 t_restart,u_star,equilibrium_force,p_p_equilibrium,p_n_equilibrium,tau_p,tau_n,
                 min_margin,horizon_reached,force,stop_forecast_force

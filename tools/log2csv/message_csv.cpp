@@ -181,7 +181,7 @@ std::string_view csv_header(MessageType type) {
     case MessageType::kState:
       return "log_utime,utime,seq,t,y_d,y,v_hat,a_hat,p_p,p_n,force,u,stuck,mode,validity";
     case MessageType::kEvent:
-      return "log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,text";
+      return "log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,seq,text";
     case MessageType::kPrediction:
       return "log_utime,utime,t,stop,t_stop,update,method,method_name,will_restart,direction,t_restart,"
              "u_star,equilibrium_force,p_p_equilibrium,p_n_equilibrium,tau_p,tau_n,min_margin,"
@@ -261,6 +261,7 @@ RowInfo format_csv_row(std::int64_t log_utime, const void* data, std::int32_t si
           .number(m.force)
           .number(m.y_d)
           .integer(m.direction)
+          .integer(m.seq)
           .text(m.text)
           .end();
       return {MessageType::kEvent, 0};

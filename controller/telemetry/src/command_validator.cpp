@@ -35,6 +35,17 @@ const char* to_string(Rejection r) noexcept {
   return "?";
 }
 
+const char* wire_kind_name(std::int8_t kind) noexcept {
+  switch (kind) {
+    case kWireSetPoint: return "set_point";
+    case kWireSetPointStep: return "set_point_step";
+    case kWireArm: return "arm";
+    case kWireDisarm: return "disarm";
+    case kWireFaultReset: return "fault_reset";
+    default: return "unknown";
+  }
+}
+
 CommandValidator::CommandValidator(const config::Config& config)
     : min_m_(config.controller.soft_limit_min_m),
       max_m_(config.controller.soft_limit_max_m),

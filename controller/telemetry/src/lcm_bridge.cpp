@@ -114,6 +114,7 @@ void LcmBridge::on_event(const LoopEvent& e) {
   m.force = e.force_n;
   m.y_d = e.y_d_m;
   m.direction = static_cast<std::int8_t>(e.direction);
+  m.seq = 0;
   if (e.kind == LoopEvent::Kind::kStop) {
     m.kind = pneu_lcm::event_t::KIND_STOP;
     m.text = "stop";
@@ -210,7 +211,7 @@ void LcmBridge::on_end(double t_end_s) {
   publish_text_event(pneu_lcm::event_t::KIND_END, "end of run");
 }
 
-void LcmBridge::publish_text_event(std::int8_t kind, const std::string& text) {
+void LcmBridge::publish_text_event(std::int8_t kind, const std::string& text, std::int64_t seq) {
   pneu_lcm::event_t m;
   m.utime = unix_now_us();
   m.kind = kind;
@@ -218,6 +219,7 @@ void LcmBridge::publish_text_event(std::int8_t kind, const std::string& text) {
   m.stop = 0;
   m.y = m.force = m.y_d = std::numeric_limits<double>::quiet_NaN();
   m.direction = 0;
+  m.seq = seq;
   m.text = text;
   publish(event_channel_, m);
 }
@@ -247,9 +249,11 @@ void LcmBridge::on_datagram(std::span<const std::uint8_t> bytes, const CommandSo
     v = validator_.validate(decoded.fields, now_s, unix_now_us(), loop_.setpoint_m.load(std::memory_order_relaxed),
                             static_cast<controller::Mode>(loop_.mode.load(std::memory_order_relaxed)));
   }
+  const char* reason = to_string(v.rejection);
   if (v.accepted && !loop_.commands.try_push(v.command)) {
     ++commands_dropped_;
     v.accepted = false;
+    reason = "queue_full";
     v.text = "command queue to the loop is full: " + v.text + " dropped";
   }
   if (!v.accepted) {
@@ -262,8 +266,23 @@ void LcmBridge::on_datagram(std::span<const std::uint8_t> bytes, const CommandSo
       return;
     }
   }
+  // The verdict names the command by its sequence number, so that its sender can tell its own.
+  const bool is_command = decoded.kind == DatagramKind::kCommand;
+  const CommandFields& c = decoded.fields;
   publish_text_event(v.accepted ? pneu_lcm::event_t::KIND_COMMAND_ACCEPTED : pneu_lcm::event_t::KIND_COMMAND_REJECTED,
-                     v.accepted ? "accepted: " + v.text : "rejected (" + std::string(to_string(v.rejection)) + "): " + v.text);
+                     v.accepted ? "accepted: " + v.text : "rejected (" + std::string(reason) + "): " + v.text,
+                     is_command ? c.seq : 0);
+  if (command_log_) {
+    controller::CommandRecord r;
+    r.accepted = v.accepted;
+    if (!v.accepted) r.reason = reason;
+    r.decoded = is_command;
+    r.kind = wire_kind_name(c.kind);
+    r.seq = c.seq;
+    r.value = c.value;
+    r.text = v.text;
+    command_log_->record_command(r);
+  }
 }
 
 }  // namespace pneu::telemetry

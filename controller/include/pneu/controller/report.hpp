@@ -11,6 +11,7 @@
 #include <optional>
 #include <ostream>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "pneu/controller/clock.hpp"
@@ -91,6 +92,21 @@ struct Verdict {
 /// t_end_s stands), from its kept `reforecasts`; null when none.
 [[nodiscard]] const Reforecast* halfway_reforecast(const StopOutcome& stop, PredictionMethod method) noexcept;
 
+/// A command's verdict, as the command channel (telemetry::LcmBridge) gave it: written to the
+/// events file as a "command" event. The strings are borrowed for the call.
+struct CommandRecord {
+  bool accepted = false;
+  /// Rejected: why, in a word (malformed, oversized, foreign, stale, sequence, invalid, rate,
+  /// mode, queue_full); accepted: empty.
+  std::string_view reason;
+  /// Whether the datagram decoded as a command_t: else `kind`, `seq` and `value` are unknown.
+  bool decoded = false;
+  std::string_view kind;       ///< set_point, set_point_step, arm, disarm, fault_reset, unknown
+  std::int64_t seq = 0;        ///< command_t.seq
+  double value = std::numeric_limits<double>::quiet_NaN();  ///< command_t.value as sent [m]
+  std::string_view text;       ///< what was done, or why not, for people
+};
+
 /// Receives what the report drains, in order, on the non-real-time side (LCM telemetry).
 class ReportListener {
  public:
@@ -131,6 +147,9 @@ class RunReport {
   void drain(LoopOutputs& outputs);
   /// Closes the run at `t_end_s`.
   void finish(double t_end_s);
+  /// Writes a command's verdict to the events file, dated by the last tick drained. Not
+  /// real-time, not thread-safe: call from the thread that drains (the service thread).
+  void record_command(const CommandRecord& command);
 
   /// The stops of the run, the last max_stops_kept of them (kMaxStopsKept unless set; at least 4).
   [[nodiscard]] const std::vector<StopOutcome>& stops() const noexcept { return stops_; }

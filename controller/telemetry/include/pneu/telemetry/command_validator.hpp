@@ -21,6 +21,8 @@ struct CommandFields {
 /// Command kinds on the wire (command_t.KIND_*).
 inline constexpr std::int8_t kWireSetPoint = 1, kWireSetPointStep = 2, kWireArm = 3,
                              kWireDisarm = 4, kWireFaultReset = 5;
+/// set_point, set_point_step, arm, disarm, fault_reset; "unknown" for another number.
+[[nodiscard]] const char* wire_kind_name(std::int8_t kind) noexcept;
 
 enum class Rejection : std::uint8_t {
   kNone,

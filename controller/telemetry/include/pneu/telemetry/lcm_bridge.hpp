@@ -36,6 +36,11 @@ class LcmBridge final : public controller::ReportListener {
   /// socket failure.
   bool handle(int timeout_ms);
 
+  /// Where each command's verdict is also written (the events file, RunReport::record_command);
+  /// may be null; must outlive the bridge. The report is not thread-safe: handle() must be called
+  /// from the thread that drains it (the service thread does both).
+  void set_command_log(controller::RunReport* report) noexcept { command_log_ = report; }
+
   void on_tick(const controller::TickRecord& record) override;
   void on_event(const controller::LoopEvent& event) override;
   void on_prediction(const controller::StopOutcome& stop, const controller::Prediction& prediction) override;
@@ -51,7 +56,7 @@ class LcmBridge final : public controller::ReportListener {
 
  private:
   void on_datagram(std::span<const std::uint8_t> bytes, const CommandSocket::Datagram& d);
-  void publish_text_event(std::int8_t kind, const std::string& text);
+  void publish_text_event(std::int8_t kind, const std::string& text, std::int64_t seq = 0);
   void publish_prediction(const controller::StopOutcome& s, const controller::Prediction& p, double t_s,
                           std::int32_t update, double u_star_v, double force_n, double stop_forecast_force_n);
   [[nodiscard]] std::int64_t utime_of(double t_s) const noexcept;
@@ -65,13 +70,15 @@ class LcmBridge final : public controller::ReportListener {
   std::string state_channel_, event_channel_, prediction_channel_, health_channel_, command_channel_;
   controller::LoopOutputs& loop_;
   CommandValidator validator_;
+  controller::RunReport* command_log_ = nullptr;
   double last_t_s_ = 0.0;
   std::int64_t epoch_utime_ = 0;                     // Unix time of loop time 0 [us]
   std::chrono::steady_clock::time_point started_;
   std::uint64_t publish_errors_ = 0;
   std::uint64_t commands_dropped_ = 0;
-  // Rejection events are published at most kRejectionEventsPerSecond a second (a flood of bad
-  // datagrams must not become a flood of events); all are counted in health.
+  // Rejection events are published (and written to the command log) at most
+  // kRejectionEventsPerSecond a second: a flood of bad datagrams must not become a flood of
+  // events, nor fill the disk; all are counted in health.
   double rejection_window_s_ = -1.0;
   int rejection_events_in_window_ = 0;
   std::uint64_t rejection_events_suppressed_ = 0;
