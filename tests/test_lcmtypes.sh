@@ -6,8 +6,8 @@
 #   writes in its array clean-up functions).
 # java: javac accepts it (a field named after a Java keyword, like `final`, is an error).
 # python: the module imports, and a message encodes, decodes and encodes again to the same bytes.
-# jar: pneud writes an LCM log (telemetry to LCM's file:// provider, simulated clock) and
-#   tests/DecodeLcmLog.java decodes every message of it with lcm-spy's own type lookup.
+# jar: pneud and pneu-command write LCM logs (to LCM's file:// provider; pneud on the simulated
+#   clock) and tests/DecodeLcmLog.java decodes every message of them with lcm-spy's own type lookup.
 set -euo pipefail
 src=$1 bin=$2 lang=$3
 work=$(mktemp -d); trap 'rm -rf "$work"' EXIT
@@ -61,8 +61,14 @@ if [ "$lang" = jar ]; then
   log="$work/run.lcm"
   "$bin/bin/pneud" --quiet --duration 3 --set telemetry.in_simulated_time=true \
     --set "telemetry.lcm_url=file://$log?mode=w"
-  java -cp "$lcm_jar:/usr/share/java/jchart2d.jar:$bin/share/java/pneu_lcmtypes.jar" "$src/tests/DecodeLcmLog.java" "$log" \
-    PNEU_STATE PNEU_EVENT PNEU_PREDICTION PNEU_HEALTH && say ok "the jar decodes pneud's log" \
+  commands="$work/commands.lcm"
+  "$bin/bin/pneu-command" --no-wait --lcm-url "file://$commands?mode=w" set-point 0.1
+  # lcm-spy's class path (pneu-spy): LCM's jar, jchart2d's, ours.
+  decode() { java -cp "$lcm_jar:/usr/share/java/jchart2d.jar:$bin/share/java/pneu_lcmtypes.jar" \
+                  "$src/tests/DecodeLcmLog.java" "$@"; }
+  decode "$log" PNEU_STATE PNEU_EVENT PNEU_PREDICTION PNEU_HEALTH && say ok "the jar decodes pneud's log" \
     || say FAIL "the jar does not decode pneud's log"
+  decode "$commands" PNEU_COMMAND && say ok "the jar decodes pneu-command's log" \
+    || say FAIL "the jar does not decode pneu-command's log"
 fi
 exit $fail
