@@ -5,11 +5,15 @@
 #include <gtest/gtest.h>
 #include <modbus.h>
 #include <netinet/in.h>
+#include <poll.h>
 #include <sys/socket.h>
+#include <sys/wait.h>
 
 #include <chrono>
 #include <cmath>
 #include <map>
+#include <memory>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -29,19 +33,80 @@ std::string bin(const std::string& name) { return std::string(PNEU_BINARY_DIR) +
 std::string hil_yaml() { return std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml"; }
 
 
+// A TCP connection to `port` on loopback, or -1.
+int connect_loopback(int port) {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = htons(static_cast<uint16_t>(port));
+  if (connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0) return fd;
+  close(fd);
+  return -1;
+}
+
 bool wait_listening(int port) {
   for (int i = 0; i < 200; ++i) {
-    const int fd = socket(AF_INET, SOCK_STREAM, 0);
-    sockaddr_in a{};
-    a.sin_family = AF_INET;
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    a.sin_port = htons(static_cast<uint16_t>(port));
-    const bool ok = connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0;
-    close(fd);  // the server sees a client that leaves at once, and serves the next
-    if (ok) return true;
+    const int fd = connect_loopback(port);
+    if (fd >= 0) {
+      close(fd);  // the server sees a client that leaves at once
+      return true;
+    }
     std::this_thread::sleep_for(10ms);
   }
   return false;
+}
+
+bool has_mbpoll() { return system("command -v mbpoll > /dev/null") == 0; }
+
+// mbpoll's exit code for one poll (-1) of `what` (e.g. "-t 4 -r 1 -c 3"), writing `values` if any,
+// with its output (both streams) in `out`.
+int mbpoll(int port, const std::string& what, const fs::path& out, const std::string& values = "") {
+  const int status = system(("mbpoll -m tcp -p " + std::to_string(port) + " -a 1 " + what + " -1 127.0.0.1 " + values +
+                             " > " + out.string() + " 2>&1")
+                                .c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// The registers in mbpoll's output, by mbpoll's numbers (from 1).
+std::map<int, long> mbpoll_words(const std::string& output) {
+  std::map<int, long> words;
+  std::istringstream in(output);
+  for (std::string line; std::getline(in, line);) {
+    int reg = 0;
+    long value = 0;
+    if (std::sscanf(line.c_str(), "[%d]: %ld", &reg, &value) == 2) words[reg] = value;
+  }
+  return words;
+}
+
+// A Modbus TCP request to read `count` registers from 0 (function 3), transaction `id`: bytes to
+// send as a misbehaving client would, which libmodbus does not.
+std::vector<std::uint8_t> read_request(std::uint16_t id, std::uint16_t count) {
+  return {static_cast<std::uint8_t>(id >> 8), static_cast<std::uint8_t>(id), 0, 0, 0, 6, 1, 3, 0, 0,
+          static_cast<std::uint8_t>(count >> 8), static_cast<std::uint8_t>(count)};
+}
+
+// A Modbus TCP request writing hil.yaml's valve registers 16 and 17 (function 16).
+std::vector<std::uint8_t> write_valves_request(std::uint16_t id, std::uint16_t p, std::uint16_t n) {
+  return {static_cast<std::uint8_t>(id >> 8), static_cast<std::uint8_t>(id), 0, 0, 0, 11, 1, 16, 0, 16, 0, 2, 4,
+          static_cast<std::uint8_t>(p >> 8), static_cast<std::uint8_t>(p), static_cast<std::uint8_t>(n >> 8),
+          static_cast<std::uint8_t>(n)};
+}
+
+// What arrives on `fd` within `limit`, up to `n` bytes.
+std::vector<std::uint8_t> receive(int fd, std::size_t n, std::chrono::milliseconds limit) {
+  std::vector<std::uint8_t> got;
+  const auto until = std::chrono::steady_clock::now() + limit;
+  while (got.size() < n && std::chrono::steady_clock::now() < until) {
+    pollfd p{fd, POLLIN, 0};
+    if (poll(&p, 1, 10) <= 0) continue;
+    std::uint8_t buf[300];
+    const ssize_t k = recv(fd, buf, std::min(sizeof buf, n - got.size()), 0);
+    if (k <= 0) break;
+    got.insert(got.end(), buf, buf + k);
+  }
+  return got;
 }
 
 // A number field of one JSON line ("null" -> NaN).
@@ -126,44 +191,170 @@ TEST_F(Hil, PaperScenarioOverModbusSticksRestartsAndTheNonlinearForecastHoldsWit
   EXPECT_GE(long_restarts, 1) << "a sticking phase of 0.5 s or more ending in a restart, in " << runs << " runs";
 }
 
-TEST_F(Hil, ServesOneClientAtATimeAndRefusesASecondCleanly) {
-  Child plant = serve(5.0);
-  modbus_t* first = modbus_new_tcp("127.0.0.1", port_);
-  ASSERT_EQ(modbus_connect(first), 0);
-  modbus_set_slave(first, 1);
-  uint16_t regs[3] = {};
-  ASSERT_EQ(modbus_read_registers(first, 0, 3, regs), 3);
-  modbus_t* second = modbus_new_tcp("127.0.0.1", port_);
-  modbus_set_response_timeout(second, 0, 200000);
-  ASSERT_EQ(modbus_connect(second), 0) << "accepted, then closed";
-  modbus_set_slave(second, 1);
-  EXPECT_EQ(modbus_read_registers(second, 0, 3, regs), -1) << "the second client gets no answer";
-  EXPECT_EQ(modbus_read_registers(first, 0, 3, regs), 3) << "the first one is still served";
-  modbus_close(second);
-  modbus_free(second);
-  modbus_close(first);
-  modbus_free(first);
-  kill(plant.pid, SIGTERM);
+TEST_F(Hil, ServesUpToMaxClientsAtOnceAndClosesOneMoreWithALineOnStderr) {
+  // By default four clients, as many I/O modules; --max-clients sets another number. Each client
+  // is served before the next connects: accepted in that order.
+  using Connection = std::unique_ptr<modbus_t, void (*)(modbus_t*)>;
+  const auto connect = [&] {
+    modbus_t* c = modbus_new_tcp("127.0.0.1", port_);
+    modbus_set_slave(c, 1);
+    EXPECT_EQ(modbus_connect(c), 0);
+    return Connection(c, [](modbus_t* p) {
+      modbus_close(p);
+      modbus_free(p);
+    });
+  };
+  for (const auto& [extra, limit] : std::vector<std::pair<std::vector<std::string>, int>>{{{}, 4}, {{"--max-clients", "2"}, 2}}) {
+    SCOPED_TRACE("up to " + std::to_string(limit) + " clients");
+    Child plant = serve(5.0, extra);
+    uint16_t regs[3] = {};
+    std::vector<Connection> served;
+    for (int i = 0; i < limit; ++i) {
+      served.push_back(connect());
+      EXPECT_EQ(modbus_read_registers(served.back().get(), 0, 3, regs), 3) << "client " << i + 1;
+    }
+    Connection one_more = connect();  // accepted, then closed
+    modbus_set_response_timeout(one_more.get(), 0, 200000);
+    EXPECT_EQ(modbus_read_registers(one_more.get(), 0, 3, regs), -1) << "one more client gets no answer";
+    for (auto& c : served) EXPECT_EQ(modbus_read_registers(c.get(), 0, 3, regs), 3) << "the others are still served";
+    served.clear();
+    one_more.reset();
+    kill(plant.pid, SIGTERM);
+    EXPECT_EQ(plant.wait(), 0);
+    EXPECT_THAT(slurp(dir_ / "serve.err"), HasSubstr("refused a client from 127.0.0.1:"));
+    EXPECT_THAT(slurp(dir_ / "serve.err"), HasSubstr("already serving " + std::to_string(limit)));
+    EXPECT_THAT(slurp(dir_ / "serve.out"),
+                HasSubstr("(at most " + std::to_string(limit) + " at once, 1 refused beyond --max-clients)"));
+  }
+}
+
+TEST_F(Hil, MbpollReadsBesidePneudWhichSeesNoErrorAndMbpollMayNotWriteTheValves) {
+  if (!has_mbpoll()) GTEST_SKIP() << "mbpoll (Debian package mbpoll) is not installed";
+  Child plant = serve(10.0);
+  Child pneud = Child::spawn(pneud_args({"--duration", "3"}), dir_ / "pneud.out", dir_ / "pneud.err");
+  ASSERT_TRUE(pneu::test::wait_for_text(dir_ / "serve.out", "writes the valve registers", 5s)) << slurp(dir_ / "pneud.err");
+  // While pneud drives the valves, mbpoll polls the sensor registers, one connection a poll, and
+  // once tries to write the valve registers.
+  int polls = 0, write_rc = 0;
+  std::string failed;
+  while (slurp(dir_ / "pneud.out").find("modbus: ") == std::string::npos) {
+    if (polls == 5 && write_rc == 0) write_rc = mbpoll(port_, "-t 4 -r 17", dir_ / "mbpoll_write.out", "0 0");
+    const fs::path out = dir_ / "mbpoll.out";
+    if (mbpoll(port_, "-t 4 -r 1 -c 3", out) != 0 || mbpoll_words(slurp(out)).size() != 3) failed += slurp(out);
+    ++polls;
+  }
+  ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
+  EXPECT_GE(polls, 6) << "mbpoll polled while pneud ran";
+  EXPECT_EQ(failed, "") << "every poll read the three registers";
+  EXPECT_NE(write_rc, 0);
+  EXPECT_THAT(slurp(dir_ / "mbpoll_write.out"), HasSubstr("Slave device or server is busy")) << "exception 06";
+  const auto summary = pneu::test::PneudSummary::parse(slurp(dir_ / "pneud.out"));
+  ASSERT_TRUE(summary.has_loop && summary.has_modbus) << slurp(dir_ / "pneud.out");
+  EXPECT_EQ(summary.errors, 0u) << "pneud's exchanges all answered beside mbpoll's";
+  EXPECT_EQ(summary.reconnects, 0u);
+  EXPECT_EQ(summary.ticks + summary.skipped, 3001u);
+  kill(plant.pid, SIGINT);
   EXPECT_EQ(plant.wait(), 0);
-  EXPECT_THAT(slurp(dir_ / "serve.out"), HasSubstr("1 refused"));
+  EXPECT_THAT(slurp(dir_ / "serve.out"), HasSubstr("1 valve writes refused as another client's"));
+}
+
+TEST_F(Hil, AClientThatDribblesItsRequestOrSendsBadOnesHoldsUpNotPneudBesideIt) {
+  // pneud's response timeout is 0.5 s here (link_stalls_tolerated): a server that waited in
+  // modbus_receive for the rest of the dribbled request (1.2 s) would time pneud out.
+  Child plant = serve(10.0);
+  Child pneud = Child::spawn(pneud_args({"--duration", "3"}), dir_ / "pneud.out", dir_ / "pneud.err");
+  ASSERT_TRUE(pneu::test::wait_for_text(dir_ / "serve.out", "writes the valve registers", 5s)) << slurp(dir_ / "pneud.err");
+
+  // A request one byte every 100 ms: answered once whole.
+  const int slow = connect_loopback(port_);
+  ASSERT_GE(slow, 0);
+  bool sent = true;
+  for (const std::uint8_t byte : read_request(0x1234, 3)) {
+    sent = sent && send(slow, &byte, 1, MSG_NOSIGNAL) == 1;
+    std::this_thread::sleep_for(100ms);
+  }
+  EXPECT_TRUE(sent) << "the server dropped the slow client";
+  const auto reply = receive(slow, 15, 3s);
+  close(slow);
+  EXPECT_EQ(reply.size(), 15u) << "MBAP, function 3, byte count, 3 registers";
+  if (reply.size() == 15u) {
+    EXPECT_EQ(reply[0] << 8 | reply[1], 0x1234) << "its transaction";
+    EXPECT_EQ(reply[7], 3);
+    EXPECT_EQ(reply[8], 6);
+  }
+
+  // Requests for more registers than a read carries, from three clients at once: libmodbus
+  // answers each with exception 03 after sleeping its response timeout (0.5 s by default).
+  std::vector<int> bad;
+  for (std::uint16_t id = 1; id <= 3; ++id) {
+    bad.push_back(connect_loopback(port_));
+    ASSERT_GE(bad.back(), 0);
+    const auto request = read_request(id, 200);
+    EXPECT_EQ(send(bad.back(), request.data(), request.size(), MSG_NOSIGNAL), static_cast<ssize_t>(request.size()));
+  }
+  for (const int fd : bad) {
+    const auto exception = receive(fd, 9, 3s);
+    close(fd);
+    EXPECT_EQ(exception.size(), 9u);
+    if (exception.size() == 9u) {
+      EXPECT_EQ(exception[7], 0x83);
+      EXPECT_EQ(exception[8], MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
+    }
+  }
+  // Half a request, and gone.
+  const int half = connect_loopback(port_);
+  ASSERT_GE(half, 0);
+  ASSERT_EQ(send(half, read_request(7, 3).data(), 5, MSG_NOSIGNAL), 5);
+  close(half);
+
+  ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
+  const auto summary = pneu::test::PneudSummary::parse(slurp(dir_ / "pneud.out"));
+  ASSERT_TRUE(summary.has_modbus) << slurp(dir_ / "pneud.out");
+  EXPECT_EQ(summary.errors, 0u) << "no exchange of pneud's waited on the other clients";
+  EXPECT_EQ(summary.reconnects, 0u);
+  kill(plant.pid, SIGINT);
+  EXPECT_EQ(plant.wait(), 0);
+}
+
+TEST_F(Hil, AClientMayWriteTheValvesOnceTheOwnerLeftEvenWhenTheServerLearnsBothAtOnce) {
+  // As pneud does after a timeout: it gives up its connection, a request unanswered, and writes
+  // on a new one. Here the plant is stopped meanwhile (a stall of the machine): on waking it finds
+  // the old connection's request and end, and the new connection's write, in one select. The new
+  // connection was accepted first, so that it comes first in the plant's table.
+  Child plant = serve(10.0);
+  const int next = connect_loopback(port_);
+  ASSERT_GE(next, 0);
+  const auto send_all = [](int fd, const std::vector<std::uint8_t>& bytes) {
+    return send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(bytes.size());
+  };
+  ASSERT_TRUE(send_all(next, read_request(1, 3)));
+  ASSERT_EQ(receive(next, 15, 3s).size(), 15u) << "accepted and served";
+  const int first = connect_loopback(port_);
+  ASSERT_GE(first, 0);
+  ASSERT_TRUE(send_all(first, write_valves_request(2, 1000, 2000)));
+  ASSERT_EQ(receive(first, 12, 3s).size(), 12u) << "the first writer owns the valves";
+
+  kill(plant.pid, SIGSTOP);
+  ASSERT_TRUE(send_all(first, write_valves_request(3, 1000, 2000)));
+  close(first);
+  ASSERT_TRUE(send_all(next, write_valves_request(4, 3000, 4000)));
+  kill(plant.pid, SIGCONT);
+  const auto reply = receive(next, 12, 3s);
+  close(next);
+  ASSERT_GE(reply.size(), 9u);
+  EXPECT_EQ(reply[7], MODBUS_FC_WRITE_MULTIPLE_REGISTERS) << "not exception 06 (0x90): the owner had left";
+  kill(plant.pid, SIGINT);
+  EXPECT_EQ(plant.wait(), 0);
+  EXPECT_THAT(slurp(dir_ / "serve.out"), HasSubstr("0 valve writes refused"));
 }
 
 TEST_F(Hil, MbpollReadsThePlantsRegisters) {
-  if (system("command -v mbpoll > /dev/null") != 0) GTEST_SKIP() << "mbpoll (Debian package mbpoll) is not installed";
+  if (!has_mbpoll()) GTEST_SKIP() << "mbpoll (Debian package mbpoll) is not installed";
   Child plant = serve(5.0);
   // Holding registers 0..2 (mbpoll counts from 1 unless -0): position, p_P, p_N as 16-bit words.
-  const std::string out = (dir_ / "mbpoll.out").string();
-  ASSERT_EQ(system(("mbpoll -m tcp -p " + std::to_string(port_) + " -a 1 -t 4 -r 1 -c 3 -1 127.0.0.1 > " + out +
-                    " 2>&1").c_str()),
-            0)
-      << slurp(out);
-  std::map<int, long> words;
-  std::istringstream in(slurp(out));
-  for (std::string line; std::getline(in, line);) {
-    int reg = 0;
-    long value = 0;
-    if (std::sscanf(line.c_str(), "[%d]: %ld", &reg, &value) == 2) words[reg] = value;
-  }
+  const fs::path out = dir_ / "mbpoll.out";
+  ASSERT_EQ(mbpoll(port_, "-t 4 -r 1 -c 3", out), 0) << slurp(out);
+  std::map<int, long> words = mbpoll_words(slurp(out));
   ASSERT_EQ(words.size(), 3u) << slurp(out);
   // 0..65535 over 0..10 V; 20 V/m with 5 V at mid-stroke; 1e-5 V/Pa.
   const double y = (words[1] * 10.0 / 65535.0 - 5.0) / 20.0;

@@ -253,9 +253,25 @@ TEST_F(PneuPlantCli, ServeHelpDocumentsFaultsAndTheOutputsRecord) {
   const Outcome h = run("serve --help");
   EXPECT_EQ(h.exit_code, 0);
   for (const char* text : {"--outputs FILE", "t_s,u_p_v,u_n_v", "--fault SPEC", "CHANNEL:MODE@T", "rail-low", "rail-high",
-                           "raw=N", "volts=V", "freeze", "nan", "stuck=V", "valve_p -> u_P, valve_n -> u_N"})
+                           "raw=N", "volts=V", "freeze", "nan", "stuck=V", "valve_p -> u_P, valve_n -> u_N",
+                           "--max-clients N", "(default 4)", "owns them until it disconnects", "exception 06"})
     EXPECT_THAT(h.out, HasSubstr(text));
   EXPECT_THAT(run("--help").out, HasSubstr("[--outputs FILE] [--fault CHANNEL:MODE@T ...]"));
+  EXPECT_THAT(run("--help").out, HasSubstr("[--max-clients N]"));
+}
+
+TEST_F(PneuPlantCli, ServeTakesAMaxClientsFrom1To64AndRefusesOthersBeforeServing) {
+  for (const char* n : {"0", "65", "2.5", "-1"}) {
+    const Outcome r = run(serve_hil() + "--max-clients=" + n + " --set hal.modbus.port=" + std::to_string(pneu::test::free_port()));
+    EXPECT_EQ(r.exit_code, 2) << n;
+    EXPECT_THAT(r.err, HasSubstr("--max-clients must be a whole number from 1 to 64")) << n;
+    EXPECT_THAT(r.out, ::testing::Not(HasSubstr("listening"))) << n;
+  }
+  for (const char* n : {"1", "64"}) {
+    const Outcome r = run(serve_hil() + "--max-clients " + n + " --set hal.modbus.port=" + std::to_string(pneu::test::free_port()));
+    EXPECT_EQ(r.exit_code, 0) << n << ": " << r.err;
+    EXPECT_THAT(r.out, HasSubstr(std::string("up to ") + n + " clients")) << n;
+  }
 }
 
 TEST_F(PneuPlantCli, ServeRefusesBadFaultSpecsNamingTheSpecAndTheReason) {

@@ -1,7 +1,8 @@
 // Fault injection in `pneu-plant serve` (issue 6), read back with libmodbus as a client: sensor
 // registers at a rail, at a given raw value, frozen, NaN on a float32 channel; a stuck valve spool
 // that moves the plant whatever the client writes; and the --outputs record of what the client
-// wrote, which survives a SIGKILL. Real time: about 10 s in all.
+// wrote, which survives a SIGKILL; several clients: one writer of the valves, held replies each
+// late by the delay. Real time: about 12 s in all.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <modbus.h>
@@ -12,6 +13,8 @@
 #include <csignal>
 #include <cstring>
 #include <fstream>
+#include <functional>
+#include <memory>
 #include <set>
 #include <string>
 #include <thread>
@@ -55,9 +58,10 @@ double valve_volts(std::uint16_t word) { return static_cast<std::int16_t>(word) 
 // A libmodbus TCP client of unit 1 on loopback.
 class Client {
  public:
-  explicit Client(int port) : ctx_(modbus_new_tcp("127.0.0.1", port)) {
+  explicit Client(int port, double response_timeout_s = 0.5) : ctx_(modbus_new_tcp("127.0.0.1", port)) {
     modbus_set_slave(ctx_, 1);
-    modbus_set_response_timeout(ctx_, 0, 500000);
+    modbus_set_response_timeout(ctx_, static_cast<uint32_t>(response_timeout_s),
+                                static_cast<uint32_t>(std::fmod(response_timeout_s, 1.0) * 1e6));
     connected_ = modbus_connect(ctx_) == 0;
   }
   ~Client() {
@@ -67,6 +71,7 @@ class Client {
   Client(const Client&) = delete;
   Client& operator=(const Client&) = delete;
   [[nodiscard]] bool connected() const { return connected_; }
+  [[nodiscard]] modbus_t* ctx() const { return ctx_; }
 
   std::vector<std::uint16_t> read(int address, int count) {
     std::vector<std::uint16_t> regs(static_cast<std::size_t>(count));
@@ -197,7 +202,7 @@ TEST_F(ServeFaults, NanOnAFloat32ChannelReadsQuietNanBitsAndReachesTheFrameFlagg
     const float p_n_volts = pneu::config::RegisterChannel::float_of(regs[6], regs[7]);
     EXPECT_GT(p_n_volts, 4.0f) << "p_N at rest is about 4.9 bar: 4.9 V, and the float is the raw value";
     EXPECT_LT(p_n_volts, 6.0f);
-  }  // serve takes one client at a time: leave the slot to the backend
+  }
 
   // pneud's modbus backend on the same map: a non-finite pressure with its invalid flag set.
   std::vector<std::string> overrides = float32_overrides();
@@ -275,6 +280,73 @@ TEST_F(ServeFaults, TheOutputsFileHoldsTheLastWrittenVoltagesAfterASigkill) {
   }
   EXPECT_EQ(out.rows.back()[out.col("u_p_v")], "-10.000000") << "the exhaust-both safe state, 6 decimals";
   EXPECT_EQ(out.rows.back()[out.col("u_n_v")], "-10.000000");
+}
+
+TEST_F(ServeFaults, TheFirstClientToWriteTheValvesOwnsThemUntilItDisconnectsAndTheOthersGetException06) {
+  Child plant = serve({"--outputs", (dir_ / "outputs.csv").string()});
+  auto owner = std::make_unique<Client>(port_);
+  Client other(port_);
+  ASSERT_TRUE(owner->connected() && other.connected());
+  owner->write_valves(valve_word(1.0), valve_word(-1.0));
+
+  // Every function that writes a register, touching a valve register, from another client:
+  // refused with exception 06 (server device busy), and nothing written.
+  modbus_t* c = other.ctx();
+  const std::uint16_t words[2] = {valve_word(5.0), valve_word(5.0)};
+  std::uint16_t in[3] = {};
+  const auto refusal = [](int rc) { return rc == -1 ? errno : 0; };
+  EXPECT_EQ(refusal(modbus_write_registers(c, kValveP, 2, words)), EMBXSBUSY) << "function 16";
+  EXPECT_EQ(refusal(modbus_write_register(c, kValveN, words[1])), EMBXSBUSY) << "function 6";
+  EXPECT_EQ(refusal(modbus_mask_write_register(c, kValveP, 0, words[0])), EMBXSBUSY) << "function 22";
+  EXPECT_EQ(refusal(modbus_write_and_read_registers(c, kValveP, 2, words, kPosition, 3, in)), EMBXSBUSY)
+      << "function 23, as a second pneud would send";
+  EXPECT_EQ(refusal(modbus_write_registers(c, kValveN, 1, words)), EMBXSBUSY) << "valve_n alone";
+  EXPECT_EQ(other.read(kValveP, 2), (std::vector<std::uint16_t>{valve_word(1.0), valve_word(-1.0)})) << "the owner's";
+  EXPECT_EQ(other.read(kPosition, 3).size(), 3u) << "reading is free for all";
+  EXPECT_EQ(modbus_write_register(c, 5, 1234), 1) << "a register beside the valves is no one's";
+
+  owner->write_valves(valve_word(2.0), valve_word(-2.0));
+  owner.reset();  // disconnects: the valve registers are free
+  other.write_valves(valve_word(3.0), valve_word(-3.0));
+  EXPECT_EQ(other.read(kValveP, 2), (std::vector<std::uint16_t>{valve_word(3.0), valve_word(-3.0)}));
+  kill(plant.pid, SIGTERM);
+  EXPECT_EQ(plant.wait(), 0);
+
+  const Csv out = Csv::read(dir_ / "outputs.csv");
+  ASSERT_EQ(out.rows.size(), 4u) << "the initial values, then the owners' three writes only\n" << slurp(dir_ / "outputs.csv");
+  for (int i = 1; i <= 3; ++i) {
+    EXPECT_NEAR(std::stod(out.rows[i][out.col("u_p_v")]), i, 1e-3) << "line " << i + 2;
+    EXPECT_NEAR(std::stod(out.rows[i][out.col("u_n_v")]), -i, 1e-3) << "line " << i + 2;
+  }
+  const std::string stdout_text = slurp(dir_ / "serve.out");
+  EXPECT_THAT(stdout_text, HasSubstr("left: the valve registers are free"));
+  EXPECT_THAT(stdout_text, HasSubstr("5 valve writes refused as another client's"));
+  const std::string err = slurp(dir_ / "serve.err");
+  EXPECT_THAT(err, HasSubstr("may not write the valve registers"));
+  EXPECT_EQ(err.find("may not write"), err.rfind("may not write")) << "told once per client";
+}
+
+TEST_F(ServeFaults, HeldRepliesAreLateByTheDelayForEachClientNotQueuedBehindAnothers) {
+  // Two clients' requests at once, each answered 1 s late: both after 1 s, neither after 2 s as
+  // if the server slept through one client's delay before reading the other's request. The
+  // 0.8 s margin is for a stall of the machine.
+  Child plant = serve({"--reply-delay-s", "1"});
+  Client a(port_, 3.0), b(port_, 3.0);
+  ASSERT_TRUE(a.connected() && b.connected());
+  double took_s[2] = {};
+  const auto timed_read = [](Client& c, double& took) {
+    const auto start = Clock::now();
+    (void)c.read(kPosition, 3);
+    took = std::chrono::duration<double>(Clock::now() - start).count();
+  };
+  std::thread ta(timed_read, std::ref(a), std::ref(took_s[0]));
+  std::thread tb(timed_read, std::ref(b), std::ref(took_s[1]));
+  ta.join();
+  tb.join();
+  for (const double t : took_s) {
+    EXPECT_GE(t, 1.0);
+    EXPECT_LT(t, 1.8);
+  }
 }
 
 }  // namespace

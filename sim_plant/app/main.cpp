@@ -26,6 +26,7 @@ Usage:
   pneu-plant characterize-valve [--config FILE] --out TABLE.csv [--voltage-step-v V] [--pressure-step-pa P]
   pneu-plant null-flow [--config FILE] --out CURVE.csv [--voltage-step-v V]
   pneu-plant serve --config FILE [--set KEY=VALUE ...] [--duration S] [--outputs FILE] [--fault CHANNEL:MODE@T ...]
+                   [--max-clients N]
   pneu-plant COMMAND --help
   pneu-plant --version
 

@@ -171,6 +171,71 @@ Fault parse_fault(const std::string& spec, const config::ModbusConfig& mb) {
   return f;
 }
 
+// --- Several TCP clients, one writer of the valves ------------------------------------------------
+
+constexpr int kMaxClientsLimit = 64;   ///< --max-clients' upper bound (select's fd_set has room)
+constexpr int kMbapBytes = 7;          ///< transaction id, protocol id, length, unit id
+
+/// The holding registers a request writes, [first, first + count); count 0 when it writes none.
+/// Functions 6, 16, 22 and 23 write registers (the map has no coils). `pdu` points at the function
+/// code of a request as modbus_receive returned it (which read the bytes used here).
+struct WrittenRegisters {
+  int first = 0;
+  int count = 0;
+  [[nodiscard]] bool include(int address) const { return address >= first && address < first + count; }
+};
+
+WrittenRegisters written_registers(const std::uint8_t* pdu) {
+  const auto word = [pdu](int at) { return pdu[at] << 8 | pdu[at + 1]; };
+  switch (pdu[0]) {
+    case MODBUS_FC_WRITE_SINGLE_REGISTER:
+    case MODBUS_FC_MASK_WRITE_REGISTER: return {word(1), 1};
+    case MODBUS_FC_WRITE_MULTIPLE_REGISTERS: return {word(1), word(3)};
+    case MODBUS_FC_WRITE_AND_READ_REGISTERS: return {word(5), word(7)};
+    default: return {};
+  }
+}
+
+/// A client's connection (for RTU: the line), with the request it sent last.
+struct Connection {
+  int fd = -1;                   ///< -1: a free slot
+  std::uint64_t number = 0;      ///< 1, 2, ... in the order they were accepted
+  std::string peer;              ///< address:port
+  int low_water_bytes = 1;       ///< the socket's SO_RCVLOWAT: the bytes of the frame awaited
+  bool told_busy = false;        ///< its first refused valve write was reported on stderr
+  bool reply_pending = false;    ///< --reply-delay-s holds the reply back (the socket is not read meanwhile)
+  double reply_at_s = 0.0;       ///< when it falls due, since start-up
+  int query_length = 0;
+  std::array<std::uint8_t, std::max(MODBUS_RTU_MAX_ADU_LENGTH, MODBUS_TCP_MAX_ADU_LENGTH)> query{};
+  std::array<std::uint16_t, 6> sensor_words{};  ///< the sensor registers when the held request came
+};
+
+enum class Frame { kWhole, kPartial, kClosed, kTooLong };
+
+/// Whether a client's socket holds a whole Modbus TCP request, by the length field of its MBAP
+/// header, read without taking it from the socket: modbus_receive then never waits for the rest of
+/// a frame (up to its byte timeout, 0.5 s, for a client that sent half of one), which would hold up
+/// every other client. While a frame is partial the socket's SO_RCVLOWAT is the frame's size, so
+/// that select wakes when it is complete, not for each byte; woken with less, the client has left.
+Frame frame_ready(Connection& c) {
+  std::uint8_t head[MODBUS_TCP_MAX_ADU_LENGTH];
+  const ssize_t n = recv(c.fd, head, sizeof head, MSG_PEEK | MSG_DONTWAIT);
+  if (n < 0) return errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR ? Frame::kPartial : Frame::kClosed;
+  if (n == 0 || n < c.low_water_bytes) return Frame::kClosed;
+  int need = 6;  // up to the length field
+  if (n >= 6) {
+    need = 6 + (head[4] << 8 | head[5]);
+    if (need > MODBUS_TCP_MAX_ADU_LENGTH) return Frame::kTooLong;
+    need = std::max(need, kMbapBytes + 1);
+  }
+  const int low_water = n >= need ? 1 : need;
+  if (low_water != c.low_water_bytes) {
+    (void)setsockopt(c.fd, SOL_SOCKET, SO_RCVLOWAT, &low_water, sizeof low_water);
+    c.low_water_bytes = low_water;
+  }
+  return n >= need ? Frame::kWhole : Frame::kPartial;
+}
+
 }  // namespace
 
 const char* const kServeHelpText = R"(pneu-plant serve: the simulated bench behind a Modbus server (hardware in the loop)
@@ -198,22 +263,35 @@ const char* const kServeHelpText = R"(pneu-plant serve: the simulated bench behi
                                                client writes (--outputs still records the writes)
                        A later fault on the same channel replaces an earlier one. Each prints one
                        line when it becomes active.
-  --reply-delay-s D    fault injection: answer every request D seconds late ...
+  --reply-delay-s D    fault injection: answer every request D seconds late, with the readings of
+                       its time (each client's own: a held reply holds up no other client) ...
   --delay-after-s T    ... from T seconds after start-up on (default 0)
+  --max-clients N      TCP: serve up to N clients at once, 1 to 64 (default 4)
   --quiet              no start-up line
 
 The plant of plant.* runs in real time from rest at simulation.initial_position_m. Each request
 is answered from the sensor models of sensors.* (noise, clamp, ADC) scaled into the registers of
 hal.modbus.channels (a float32 channel: two registers, high word first); the valve registers
-written by the client drive the valves, each its own: valve_p -> u_P, valve_n -> u_N. TCP listens
-on hal.modbus.host:port (loopback by default) and serves one client at a time: a second one is
-accepted and closed at once. RTU serves hal.modbus.device as unit hal.modbus.unit_id. On exit it
-prints the last valve voltages it was sent. Bad --fault specs and an --outputs file that cannot be
-opened are refused before serving, with exit code 2.
+written by the client drive the valves, each its own: valve_p -> u_P, valve_n -> u_N.
+
+TCP listens on hal.modbus.host:port (loopback by default) and serves up to --max-clients clients
+at once, as an I/O module does (a controller, and a monitoring tool beside it); one more is
+accepted and closed at once, with a line on stderr. Each request is read only once it has arrived
+whole, so a slow or stalled client holds up no other; one that stops taking its replies is
+dropped. Reading is free for all. The valve registers have one writer: the first client that
+sends a write to valve_p or valve_n (functions 6, 16, 22, 23) owns them until it disconnects; a
+write by another client that touches them is answered with exception 06 (server device busy) and
+changes nothing (reported on stderr once per client), and the owner's leaving frees them for the
+next writer (stdout says who owns them, and when they are free).
+RTU serves hal.modbus.device as unit hal.modbus.unit_id, one line, one client.
+
+On exit it prints the requests served, the clients (at most how many at once, how many refused),
+the valve writes refused, and the last valve voltages it was sent. Bad --fault specs and an
+--outputs file that cannot be opened are refused before serving, with exit code 2.
 )";
 
 int serve(int argc, char** argv) {
-  const cli::Args args(argc, argv, 2, {"config", "duration", "reply-delay-s", "delay-after-s", "outputs"},
+  const cli::Args args(argc, argv, 2, {"config", "duration", "reply-delay-s", "delay-after-s", "outputs", "max-clients"},
                        {"help", "quiet"}, {"set", "fault"});
   if (args.flag("help")) {
     std::cout << kServeHelpText;
@@ -226,6 +304,10 @@ int serve(int argc, char** argv) {
   const double reply_delay = args.number("reply-delay-s", 0.0);
   const double delay_after = args.number("delay-after-s", 0.0);
   if (reply_delay < 0.0 || delay_after < 0.0) throw cli::UsageError("--reply-delay-s and --delay-after-s must be >= 0");
+  const double max_clients_d = args.number("max-clients", 4);
+  if (!(max_clients_d >= 1 && max_clients_d <= kMaxClientsLimit && max_clients_d == std::floor(max_clients_d)))
+    throw cli::UsageError("--max-clients must be a whole number from 1 to " + std::to_string(kMaxClientsLimit));
+  const int max_clients = static_cast<int>(max_clients_d);
   const auto& mb = cfg.hal.modbus;
 
   // Faults in the order they become active (ties: command-line order).
@@ -283,20 +365,34 @@ int serve(int argc, char** argv) {
   };
   update_sensor_registers();  // so that a fault frozen before the first request has a value to keep
 
-  int listen_fd = -1, client_fd = -1;
+  // TCP: up to max_clients connections, each its slot; RTU: the line, in slot 0.
+  std::vector<Connection> connections(tcp ? static_cast<std::size_t>(max_clients) : 1);
+  int listen_fd = -1;
   if (tcp) {
-    listen_fd = modbus_tcp_listen(m.ctx, 1);
+    // A burst of connections waits in the kernel to be accepted (or refused), not retried later.
+    listen_fd = modbus_tcp_listen(m.ctx, kMaxClientsLimit);
     if (listen_fd < 0)
       throw std::runtime_error("cannot listen on " + mb.host + ":" + std::to_string(mb.port) + ": " + modbus_strerror(errno));
+    // A request reaches modbus_receive whole (frame_ready): a byte timeout only ends a frame whose
+    // function needs more bytes than its MBAP length announced, and 1 ms of it holds no one up.
+    // libmodbus answers a request with an illegal count after sleeping its response timeout and
+    // flushing (to skip the rest of a garbled RTU frame): 1 us, so that one client's bad request
+    // does not stall the others for 0.5 s.
+    modbus_set_byte_timeout(m.ctx, 0, 1000);
+    modbus_set_response_timeout(m.ctx, 0, 1);
   } else {
     if (modbus_connect(m.ctx) == -1)
       throw std::runtime_error("cannot open " + mb.device + ": " + modbus_strerror(errno));
-    client_fd = modbus_get_socket(m.ctx);
+    connections[0].fd = modbus_get_socket(m.ctx);
+    connections[0].number = 1;
+    connections[0].peer = mb.device;
   }
   std::signal(SIGINT, on_stop_signal);
   std::signal(SIGTERM, on_stop_signal);
   if (!args.flag("quiet")) {
-    if (tcp) std::printf("pneu-plant serve: listening on %s:%d (unit %d)\n", mb.host.c_str(), mb.port, mb.unit_id);
+    if (tcp)
+      std::printf("pneu-plant serve: listening on %s:%d (unit %d, up to %d clients)\n", mb.host.c_str(), mb.port,
+                  mb.unit_id, max_clients);
     else std::printf("pneu-plant serve: serving %s at %d baud (unit %d)\n", mb.device.c_str(), mb.baud, mb.unit_id);
     std::fflush(stdout);
   }
@@ -336,91 +432,207 @@ int serve(int argc, char** argv) {
     }
     if (t > plant.state().t_s) plant.step(t - plant.state().t_s, drive_p(), drive_n());
   };
+  // A held reply answers with the readings of its request's time, as a module that answers late.
+  const auto sensor_words = [&](std::array<std::uint16_t, 6>& words, bool restore) {
+    std::uint16_t* w = words.data();
+    for (const config::RegisterChannel* c : sensor_channel) {
+      std::uint16_t* reg = &sensor_regs[c->address];
+      if (restore) std::copy_n(w, c->register_count(), reg);
+      else std::copy_n(reg, c->register_count(), w);
+      w += c->register_count();
+    }
+  };
 
-  std::uint64_t requests = 0, refused = 0, clients = 0, foreign = 0;
-  uint8_t query[MODBUS_RTU_MAX_ADU_LENGTH > MODBUS_TCP_MAX_ADU_LENGTH ? MODBUS_RTU_MAX_ADU_LENGTH : MODBUS_TCP_MAX_ADU_LENGTH];
+  std::uint64_t requests = 0, refused = 0, clients = tcp ? 0 : 1, foreign = 0, busy = 0, owner = 0;
+  int connected = 0, most_connected = tcp ? 0 : 1;
+  const auto drop = [&](Connection& c, const char* why) {
+    if (why) std::fprintf(stderr, "pneu-plant serve: client %llu (%s) %s: closed\n",
+                          static_cast<unsigned long long>(c.number), c.peer.c_str(), why);
+    ::close(c.fd);
+    if (c.number == owner) {
+      owner = 0;
+      std::printf("pneu-plant serve: client %llu left: the valve registers are free\n",
+                  static_cast<unsigned long long>(c.number));
+      std::fflush(stdout);
+    }
+    c = Connection{};
+    --connected;
+  };
+  // Whether the owner of the valve registers has disconnected (then dropped), asked when another
+  // client writes them: its end of the connection may not have been read yet.
+  const auto owner_left = [&] {
+    for (Connection& c : connections) {
+      if (c.fd < 0 || c.number != owner) continue;
+      std::uint8_t byte = 0;
+      const ssize_t n = recv(c.fd, &byte, 1, MSG_PEEK | MSG_DONTWAIT);
+      if (n > 0 || (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR))) return false;
+      drop(c, nullptr);
+      return true;
+    }
+    return true;
+  };
+  const auto reply = [&](Connection& c) {
+    if (c.reply_pending) sensor_words(c.sensor_words, /*restore=*/true);
+    c.reply_pending = false;
+    modbus_set_socket(m.ctx, c.fd);
+    const WrittenRegisters written = written_registers(c.query.data() + modbus_get_header_length(m.ctx));
+    if (written.include(mb.valve_p.address) || written.include(mb.valve_n.address)) {
+      if (owner != 0 && owner != c.number && !owner_left()) {
+        ++busy;
+        if (!c.told_busy)
+          std::fprintf(stderr, "pneu-plant serve: client %llu (%s) may not write the valve registers: client %llu "
+                               "owns them until it disconnects (exception 06, server device busy; told once)\n",
+                       static_cast<unsigned long long>(c.number), c.peer.c_str(), static_cast<unsigned long long>(owner));
+        c.told_busy = true;
+        if (modbus_reply_exception(m.ctx, c.query.data(), MODBUS_EXCEPTION_SLAVE_OR_SERVER_BUSY) == -1 && tcp)
+          drop(c, "does not take its replies");
+        return;
+      }
+      if (owner == 0) {
+        owner = c.number;
+        std::printf("pneu-plant serve: client %llu (%s) writes the valve registers: they are its until it disconnects\n",
+                    static_cast<unsigned long long>(c.number), c.peer.c_str());
+        std::fflush(stdout);
+      }
+    }
+    // A client that stops taking its replies fills its socket: the send fails at once (the socket
+    // does not block) and the client is dropped, never waited for.
+    const int sent = modbus_reply(m.ctx, c.query.data(), c.query_length, m.map);
+    const std::uint16_t wp = m.map->tab_registers[mb.valve_p.address];
+    const std::uint16_t wn = m.map->tab_registers[mb.valve_n.address];
+    if (wp != word_p || wn != word_n) {  // each valve drives its own chamber (not Eq. 1's u_N = -u_P)
+      word_p = wp;
+      word_n = wn;
+      u_p = mb.valve_p.to_volts(wp);
+      u_n = mb.valve_n.to_volts(wn);
+      record_outputs(monotonic_s() - t0);
+    }
+    if (sent == -1 && tcp) drop(c, "does not take its replies");
+  };
+  // A request from `c`: answered now, or held back by --reply-delay-s.
+  const auto serve_request = [&](Connection& c) {
+    modbus_set_socket(m.ctx, c.fd);
+    const int rc = modbus_receive(m.ctx, c.query.data());
+    if (rc == -1) {
+      if (tcp) drop(c, (std::string("sent a request libmodbus cannot read (") + modbus_strerror(errno) + ")").c_str());
+      return;
+    }
+    const int unit_at = modbus_get_header_length(m.ctx) - 1;
+    if (rc == 0) return;  // RTU: another unit's request, filtered by libmodbus
+    if (c.query[unit_at] != mb.unit_id && c.query[unit_at] != 0) {
+      ++foreign;  // another unit's request: a real module stays silent, the client times out
+      return;
+    }
+    ++requests;
+    c.query_length = rc;
+    const double t = monotonic_s() - t0;
+    advance_to(t);
+    update_sensor_registers();
+    if (!tcp) {
+      // A pty carries bytes at any speed: hold the reply for the time the request and the
+      // reply take on a real line at this baud rate (10 bits a byte, 3.5-character silences),
+      // so the client meets the timing of the bench's serial link.
+      const int fc = c.query[unit_at + 1];
+      const int n_read = fc == 3 || fc == 4 ? (c.query[unit_at + 4] << 8 | c.query[unit_at + 5])
+                         : fc == 23         ? (c.query[unit_at + 4] << 8 | c.query[unit_at + 5])
+                                            : 0;
+      const int reply_bytes = n_read > 0 ? 5 + 2 * n_read : 8;
+      const double wire_s = (rc + reply_bytes + 7) * 10.0 / mb.baud;
+      hal::sleep_until_monotonic_s(monotonic_s() + wire_s);
+    }
+    if (reply_delay > 0.0 && t >= delay_after) {  // fault injection: a module that answers late
+      sensor_words(c.sensor_words, /*restore=*/false);
+      c.reply_pending = true;
+      c.reply_at_s = monotonic_s() - t0 + reply_delay;  // written when it falls due, even if the client left
+    } else {
+      reply(c);
+    }
+  };
+  const auto accept_client = [&] {
+    sockaddr_in from{};
+    socklen_t from_size = sizeof from;
+    const int fd = accept4(listen_fd, reinterpret_cast<sockaddr*>(&from), &from_size, SOCK_NONBLOCK | SOCK_CLOEXEC);
+    if (fd < 0) return;
+    char address[INET_ADDRSTRLEN] = "?";
+    inet_ntop(AF_INET, &from.sin_addr, address, sizeof address);
+    const std::string peer = std::string(address) + ":" + std::to_string(ntohs(from.sin_port));
+    const auto slot = std::find_if(connections.begin(), connections.end(), [](const Connection& c) { return c.fd < 0; });
+    if (slot == connections.end()) {
+      ::close(fd);
+      ++refused;
+      std::fprintf(stderr, "pneu-plant serve: refused a client from %s: already serving %d (--max-clients %d)\n",
+                   peer.c_str(), max_clients, max_clients);
+      return;
+    }
+    slot->fd = fd;
+    slot->number = ++clients;
+    slot->peer = peer;
+    most_connected = std::max(most_connected, ++connected);
+  };
+
   while (!g_stop.load()) {
-    const double now = monotonic_s() - t0;
+    double now = monotonic_s() - t0;
     if (duration > 0.0 && now >= duration) break;
     advance_to(now);
+    // Held replies as they fall due, the earliest first.
+    for (;;) {
+      Connection* due = nullptr;
+      for (Connection& c : connections)
+        if (c.reply_pending && c.reply_at_s <= now && (!due || c.reply_at_s < due->reply_at_s)) due = &c;
+      if (!due) break;
+      reply(*due);
+      now = monotonic_s() - t0;
+    }
 
     fd_set fds;
     FD_ZERO(&fds);
     int max_fd = -1;
+    double wait_s = 0.0005;  // the plant advances at least every 0.5 ms while idle
     if (listen_fd >= 0) FD_SET(listen_fd, &fds), max_fd = std::max(max_fd, listen_fd);
-    if (client_fd >= 0) FD_SET(client_fd, &fds), max_fd = std::max(max_fd, client_fd);
-    timeval tv{0, 500};  // the plant advances at least every 0.5 ms while idle
+    for (const Connection& c : connections) {
+      if (c.fd < 0) continue;
+      if (c.reply_pending) wait_s = std::min(wait_s, std::max(0.0, c.reply_at_s - now));
+      else FD_SET(c.fd, &fds), max_fd = std::max(max_fd, c.fd);
+    }
+    timeval tv{0, static_cast<suseconds_t>(wait_s * 1e6)};
     const int ready = select(max_fd + 1, &fds, nullptr, nullptr, &tv);
     if (ready < 0) {
       if (errno == EINTR) continue;
       throw std::runtime_error(std::string("select: ") + std::strerror(errno));
     }
-    // The present client first: a departed one is noticed before a newcomer is judged.
-    if (client_fd >= 0 && FD_ISSET(client_fd, &fds)) {
-      const int rc = modbus_receive(m.ctx, query);
-      const int unit_at = modbus_get_header_length(m.ctx) - 1;
-      if (rc > 0 && query[unit_at] != mb.unit_id && query[unit_at] != 0) {
-        ++foreign;  // another unit's request: a real module stays silent, the client times out
-      } else if (rc > 0) {
-        ++requests;
-        const double t = monotonic_s() - t0;
-        advance_to(t);
-        update_sensor_registers();
-        if (!tcp) {
-          // A pty carries bytes at any speed: hold the reply for the time the request and the
-          // reply take on a real line at this baud rate (10 bits a byte, 3.5-character silences),
-          // so the client meets the timing of the bench's serial link.
-          const int fc = query[unit_at + 1];
-          const int n_read = fc == 3 || fc == 4 ? (query[unit_at + 4] << 8 | query[unit_at + 5])
-                             : fc == 23         ? (query[unit_at + 4] << 8 | query[unit_at + 5])
-                                                : 0;
-          const int reply_bytes = n_read > 0 ? 5 + 2 * n_read : 8;
-          const double wire_s = (rc + reply_bytes + 7) * 10.0 / mb.baud;
-          hal::sleep_until_monotonic_s(monotonic_s() + wire_s);
-        }
-        if (reply_delay > 0.0 && t >= delay_after) {  // fault injection: a module that answers late
-          const double until = monotonic_s() + reply_delay;
-          while (monotonic_s() < until && !g_stop.load()) {
-            timespec ts{0, 200000};
-            nanosleep(&ts, nullptr);
-          }
-        }
-        modbus_reply(m.ctx, query, rc, m.map);
-        const std::uint16_t wp = m.map->tab_registers[mb.valve_p.address];
-        const std::uint16_t wn = m.map->tab_registers[mb.valve_n.address];
-        if (wp != word_p || wn != word_n) {  // each valve drives its own chamber (not Eq. 1's u_N = -u_P)
-          word_p = wp;
-          word_n = wn;
-          u_p = mb.valve_p.to_volts(wp);
-          u_n = mb.valve_n.to_volts(wn);
-          record_outputs(monotonic_s() - t0);
-        }
-      } else if (rc == -1) {
-        if (tcp) {
-          ::close(client_fd);
-          client_fd = -1;
-        }
+    // The clients before a newcomer, the owner of the valve registers first: a departed owner is
+    // noticed before another client's write is judged.
+    const auto first = std::find_if(connections.begin(), connections.end(),
+                                    [&](const Connection& c) { return c.fd >= 0 && c.number == owner; });
+    const std::size_t start = first == connections.end() ? 0 : static_cast<std::size_t>(first - connections.begin());
+    for (std::size_t k = 0; k < connections.size(); ++k) {
+      Connection& c = connections[(start + k) % connections.size()];
+      if (c.fd < 0 || c.reply_pending || !FD_ISSET(c.fd, &fds)) continue;
+      if (!tcp) {
+        serve_request(c);
+        continue;
+      }
+      switch (frame_ready(c)) {
+        case Frame::kWhole: serve_request(c); break;
+        case Frame::kPartial: break;
+        case Frame::kClosed: drop(c, nullptr); break;
+        case Frame::kTooLong: drop(c, "sent a frame longer than Modbus TCP's 260 bytes"); break;
       }
     }
-    if (listen_fd >= 0 && FD_ISSET(listen_fd, &fds)) {
-      if (client_fd < 0) {
-        client_fd = modbus_tcp_accept(m.ctx, &listen_fd);
-        if (client_fd >= 0) ++clients;
-      } else {  // one client at a time: refuse cleanly
-        const int extra = accept(listen_fd, nullptr, nullptr);
-        if (extra >= 0) {
-          ::close(extra);
-          ++refused;
-          std::fprintf(stderr, "pneu-plant serve: refused a second client (one at a time)\n");
-        }
-      }
-    }
+    if (listen_fd >= 0 && FD_ISSET(listen_fd, &fds)) accept_client();
   }
-  std::printf("pneu-plant serve: stopped after %.3f s; %llu requests from %llu clients, %llu refused, "
-              "%llu for other units ignored; last valve voltages: u_P = %+.4f V, u_N = %+.4f V\n",
+  std::printf("pneu-plant serve: stopped after %.3f s; %llu requests from %llu clients (at most %d at once, %llu "
+              "refused beyond --max-clients), %llu valve writes refused as another client's, %llu for other units "
+              "ignored; last valve voltages: u_P = %+.4f V, u_N = %+.4f V\n",
               monotonic_s() - t0, static_cast<unsigned long long>(requests), static_cast<unsigned long long>(clients),
-              static_cast<unsigned long long>(refused), static_cast<unsigned long long>(foreign), u_p, u_n);
-  if (listen_fd >= 0) ::close(listen_fd);
+              most_connected, static_cast<unsigned long long>(refused), static_cast<unsigned long long>(busy),
+              static_cast<unsigned long long>(foreign), u_p, u_n);
+  if (tcp) {
+    for (Connection& c : connections)
+      if (c.fd >= 0) ::close(c.fd);
+    modbus_set_socket(m.ctx, -1);  // closed above: not for modbus_close to close again
+    ::close(listen_fd);
+  }
   return cli::kExitOk;
 }
 
