@@ -783,8 +783,9 @@ TEST(AliasExpansion, BillionLaughsAsAListOfTheSchemaIsRefusedAtItsFirstElement) 
 TEST(AliasExpansion, RecursiveAliasAsASectionIsRefusedAtTheFirstMissingKey) {
   EXPECT_THAT(loading("plant: &p {geometry: *p, gas: *p}\n"), refuses("plant.mass_kg", "missing"));
   std::string text = shipped_text("Sim");
-  const std::string geometry = "  geometry:\n";
-  text.replace(text.find(geometry), geometry.size(), "  geometry: &g\n    again: *g\n");
+  const std::size_t geometry = text.find("\n  geometry:") + 1;  // the line, with its comment
+  ASSERT_NE(geometry, 0u);
+  text.replace(geometry, text.find('\n', geometry) + 1 - geometry, "  geometry: &g\n    again: *g\n");
   EXPECT_THAT(loading(text), refuses("plant.geometry.again", "unknown key"));
 }
 
