@@ -185,7 +185,7 @@ TEST(ShippedConfig, LoadsWithTheDocumentedPaperBenchValues) {
     EXPECT_EQ(ch->range_max_v, 10.0);
   }
   EXPECT_EQ(c.simulation.initial_position_m, 0.2195);
-  // The paper's loop (MODEL.md section 7).
+  // The paper's loop (docs/model.md section 7).
   EXPECT_EQ(c.controller.rate_hz, 1000.0);
   EXPECT_EQ(c.controller.clock, ClockKind::kSimulated);
   EXPECT_EQ(c.controller.duration_s, 12.0);
