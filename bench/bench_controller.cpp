@@ -2,7 +2,7 @@
 // median under 5 us; the 12 s paper scenario end to end in simulated time runs at least 200 times
 // faster than real time.
 //
-// The paper scenario (MODEL.md section 7, config/sim.yaml): carriage at rest at 219.5 mm, set point
+// The paper scenario (docs/model.md section 7, config/sim.yaml): carriage at rest at 219.5 mm, set point
 // 170 mm from t = 1 s, 12 s at 1 kHz. It is run once, before any timing, to record what the
 // loop's sensors read at every tick and the snapshot of its longest sticking phase; the tick
 // benchmark replays the recorded frames through a trivial backend, so the differentiator, the law

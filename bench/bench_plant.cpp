@@ -1,10 +1,10 @@
 // How fast the simulated plant runs. Requirement: the plant alone simulates the 12 s paper
 // scenario's open-loop input at least 1000 times faster than real time on one core.
 //
-// The paper scenario (MODEL.md section 7): carriage at rest at y = 219.5 mm in complete
+// The paper scenario (docs/model.md section 7): carriage at rest at y = 219.5 mm in complete
 // equilibrium, set point steps to 170 mm at t = 1 s, 12 s at a 1 ms sample period. Its open-loop
 // input u(t) is recorded once, before any timing, from a closed-loop run with the filtered
-// state-feedback law of MODEL.md; the timed benchmark replays it into a fresh plant.
+// state-feedback law of docs/model.md; the timed benchmark replays it into a fresh plant.
 //
 // Run pinned to one core, from the build directory:
 //   taskset -c 0 bin/bench_plant --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
@@ -35,7 +35,7 @@ constexpr double kStartPosition_m = 0.2195;
 constexpr double kTargetPosition_m = 0.170;
 constexpr double kScenarioDuration_s = kSamples * kSamplePeriod_s;
 
-// Closed-loop law used only to produce the open-loop input (MODEL.md section 7).
+// Closed-loop law used only to produce the open-loop input (docs/model.md section 7).
 constexpr double kGainPosition_v_per_m = 80.0;
 constexpr double kGainVelocity_v_s_per_m = 1.5;
 constexpr double kGainAcceleration_v_s2_per_m = 0.002;

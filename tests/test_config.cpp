@@ -185,7 +185,7 @@ TEST(ShippedConfig, LoadsWithTheDocumentedPaperBenchValues) {
     EXPECT_EQ(ch->range_max_v, 10.0);
   }
   EXPECT_EQ(c.simulation.initial_position_m, 0.2195);
-  // The paper's loop (MODEL.md section 7).
+  // The paper's loop (docs/model.md section 7).
   EXPECT_EQ(c.controller.rate_hz, 1000.0);
   EXPECT_EQ(c.controller.clock, ClockKind::kSimulated);
   EXPECT_EQ(c.controller.duration_s, 12.0);
@@ -431,6 +431,93 @@ TEST(ConfigRefusal, UnknownTopLevelSectionIsRejected) {
   EXPECT_THAT(loading(yaml), refuses("hydraulics", "unknown key"));
 }
 
+// A misspelt key: the loader meets the known key missing (or, for an optional key, the misspelt
+// one unknown) first; either way the message names the misspelt key and the key it stands for.
+auto refuses_exactly(const std::string& key_path, const std::string& message) {
+  return Throws<ConfigError>(IsConfigError(Eq(key_path), Eq(message)));
+}
+
+// The shipped file with the key `key` of the section `section` renamed `typo`.
+std::string shipped_yaml_renaming(const std::vector<std::string>& section, const std::string& key,
+                                  const std::string& typo) {
+  return shipped_yaml_edited([&](YAML::Node& root) {
+    std::vector<YAML::Node> chain{root};
+    for (const std::string& s : section) chain.push_back(chain.back()[s]);
+    chain.back()[typo] = YAML::Clone(chain.back()[key]);
+    chain.back().remove(key);
+  });
+}
+
+TEST(ConfigRefusal, MisspeltRequiredKeyIsNamedWithTheKnownKeyItStandsFor) {
+  EXPECT_THAT(loading(shipped_yaml_renaming({"controller", "law"}, "position_gain_v_per_m", "positon_gain_v_per_m")),
+              refuses_exactly("controller.law.positon_gain_v_per_m",
+                              "controller.law.positon_gain_v_per_m: unknown key; did you mean position_gain_v_per_m?"));
+  EXPECT_THAT(loading(shipped_yaml_renaming({"controller", "law"}, "position_gain_v_per_m", "position_gain_v_per_mm")),
+              refuses_exactly("controller.law.position_gain_v_per_mm",
+                              "controller.law.position_gain_v_per_mm: unknown key; did you mean position_gain_v_per_m?"));
+}
+
+TEST(ConfigRefusal, MisspeltOptionalKeyIsNamedWithTheKnownKeyItStandsFor) {
+  EXPECT_THAT(loading(shipped_yaml_renaming({"controller", "predictor"}, "valve_table", "valve_tabel")),
+              refuses("controller.predictor.valve_tabel", "unknown key; did you mean valve_table?"));
+}
+
+TEST(ConfigRefusal, MisspeltSectionIsNamedWithTheKnownSectionItStandsFor) {
+  EXPECT_THAT(loading(shipped_yaml_renaming({"plant"}, "geometry", "gemoetry")),
+              refuses("plant.gemoetry", "unknown key; did you mean geometry?"));
+  EXPECT_THAT(loading(shipped_yaml_renaming({}, "controller", "controler")),
+              refuses("controler", "unknown key; did you mean controller?"));
+}
+
+TEST(ConfigRefusal, MisspeltKeyOfAListEntryIsNamedWithTheKnownKey) {
+  const std::string yaml = shipped_yaml_edited([](YAML::Node& root) {
+    YAML::Node step = root["controller"]["setpoints"]["schedule"][0];
+    step["ts"] = YAML::Clone(step["t_s"]);
+    step.remove("t_s");
+  });
+
+  EXPECT_THAT(loading(yaml), refuses("controller.setpoints.schedule[0].ts", "unknown key; did you mean t_s?"));
+}
+
+TEST(ConfigRefusal, MisspeltKeyIsMatchedToTheMissingKeyNotToAGivenSibling) {
+  // dead_volume_m3 is one edit further from either chamber's key; the one missing is meant.
+  EXPECT_THAT(loading(shipped_yaml_renaming({"plant", "geometry"}, "dead_volume_n_m3", "dead_volume_m3")),
+              refuses("plant.geometry.dead_volume_m3", "unknown key; did you mean dead_volume_n_m3?"));
+  EXPECT_THAT(loading(shipped_yaml_renaming({"plant", "geometry"}, "dead_volume_p_m3", "dead_volume_m3")),
+              refuses("plant.geometry.dead_volume_m3", "unknown key; did you mean dead_volume_p_m3?"));
+}
+
+TEST(ConfigRefusal, MissingKeyBesideAKnownSiblingOfASimilarNameIsStillMissing) {
+  // dead_volume_n_m3 is one edit from dead_volume_p_m3, but a key of the schema: not a typo.
+  const std::string yaml =
+      shipped_yaml_edited([](YAML::Node& root) { root["plant"]["geometry"].remove("dead_volume_p_m3"); });
+
+  EXPECT_THAT(loading(yaml), refuses_exactly("plant.geometry.dead_volume_p_m3", "plant.geometry.dead_volume_p_m3: missing"));
+}
+
+TEST(ConfigRefusal, MissingKeyBesideAnUnknownKeyOfAnotherNameIsMissing) {
+  const std::string yaml = shipped_yaml_edited([](YAML::Node& root) {
+    root["plant"].remove("mass_kg");
+    root["plant"]["colour"] = "red";
+  });
+
+  EXPECT_THAT(loading(yaml), refuses_exactly("plant.mass_kg", "plant.mass_kg: missing"));
+}
+
+TEST(ConfigRefusal, UnknownKeyLikeNoKnownOneGetsNoSuggestion) {
+  const std::string yaml =
+      shipped_yaml_edited([](YAML::Node& root) { root["plant"]["geometry"]["colour"] = "red"; });
+
+  EXPECT_THAT(loading(yaml), refuses_exactly("plant.geometry.colour", "plant.geometry.colour: unknown key"));
+}
+
+TEST(ConfigRefusal, SecondCopyOfAKeyUnderATypoIsNamedWithTheKeyItCopies) {
+  const std::string yaml =
+      shipped_yaml_edited([](YAML::Node& root) { root["plant"]["mass_gk"] = 18.0; });
+
+  EXPECT_THAT(loading(yaml), refuses("plant.mass_gk", "unknown key; did you mean mass_kg?"));
+}
+
 TEST(ConfigRefusal, UnknownClockNamesTheChoices) {
   const std::string yaml =
       shipped_yaml_edited([](YAML::Node& root) { root["controller"]["clock"] = "fast"; });
@@ -592,6 +679,26 @@ TEST(ConfigOverride, UnknownKeyIsRejectedNamingTheKey) {
 TEST(ConfigOverride, KeyUnderAnUnknownSectionIsRejectedNamingTheKey) {
   EXPECT_THAT(loading(shipped_yaml(), {"plant.hydraulics.bulk_modulus_pa=1e9"}),
               refuses("plant.hydraulics.bulk_modulus_pa", "unknown key"));
+}
+
+TEST(ConfigOverride, MisspeltKeyIsRejectedNamingTheKnownKeyItStandsFor) {
+  EXPECT_THAT(loading(shipped_yaml(), {"controller.law.positon_gain_v_per_m=50"}),
+              refuses_exactly("controller.law.positon_gain_v_per_m",
+                              "controller.law.positon_gain_v_per_m: unknown key; did you mean position_gain_v_per_m?"));
+}
+
+TEST(ConfigOverride, MisspeltSectionIsRejectedNamingThePathAsTheSchemaSpellsIt) {
+  EXPECT_THAT(loading(shipped_yaml(), {"controler.law.positon_gain_v_per_m=50"}),
+              refuses_exactly("controler.law.positon_gain_v_per_m",
+                              "controler.law.positon_gain_v_per_m: unknown key; did you mean "
+                              "controller.law.position_gain_v_per_m?"));
+  EXPECT_THAT(loading(shipped_yaml(), {"controler.rate_hz=500"}),
+              refuses_exactly("controler.rate_hz", "controler.rate_hz: unknown key; did you mean controller.rate_hz?"));
+}
+
+TEST(ConfigOverride, PathWithAKeyLikeNoKnownOneGetsNoSuggestion) {
+  EXPECT_THAT(loading(shipped_yaml(), {"controler.law.bogus=50"}),
+              refuses_exactly("controler.law.bogus", "controler.law.bogus: unknown key"));
 }
 
 TEST(ConfigOverride, WrongTypeIsRejected) {

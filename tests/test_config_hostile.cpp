@@ -1,7 +1,8 @@
 // Hostile configuration input (issue 6). A matrix generated from the shipped files, so that a key
 // added to config/sim.yaml or config/hil.yaml is covered without touching this file: every key
 // left out (refused naming its path, unless it is optional), given a value of the wrong type,
-// joined by an unknown sibling, and every number set to extreme values (loaded or refused as a
+// joined by an unknown sibling, misspelt (refused naming the typo and the key it stands for, in
+// the file and in an override), and every number set to extreme values (loaded or refused as a
 // ConfigError, never another exception or a crash); values known to be out of range; documents
 // nested too deeply, too large or multiplied by aliases. Then a sample of the matrix through the
 // real pneud and `pneu-plant serve`: exit code 2, the key path and the reason on stderr, and
@@ -313,6 +314,90 @@ TEST_P(UnknownKeyBesideAKnownOne, IsRefusedNamingTheUnknownKey) {
 
 INSTANTIATE_TEST_SUITE_P(ShippedFiles, UnknownKeyBesideAKnownOne, ::testing::ValuesIn(shipped_keys()),
                          [](const auto& p) { return key_name(p.param); });
+
+// ---------------------------------------------------------------------------------------------
+// The matrix: every key misspelt, in the file and in an override
+
+// Two typos of a key: two adjacent characters swapped (the first pair that differs), and the
+// last character dropped.
+struct Typo {
+  Key key;
+  std::string label;
+  std::string typed;  // the misspelt key
+};
+
+void PrintTo(const Typo& t, std::ostream* os) { *os << t.key.file << " " << t.key.path << " as " << t.typed; }
+
+std::string leaf_of(const std::string& path) { return path.substr(path.rfind('.') + 1); }
+
+std::vector<Typo> typos() {
+  std::vector<Typo> out;
+  for (const Key& k : shipped_keys()) {
+    const std::string leaf = leaf_of(k.path);
+    std::string swapped = leaf;
+    for (std::size_t i = 0; i + 1 < swapped.size(); ++i)
+      if (swapped[i] != swapped[i + 1]) {
+        std::swap(swapped[i], swapped[i + 1]);
+        break;
+      }
+    if (swapped != leaf) out.push_back({k, "Swapped", swapped});
+    if (leaf.size() > 1) out.push_back({k, "Truncated", leaf.substr(0, leaf.size() - 1)});
+  }
+  return out;
+}
+
+// Renames the key at `path` to `typed`, keeping its value.
+std::function<void(YAML::Node&)> renaming(const std::string& path, const std::string& typed) {
+  return [path, typed](YAML::Node& root) {
+    auto [parent, key] = parent_of(root, path);
+    parent[typed] = YAML::Clone(parent[key]);
+    if (!parent.remove(key)) throw std::logic_error("no key " + path);
+  };
+}
+
+std::string with_leaf(const std::string& path, const std::string& leaf) {
+  return path.substr(0, path.rfind('.') + 1) + leaf;
+}
+
+class MisspeltKey : public ::testing::TestWithParam<Typo> {};
+
+// The loader meets the key missing first when it is required, the typo unknown first when it is
+// optional: either way the refusal names the typo, and the key it stands for.
+TEST_P(MisspeltKey, IsRefusedNamingTheTypoAndTheKeyItStandsFor) {
+  const Typo& t = GetParam();
+  const std::string typed_path = with_leaf(t.key.path, t.typed);
+  EXPECT_THAT(loading(edited(t.key.file, renaming(t.key.path, t.typed))),
+              refuses(typed_path, "unknown key; did you mean " + leaf_of(t.key.path) + "?"));
+}
+
+INSTANTIATE_TEST_SUITE_P(ShippedFiles, MisspeltKey, ::testing::ValuesIn(typos()),
+                         [](const auto& p) { return key_name(p.param.key) + "_" + p.param.label; });
+
+class MisspeltOverride : public ::testing::TestWithParam<Typo> {};
+
+// An override sets keys outside lists, and values, not sections.
+std::vector<Typo> override_typos() {
+  std::vector<Typo> out;
+  for (const Typo& t : typos())
+    if (t.key.path.find('[') == std::string::npos && t.key.kind != Kind::kSection) out.push_back(t);
+  return out;
+}
+
+// The key the override stands for is in the file too: a typo as close to one of its siblings
+// (following_error_ for following_error_m and following_error_s) names both.
+TEST_P(MisspeltOverride, IsRefusedNamingTheTypoAndTheKeyItStandsFor) {
+  const Typo& t = GetParam();
+  const std::string typed_path = with_leaf(t.key.path, t.typed);
+  const std::string meant = leaf_of(t.key.path);
+  EXPECT_THAT(loading(shipped_text(t.key.file), {typed_path + "=1"}),
+              ::testing::Throws<ConfigError>(IsConfigError(
+                  ::testing::Eq(typed_path),
+                  ::testing::ContainsRegex("^" + typed_path + ": unknown key; did you mean ([a-z0-9_]+, |[a-z0-9_]+ or )*" +
+                                           meant + "( or [a-z0-9_]+)?\\?$"))));
+}
+
+INSTANTIATE_TEST_SUITE_P(ShippedFiles, MisspeltOverride, ::testing::ValuesIn(override_typos()),
+                         [](const auto& p) { return key_name(p.param.key) + "_" + p.param.label; });
 
 // ---------------------------------------------------------------------------------------------
 // The matrix: every number set to extreme values
@@ -698,8 +783,9 @@ TEST(AliasExpansion, BillionLaughsAsAListOfTheSchemaIsRefusedAtItsFirstElement) 
 TEST(AliasExpansion, RecursiveAliasAsASectionIsRefusedAtTheFirstMissingKey) {
   EXPECT_THAT(loading("plant: &p {geometry: *p, gas: *p}\n"), refuses("plant.mass_kg", "missing"));
   std::string text = shipped_text("Sim");
-  const std::string geometry = "  geometry:\n";
-  text.replace(text.find(geometry), geometry.size(), "  geometry: &g\n    again: *g\n");
+  const std::size_t geometry = text.find("\n  geometry:") + 1;  // the line, with its comment
+  ASSERT_NE(geometry, 0u);
+  text.replace(geometry, text.find('\n', geometry) + 1 - geometry, "  geometry: &g\n    again: *g\n");
   EXPECT_THAT(loading(text), refuses("plant.geometry.again", "unknown key"));
 }
 
@@ -756,6 +842,9 @@ std::vector<BinaryCase> binary_cases() {
                  "expected a number, got a mapping"});
   out.push_back({"UnknownKey_controller_law_colour", setting("controller.law.colour", "red"), nullptr,
                  "controller.law.colour", "unknown key"});
+  out.push_back({"MisspeltKey_controller_law_position_gain_v_per_m",
+                 renaming("controller.law.position_gain_v_per_m", "positon_gain_v_per_m"), nullptr,
+                 "controller.law.positon_gain_v_per_m", "unknown key; did you mean position_gain_v_per_m?"});
   out.push_back({"OutOfRange_controller_rate_hz", setting("controller.rate_hz", "0"), nullptr, "controller.rate_hz",
                  "must be in [1, 20000]"});
   out.push_back({"DeepDocument", nullptr, [] { return "plant: " + std::string(100000, '[') + "\n"; }, "",

@@ -1,4 +1,4 @@
-// Specification of the state feedback of Eq. 4 (MODEL.md section 5),
+// Specification of the state feedback of Eq. 4 (docs/model.md section 5),
 //   u = K_y (y_d - y) - K_v v_hat - K_a a_hat + u_0, saturated to [-u_max, u_max],
 // and of the constant control u* = K_y (y_d - y*) + u_0 held while the carriage is stuck (Eq. 11).
 // Expected values are worked out by hand in the comments.

@@ -1,4 +1,4 @@
-// Specification of the differentiator (MODEL.md sections 1 and 7): velocity and acceleration of the
+// Specification of the differentiator (docs/model.md sections 1 and 7): velocity and acceleration of the
 // carriage from the sampled position, by a backward difference smoothed by a first-order low-pass,
 // twice. Expected values are the analytic answers for ramps, parabolas and sines, written out in
 // this file from the discrete transfer function
@@ -18,7 +18,7 @@
 namespace pneu::controller {
 namespace {
 
-constexpr double kPeriodS = 1.0e-3;  // the bench's sample period (MODEL.md section 7)
+constexpr double kPeriodS = 1.0e-3;  // the bench's sample period (docs/model.md section 7)
 constexpr double kPi = std::numbers::pi;
 // The paper bench's smoothing, and alpha = 1: the bare backward difference.
 constexpr double kSmoothings[] = {0.3, 1.0};

@@ -1,4 +1,4 @@
-// The loop thread is real-time safe (STYLE.md habit 4): after start-up it allocates nothing and
+// The loop thread is real-time safe (docs/architecture.md, "the rules of the loop thread"): after start-up it allocates nothing and
 // throws nothing, and it never waits for the non-real-time side; a full queue drops and counts.
 //
 // Allocations are counted by replacing the global allocation functions for this test executable:

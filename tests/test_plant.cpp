@@ -1,4 +1,4 @@
-// Specification of the plant (MODEL.md sections 1, 2 and 4): Eq. 2 with hybrid Karnopp friction,
+// Specification of the plant (docs/model.md sections 1, 2 and 4): Eq. 2 with hybrid Karnopp friction,
 // events located inside the step, hard end stops.
 #include <gtest/gtest.h>
 
@@ -17,7 +17,7 @@ namespace {
 
 using Kind = PlantEvent::Kind;
 
-constexpr double kSampleS = 1.0e-3;  // the bench's sample period (MODEL.md section 7)
+constexpr double kSampleS = 1.0e-3;  // the bench's sample period (docs/model.md section 7)
 constexpr double kExhaustPa = 1.0e5;
 constexpr double kForceSPlus = 45.0;
 constexpr double kForceSMinus = -50.0;

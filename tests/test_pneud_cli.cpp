@@ -245,6 +245,15 @@ TEST_P(PneudBadInput, ExitsTwoNamingTheKeyAndReasonBeforeAnythingRuns) {
     std::ofstream(file("bad.yaml")) << yaml;
     args.replace(args.find("@BAD_CONFIG@"), 12, quoted(file("bad.yaml")));
   }
+  if (args.find("@MISSPELT_CONFIG@") != std::string::npos) {
+    // The embedded default with a required key misspelt.
+    std::string yaml = slurp(fs::path(PNEU_SOURCE_DIR) / "config" / "sim.yaml");
+    const auto at = yaml.find("    position_gain_v_per_m:");
+    ASSERT_NE(at, std::string::npos);
+    yaml.replace(at, 26, "    positon_gain_v_per_m:");
+    std::ofstream(file("misspelt.yaml")) << yaml;
+    args.replace(args.find("@MISSPELT_CONFIG@"), 17, quoted(file("misspelt.yaml")));
+  }
   const fs::path events = file("events.jsonl");
   const Outcome o = pneud(args + " --events " + quoted(events));
   EXPECT_EQ(o.exit_code, 2) << o.out << o.err;
@@ -264,6 +273,14 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"OutOfRange", "--set controller.law.max_voltage_v=-1",
                  "controller.law.max_voltage_v", "must be > 0"},
         BadInput{"ConfigFileMissingAKey", "--config @BAD_CONFIG@", "plant.mass_kg", "missing"},
+        BadInput{"ConfigFileWithAMisspeltKey", "--config @MISSPELT_CONFIG@", "controller.law.positon_gain_v_per_m",
+                 "controller.law.positon_gain_v_per_m: unknown key; did you mean position_gain_v_per_m?"},
+        BadInput{"MisspeltSetKey", "--set controller.law.position_gain_v_per_mm=50",
+                 "controller.law.position_gain_v_per_mm",
+                 "controller.law.position_gain_v_per_mm: unknown key; did you mean position_gain_v_per_m?"},
+        BadInput{"SetKeyUnderAMisspeltSection", "--set controler.law.position_gain_v_per_m=50",
+                 "controler.law.position_gain_v_per_m",
+                 "controler.law.position_gain_v_per_m: unknown key; did you mean controller.law.position_gain_v_per_m?"},
         BadInput{"UnknownLinearizedSlope", "--set controller.predictor.linearized_slope=secant",
                  "controller.predictor.linearized_slope", "must be 'stop', 'chord' or 'equilibrium'"},
         BadInput{"UnknownClock", "--clock bogus", "--clock", "real or simulated"},

@@ -1,4 +1,4 @@
-// Specification of the restart predictor (MODEL.md section 6, Eq. 16, 17, 19, 22-25).
+// Specification of the restart predictor (docs/model.md section 6, Eq. 16, 17, 19, 22-25).
 //
 // With a valve whose flow is exactly linear in the chamber pressure, q(w, p) = g (p_null(w) - p),
 // the linearisation of Eq. 23 is exact: each pressure relaxes exponentially with
@@ -27,7 +27,7 @@ void PrintTo(PredictionMethod method, std::ostream* os) { *os << to_string(metho
 
 namespace {
 
-// Paper bench (MODEL.md section 7), restated so that the expectations do not trust params.hpp.
+// Paper bench (docs/model.md section 7), restated so that the expectations do not trust params.hpp.
 constexpr double kExhaustPa = 1.0e5;
 constexpr double kSupplyPa = 7.0e5;
 constexpr double kForceSPlusN = 45.0;

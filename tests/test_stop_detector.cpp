@@ -18,7 +18,7 @@ namespace {
 
 using Event = StopDetectorEvent;
 
-constexpr double kPeriodS = 1.0e-3;  // the bench's sample period (MODEL.md section 7)
+constexpr double kPeriodS = 1.0e-3;  // the bench's sample period (docs/model.md section 7)
 
 double time_of(int k) { return k * kPeriodS; }
 

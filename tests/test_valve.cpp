@@ -1,6 +1,6 @@
-// Specification of the servo-distributor model (MODEL.md section 3): the ISO 6358 orifice, the
+// Specification of the servo-distributor model (docs/model.md section 3): the ISO 6358 orifice, the
 // 3-way valve's mass flow q(w, p), its null-flow pressure and the force gain characteristic.
-// Expected values come from the formulas of MODEL.md written out again in this file, not from the
+// Expected values come from the formulas of docs/model.md written out again in this file, not from the
 // code under test.
 #include <gtest/gtest.h>
 
@@ -15,7 +15,7 @@
 namespace pneu::plant {
 namespace {
 
-// Paper bench constants (MODEL.md section 7), restated so that the tests do not trust params.hpp.
+// Paper bench constants (docs/model.md section 7), restated so that the tests do not trust params.hpp.
 constexpr double kSupplyPa = 7.0e5;
 constexpr double kExhaustPa = 1.0e5;
 constexpr double kCriticalRatio = 0.3;
@@ -26,7 +26,7 @@ constexpr double kCLeakIn = 8.0e-10;
 constexpr double kCLeakOut = 1.28e-9;
 constexpr double kUMax = 10.0;
 
-// ISO 6358 mass flow from p_up to p_down (p_down <= p_up, ratio <= 0.999), MODEL.md section 3.
+// ISO 6358 mass flow from p_up to p_down (p_down <= p_up, ratio <= 0.999), docs/model.md section 3.
 double iso6358_flow(double c, double p_up, double p_down, double temperature_k) {
   const double choked = c * kRho0 * p_up * std::sqrt(kT0 / temperature_k);
   const double x = p_down / p_up;

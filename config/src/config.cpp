@@ -11,12 +11,14 @@
 #include <iterator>
 #include <sstream>
 
+#include "pneu/config/spelling.hpp"
 #include "yaml_reader.hpp"
 
 namespace pneu::config {
 
 using detail::check;
 using detail::fmt;
+using detail::KeyCatalogue;
 using detail::MapReader;
 
 const char* to_string(LinearizedSlope s) noexcept {
@@ -252,7 +254,7 @@ ControllerConfig read_controller(MapReader r, const plant::PlantParams& plant) {
     const YAML::Node steps = sp.sequence_or_empty("schedule");
     const std::string spath = sp.child_path("schedule");
     for (std::size_t i = 0; i < steps.size(); ++i) {
-      MapReader step(steps[i], spath + "[" + std::to_string(i) + "]");
+      MapReader step = sp.child(steps[i], spath + "[" + std::to_string(i) + "]");
       SetpointStep s;
       s.t_s = non_negative(step, "t_s");
       s.position_m = step.number("position_m");
@@ -506,9 +508,36 @@ HalConfig read_hal(MapReader r) {
     (void)r.string_or("gpio", "");
   }
   if (h.backend == BackendKind::kModbus && !h.has_modbus)
-    throw ConfigError(r.child_path("modbus"), "missing: the modbus backend needs its section");
+    r.refuse_missing("modbus", "missing: the modbus backend needs its section");
   r.finish();
   return h;
+}
+
+// "unknown key", and the override's path as the schema spells it when each of its keys is known
+// or plausibly a typo of a known one ("did you mean controller.law.position_gain_v_per_m?"); a
+// last key that is as plausibly a typo of several gives each.
+std::string unknown_override_key(const std::vector<std::string>& keys) {
+  const KeyCatalogue& schema = detail::schema_keys();
+  std::string meant;
+  bool corrected = false;
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    const auto known = schema.find(meant);
+    if (known == schema.end()) return "unknown key";
+    if (known->second.count(keys[i])) {
+      meant += (meant.empty() ? "" : ".") + keys[i];
+      continue;
+    }
+    const std::vector<std::string> closest = closest_known(keys[i], {known->second.begin(), known->second.end()});
+    if (closest.empty() || (closest.size() > 1 && i + 1 < keys.size())) return "unknown key";
+    if (i + 1 == keys.size()) {
+      std::vector<std::string> paths;
+      for (const std::string& k : closest) paths.push_back((meant.empty() ? "" : meant + ".") + k);
+      return detail::unknown_key_meaning(paths);
+    }
+    meant += (meant.empty() ? "" : ".") + closest.front();
+    corrected = true;
+  }
+  return corrected ? detail::unknown_key_meaning({meant}) : "unknown key";
 }
 
 // "a.b.c=value": sets the node at a.b.c to the YAML value, creating missing keys; the schema
@@ -542,7 +571,7 @@ void apply_override(YAML::Node& root, const std::string& assignment) {
     YAML::Node next = chain.back()[keys[i]];
     if (next.IsDefined() && !next.IsNull() && !next.IsMap())
       throw ConfigError(walked, "is a value, not a section: cannot override '" + path + "'");
-    if (!next.IsDefined() || next.IsNull()) throw ConfigError(path, "unknown key");
+    if (!next.IsDefined() || next.IsNull()) throw ConfigError(path, unknown_override_key(keys));
     chain.push_back(next);
   }
   // A key absent from the file may still be an optional key of the schema: create it and let
@@ -553,8 +582,9 @@ void apply_override(YAML::Node& root, const std::string& assignment) {
   chain.back()[keys.back()] = value;
 }
 
-Config decode(const YAML::Node& root) {
-  MapReader r(root, "");
+// `record`: surveying the schema (detail::schema_keys).
+Config decode(const YAML::Node& root, KeyCatalogue* record = nullptr) {
+  MapReader r(root, "", record);
   Config c;
   c.plant = read_plant(r.map("plant"));
   c.sensors = read_sensors(r.map("sensors"));
@@ -568,6 +598,33 @@ Config decode(const YAML::Node& root) {
 }
 
 }  // namespace
+
+namespace detail {
+
+const KeyCatalogue& schema_keys() {
+  // Every mapping of the schema is read when decoding the embedded sim.yaml with a Modbus section
+  // added (the defaults of ModbusConfig, each channel at a register of its own): each reader
+  // files the keys it read. The first decode records into a catalogue thrown away, so that no
+  // message of it could ask for the catalogue being built.
+  static const KeyCatalogue keys = [] {
+    KeyCatalogue thrown_away, catalogue;
+    try {
+      Config c = decode(YAML::Load(std::string(default_config_yaml())), &thrown_away);
+      c.hal.has_modbus = true;
+      int address = 0;
+      for (RegisterChannel* ch : {&c.hal.modbus.position, &c.hal.modbus.pressure_p, &c.hal.modbus.pressure_n,
+                                  &c.hal.modbus.valve_p, &c.hal.modbus.valve_n})
+        ch->address = address++;
+      (void)decode(YAML::Load(to_yaml(c)), &catalogue);
+    } catch (const ConfigError&) {
+      return KeyCatalogue{};  // a broken embedded default: messages without suggestions (its tests fail)
+    }
+    return catalogue;
+  }();
+  return keys;
+}
+
+}  // namespace detail
 
 namespace {
 

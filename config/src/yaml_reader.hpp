@@ -1,20 +1,54 @@
 // Private helper: walks a YAML map with its key path, converts scalars with clear messages and
-// rejects keys nobody asked for.
+// rejects keys nobody asked for, naming the known key a misspelt one stands for.
 #pragma once
 
 #include <yaml-cpp/yaml.h>
 
+#include <cctype>
 #include <cmath>
+#include <map>
+#include <optional>
 #include <set>
 #include <string>
+#include <vector>
 
 #include "pneu/config/config.hpp"
+#include "pneu/config/spelling.hpp"
 
 namespace pneu::config::detail {
 
+/// The keys the schema reads in each mapping, by schema_path().
+using KeyCatalogue = std::map<std::string, std::set<std::string>>;
+
+/// The schema's keys, recorded once from a decode of a document holding every section
+/// (config.cpp).
+const KeyCatalogue& schema_keys();
+
+/// A key path as the catalogue files it: list indexes dropped ("a.list[3].b" -> "a.list[].b").
+inline std::string schema_path(const std::string& path) {
+  std::string out;
+  for (std::size_t i = 0; i < path.size(); ++i) {
+    out += path[i];
+    if (path[i] == '[')
+      while (i + 1 < path.size() && std::isdigit(static_cast<unsigned char>(path[i + 1]))) ++i;
+  }
+  return out;
+}
+
+/// "unknown key", and "; did you mean a?" (or "a or b?", "a, b or c?") for `meant`.
+inline std::string unknown_key_meaning(const std::vector<std::string>& meant) {
+  std::string reason = "unknown key";
+  for (std::size_t i = 0; i < meant.size(); ++i)
+    reason += (i == 0 ? "; did you mean " : i + 1 == meant.size() ? " or " : ", ") + meant[i];
+  return meant.empty() ? reason : reason + "?";
+}
+
 class MapReader {
  public:
-  MapReader(const YAML::Node& node, std::string path) : node_(node), path_(std::move(path)) {
+  /// `record`: surveying the schema, the keys read are added to it (and no message compares
+  /// keys with the schema, which is not known yet).
+  MapReader(const YAML::Node& node, std::string path, KeyCatalogue* record = nullptr)
+      : node_(node), path_(std::move(path)), record_(record) {
     if (!node_.IsDefined() || node_.IsNull()) throw ConfigError(path_, "missing section");
     if (!node_.IsMap()) throw ConfigError(path_, "expected a mapping of keys");
     // yaml-cpp keeps repeated keys and answers the first: refuse them, and non-text keys.
@@ -86,7 +120,12 @@ class MapReader {
   }
   MapReader map(const std::string& key) {
     seen_.insert(key);
-    return MapReader(node_[key], child_path(key));
+    if (!has(key)) refuse_missing(key, "missing section");
+    return child(node_[key], child_path(key));
+  }
+  /// A reader of a mapping below this one that is not one of its keys (an element of a list).
+  [[nodiscard]] MapReader child(const YAML::Node& node, std::string path) const {
+    return MapReader(node, std::move(path), record_);
   }
   YAML::Node node(const std::string& key) { return require(key); }
 
@@ -94,8 +133,27 @@ class MapReader {
   void finish() const {
     for (const auto& kv : node_) {
       const std::string key = kv.first.Scalar();
-      if (!seen_.count(key)) throw ConfigError(child_path(key), "unknown key");
+      if (!seen_.count(key)) throw ConfigError(child_path(key), unknown_key(key));
     }
+    if (record_) (*record_)[schema_path(path_)].insert(seen_.begin(), seen_.end());
+  }
+
+  /// Refuses `key`, required here and absent, for `reason`; but when the map holds a key the
+  /// schema does not know that is plausibly a typo of `key`, names that key instead: the value
+  /// was given, under a misspelt name.
+  [[noreturn]] void refuse_missing(const std::string& key, const std::string& reason) const {
+    if (const std::set<std::string>* known = known_keys()) {
+      std::optional<std::string> typo;
+      std::size_t typo_distance = 0;
+      for (const auto& kv : node_) {
+        const std::string& given = kv.first.Scalar();
+        if (known->count(given) || !plausible_typo(given, key)) continue;
+        const std::size_t d = edit_distance(given, key);
+        if (!typo || d < typo_distance) typo = given, typo_distance = d;
+      }
+      if (typo) throw ConfigError(child_path(*typo), unknown_key_meaning({key}));
+    }
+    throw ConfigError(child_path(key), reason);
   }
 
   [[nodiscard]] const std::string& path() const { return path_; }
@@ -126,13 +184,28 @@ class MapReader {
   YAML::Node require(const std::string& key) {
     seen_.insert(key);
     const YAML::Node n = node_[key];
-    if (!n.IsDefined() || n.IsNull()) throw ConfigError(child_path(key), "missing");
+    if (!n.IsDefined() || n.IsNull()) refuse_missing(key, "missing");
     return n;
+  }
+
+  // The keys the schema knows in this mapping; none while surveying it, or for a mapping it does
+  // not know.
+  [[nodiscard]] const std::set<std::string>* known_keys() const {
+    if (record_) return nullptr;
+    const auto it = schema_keys().find(schema_path(path_));
+    return it == schema_keys().end() ? nullptr : &it->second;
+  }
+
+  // "unknown key", and the known keys `key` is most plausibly a typo of.
+  [[nodiscard]] std::string unknown_key(const std::string& key) const {
+    const std::set<std::string>* known = known_keys();
+    return unknown_key_meaning(known ? closest_known(key, {known->begin(), known->end()}) : std::vector<std::string>{});
   }
 
   YAML::Node node_;
   std::string path_;
   std::set<std::string> seen_;
+  KeyCatalogue* record_ = nullptr;
 };
 
 /// Range checks that name the key and the value.

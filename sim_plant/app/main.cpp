@@ -74,7 +74,7 @@ constexpr const char* kNullFlowHelp = R"(pneu-plant null-flow: the complete-equi
   --voltage-step-v V    voltage step (default 0.01 V), from -u_max to +u_max
   --set KEY=VALUE       override a config key (repeatable)
 
-The null-flow curve in the pressure-force plane; with the stop and no-restarting areas of MODEL.md
+The null-flow curve in the pressure-force plane; with the stop and no-restarting areas of docs/model.md
 section 5 it is what the pressure-force figure draws.
 )";
 

@@ -1,4 +1,4 @@
-// Velocity and acceleration from the sampled position (they are not measured, MODEL.md section 1).
+// Velocity and acceleration from the sampled position (they are not measured, docs/model.md section 1).
 #pragma once
 
 #include "pneu/config/config.hpp"

@@ -1,4 +1,4 @@
-// The restart predictor (MODEL.md section 6): while the carriage is stuck at y* under the constant
+// The restart predictor (docs/model.md section 6): while the carriage is stuck at y* under the constant
 // control u* (Eq. 11), will the pressure force leave the stiction band, in which direction, when?
 // A pure library: no state, no allocation, no exception.
 #pragma once

@@ -1,4 +1,4 @@
-// The supervisor: the checks that latch a fault (ARCHITECTURE.md, "Faults and the safe state").
+// The supervisor: the checks that latch a fault (docs/architecture.md, "Faults and the safe state").
 // One call per tick with what the tick read and did; it answers with the first fault cause found,
 // or none. Pure logic and real-time safe (no allocation, no throw), tested on synthetic frames.
 #pragma once

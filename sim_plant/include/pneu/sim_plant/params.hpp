@@ -1,4 +1,4 @@
-// Parameters of the simulated bench (MODEL.md sections 1-4 and 7). Plain aggregates in SI units;
+// Parameters of the simulated bench (docs/model.md sections 1-4 and 7). Plain aggregates in SI units;
 // user input is validated by pneu::config before it gets here, the plant only asserts invariants.
 #pragma once
 
@@ -47,7 +47,7 @@ struct Gas {
 };
 
 /// 3-way servo-distributor: two ISO 6358 orifices (supply -> chamber, chamber -> exhaust) whose
-/// sonic conductances follow the voltage w (MODEL.md section 3).
+/// sonic conductances follow the voltage w (docs/model.md section 3).
 struct ValveParams {
   double max_conductance_m3_per_s_pa = 1.6e-8;    ///< C_max [m^3/(s Pa)], > 0
   double critical_pressure_ratio = 0.3;           ///< b [-], in (0, 1)
@@ -58,7 +58,7 @@ struct ValveParams {
   double reference_temperature_k = 293.15;        ///< T_0 of ISO 6358 [K]
 };
 
-/// Karnopp friction with Stribeck effect, asymmetric (MODEL.md section 4).
+/// Karnopp friction with Stribeck effect, asymmetric (docs/model.md section 4).
 struct FrictionParams {
   double static_positive_n = 45.0;       ///< F_S+ [N], > 0, >= F_C+
   double coulomb_positive_n = 35.0;      ///< F_C+ [N], > 0

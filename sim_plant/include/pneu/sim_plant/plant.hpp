@@ -1,4 +1,4 @@
-// The 4th-order plant of Eq. 2 with hybrid Karnopp friction and hard end stops (MODEL.md 2-4).
+// The 4th-order plant of Eq. 2 with hybrid Karnopp friction and hard end stops (docs/model.md sections 2-4).
 #pragma once
 
 #include <Eigen/Core>
@@ -63,7 +63,7 @@ class Plant {
   /// The same as step(dt_s, u_v, -u_v), bit for bit.
   void step(double dt_s, double u_v) noexcept { step(dt_s, u_v, -u_v); }
   /// Advances by `dt_s` with each 3-way valve driven by its own voltage held over the step: valve P
-  /// at `u_p_v`, valve N at `u_n_v` (w in MODEL.md section 3). Beyond Eq. 1: e.g. both at -u_max
+  /// at `u_p_v`, valve N at `u_n_v` (w in docs/model.md section 3). Beyond Eq. 1: e.g. both at -u_max
   /// vents both chambers to the exhaust (a safe state), a stuck spool drives one valve alone.
   void step(double dt_s, double u_p_v, double u_n_v) noexcept;
 
@@ -84,7 +84,7 @@ class Plant {
 
   [[nodiscard]] const PlantParams& params() const noexcept { return params_; }
   [[nodiscard]] const ValveModel& valve() const noexcept { return valve_; }
-  /// Friction force in the current sliding mode at velocity v [N] (MODEL.md section 4).
+  /// Friction force in the current sliding mode at velocity v [N] (docs/model.md section 4).
   [[nodiscard]] double sliding_friction_n(Motion motion, double v_m_per_s) const noexcept;
 
  private:

@@ -1,4 +1,4 @@
-// The servo-distributor's mass-flow characteristic q(w, p) (MODEL.md section 3), as a parametric
+// The servo-distributor's mass-flow characteristic q(w, p) (docs/model.md section 3), as a parametric
 // model (ISO 6358 orifices) or as a measured table, behind one interface the predictor uses.
 #pragma once
 
@@ -55,7 +55,7 @@ class ValveCharacteristic {
   [[nodiscard]] double null_pressure_pa(double w_v) const noexcept;
 };
 
-/// The parametric model of MODEL.md section 3:
+/// The parametric model of docs/model.md section 3:
 ///   C_in(w)  = C_leak_in  + C_max clamp( w / u_max, 0, 1)
 ///   C_out(w) = C_leak_out + C_max clamp(-w / u_max, 0, 1)
 ///   q(w, p)  = m_dot(C_in(w), p_S, p) - m_dot(C_out(w), p, p_E)
