@@ -17,7 +17,7 @@ for tool in cpack dpkg dpkg-deb unshare chroot; do
   command -v "$tool" > /dev/null || skip "$tool is missing"
 done
 if ! unshare -m true 2> /dev/null; then
-  # Inside a chroot whose root is not a mount point (../shared/tools/fresh-machine-check's), the
+  # Inside a chroot whose root is not a mount point (a fresh root made with debootstrap), the
   # new namespace's mounts cannot be made private, and an overlay mounted there could show on the
   # host: the test does not run there rather than risk it.
   if ! mountpoint -q /; then skip "/ is not a mount point (a chroot): no private mount namespace to install in"; fi
