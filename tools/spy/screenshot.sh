@@ -20,21 +20,28 @@ sleep 6
 for y in 0.10 0.12; do "$build/bin/pneu-command" set-point "$y" || true; sleep 0.5; done
 # lcm-spy's channel table on top, then each channel's decoded view (a double click on its row;
 # there is no window manager, so each view opens at 0,0 and is moved away before the next click).
+# The rows, sorted by name: LCM_SELF_TEST (the datagram LCM sends itself when pneu-command starts
+# listening for its verdict: text, no type), then our five channels.
 main=$(xdotool search --name "^LCM Spy$" | head -1)
 xdotool windowsize "$main" 790 140
 sleep 0.5
-open_view() {  # ROW CHANNEL X Y WIDTH HEIGHT
-  xdotool mousemove --window "$main" 60 $((28 + 16 * $1)) click --repeat 2 --delay 60 1
-  sleep 1.5
-  local w; w=$(xdotool search --name "^$2\$" | head -1)
+open_view() {  # ROW CHANNEL X Y WIDTH HEIGHT (a busy machine may miss a double click: up to 5 tries)
+  local w="" try
+  for try in 1 2 3 4 5; do
+    xdotool mousemove --window "$main" 60 $((28 + 16 * $1)) click --repeat 2 --delay 60 1
+    sleep 1.5
+    w=$(xdotool search --name "^$2\$" | head -1 || true)
+    [ -n "$w" ] && break
+  done
+  [ -n "$w" ] || { echo "screenshot.sh: the view of $2 did not open" >&2; exit 1; }
   xdotool windowmove "$w" "$3" "$4" windowsize "$w" "$5" "$6"
   sleep 0.5
 }
-open_view 0 PNEU_COMMAND 0 700 460 190
-open_view 1 PNEU_EVENT 940 510 460 380
-open_view 2 PNEU_HEALTH 470 150 460 740
-open_view 3 PNEU_PREDICTION 940 0 460 500
-open_view 4 PNEU_STATE 0 150 460 540
+open_view 1 PNEU_COMMAND 0 700 460 190
+open_view 2 PNEU_EVENT 940 510 460 380
+open_view 3 PNEU_HEALTH 470 150 460 740
+open_view 4 PNEU_PREDICTION 940 0 460 500
+open_view 5 PNEU_STATE 0 150 460 540
 sleep 20
 import -window root "$out"
 echo "screenshot: $out"
