@@ -242,6 +242,16 @@ class HilFaults : public ::testing::Test {
     EXPECT_LT(std::chrono::steady_clock::now() - t0, 2s) << "within the unit's stop timeout";
     EXPECT_TRUE(telemetry_.wait_health([](const auto& h) { return h.is_final; }, 1s)) << "a final health message";
   }
+  // SIGTERM while `plant` holds other outputs than the safe one: pneud says the module confirmed
+  // the safe output, and it is the last write the plant received. The plant writes its record
+  // after its reply, so pneud may have exited (and been reaped) before the line is on file: the
+  // test waits for it rather than reading the record once.
+  void stop_pneud_leaving_the_safe_output(Child& p, const std::string& plant) {
+    EXPECT_FALSE(last_outputs(plant).safe()) << "not vacuous: the plant holds other outputs before the stop";
+    stop_pneud(p);
+    EXPECT_THAT(slurp(dir_ / "pneud.out"), HasSubstr("safe output on closing: delivered to the module on attempt "));
+    EXPECT_TRUE(wait_outputs(plant, /*safe=*/true, 2s)) << "the last voltages the plant received";
+  }
 
   // The trajectory pneud recorded (after it stopped), its fault event, and the loop time of the
   // first tick at or after `from_s` whose row satisfies `bad`.
@@ -360,8 +370,7 @@ TEST_F(HilFaults, APlantKilledMidRunIsACommsFaultAndItsReplacementReceivesTheSaf
   Child plant2 = serve("plant2");  // the module back on the same address
   EXPECT_TRUE(wait_outputs("plant2", /*safe=*/true, 6s)) << "pneud reconnects and writes the safe output";
   reset_then_arm("plant2");
-  stop_pneud(p);
-  EXPECT_TRUE(last_outputs("plant2").safe()) << "SIGTERM leaves the safe output";
+  stop_pneud_leaving_the_safe_output(p, "plant2");
   expect_comms_detection_time();
 }
 
@@ -380,8 +389,7 @@ TEST_F(HilFaults, AFrozenPlantIsACommsFaultAndReceivesTheSafeOutputOnceItThaws) 
   // The frozen module held the last command it had: the plant ran on under it while frozen (to
   // an end stop, here), so the daemon is only reset; arming there would be refused (soft limits).
   reset("plant");
-  stop_pneud(p);
-  EXPECT_TRUE(last_outputs("plant").safe());
+  stop_pneud_leaving_the_safe_output(p, "plant");
   expect_comms_detection_time();
 }
 
@@ -467,10 +475,11 @@ TEST_F(HilFaults, APositionJumpingToItsRailIsASensorFaultAndArmingOnItFaultsAgai
   if (HasFatalFailure()) return;
   telemetry_.send(pneu_lcm::command_t::KIND_FAULT_RESET);
   ASSERT_TRUE(telemetry_.wait_health([](const auto& h) { return h.mode == kModeDisarmed; }, 3s));
+  EXPECT_TRUE(wait_outputs("plant", /*safe=*/false, 3s)) << "disarmed: the neutral hold";
   telemetry_.send(pneu_lcm::command_t::KIND_ARM);
   ASSERT_TRUE(telemetry_.wait_health([](const auto& h) { return h.mode == kModeFault && h.fault_cause == 7; }, 3s))
       << "soft-limit fault on arming";
-  EXPECT_TRUE(last_outputs("plant").safe());
+  EXPECT_TRUE(wait_outputs("plant", /*safe=*/true, 3s)) << "the safe output again";
   stop_pneud(p);
   const Run r = read_run();
   const double jumped = first_tick(r.traj, [](const auto& row) { return std::stod(row[3]) > 0.249; }, r.fault_t_s);
@@ -534,11 +543,7 @@ TEST_F(HilFaults, SigtermMidMotionWritesTheSafeOutputBeforeExit) {
   Child p = pneud();
   // The step starts at 1 s; the carriage is moving at 1.1 s.
   ASSERT_TRUE(wait_armed_and_running(1100)) << slurp(dir_ / "pneud.err");
-  EXPECT_FALSE(last_outputs("plant").safe());
-  stop_pneud(p);
-  // The plant records a write after it has replied to it: give a loaded machine time to write it.
-  EXPECT_TRUE(wait_outputs("plant", /*safe=*/true, 2s)) << "the last voltages the plant received";
-  EXPECT_THAT(slurp(dir_ / "pneud.out"), HasSubstr("safe output on closing: delivered to the module on attempt "));
+  stop_pneud_leaving_the_safe_output(p, "plant");
   const auto hs = telemetry_.healths();
   ASSERT_FALSE(hs.empty());
   EXPECT_TRUE(hs.back().is_final);

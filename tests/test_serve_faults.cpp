@@ -242,6 +242,8 @@ TEST_F(ServeFaults, AStuckValveMovesThePlantWhileOutputsRecordWhatTheClientWrote
   EXPECT_LT(positions_after.back() + 2000, positions_before.front()) << "the stuck valve moved the carriage";
   EXPECT_THAT(slurp(dir_ / "serve.out"), HasSubstr("fault valve_p:stuck=-3@1 active at t = "));
 
+  // Read at once: serve writes a change's line before it serves the next request, and the client's
+  // last request was a read, answered after its last write's line.
   const Csv out = Csv::read(dir_ / "outputs.csv");
   ASSERT_EQ(out.header, (std::vector<std::string>{"t_s", "u_p_v", "u_n_v"}));
   ASSERT_EQ(out.rows.size(), 2u) << "the initial values, then one change: hundreds of writes of the same words";
@@ -257,7 +259,9 @@ TEST_F(ServeFaults, TheOutputsFileHoldsTheLastWrittenVoltagesAfterASigkill) {
   Child plant = serve({"--outputs", (dir_ / "outputs.csv").string()});
   Client c(port_);
   ASSERT_TRUE(c.connected());
-  // Three settings, each written ten times: three change lines, not thirty.
+  // Three settings, each written ten times: three change lines, not thirty. serve writes a change's
+  // line before it serves the next request, so each line is on file once the next write is
+  // answered: before the SIGKILL, with no wait.
   const std::vector<std::pair<double, double>> settings{{1.0, -1.0}, {0.25, 2.5}, {-10.0, -10.0}};
   for (const auto& [p, n] : settings)
     for (int i = 0; i < 10; ++i) {
