@@ -49,7 +49,7 @@ repack "$version.2" change-bench
 
 cat > "$work/pkg/in_root.sh" <<'EOF'
 set -u
-version=$1
+version=$1 first=$2
 failures=0
 ok() { echo "ok: $*"; }
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
@@ -59,7 +59,7 @@ check() {  # DESCRIPTION COMMAND...
 }
 installed_version() { dpkg-query -W -f='${Version}' pneu 2> /dev/null; }
 
-check "dpkg -i installs the package" dpkg -i "/pkg/pneu_$version"*_*.deb
+check "dpkg -i installs the package" dpkg -i "/pkg/$first"
 check "the package is installed" test "$(dpkg-query -W -f='${Status}' pneu)" = "install ok installed"
 for f in /usr/bin/pneud /usr/bin/pneu-plant /usr/bin/pneu-command /usr/bin/pneu-spy; do
   check "$f is executable" test -x "$f"
@@ -107,9 +107,9 @@ EOF
 
 # Inside a private mount namespace: an overlay over this root, written to a tmpfs that goes
 # with the namespace.
-unshare -m --propagation private bash -s "$work" "$version" <<'EOF'
+unshare -m --propagation private bash -s "$work" "$version" "$(basename "$deb")" <<'EOF'
 set -eu
-work=$1 version=$2
+work=$1 version=$2 first=$3
 mount -t tmpfs tmpfs "$work/ovl"
 mkdir -p "$work/ovl/upper" "$work/ovl/work" "$work/ovl/root"
 root=$work/ovl/root
@@ -125,5 +125,5 @@ mount --bind "$work/pkg" "$root/pkg"
 mount -t tmpfs tmpfs "$root/tmp"
 mount -t tmpfs tmpfs "$root/run"
 chroot "$root" /usr/bin/env -i PATH=/usr/sbin:/usr/bin:/sbin:/bin DEBIAN_FRONTEND=noninteractive \
-  bash /pkg/in_root.sh "$version"
+  bash /pkg/in_root.sh "$version" "$first"
 EOF
