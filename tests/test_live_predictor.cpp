@@ -24,6 +24,7 @@
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/report.hpp"
 #include "pneu/controller/session.hpp"
+#include "pneu/controller/verdict.hpp"
 #include "support/child_process.hpp"
 
 namespace {

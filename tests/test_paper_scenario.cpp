@@ -26,6 +26,7 @@
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/report.hpp"
 #include "pneu/controller/session.hpp"
+#include "pneu/controller/verdict.hpp"
 #include "pneu/sim_plant/valve_table.hpp"
 
 namespace {

@@ -18,6 +18,7 @@
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/session.hpp"
+#include "pneu/controller/verdict.hpp"
 
 namespace {
 

@@ -18,79 +18,10 @@
 #include "pneu/controller/control_law.hpp"
 #include "pneu/controller/loop.hpp"
 #include "pneu/controller/predictor.hpp"
+#include "pneu/controller/stop_outcome.hpp"
+#include "pneu/controller/verdict.hpp"
 
 namespace pneu::controller {
-
-/// A forecast made again while the carriage is still stuck, from the pressures of a later tick:
-/// the live predictor. Not judged; the one made at the stop is.
-struct Reforecast {
-  std::uint32_t update = 0;       ///< 1, 2, ... within its stop
-  double t_s = 0.0;               ///< the tick it was made from [s]
-  double force_n = 0.0;           ///< F measured at that tick [N]
-  /// u* it assumed: from the mean position read since the snapshot when the report knows the law
-  /// (RunReport::set_control_law), else the snapshot's [V]
-  double u_star_v = 0.0;
-  /// F the same method's forecast made at the stop expected then (NaN when the report does not
-  /// follow the forecasts, RunReport::set_follow_forecasts) [N]
-  double stop_forecast_force_n = std::numeric_limits<double>::quiet_NaN();
-  Prediction prediction;
-};
-
-/// One sticking phase, what was forecast at its start and what happened.
-struct StopOutcome {
-  std::uint64_t index = 0;
-  double t_stop_s = 0.0;           ///< the stop event's time
-  double y_stop_m = 0.0;
-  double force_n = 0.0;            ///< F at confirmation
-  double y_d_m = 0.0;
-  StopSnapshot snapshot;
-  std::optional<Prediction> linearized;
-  std::optional<Prediction> nonlinear;
-  bool ended = false;              ///< the carriage left rest before the run ended
-  bool restarted = false;          ///< ... and the set point had not changed (a true restart)
-  double t_end_s = 0.0;            ///< the start's time, or the run's end
-  int direction = 0;               ///< of the start
-  /// When the forecast stopped holding while the carriage was still stuck: the set point moved,
-  /// or the loop was disarmed or faulted (u* no longer held); NaN if it held to the end [s].
-  double forecast_void_at_s = std::numeric_limits<double>::quiet_NaN();
-  /// From the snapshot until the start is seen (a breakaway is seen once the carriage has moved
-  /// the detector's motion band, up to tens of ms later), while the forecast held (armed, same set
-  /// point): the largest |F measured - F forecast| of each method's forecast made at the stop;
-  /// NaN when none was followed [N].
-  double largest_gap_linearized_n = std::numeric_limits<double>::quiet_NaN();
-  double largest_gap_nonlinear_n = std::numeric_limits<double>::quiet_NaN();
-  std::uint32_t updates = 0;            ///< times the forecasts were made again while stuck
-  /// Each method's last forecast made again before half the sticking time, settled when the stop
-  /// ends (or the run does).
-  std::optional<Reforecast> halfway_linearized, halfway_nonlinear;
-  /// The forecasts made again, in time order, both methods interleaved: while the stop is open,
-  /// and after it only when the report keeps them (RunReport::set_keep_reforecasts). At most
-  /// kMaxReforecastsKept: a longer sticking phase keeps every 2nd, 4th, ... update.
-  std::vector<Reforecast> reforecasts;
-  static constexpr std::size_t kMaxReforecastsKept = 512;
-
-  [[nodiscard]] double sticking_s() const noexcept { return t_end_s - t_stop_s; }
-};
-
-/// How a forecast compares with what happened (stops ended by a set-point change are not judged).
-struct Verdict {
-  enum class Kind { kTruePositive, kTrueNegative, kFalsePositive, kFalseNegative, kNotJudged };
-  Kind kind = Kind::kNotJudged;
-  double error_s = 0.0;       ///< predicted minus actual restart time (true positives) [s]
-  double error_percent = 0.0; ///< |error| in percent of the sticking duration
-  bool direction_ok = true;
-};
-/// How far before the end of a run a forecast restart must lie to be judged: max(10 ms, 1 % of the
-/// sticking time), the acceptance tolerance.
-[[nodiscard]] double observation_tolerance_s(const StopOutcome& stop) noexcept;
-/// Stops ended by a set-point change, stops whose forecast stopped holding before the carriage
-/// left (forecast_void_at_s), and restart forecasts within observation_tolerance_s() of the end
-/// of the run, are not judged.
-[[nodiscard]] Verdict judge(const StopOutcome& stop, const Prediction& prediction, double t_end_s) noexcept;
-
-/// The last forecast of `method` made again before half the stop's sticking time (as its
-/// t_end_s stands), from its kept `reforecasts`; null when none.
-[[nodiscard]] const Reforecast* halfway_reforecast(const StopOutcome& stop, PredictionMethod method) noexcept;
 
 /// A command's verdict, as the command channel (telemetry::LcmBridge) gave it: written to the
 /// events file as a "command" event. The strings are borrowed for the call.
