@@ -26,7 +26,7 @@
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/loop.hpp"
 #include "pneu/controller/predictor.hpp"
-#include "pneu/controller/report.hpp"
+#include "pneu/controller/runtime.hpp"
 #include "pneu/controller/session.hpp"
 #include "pneu/hal/backend.hpp"
 #include "pneu/sim_plant/valve.hpp"
@@ -107,7 +107,7 @@ void record_paper_scenario(Recording& rec) {
   rec.ticks =
       static_cast<std::uint64_t>(std::llround(rec.config.controller.duration_s / period)) + 1;
 
-  auto run = controller::make_simulated_run(rec.config, *rec.valve, nullptr, nullptr);
+  auto run = controller::make_simulated_run(rec.config, *rec.valve);
   rec.frames.reserve(rec.ticks + 1);
   RecordingBackend recorder(*run.backend, rec.frames);
   auto outputs = std::make_unique<LoopOutputs>();
@@ -117,12 +117,12 @@ void record_paper_scenario(Recording& rec) {
     loop.tick(static_cast<double>(k) * period);
     controller::TickRecord r;
     while (outputs->ticks.try_pop(r)) rec.control_v.push_back(r.u_v);
-    run.report->drain(*outputs);
+    run.runtime->drain(*outputs);
   }
-  run.report->finish(run.report->end_time_s());
+  run.runtime->finish(run.runtime->end_time_s());
 
-  rec.stops = run.report->stops().size();
-  for (const auto& s : run.report->stops()) {
+  rec.stops = run.runtime->stops().size();
+  for (const auto& s : run.runtime->stops()) {
     if (s.restarted && s.sticking_s() > rec.long_stop_sticking_s) {
       rec.long_stop_sticking_s = s.sticking_s();
       rec.long_stop = s.snapshot;
@@ -191,7 +191,7 @@ BENCHMARK(BM_TickReplayedPaperScenario);
 void BM_TickWithSimBackend(benchmark::State& state) {
   const Recording& rec = *g_rec;
   const double period = rec.config.controller.period_s();
-  auto run = controller::make_simulated_run(rec.config, *rec.valve, nullptr, nullptr);
+  auto run = controller::make_simulated_run(rec.config, *rec.valve);
   run.loop->start(0.0);
   std::uint64_t k = 0;
   for (auto _ : state) {
@@ -201,7 +201,7 @@ void BM_TickWithSimBackend(benchmark::State& state) {
       state.PauseTiming();
       discard_records(*run.outputs);
       if (k == rec.ticks) {
-        run = controller::make_simulated_run(rec.config, *rec.valve, nullptr, nullptr);
+        run = controller::make_simulated_run(rec.config, *rec.valve);
         run.loop->start(0.0);
         k = 0;
       }
@@ -212,17 +212,17 @@ void BM_TickWithSimBackend(benchmark::State& state) {
 BENCHMARK(BM_TickWithSimBackend);
 
 // (b) The 12 s paper scenario end to end in simulated time, as pneud runs it without output files:
-// assembly (make_simulated_run), the loop in lockstep with the plant, the report draining every
+// assembly (make_simulated_run), the loop in lockstep with the plant, the runtime draining every
 // tick and both predictors at every stop.
 void BM_PaperScenarioSimulatedEndToEnd(benchmark::State& state) {
   const Recording& rec = *g_rec;
   const std::atomic<bool> never_stop{false};
   std::size_t stops = 0;
   for (auto _ : state) {
-    auto run = controller::make_simulated_run(rec.config, *rec.valve, nullptr, nullptr);
+    auto run = controller::make_simulated_run(rec.config, *rec.valve);
     controller::SimulatedClock clock;
     controller::execute(run, rec.config, clock, never_stop);
-    stops = run.report->stops().size();
+    stops = run.runtime->stops().size();
     benchmark::DoNotOptimize(stops);
   }
   if (stops != rec.stops) {

@@ -1,5 +1,5 @@
 // The live restart predictor, end to end on the paper scenario in simulated time: while the
-// carriage stays stuck under the u* a forecast assumed (armed, same set point), the report
+// carriage stays stuck under the u* a forecast assumed (armed, same set point), the runtime
 //   - follows each forecast made at the stop against the measured force, tick by tick
 //     (ForecastTrack; the trajectory's forecast columns, StopOutcome's largest gaps);
 //   - makes both forecasts again from the pressures of the moment every
@@ -22,8 +22,11 @@
 
 #include "pneu/config/config.hpp"
 #include "pneu/controller/clock.hpp"
-#include "pneu/controller/report.hpp"
+#include "pneu/controller/events_file.hpp"
+#include "pneu/controller/run_summary.hpp"
+#include "pneu/controller/runtime.hpp"
 #include "pneu/controller/session.hpp"
+#include "pneu/controller/trajectory_file.hpp"
 #include "pneu/controller/verdict.hpp"
 #include "support/child_process.hpp"
 
@@ -41,6 +44,8 @@ struct LiveRun {
   config::Config config;
   std::unique_ptr<plant::ValveCharacteristic> valve;
   std::ostringstream events, trajectory;
+  controller::EventsFile events_sink{events};
+  controller::TrajectoryFile trajectory_sink{trajectory};
   controller::SimulatedRun run;
 
   explicit LiveRun(const std::vector<std::string>& overrides = {}, int drain_every = 1, bool keep = true)
@@ -52,22 +57,24 @@ struct LiveRun {
       : config(std::move(loaded.config)),
         valve(controller::make_valve_characteristic(config, {})) {
     controller::resolve_offset(config, *valve);
-    run = controller::make_simulated_run(config, *valve, &events, &trajectory);
-    run.report->set_keep_reforecasts(keep);
+    run = controller::make_simulated_run(config, *valve);
+    run.runtime->add_sink(events_sink);
+    run.runtime->add_sink(trajectory_sink);
+    run.runtime->set_keep_reforecasts(keep);
     const double period = config.controller.period_s();
     const auto ticks = static_cast<int>(std::llround(config.controller.duration_s / period)) + 1;
     run.loop->start(0.0);
     for (int k = 0; k < ticks; ++k) {
       run.loop->tick(k * period);
-      if ((k + 1) % drain_every == 0) run.report->drain(*run.outputs);
+      if ((k + 1) % drain_every == 0) run.runtime->drain(*run.outputs);
     }
-    run.report->drain(*run.outputs);
-    run.report->finish(run.report->end_time_s());
+    run.runtime->drain(*run.outputs);
+    run.runtime->finish(run.runtime->end_time_s());
   }
   LiveRun(const LiveRun&) = delete;
   LiveRun& operator=(const LiveRun&) = delete;
 
-  [[nodiscard]] const std::vector<StopOutcome>& stops() const { return run.report->stops(); }
+  [[nodiscard]] const std::vector<StopOutcome>& stops() const { return run.runtime->stops(); }
   // The paper's long sticking phase: the longest that ended in a restart.
   [[nodiscard]] const StopOutcome& longest_restart() const {
     const StopOutcome* best = nullptr;
@@ -122,8 +129,8 @@ TEST(LivePredictor, TheLinearizedForecastMadeAgainHalfWayIsCloserThanTheOneMadeA
   const Reforecast* halfway = controller::halfway_reforecast(s, PredictionMethod::kLinearized);
   ASSERT_NE(halfway, nullptr);
   ASSERT_TRUE(s.linearized.has_value());
-  const auto at_stop = controller::judge(s, *s.linearized, r.run.report->end_time_s());
-  const auto again = controller::judge(s, halfway->prediction, r.run.report->end_time_s());
+  const auto at_stop = controller::judge(s, *s.linearized, r.run.runtime->end_time_s());
+  const auto again = controller::judge(s, halfway->prediction, r.run.runtime->end_time_s());
   // From pressures that have travelled half-way, the tangent of Eq. 23 is taken nearer the path
   // still to come (measured 2.91 % at the stop, 0.21 % half-way).
   EXPECT_LT(again.error_percent, 0.5 * at_stop.error_percent);
@@ -174,38 +181,133 @@ std::vector<std::string> back_and_forth(int seconds) {
   return {schedule + "]", "controller.duration_s=" + std::to_string(seconds + 1)};
 }
 
-TEST(RunReport, KeepsTheLastStopsOfALongRunAndCountsTheOthers) {
+TEST(Runtime, KeepsTheLastStopsOfALongRunAndCountsTheOthers) {
   auto overrides = back_and_forth(30);
   overrides.push_back("controller.predictor.update_period_s=0");
   const config::Config c = config::load_string(config::default_config_yaml(), overrides);
   auto valve = controller::make_valve_characteristic(c, {});
   config::Config resolved = c;
   controller::resolve_offset(resolved, *valve);
-  auto run = controller::make_simulated_run(resolved, *valve, nullptr, nullptr);
-  run.report->set_max_stops_kept(8);
+  auto run = controller::make_simulated_run(resolved, *valve);
+  run.runtime->set_max_stops_kept(8);
   controller::SimulatedClock clock;
   const std::atomic<bool> never{false};
   controller::execute(run, resolved, clock, never);
 
-  const auto& stops = run.report->stops();
+  const auto& stops = run.runtime->stops();
   ASSERT_FALSE(stops.empty());
   const std::uint64_t seen = stops.back().index;
   ASSERT_GT(seen, 40u);
   EXPECT_LE(stops.size(), 8u);
   EXPECT_GE(stops.size(), 6u);
-  EXPECT_EQ(run.report->stops_forgotten() + stops.size(), seen);
+  EXPECT_EQ(run.runtime->stops_forgotten() + stops.size(), seen);
   for (std::size_t i = 0; i < stops.size(); ++i)  // the last ones, in order
-    EXPECT_EQ(stops[i].index, run.report->stops_forgotten() + 1 + i);
+    EXPECT_EQ(stops[i].index, run.runtime->stops_forgotten() + 1 + i);
   std::string summary(4096, '\0');
   FILE* f = fmemopen(summary.data(), summary.size(), "w");
-  run.report->print_summary(f, run.timing);
+  controller::RunFigures figures;
+  figures.timing = run.timing;
+  controller::print_summary(f, figures, *run.runtime);
   std::fclose(f);
   EXPECT_NE(summary.find("earlier stops, not kept"), std::string::npos) << summary;
 }
 
+// What a sink receives, in order, as one line per record.
+struct RecordingSink final : controller::RunListener {
+  struct Record {
+    char kind;  // t tick, e event, f forecast, h health, c command, x end
+    std::uint64_t seq_or_stop = 0;
+    double t_s = 0.0;
+    std::uint32_t update = 0;
+    PredictionMethod method = PredictionMethod::kLinearized;
+    controller::LoopEvent::Kind event = controller::LoopEvent::Kind::kStop;
+  };
+  std::vector<Record> records;
+  void on_tick(const controller::TickRecord& r, const controller::ExpectedAtTick&) override {
+    records.push_back({'t', r.seq, r.t_s});
+  }
+  void on_event(const controller::LoopEvent& e) override {
+    Record r{'e', e.tick_seq, e.t_s};
+    r.event = e.kind;
+    records.push_back(r);
+  }
+  void on_forecast(const controller::ForecastRecord& f) override {
+    records.push_back({'f', f.stop, f.t_s, f.update, f.prediction.method});
+  }
+  void on_health(const controller::HealthRecord& h) override { records.push_back({'h', h.ticks, h.t_s}); }
+  void on_end(double t_end_s) override { records.push_back({'x', 0, t_end_s}); }
+};
+
+TEST(Runtime, HandsEachSinkATicksEventsBeforeItsRecordAStopsForecastsAfterItAndTheEndLast) {
+  config::Config c = config::load_string(config::default_config_yaml(), {});
+  auto valve = controller::make_valve_characteristic(c, {});
+  controller::resolve_offset(c, *valve);
+  auto run = controller::make_simulated_run(c, *valve);
+  RecordingSink first, second;
+  run.runtime->add_sink(first);
+  run.runtime->add_sink(second);
+  controller::SimulatedClock clock;
+  const std::atomic<bool> never{false};
+  controller::execute(run, c, clock, never);
+
+  const auto& rs = first.records;
+  ASSERT_FALSE(rs.empty());
+  std::uint64_t ticks = 0, stops = 0, forecasts_again = 0;
+  double last_tick_t_s = -1.0;
+  for (std::size_t i = 0; i < rs.size(); ++i) {
+    SCOPED_TRACE("record " + std::to_string(i) + " of kind " + rs[i].kind);
+    switch (rs[i].kind) {
+      case 't':
+        EXPECT_EQ(rs[i].seq_or_stop, ticks++);  // every tick, in order
+        last_tick_t_s = rs[i].t_s;
+        break;
+      case 'e': {
+        // Raised by the tick whose record comes next.
+        const auto next = std::find_if(rs.begin() + static_cast<std::ptrdiff_t>(i), rs.end(),
+                                       [](const auto& r) { return r.kind == 't'; });
+        ASSERT_NE(next, rs.end());
+        EXPECT_EQ(rs[i].seq_or_stop, next->seq_or_stop);
+        if (rs[i].event != controller::LoopEvent::Kind::kStop) break;
+        // Both forecasts made at the stop, at once: linearized, then nonlinear.
+        ++stops;
+        ASSERT_LT(i + 2, rs.size());
+        EXPECT_EQ(rs[i + 1].kind, 'f');
+        EXPECT_EQ(rs[i + 1].update, 0u);
+        EXPECT_EQ(rs[i + 1].method, PredictionMethod::kLinearized);
+        EXPECT_EQ(rs[i + 2].kind, 'f');
+        EXPECT_EQ(rs[i + 2].update, 0u);
+        EXPECT_EQ(rs[i + 2].method, PredictionMethod::kNonlinear);
+        EXPECT_EQ(rs[i + 1].seq_or_stop, stops);
+        break;
+      }
+      case 'f':
+        // Made again from the tick just handed over.
+        if (rs[i].update > 0) {
+          ++forecasts_again;
+          EXPECT_EQ(rs[i].t_s, last_tick_t_s);
+        }
+        break;
+      case 'x':
+        EXPECT_EQ(i, rs.size() - 1) << "the end is the last record";
+        EXPECT_EQ(rs[i].t_s, run.runtime->end_time_s());
+        break;
+      default:
+        break;
+    }
+  }
+  EXPECT_EQ(ticks, run.runtime->ticks_seen());
+  EXPECT_EQ(stops, run.runtime->stops().size());
+  EXPECT_GT(forecasts_again, 0u);
+  ASSERT_EQ(second.records.size(), rs.size()) << "each sink receives every record";
+  for (std::size_t i = 0; i < rs.size(); ++i) {
+    EXPECT_EQ(second.records[i].kind, rs[i].kind);
+    EXPECT_EQ(second.records[i].t_s, rs[i].t_s);
+  }
+}
+
 // A stop during which the set point moves without moving the carriage: its forecast assumed the
 // u* of the old set point, so it is neither confirmed nor refuted.
-TEST(RunReport, AForecastWhoseSetPointMovedWhileStuckIsNotJudged) {
+TEST(Runtime, AForecastWhoseSetPointMovedWhileStuckIsNotJudged) {
   // During the 4 s sticking phase from 2.0 s, the set point moves by 0.2 mm at 4 s: 16 mV of u.
   const LiveRun r({"controller.setpoints.schedule=[{t_s: 1.0, position_m: 0.170}, {t_s: 4.0, position_m: 0.1702}]"});
   const StopOutcome* moved = nullptr;
@@ -215,9 +317,9 @@ TEST(RunReport, AForecastWhoseSetPointMovedWhileStuckIsNotJudged) {
   EXPECT_NEAR(moved->forecast_void_at_s, 4.0, 1e-9);
   ASSERT_GT(moved->t_end_s, 4.0) << "still stuck when the set point moved";
   ASSERT_TRUE(moved->linearized && moved->nonlinear);
-  EXPECT_EQ(controller::judge(*moved, *moved->linearized, r.run.report->end_time_s()).kind,
+  EXPECT_EQ(controller::judge(*moved, *moved->linearized, r.run.runtime->end_time_s()).kind,
             controller::Verdict::Kind::kNotJudged);
-  EXPECT_EQ(controller::judge(*moved, *moved->nonlinear, r.run.report->end_time_s()).kind,
+  EXPECT_EQ(controller::judge(*moved, *moved->nonlinear, r.run.runtime->end_time_s()).kind,
             controller::Verdict::Kind::kNotJudged);
 }
 
@@ -244,7 +346,7 @@ TEST(LivePredictor, WithAQuantisedPotentiometerTheForecastsMadeAgainTakeUStarAtT
   const StopOutcome& s = r.longest_restart();
   ASSERT_GE(s.sticking_s(), 1.0);
   ASSERT_FALSE(s.reforecasts.empty());
-  // The readings the report saw from the snapshot to each re-forecast, from the trajectory.
+  // The readings the runtime saw from the snapshot to each re-forecast, from the trajectory.
   const Csv traj = Csv::parse(r.trajectory.str());
   const std::size_t t_col = traj.col("t"), y_col = traj.col("y");
   std::vector<std::pair<double, double>> readings;  // t, y
@@ -268,7 +370,7 @@ TEST(LivePredictor, WithAQuantisedPotentiometerTheForecastsMadeAgainTakeUStarAtT
   // What it buys: made half-way, the nonlinear forecast is within 2 % (measured 0.90 %); with the
   // snapshot's u* it was 4.44 % off, and the one made at the stop is 4.9 % off.
   ASSERT_TRUE(s.halfway_nonlinear.has_value());
-  const auto v = controller::judge(s, s.halfway_nonlinear->prediction, r.run.report->end_time_s());
+  const auto v = controller::judge(s, s.halfway_nonlinear->prediction, r.run.runtime->end_time_s());
   ASSERT_EQ(v.kind, controller::Verdict::Kind::kTruePositive);
   EXPECT_LT(v.error_percent, 2.0);
 }
@@ -304,7 +406,7 @@ TEST(LivePredictor, ASetPointChangeWhileStuckEndsTheFollowingOfThatStop) {
   EXPECT_GT(rows_checked, 100);
 }
 
-TEST(LivePredictor, WhatTheReportWritesDoesNotDependOnHowOftenItDrains) {
+TEST(LivePredictor, WhatTheSinksWriteDoesNotDependOnHowOftenTheRuntimeDrains) {
   // Every tick (the simulated clock's cadence) against every 37 ticks (a real-time service thread
   // lagging behind): the events, with their forecasts, and the trajectory, with its forecast
   // columns, are the same to the byte.

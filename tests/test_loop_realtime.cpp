@@ -135,7 +135,7 @@ struct DefaultRun {
 
   DefaultRun() {
     controller::resolve_offset(config, valve);
-    run = controller::make_simulated_run(config, valve, nullptr, nullptr);
+    run = controller::make_simulated_run(config, valve);
   }
   DefaultRun(const DefaultRun&) = delete;
   DefaultRun& operator=(const DefaultRun&) = delete;
@@ -181,7 +181,7 @@ TEST(ControlLoop, AllocatesNothingOverTenThousandTicksAfterStart) {
       CountedWindow window;
       run.loop->tick(static_cast<double>(k) * d.period_s());
     }
-    run.report->drain(*run.outputs);  // the non-real-time side, outside the window: it allocates
+    run.runtime->drain(*run.outputs);  // the non-real-time side, outside the window: it allocates
   }
   EXPECT_EQ(g_allocations.load(), 0u);
   EXPECT_EQ(g_deallocations.load(), 0u);
@@ -189,9 +189,9 @@ TEST(ControlLoop, AllocatesNothingOverTenThousandTicksAfterStart) {
   // The ticks did real work: the carriage moved, stopped, and restarted (events were queued),
   // and no record was lost on the way.
   EXPECT_EQ(run.loop->ticks(), kTicks);
-  EXPECT_EQ(run.report->ticks_seen(), kTicks);
-  ASSERT_FALSE(run.report->stops().empty());
-  EXPECT_TRUE(run.report->stops().front().ended);
+  EXPECT_EQ(run.runtime->ticks_seen(), kTicks);
+  ASSERT_FALSE(run.runtime->stops().empty());
+  EXPECT_TRUE(run.runtime->stops().front().ended);
   EXPECT_EQ(run.outputs->ticks_dropped, 0u);
   EXPECT_EQ(run.outputs->events_dropped, 0u);
 }
@@ -228,12 +228,12 @@ TEST(ControlLoop, CountsDroppedTickRecordsAndKeepsTickingWhenNobodyDrains) {
   EXPECT_LT(run.backend->plant().state().y_m, 0.19);
 
   // The reader sees the loss as one gap in the sequence numbers once the loop's records flow again.
-  run.report->drain(*run.outputs);
-  EXPECT_EQ(run.report->ticks_seen(), kCapacity);
-  EXPECT_EQ(run.report->sequence_gaps(), 0u);
+  run.runtime->drain(*run.outputs);
+  EXPECT_EQ(run.runtime->ticks_seen(), kCapacity);
+  EXPECT_EQ(run.runtime->sequence_gaps(), 0u);
   run.loop->tick(static_cast<double>(kCapacity + kExtra) * d.period_s());
-  run.report->drain(*run.outputs);
-  EXPECT_EQ(run.report->sequence_gaps(), 1u);
+  run.runtime->drain(*run.outputs);
+  EXPECT_EQ(run.runtime->sequence_gaps(), 1u);
 }
 
 TEST(SpscQueue, CarriesAMillionSequenceNumbersBetweenThreadsInOrderWithoutLoss) {

@@ -24,7 +24,7 @@
 
 #include "pneu/config/config.hpp"
 #include "pneu/controller/clock.hpp"
-#include "pneu/controller/report.hpp"
+#include "pneu/controller/runtime.hpp"
 #include "pneu/controller/session.hpp"
 #include "pneu/controller/verdict.hpp"
 #include "pneu/sim_plant/valve_table.hpp"
@@ -53,7 +53,7 @@ struct PaperRun {
       : config(config::load_string(config::default_config_yaml(), overrides)),
         valve(controller::make_valve_characteristic(config, {})) {
     controller::resolve_offset(config, *valve);
-    run = controller::make_simulated_run(config, *valve, nullptr, nullptr);
+    run = controller::make_simulated_run(config, *valve);
     controller::SimulatedClock clock;
     const std::atomic<bool> never_stop{false};
     controller::execute(run, config, clock, never_stop);
@@ -61,8 +61,8 @@ struct PaperRun {
   PaperRun(const PaperRun&) = delete;
   PaperRun& operator=(const PaperRun&) = delete;
 
-  [[nodiscard]] const std::vector<StopOutcome>& stops() const { return run.report->stops(); }
-  [[nodiscard]] double t_end_s() const { return run.report->end_time_s(); }
+  [[nodiscard]] const std::vector<StopOutcome>& stops() const { return run.runtime->stops(); }
+  [[nodiscard]] double t_end_s() const { return run.runtime->end_time_s(); }
 };
 
 const char* to_text(Verdict::Kind k) {
@@ -121,8 +121,8 @@ bool has_long_sticking_phase_ending_in_restart(const PaperRun& r) {
 TEST(PaperScenario, RunsTwelveSecondsAndHasALongStickingPhaseEndingInARestart) {
   const PaperRun r;
   EXPECT_DOUBLE_EQ(r.t_end_s(), 12.0);
-  EXPECT_EQ(r.run.report->ticks_seen(), 12001u);  // t = 0 .. 12 s inclusive at 1 kHz
-  EXPECT_EQ(r.run.report->sequence_gaps(), 0u);
+  EXPECT_EQ(r.run.runtime->ticks_seen(), 12001u);  // t = 0 .. 12 s inclusive at 1 kHz
+  EXPECT_EQ(r.run.runtime->sequence_gaps(), 0u);
   EXPECT_TRUE(has_long_sticking_phase_ending_in_restart(r));
 }
 

@@ -11,8 +11,11 @@
 
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
+#include "pneu/controller/events_file.hpp"
 #include "pneu/controller/realtime.hpp"
+#include "pneu/controller/run_summary.hpp"
 #include "pneu/controller/session.hpp"
+#include "pneu/controller/trajectory_file.hpp"
 #include "pneu/controller/watchdog.hpp"
 #ifdef PNEU_WITH_SYSTEMD
 #include <systemd/sd-daemon.h>
@@ -188,8 +191,6 @@ int run(int argc, char** argv) {
   std::unique_ptr<hal::LibgpiodLines> lines;
 #endif
   controller::SimulatedRun run;
-  std::ostream* ev = events ? &*events : nullptr;
-  std::ostream* tr = trajectory ? &*trajectory : nullptr;
   if (cfg.hal.backend == config::BackendKind::kModbus) {
 #ifdef PNEU_WITH_MODBUS
     inner = std::make_unique<hal::ModbusBackend>(cfg.hal.modbus, cfg.sensors);
@@ -204,15 +205,20 @@ int run(int argc, char** argv) {
     const auto& g = cfg.hal.gpio;
     lines = std::make_unique<hal::LibgpiodLines>(hal::GpioParams{g.chip, g.estop_line, g.estop_active_low,
                                                                  g.valve_power_line, g.valve_power_active_low, g.consumer});
-    run = controller::make_hardware_run(cfg, *valve, std::make_unique<hal::GpioBackend>(*inner, *lines), ev, tr);
+    run = controller::make_hardware_run(cfg, *valve, std::make_unique<hal::GpioBackend>(*inner, *lines));
 #else
     throw config::ConfigError("hal.gpio.enabled", "this pneud was built without libgpiod");
 #endif
   } else if (inner) {
-    run = controller::make_hardware_run(cfg, *valve, std::move(inner), ev, tr);
+    run = controller::make_hardware_run(cfg, *valve, std::move(inner));
   } else {
-    run = controller::make_simulated_run(cfg, *valve, ev, tr);
+    run = controller::make_simulated_run(cfg, *valve);
   }
+  // The runtime's sinks: the files asked for, then LCM.
+  std::optional<controller::EventsFile> events_sink;
+  std::optional<controller::TrajectoryFile> trajectory_sink;
+  if (events) run.runtime->add_sink(events_sink.emplace(*events));
+  if (trajectory) run.runtime->add_sink(trajectory_sink.emplace(*trajectory));
   std::function<void(int)> wait_for_input;
   std::function<void(int)> handle_input;
 #ifdef PNEU_WITH_LCM
@@ -220,8 +226,8 @@ int run(int argc, char** argv) {
   if (cfg.telemetry.enabled && (real_clock || cfg.telemetry.in_simulated_time)) {
     try {
       bridge = std::make_unique<telemetry::LcmBridge>(cfg, *run.outputs, real_clock && cfg.commands.enabled);
-      run.report->set_listener(bridge.get());
-      bridge->set_command_log(run.report.get());  // both on the service thread (execute)
+      run.runtime->add_sink(*bridge);
+      bridge->set_command_log(run.runtime.get());  // both on the service thread (execute)
       handle_input = [&](int ms) { (void)bridge->handle(ms); };
     } catch (const telemetry::LcmError& e) {
       if (args.flag("require-telemetry")) throw;
@@ -279,46 +285,30 @@ int run(int argc, char** argv) {
   if ((events && !*events) || (trajectory && !*trajectory)) throw std::runtime_error("writing the output failed");
 
   if (!args.flag("quiet")) {
-    std::printf("pneud %s: %.3f s on the %s backend, %s clock (%s), u_0 = %+.4f V, wall time %.3f s (%.0fx real time)\n",
-                PNEU_VERSION, run.report->end_time_s(), cfg.hal.backend == config::BackendKind::kModbus ? "modbus" : "sim",
-                cfg.controller.clock == config::ClockKind::kReal ? "real" : "simulated",
-                config_path.empty() ? "embedded sim.yaml" : config_path.c_str(), cfg.controller.law.offset_v,
-                wall_s, run.report->end_time_s() / wall_s);
-    run.report->print_summary(stdout, run.timing);
+    controller::RunFigures figures;
+    figures.version = PNEU_VERSION;
+    figures.backend = cfg.hal.backend == config::BackendKind::kModbus ? "modbus" : "sim";
+    figures.clock = real_clock ? "real" : "simulated";
+    figures.config = config_path.empty() ? "embedded sim.yaml" : config_path;
+    figures.u_0_v = cfg.controller.law.offset_v;
+    figures.wall_s = wall_s;
+    figures.timing = run.timing;
+    figures.ticks_dropped = run.outputs->ticks_dropped;
+    figures.events_dropped = run.outputs->events_dropped;
 #ifdef PNEU_WITH_LCM
-    if (bridge) {
-      const auto& c = bridge->command_counters();
-      const auto u = [](std::uint64_t v) { return static_cast<unsigned long long>(v); };
-      std::printf("telemetry: LCM %s, channels %s*; %llu publish errors; commands: %llu received, %llu accepted, %llu rejected "
-                  "(malformed %llu, oversized %llu, foreign %llu, stale %llu, sequence %llu, invalid %llu, rate %llu, mode %llu)\n",
-                  cfg.telemetry.lcm_url.c_str(), cfg.telemetry.channel_prefix.c_str(), u(bridge->publish_errors()),
-                  u(c.received), u(c.accepted), u(c.rejected), u(c.malformed), u(c.oversized), u(c.foreign), u(c.stale),
-                  u(c.sequence), u(c.invalid), u(c.rate), u(c.mode));
-    }
+    if (bridge) figures.telemetry = bridge->figures();
 #endif
 #ifdef PNEU_WITH_MODBUS
-    if (const auto* mb = modbus) {
-      const auto& c = mb->counters();
-      std::printf("modbus: %llu transactions (%.0f per second), %llu errors, %llu reconnects, %llu samples out of range, "
-                  "%llu stale reads, oldest sample %.2f ms%s%s\n",
-                  static_cast<unsigned long long>(c.transactions.load()),
-                  static_cast<double>(c.transactions.load()) / std::max(run.report->end_time_s(), 1e-9),
-                  static_cast<unsigned long long>(c.errors.load()),
-                  static_cast<unsigned long long>(c.reconnects.load()), static_cast<unsigned long long>(c.out_of_range.load()),
-                  static_cast<unsigned long long>(c.stale_reads.load()), c.max_age_s.load() * 1e3,
-                  c.errors.load() ? "; last error: " : "", c.errors.load() ? mb->last_error().c_str() : "");
-      const auto d = mb->safe_output_delivery();
-      if (d.delivered)
-        std::printf("  safe output on closing: delivered to the module on attempt %d of %d\n", d.attempts,
-                    hal::ModbusBackend::kSafeOutputAttempts);
-      else
-        std::printf("  safe output on closing: NOT confirmed by the module after %d attempts\n", d.attempts);
+    if (modbus) {
+      const auto& c = modbus->counters();
+      const auto d = modbus->safe_output_delivery();
+      figures.modbus = controller::ModbusFigures{c.transactions.load(), c.errors.load(), c.reconnects.load(),
+                                                 c.out_of_range.load(), c.stale_reads.load(), c.max_age_s.load(),
+                                                 modbus->last_error(), d.attempts,
+                                                 hal::ModbusBackend::kSafeOutputAttempts, d.delivered};
     }
 #endif
-    if (run.outputs->ticks_dropped || run.outputs->events_dropped)
-      std::printf("  telemetry dropped: %llu tick records, %llu events\n",
-                  static_cast<unsigned long long>(run.outputs->ticks_dropped),
-                  static_cast<unsigned long long>(run.outputs->events_dropped));
+    controller::print_summary(stdout, figures, *run.runtime);
   }
   return cli::kExitOk;
 }

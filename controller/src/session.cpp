@@ -42,32 +42,30 @@ std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config) 
 }
 
 namespace {
-// The loop, its outputs and the report around `backend`.
+// The loop, its outputs and the runtime around `backend`.
 void assemble(SimulatedRun& run, const config::Config& config, const plant::ValveCharacteristic& valve,
-              hal::Backend& backend, std::ostream* events, std::ostream* trajectory) {
+              hal::Backend& backend) {
   run.outputs = std::make_unique<LoopOutputs>();
   run.loop = std::make_unique<ControlLoop>(config, backend, *run.outputs);
   const auto& p = config.controller.predictor;
-  run.report = std::make_unique<RunReport>(predictor_model(config, valve), p.linearized, p.nonlinear,
-                                           events, trajectory, p.update_period_s);
-  run.report->set_control_law(ControlLaw(config.controller.law));  // offset resolved by now
+  run.runtime = std::make_unique<Runtime>(predictor_model(config, valve), p.linearized, p.nonlinear,
+                                          p.update_period_s);
+  run.runtime->set_control_law(ControlLaw(config.controller.law));  // offset resolved by now
 }
 }  // namespace
 
-SimulatedRun make_simulated_run(const config::Config& config, const plant::ValveCharacteristic& valve,
-                                std::ostream* events, std::ostream* trajectory) {
+SimulatedRun make_simulated_run(const config::Config& config, const plant::ValveCharacteristic& valve) {
   SimulatedRun run;
   run.backend = make_sim_backend(config);
-  assemble(run, config, valve, *run.backend, events, trajectory);
+  assemble(run, config, valve, *run.backend);
   return run;
 }
 
 SimulatedRun make_hardware_run(const config::Config& config, const plant::ValveCharacteristic& valve,
-                               std::unique_ptr<hal::Backend> backend, std::ostream* events,
-                               std::ostream* trajectory) {
+                               std::unique_ptr<hal::Backend> backend) {
   SimulatedRun run;
   run.hardware = std::move(backend);
-  assemble(run, config, valve, *run.hardware, events, trajectory);
+  assemble(run, config, valve, *run.hardware);
   return run;
 }
 
@@ -81,12 +79,12 @@ void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
   const double health_s = config.telemetry.health_period_s;
   if (clock.simulated()) {
     run_loop(*run.loop, clock, period, ticks, stop_requested, run.timing,
-             [&] { run.report->drain(*run.outputs); }, health_s, run.outputs.get());
+             [&] { run.runtime->drain(*run.outputs); }, health_s, run.outputs.get());
   } else {
     std::atomic<bool> done{false};
     std::thread service([&] {
       while (!done.load(std::memory_order_acquire)) {
-        run.report->drain(*run.outputs);
+        run.runtime->drain(*run.outputs);
         if (wait_for_input) wait_for_input(2);
         else std::this_thread::sleep_for(std::chrono::milliseconds(2));
       }
@@ -108,8 +106,8 @@ void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
   }
   run.loop->stop();
   if (run.hardware) run.hardware->close();
-  run.report->drain(*run.outputs);
-  run.report->finish(run.report->end_time_s());
+  run.runtime->drain(*run.outputs);
+  run.runtime->finish(run.runtime->end_time_s());
 }
 
 }  // namespace pneu::controller

@@ -248,18 +248,18 @@ int run(int argc, char** argv) {
         const auto valve = controller::make_valve_characteristic(
             cfg, config_path.empty() ? std::filesystem::path() : std::filesystem::path(config_path).parent_path());
         controller::resolve_offset(cfg, *valve);
-        auto sim = controller::make_simulated_run(cfg, *valve, nullptr, nullptr);
-        sim.report->set_follow_forecasts(false);  // nobody sees the tick-by-tick comparison here
-        sim.report->set_keep_reforecasts(true);   // judged below against the plant's breakaways
+        auto sim = controller::make_simulated_run(cfg, *valve);
+        sim.runtime->set_follow_forecasts(false);  // nobody sees the tick-by-tick comparison here
+        sim.runtime->set_keep_reforecasts(true);   // judged below against the plant's breakaways
         controller::SimulatedClock clock;
         std::atomic<bool> never{false};
         controller::execute(sim, cfg, clock, never);
         // Stops from the tail are not judged: the tail only lets the carriage show what it did
         // after the stops of the judged window.
-        ScenarioResult r{s, {}, {}, sim.report->end_time_s()};
+        ScenarioResult r{s, {}, {}, sim.runtime->end_time_s()};
         if (sim.backend->motion_events_dropped() > 0)
           throw std::runtime_error("scenario " + std::to_string(s.index) + ": more plant events than recorded");
-        for (auto stop : sim.report->stops()) {
+        for (auto stop : sim.runtime->stops()) {
           if (stop.t_stop_s > duration) continue;
           r.truth.push_back(apply_plant_truth(stop, sim.backend->motion_events(), r.t_end_s, cfg.controller.period_s()));
           r.stops.push_back(stop);
@@ -366,7 +366,7 @@ int run(int argc, char** argv) {
       // The live predictor: the forecast made again from the last pressures before half the
       // sticking time (restarts after >= 0.5 s only; not an acceptance figure).
       for (int m = 0; m < 2; ++m) {
-        // (The half-way of the plant's truth: the report settled its own by the detector's.)
+        // (The half-way of the plant's truth: the runtime settled its own by the detector's.)
         const controller::Reforecast* halfway = judged && s.restarted && s.sticking_s() >= kLongSticking_s
                                                     ? controller::halfway_reforecast(s, kMethods[m])
                                                     : nullptr;

@@ -33,6 +33,7 @@ std::int64_t unix_now_us() {
 
 LcmBridge::LcmBridge(const config::Config& config, controller::LoopOutputs& loop, bool accept_commands)
     : lcm_(std::make_unique<lcm::LCM>(config.telemetry.lcm_url)),
+      url_(config.telemetry.lcm_url),
       prefix_(config.telemetry.channel_prefix),
       state_channel_(prefix_ + "STATE"),
       event_channel_(prefix_ + "EVENT"),
@@ -85,7 +86,7 @@ void LcmBridge::publish(const std::string& channel, const T& msg) {
   if (lcm_->publish(channel, &msg) != 0) ++publish_errors_;
 }
 
-void LcmBridge::on_tick(const controller::TickRecord& r) {
+void LcmBridge::on_tick(const controller::TickRecord& r, const controller::ExpectedAtTick& /*expected*/) {
   last_t_s_ = r.t_s;
   pneu_lcm::state_t m;
   m.utime = utime_of(r.t_s);
@@ -138,21 +139,20 @@ void LcmBridge::on_event(const LoopEvent& e) {
   publish(event_channel_, m);
 }
 
-void LcmBridge::publish_prediction(const controller::StopOutcome& s, const controller::Prediction& p, double t_s,
-                                   std::int32_t update, double u_star_v, double force_n,
-                                   double stop_forecast_force_n) {
+void LcmBridge::on_forecast(const controller::ForecastRecord& f) {
+  const controller::Prediction& p = f.prediction;
   pneu_lcm::prediction_t m;
-  m.utime = utime_of(t_s);
-  m.t = t_s;
-  m.stop = static_cast<std::int64_t>(s.index);
-  m.t_stop = s.t_stop_s;
-  m.update = update;
+  m.utime = utime_of(f.t_s);
+  m.t = f.t_s;
+  m.stop = static_cast<std::int64_t>(f.stop);
+  m.t_stop = f.t_stop_s;
+  m.update = static_cast<std::int32_t>(f.update);
   m.method = p.method == controller::PredictionMethod::kLinearized ? pneu_lcm::prediction_t::METHOD_LINEARIZED
                                                                     : pneu_lcm::prediction_t::METHOD_NONLINEAR;
   m.will_restart = p.will_restart;
   m.direction = static_cast<std::int8_t>(p.direction);
   m.t_restart = p.t_restart_s;
-  m.u_star = u_star_v;
+  m.u_star = f.u_star_v;
   m.equilibrium_force = p.equilibrium_force_n;
   m.p_p_equilibrium = p.p_p_equilibrium_pa;
   m.p_n_equilibrium = p.p_n_equilibrium_pa;
@@ -160,18 +160,9 @@ void LcmBridge::publish_prediction(const controller::StopOutcome& s, const contr
   m.tau_n = p.tau_n_s;
   m.min_margin = p.min_margin_n;
   m.horizon_reached = p.horizon_reached;
-  m.force = force_n;
-  m.stop_forecast_force = stop_forecast_force_n;
+  m.force = f.force_n;
+  m.stop_forecast_force = f.stop_forecast_force_n;
   publish(prediction_channel_, m);
-}
-
-void LcmBridge::on_prediction(const controller::StopOutcome& s, const controller::Prediction& p) {
-  publish_prediction(s, p, s.snapshot.t_s, 0, s.snapshot.u_v, s.force_n, s.force_n);
-}
-
-void LcmBridge::on_reforecast(const controller::StopOutcome& s, const controller::Reforecast& f) {
-  publish_prediction(s, f.prediction, f.t_s, static_cast<std::int32_t>(f.update), f.u_star_v, f.force_n,
-                     f.stop_forecast_force_n);
 }
 
 void LcmBridge::on_health(const controller::HealthRecord& h) {
@@ -209,6 +200,16 @@ void LcmBridge::on_health(const controller::HealthRecord& h) {
 void LcmBridge::on_end(double t_end_s) {
   last_t_s_ = t_end_s;
   publish_text_event(pneu_lcm::event_t::KIND_END, "end of run");
+}
+
+controller::TelemetryFigures LcmBridge::figures() const {
+  controller::TelemetryFigures f;
+  f.lcm_url = url_;
+  f.channel_prefix = prefix_;
+  f.publish_errors = publish_errors_;
+  f.commands = validator_.counters();
+  f.commands_dropped = commands_dropped_;
+  return f;
 }
 
 void LcmBridge::publish_text_event(std::int8_t kind, const std::string& text, std::int64_t seq) {

@@ -5,11 +5,10 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
-#include <ostream>
 
 #include "pneu/config/config.hpp"
 #include "pneu/controller/clock.hpp"
-#include "pneu/controller/report.hpp"
+#include "pneu/controller/runtime.hpp"
 #include "pneu/hal/sim_backend.hpp"
 #include "pneu/sim_plant/valve_table.hpp"
 
@@ -28,14 +27,15 @@ void resolve_offset(config::Config& config, const plant::ValveCharacteristic& va
 [[nodiscard]] PredictorModel predictor_model(const config::Config& config,
                                              const plant::ValveCharacteristic& valve);
 
-/// A complete run: backend, loop, report. `backend` is set for the in-process simulated bench;
-/// `hardware` for any other backend (modbus), which the loop then drives.
+/// A complete run: backend, loop, runtime (without sinks: add them with Runtime::add_sink).
+/// `backend` is set for the in-process simulated bench; `hardware` for any other backend (modbus),
+/// which the loop then drives.
 struct SimulatedRun {
   std::unique_ptr<hal::SimBackend> backend;
   std::unique_ptr<hal::Backend> hardware;
   std::unique_ptr<LoopOutputs> outputs;
   std::unique_ptr<ControlLoop> loop;
-  std::unique_ptr<RunReport> report;
+  std::unique_ptr<Runtime> runtime;
   LoopTiming timing;
 };
 
@@ -46,17 +46,16 @@ struct SimulatedRun {
 /// Builds the run for `config` (offset already resolved). The plant starts at rest at
 /// simulation.initial_position_m, at complete equilibrium for the loop's first output.
 [[nodiscard]] SimulatedRun make_simulated_run(const config::Config& config,
-                                              const plant::ValveCharacteristic& valve,
-                                              std::ostream* events, std::ostream* trajectory);
+                                              const plant::ValveCharacteristic& valve);
 /// The same on another backend (opened when the run starts).
 [[nodiscard]] SimulatedRun make_hardware_run(const config::Config& config,
                                              const plant::ValveCharacteristic& valve,
-                                             std::unique_ptr<hal::Backend> backend,
-                                             std::ostream* events, std::ostream* trajectory);
+                                             std::unique_ptr<hal::Backend> backend);
 
-/// Runs it for controller.duration_s on `clock` (the simulated clock services the report between
-/// ticks; the real clock drains it from a service thread). `wait_for_input(timeout_ms)`, when set,
-/// is how the service thread waits between drains (LCM's handle); else it sleeps 2 ms.
+/// Runs it for controller.duration_s on `clock` (the simulated clock drains the runtime between
+/// ticks; the real clock drains it from a service thread), then finishes the runtime.
+/// `wait_for_input(timeout_ms)`, when set, is how the service thread waits between drains (LCM's
+/// handle); else it sleeps 2 ms.
 /// `on_loop_thread`, when set, runs on the loop thread once the backend is open, just before time
 /// starts (real clock: its real-time set-up, so that the backend's own I/O thread, created
 /// earlier, keeps the ordinary scheduling; what it throws ends the run, the backend closed).

@@ -1,4 +1,4 @@
-// The report's account of each sticking phase: what was forecast at its start, what was forecast
+// The runtime's account of each sticking phase: what was forecast at its start, what was forecast
 // again while it lasted, and what happened.
 #pragma once
 
@@ -18,11 +18,11 @@ struct Reforecast {
   std::uint32_t update = 0;       ///< 1, 2, ... within its stop
   double t_s = 0.0;               ///< the tick it was made from [s]
   double force_n = 0.0;           ///< F measured at that tick [N]
-  /// u* it assumed: from the mean position read since the snapshot when the report knows the law
-  /// (RunReport::set_control_law), else the snapshot's [V]
+  /// u* it assumed: from the mean position read since the snapshot when the runtime knows the law
+  /// (Runtime::set_control_law), else the snapshot's [V]
   double u_star_v = 0.0;
-  /// F the same method's forecast made at the stop expected then (NaN when the report does not
-  /// follow the forecasts, RunReport::set_follow_forecasts) [N]
+  /// F the same method's forecast made at the stop expected then (NaN when the runtime does not
+  /// follow the forecasts, Runtime::set_follow_forecasts) [N]
   double stop_forecast_force_n = std::numeric_limits<double>::quiet_NaN();
   Prediction prediction;
 };
@@ -55,7 +55,7 @@ struct StopOutcome {
   /// ends (or the run does).
   std::optional<Reforecast> halfway_linearized, halfway_nonlinear;
   /// The forecasts made again, in time order, both methods interleaved: while the stop is open,
-  /// and after it only when the report keeps them (RunReport::set_keep_reforecasts). At most
+  /// and after it only when the runtime keeps them (Runtime::set_keep_reforecasts). At most
   /// kMaxReforecastsKept: a longer sticking phase keeps every 2nd, 4th, ... update.
   std::vector<Reforecast> reforecasts;
   static constexpr std::size_t kMaxReforecastsKept = 512;

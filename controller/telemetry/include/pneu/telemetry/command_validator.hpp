@@ -7,6 +7,7 @@
 
 #include "pneu/config/config.hpp"
 #include "pneu/controller/loop.hpp"
+#include "pneu/controller/run_figures.hpp"
 
 namespace pneu::telemetry {
 
@@ -43,11 +44,8 @@ struct Verdict {
   std::string text;                 ///< what was done, or why not, for people
 };
 
-struct CommandCounters {
-  std::uint64_t received = 0, accepted = 0, rejected = 0;
-  std::uint64_t malformed = 0, invalid = 0, rate = 0, mode = 0, sequence = 0;
-  std::uint64_t stale = 0, foreign = 0, oversized = 0;
-};
+/// By verdict and reason (a figure of the run: it lives with the others in run_figures.hpp).
+using controller::CommandCounters;
 
 /// Checks, in order: rate (token bucket: `burst` back to back, `max_rate_hz` sustained), age
 /// (utime within commands.max_age_s of this host's clock, past or future), sequence (strictly

@@ -1,5 +1,6 @@
-// pneud's LCM side: publishes what the report drains (state every tick, events, predictions,
-// health) and takes commands in, validated, towards the loop. Lives on the non-real-time service
+// pneud's LCM side: a sink of the runtime that publishes what it drains and forecasts (state every
+// tick, events, predictions, health), and the command channel, which takes commands in, validated,
+// towards the loop. Lives on the non-real-time service
 // thread: LCM::publish allocates and must never run on the loop thread.
 #pragma once
 
@@ -12,7 +13,9 @@
 #include <string>
 
 #include "pneu/config/config.hpp"
-#include "pneu/controller/report.hpp"
+#include "pneu/controller/run_figures.hpp"
+#include "pneu/controller/run_listener.hpp"
+#include "pneu/controller/runtime.hpp"
 #include "pneu/telemetry/command_socket.hpp"
 #include "pneu/telemetry/command_validator.hpp"
 
@@ -23,7 +26,7 @@ class LcmError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-class LcmBridge final : public controller::ReportListener {
+class LcmBridge final : public controller::RunListener {
  public:
   /// Opens LCM on telemetry.lcm_url. Throws LcmError when LCM cannot start (bad URL, no
   /// multicast route). With `accept_commands`, opens the command socket for <prefix>COMMAND
@@ -36,17 +39,19 @@ class LcmBridge final : public controller::ReportListener {
   /// socket failure.
   bool handle(int timeout_ms);
 
-  /// Where each command's verdict is also written (the events file, RunReport::record_command);
-  /// may be null; must outlive the bridge. The report is not thread-safe: handle() must be called
-  /// from the thread that drains it (the service thread does both).
-  void set_command_log(controller::RunReport* report) noexcept { command_log_ = report; }
+  /// Where each command's verdict also goes (Runtime::record_command: its sinks, the events file
+  /// among them); may be null; must outlive the bridge. The runtime is not thread-safe: handle()
+  /// must be called from the thread that drains it (the service thread does both).
+  void set_command_log(controller::Runtime* runtime) noexcept { command_log_ = runtime; }
 
-  void on_tick(const controller::TickRecord& record) override;
+  void on_tick(const controller::TickRecord& record, const controller::ExpectedAtTick& expected) override;
   void on_event(const controller::LoopEvent& event) override;
-  void on_prediction(const controller::StopOutcome& stop, const controller::Prediction& prediction) override;
-  void on_reforecast(const controller::StopOutcome& stop, const controller::Reforecast& reforecast) override;
+  void on_forecast(const controller::ForecastRecord& forecast) override;
   void on_health(const controller::HealthRecord& health) override;
   void on_end(double t_end_s) override;
+
+  /// For the run's summary.
+  [[nodiscard]] controller::TelemetryFigures figures() const;
 
   [[nodiscard]] const CommandCounters& command_counters() const noexcept { return validator_.counters(); }
   [[nodiscard]] std::uint64_t publish_errors() const noexcept { return publish_errors_; }
@@ -57,20 +62,19 @@ class LcmBridge final : public controller::ReportListener {
  private:
   void on_datagram(std::span<const std::uint8_t> bytes, const CommandSocket::Datagram& d);
   void publish_text_event(std::int8_t kind, const std::string& text, std::int64_t seq = 0);
-  void publish_prediction(const controller::StopOutcome& s, const controller::Prediction& p, double t_s,
-                          std::int32_t update, double u_star_v, double force_n, double stop_forecast_force_n);
   [[nodiscard]] std::int64_t utime_of(double t_s) const noexcept;
   template <typename T>
   void publish(const std::string& channel, const T& msg);
 
   std::unique_ptr<lcm::LCM> lcm_;
   std::unique_ptr<CommandSocket> commands_;
+  std::string url_;
   std::string prefix_;
   // <prefix>STATE, ...: built once, not per message (STATE goes out every tick).
   std::string state_channel_, event_channel_, prediction_channel_, health_channel_, command_channel_;
   controller::LoopOutputs& loop_;
   CommandValidator validator_;
-  controller::RunReport* command_log_ = nullptr;
+  controller::Runtime* command_log_ = nullptr;
   double last_t_s_ = 0.0;
   std::int64_t epoch_utime_ = 0;                     // Unix time of loop time 0 [us]
   std::chrono::steady_clock::time_point started_;

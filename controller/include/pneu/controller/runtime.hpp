@@ -1,65 +1,33 @@
-// The non-real-time side of a run: drains the loop's records, runs the restart predictors at each
-// stop, follows their forecasts against the measurements while the carriage stays stuck and makes
-// them again from the pressures of the moment, writes the events (JSON lines) and the trajectory,
-// and judges each forecast made at a stop at the end.
+// The non-real-time runtime of a run: drains the loop's queues, runs the restart predictors at
+// each stop, follows their forecasts against the measurements while the carriage stays stuck and
+// makes them again from the pressures of the moment (the live predictor), keeps its account of
+// each sticking phase (StopOutcome, judged by verdict.hpp), and emits all of it as typed records
+// to its sinks (RunListener). It writes nothing itself.
 #pragma once
 
 #include <algorithm>
-#include <cstdio>
-#include <limits>
-#include <memory>
+#include <cstddef>
+#include <cstdint>
 #include <optional>
-#include <ostream>
-#include <string>
-#include <string_view>
 #include <vector>
 
-#include "pneu/controller/clock.hpp"
 #include "pneu/controller/control_law.hpp"
 #include "pneu/controller/loop.hpp"
 #include "pneu/controller/predictor.hpp"
+#include "pneu/controller/run_listener.hpp"
 #include "pneu/controller/stop_outcome.hpp"
-#include "pneu/controller/verdict.hpp"
 
 namespace pneu::controller {
 
-/// A command's verdict, as the command channel (telemetry::LcmBridge) gave it: written to the
-/// events file as a "command" event. The strings are borrowed for the call.
-struct CommandRecord {
-  bool accepted = false;
-  /// Rejected: why, in a word (malformed, oversized, foreign, stale, sequence, invalid, rate,
-  /// mode, queue_full); accepted: empty.
-  std::string_view reason;
-  /// Whether the datagram decoded as a command_t: else `kind`, `seq` and `value` are unknown.
-  bool decoded = false;
-  std::string_view kind;       ///< set_point, set_point_step, arm, disarm, fault_reset, unknown
-  std::int64_t seq = 0;        ///< command_t.seq
-  double value = std::numeric_limits<double>::quiet_NaN();  ///< command_t.value as sent [m]
-  std::string_view text;       ///< what was done, or why not, for people
-};
-
-/// Receives what the report drains, in order, on the non-real-time side (LCM telemetry).
-class ReportListener {
+class Runtime {
  public:
-  virtual ~ReportListener() = default;
-  virtual void on_tick(const TickRecord& record) = 0;
-  virtual void on_event(const LoopEvent& event) = 0;
-  virtual void on_prediction(const StopOutcome& stop, const Prediction& prediction) = 0;
-  virtual void on_reforecast(const StopOutcome& stop, const Reforecast& reforecast) = 0;
-  virtual void on_health(const HealthRecord& health) = 0;
-  virtual void on_end(double t_end_s) = 0;
-};
-
-class RunReport {
- public:
-  /// `events` (JSON lines) and `trajectory` (CSV) may be null. While stuck, the forecasts are
-  /// made again every `update_period_s` (0: only at the stop).
-  RunReport(const PredictorModel& model, bool linearized, bool nonlinear, std::ostream* events,
-            std::ostream* trajectory, double update_period_s = 0.0);
+  /// Forecasts with the methods enabled; while stuck, made again every `update_period_s` (0: only
+  /// at the stop).
+  Runtime(const PredictorModel& model, bool linearized, bool nonlinear, double update_period_s = 0.0);
 
   /// Whether each forecast made at a stop is followed tick by tick against the measured force
-  /// (the trajectory's forecast columns, the gaps of StopOutcome; on by default). The forecasts
-  /// made again every update period do not depend on it.
+  /// (ExpectedAtTick, the gaps of StopOutcome; on by default). The forecasts made again every
+  /// update period do not depend on it.
   void set_follow_forecasts(bool on) noexcept { follow_ = on; }
   /// Whether each stop keeps its forecasts made again after it ended (tests, the sweep); else
   /// only its half-way ones, so that a daemon's memory does not grow with the time spent at rest.
@@ -69,18 +37,19 @@ class RunReport {
   /// quantised or noisy potentiometer the reading toggles between codes while the carriage is
   /// still, the law's output with it, and the valves follow the mean.
   void set_control_law(const ControlLaw& law) noexcept { law_ = law; }
-  /// Forwards everything drained to `listener` (may be null; must outlive the report).
-  void set_listener(ReportListener* listener) noexcept { listener_ = listener; }
+  /// Adds a sink: every record goes to each sink, in the order they were added. Not owned; it
+  /// must outlive the runtime's last drain(), finish() or record_command().
+  void add_sink(RunListener& sink) { sinks_.push_back(&sink); }
 
   /// Pops everything the loop queued, each event before the record of the tick that raised it,
   /// so that the result does not depend on how often it is called. Not real-time: call from the
   /// service thread or between simulated ticks.
   void drain(LoopOutputs& outputs);
-  /// Closes the run at `t_end_s`.
+  /// Closes the run at `t_end_s` (or the last tick drained, if later).
   void finish(double t_end_s);
-  /// Writes a command's verdict to the events file, dated by the last tick drained. Not
-  /// real-time, not thread-safe: call from the thread that drains (the service thread).
-  void record_command(const CommandRecord& command);
+  /// Hands a command's verdict to the sinks, dated by the last tick drained. Not real-time, not
+  /// thread-safe: call from the thread that drains (the service thread).
+  void record_command(CommandRecord command);
 
   /// The stops of the run, the last max_stops_kept of them (kMaxStopsKept unless set; at least 4).
   [[nodiscard]] const std::vector<StopOutcome>& stops() const noexcept { return stops_; }
@@ -92,15 +61,18 @@ class RunReport {
   [[nodiscard]] const std::vector<LoopEvent>& faults() const noexcept { return faults_; }
   [[nodiscard]] std::uint64_t ticks_seen() const noexcept { return ticks_seen_; }
   [[nodiscard]] std::uint64_t sequence_gaps() const noexcept { return sequence_gaps_; }
-  /// The readable end-of-run summary.
-  void print_summary(std::FILE* out, const LoopTiming& timing) const;
+
+  [[nodiscard]] const PredictorModel& model() const noexcept { return model_; }
+  [[nodiscard]] bool forecasts(PredictionMethod method) const noexcept {
+    return method == PredictionMethod::kLinearized ? linearized_ : nonlinear_;
+  }
+  [[nodiscard]] double update_period_s() const noexcept { return update_period_s_; }
 
  private:
   void on_tick(const TickRecord& r);
-  void print_live_summary(std::FILE* out) const;
   void on_event(const LoopEvent& e);
-  void write_prediction(const StopOutcome& s, const Prediction& p);
-  void reforecast(StopOutcome& s, const TickRecord& r, const ForecastPoint (&expected)[2]);
+  void emit_forecast(const StopOutcome& s, const Prediction& p);
+  void reforecast(StopOutcome& s, const TickRecord& r, const ExpectedAtTick& expected);
   void settle(StopOutcome& s) const;
 
   // The forecasts of the open stop, followed while they hold.
@@ -119,9 +91,7 @@ class RunReport {
   bool keep_reforecasts_ = false;
   std::uint64_t stops_forgotten_ = 0;
   std::size_t max_stops_kept_ = kMaxStopsKept;
-  std::ostream* events_;
-  std::ostream* trajectory_;
-  ReportListener* listener_ = nullptr;
+  std::vector<RunListener*> sinks_;
   std::optional<ControlLaw> law_;
   std::vector<StopOutcome> stops_;
   std::optional<Following> following_;

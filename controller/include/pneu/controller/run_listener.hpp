@@ -1,0 +1,76 @@
+// What the non-real-time runtime (Runtime) emits, as typed records, and the one interface its
+// sinks implement: the events file (EventsFile), the trajectory file (TrajectoryFile), LCM
+// (telemetry::LcmBridge). Everything here runs on the non-real-time side (the service thread, or
+// between simulated ticks), never on the loop thread.
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <string_view>
+
+#include "pneu/controller/loop.hpp"
+#include "pneu/controller/predictor.hpp"
+
+namespace pneu::controller {
+
+/// What each forecast made at the open stop expects at a tick (ForecastTrack::at), while the
+/// runtime follows it; NaN everywhere otherwise.
+struct ExpectedAtTick {
+  static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  ForecastPoint linearized{kNaN, kNaN, kNaN};
+  ForecastPoint nonlinear{kNaN, kNaN, kNaN};
+};
+
+/// A restart forecast: made at a stop (update 0) or made again while the carriage is still stuck
+/// (update 1, 2, ...: the live predictor).
+struct ForecastRecord {
+  std::uint64_t stop = 0;      ///< the stop's index (from 1)
+  double t_stop_s = 0.0;       ///< the stop event's time [s]
+  std::uint32_t update = 0;    ///< 0: the forecast made at the stop
+  double t_s = 0.0;            ///< the tick it was made from: the stop's snapshot for update 0 [s]
+  double u_star_v = 0.0;       ///< the u* it assumed (Eq. 11) [V]
+  double force_n = 0.0;        ///< F measured at t_s (update 0: at the stop's confirmation) [N]
+  /// F the same method's forecast made at the stop expected at t_s (update 0: force_n; NaN when
+  /// the runtime does not follow the forecasts) [N]
+  double stop_forecast_force_n = std::numeric_limits<double>::quiet_NaN();
+  Prediction prediction;
+};
+
+/// A command's verdict, as the command channel (telemetry::LcmBridge) gave it. The strings are
+/// borrowed for the call.
+struct CommandRecord {
+  double t_s = 0.0;            ///< dated by the last tick drained (Runtime::record_command sets it) [s]
+  bool accepted = false;
+  /// Rejected: why, in a word (malformed, oversized, foreign, stale, sequence, invalid, rate,
+  /// mode, queue_full); accepted: empty.
+  std::string_view reason;
+  /// Whether the datagram decoded as a command_t: else `kind`, `seq` and `value` are unknown.
+  bool decoded = false;
+  std::string_view kind;       ///< set_point, set_point_step, arm, disarm, fault_reset, unknown
+  std::int64_t seq = 0;        ///< command_t.seq
+  double value = std::numeric_limits<double>::quiet_NaN();  ///< command_t.value as sent [m]
+  std::string_view text;       ///< what was done, or why not, for people
+};
+
+/// A sink of the runtime: receives, in order, what the runtime drains from the loop and what it
+/// makes of it. For each tick: its events (each before the record of the tick that raised it; a
+/// stop's event before its forecasts), then the tick, then the forecasts made again from it. Each
+/// call is on the thread that drains; a sink does nothing it does not need (the defaults).
+class RunListener {
+ public:
+  virtual ~RunListener() = default;
+  /// A tick record, with what the forecasts made at the open stop expect at it.
+  virtual void on_tick(const TickRecord& /*tick*/, const ExpectedAtTick& /*expected*/) {}
+  /// A start, stop, fault, fault reset or refused reset, as the loop raised it.
+  virtual void on_event(const LoopEvent& /*event*/) {}
+  /// A forecast made at a stop (update 0) or again while stuck.
+  virtual void on_forecast(const ForecastRecord& /*forecast*/) {}
+  /// The loop's statistics of a health period.
+  virtual void on_health(const HealthRecord& /*health*/) {}
+  /// A command's verdict (Runtime::record_command).
+  virtual void on_command(const CommandRecord& /*command*/) {}
+  /// The end of the run at `t_end_s`.
+  virtual void on_end(double /*t_end_s*/) {}
+};
+
+}  // namespace pneu::controller

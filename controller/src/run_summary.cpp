@@ -1,0 +1,157 @@
+#include "pneu/controller/run_summary.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "pneu/controller/supervisor.hpp"
+#include "pneu/controller/verdict.hpp"
+
+namespace pneu::controller {
+
+namespace {
+
+using ull = unsigned long long;
+
+// One forecast against what happened: the restart time and its error.
+std::string forecast_cell(const StopOutcome& s, const Prediction& p, double t_end_s) {
+  const Verdict v = judge(s, p, t_end_s);
+  char buf[64];
+  if (!p.will_restart)
+    std::snprintf(buf, sizeof buf, "none%s", v.kind == Verdict::Kind::kFalseNegative ? " (MISSED)" : "");
+  else if (v.kind == Verdict::Kind::kTruePositive && s.sticking_s() >= 0.5)
+    std::snprintf(buf, sizeof buf, "%c %.4f s (%.2f %%)%s", p.direction > 0 ? '+' : '-', p.t_restart_s,
+                  v.error_percent, v.direction_ok ? "" : " WRONG DIR");
+  else if (v.kind == Verdict::Kind::kTruePositive)
+    std::snprintf(buf, sizeof buf, "%c %.4f s (%+.1f ms)%s", p.direction > 0 ? '+' : '-', p.t_restart_s,
+                  v.error_s * 1e3, v.direction_ok ? "" : " WRONG DIR");
+  else
+    std::snprintf(buf, sizeof buf, "%c %.4f s%s", p.direction > 0 ? '+' : '-', p.t_restart_s,
+                  v.kind == Verdict::Kind::kFalsePositive ? " (FALSE)" : "");
+  return buf;
+}
+
+// Each stop, what each method forecast at it and what happened.
+void print_stops(std::FILE* out, const Runtime& runtime) {
+  const PredictorModel& model = runtime.model();
+  std::fprintf(out, "stops (sticking phases) and their restart forecasts; forecast error in %% of the sticking\n"
+                    "time when it lasted 0.5 s or more, in ms (forecast - actual) otherwise:\n");
+  if (runtime.forecasts(PredictionMethod::kLinearized) && model.linearized_slope != LinearizedSlope::kStopTangent)
+    std::fprintf(out, "(linearized: Eq. 23's flow slope is the %s (controller.predictor.linearized_slope: %s),\n"
+                      " not the paper's tangent at the stop pressure)\n",
+                 model.linearized_slope == LinearizedSlope::kChord ? "chord from the stop pressure to p_null(u*)"
+                                                                    : "tangent at p_null(u*)",
+                 to_string(model.linearized_slope));
+  std::fprintf(out, "  %3s %9s %9s %8s %8s %8s  %-34s %-24s %-24s\n", "#", "t_stop[s]", "y*[mm]", "F[N]",
+               "u*[V]", "F_e[N]", "what happened", "linearized", "nonlinear");
+  for (const auto& s : runtime.stops()) {
+    char happened[64];
+    if (!s.ended && !std::isnan(s.forecast_void_at_s))
+      std::snprintf(happened, sizeof happened, "stuck; u* changed at %.4f s", s.forecast_void_at_s);
+    else if (!s.ended)
+      std::snprintf(happened, sizeof happened, "stuck to the end (%.3f s)", s.sticking_s());
+    else if (s.restarted)
+      std::snprintf(happened, sizeof happened, "restart %c at %.4f s (%.3f s)", s.direction > 0 ? '+' : '-',
+                    s.t_end_s, s.sticking_s());
+    else
+      std::snprintf(happened, sizeof happened, "set point moved at %.4f s", s.t_end_s);
+    std::string cells[2];
+    const std::optional<Prediction>* ps[2] = {&s.linearized, &s.nonlinear};
+    for (int i = 0; i < 2; ++i) cells[i] = *ps[i] ? forecast_cell(s, **ps[i], runtime.end_time_s()) : "-";
+    const Prediction* any = s.nonlinear ? &*s.nonlinear : (s.linearized ? &*s.linearized : nullptr);
+    std::fprintf(out, "  %3llu %9.4f %9.3f %8.2f %8.4f %8.2f  %-34s %-24s %-24s\n", static_cast<ull>(s.index),
+                 s.t_stop_s, s.y_stop_m * 1e3, s.force_n, s.snapshot.u_v, any ? any->equilibrium_force_n : NAN,
+                 happened, cells[0].c_str(), cells[1].c_str());
+  }
+  if (runtime.stops().empty()) std::fprintf(out, "  (none)\n");
+  if (runtime.stops_forgotten() > 0)
+    std::fprintf(out, "  (and %llu earlier stops, not kept)\n", static_cast<ull>(runtime.stops_forgotten()));
+}
+
+// The live predictor: each forecast made at the stop against the measured force, and the
+// forecasts made again half-way.
+void print_live(std::FILE* out, const Runtime& runtime) {
+  const auto& stops = runtime.stops();
+  const auto followed = [](const StopOutcome& s) {
+    return !std::isnan(s.largest_gap_linearized_n) || !std::isnan(s.largest_gap_nonlinear_n);
+  };
+  if (std::none_of(stops.begin(), stops.end(), followed)) return;
+  std::fprintf(out, "while stuck: the largest gap between the measured force and each forecast made at the stop (until\n"
+                    "the start is seen), and the forecast made again from the pressures half-way through the phase%s:\n",
+               runtime.update_period_s() > 0.0 ? "" : " (off: controller.predictor.update_period_s = 0)");
+  std::fprintf(out, "  %3s %11s %12s %12s %7s  %-24s %-24s\n", "#", "stuck[s]", "gap lin[N]", "gap nl[N]",
+               "updates", "half-way linearized", "half-way nonlinear");
+  for (const auto& s : stops) {
+    if (!followed(s)) continue;
+    std::string cells[2] = {"-", "-"};
+    const std::optional<Reforecast>* halfway[2] = {&s.halfway_linearized, &s.halfway_nonlinear};
+    for (int i = 0; i < 2; ++i)
+      if (*halfway[i]) cells[i] = forecast_cell(s, (*halfway[i])->prediction, runtime.end_time_s());
+    std::fprintf(out, "  %3llu %11.3f %12.3f %12.3f %7u  %-24s %-24s\n", static_cast<ull>(s.index), s.sticking_s(),
+                 s.largest_gap_linearized_n, s.largest_gap_nonlinear_n, s.updates, cells[0].c_str(),
+                 cells[1].c_str());
+  }
+}
+
+void print_loop(std::FILE* out, const LoopTiming& timing) {
+  const auto us = [](double s) { return s * 1e6; };
+  std::fprintf(out, "loop: %llu ticks at %.0f Hz, %llu overruns (%llu deadlines skipped)\n",
+               static_cast<ull>(timing.ticks), 1.0 / timing.period_s, static_cast<ull>(timing.overruns),
+               static_cast<ull>(timing.deadlines_skipped));
+  std::fprintf(out, "  wake-up latency [us]  min %8.2f  median %8.2f  p99 %8.2f  max %8.2f\n",
+               us(timing.wake_latency.min_s()), us(timing.wake_latency.quantile_s(0.5)),
+               us(timing.wake_latency.quantile_s(0.99)), us(timing.wake_latency.max_s()));
+  std::fprintf(out, "  compute per tick [us] min %8.2f  median %8.2f  p99 %8.2f  max %8.2f\n",
+               us(timing.compute.min_s()), us(timing.compute.quantile_s(0.5)), us(timing.compute.quantile_s(0.99)),
+               us(timing.compute.max_s()));
+}
+
+void print_telemetry(std::FILE* out, const TelemetryFigures& t) {
+  const CommandCounters& c = t.commands;
+  std::fprintf(out,
+               "telemetry: LCM %s, channels %s*; %llu publish errors; commands: %llu received, %llu accepted, %llu rejected "
+               "(malformed %llu, oversized %llu, foreign %llu, stale %llu, sequence %llu, invalid %llu, rate %llu, mode %llu)\n",
+               t.lcm_url.c_str(), t.channel_prefix.c_str(), static_cast<ull>(t.publish_errors), static_cast<ull>(c.received),
+               static_cast<ull>(c.accepted), static_cast<ull>(c.rejected), static_cast<ull>(c.malformed),
+               static_cast<ull>(c.oversized), static_cast<ull>(c.foreign), static_cast<ull>(c.stale),
+               static_cast<ull>(c.sequence), static_cast<ull>(c.invalid), static_cast<ull>(c.rate),
+               static_cast<ull>(c.mode));
+}
+
+void print_modbus(std::FILE* out, const ModbusFigures& m, double t_end_s) {
+  std::fprintf(out,
+               "modbus: %llu transactions (%.0f per second), %llu errors, %llu reconnects, %llu samples out of range, "
+               "%llu stale reads, oldest sample %.2f ms%s%s\n",
+               static_cast<ull>(m.transactions), static_cast<double>(m.transactions) / std::max(t_end_s, 1e-9),
+               static_cast<ull>(m.errors), static_cast<ull>(m.reconnects), static_cast<ull>(m.out_of_range),
+               static_cast<ull>(m.stale_reads), m.oldest_sample_s * 1e3, m.errors ? "; last error: " : "",
+               m.errors ? m.last_error.c_str() : "");
+  if (m.safe_output_delivered)
+    std::fprintf(out, "  safe output on closing: delivered to the module on attempt %d of %d\n", m.safe_output_attempts,
+                 m.safe_output_max_attempts);
+  else
+    std::fprintf(out, "  safe output on closing: NOT confirmed by the module after %d attempts\n",
+                 m.safe_output_attempts);
+}
+
+}  // namespace
+
+void print_summary(std::FILE* out, const RunFigures& f, const Runtime& runtime) {
+  const double t_end_s = runtime.end_time_s();
+  std::fprintf(out, "pneud %s: %.3f s on the %s backend, %s clock (%s), u_0 = %+.4f V, wall time %.3f s (%.0fx real time)\n",
+               f.version.c_str(), t_end_s, f.backend.c_str(), f.clock.c_str(), f.config.c_str(), f.u_0_v, f.wall_s,
+               t_end_s / f.wall_s);
+  print_stops(out, runtime);
+  print_live(out, runtime);
+  for (const auto& fault : runtime.faults())
+    std::fprintf(out, "fault at %.4f s (y = %.3f mm): %s: %s\n", fault.t_s, fault.y_m * 1e3,
+                 fault_name(fault.fault_cause), fault_text(fault.fault_cause));
+  print_loop(out, f.timing);
+  if (f.telemetry) print_telemetry(out, *f.telemetry);
+  if (f.modbus) print_modbus(out, *f.modbus, t_end_s);
+  if (f.ticks_dropped || f.events_dropped)
+    std::fprintf(out, "  telemetry dropped: %llu tick records, %llu events\n", static_cast<ull>(f.ticks_dropped),
+                 static_cast<ull>(f.events_dropped));
+}
+
+}  // namespace pneu::controller

@@ -1,0 +1,210 @@
+#include "pneu/controller/runtime.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "pneu/controller/verdict.hpp"
+
+namespace pneu::controller {
+
+namespace {
+
+ForecastRecord forecast_record(const StopOutcome& s, const Reforecast& f) {
+  ForecastRecord r;
+  r.stop = s.index;
+  r.t_stop_s = s.t_stop_s;
+  r.update = f.update;
+  r.t_s = f.t_s;
+  r.u_star_v = f.u_star_v;
+  r.force_n = f.force_n;
+  r.stop_forecast_force_n = f.stop_forecast_force_n;
+  r.prediction = f.prediction;
+  return r;
+}
+
+}  // namespace
+
+Runtime::Runtime(const PredictorModel& model, bool linearized, bool nonlinear, double update_period_s)
+    : model_(model), linearized_(linearized), nonlinear_(nonlinear), update_period_s_(update_period_s) {}
+
+void Runtime::drain(LoopOutputs& out) {
+  // Ticks and events come on two queues. The loop pushes a tick's events before its record, so
+  // the events raised up to a record are in their queue when the record is popped.
+  TickRecord r;
+  while (out.ticks.try_pop(r)) {
+    for (const LoopEvent* e = out.events.front(); e && e->tick_seq <= r.seq; e = out.events.front()) {
+      LoopEvent event;
+      (void)out.events.try_pop(event);  // the one front() showed
+      on_event(event);
+    }
+    on_tick(r);
+  }
+  LoopEvent e;
+  while (out.events.try_pop(e)) on_event(e);
+  HealthRecord h;
+  while (out.health.try_pop(h))
+    for (RunListener* sink : sinks_) sink->on_health(h);
+}
+
+void Runtime::on_tick(const TickRecord& r) {
+  if (r.seq != next_seq_) ++sequence_gaps_;
+  next_seq_ = r.seq + 1;
+  ++ticks_seen_;
+  t_end_s_ = r.t_s;
+
+  // A forecast holds while the carriage stays stuck under the u* it assumed: armed, same set point.
+  if (!stops_.empty() && !stops_.back().ended && std::isnan(stops_.back().forecast_void_at_s) &&
+      (r.mode != Mode::kArmed || r.y_d_m != stops_.back().y_d_m))
+    stops_.back().forecast_void_at_s = r.t_s;
+  ExpectedAtTick expected;
+  bool reforecast_due = false;
+  if (following_) {
+    StopOutcome& s = stops_.back();
+    if (s.ended || !r.stuck || !std::isnan(s.forecast_void_at_s)) {
+      following_.reset();
+    } else if (r.t_s >= s.snapshot.t_s) {
+      if (std::isfinite(r.y_m)) {
+        following_->sum_y_m += r.y_m;
+        ++following_->readings;
+      }
+      double* gaps[2] = {&s.largest_gap_linearized_n, &s.largest_gap_nonlinear_n};
+      ForecastPoint* at[2] = {&expected.linearized, &expected.nonlinear};
+      for (int i = 0; i < 2 && follow_; ++i) {
+        if (!following_->tracks[i]) continue;
+        *at[i] = following_->tracks[i]->at(r.t_s);
+        const double gap = std::abs(r.force_n - at[i]->force_n);
+        if (std::isfinite(gap)) *gaps[i] = std::isnan(*gaps[i]) ? gap : std::max(*gaps[i], gap);
+      }
+      // (Not at the snapshot's own tick: that forecast is the stop's.)
+      if (update_period_s_ > 0.0 && r.t_s > s.snapshot.t_s && r.t_s >= following_->next_update_s - 1e-9) {
+        reforecast_due = true;
+        // The next whole period after this tick (a period under the loop's: every tick).
+        const double periods = std::floor((r.t_s - s.snapshot.t_s) / update_period_s_ + 1e-6) + 1.0;
+        following_->next_update_s = s.snapshot.t_s + periods * update_period_s_;
+      }
+    }
+  }
+  for (RunListener* sink : sinks_) sink->on_tick(r, expected);
+  if (reforecast_due) reforecast(stops_.back(), r, expected);
+}
+
+void Runtime::reforecast(StopOutcome& s, const TickRecord& r, const ExpectedAtTick& expected) {
+  StopSnapshot now = s.snapshot;
+  now.t_s = r.t_s;
+  now.p_p_pa = r.p_p_pa;
+  now.p_n_pa = r.p_n_pa;
+  if (law_ && following_->readings > 0) {
+    now.y_m = following_->sum_y_m / static_cast<double>(following_->readings);
+    now.u_v = law_->resting_control_v(s.y_d_m, now.y_m);
+  }
+  if (!snapshot_is_finite(now)) return;
+  ++s.updates;
+  // Bounded history: past the cap, every other update kept is let go, evenly over the phase.
+  if (s.reforecasts.size() + 2 > StopOutcome::kMaxReforecastsKept) {
+    following_->stride *= 2;
+    const std::uint32_t stride = following_->stride;
+    std::erase_if(s.reforecasts, [stride](const Reforecast& f) { return f.update % stride != 0; });
+  }
+  const bool keep = s.updates % following_->stride == 0;
+  const bool enabled[2] = {linearized_, nonlinear_};
+  const ForecastPoint* at[2] = {&expected.linearized, &expected.nonlinear};
+  for (int i = 0; i < 2; ++i) {
+    if (!enabled[i]) continue;
+    Reforecast f;
+    f.update = s.updates;
+    f.t_s = r.t_s;
+    f.force_n = r.force_n;
+    f.u_star_v = now.u_v;
+    f.stop_forecast_force_n = at[i]->force_n;
+    f.prediction = predict(i == 0 ? PredictionMethod::kLinearized : PredictionMethod::kNonlinear, model_, now);
+    if (keep) s.reforecasts.push_back(f);
+    const ForecastRecord record = forecast_record(s, f);
+    for (RunListener* sink : sinks_) sink->on_forecast(record);
+  }
+}
+
+void Runtime::emit_forecast(const StopOutcome& s, const Prediction& p) {
+  Reforecast at_stop;  // update 0: from the stop's snapshot
+  at_stop.t_s = s.snapshot.t_s;
+  at_stop.force_n = s.force_n;
+  at_stop.u_star_v = s.snapshot.u_v;
+  at_stop.stop_forecast_force_n = s.force_n;
+  at_stop.prediction = p;
+  const ForecastRecord record = forecast_record(s, at_stop);
+  for (RunListener* sink : sinks_) sink->on_forecast(record);
+}
+
+// The stop has ended (or the run has): its half-way forecasts are settled, and its history goes
+// unless it is kept.
+void Runtime::settle(StopOutcome& s) const {
+  s.halfway_linearized.reset();
+  s.halfway_nonlinear.reset();
+  if (const Reforecast* f = halfway_reforecast(s, PredictionMethod::kLinearized)) s.halfway_linearized = *f;
+  if (const Reforecast* f = halfway_reforecast(s, PredictionMethod::kNonlinear)) s.halfway_nonlinear = *f;
+  if (!keep_reforecasts_) std::vector<Reforecast>().swap(s.reforecasts);
+}
+
+void Runtime::on_event(const LoopEvent& e) {
+  for (RunListener* sink : sinks_) sink->on_event(e);
+  if (e.kind == LoopEvent::Kind::kStop) {
+    StopOutcome s;
+    s.index = e.stop_index;
+    s.t_stop_s = e.t_s;
+    s.y_stop_m = e.y_m;
+    s.force_n = e.force_n;
+    s.y_d_m = e.y_d_m;
+    s.snapshot = e.snapshot;
+    // Forecasts assume the law holds u* (Eq. 11): not when disarmed or faulted.
+    const bool forecastable = e.controlled && snapshot_is_finite(s.snapshot);
+    if (linearized_ && forecastable) s.linearized = predict_linearized(model_, s.snapshot);
+    if (nonlinear_ && forecastable) s.nonlinear = predict_nonlinear(model_, s.snapshot);
+    if (s.linearized) emit_forecast(s, *s.linearized);
+    if (s.nonlinear) emit_forecast(s, *s.nonlinear);
+    following_.reset();
+    if (stops_.size() >= max_stops_kept_) {  // a daemon's summary lists the last ones
+      const std::size_t n = stops_.size() - max_stops_kept_ + max_stops_kept_ / 4;
+      stops_.erase(stops_.begin(), stops_.begin() + static_cast<std::ptrdiff_t>(n));
+      stops_forgotten_ += n;
+    }
+    stops_.push_back(s);
+    if (forecastable && (linearized_ || nonlinear_)) {
+      following_.emplace();
+      if (linearized_) following_->tracks[0].emplace(PredictionMethod::kLinearized, model_, s.snapshot);
+      if (nonlinear_) following_->tracks[1].emplace(PredictionMethod::kNonlinear, model_, s.snapshot);
+      following_->next_update_s = s.snapshot.t_s + update_period_s_;
+    }
+    return;
+  }
+  if (e.kind == LoopEvent::Kind::kFaultReset || e.kind == LoopEvent::Kind::kResetRefused) return;
+  if (e.kind == LoopEvent::Kind::kFault) {
+    following_.reset();  // the safe output replaces u*
+    faults_.push_back(e);
+    return;
+  }
+  if (!stops_.empty() && stops_.back().index == e.stop_index && !stops_.back().ended) {
+    following_.reset();
+    StopOutcome& s = stops_.back();
+    s.ended = true;
+    s.restarted = e.restart;
+    s.t_end_s = e.t_s;
+    s.direction = e.direction;
+    settle(s);
+  }
+}
+
+void Runtime::finish(double t_end_s) {
+  t_end_s_ = std::max(t_end_s_, t_end_s);
+  for (auto& s : stops_)
+    if (!s.ended) {
+      s.t_end_s = t_end_s_;
+      settle(s);
+    }
+  for (RunListener* sink : sinks_) sink->on_end(t_end_s_);
+}
+
+void Runtime::record_command(CommandRecord command) {
+  command.t_s = t_end_s_;
+  for (RunListener* sink : sinks_) sink->on_command(command);
+}
+
+}  // namespace pneu::controller
