@@ -20,7 +20,7 @@ cleanup() {
 trap cleanup EXIT
 fail() {
   echo "FAIL: $*"
-  echo "--- pneud output"; cat "$D/pneud.out" "$D/pneud.err" 2>/dev/null
+  echo "--- pneud output"; cat "$D/pneud.out" "$D/pneud.err" "$D/summary.json" 2>/dev/null
   exit 1
 }
 command -v nsenter >/dev/null || { echo "SKIPPED: nsenter (util-linux) is missing"; exit 77; }
@@ -41,10 +41,10 @@ foreign() { nsenter -t "$FPID" -n "$@"; }
 # an overrun fault and every command after it would be refused for the mode. Timing is not this
 # test's subject (tests/support/child_process.hpp, loop_timing_faults_off).
 start_pneud() {  # DURATION
-  rm -f "$D/traj.csv"  # the last run's
+  rm -f "$D/traj.csv" "$D/summary.json"  # the last run's
   "$B/pneud" --clock real --duration "$1" --require-telemetry --set "controller.setpoints.schedule=[]" \
     --set controller.supervisor.overruns_in_a_row=0 --set controller.supervisor.max_tick_interval_s=0 \
-    --trajectory "$D/traj.csv" >"$D/pneud.out" 2>"$D/pneud.err" &
+    --trajectory "$D/traj.csv" --summary-json "$D/summary.json" >"$D/pneud.out" 2>"$D/pneud.err" &
   PNEUD=$!
   # Subscribed once the loop ticks: the trajectory has rows (up to 10 s on a loaded machine).
   for _ in $(seq 200); do [ "$(wc -l <"$D/traj.csv" 2>/dev/null || echo 0)" -gt 1 ] && break; sleep 0.05; done
@@ -59,10 +59,17 @@ wait_pneud() {
   wait "$PNEUD" || fail "pneud exited with $?"
   PNEUD=
 }
-# The summary's command counters: "NAME VALUE" lines.
+# A figure of the run's --summary-json file, by its keys: `figure loop ticks`.
+figure() {
+  "$PY" -c 'import json, sys
+v = json.load(open(sys.argv[1]))
+for key in sys.argv[2:]: v = v[key]
+print(v)' "$D/summary.json" "$@"
+}
+# The run's command counters: "NAME VALUE" lines.
 counters() {
-  grep '^telemetry:' "$D/pneud.out" | sed -E 's/.*commands: ([0-9]+) received, ([0-9]+) accepted, ([0-9]+) rejected \(malformed ([0-9]+), oversized ([0-9]+), foreign ([0-9]+), stale ([0-9]+), sequence ([0-9]+), invalid ([0-9]+), rate ([0-9]+), mode ([0-9]+)\)/received \1\naccepted \2\nrejected \3\nmalformed \4\noversized \5\nforeign \6\nstale \7\nsequence \8\ninvalid \9/'
-  grep '^telemetry:' "$D/pneud.out" | sed -E 's/.*rate ([0-9]+), mode ([0-9]+)\)/rate \1\nmode \2/'
+  "$PY" -c 'import json, sys
+for name, value in json.load(open(sys.argv[1]))["telemetry"]["commands"].items(): print(name, value)' "$D/summary.json"
 }
 expect() {  # NAME VALUE
   local got
@@ -80,12 +87,12 @@ expect_at_least() {
 expect_every_tick() {  # DURATION_S
   local rows ticks skipped
   rows=$(($(wc -l <"$D/traj.csv") - 1))
-  ticks=$(sed -nE 's/^loop: ([0-9]+) ticks.*/\1/p' "$D/pneud.out")
-  skipped=$(sed -nE 's/^loop: .*\(([0-9]+) deadlines skipped\).*/\1/p' "$D/pneud.out")
+  ticks=$(figure loop ticks)
+  skipped=$(figure loop deadlines_skipped)
   [ "$rows" = "$ticks" ] || fail "trajectory has $rows rows for $ticks ticks"
   awk -F, 'NR > 1 && $1 != NR - 2 {exit 1}' "$D/traj.csv" || fail "a gap in the tick sequence"
   [ $((ticks + skipped)) = $(($1 * 1000 + 1)) ] || fail "ticks $ticks + skipped $skipped != $(($1 * 1000 + 1))"
-  ! grep -q "telemetry dropped" "$D/pneud.out" || fail "telemetry dropped"
+  [ "$(figure loop tick_records_dropped)" = 0 ] && [ "$(figure loop events_dropped)" = 0 ] || fail "telemetry dropped"
   echo "ok: $ticks ticks recorded without a gap ($skipped deadlines skipped by overruns)"
 }
 

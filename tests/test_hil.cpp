@@ -140,6 +140,8 @@ class Hil : public ::testing::Test {
     args.insert(args.end(), extra.begin(), extra.end());
     return pneu::test::loop_timing_faults_off(std::move(args));
   }
+  // pneud's figures (--summary-json), read once it has ended.
+  [[nodiscard]] std::string summary_json() const { return (dir_ / "summary.json").string(); }
   pneu::test::TestDir dir_{"pneu_hil_"};
   int port_ = 0;
 };
@@ -154,13 +156,16 @@ TEST_F(Hil, PaperScenarioOverModbusSticksRestartsAndTheNonlinearForecastHoldsWit
   for (; runs < 3 && long_restarts == 0; ++runs) {
     const std::string events = "events" + std::to_string(runs) + ".jsonl";
     Child plant = serve(15.0);
-    Child pneud = Child::spawn(pneud_args({"--events", (dir_ / events).string()}), dir_ / "pneud.out",
-                               dir_ / "pneud.err");
+    Child pneud = Child::spawn(pneud_args({"--events", (dir_ / events).string(), "--summary-json", summary_json()}),
+                               dir_ / "pneud.out", dir_ / "pneud.err");
     ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
     kill(plant.pid, SIGINT);
     ASSERT_EQ(plant.wait(), 0) << slurp(dir_ / "serve.err");
     EXPECT_THAT(slurp(dir_ / "serve.out"), HasSubstr("last valve voltages: u_P ="));
-    EXPECT_THAT(slurp(dir_ / "pneud.out"), HasSubstr("0 errors, 0 reconnects"));
+    const auto summary = pneu::test::PneudSummary::read(summary_json());
+    ASSERT_TRUE(summary.has_modbus);
+    EXPECT_EQ(summary.errors, 0u);
+    EXPECT_EQ(summary.reconnects, 0u);
 
     struct Stop {
       double t = NAN, nonlinear = NAN, restart = NAN;
@@ -231,13 +236,14 @@ TEST_F(Hil, ServesUpToMaxClientsAtOnceAndClosesOneMoreWithALineOnStderr) {
 TEST_F(Hil, MbpollReadsBesidePneudWhichSeesNoErrorAndMbpollMayNotWriteTheValves) {
   if (!has_mbpoll()) GTEST_SKIP() << "mbpoll (Debian package mbpoll) is not installed";
   Child plant = serve(10.0);
-  Child pneud = Child::spawn(pneud_args({"--duration", "3"}), dir_ / "pneud.out", dir_ / "pneud.err");
+  Child pneud = Child::spawn(pneud_args({"--duration", "3", "--summary-json", summary_json()}), dir_ / "pneud.out",
+                             dir_ / "pneud.err");
   ASSERT_TRUE(pneu::test::wait_for_text(dir_ / "serve.out", "writes the valve registers", 5s)) << slurp(dir_ / "pneud.err");
   // While pneud drives the valves, mbpoll polls the sensor registers, one connection a poll, and
   // once tries to write the valve registers.
   int polls = 0, write_rc = 0;
   std::string failed;
-  while (slurp(dir_ / "pneud.out").find("modbus: ") == std::string::npos) {
+  while (!fs::exists(summary_json())) {  // it appears at the end of pneud's run
     if (polls == 5 && write_rc == 0) write_rc = mbpoll(port_, "-t 4 -r 17", dir_ / "mbpoll_write.out", "0 0");
     const fs::path out = dir_ / "mbpoll.out";
     if (mbpoll(port_, "-t 4 -r 1 -c 3", out) != 0 || mbpoll_words(slurp(out)).size() != 3) failed += slurp(out);
@@ -248,7 +254,7 @@ TEST_F(Hil, MbpollReadsBesidePneudWhichSeesNoErrorAndMbpollMayNotWriteTheValves)
   EXPECT_EQ(failed, "") << "every poll read the three registers";
   EXPECT_NE(write_rc, 0);
   EXPECT_THAT(slurp(dir_ / "mbpoll_write.out"), HasSubstr("Slave device or server is busy")) << "exception 06";
-  const auto summary = pneu::test::PneudSummary::parse(slurp(dir_ / "pneud.out"));
+  const auto summary = pneu::test::PneudSummary::read(summary_json());
   ASSERT_TRUE(summary.has_loop && summary.has_modbus) << slurp(dir_ / "pneud.out");
   EXPECT_EQ(summary.errors, 0u) << "pneud's exchanges all answered beside mbpoll's";
   EXPECT_EQ(summary.reconnects, 0u);
@@ -262,7 +268,8 @@ TEST_F(Hil, AClientThatDribblesItsRequestOrSendsBadOnesHoldsUpNotPneudBesideIt) 
   // pneud's response timeout is 0.5 s here (link_stalls_tolerated): a server that waited in
   // modbus_receive for the rest of the dribbled request (1.2 s) would time pneud out.
   Child plant = serve(10.0);
-  Child pneud = Child::spawn(pneud_args({"--duration", "3"}), dir_ / "pneud.out", dir_ / "pneud.err");
+  Child pneud = Child::spawn(pneud_args({"--duration", "3", "--summary-json", summary_json()}), dir_ / "pneud.out",
+                             dir_ / "pneud.err");
   ASSERT_TRUE(pneu::test::wait_for_text(dir_ / "serve.out", "writes the valve registers", 5s)) << slurp(dir_ / "pneud.err");
 
   // A request one byte every 100 ms: answered once whole.
@@ -308,7 +315,7 @@ TEST_F(Hil, AClientThatDribblesItsRequestOrSendsBadOnesHoldsUpNotPneudBesideIt) 
   close(half);
 
   ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
-  const auto summary = pneu::test::PneudSummary::parse(slurp(dir_ / "pneud.out"));
+  const auto summary = pneu::test::PneudSummary::read(summary_json());
   ASSERT_TRUE(summary.has_modbus) << slurp(dir_ / "pneud.out");
   EXPECT_EQ(summary.errors, 0u) << "no exchange of pneud's waited on the other clients";
   EXPECT_EQ(summary.reconnects, 0u);
@@ -401,12 +408,13 @@ TEST_F(Hil, UnreachableHostWrongUnitAndBadMapFailAtStartUpWithClearErrors) {
 TEST_F(Hil, AModuleThatAnswersLateIsACountedCommsFaultAndTheLoopNeverWaits) {
   // From 1 s on every reply comes 50 ms late, beyond the 20 ms response timeout.
   Child plant = serve(6.0, {"--reply-delay-s", "0.05", "--delay-after-s", "1"});
-  Child pneud = Child::spawn(pneud_args({"--duration", "3"}, /*bench_link=*/true), dir_ / "pneud.out", dir_ / "pneud.err");
+  Child pneud = Child::spawn(pneud_args({"--duration", "3", "--summary-json", summary_json()}, /*bench_link=*/true),
+                             dir_ / "pneud.out", dir_ / "pneud.err");
   ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
   kill(plant.pid, SIGINT);
   EXPECT_EQ(plant.wait(), 0);
   const std::string out = slurp(dir_ / "pneud.out");
-  const auto summary = pneu::test::PneudSummary::parse(out);
+  const auto summary = pneu::test::PneudSummary::read(summary_json());
   ASSERT_TRUE(summary.has_loop && summary.has_modbus) << out;
   EXPECT_GE(summary.errors, 5u) << "each late reply is a counted comms error";
   EXPECT_GE(summary.reconnects, 5u) << "and the I/O thread closes and reconnects (libmodbus issue #255)";
@@ -416,6 +424,8 @@ TEST_F(Hil, AModuleThatAnswersLateIsACountedCommsFaultAndTheLoopNeverWaits) {
   EXPECT_EQ(summary.ticks + summary.skipped, 3001u) << "every deadline of the 3 s run was met or accounted for";
   // The safe output is tried three times on closing, each on a fresh connection; none is answered
   // in time, and pneud says so, on stderr too (the journal's).
+  EXPECT_FALSE(summary.safe_output_delivered);
+  EXPECT_EQ(summary.safe_output_attempts, 3u);
   EXPECT_THAT(out, HasSubstr("safe output on closing: NOT confirmed by the module after 3 attempts"));
   EXPECT_THAT(slurp(dir_ / "pneud.err"),
               HasSubstr("the module did not confirm the safe output on closing (3 attempts, last error: "));
@@ -436,13 +446,14 @@ TEST_F(Hil, RtuOverAPtyPairAt115200BaudKeepsTheLoopRateAndFreshSamples) {
   // The sample age limit is hil.yaml's 20 ms, this test's subject; a stall of the plant or of
   // socat shorter than the tolerant response timeout is no comms error (see link_stalls_tolerated).
   Child pneud = Child::spawn(pneud_args({"--duration", "3", "--set", "hal.modbus.transport=rtu", "--set",
-                                         "hal.modbus.device=" + b.string(), "--set", "hal.modbus.max_sample_age_s=0.02"}),
+                                         "hal.modbus.device=" + b.string(), "--set", "hal.modbus.max_sample_age_s=0.02",
+                                         "--summary-json", summary_json()}),
                              dir_ / "pneud.out", dir_ / "pneud.err");
   ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
   kill(plant.pid, SIGINT);
   EXPECT_EQ(plant.wait(), 0);
   const std::string out = slurp(dir_ / "pneud.out");
-  const auto summary = pneu::test::PneudSummary::parse(out);
+  const auto summary = pneu::test::PneudSummary::read(summary_json());
   ASSERT_TRUE(summary.has_loop && summary.has_modbus) << out;
   EXPECT_EQ(summary.ticks + summary.skipped, 3001u) << "the loop kept its 1 kHz deadlines";
   EXPECT_EQ(summary.errors, 0u);

@@ -80,7 +80,8 @@ TEST_F(LcmIntegration, LcmLoggerRecordsEveryTickInOrderWithEventsAndPredictions)
 
   Child pneud = Child::spawn(loop_timing_faults_off({bin("pneud"), "--clock", "real", "--duration", "3",
                                                      "--require-telemetry", "--trajectory", (dir_ / "traj.csv").string(),
-                                                     "--events", (dir_ / "events.jsonl").string()}),
+                                                     "--events", (dir_ / "events.jsonl").string(), "--summary-json",
+                                                     (dir_ / "summary.json").string()}),
                              dir_ / "pneud.out", dir_ / "pneud.err");
   ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
   // Until the logger has written every tick's state it will get (up to 10 s), then stop it.
@@ -128,7 +129,7 @@ TEST_F(LcmIntegration, LcmLoggerRecordsEveryTickInOrderWithEventsAndPredictions)
   for (std::size_t i = 0; i < states.size(); ++i) ASSERT_EQ(states[i].seq, static_cast<int64_t>(i)) << "in order, no gap";
   // Every deadline of the 3 s run was ticked, or skipped after an overrun the shared machine
   // caused (pneud counts those; timing is not this test's business).
-  const auto summary = pneu::test::PneudSummary::parse(slurp(dir_ / "pneud.out"));
+  const auto summary = pneu::test::PneudSummary::read(dir_ / "summary.json");
   ASSERT_TRUE(summary.has_loop);
   const auto ticks = summary.ticks, skipped = summary.skipped;
   EXPECT_EQ(states.size(), ticks);
@@ -229,7 +230,8 @@ TEST_F(LcmIntegration, CommandsAreValidatedAndOnlyValidOnesReachTheLoop) {
                                                      "--require-telemetry", "--set", "controller.setpoints.schedule=[]",
                                                      "--set", "telemetry.health_period_s=0.5", "--set",
                                                      "commands.max_rate_hz=100", "--set", "commands.burst=5",
-                                                     "--trajectory", (dir_ / "traj.csv").string()}),
+                                                     "--trajectory", (dir_ / "traj.csv").string(), "--summary-json",
+                                                     (dir_ / "summary.json").string()}),
                              dir_ / "pneud.out", dir_ / "pneud.err");
   ASSERT_TRUE(listener.wait_for([&] { return listener.health_count > 0; }, 10s)) << "pneud up, its loop ticking";
   using C = pneu_lcm::command_t;
@@ -327,7 +329,7 @@ TEST_F(LcmIntegration, CommandsAreValidatedAndOnlyValidOnesReachTheLoop) {
   EXPECT_NEAR(y_d_end, 0.170 + 0.0001 * static_cast<double>(accepted.size() - 1), 1e-9);
   EXPECT_NEAR(y_end, y_d_end, 0.005) << "the carriage went from 219.5 mm to the commanded set point";
   for (std::size_t i = 0; i < traj.rows.size(); ++i) ASSERT_EQ(std::stoull(traj.rows[i][0]), i);
-  const auto summary = pneu::test::PneudSummary::parse(slurp(dir_ / "pneud.out"));
+  const auto summary = pneu::test::PneudSummary::read(dir_ / "summary.json");
   ASSERT_TRUE(summary.has_loop);
   const auto ticks = summary.ticks, skipped = summary.skipped;
   EXPECT_EQ(ticks + skipped, 4001u);

@@ -1,5 +1,5 @@
-// pneud as a user runs it: help and version, the summary and the events file of the default run,
-// the effective configuration, bad input refused with exit code 2 before anything runs (naming the
+// pneud as a user runs it: help and version, the summary, its figures as JSON and the events file
+// of the default run, the effective configuration, bad input refused with exit code 2 before anything runs (naming the
 // key and the reason), and a short run on the real clock.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -31,6 +31,7 @@ struct Outcome {
   std::string err;
 };
 
+using pneu::test::Json;
 using pneu::test::slurp;
 
 std::vector<std::string> lines_of(const std::string& text) {
@@ -109,6 +110,7 @@ TEST_F(PneudCli, HelpDescribesTheUsageAndExitsZero) {
   EXPECT_EQ(o.exit_code, 0) << o.err;
   EXPECT_THAT(o.out, HasSubstr("Usage:"));
   EXPECT_THAT(o.out, HasSubstr("--events FILE"));
+  EXPECT_THAT(o.out, HasSubstr("--summary-json FILE"));
   EXPECT_EQ(o.err, "");
 }
 
@@ -290,19 +292,82 @@ INSTANTIATE_TEST_SUITE_P(
     [](const ::testing::TestParamInfo<BadInput>& p) { return p.param.name; });
 
 TEST_F(PneudCli, ShortRunOnTheRealClockCompletesAndReportsLoopTiming) {
-  const Outcome o = pneud("--clock real --duration 0.3");
+  const Outcome o = pneud("--clock real --duration 0.3 --summary-json " + quoted(file("summary.json")));
   ASSERT_EQ(o.exit_code, 0) << o.err;
   EXPECT_THAT(o.out, HasSubstr("real clock"));
   EXPECT_THAT(o.out, HasSubstr("wake-up latency [us]"));
   EXPECT_THAT(o.out, HasSubstr("compute per tick [us]"));
   // No timing assertions (shared machines are noisy, and every overrun skips deadlines): only that
   // it ticked, and never beyond the 301 deadlines at 0, 1, ..., 300 ms.
-  std::smatch m;
-  ASSERT_TRUE(std::regex_search(o.out, m, std::regex(R"(loop: ([0-9]+) ticks at 1000 Hz)")))
-      << o.out;
-  const long ticks = std::stol(m[1]);
-  EXPECT_GE(ticks, 1);
-  EXPECT_LE(ticks, 301);
+  const auto s = pneu::test::PneudSummary::read(file("summary.json"));
+  ASSERT_TRUE(s.has_loop) << o.out;
+  EXPECT_GE(s.ticks, 1u);
+  EXPECT_LE(s.ticks, 301u);
+}
+
+// --summary-json: the figures of the summary's lines, for programs (the README lists the members).
+TEST_F(PneudCli, SummaryJsonHoldsTheFiguresTheSummaryPrints) {
+  const Outcome o = pneud("--summary-json " + quoted(file("summary.json")));
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  const Json j = Json::read(file("summary.json"));  // strict JSON, or it throws
+  EXPECT_EQ(j["backend"].text(), "sim");
+  EXPECT_EQ(j["clock"].text(), "simulated");
+  EXPECT_EQ(j["config"].text(), "embedded sim.yaml");
+  EXPECT_EQ(j["t_end_s"].number(), 12.0);
+  char first_line[160];
+  std::snprintf(first_line, sizeof first_line, "%.3f s on the %s backend, %s clock (%s), u_0 = %+.4f V, wall time ",
+                j["t_end_s"].number(), j["backend"].text().c_str(), j["clock"].text().c_str(),
+                j["config"].text().c_str(), j["u_0_v"].number());
+  EXPECT_THAT(o.out, HasSubstr(first_line));
+  const Json& loop = j["loop"];
+  EXPECT_EQ(loop["ticks"].count(), 12001u);
+  EXPECT_EQ(loop["rate_hz"].number(), 1000.0);
+  EXPECT_THAT(o.out, HasSubstr("loop: " + std::to_string(loop["ticks"].count()) + " ticks at 1000 Hz, " +
+                               std::to_string(loop["overruns"].count()) + " overruns (" +
+                               std::to_string(loop["deadlines_skipped"].count()) + " deadlines skipped)"));
+  for (const char* stats : {"wake_latency_us", "compute_us"})
+    for (const char* q : {"min", "median", "p99", "max"}) EXPECT_GE(loop[stats][q].number(), 0.0) << stats << q;
+  EXPECT_EQ(loop["tick_records_dropped"].count(), 0u);
+  EXPECT_EQ(loop["events_dropped"].count(), 0u);
+  const Json& runtime = j["runtime"];
+  EXPECT_EQ(runtime["ticks_seen"].count(), 12001u);
+  EXPECT_EQ(runtime["sequence_gaps"].count(), 0u);
+  EXPECT_EQ(runtime["stops_forgotten"].count(), 0u);
+  EXPECT_EQ(runtime["stops"].count(), 5u) << "the five sticking phases of the README's table";
+  EXPECT_TRUE(j["faults"].elements().empty());
+  EXPECT_TRUE(j["telemetry"].is_null()) << "telemetry off";
+  EXPECT_TRUE(j["modbus"].is_null()) << "the sim backend";
+}
+
+TEST_F(PneudCli, SummaryJsonIsWrittenUnderQuietAndListsTheFaults) {
+  // A following error of 10 mm for 10 ms: the 50 mm step latches it at once.
+  const Outcome o = pneud("--quiet --summary-json " + quoted(file("summary.json")) +
+                          " --set controller.supervisor.following_error_m=0.01"
+                          " --set controller.supervisor.following_error_s=0.01");
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_EQ(o.out, "");
+  const Json j = Json::read(file("summary.json"));
+  ASSERT_EQ(j["faults"].elements().size(), 1u);
+  const Json& fault = j["faults"].elements().front();
+  EXPECT_EQ(fault["cause"].text(), "following-error");
+  EXPECT_GT(fault["t_s"].number(), 1.0) << "after the step at 1 s";
+  EXPECT_NEAR(fault["y_m"].number(), 0.2195, 0.001) << "the carriage had barely moved";
+}
+
+TEST_F(PneudCli, SummaryJsonIsNotLeftBehindWhenTheRunFailsNorFromAnEarlierRun) {
+  std::ofstream(file("summary.json")) << "{\"from\": \"an earlier run\"}\n";
+  const Outcome o = pneud("--clock real --duration 0.1 --set hal.gpio.enabled=true --set hal.gpio.chip=pneu-no-such-chip"
+                          " --summary-json " + quoted(file("summary.json")));
+  EXPECT_EQ(o.exit_code, 1) << o.out;
+  EXPECT_FALSE(fs::exists(file("summary.json")));
+  EXPECT_FALSE(fs::exists(file("summary.json.partial")));
+}
+
+TEST_F(PneudCli, ASummaryJsonPathThatCannotBeWrittenFailsBeforeTheRun) {
+  const Outcome o = pneud("--summary-json " + quoted(file("no-such-directory/summary.json")));
+  EXPECT_EQ(o.exit_code, 1);
+  EXPECT_THAT(o.err, HasSubstr("cannot create the summary file"));
+  EXPECT_EQ(o.out, "") << "nothing ran";
 }
 
 TEST_F(PneudCli, AGpioChipThatDoesNotExistIsAClearStartUpError) {

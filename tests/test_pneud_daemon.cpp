@@ -109,7 +109,8 @@ TEST_F(PneudDaemon, OutsideSystemdNothingIsNotifiedAndTheRunIsTheSame) {
 class PneudStall : public PneudDaemon {
  protected:
   std::string stalled_run(std::vector<std::string> args) {
-    args.insert(args.end(), {"--events", (dir_ / "events.jsonl").string(), "--trajectory", (dir_ / "traj.csv").string()});
+    args.insert(args.end(), {"--events", (dir_ / "events.jsonl").string(), "--trajectory", (dir_ / "traj.csv").string(),
+                             "--summary-json", (dir_ / "summary.json").string()});
     Child p = Child::spawn(args, dir_ / "pneud.out", dir_ / "pneud.err");
     // The loop ticks (its trajectory grows past the header) before the stall, up to 10 s.
     EXPECT_TRUE(pneu::test::eventually(
@@ -135,7 +136,7 @@ class PneudStall : public PneudDaemon {
 TEST_F(PneudStall, AStalledLoopLatchesTheOverrunFault) {
   const std::string out = stalled_run(pneud_);
   EXPECT_THAT(out, HasSubstr("): overrun: the loop overran its deadlines")) << out;
-  const auto s = pneu::test::PneudSummary::parse(out);
+  const auto s = pneu::test::PneudSummary::read(dir_ / "summary.json");
   ASSERT_TRUE(s.has_loop) << out;
   EXPECT_GE(s.skipped, 250u) << "the 0.3 s stopped are deadlines skipped, not ticks made up\n" << out;
   const std::string events = slurp(dir_ / "events.jsonl");
@@ -146,7 +147,7 @@ TEST_F(PneudStall, AStalledLoopLatchesTheOverrunFault) {
 TEST_F(PneudStall, WithTheTimingSupervisionOffTheSameStallLatchesNothing) {
   const std::string out = stalled_run(pneu::test::loop_timing_faults_off(pneud_));
   EXPECT_THAT(out, Not(HasSubstr("fault at"))) << out;
-  const auto s = pneu::test::PneudSummary::parse(out);
+  const auto s = pneu::test::PneudSummary::read(dir_ / "summary.json");
   ASSERT_TRUE(s.has_loop) << out;
   EXPECT_GE(s.skipped, 250u) << out;
   EXPECT_THAT(slurp(dir_ / "events.jsonl"), Not(HasSubstr("\"event\":\"fault\"")));

@@ -144,7 +144,9 @@ class PymodbusInterop : public ::testing::Test {
                                   "--duration",
                                   "2",
                                   "--trajectory",
-                                  (dir_ / "trajectory.csv").string()};
+                                  (dir_ / "trajectory.csv").string(),
+                                  "--summary-json",
+                                  (dir_ / "summary.json").string()};
     args = pneu::test::link_stalls_tolerated(std::move(args));  // interoperability, not the link's timing
     args.insert(args.end(), extra.begin(), extra.end());
     return Child::spawn(pneu::test::loop_timing_faults_off(std::move(args)), dir_ / "pneud.out", dir_ / "pneud.err");
@@ -154,7 +156,7 @@ class PymodbusInterop : public ::testing::Test {
   // the served one, and the module holding the command the trajectory says was sent.
   void expect_both_directions_interoperate(const ModuleReport& module) {
     const std::string out = slurp(dir_ / "pneud.out");
-    const auto mb = pneu::test::PneudSummary::parse(out);
+    const auto mb = pneu::test::PneudSummary::read(dir_ / "summary.json");
     ASSERT_TRUE(mb.has_modbus) << out;
     EXPECT_EQ(mb.errors, 0u) << out;
     EXPECT_EQ(mb.reconnects, 0u) << out;

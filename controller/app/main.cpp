@@ -39,8 +39,8 @@ constexpr const char* kHelp = R"(pneud: real-time controller of the electropneum
 
 Usage:
   pneud [--config FILE] [--clock real|simulated] [--duration S] [--events FILE]
-        [--trajectory FILE] [--set KEY=VALUE ...] [--check-config] [--require-telemetry]
-        [--require-rt] [--quiet]
+        [--trajectory FILE] [--summary-json FILE] [--set KEY=VALUE ...] [--check-config]
+        [--require-telemetry] [--require-rt] [--quiet]
   pneud --help | --version
 
   --config FILE      YAML configuration (default: the embedded config/sim.yaml, the simulated bench
@@ -55,12 +55,17 @@ Usage:
   --trajectory FILE  one CSV row per tick: seq,t,y_d,y,v_hat,a_hat,p_P,p_N,F,u,stuck,validity,
                      then, while stuck, the pressures and force each forecast made at the stop
                      expects (p_P_linearized,...,F_nonlinear; empty otherwise)
+  --summary-json FILE  the run's figures as one JSON object, written whole at the end of the run
+                     (--quiet or not; none is left when the run fails): the loop's ticks,
+                     overruns, deadlines skipped and timing; the runtime's ticks, stops and
+                     faults; LCM's publish errors and command counters; the Modbus counters and
+                     the safe output on closing (telemetry, modbus: null when not used)
   --set KEY=VALUE    override a config key by its dotted path, e.g. controller.law.position_gain_v_per_m=60
   --check-config     validate, print the effective configuration (u_0 resolved) and exit
   --require-telemetry  exit with an error when LCM cannot start, instead of running without it
   --require-rt       exit with an error when controller.realtime cannot be applied (SCHED_FIFO,
                      CPU affinity, mlockall), instead of warning and running without it
-  --quiet            no summary
+  --quiet            no summary on stdout
 
 Faults (controller.supervisor, the e-stop, comms) latch the safe output until a FAULT_RESET
 command once the cause is gone; the daemon then waits disarmed for an ARM command.
@@ -125,7 +130,7 @@ class SystemdNotifier {
 };
 
 int run(int argc, char** argv) {
-  const cli::Args args(argc, argv, 1, {"config", "clock", "duration", "events", "trajectory"},
+  const cli::Args args(argc, argv, 1, {"config", "clock", "duration", "events", "trajectory", "summary-json"},
                        {"check-config", "quiet", "help", "version", "require-telemetry", "require-rt"}, {"set"});
   if (args.flag("help")) {
     std::cout << kHelp;
@@ -179,6 +184,13 @@ int run(int argc, char** argv) {
   if (auto p = args.value("trajectory")) {
     trajectory.emplace(*p);
     if (!*trajectory) throw std::runtime_error(*p + ": cannot create the trajectory file");
+  }
+  // The summary file appears whole at the end of the run (written beside it, then renamed): none
+  // is there meanwhile, nor when the run fails. A path it cannot be written to fails now.
+  const std::optional<std::string> summary_json = args.value("summary-json");
+  if (summary_json) {
+    if (!std::ofstream(*summary_json)) throw std::runtime_error(*summary_json + ": cannot create the summary file");
+    std::filesystem::remove(*summary_json);
   }
 
   std::signal(SIGINT, on_signal);
@@ -284,32 +296,38 @@ int run(int argc, char** argv) {
   if (trajectory) trajectory->flush();
   if ((events && !*events) || (trajectory && !*trajectory)) throw std::runtime_error("writing the output failed");
 
-  if (!args.flag("quiet")) {
-    controller::RunFigures figures;
-    figures.version = PNEU_VERSION;
-    figures.backend = cfg.hal.backend == config::BackendKind::kModbus ? "modbus" : "sim";
-    figures.clock = real_clock ? "real" : "simulated";
-    figures.config = config_path.empty() ? "embedded sim.yaml" : config_path;
-    figures.u_0_v = cfg.controller.law.offset_v;
-    figures.wall_s = wall_s;
-    figures.timing = run.timing;
-    figures.ticks_dropped = run.outputs->ticks_dropped;
-    figures.events_dropped = run.outputs->events_dropped;
+  controller::RunFigures figures;
+  figures.version = PNEU_VERSION;
+  figures.backend = cfg.hal.backend == config::BackendKind::kModbus ? "modbus" : "sim";
+  figures.clock = real_clock ? "real" : "simulated";
+  figures.config = config_path.empty() ? "embedded sim.yaml" : config_path;
+  figures.u_0_v = cfg.controller.law.offset_v;
+  figures.wall_s = wall_s;
+  figures.timing = run.timing;
+  figures.ticks_dropped = run.outputs->ticks_dropped;
+  figures.events_dropped = run.outputs->events_dropped;
 #ifdef PNEU_WITH_LCM
-    if (bridge) figures.telemetry = bridge->figures();
+  if (bridge) figures.telemetry = bridge->figures();
 #endif
 #ifdef PNEU_WITH_MODBUS
-    if (modbus) {
-      const auto& c = modbus->counters();
-      const auto d = modbus->safe_output_delivery();
-      figures.modbus = controller::ModbusFigures{c.transactions.load(), c.errors.load(), c.reconnects.load(),
-                                                 c.out_of_range.load(), c.stale_reads.load(), c.max_age_s.load(),
-                                                 modbus->last_error(), d.attempts,
-                                                 hal::ModbusBackend::kSafeOutputAttempts, d.delivered};
-    }
-#endif
-    controller::print_summary(stdout, figures, *run.runtime);
+  if (modbus) {
+    const auto& c = modbus->counters();
+    const auto d = modbus->safe_output_delivery();
+    figures.modbus = controller::ModbusFigures{c.transactions.load(), c.errors.load(), c.reconnects.load(),
+                                               c.out_of_range.load(), c.stale_reads.load(), c.max_age_s.load(),
+                                               modbus->last_error(), d.attempts,
+                                               hal::ModbusBackend::kSafeOutputAttempts, d.delivered};
   }
+#endif
+  if (summary_json) {
+    const std::string partial = *summary_json + ".partial";
+    std::ofstream out(partial);
+    controller::write_summary_json(out, figures, *run.runtime);
+    out.close();
+    if (!out) throw std::runtime_error(partial + ": writing the summary file failed");
+    std::filesystem::rename(partial, *summary_json);
+  }
+  if (!args.flag("quiet")) controller::print_summary(stdout, figures, *run.runtime);
   return cli::kExitOk;
 }
 

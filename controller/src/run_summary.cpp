@@ -4,6 +4,7 @@
 #include <cmath>
 #include <string>
 
+#include "json_text.hpp"
 #include "pneu/controller/supervisor.hpp"
 #include "pneu/controller/verdict.hpp"
 
@@ -152,6 +153,106 @@ void print_summary(std::FILE* out, const RunFigures& f, const Runtime& runtime) 
   if (f.ticks_dropped || f.events_dropped)
     std::fprintf(out, "  telemetry dropped: %llu tick records, %llu events\n", static_cast<ull>(f.ticks_dropped),
                  static_cast<ull>(f.events_dropped));
+}
+
+namespace {
+
+void write_durations_us(json::Writer& w, std::string_view key, const TimingStats& stats) {
+  w.begin_object(key);
+  w.number("min", stats.min_s() * 1e6);
+  w.number("median", stats.quantile_s(0.5) * 1e6);
+  w.number("p99", stats.quantile_s(0.99) * 1e6);
+  w.number("max", stats.max_s() * 1e6);
+  w.end_object();
+}
+
+}  // namespace
+
+void write_summary_json(std::ostream& out, const RunFigures& f, const Runtime& runtime) {
+  json::Writer w(out);
+  w.begin_object();
+  w.text("pneud", f.version);
+  w.text("backend", f.backend);
+  w.text("clock", f.clock);
+  w.text("config", f.config);
+  w.number("u_0_v", f.u_0_v);
+  w.number("t_end_s", runtime.end_time_s());
+  w.number("wall_s", f.wall_s);
+
+  w.begin_object("loop");
+  w.count("ticks", f.timing.ticks);
+  w.number("rate_hz", 1.0 / f.timing.period_s);
+  w.count("overruns", f.timing.overruns);
+  w.count("deadlines_skipped", f.timing.deadlines_skipped);
+  write_durations_us(w, "wake_latency_us", f.timing.wake_latency);
+  write_durations_us(w, "compute_us", f.timing.compute);
+  w.count("tick_records_dropped", f.ticks_dropped);
+  w.count("events_dropped", f.events_dropped);
+  w.end_object();
+
+  w.begin_object("runtime");
+  w.count("ticks_seen", runtime.ticks_seen());
+  w.count("sequence_gaps", runtime.sequence_gaps());
+  w.count("stops", runtime.stops_forgotten() + runtime.stops().size());
+  w.count("stops_forgotten", runtime.stops_forgotten());
+  w.end_object();
+
+  w.begin_array("faults");
+  for (const auto& fault : runtime.faults()) {
+    w.begin_object();
+    w.number("t_s", fault.t_s);
+    w.number("y_m", fault.y_m);
+    w.text("cause", fault_name(fault.fault_cause));
+    w.end_object();
+  }
+  w.end_array();
+
+  if (const auto& t = f.telemetry) {
+    w.begin_object("telemetry");
+    w.text("lcm_url", t->lcm_url);
+    w.text("channel_prefix", t->channel_prefix);
+    w.count("publish_errors", t->publish_errors);
+    const CommandCounters& c = t->commands;
+    w.begin_object("commands");
+    w.count("received", c.received);
+    w.count("accepted", c.accepted);
+    w.count("rejected", c.rejected);
+    w.count("malformed", c.malformed);
+    w.count("oversized", c.oversized);
+    w.count("foreign", c.foreign);
+    w.count("stale", c.stale);
+    w.count("sequence", c.sequence);
+    w.count("invalid", c.invalid);
+    w.count("rate", c.rate);
+    w.count("mode", c.mode);
+    w.count("queue_full", t->commands_dropped);
+    w.end_object();
+    w.end_object();
+  } else {
+    w.null("telemetry");
+  }
+
+  if (const auto& m = f.modbus) {
+    w.begin_object("modbus");
+    w.count("transactions", m->transactions);
+    w.number("transactions_per_s", static_cast<double>(m->transactions) / std::max(runtime.end_time_s(), 1e-9));
+    w.count("errors", m->errors);
+    w.count("reconnects", m->reconnects);
+    w.count("samples_out_of_range", m->out_of_range);
+    w.count("stale_reads", m->stale_reads);
+    w.number("oldest_sample_ms", m->oldest_sample_s * 1e3);
+    if (m->errors) w.text("last_error", m->last_error);
+    else w.null("last_error");
+    w.begin_object("safe_output_on_closing");
+    w.flag("delivered", m->safe_output_delivered);
+    w.count("attempts", static_cast<std::uint64_t>(m->safe_output_attempts));
+    w.count("max_attempts", static_cast<std::uint64_t>(m->safe_output_max_attempts));
+    w.end_object();
+    w.end_object();
+  } else {
+    w.null("modbus");
+  }
+  w.end_object();
 }
 
 }  // namespace pneu::controller
