@@ -1065,6 +1065,24 @@ TEST(Schema, NamesNoKeyTwiceInAMapping) {
   EXPECT_GT(seen.size(), 150u);
 }
 
+TEST(Schema, DocumentsEveryKeyAndStatesWhatItAccepts) {
+  std::map<std::string, schema::KeyInfo> keys;
+  for (const schema::KeyInfo& k : schema::all_keys()) {
+    if (k.kind != schema::KeyKind::kSection && k.kind != schema::KeyKind::kList) {
+      EXPECT_STRNE(k.doc.c_str(), "") << k.path << " has no documentation line";
+    }
+    keys[k.path] = k;
+  }
+  EXPECT_EQ(keys.at("plant.mass_kg").range, "> 0");
+  EXPECT_EQ(keys.at("plant.valve.critical_pressure_ratio").range, "in (0, 0.999)");
+  EXPECT_EQ(keys.at("hal.modbus.unit_id").range, "in [1, 247]");
+  EXPECT_EQ(keys.at("hal.modbus.transport").range, "tcp | rtu");
+  EXPECT_EQ(keys.at("controller.predictor.methods").range, "[linearized, nonlinear]");
+  EXPECT_EQ(keys.at("controller.law.offset_v").range, "a number | auto");
+  EXPECT_EQ(keys.at("hal.modbus.channels.position.signed").presence, schema::Presence::kRequired);  // int16
+  EXPECT_EQ(keys.at("hal.modbus.host").presence, schema::Presence::kOptional);
+}
+
 // The key paths of a YAML document, in order ("a.list[0].b" for the keys of a list's mappings).
 void collect_paths(const YAML::Node& node, const std::string& path, std::vector<std::string>& out) {
   if (node.IsSequence()) {

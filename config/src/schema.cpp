@@ -22,21 +22,23 @@ class KeyLister {
   KeyLister(Mode mode, std::vector<KeyInfo>& out, std::vector<std::string>* rules = nullptr, std::string prefix = "")
       : mode_(mode), out_(out), rules_(rules), prefix_(std::move(prefix)) {}
 
-  void field(Field<const double> f, Range, const char*) { add(f.key, KeyKind::kNumber); }
+  void field(Field<const double> f, Range range, const char* doc) { add(f.key, KeyKind::kNumber, range.text(), doc); }
   template <std::integral T>
-  void field(Field<T> f, IntRange, const char*) {
-    add(f.key, KeyKind::kInteger);
+  void field(Field<T> f, IntRange range, const char* doc) {
+    add(f.key, KeyKind::kInteger, range.text(), doc);
   }
-  void field(Field<const bool> f, const char*) { add(f.key, KeyKind::kBoolean); }
-  void field(Field<const std::string> f, const char*) { add(f.key, KeyKind::kText); }
+  void field(Field<const bool> f, const char* doc) { add(f.key, KeyKind::kBoolean, "true | false", doc); }
+  void field(Field<const std::string> f, const char* doc) { add(f.key, KeyKind::kText, "", doc); }
   template <class E>
-  void field(Field<const E> f, Choices<E>, const char*) {
-    add(f.key, KeyKind::kChoice);
+  void field(Field<const E> f, Choices<E> choices, const char* doc) {
+    add(f.key, KeyKind::kChoice, choices.unquoted().listed(" | ", " | "), doc);
   }
-  void number_or_auto(Field<const double> f, const bool&, const char*) { add(f.key, KeyKind::kNumberOrAuto); }
+  void number_or_auto(Field<const double> f, const bool&, const char* doc) {
+    add(f.key, KeyKind::kNumberOrAuto, "a number | auto", doc);
+  }
   template <class S>
-  void flags(const Key& k, const S&, Flags<S>, const char*) {
-    add(k, KeyKind::kNames);
+  void flags(const Key& k, const S&, Flags<S> flags, const char* doc) {
+    add(k, KeyKind::kNames, "[" + flags.listed() + "]", doc);
   }
   template <class T, class... Context>
   void section(Field<const T> f, const Context&... context) {
@@ -72,9 +74,9 @@ class KeyLister {
   }
 
  private:
-  void add(const Key& k, KeyKind kind) {
+  void add(const Key& k, KeyKind kind, std::string range = "", const char* doc = "") {
     if (k.presence == Presence::kIgnored && mode_ == Mode::kAsWritten) return;  // to_yaml leaves it out
-    out_.push_back({prefix_ + k.name, kind, k.presence});
+    out_.push_back({prefix_ + k.name, kind, k.presence, std::move(range), doc});
   }
 
   Mode mode_;

@@ -188,17 +188,16 @@ class IntRange {
   }
 
   [[nodiscard]] constexpr bool contains(long long v) const { return v >= lo_ && v <= hi_; }
-  [[nodiscard]] constexpr long long lo() const { return lo_; }
-  [[nodiscard]] constexpr long long hi() const { return hi_; }
+  /// ">= 0", "in [1, 247]"
+  [[nodiscard]] std::string text() const {
+    return hi_ == std::numeric_limits<long long>::max() ? ">= " + std::to_string(lo_)
+                                                        : "in [" + std::to_string(lo_) + ", " + std::to_string(hi_) + "]";
+  }
   [[nodiscard]] std::string refusal(long long v) const {
-    if (says_ == nullptr) {
-      return hi_ == std::numeric_limits<long long>::max()
-                 ? "must be >= " + std::to_string(lo_)
-                 : "must be in [" + std::to_string(lo_) + ", " + std::to_string(hi_) + "]";
-    }
-    std::string text = says_;
-    if (const auto at = text.find("{}"); at != std::string::npos) text.replace(at, 2, std::to_string(v));
-    return text;
+    if (says_ == nullptr) return "must be " + text();
+    std::string out = says_;
+    if (const auto at = out.find("{}"); at != std::string::npos) out.replace(at, 2, std::to_string(v));
+    return out;
   }
 
  private:
@@ -723,11 +722,13 @@ enum class KeyKind : std::uint8_t {
 };
 
 /// One key: its path ("controller.setpoints.schedule[0].t_s"), what it holds, whether it may be
-/// left out.
+/// left out, and what the schema says of it (rules between keys aside).
 struct KeyInfo {
   std::string path;
   KeyKind kind = KeyKind::kNumber;
   Presence presence = Presence::kRequired;
+  std::string range;  ///< the values it accepts, as the schema states them ("> 0", "in [1, 247]", "tcp | rtu")
+  std::string doc;    ///< its documentation line (empty for a mapping or a list of them: the struct's)
 };
 
 /// Every key of the schema, list entries as "list[]", each optional section's keys included; the
