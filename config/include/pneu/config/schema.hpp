@@ -128,8 +128,10 @@ class Range {
   [[nodiscard]] static constexpr Range non_negative() { return {Kind::kNonNegative, 0.0, 0.0}; }  ///< >= 0
   [[nodiscard]] static constexpr Range negative() { return {Kind::kNegative, 0.0, 0.0}; }         ///< < 0
   [[nodiscard]] static constexpr Range non_zero() { return {Kind::kNonZero, 0.0, 0.0}; }          ///< != 0
-  [[nodiscard]] static constexpr Range closed(double lo, double hi) { return {Kind::kClosed, lo, hi}; }  ///< [lo, hi]
-  [[nodiscard]] static constexpr Range open(double lo, double hi) { return {Kind::kOpen, lo, hi}; }      ///< (lo, hi)
+  /// [lo, hi]
+  [[nodiscard]] static constexpr Range closed(double lo, double hi) { return {Kind::kClosed, lo, hi}; }
+  /// (lo, hi)
+  [[nodiscard]] static constexpr Range open(double lo, double hi) { return {Kind::kOpen, lo, hi}; }
   /// (lo, hi]
   [[nodiscard]] static constexpr Range left_open(double lo, double hi) { return {Kind::kLeftOpen, lo, hi}; }
 
@@ -190,8 +192,8 @@ class IntRange {
   [[nodiscard]] constexpr bool contains(long long v) const { return v >= lo_ && v <= hi_; }
   /// ">= 0", "in [1, 247]"
   [[nodiscard]] std::string text() const {
-    return hi_ == std::numeric_limits<long long>::max() ? ">= " + std::to_string(lo_)
-                                                        : "in [" + std::to_string(lo_) + ", " + std::to_string(hi_) + "]";
+    if (hi_ == std::numeric_limits<long long>::max()) return ">= " + std::to_string(lo_);
+    return "in [" + std::to_string(lo_) + ", " + std::to_string(hi_) + "]";
   }
   [[nodiscard]] std::string refusal(long long v) const {
     if (says_ == nullptr) return "must be " + text();
@@ -296,11 +298,14 @@ inline constexpr Choice<LinearizedSlope> kLinearizedSlopes[] = {{"stop", Lineari
                                                                {"equilibrium", LinearizedSlope::kEquilibriumTangent}};
 inline constexpr Flag<PredictorConfig> kPredictorMethods[] = {{"linearized", &PredictorConfig::linearized},
                                                               {"nonlinear", &PredictorConfig::nonlinear}};
-inline constexpr Choice<SafeOutput> kSafeOutputs[] = {{"neutral", SafeOutput::kNeutral}, {"exhaust", SafeOutput::kExhaust}};
+inline constexpr Choice<SafeOutput> kSafeOutputs[] = {{"neutral", SafeOutput::kNeutral},
+                                                      {"exhaust", SafeOutput::kExhaust}};
 inline constexpr Choice<BackendKind> kBackends[] = {{"sim", BackendKind::kSim}, {"modbus", BackendKind::kModbus}};
-inline constexpr Choice<ModbusTransport> kTransports[] = {{"tcp", ModbusTransport::kTcp}, {"rtu", ModbusTransport::kRtu}};
+inline constexpr Choice<ModbusTransport> kTransports[] = {{"tcp", ModbusTransport::kTcp},
+                                                          {"rtu", ModbusTransport::kRtu}};
 inline constexpr Choice<char> kParities[] = {{"none", 'N'}, {"even", 'E'}, {"odd", 'O'}};
-inline constexpr Choice<SensorTable> kSensorTables[] = {{"holding", SensorTable::kHolding}, {"input", SensorTable::kInput}};
+inline constexpr Choice<SensorTable> kSensorTables[] = {{"holding", SensorTable::kHolding},
+                                                        {"input", SensorTable::kInput}};
 inline constexpr Choice<RegisterFormat> kRegisterFormats[] = {{"int16", RegisterFormat::kInt16},
                                                               {"float32", RegisterFormat::kFloat32}};
 
@@ -500,7 +505,8 @@ void describe(auto& a, Like<RealtimeConfig> auto& r) {
 void describe(auto& a, Like<ControllerConfig> auto& c, const plant::PlantParams& plant) {
   const double half = plant.geometry.half_stroke_m();
   a.field(PNEU_NVP(c, rate_hz), Range::closed(1.0, 20000.0), "loop rate [Hz]");
-  a.field(PNEU_NVP(c, clock), one_of(kClocks), "simulated: lockstep with the in-process plant; real: CLOCK_MONOTONIC");
+  a.field(PNEU_NVP(c, clock), one_of(kClocks),
+          "simulated: lockstep with the in-process plant; real: CLOCK_MONOTONIC");
   a.field(PNEU_NVP(c, duration_s), Range::non_negative(), "run length [s]; 0 = until SIGINT/SIGTERM");
   a.section(PNEU_NVP(c, law), c.offset_auto);
   a.section(PNEU_NVP(c, differentiator));
@@ -546,7 +552,8 @@ void describe(auto& a, Like<ControllerConfig> auto& c, const plant::PlantParams&
 /// One channel of hal.modbus.channels; `sensor`: an input (may be float32), else a valve output.
 void describe(auto& a, Like<RegisterChannel> auto& c, bool sensor) {
   a.field(Field("register", c.address), IntRange::in(0, 65535), "register address (0-based, as on the wire)");
-  a.field(optional(PNEU_NVP(c, format)), one_of(kRegisterFormats), "int16: one register; float32: two, high word first");
+  a.field(optional(PNEU_NVP(c, format)), one_of(kRegisterFormats),
+          "int16: one register; float32: two, high word first");
   a.check("format", sensor || c.format == RegisterFormat::kInt16,
           "float32 is for sensor channels only: a valve output is one 16-bit register");
   a.check("register", c.format != RegisterFormat::kFloat32 || c.address <= 65534,
@@ -626,7 +633,10 @@ void describe(auto& a, Like<ModbusConfig> auto& m) {
         const int shared = std::max(x.address, y.address);  // the first register both hold, if any
         ch.check(std::string(all[j].name) + ".register",
                  !(all[i].holding == all[j].holding && shared <= std::min(x.last_address(), y.last_address())),
-                 [&] { return "overlaps " + std::string(all[i].name) + " (both at register " + std::to_string(shared) + ")"; });
+                 [&] {
+                   return "overlaps " + std::string(all[i].name) + " (both at register " +
+                          std::to_string(shared) + ")";
+                 });
       }
     ch.check("valve_n.register", !m.read_write_multiple || std::abs(m.valve_p.address - m.valve_n.address) == 1,
              "function 23 writes one block: valve_p and valve_n must be adjacent registers");
