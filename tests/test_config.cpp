@@ -13,6 +13,7 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pneu/config/config.hpp"
@@ -1081,6 +1082,125 @@ TEST(Schema, DocumentsEveryKeyAndStatesWhatItAccepts) {
   EXPECT_EQ(keys.at("controller.law.offset_v").range, "a number | auto");
   EXPECT_EQ(keys.at("hal.modbus.channels.position.signed").presence, schema::Presence::kRequired);  // int16
   EXPECT_EQ(keys.at("hal.modbus.host").presence, schema::Presence::kOptional);
+}
+
+// The number of members of an aggregate: the most initializers T{...} takes (each initializes one
+// member: a value convertible to anything is never split over a member's own members).
+struct AnyValue {
+  template <class T>
+  operator T() const;  // NOLINT: unevaluated only
+};
+template <class T, std::size_t... I>
+constexpr bool takes_initializers(std::index_sequence<I...>) {
+  return requires { T{(static_cast<void>(I), AnyValue{})...}; };
+}
+template <class T, std::size_t N = 0>
+constexpr std::size_t member_count() {
+  if constexpr (takes_initializers<T>(std::make_index_sequence<N + 1>{})) return member_count<T, N + 1>();
+  else return N;
+}
+static_assert(member_count<plant::Geometry>() == 5);
+static_assert(member_count<HalConfig>() == 4);
+
+// Walks the schema noting, for each struct it describes, the members its description reaches
+// (each reference goes to the innermost struct being described that holds it), beside the
+// members the struct has.
+class MemberCounter {
+ public:
+  std::vector<std::string> mismatches;
+  int structs = 0;
+
+  void field(schema::Field<const double> f, schema::Range, const char*) { reach(f.value); }
+  template <std::integral T>
+  void field(schema::Field<T> f, schema::IntRange, const char*) {
+    reach(f.value);
+  }
+  void field(schema::Field<const bool> f, const char*) { reach(f.value); }
+  void field(schema::Field<const std::string> f, const char*) { reach(f.value); }
+  template <class E>
+  void field(schema::Field<const E> f, schema::Choices<E>, const char*) {
+    reach(f.value);
+  }
+  void number_or_auto(schema::Field<const double> f, const bool& is_auto, const char*) {
+    reach(f.value);
+    reach(is_auto);
+  }
+  template <class S>
+  void flags(const schema::Key&, const S& owner, schema::Flags<S> flags, const char*) {
+    for (const schema::Flag<S>& flag : flags.names) reach(owner.*flag.member);
+  }
+  template <class T, class... Context>
+  void section(schema::Field<const T> f, const Context&... context) {
+    reach(f.value);
+    describe_struct(path_ + f.key.name, f.value, context...);
+  }
+  template <class T>
+  void optional_section(schema::Field<const T> f, const bool& present) {
+    reach(present);
+    section(f);
+  }
+  template <class Describe>
+  void group(const schema::Key& k, Describe&& describe) {
+    const std::string outer = path_;
+    path_ += std::string(k.name) + ".";
+    describe(*this);
+    path_ = outer;
+  }
+  template <class T, class... Context>
+  void list(schema::Field<const std::vector<T>> f, const Context&... context) {
+    reach(f.value);
+    const T entry{};
+    describe_struct(path_ + f.key.name + "[]", entry, context...);
+  }
+  template <class Reason>
+  void check(const std::string&, bool, Reason&&) {}
+
+  template <class T, class... Context>
+  void describe_struct(const std::string& path, const T& object, const Context&... context) {
+    const std::string outer = path_;
+    path_ = path.empty() ? "" : path + ".";
+    frames_.push_back({reinterpret_cast<const char*>(&object), sizeof(T), {}});
+    schema::describe(*this, object, context...);
+    const std::size_t reached = frames_.back().reached.size();
+    frames_.pop_back();
+    path_ = outer;
+    ++structs;
+    if (reached != member_count<T>())
+      mismatches.push_back((path.empty() ? "the configuration" : path) + ": " + std::to_string(reached) + " of its " +
+                           std::to_string(member_count<T>()) + " members are keys");
+  }
+
+ private:
+  struct Frame {
+    const char* begin;
+    std::size_t size;
+    std::set<const void*> reached;
+  };
+  template <class M>
+  void reach(const M& member) {
+    const char* at = reinterpret_cast<const char*>(&member);
+    for (auto frame = frames_.rbegin(); frame != frames_.rend(); ++frame)
+      if (at >= frame->begin && at < frame->begin + frame->size) {
+        frame->reached.insert(at);
+        return;
+      }
+    mismatches.push_back(path_ + ": a key outside the struct described");
+  }
+
+  std::vector<Frame> frames_;
+  std::string path_;
+};
+
+TEST(Schema, MakesEveryMemberOfEveryConfigurationStructAKey) {
+  const Config c;
+  MemberCounter counter;
+
+  counter.describe_struct("", c);
+
+  EXPECT_THAT(counter.mismatches, ::testing::IsEmpty());
+  // Config; plant and its 4 sections; sensors and its 3 channels; simulation; controller, its 6
+  // sections and a schedule step; hal, modbus and its 5 channels, gpio; telemetry; commands.
+  EXPECT_EQ(counter.structs, 29);
 }
 
 // The key paths of a YAML document, in order ("a.list[0].b" for the keys of a list's mappings).
