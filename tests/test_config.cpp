@@ -4,15 +4,20 @@
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
+#include <charconv>
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <random>
+#include <set>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pneu/config/config.hpp"
+#include "pneu/config/schema.hpp"
 #include "support/config_error_matcher.hpp"
 
 namespace pneu::config {
@@ -59,81 +64,20 @@ auto loading(std::string yaml, std::vector<std::string> overrides = {}) {
   };
 }
 
-// Every field, compared exactly: to_yaml() writes the shortest text that gives back the very same
-// double.
+// Every value, compared exactly by its key path (schema::values_of, derived from the schema: a
+// key added there is compared without touching this file). to_yaml() writes the shortest text that
+// gives back the very same double.
 void expect_same_values(const Config& a, const Config& b) {
-  const auto& pa = a.plant;
-  const auto& pb = b.plant;
-  EXPECT_EQ(pa.mass_kg, pb.mass_kg);
-  EXPECT_EQ(pa.geometry.stroke_m, pb.geometry.stroke_m);
-  EXPECT_EQ(pa.geometry.bore_diameter_m, pb.geometry.bore_diameter_m);
-  EXPECT_EQ(pa.geometry.rod_diameter_m, pb.geometry.rod_diameter_m);
-  EXPECT_EQ(pa.geometry.dead_volume_p_m3, pb.geometry.dead_volume_p_m3);
-  EXPECT_EQ(pa.geometry.dead_volume_n_m3, pb.geometry.dead_volume_n_m3);
-  EXPECT_EQ(pa.gas.supply_pressure_pa, pb.gas.supply_pressure_pa);
-  EXPECT_EQ(pa.gas.exhaust_pressure_pa, pb.gas.exhaust_pressure_pa);
-  EXPECT_EQ(pa.gas.polytropic_index, pb.gas.polytropic_index);
-  EXPECT_EQ(pa.gas.gas_constant_j_per_kg_k, pb.gas.gas_constant_j_per_kg_k);
-  EXPECT_EQ(pa.gas.temperature_k, pb.gas.temperature_k);
-  EXPECT_EQ(pa.valve.max_conductance_m3_per_s_pa, pb.valve.max_conductance_m3_per_s_pa);
-  EXPECT_EQ(pa.valve.critical_pressure_ratio, pb.valve.critical_pressure_ratio);
-  EXPECT_EQ(pa.valve.leak_conductance_in_m3_per_s_pa, pb.valve.leak_conductance_in_m3_per_s_pa);
-  EXPECT_EQ(pa.valve.leak_conductance_out_m3_per_s_pa, pb.valve.leak_conductance_out_m3_per_s_pa);
-  EXPECT_EQ(pa.valve.max_voltage_v, pb.valve.max_voltage_v);
-  EXPECT_EQ(pa.valve.reference_density_kg_per_m3, pb.valve.reference_density_kg_per_m3);
-  EXPECT_EQ(pa.valve.reference_temperature_k, pb.valve.reference_temperature_k);
-  EXPECT_EQ(pa.friction.static_positive_n, pb.friction.static_positive_n);
-  EXPECT_EQ(pa.friction.coulomb_positive_n, pb.friction.coulomb_positive_n);
-  EXPECT_EQ(pa.friction.static_negative_n, pb.friction.static_negative_n);
-  EXPECT_EQ(pa.friction.coulomb_negative_n, pb.friction.coulomb_negative_n);
-  EXPECT_EQ(pa.friction.viscous_n_s_per_m, pb.friction.viscous_n_s_per_m);
-  EXPECT_EQ(pa.friction.stribeck_velocity_m_per_s, pb.friction.stribeck_velocity_m_per_s);
-  EXPECT_EQ(pa.friction.stick_velocity_m_per_s, pb.friction.stick_velocity_m_per_s);
-  EXPECT_EQ(pa.max_step_s, pb.max_step_s);
-  EXPECT_EQ(a.sensors.seed, b.sensors.seed);
-  const auto same_channel = [](const plant::SensorChannelParams& x,
-                               const plant::SensorChannelParams& y) {
-    EXPECT_EQ(x.gain_v_per_unit, y.gain_v_per_unit);
-    EXPECT_EQ(x.offset_v, y.offset_v);
-    EXPECT_EQ(x.noise_std_v, y.noise_std_v);
-    EXPECT_EQ(x.adc_bits, y.adc_bits);
-    EXPECT_EQ(x.range_min_v, y.range_min_v);
-    EXPECT_EQ(x.range_max_v, y.range_max_v);
-  };
-  same_channel(a.sensors.position, b.sensors.position);
-  same_channel(a.sensors.pressure_p, b.sensors.pressure_p);
-  same_channel(a.sensors.pressure_n, b.sensors.pressure_n);
-  EXPECT_EQ(a.simulation.initial_position_m, b.simulation.initial_position_m);
-  const auto& ka = a.controller;
-  const auto& kb = b.controller;
-  EXPECT_EQ(ka.rate_hz, kb.rate_hz);
-  EXPECT_EQ(ka.clock, kb.clock);
-  EXPECT_EQ(ka.duration_s, kb.duration_s);
-  EXPECT_EQ(ka.offset_auto, kb.offset_auto);
-  EXPECT_EQ(ka.law.position_gain_v_per_m, kb.law.position_gain_v_per_m);
-  EXPECT_EQ(ka.law.velocity_gain_v_s_per_m, kb.law.velocity_gain_v_s_per_m);
-  EXPECT_EQ(ka.law.acceleration_gain_v_s2_per_m, kb.law.acceleration_gain_v_s2_per_m);
-  if (!ka.offset_auto) {  // with offset_v: auto the number is computed later, not written
-    EXPECT_EQ(ka.law.offset_v, kb.law.offset_v);
-  }
-  EXPECT_EQ(ka.law.max_voltage_v, kb.law.max_voltage_v);
-  EXPECT_EQ(ka.differentiator.smoothing, kb.differentiator.smoothing);
-  EXPECT_EQ(ka.stop_detector.rest_band_m, kb.stop_detector.rest_band_m);
-  EXPECT_EQ(ka.stop_detector.motion_band_m, kb.stop_detector.motion_band_m);
-  EXPECT_EQ(ka.stop_detector.hold_s, kb.stop_detector.hold_s);
-  EXPECT_EQ(ka.predictor.linearized, kb.predictor.linearized);
-  EXPECT_EQ(ka.predictor.nonlinear, kb.predictor.nonlinear);
-  EXPECT_EQ(ka.predictor.valve_table, kb.predictor.valve_table);
-  EXPECT_EQ(ka.predictor.horizon_s, kb.predictor.horizon_s);
-  EXPECT_EQ(ka.predictor.linearized_slope, kb.predictor.linearized_slope);
-  EXPECT_EQ(ka.predictor.update_period_s, kb.predictor.update_period_s);
-  EXPECT_EQ(ka.initial_setpoint_m, kb.initial_setpoint_m);
-  ASSERT_EQ(ka.schedule.size(), kb.schedule.size());
-  for (std::size_t i = 0; i < ka.schedule.size(); ++i) {
-    EXPECT_EQ(ka.schedule[i].t_s, kb.schedule[i].t_s) << "schedule[" << i << "]";
-    EXPECT_EQ(ka.schedule[i].position_m, kb.schedule[i].position_m) << "schedule[" << i << "]";
-  }
-  EXPECT_EQ(a.hal.backend, b.hal.backend);
+  const auto values_a = schema::values_of(a), values_b = schema::values_of(b);
+  ASSERT_EQ(values_a.size(), values_b.size());
+  for (std::size_t i = 0; i < values_a.size(); ++i) EXPECT_EQ(values_a[i], values_b[i]);
+}
+
+// The value of the key at `path`, as schema::values_of gives it.
+std::string value_at_path(const Config& c, const std::string& path) {
+  for (const auto& [p, value] : schema::values_of(c))
+    if (p == path) return value;
+  throw std::logic_error("no key " + path);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -208,7 +152,47 @@ TEST(ShippedConfig, LoadsWithTheDocumentedPaperBenchValues) {
   ASSERT_EQ(c.controller.schedule.size(), 1u);
   EXPECT_EQ(c.controller.schedule[0].t_s, 1.0);
   EXPECT_EQ(c.controller.schedule[0].position_m, 0.170);
+  EXPECT_EQ(c.controller.soft_limit_min_m, -0.24);
+  EXPECT_EQ(c.controller.soft_limit_max_m, 0.24);
+  EXPECT_TRUE(c.controller.start_armed);
+  EXPECT_EQ(c.controller.comms_fault_after_s, 0.05);
+  const SupervisorConfig& s = c.controller.supervisor;
+  EXPECT_EQ(s.position_min_m, -0.255);
+  EXPECT_EQ(s.position_max_m, 0.255);
+  EXPECT_EQ(s.pressure_min_pa, 2.0e4);
+  EXPECT_EQ(s.pressure_max_pa, 9.9e5);
+  EXPECT_EQ(s.max_speed_m_per_s, 5.0);
+  EXPECT_EQ(s.frozen_after_s, 0.0);
+  EXPECT_EQ(s.overtravel_m, 0.008);
+  EXPECT_EQ(s.following_error_m, 0.01);
+  EXPECT_EQ(s.following_error_s, 2.0);
+  EXPECT_EQ(s.overruns_in_a_row, 10u);
+  EXPECT_EQ(s.max_tick_interval_s, 0.05);
+  EXPECT_EQ(s.safe_output, SafeOutput::kNeutral);
+  EXPECT_EQ(c.controller.realtime.priority, 0);
+  EXPECT_EQ(c.controller.realtime.cpu, -1);
+  EXPECT_FALSE(c.controller.realtime.lock_memory);
   EXPECT_EQ(c.hal.backend, BackendKind::kSim);
+  EXPECT_FALSE(c.hal.has_modbus);
+  const GpioConfig& g = c.hal.gpio;
+  EXPECT_FALSE(g.enabled);
+  EXPECT_EQ(g.chip, "gpiochip0");
+  EXPECT_EQ(g.estop_line, 17u);
+  EXPECT_TRUE(g.estop_active_low);
+  EXPECT_EQ(g.valve_power_line, 27u);
+  EXPECT_FALSE(g.valve_power_active_low);
+  EXPECT_EQ(g.consumer, "pneud");
+  EXPECT_TRUE(c.telemetry.enabled);
+  EXPECT_EQ(c.telemetry.lcm_url, "udpm://239.255.76.67:7667?ttl=0");
+  EXPECT_EQ(c.telemetry.channel_prefix, "PNEU_");
+  EXPECT_EQ(c.telemetry.health_period_s, 1.0);
+  EXPECT_FALSE(c.telemetry.in_simulated_time);
+  EXPECT_TRUE(c.commands.enabled);
+  EXPECT_EQ(c.commands.max_rate_hz, 20.0);
+  EXPECT_EQ(c.commands.burst, 5.0);
+  EXPECT_EQ(c.commands.max_age_s, 0.5);
+  EXPECT_EQ(c.commands.max_setpoint_step_m, 0.5);
+  EXPECT_EQ(c.commands.setpoint_stream_timeout_s, 0.0);
 }
 
 TEST(ShippedConfig, IsTheDefaultEmbeddedInTheLibrary) {
@@ -220,12 +204,57 @@ TEST(ShippedConfig, LoadsTheSameFromTextAsFromTheFile) {
   expect_same_values(load_string(shipped_yaml()), load_file(kShippedConfig));
 }
 
-TEST(ToYaml, OutputOfTheShippedConfigLoadsBackToTheSameValues) {
-  const Config original = load_file(kShippedConfig);
+const char* const kShippedNames[] = {"sim.yaml", "hil.yaml", "bench.yaml"};
 
-  const Config reloaded = load_string(to_yaml(original), {}, "to_yaml");
+Config load_shipped(const std::string& name, const std::vector<std::string>& overrides = {}) {
+  return load_file(std::filesystem::path(PNEU_SOURCE_DIR) / "config" / name, overrides);
+}
 
-  expect_same_values(reloaded, original);
+TEST(ToYaml, OutputOfEachShippedConfigLoadsBackToTheSameValues) {
+  for (const char* name : kShippedNames) {
+    SCOPED_TRACE(name);
+    const Config original = load_shipped(name);
+
+    const Config reloaded = load_string(to_yaml(original), {}, "to_yaml");
+
+    expect_same_values(reloaded, original);
+  }
+}
+
+// The text that gives back the very same double.
+std::string exact_text(double v) {
+  char buf[64];
+  const auto end = std::to_chars(buf, buf + sizeof buf, v).ptr;
+  return std::string(buf, end);
+}
+
+// Each number written under its own key, even where a shipped file gives two keys the same value:
+// the k-th number key (outside lists) of each shipped file set to a value of its own (its value
+// times 1 - k 1e-9, or k 1e-9 for a zero: still valid, no two alike), written and read back,
+// gives every value back.
+TEST(ToYaml, WritesEveryNumberUnderItsOwnKey) {
+  for (const char* name : kShippedNames) {
+    SCOPED_TRACE(name);
+    const Config shipped = load_shipped(name);
+    std::map<std::string, std::string> value_at;
+    for (const auto& [path, value] : schema::values_of(shipped)) value_at[path] = value;
+    std::vector<std::string> overrides;
+    for (const schema::KeyInfo& key : schema::keys_of(shipped)) {
+      if (key.kind != schema::KeyKind::kNumber || key.path.find('[') != std::string::npos) continue;
+      const double k = static_cast<double>(overrides.size() + 1);
+      const double v = std::stod(value_at.at(key.path));
+      overrides.push_back(key.path + "=" + exact_text(v == 0.0 ? k * 1e-9 : v * (1.0 - k * 1e-9)));
+    }
+    ASSERT_GT(overrides.size(), 60u);
+    const Config distinct = load_shipped(name, overrides);
+    std::set<std::string> numbers;
+    for (const std::string& o : overrides) numbers.insert(value_at_path(distinct, o.substr(0, o.find('='))));
+    ASSERT_EQ(numbers.size(), overrides.size()) << "two number keys still share a value";
+
+    const Config reloaded = load_string(to_yaml(distinct), {}, "to_yaml");
+
+    expect_same_values(reloaded, distinct);
+  }
 }
 
 TEST(ToYaml, OutputIsAFixedPointOfLoadingAndWriting) {
@@ -780,16 +809,6 @@ std::vector<std::string> with(std::vector<std::string> a, const std::vector<std:
   return a;
 }
 
-void expect_same_channel(const RegisterChannel& a, const RegisterChannel& b) {
-  EXPECT_EQ(a.address, b.address);
-  EXPECT_EQ(a.format, b.format);
-  EXPECT_EQ(a.is_signed, b.is_signed);
-  EXPECT_EQ(a.raw_min, b.raw_min);
-  EXPECT_EQ(a.raw_max, b.raw_max);
-  EXPECT_EQ(a.volts_min, b.volts_min);
-  EXPECT_EQ(a.volts_max, b.volts_max);
-}
-
 RegisterChannel float32_channel() {
   RegisterChannel c;
   c.format = RegisterFormat::kFloat32;
@@ -947,13 +966,305 @@ TEST(ToYaml, RoundTripsFloat32Channels) {
   const std::string once = to_yaml(original);
   const Config reloaded = load_string(once, {}, "to_yaml");
 
-  expect_same_channel(reloaded.hal.modbus.position, original.hal.modbus.position);
-  expect_same_channel(reloaded.hal.modbus.pressure_p, original.hal.modbus.pressure_p);
-  expect_same_channel(reloaded.hal.modbus.pressure_n, original.hal.modbus.pressure_n);
-  expect_same_channel(reloaded.hal.modbus.valve_p, original.hal.modbus.valve_p);
-  expect_same_channel(reloaded.hal.modbus.valve_n, original.hal.modbus.valve_n);
+  expect_same_values(reloaded, original);
   EXPECT_EQ(reloaded.hal.modbus.pressure_p.format, RegisterFormat::kFloat32);
   EXPECT_EQ(to_yaml(reloaded), once);
+}
+
+// --- The shipped examples' values, by member ---------------------------------------------------
+
+TEST(ShippedConfig, HilLoadsWithTheDocumentedModuleAndNoisySensors) {
+  const Config c = load_file(kHilConfig);
+  EXPECT_EQ(c.sensors.position.noise_std_v, 2.0e-5);
+  EXPECT_EQ(c.sensors.position.adc_bits, 16);
+  EXPECT_EQ(c.sensors.pressure_p.noise_std_v, 2.0e-4);
+  EXPECT_EQ(c.controller.stop_detector.rest_band_m, 2.0e-5);
+  EXPECT_EQ(c.controller.stop_detector.motion_band_m, 4.0e-5);
+  EXPECT_EQ(c.controller.supervisor.frozen_after_s, 0.2);
+  ASSERT_TRUE(c.hal.has_modbus);
+  const ModbusConfig& m = c.hal.modbus;
+  EXPECT_EQ(m.transport, ModbusTransport::kTcp);
+  EXPECT_EQ(m.host, "127.0.0.1");
+  EXPECT_EQ(m.port, 1502);
+  EXPECT_EQ(m.device, "/dev/ttyUSB0");
+  EXPECT_EQ(m.baud, 115200);
+  EXPECT_EQ(m.parity, 'N');
+  EXPECT_EQ(m.data_bits, 8);
+  EXPECT_EQ(m.stop_bits, 1);
+  EXPECT_EQ(m.unit_id, 1);
+  EXPECT_EQ(m.response_timeout_s, 0.02);
+  EXPECT_EQ(m.max_sample_age_s, 0.02);
+  EXPECT_EQ(m.min_exchange_period_s, 0.001);
+  EXPECT_TRUE(m.read_write_multiple);
+  EXPECT_EQ(m.sensor_table, SensorTable::kHolding);
+  EXPECT_EQ(m.reconnect_min_s, 0.05);
+  EXPECT_EQ(m.reconnect_max_s, 2.0);
+  const auto expect_channel = [](const RegisterChannel& ch, int address, bool is_signed, double raw_min,
+                                 double raw_max, double volts_min, double volts_max) {
+    EXPECT_EQ(ch.address, address);
+    EXPECT_EQ(ch.format, RegisterFormat::kInt16);
+    EXPECT_EQ(ch.is_signed, is_signed);
+    EXPECT_EQ(ch.raw_min, raw_min);
+    EXPECT_EQ(ch.raw_max, raw_max);
+    EXPECT_EQ(ch.volts_min, volts_min);
+    EXPECT_EQ(ch.volts_max, volts_max);
+  };
+  expect_channel(m.position, 0, false, 0.0, 65535.0, 0.0, 10.0);
+  expect_channel(m.pressure_p, 1, false, 0.0, 65535.0, 0.0, 10.0);
+  expect_channel(m.pressure_n, 2, false, 0.0, 65535.0, 0.0, 10.0);
+  expect_channel(m.valve_p, 16, true, -32767.0, 32767.0, -10.0, 10.0);
+  expect_channel(m.valve_n, 17, true, -32767.0, 32767.0, -10.0, 10.0);
+}
+
+TEST(ShippedConfig, BenchLoadsWithTheDocumentedRealTimeSetUpAndInputRegisters) {
+  const Config c = load_file(std::filesystem::path(PNEU_SOURCE_DIR) / "config/bench.yaml");
+  EXPECT_EQ(c.controller.duration_s, 0.0);
+  EXPECT_EQ(c.controller.initial_setpoint_m, 0.0);
+  EXPECT_TRUE(c.controller.schedule.empty());
+  EXPECT_FALSE(c.controller.start_armed);
+  EXPECT_EQ(c.controller.supervisor.overruns_in_a_row, 5u);
+  EXPECT_EQ(c.controller.supervisor.max_tick_interval_s, 0.01);
+  EXPECT_EQ(c.controller.realtime.priority, 80);
+  EXPECT_EQ(c.controller.realtime.cpu, 1);
+  EXPECT_TRUE(c.controller.realtime.lock_memory);
+  EXPECT_EQ(c.hal.modbus.host, "192.168.1.10");
+  EXPECT_EQ(c.hal.modbus.port, 502);
+  EXPECT_FALSE(c.hal.modbus.read_write_multiple);
+  EXPECT_EQ(c.hal.modbus.sensor_table, SensorTable::kInput);
+  EXPECT_EQ(c.hal.modbus.valve_p.raw_min, -32768.0);
+  EXPECT_EQ(c.hal.modbus.valve_n.address, 1);
+  EXPECT_TRUE(c.hal.gpio.enabled);
+}
+
+// --- Rules across sections --------------------------------------------------------------------
+
+TEST(ConfigRefusal, RunningUntilStoppedNeedsTheRealClock) {
+  EXPECT_THAT(loading(shipped_yaml(), {"controller.duration_s=0"}),
+              refuses_exactly("controller.duration_s",
+                              "controller.duration_s: 0 (run until stopped) needs the real clock; give a duration"));
+  EXPECT_NO_THROW(load_string(shipped_yaml(), {"controller.duration_s=0", "controller.clock=real"}));
+}
+
+TEST(ConfigRefusal, TheModbusBackendNeedsTheRealClock) {
+  EXPECT_THAT(loading(hil_yaml(), {"controller.clock=simulated"}),
+              refuses_exactly("controller.clock",
+                              "controller.clock: the modbus backend runs on the real clock (--clock real)"));
+}
+
+TEST(ConfigRefusal, GpioLinesNeedTheRealClock) {
+  EXPECT_THAT(loading(shipped_yaml(), {"hal.gpio.enabled=true"}),
+              refuses_exactly("hal.gpio.enabled",
+                              "hal.gpio.enabled: real lines (e-stop, valve power) need the real clock (--clock real)"));
+  EXPECT_NO_THROW(load_string(shipped_yaml(), {"hal.gpio.enabled=true", "controller.clock=real"}));
+}
+
+// --- The schema itself ------------------------------------------------------------------------
+
+TEST(Schema, NamesNoKeyTwiceInAMapping) {
+  std::set<std::string> seen;
+  for (const schema::KeyInfo& k : schema::all_keys()) EXPECT_TRUE(seen.insert(k.path).second) << k.path;
+  EXPECT_GT(seen.size(), 150u);
+}
+
+TEST(Schema, DocumentsEveryKeyAndStatesWhatItAccepts) {
+  std::map<std::string, schema::KeyInfo> keys;
+  for (const schema::KeyInfo& k : schema::all_keys()) {
+    if (k.kind != schema::KeyKind::kSection && k.kind != schema::KeyKind::kList) {
+      EXPECT_STRNE(k.doc.c_str(), "") << k.path << " has no documentation line";
+    }
+    keys[k.path] = k;
+  }
+  EXPECT_EQ(keys.at("plant.mass_kg").range, "> 0");
+  EXPECT_EQ(keys.at("plant.valve.critical_pressure_ratio").range, "in (0, 0.999)");
+  EXPECT_EQ(keys.at("hal.modbus.unit_id").range, "in [1, 247]");
+  EXPECT_EQ(keys.at("hal.modbus.transport").range, "tcp | rtu");
+  EXPECT_EQ(keys.at("controller.predictor.methods").range, "[linearized, nonlinear]");
+  EXPECT_EQ(keys.at("controller.law.offset_v").range, "a number | auto");
+  EXPECT_EQ(keys.at("hal.modbus.channels.position.signed").presence, schema::Presence::kRequired);  // int16
+  EXPECT_EQ(keys.at("hal.modbus.host").presence, schema::Presence::kOptional);
+}
+
+// The number of members of an aggregate: the most initializers T{...} takes (each initializes one
+// member: a value convertible to anything is never split over a member's own members).
+struct AnyValue {
+  template <class T>
+  operator T() const;  // NOLINT: unevaluated only
+};
+template <class T, std::size_t... I>
+constexpr bool takes_initializers(std::index_sequence<I...>) {
+  return requires { T{(static_cast<void>(I), AnyValue{})...}; };
+}
+template <class T, std::size_t N = 0>
+constexpr std::size_t member_count() {
+  if constexpr (takes_initializers<T>(std::make_index_sequence<N + 1>{})) return member_count<T, N + 1>();
+  else return N;
+}
+static_assert(member_count<plant::Geometry>() == 5);
+static_assert(member_count<HalConfig>() == 4);
+
+// Walks the schema noting, for each struct it describes, the members its description reaches
+// (each reference goes to the innermost struct being described that holds it), beside the
+// members the struct has.
+class MemberCounter {
+ public:
+  std::vector<std::string> mismatches;
+  int structs = 0;
+
+  void field(schema::Field<const double> f, schema::Range, const char*) { reach(f.value); }
+  template <std::integral T>
+  void field(schema::Field<T> f, schema::IntRange, const char*) {
+    reach(f.value);
+  }
+  void field(schema::Field<const bool> f, const char*) { reach(f.value); }
+  void field(schema::Field<const std::string> f, const char*) { reach(f.value); }
+  template <class E>
+  void field(schema::Field<const E> f, schema::Choices<E>, const char*) {
+    reach(f.value);
+  }
+  void number_or_auto(schema::Field<const double> f, const bool& is_auto, const char*) {
+    reach(f.value);
+    reach(is_auto);
+  }
+  template <class S>
+  void flags(const schema::Key&, const S& owner, schema::Flags<S> flags, const char*) {
+    for (const schema::Flag<S>& flag : flags.names) reach(owner.*flag.member);
+  }
+  template <class T, class... Context>
+  void section(schema::Field<const T> f, const Context&... context) {
+    reach(f.value);
+    describe_struct(path_ + f.key.name, f.value, context...);
+  }
+  template <class T>
+  void optional_section(schema::Field<const T> f, const bool& present) {
+    reach(present);
+    section(f);
+  }
+  template <class Describe>
+  void group(const schema::Key& k, Describe&& describe) {
+    const std::string outer = path_;
+    path_ += std::string(k.name) + ".";
+    describe(*this);
+    path_ = outer;
+  }
+  template <class T, class... Context>
+  void list(schema::Field<const std::vector<T>> f, const Context&... context) {
+    reach(f.value);
+    const T entry{};
+    describe_struct(path_ + f.key.name + "[]", entry, context...);
+  }
+  template <class Reason>
+  void check(const std::string&, bool, Reason&&) {}
+
+  template <class T, class... Context>
+  void describe_struct(const std::string& path, const T& object, const Context&... context) {
+    const std::string outer = path_;
+    path_ = path.empty() ? "" : path + ".";
+    frames_.push_back({reinterpret_cast<const char*>(&object), sizeof(T), {}});
+    schema::describe(*this, object, context...);
+    const std::size_t reached = frames_.back().reached.size();
+    frames_.pop_back();
+    path_ = outer;
+    ++structs;
+    if (reached != member_count<T>())
+      mismatches.push_back((path.empty() ? "the configuration" : path) + ": " + std::to_string(reached) + " of its " +
+                           std::to_string(member_count<T>()) + " members are keys");
+  }
+
+ private:
+  struct Frame {
+    const char* begin;
+    std::size_t size;
+    std::set<const void*> reached;
+  };
+  template <class M>
+  void reach(const M& member) {
+    const char* at = reinterpret_cast<const char*>(&member);
+    for (auto frame = frames_.rbegin(); frame != frames_.rend(); ++frame)
+      if (at >= frame->begin && at < frame->begin + frame->size) {
+        frame->reached.insert(at);
+        return;
+      }
+    mismatches.push_back(path_ + ": a key outside the struct described");
+  }
+
+  std::vector<Frame> frames_;
+  std::string path_;
+};
+
+TEST(Schema, MakesEveryMemberOfEveryConfigurationStructAKey) {
+  const Config c;
+  MemberCounter counter;
+
+  counter.describe_struct("", c);
+
+  EXPECT_THAT(counter.mismatches, ::testing::IsEmpty());
+  // Config; plant and its 4 sections; sensors and its 3 channels; simulation; controller, its 6
+  // sections and a schedule step; hal, modbus and its 5 channels, gpio; telemetry; commands.
+  EXPECT_EQ(counter.structs, 29);
+}
+
+// The key paths of a YAML document, in order ("a.list[0].b" for the keys of a list's mappings).
+void collect_paths(const YAML::Node& node, const std::string& path, std::vector<std::string>& out) {
+  if (node.IsSequence()) {
+    for (std::size_t i = 0; i < node.size(); ++i)
+      if (node[i].IsMap()) collect_paths(node[i], path + "[" + std::to_string(i) + "]", out);
+    return;
+  }
+  if (!node.IsMap()) return;
+  for (const auto& kv : node) {
+    const std::string child = path.empty() ? kv.first.Scalar() : path + "." + kv.first.Scalar();
+    out.push_back(child);
+    collect_paths(kv.second, child, out);
+  }
+}
+
+TEST(Schema, ToYamlWritesExactlyTheKeysOfTheConfigurationInTheirOrder) {
+  for (const char* name : kShippedNames) {
+    for (const auto& overrides : {std::vector<std::string>{}, float32_overrides()}) {
+      if (!overrides.empty() && std::string(name) != "hil.yaml") continue;
+      SCOPED_TRACE(std::string(name) + (overrides.empty() ? "" : " with float32 channels"));
+      const Config c = load_file(std::filesystem::path(PNEU_SOURCE_DIR) / "config" / name, overrides);
+      std::vector<std::string> written, listed;
+      collect_paths(YAML::Load(to_yaml(c)), "", written);
+      for (const schema::KeyInfo& k : schema::keys_of(c)) listed.push_back(k.path);
+
+      EXPECT_EQ(written, listed);
+    }
+  }
+}
+
+TEST(Schema, ValuesOfGiveEveryKeyThatIsNoSectionItsValue) {
+  const Config c = load_file(kHilConfig);
+  std::set<std::string> valued;
+  for (const auto& [path, value] : schema::values_of(c)) valued.insert(path);
+  for (const schema::KeyInfo& k : schema::keys_of(c))
+    if (k.kind != schema::KeyKind::kSection) {
+      EXPECT_TRUE(valued.count(k.path)) << k.path;
+    }
+}
+
+TEST(Schema, ValuesOfTellApartConfigurationsThatDifferInOneKey) {
+  const Config c = load_file(kHilConfig);
+  Config other = c;
+  other.controller.supervisor.overtravel_m = 0.009;
+  other.hal.modbus.valve_n.is_signed = false;
+  EXPECT_NE(schema::values_of(other), schema::values_of(c));
+  int differences = 0;
+  const auto a = schema::values_of(c), b = schema::values_of(other);
+  for (std::size_t i = 0; i < a.size(); ++i) differences += a[i] != b[i];
+  EXPECT_EQ(differences, 2);
+}
+
+TEST(Schema, RulesRefuseAtKeysOfTheSchema) {
+  for (const char* name : kShippedNames) {
+    SCOPED_TRACE(name);
+    const Config c = load_file(std::filesystem::path(PNEU_SOURCE_DIR) / "config" / name);
+    std::set<std::string> keys;
+    for (const schema::KeyInfo& k : schema::keys_of(c)) keys.insert(k.path);
+    const std::vector<std::string> rules = schema::rule_paths_of(c);
+    EXPECT_GE(rules.size(), 30u);  // sim.yaml: 30; more with a modbus section
+    for (const std::string& path : rules) EXPECT_TRUE(keys.count(path)) << path;
+  }
 }
 
 }  // namespace

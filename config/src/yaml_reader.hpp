@@ -17,12 +17,11 @@
 
 namespace pneu::config::detail {
 
-/// The keys the schema reads in each mapping, by schema_path().
+/// The keys the schema knows in each mapping, by schema_path().
 using KeyCatalogue = std::map<std::string, std::set<std::string>>;
 
-/// The schema's keys, recorded once from a decode of a document holding every section
-/// (config.cpp).
-const KeyCatalogue& schema_keys();
+/// The schema's keys: a walk of its descriptions (schema.cpp).
+const KeyCatalogue& key_catalogue();
 
 /// A key path as the catalogue files it: list indexes dropped ("a.list[3].b" -> "a.list[].b").
 inline std::string schema_path(const std::string& path) {
@@ -45,10 +44,7 @@ inline std::string unknown_key_meaning(const std::vector<std::string>& meant) {
 
 class MapReader {
  public:
-  /// `record`: surveying the schema, the keys read are added to it (and no message compares
-  /// keys with the schema, which is not known yet).
-  MapReader(const YAML::Node& node, std::string path, KeyCatalogue* record = nullptr)
-      : node_(node), path_(std::move(path)), record_(record) {
+  MapReader(const YAML::Node& node, std::string path) : node_(node), path_(std::move(path)) {
     if (!node_.IsDefined() || node_.IsNull()) throw ConfigError(path_, "missing section");
     if (!node_.IsMap()) throw ConfigError(path_, "expected a mapping of keys");
     // yaml-cpp keeps repeated keys and answers the first: refuse them, and non-text keys.
@@ -72,9 +68,6 @@ class MapReader {
   double number(const std::string& key) {
     return to_number(require(key), child_path(key));
   }
-  double number_or(const std::string& key, double fallback) {
-    return has(key) ? number(key) : (seen_.insert(key), fallback);
-  }
   long long integer(const std::string& key) {
     const YAML::Node n = require(key);
     const std::string path = child_path(key);
@@ -83,9 +76,6 @@ class MapReader {
     } catch (const YAML::Exception&) {
       throw ConfigError(path, "expected an integer, got " + describe(n));
     }
-  }
-  long long integer_or(const std::string& key, long long fallback) {
-    return has(key) ? integer(key) : (seen_.insert(key), fallback);
   }
   bool boolean(const std::string& key) {
     const YAML::Node n = require(key);
@@ -100,21 +90,9 @@ class MapReader {
     if (!n.IsScalar()) throw ConfigError(child_path(key), "expected a string, got " + describe(n));
     return n.Scalar();
   }
-  bool boolean_or(const std::string& key, bool fallback) {
-    if (has(key)) return boolean(key);
-    seen_.insert(key);
-    return fallback;
-  }
-  std::string string_or(const std::string& key, const std::string& fallback) {
-    if (has(key)) return string(key);
-    seen_.insert(key);
-    return fallback;
-  }
-  /// An optional sequence: an empty one when the key is absent.
-  YAML::Node sequence_or_empty(const std::string& key) {
-    seen_.insert(key);
-    if (!has(key)) return YAML::Node(YAML::NodeType::Sequence);
-    const YAML::Node n = node_[key];
+  /// A required list.
+  YAML::Node sequence(const std::string& key) {
+    const YAML::Node n = require(key);
     if (!n.IsSequence()) throw ConfigError(child_path(key), "expected a list, got " + describe(n));
     return n;
   }
@@ -125,7 +103,7 @@ class MapReader {
   }
   /// A reader of a mapping below this one that is not one of its keys (an element of a list).
   [[nodiscard]] MapReader child(const YAML::Node& node, std::string path) const {
-    return MapReader(node, std::move(path), record_);
+    return MapReader(node, std::move(path));
   }
   YAML::Node node(const std::string& key) { return require(key); }
 
@@ -135,8 +113,10 @@ class MapReader {
       const std::string key = kv.first.Scalar();
       if (!seen_.count(key)) throw ConfigError(child_path(key), unknown_key(key));
     }
-    if (record_) (*record_)[schema_path(path_)].insert(seen_.begin(), seen_.end());
   }
+
+  /// `key`, left out and optional, counts as read.
+  void skip(const std::string& key) { seen_.insert(key); }
 
   /// Refuses `key`, required here and absent, for `reason`; but when the map holds a key the
   /// schema does not know that is plausibly a typo of `key`, names that key instead: the value
@@ -188,12 +168,10 @@ class MapReader {
     return n;
   }
 
-  // The keys the schema knows in this mapping; none while surveying it, or for a mapping it does
-  // not know.
+  // The keys the schema knows in this mapping; none for a mapping it does not know.
   [[nodiscard]] const std::set<std::string>* known_keys() const {
-    if (record_) return nullptr;
-    const auto it = schema_keys().find(schema_path(path_));
-    return it == schema_keys().end() ? nullptr : &it->second;
+    const auto it = key_catalogue().find(schema_path(path_));
+    return it == key_catalogue().end() ? nullptr : &it->second;
   }
 
   // "unknown key", and the known keys `key` is most plausibly a typo of.
@@ -205,18 +183,6 @@ class MapReader {
   YAML::Node node_;
   std::string path_;
   std::set<std::string> seen_;
-  KeyCatalogue* record_ = nullptr;
 };
-
-/// Range checks that name the key and the value.
-inline void check(bool ok, const std::string& path, const std::string& reason) {
-  if (!ok) throw ConfigError(path, reason);
-}
-
-inline std::string fmt(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.9g", v);
-  return buf;
-}
 
 }  // namespace pneu::config::detail

@@ -151,13 +151,6 @@ int run(int argc, char** argv) {
   }
   const std::string config_path = args.value("config").value_or("");
   config::Config cfg = config::load_file_or_default(config_path, overrides);
-  if (cfg.controller.duration_s == 0.0 && cfg.controller.clock == config::ClockKind::kSimulated)
-    throw config::ConfigError("controller.duration_s",
-                              "0 (run until stopped) needs the real clock; give a duration");
-  if (cfg.hal.backend == config::BackendKind::kModbus && cfg.controller.clock != config::ClockKind::kReal)
-    throw config::ConfigError("controller.clock", "the modbus backend runs on the real clock (--clock real)");
-  if (cfg.hal.gpio.enabled && cfg.controller.clock != config::ClockKind::kReal)
-    throw config::ConfigError("hal.gpio.enabled", "real lines (e-stop, valve power) need the real clock (--clock real)");
   if (args.flag("require-rt") && cfg.controller.clock != config::ClockKind::kReal)
     throw cli::UsageError("--require-rt needs the real clock (the simulated clock runs as fast as it can)");
   std::unique_ptr<plant::ValveCharacteristic> valve;

@@ -1,5 +1,6 @@
 // The one configuration of a pneu program: YAML loaded once into typed, validated structs, SI units
-// in the key names. A bad file is refused with the key path and the reason (ConfigError).
+// in the key names. A bad file is refused with the key path and the reason (ConfigError). Each key
+// (its member here, its range, the rules between keys) is described once, in schema.hpp.
 #pragma once
 
 #include <cstdint>

@@ -1,0 +1,763 @@
+// The configuration schema: every key of the YAML described once, in the struct it fills: its
+// name, the member, the values it accepts and one line of documentation, with the rules between
+// keys. Everything else is derived from these descriptions by walking them with an archive, as
+// Drake's Serialize(Archive*) visitors do:
+//   - reading and validating (load_string, config.cpp): unknown, repeated, missing keys, wrong
+//     types, ranges, the rules below, each refused with the key path and the reason;
+//   - writing back (to_yaml, `--check-config`), in the order of the descriptions;
+//   - comparing (values_of: every value by its key path);
+//   - the key catalogue behind "unknown key; did you mean ...?" and the keys of a configuration
+//     (keys_of: the hostile-input matrix of tests/test_config_hostile.cpp).
+//
+// Adding a key: its member, with its default, in its struct; one line in that struct's describe()
+// below; its documented line in the shipped configurations (config/*.yaml: the comment is the
+// documentation users read, and docs/configuration.md is generated from it).
+//
+// A description is a function template `describe(a, object, context...)` run by every archive
+// `a` over a const (writing, listing) or mutable (reading) object, top to bottom: a rule (check)
+// may use any key described above it, which the reader has read by then. Its vocabulary:
+//   a.field(PNEU_NVP(s, member), range, doc)     a number (Range), an integer (IntRange), an enum
+//                                                (Choices), a bool or a string (no range)
+//   a.number_or_auto(PNEU_NVP(s, member), is_auto, doc)   a number, or the word `auto`
+//   a.flags("key", s, flags, doc)                a list of names, each setting a bool of s
+//   a.section(PNEU_NVP(s, member), context...)   a mapping: describe(a, s.member, context...)
+//   a.optional_section(PNEU_NVP(s, member), present)      ... that may be left out
+//   a.group("key", [&](auto& a) { ... })         a mapping of the YAML with no struct of its own
+//   a.list(PNEU_NVP(s, member), context...)      a list of mappings, each described by describe()
+//   a.check("relative.path", ok, reason)         a rule: refused at the path unless `ok`
+// PNEU_NVP names the key after its member, so that a key is spelled once; a key is required
+// unless wrapped: optional(...), required_when(condition, ..., why), meaningful_when(condition,
+// ...) (otherwise accepted and type-checked but neither kept nor written); flow(...) writes a
+// mapping on one line.
+#pragma once
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdint>
+#include <concepts>
+#include <cstdio>
+#include <limits>
+#include <span>
+#include <string>
+#include <string_view>
+#include <type_traits>
+#include <utility>
+#include <vector>
+
+#include "pneu/config/config.hpp"
+#include "pneu/config/register_map.hpp"
+#include "pneu/sim_plant/params.hpp"
+#include "pneu/sim_plant/sensors.hpp"
+#include "pneu/sim_plant/valve.hpp"
+
+namespace pneu::config::schema {
+
+// ---------------------------------------------------------------------------------------------
+// The vocabulary
+
+/// A number as the messages quote it: up to 9 significant digits ("0.032", "1e-07").
+inline std::string fmt(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.9g", v);
+  return buf;
+}
+
+/// Whether a key may be left out of its mapping.
+enum class Presence : std::uint8_t {
+  kRequired,  ///< left out: refused ("missing")
+  kOptional,  ///< left out: the member keeps its default (the struct's initializer)
+  kIgnored,   ///< meaningless here: accepted and type-checked when given, not kept, not written
+};
+
+/// How to_yaml writes a mapping.
+enum class Style : std::uint8_t { kBlock, kFlow };
+
+/// A key of a mapping, and when it may be left out.
+struct Key {
+  const char* name;
+  Presence presence = Presence::kRequired;
+  const char* required_because = nullptr;  ///< the reason a conditionally required key is missing
+  Style style = Style::kBlock;
+
+  constexpr Key(const char* key_name) : name(key_name) {}  // NOLINT: a key is its name
+};
+
+/// A key and the member it fills.
+template <class T>
+struct Field {
+  constexpr Field(Key k, T& member) : key(k), value(member) {}
+  Key key;
+  T& value;
+};
+
+/// The key named as the member it fills, as Drake's DRAKE_NVP: `PNEU_NVP(g, stroke_m)` is the key
+/// "stroke_m" of g.stroke_m. (A key named otherwise: `Field("register", c.address)`.)
+#define PNEU_NVP(object, member) ::pneu::config::schema::Field(#member, (object).member)
+
+template <class T>
+[[nodiscard]] constexpr Field<T> optional(Field<T> f) {
+  f.key.presence = Presence::kOptional;
+  return f;
+}
+/// Required when `condition` (left out: refused as "missing: <because>"), optional otherwise.
+template <class T>
+[[nodiscard]] constexpr Field<T> required_when(bool condition, Field<T> f, const char* because) {
+  f.key.presence = condition ? Presence::kRequired : Presence::kOptional;
+  f.key.required_because = because;
+  return f;
+}
+/// Accepted and type-checked when given, not kept, not written, unless `condition` (then required).
+template <class T>
+[[nodiscard]] constexpr Field<T> meaningful_when(bool condition, Field<T> f) {
+  f.key.presence = condition ? Presence::kRequired : Presence::kIgnored;
+  return f;
+}
+/// Written as a mapping on one line.
+template <class T>
+[[nodiscard]] constexpr Field<T> flow(Field<T> f) {
+  f.key.style = Style::kFlow;
+  return f;
+}
+
+/// The values a number accepts (every one finite), and the refusal of the others.
+class Range {
+ public:
+  [[nodiscard]] static constexpr Range any() { return {Kind::kAny, 0.0, 0.0}; }
+  [[nodiscard]] static constexpr Range positive() { return {Kind::kPositive, 0.0, 0.0}; }         ///< > 0
+  [[nodiscard]] static constexpr Range non_negative() { return {Kind::kNonNegative, 0.0, 0.0}; }  ///< >= 0
+  [[nodiscard]] static constexpr Range negative() { return {Kind::kNegative, 0.0, 0.0}; }         ///< < 0
+  [[nodiscard]] static constexpr Range non_zero() { return {Kind::kNonZero, 0.0, 0.0}; }          ///< != 0
+  /// [lo, hi]
+  [[nodiscard]] static constexpr Range closed(double lo, double hi) { return {Kind::kClosed, lo, hi}; }
+  /// (lo, hi)
+  [[nodiscard]] static constexpr Range open(double lo, double hi) { return {Kind::kOpen, lo, hi}; }
+  /// (lo, hi]
+  [[nodiscard]] static constexpr Range left_open(double lo, double hi) { return {Kind::kLeftOpen, lo, hi}; }
+
+  [[nodiscard]] constexpr bool contains(double v) const {
+    switch (kind_) {
+      case Kind::kAny: return true;
+      case Kind::kPositive: return v > 0.0;
+      case Kind::kNonNegative: return v >= 0.0;
+      case Kind::kNegative: return v < 0.0;
+      case Kind::kNonZero: return v != 0.0;
+      case Kind::kClosed: return v >= lo_ && v <= hi_;
+      case Kind::kOpen: return v > lo_ && v < hi_;
+      case Kind::kLeftOpen: return v > lo_ && v <= hi_;
+    }
+    return false;
+  }
+  /// The range as the documentation states it: "> 0", "in [1, 1.4]"; empty for any().
+  [[nodiscard]] std::string text() const {
+    switch (kind_) {
+      case Kind::kAny: return "";
+      case Kind::kPositive: return "> 0";
+      case Kind::kNonNegative: return ">= 0";
+      case Kind::kNegative: return "< 0";
+      case Kind::kNonZero: return "!= 0";
+      case Kind::kClosed: return "in [" + fmt(lo_) + ", " + fmt(hi_) + "]";
+      case Kind::kOpen: return "in (" + fmt(lo_) + ", " + fmt(hi_) + ")";
+      case Kind::kLeftOpen: return "in (" + fmt(lo_) + ", " + fmt(hi_) + "]";
+    }
+    return "";
+  }
+  /// "must be > 0 (got -1)"; "must not be 0".
+  [[nodiscard]] std::string refusal(double v) const {
+    if (kind_ == Kind::kNonZero) return "must not be 0";
+    return "must be " + text() + " (got " + fmt(v) + ")";
+  }
+
+ private:
+  enum class Kind : std::uint8_t { kAny, kPositive, kNonNegative, kNegative, kNonZero, kClosed, kOpen, kLeftOpen };
+  constexpr Range(Kind kind, double lo, double hi) : kind_(kind), lo_(lo), hi_(hi) {}
+  Kind kind_;
+  double lo_, hi_;
+};
+
+/// The values an integer accepts, [lo, hi], and the refusal of the others: "must be in [lo, hi]",
+/// "must be >= lo", or a text of its own where "{}" stands for the value given.
+class IntRange {
+ public:
+  [[nodiscard]] static constexpr IntRange in(long long lo, long long hi) { return {lo, hi}; }
+  [[nodiscard]] static constexpr IntRange at_least(long long lo) {
+    return {lo, std::numeric_limits<long long>::max()};
+  }
+  [[nodiscard]] constexpr IntRange says(const char* refusal) const {
+    IntRange r = *this;
+    r.says_ = refusal;
+    return r;
+  }
+
+  [[nodiscard]] constexpr bool contains(long long v) const { return v >= lo_ && v <= hi_; }
+  /// ">= 0", "in [1, 247]"
+  [[nodiscard]] std::string text() const {
+    if (hi_ == std::numeric_limits<long long>::max()) return ">= " + std::to_string(lo_);
+    return "in [" + std::to_string(lo_) + ", " + std::to_string(hi_) + "]";
+  }
+  [[nodiscard]] std::string refusal(long long v) const {
+    if (says_ == nullptr) return "must be " + text();
+    std::string out = says_;
+    if (const auto at = out.find("{}"); at != std::string::npos) out.replace(at, 2, std::to_string(v));
+    return out;
+  }
+
+ private:
+  constexpr IntRange(long long lo, long long hi) : lo_(lo), hi_(hi) {}
+  long long lo_, hi_;
+  const char* says_ = nullptr;
+};
+
+/// One name of an enum-valued key.
+template <class E>
+struct Choice {
+  const char* name;
+  E value;
+};
+
+/// The names an enum-valued key accepts, and the refusal of the others: "must be 'a', 'b' or 'c'
+/// (got 'x')", or "must be a, b or c (got 'x')" unquoted(), or "unknown <noun> 'x' (a, b)".
+template <class E>
+struct Choices {
+  std::span<const Choice<E>> names;
+  const char* noun = nullptr;
+  bool quoted = true;
+
+  [[nodiscard]] constexpr Choices unquoted() const {
+    Choices c = *this;
+    c.quoted = false;
+    return c;
+  }
+  [[nodiscard]] constexpr Choices unknown(const char* what) const {
+    Choices c = *this;
+    c.noun = what;
+    return c;
+  }
+  /// The name of `value` (the first name for a value that has none, which the reader never makes).
+  [[nodiscard]] constexpr const char* name_of(E value) const {
+    for (const Choice<E>& c : names)
+      if (c.value == value) return c.name;
+    return names.front().name;
+  }
+  [[nodiscard]] std::string refusal(const std::string& given) const {
+    if (noun != nullptr) return "unknown " + std::string(noun) + " '" + given + "' (" + listed(", ", ", ") + ")";
+    return "must be " + listed(", ", " or ") + " (got '" + given + "')";
+  }
+  /// "'a', 'b' or 'c'" (`last` before the last name).
+  [[nodiscard]] std::string listed(const char* between, const char* last) const {
+    std::string text;
+    for (std::size_t i = 0; i < names.size(); ++i) {
+      if (i > 0) text += i + 1 == names.size() ? last : between;
+      text += quoted && noun == nullptr ? "'" + std::string(names[i].name) + "'" : names[i].name;
+    }
+    return text;
+  }
+};
+
+template <class E, std::size_t N>
+[[nodiscard]] constexpr Choices<E> one_of(const Choice<E> (&names)[N]) {
+  return {std::span<const Choice<E>>(names)};
+}
+
+/// One name of a list of names: present, it sets `member` of the owner.
+template <class S>
+struct Flag {
+  const char* name;
+  bool S::* member;
+};
+
+/// The names a list of names may hold ("unknown <noun> 'x' (a, b)" for any other).
+template <class S>
+struct Flags {
+  std::span<const Flag<S>> names;
+  const char* noun;
+
+  /// "a, b"
+  [[nodiscard]] std::string listed() const {
+    std::string text;
+    for (const Flag<S>& f : names) text += (text.empty() ? "" : ", ") + std::string(f.name);
+    return text;
+  }
+};
+
+template <class S, std::size_t N>
+[[nodiscard]] constexpr Flags<S> any_of(const Flag<S> (&names)[N], const char* noun) {
+  return {std::span<const Flag<S>>(names), noun};
+}
+
+/// `T` or `const T`: a description serves the reader (mutable) and the other archives (const).
+template <class T, class U>
+concept Like = std::same_as<std::remove_const_t<T>, U>;
+
+// ---------------------------------------------------------------------------------------------
+// The names of enum-valued keys
+
+inline constexpr Choice<ClockKind> kClocks[] = {{"simulated", ClockKind::kSimulated}, {"real", ClockKind::kReal}};
+inline constexpr Choice<LinearizedSlope> kLinearizedSlopes[] = {{"stop", LinearizedSlope::kStopTangent},
+                                                               {"chord", LinearizedSlope::kChord},
+                                                               {"equilibrium", LinearizedSlope::kEquilibriumTangent}};
+inline constexpr Flag<PredictorConfig> kPredictorMethods[] = {{"linearized", &PredictorConfig::linearized},
+                                                              {"nonlinear", &PredictorConfig::nonlinear}};
+inline constexpr Choice<SafeOutput> kSafeOutputs[] = {{"neutral", SafeOutput::kNeutral},
+                                                      {"exhaust", SafeOutput::kExhaust}};
+inline constexpr Choice<BackendKind> kBackends[] = {{"sim", BackendKind::kSim}, {"modbus", BackendKind::kModbus}};
+inline constexpr Choice<ModbusTransport> kTransports[] = {{"tcp", ModbusTransport::kTcp},
+                                                          {"rtu", ModbusTransport::kRtu}};
+inline constexpr Choice<char> kParities[] = {{"none", 'N'}, {"even", 'E'}, {"odd", 'O'}};
+inline constexpr Choice<SensorTable> kSensorTables[] = {{"holding", SensorTable::kHolding},
+                                                        {"input", SensorTable::kInput}};
+inline constexpr Choice<RegisterFormat> kRegisterFormats[] = {{"int16", RegisterFormat::kInt16},
+                                                              {"float32", RegisterFormat::kFloat32}};
+
+// ---------------------------------------------------------------------------------------------
+// Messages shared by several rules
+
+/// "must lie inside the stroke [-0.25, 0.25] m (got 0.3)"
+inline std::string outside_the_stroke(double half_stroke_m, double v) {
+  return "must lie inside the stroke [" + fmt(-half_stroke_m) + ", " + fmt(half_stroke_m) + "] m (got " + fmt(v) +
+         ")";
+}
+
+// ---------------------------------------------------------------------------------------------
+// plant.*: the bench as the controller models it (docs/model.md)
+
+void describe(auto& a, Like<plant::Geometry> auto& g) {
+  a.field(PNEU_NVP(g, stroke_m), Range::positive(), "L: full stroke [m]; y runs over [-L/2, +L/2]");
+  a.field(PNEU_NVP(g, bore_diameter_m), Range::positive(), "piston diameter [m]");
+  a.field(PNEU_NVP(g, rod_diameter_m), Range::positive(), "rod diameter [m], < bore");
+  a.check("rod_diameter_m", g.rod_diameter_m < g.bore_diameter_m, [&] {
+    return "must be smaller than geometry.bore_diameter_m (" + fmt(g.rod_diameter_m) + " >= " +
+           fmt(g.bore_diameter_m) + ")";
+  });
+  a.field(PNEU_NVP(g, dead_volume_p_m3), Range::positive(), "V_P0: chamber P volume at y = -L/2 [m^3]");
+  a.field(PNEU_NVP(g, dead_volume_n_m3), Range::positive(), "V_N0: chamber N volume at y = +L/2 [m^3]");
+}
+
+void describe(auto& a, Like<plant::Gas> auto& g) {
+  a.field(PNEU_NVP(g, supply_pressure_pa), Range::positive(), "p_S: supply pressure [Pa abs], > p_E");
+  a.field(PNEU_NVP(g, exhaust_pressure_pa), Range::positive(), "p_E: exhaust pressure [Pa abs]");
+  a.check("supply_pressure_pa", g.supply_pressure_pa > g.exhaust_pressure_pa, [&] {
+    return "must exceed gas.exhaust_pressure_pa (" + fmt(g.supply_pressure_pa) + " <= " +
+           fmt(g.exhaust_pressure_pa) + ")";
+  });
+  a.field(PNEU_NVP(g, polytropic_index), Range::closed(1.0, 1.4), "k: polytropic index [-]");
+  a.field(PNEU_NVP(g, gas_constant_j_per_kg_k), Range::positive(), "r: gas constant [J/(kg K)]");
+  a.field(PNEU_NVP(g, temperature_k), Range::positive(), "T: supply and chamber temperature [K]");
+}
+
+void describe(auto& a, Like<plant::ValveParams> auto& v) {
+  a.field(PNEU_NVP(v, max_conductance_m3_per_s_pa), Range::positive(),
+          "C_max: sonic conductance fully open [m^3/(s Pa)]");
+  a.field(PNEU_NVP(v, critical_pressure_ratio), Range::open(0.0, plant::kLaminarPressureRatio),
+          "b: ISO 6358 critical pressure ratio [-]");
+  a.field(PNEU_NVP(v, leak_conductance_in_m3_per_s_pa), Range::non_negative(),
+          "C_leak_in: supply -> chamber leak [m^3/(s Pa)]");
+  a.field(PNEU_NVP(v, leak_conductance_out_m3_per_s_pa), Range::non_negative(),
+          "C_leak_out: chamber -> exhaust leak [m^3/(s Pa)]");
+  a.field(PNEU_NVP(v, max_voltage_v), Range::positive(), "u_max: the voltage that opens a valve fully [V]");
+  a.field(optional(PNEU_NVP(v, reference_density_kg_per_m3)), Range::positive(),
+          "rho_0 of ISO 6358 [kg/m^3]");
+  a.field(optional(PNEU_NVP(v, reference_temperature_k)), Range::positive(), "T_0 of ISO 6358 [K]");
+}
+
+void describe(auto& a, Like<plant::FrictionParams> auto& f) {
+  a.field(PNEU_NVP(f, static_positive_n), Range::positive(), "F_S+: stiction, positive motion [N]");
+  a.field(PNEU_NVP(f, coulomb_positive_n), Range::positive(), "F_C+: Coulomb friction, positive motion [N]");
+  a.check("coulomb_positive_n", f.coulomb_positive_n <= f.static_positive_n, [&] {
+    return "must not exceed friction.static_positive_n (" + fmt(f.coulomb_positive_n) + " > " +
+           fmt(f.static_positive_n) + ")";
+  });
+  a.field(PNEU_NVP(f, static_negative_n), Range::negative(), "F_S-: stiction, negative motion [N]");
+  a.field(PNEU_NVP(f, coulomb_negative_n), Range::negative(), "F_C-: Coulomb friction, negative motion [N]");
+  a.check("coulomb_negative_n", f.coulomb_negative_n >= f.static_negative_n, [&] {
+    return "must not be below friction.static_negative_n (" + fmt(f.coulomb_negative_n) + " < " +
+           fmt(f.static_negative_n) + ")";
+  });
+  a.field(PNEU_NVP(f, viscous_n_s_per_m), Range::non_negative(), "sigma: viscous coefficient [N s/m]");
+  a.field(PNEU_NVP(f, stribeck_velocity_m_per_s), Range::positive(), "v_s: Stribeck velocity [m/s]");
+  a.field(PNEU_NVP(f, stick_velocity_m_per_s), Range::non_negative(),
+          "|v| below which a decelerating carriage sticks [m/s]");
+}
+
+void describe(auto& a, Like<plant::PlantParams> auto& p) {
+  a.field(PNEU_NVP(p, mass_kg), Range::positive(), "M: moving mass (piston, rod, carriage, load) [kg]");
+  a.section(PNEU_NVP(p, geometry));
+  a.section(PNEU_NVP(p, gas));
+  a.section(PNEU_NVP(p, valve));
+  a.section(PNEU_NVP(p, friction));
+  a.field(PNEU_NVP(p, max_step_s), Range::closed(1.0e-7, 1.0e-2), "largest RK4 step [s]");
+}
+
+// ---------------------------------------------------------------------------------------------
+// sensors.*, simulation.*
+
+/// One channel; `gain_key` names its sensitivity with its unit (gain_v_per_m, gain_v_per_pa).
+void describe(auto& a, Like<plant::SensorChannelParams> auto& c, const char* gain_key) {
+  a.field(Field(gain_key, c.gain_v_per_unit), Range::non_zero(), "sensitivity [V per SI unit]");
+  a.field(PNEU_NVP(c, offset_v), Range::any(), "output at a zero value [V]");
+  a.field(PNEU_NVP(c, noise_std_v), Range::non_negative(), "additive Gaussian noise, standard deviation [V]");
+  a.field(PNEU_NVP(c, adc_bits), IntRange::in(0, 24).says("must be 0 (no quantisation) or 1..24 (got {})"),
+          "ADC resolution [bits], 0 = no quantisation");
+  a.field(PNEU_NVP(c, range_min_v), Range::any(), "electrical range: readings are clamped to it [V]");
+  a.field(PNEU_NVP(c, range_max_v), Range::any(), "[V], > range_min_v");
+  a.check("range_max_v", c.range_max_v > c.range_min_v,
+          [&] { return "must exceed range_min_v (" + fmt(c.range_max_v) + " <= " + fmt(c.range_min_v) + ")"; });
+}
+
+void describe(auto& a, Like<plant::SensorParams> auto& s) {
+  a.field(PNEU_NVP(s, seed), IntRange::at_least(0), "seed of the noise generator");
+  a.section(PNEU_NVP(s, position), "gain_v_per_m");
+  a.section(PNEU_NVP(s, pressure_p), "gain_v_per_pa");
+  a.section(PNEU_NVP(s, pressure_n), "gain_v_per_pa");
+}
+
+void describe(auto& a, Like<SimulationConfig> auto& s, const plant::Geometry& geometry) {
+  const double half = geometry.half_stroke_m();
+  a.field(PNEU_NVP(s, initial_position_m), Range::any(), "rest position at t = 0 [m], inside the stroke");
+  a.check("initial_position_m", std::abs(s.initial_position_m) <= half,
+          [&] { return outside_the_stroke(half, s.initial_position_m); });
+}
+
+// ---------------------------------------------------------------------------------------------
+// controller.*
+
+void describe(auto& a, Like<ControlLawParams> auto& law, Like<bool> auto& offset_auto) {
+  a.field(PNEU_NVP(law, position_gain_v_per_m), Range::non_negative(), "K_y [V/m]");
+  a.field(PNEU_NVP(law, velocity_gain_v_s_per_m), Range::non_negative(), "K_v [V/(m/s)]");
+  a.field(PNEU_NVP(law, acceleration_gain_v_s2_per_m), Range::non_negative(), "K_a [V/(m/s^2)]");
+  a.number_or_auto(PNEU_NVP(law, offset_v), offset_auto, "u_0 [V]; auto = u_e of Eq. 7");
+  a.field(PNEU_NVP(law, max_voltage_v), Range::positive(), "u_max: the control saturates at +-u_max [V]");
+}
+
+void describe(auto& a, Like<DifferentiatorParams> auto& d) {
+  a.field(PNEU_NVP(d, smoothing), Range::left_open(0.0, 1.0), "alpha of each low-pass, x += alpha (raw - x)");
+}
+
+void describe(auto& a, Like<StopDetectorParams> auto& d) {
+  a.field(PNEU_NVP(d, rest_band_m), Range::non_negative(), "positions this close to the first still one rest [m]");
+  a.field(PNEU_NVP(d, motion_band_m), Range::positive(), "leaving rest: moved more than this [m]");
+  a.check("motion_band_m", d.motion_band_m > d.rest_band_m, "must exceed rest_band_m");
+  a.field(PNEU_NVP(d, hold_s), Range::positive(), "a stop is confirmed after this long at rest [s]");
+}
+
+void describe(auto& a, Like<PredictorConfig> auto& p) {
+  a.flags("methods", p, any_of(kPredictorMethods, "method"), "the restart predictors run at each stop");
+  a.field(optional(PNEU_NVP(p, valve_table)), "valve table from pneu-plant characterize-valve; empty: the model");
+  a.field(PNEU_NVP(p, horizon_s), Range::positive(), "the nonlinear method gives up after this long [s]");
+  a.field(optional(PNEU_NVP(p, linearized_slope)), one_of(kLinearizedSlopes),
+          "the linearized method's flow slope (Eq. 23)");
+  a.field(optional(PNEU_NVP(p, update_period_s)), Range::non_negative(),
+          "while stuck, forecast again this often [s]; 0 = only at the stop");
+}
+
+/// One step of controller.setpoints.schedule.
+void describe(auto& a, Like<SetpointStep> auto& s, double half_stroke_m) {
+  a.field(PNEU_NVP(s, t_s), Range::non_negative(), "from this time on [s]");
+  a.field(PNEU_NVP(s, position_m), Range::any(), "the set point [m]");
+  a.check("position_m", std::abs(s.position_m) <= half_stroke_m,
+          [&] { return outside_the_stroke(half_stroke_m, s.position_m); });
+}
+
+/// `period_s`: the loop's.
+void describe(auto& a, Like<SupervisorConfig> auto& s, const plant::PlantParams& plant, double period_s) {
+  const double half = plant.geometry.half_stroke_m();
+  constexpr const char* kMustContainTheStroke =
+      " m (the range must contain the stroke: a carriage at an end stop is not a fault)";
+  a.field(PNEU_NVP(s, position_min_m), Range::any(), "position readings below are out of range [m]");
+  a.field(PNEU_NVP(s, position_max_m), Range::any(), "position readings above are out of range [m]");
+  a.check("position_max_m", s.position_max_m > s.position_min_m, "must exceed position_min_m");
+  a.check("position_min_m", s.position_min_m <= -half,
+          [&] { return "must not exceed the stroke's lower end " + fmt(-half) + kMustContainTheStroke; });
+  a.check("position_max_m", s.position_max_m >= half,
+          [&] { return "must not lie below the stroke's upper end " + fmt(half) + kMustContainTheStroke; });
+  a.field(PNEU_NVP(s, pressure_min_pa), Range::non_negative(), "pressure readings below are out of range [Pa]");
+  a.field(PNEU_NVP(s, pressure_max_pa), Range::positive(), "pressure readings above are out of range [Pa]");
+  a.check("pressure_max_pa", s.pressure_max_pa > s.pressure_min_pa, "must exceed pressure_min_pa");
+  a.check("pressure_max_pa", s.pressure_max_pa > plant.gas.supply_pressure_pa, [&] {
+    return "must exceed the supply pressure (" + fmt(plant.gas.supply_pressure_pa) + " Pa): a chamber may reach it";
+  });
+  a.check("pressure_min_pa", s.pressure_min_pa < plant.gas.exhaust_pressure_pa, [&] {
+    return "must lie below the exhaust pressure (" + fmt(plant.gas.exhaust_pressure_pa) +
+           " Pa): a chamber may reach it";
+  });
+  a.field(PNEU_NVP(s, max_speed_m_per_s), Range::non_negative(), "the position sensor jumped [m/s]; 0 = off");
+  a.field(PNEU_NVP(s, frozen_after_s), Range::closed(0.0, 60.0), "a pressure reading frozen this long [s]");
+  a.field(PNEU_NVP(s, overtravel_m), Range::non_negative(), "armed: overshoot allowed past the soft limits [m]");
+  a.field(PNEU_NVP(s, following_error_m), Range::positive(), "|y_d - y| above this ... [m]");
+  a.field(PNEU_NVP(s, following_error_s), Range::closed(0.0, 600.0), "... this long is a fault [s]; 0 = off");
+  a.field(PNEU_NVP(s, overruns_in_a_row), IntRange::in(0, 1000000).says("must be in [0, 1000000] (0 = off)"),
+          "this many overruns in a row are a fault; 0 = off");
+  a.field(PNEU_NVP(s, max_tick_interval_s), Range::closed(0.0, 10.0),
+          "a longer tick interval is a fault [s]; 0 = off");
+  a.check("max_tick_interval_s", s.max_tick_interval_s == 0.0 || s.max_tick_interval_s > period_s,
+          [&] { return "must exceed the loop period (" + fmt(period_s) + " s), or be 0 (off)"; });
+  a.field(PNEU_NVP(s, safe_output), one_of(kSafeOutputs), "the valves' output while a fault is latched");
+}
+
+void describe(auto& a, Like<RealtimeConfig> auto& r) {
+  a.field(PNEU_NVP(r, priority), IntRange::in(0, 99).says("must be in [0, 99] (0 = normal scheduling)"),
+          "SCHED_FIFO priority; 0 = normal scheduling");
+  a.field(PNEU_NVP(r, cpu), IntRange::in(-1, 1023).says("must be a CPU number, or -1 (no pinning)"),
+          "the loop thread's CPU; -1 = no pinning");
+  a.field(PNEU_NVP(r, lock_memory), "mlockall and a pre-faulted stack");
+}
+
+void describe(auto& a, Like<ControllerConfig> auto& c, const plant::PlantParams& plant) {
+  const double half = plant.geometry.half_stroke_m();
+  a.field(PNEU_NVP(c, rate_hz), Range::closed(1.0, 20000.0), "loop rate [Hz]");
+  a.field(PNEU_NVP(c, clock), one_of(kClocks),
+          "simulated: lockstep with the in-process plant; real: CLOCK_MONOTONIC");
+  a.field(PNEU_NVP(c, duration_s), Range::non_negative(), "run length [s]; 0 = until SIGINT/SIGTERM");
+  a.section(PNEU_NVP(c, law), c.offset_auto);
+  a.section(PNEU_NVP(c, differentiator));
+  a.section(PNEU_NVP(c, stop_detector));
+  a.section(PNEU_NVP(c, predictor));
+  a.group("setpoints", [&](auto& s) {
+    s.field(Field("initial_m", c.initial_setpoint_m), Range::any(), "set point before the first step [m]");
+    s.check("initial_m", std::abs(c.initial_setpoint_m) <= half,
+            [&] { return outside_the_stroke(half, c.initial_setpoint_m); });
+    s.list(optional(PNEU_NVP(c, schedule)), half);
+    for (std::size_t i = 1; i < c.schedule.size(); ++i)
+      s.check("schedule[" + std::to_string(i) + "].t_s", c.schedule[i].t_s > c.schedule[i - 1].t_s,
+              "times must increase");
+  });
+  a.field(PNEU_NVP(c, soft_limit_min_m), Range::any(), "set points below are refused [m]");
+  a.field(PNEU_NVP(c, soft_limit_max_m), Range::any(), "set points above are refused [m]");
+  a.check("soft_limit_min_m", c.soft_limit_min_m >= -half, [&] {
+    return "must lie inside the stroke (>= " + fmt(-half) + " m, got " + fmt(c.soft_limit_min_m) + ")";
+  });
+  a.check("soft_limit_max_m", c.soft_limit_max_m <= half, [&] {
+    return "must lie inside the stroke (<= " + fmt(half) + " m, got " + fmt(c.soft_limit_max_m) + ")";
+  });
+  a.check("soft_limit_max_m", c.soft_limit_max_m > c.soft_limit_min_m, "must exceed soft_limit_min_m");
+  a.check("setpoints.initial_m",
+          c.initial_setpoint_m >= c.soft_limit_min_m && c.initial_setpoint_m <= c.soft_limit_max_m,
+          "must lie within the soft limits");
+  for (std::size_t i = 0; i < c.schedule.size(); ++i)
+    a.check("setpoints.schedule[" + std::to_string(i) + "].position_m",
+            c.schedule[i].position_m >= c.soft_limit_min_m && c.schedule[i].position_m <= c.soft_limit_max_m, [&] {
+              return "must lie within the soft limits [" + fmt(c.soft_limit_min_m) + ", " +
+                     fmt(c.soft_limit_max_m) + "] m";
+            });
+  a.field(PNEU_NVP(c, start_armed), "armed at start-up");
+  a.field(PNEU_NVP(c, comms_fault_after_s), Range::closed(0.0, 10.0),
+          "reads not ok this long in a row are a fault [s]");
+  a.section(PNEU_NVP(c, supervisor), plant, c.period_s());
+  a.section(PNEU_NVP(c, realtime));
+}
+
+// ---------------------------------------------------------------------------------------------
+// hal.*
+
+/// One channel of hal.modbus.channels; `sensor`: an input (may be float32), else a valve output.
+void describe(auto& a, Like<RegisterChannel> auto& c, bool sensor) {
+  a.field(Field("register", c.address), IntRange::in(0, 65535), "register address (0-based, as on the wire)");
+  a.field(optional(PNEU_NVP(c, format)), one_of(kRegisterFormats),
+          "int16: one register; float32: two, high word first");
+  a.check("format", sensor || c.format == RegisterFormat::kInt16,
+          "float32 is for sensor channels only: a valve output is one 16-bit register");
+  a.check("register", c.format != RegisterFormat::kFloat32 || c.address <= 65534,
+          "must be in [0, 65534] (a float32 spans this register and the next)");
+  a.field(meaningful_when(c.format == RegisterFormat::kInt16, Field("signed", c.is_signed)),
+          "int16: the register holds a two's complement value");
+  a.field(PNEU_NVP(c, raw_min), Range::any(), "raw value at volts_min");
+  a.field(PNEU_NVP(c, raw_max), Range::any(), "raw value at volts_max");
+  if (c.format == RegisterFormat::kFloat32) {
+    constexpr double kFloatMax = 3.4028234663852886e38;
+    a.check("raw_min", std::abs(c.raw_min) <= kFloatMax, "must fit a float32 (|raw_min| <= 3.4028235e38)");
+    a.check("raw_max", std::abs(c.raw_max) <= kFloatMax, "must fit a float32 (|raw_max| <= 3.4028235e38)");
+  } else {
+    const double lo = c.is_signed ? -32768.0 : 0.0, hi = c.is_signed ? 32767.0 : 65535.0;
+    const auto must_fit = [&] {
+      return "must fit a " + std::string(c.is_signed ? "signed" : "unsigned") + " 16-bit register [" + fmt(lo) +
+             ", " + fmt(hi) + "]";
+    };
+    a.check("raw_min", c.raw_min >= lo && c.raw_min <= hi, must_fit);
+    a.check("raw_max", c.raw_max >= lo && c.raw_max <= hi, must_fit);
+  }
+  a.check("raw_max", c.raw_max > c.raw_min, [&] {
+    return "the raw range is empty (raw_max " + fmt(c.raw_max) + " <= raw_min " + fmt(c.raw_min) + ")";
+  });
+  a.field(PNEU_NVP(c, volts_min), Range::any(), "[V]");
+  a.field(PNEU_NVP(c, volts_max), Range::any(), "[V]");
+  a.check("volts_max", c.volts_max > c.volts_min, [&] {
+    return "the volts range is empty (volts_max " + fmt(c.volts_max) + " <= volts_min " + fmt(c.volts_min) + ")";
+  });
+}
+
+void describe(auto& a, Like<ModbusConfig> auto& m) {
+  a.field(PNEU_NVP(m, transport), one_of(kTransports), "tcp | rtu");
+  a.field(optional(PNEU_NVP(m, host)), "TCP: the module's address");
+  a.field(optional(PNEU_NVP(m, port)), IntRange::in(1, 65535), "TCP port");
+  a.field(optional(PNEU_NVP(m, device)), "RTU: serial device");
+  a.field(optional(PNEU_NVP(m, baud)), IntRange::in(300, 4000000), "RTU: bits per second");
+  a.field(optional(PNEU_NVP(m, parity)), one_of(kParities).unquoted(), "RTU: none | even | odd");
+  a.field(optional(PNEU_NVP(m, data_bits)), IntRange::in(5, 8), "RTU");
+  a.field(optional(PNEU_NVP(m, stop_bits)), IntRange::in(1, 2).says("must be 1 or 2"), "RTU");
+  a.field(PNEU_NVP(m, unit_id), IntRange::in(1, 247), "Modbus unit (slave) identifier");
+  a.field(PNEU_NVP(m, response_timeout_s), Range::closed(1e-4, 10.0), "a later answer is a comms error [s]");
+  a.field(PNEU_NVP(m, max_sample_age_s), Range::closed(1e-4, 10.0), "older samples are stale [s]");
+  a.field(PNEU_NVP(m, min_exchange_period_s), Range::closed(0.0, 1.0),
+          "the I/O thread exchanges at most this often [s]");
+  a.field(PNEU_NVP(m, read_write_multiple), "one function-23 transaction per cycle");
+  a.field(PNEU_NVP(m, sensor_table), one_of(kSensorTables), "holding (FC3/FC23) | input (FC4)");
+  a.check("read_write_multiple", !(m.read_write_multiple && m.sensor_table == SensorTable::kInput),
+          "function 23 reads holding registers: with sensor_table input, set read_write_multiple false");
+  a.field(PNEU_NVP(m, reconnect_min_s), Range::closed(1e-3, 60.0), "back-off after a failure [s]");
+  a.field(PNEU_NVP(m, reconnect_max_s), Range::any(), "... doubling up to this [s]");
+  a.check("reconnect_max_s", m.reconnect_max_s >= m.reconnect_min_s && m.reconnect_max_s <= 600.0, [&] {
+    return "must be in [" + fmt(m.reconnect_min_s) + ", 600] (got " + fmt(m.reconnect_max_s) + ")";
+  });
+  a.group("channels", [&](auto& ch) {
+    ch.section(flow(PNEU_NVP(m, position)), true);
+    ch.section(flow(PNEU_NVP(m, pressure_p)), true);
+    ch.section(flow(PNEU_NVP(m, pressure_n)), true);
+    ch.section(flow(PNEU_NVP(m, valve_p)), false);
+    ch.section(flow(PNEU_NVP(m, valve_n)), false);
+    // One register holds one channel: no overlaps within a table (the valves are holding
+    // registers; the sensors are too unless sensor_table is input). A float32 channel holds two.
+    struct Named {
+      const char* name;
+      const RegisterChannel* c;
+      bool holding;
+    };
+    const bool sensors_holding = m.sensor_table == SensorTable::kHolding;
+    const Named all[] = {{"position", &m.position, sensors_holding},
+                         {"pressure_p", &m.pressure_p, sensors_holding},
+                         {"pressure_n", &m.pressure_n, sensors_holding},
+                         {"valve_p", &m.valve_p, true},
+                         {"valve_n", &m.valve_n, true}};
+    for (std::size_t i = 0; i < 5; ++i)
+      for (std::size_t j = i + 1; j < 5; ++j) {
+        const RegisterChannel &x = *all[i].c, &y = *all[j].c;
+        const int shared = std::max(x.address, y.address);  // the first register both hold, if any
+        ch.check(std::string(all[j].name) + ".register",
+                 !(all[i].holding == all[j].holding && shared <= std::min(x.last_address(), y.last_address())),
+                 [&] {
+                   return "overlaps " + std::string(all[i].name) + " (both at register " +
+                          std::to_string(shared) + ")";
+                 });
+      }
+    ch.check("valve_n.register", !m.read_write_multiple || std::abs(m.valve_p.address - m.valve_n.address) == 1,
+             "function 23 writes one block: valve_p and valve_n must be adjacent registers");
+    const int lo = std::min({m.position.address, m.pressure_p.address, m.pressure_n.address});
+    const int hi = std::max({m.position.last_address(), m.pressure_p.last_address(), m.pressure_n.last_address()});
+    ch.check("pressure_n.register", hi - lo < 121,
+             "the sensor registers must lie within 121 consecutive registers (one read transaction)");
+  });
+}
+
+void describe(auto& a, Like<GpioConfig> auto& g) {
+  a.field(PNEU_NVP(g, enabled), "open the lines at start-up");
+  a.field(optional(PNEU_NVP(g, chip)), "GPIO chip: name, /dev path, label or number");
+  a.check("chip", !g.chip.empty(), "must not be empty");
+  a.field(optional(PNEU_NVP(g, estop_line)), IntRange::in(0, 65535).says("must be a line offset >= 0"),
+          "e-stop input line offset");
+  a.field(optional(PNEU_NVP(g, estop_active_low)), "pressed = electrically low");
+  a.field(optional(PNEU_NVP(g, valve_power_line)), IntRange::in(0, 65535).says("must be a line offset >= 0"),
+          "valve power-enable output line offset");
+  a.check("valve_power_line", g.valve_power_line != g.estop_line, "must differ from estop_line");
+  a.field(optional(PNEU_NVP(g, valve_power_active_low)), "power on = electrically low");
+  a.field(optional(PNEU_NVP(g, consumer)), "the name gpioinfo shows for both lines");
+}
+
+void describe(auto& a, Like<HalConfig> auto& h) {
+  a.field(PNEU_NVP(h, backend), one_of(kBackends).unknown("backend"), "sim: the plant in-process | modbus");
+  a.optional_section(
+      required_when(h.backend == BackendKind::kModbus, PNEU_NVP(h, modbus), "the modbus backend needs its section"),
+      h.has_modbus);
+  a.section(optional(PNEU_NVP(h, gpio)));
+}
+
+// ---------------------------------------------------------------------------------------------
+// telemetry.*, commands.*
+
+void describe(auto& a, Like<TelemetryConfig> auto& t) {
+  a.field(PNEU_NVP(t, enabled), "publish (real clock; simulated clock with in_simulated_time)");
+  a.field(PNEU_NVP(t, lcm_url), "LCM provider URL");
+  a.check("lcm_url", !t.lcm_url.empty(), "must not be empty");
+  a.field(PNEU_NVP(t, channel_prefix), "channels: <prefix>STATE, EVENT, PREDICTION, HEALTH");
+  bool plain = true;
+  for (char ch : t.channel_prefix)
+    plain = plain && (std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-' || ch == '.');
+  a.check("channel_prefix", plain, "may hold letters, digits, '_', '-' and '.' only");
+  a.field(PNEU_NVP(t, health_period_s), Range::closed(0.01, 60.0), "health message period [s]");
+  a.field(PNEU_NVP(t, in_simulated_time), "publish on the simulated clock too");
+}
+
+void describe(auto& a, Like<CommandsConfig> auto& c) {
+  a.field(PNEU_NVP(c, enabled), "accept commands on <prefix>COMMAND");
+  a.field(PNEU_NVP(c, max_rate_hz), Range::closed(0.01, 1000.0), "sustained accepted command rate [1/s]");
+  a.field(PNEU_NVP(c, burst), Range::closed(1.0, 1000.0), "commands accepted back to back before the rate applies");
+  a.field(PNEU_NVP(c, max_age_s), Range::closed(0.001, 3600.0), "older or newer commands are refused [s]");
+  a.field(PNEU_NVP(c, max_setpoint_step_m), Range::positive(), "largest set-point change of one command [m]");
+  a.field(PNEU_NVP(c, setpoint_stream_timeout_s), Range::closed(0.0, 3600.0),
+          "> 0: armed, no set point this long is a fault [s]");
+}
+
+// ---------------------------------------------------------------------------------------------
+// The whole configuration, and the rules across its sections
+
+void describe(auto& a, Like<Config> auto& c) {
+  a.section(PNEU_NVP(c, plant));
+  a.section(PNEU_NVP(c, sensors));
+  a.section(PNEU_NVP(c, simulation), c.plant.geometry);
+  a.section(PNEU_NVP(c, controller), c.plant);
+  a.section(PNEU_NVP(c, hal));
+  a.section(PNEU_NVP(c, telemetry));
+  a.section(PNEU_NVP(c, commands));
+  const bool real_clock = c.controller.clock == ClockKind::kReal;
+  a.check("controller.duration_s", c.controller.duration_s != 0.0 || real_clock,
+          "0 (run until stopped) needs the real clock; give a duration");
+  a.check("controller.clock", c.hal.backend != BackendKind::kModbus || real_clock,
+          "the modbus backend runs on the real clock (--clock real)");
+  a.check("hal.gpio.enabled", !c.hal.gpio.enabled || real_clock,
+          "real lines (e-stop, valve power) need the real clock (--clock real)");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Derived from the descriptions (schema.cpp)
+
+/// What a key holds.
+enum class KeyKind : std::uint8_t {
+  kNumber,        ///< a finite number
+  kInteger,       ///< an integer
+  kBoolean,       ///< true or false
+  kText,          ///< a string
+  kChoice,        ///< one of the names of an enum
+  kNumberOrAuto,  ///< a number, or the word auto
+  kNames,         ///< a list of names
+  kList,          ///< a list of mappings
+  kSection,       ///< a mapping
+};
+
+/// One key: its path ("controller.setpoints.schedule[0].t_s"), what it holds, whether it may be
+/// left out, and what the schema says of it (rules between keys aside).
+struct KeyInfo {
+  std::string path;
+  KeyKind kind = KeyKind::kNumber;
+  Presence presence = Presence::kRequired;
+  std::string range;  ///< the values it accepts, as the schema states them ("> 0", "in [1, 247]", "tcp | rtu")
+  std::string doc;    ///< its documentation line (empty for a mapping or a list of them: the struct's)
+};
+
+/// Every key of the schema, list entries as "list[]", each optional section's keys included; the
+/// presence of a conditionally required key as the default configuration makes it.
+[[nodiscard]] std::vector<KeyInfo> all_keys();
+
+/// The keys of `config` as to_yaml() writes them, in that order (list entries by index, optional
+/// sections only when present), with their presence as `config` makes it (a key required when
+/// another key says so, required or not).
+[[nodiscard]] std::vector<KeyInfo> keys_of(const Config& config);
+
+/// The key paths the rules (checks) of the schema refuse at, for `config`.
+[[nodiscard]] std::vector<std::string> rule_paths_of(const Config& config);
+
+/// Every value of `config` by its key path, in the order of keys_of(), as a text that tells any
+/// two different values apart (numbers as their shortest exact decimal text): two configurations
+/// are the same when these are equal. `offset_v: auto` is "auto" (the number is only computed
+/// later); an optional section also gives "<path>" -> "present" or "absent"; the values of a
+/// section left out (their defaults) and a key ignored by the schema are given too.
+[[nodiscard]] std::vector<std::pair<std::string, std::string>> values_of(const Config& config);
+
+}  // namespace pneu::config::schema
