@@ -30,7 +30,10 @@ command -v nsenter >/dev/null || { echo "SKIPPED: nsenter (util-linux) is missin
 ip link add vA type veth peer name vB 2>/dev/null || { echo "SKIPPED: cannot create a veth pair here"; exit 77; }
 unshare -n sleep 300 &
 FPID=$!
-sleep 0.2
+# Until the child has its own namespace (unshare may not have run yet).
+for _ in $(seq 200); do
+  [ "$(readlink "/proc/$FPID/ns/net" 2>/dev/null)" != "$(readlink /proc/self/ns/net)" ] && break; sleep 0.01
+done
 ip link set vB netns "$FPID" || fail "moving vB into the other host's namespace"
 ip addr add 10.99.0.1/24 dev vA && ip link set vA up || fail "vA"
 nsenter -t "$FPID" -n sh -c 'ip link set lo up && ip addr add 10.99.0.2/24 dev vB && ip link set vB up &&

@@ -974,6 +974,7 @@ TEST_P(HostileConfigThroughTheBinaries, PneudOnTheModbusBackendExitsTwoNeverConn
   EXPECT_FALSE(fs::exists(trajectory));
 }
 
+#ifdef PNEU_WITH_MODBUS  // pneu-plant serve needs libmodbus
 TEST_P(HostileConfigThroughTheBinaries, PlantServerExitsTwoNeverListening) {
   const BinaryCase& c = GetParam();
   const int port = test::free_port();
@@ -981,6 +982,7 @@ TEST_P(HostileConfigThroughTheBinaries, PlantServerExitsTwoNeverListening) {
   const Outcome o = run({"pneu-plant", "serve", "--config", config.string(), "--duration", "1"});
   expect_refused(o, "pneu-plant", c.names.empty() ? config.string() : c.names, c.reason);  // no "listening on"
 }
+#endif
 
 INSTANTIATE_TEST_SUITE_P(Sample, HostileConfigThroughTheBinaries, ::testing::ValuesIn(binary_cases()),
                          [](const auto& p) { return p.param.name; });
@@ -1009,12 +1011,14 @@ TEST_F(GoodConfigThroughTheBinaries, PneudOnTheModbusBackendConnectsToTheModule)
 }
 #endif
 
+#ifdef PNEU_WITH_MODBUS
 TEST_F(GoodConfigThroughTheBinaries, PlantServerListens) {
   const fs::path config = bad_config({"Good", [](YAML::Node&) {}, nullptr, "", ""}, "Hil", test::free_port());
   const Outcome o = run({"pneu-plant", "serve", "--config", config.string(), "--duration", "0.2"});
   EXPECT_EQ(o.exit_code, 0) << o.err;
   EXPECT_THAT(o.out, HasSubstr("listening on 127.0.0.1:"));
 }
+#endif
 
 }  // namespace
 }  // namespace pneu::config

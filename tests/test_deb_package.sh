@@ -13,6 +13,8 @@ set -u
 src=$1 bin=$2
 skip() { echo "SKIPPED: $*" >&2; exit 77; }
 [ "$(id -u)" -eq 0 ] || skip "installing a package, even in an overlay, needs root"
+left_out=$(sed -nE 's/^(PNEU_WITH_[A-Z_]+):BOOL=OFF$/\1/p' "$bin/CMakeCache.txt" | tr '\n' ' ')
+[ -z "$left_out" ] || skip "built with ${left_out% } off: the package tested is the whole one"
 for tool in cpack dpkg dpkg-deb unshare chroot; do
   command -v "$tool" > /dev/null || skip "$tool is missing"
 done

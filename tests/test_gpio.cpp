@@ -307,8 +307,10 @@ TEST_F(GpioBackend, CloseSwitchesValvePowerOff) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The e-stop through a real ControlLoop: the default paper run (set point 219.5 mm -> 170 mm at
-// t = 1 s), armed at start, on the simulated bench wrapped by GpioBackend with FakeLines.
+// The e-stop and valve power lines through a real ControlLoop: the default paper run (set point
+// 219.5 mm -> 170 mm at t = 1 s), armed at start, on the simulated bench wrapped by GpioBackend
+// with FakeLines. The loop's modes themselves (the fault latched and reported once, resets refused
+// while the cause stays, arm and disarm) are specified without GPIO in tests/test_loop_modes.cpp.
 
 class EStopLoop : public ::testing::Test {
  protected:
@@ -360,48 +362,6 @@ TEST_F(EStopLoop, PressingTheEStopFaultsWithinOneTickCutsValvePowerAndHoldsNeutr
   EXPECT_EQ(sim_->held_command().u_p_v, bench_.u_0());  // u_0 is copied, not computed: exact
   EXPECT_EQ(sim_->held_command().u_n_v, -bench_.u_0());
   EXPECT_EQ(last_u_v_, bench_.u_0());
-}
-
-TEST_F(EStopLoop, TheFaultIsReportedOnceAsAnEventWithItsCause) {
-  run_to_mid_run();
-  controller::LoopEvent e;
-  while (outputs_->events.try_pop(e)) {
-  }
-  lines_.estop_pressed = true;
-  run_ticks(50);  // held for 50 ms: one fault, not one per tick
-  int faults = 0;
-  while (outputs_->events.try_pop(e)) {
-    if (e.kind != controller::LoopEvent::Kind::kFault) continue;
-    ++faults;
-    EXPECT_EQ(e.fault_cause, controller::kFaultEStop);
-    EXPECT_NEAR(e.t_s, 1.2, 1e-9) << "dated at the tick that saw the e-stop";
-  }
-  EXPECT_EQ(faults, 1);
-  EXPECT_THAT(controller::fault_text(controller::kFaultEStop), ::testing::HasSubstr("e-stop"));
-}
-
-TEST_F(EStopLoop, TheFaultStaysLatchedAfterTheEStopIsReleased) {
-  run_to_mid_run();
-  lines_.estop_pressed = true;
-  run_ticks(1);
-  lines_.estop_pressed = false;
-  run_ticks(500);
-  EXPECT_EQ(mode(), Mode::kFault);
-  EXPECT_FALSE(lines_.valve_power);
-  EXPECT_EQ(sim_->held_command().u_p_v, bench_.u_0());
-}
-
-TEST_F(EStopLoop, AResetWhileTheEStopIsStillPressedKeepsTheFault) {
-  run_to_mid_run();
-  lines_.estop_pressed = true;
-  run_ticks(10);
-  send(LoopCommand::Kind::kFaultReset);
-  run_ticks(1);
-  EXPECT_EQ(mode(), Mode::kFault);
-  send(LoopCommand::Kind::kArm);  // an arm does not clear a fault either
-  run_ticks(1);
-  EXPECT_EQ(mode(), Mode::kFault);
-  EXPECT_FALSE(lines_.valve_power);
 }
 
 TEST_F(EStopLoop, AfterReleaseAResetDisarmsAndValvePowerFollowsTheArmedState) {

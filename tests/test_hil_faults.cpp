@@ -115,17 +115,25 @@ class Telemetry {
     }
     return false;
   }
-  std::optional<pneu_lcm::event_t> wait_fault(std::chrono::milliseconds limit) {
+  // The first event of `kind` from the `from`-th received on (see events_received), within `limit`.
+  std::optional<pneu_lcm::event_t> wait_event(std::int8_t kind, std::size_t from, std::chrono::milliseconds limit) {
     const auto until = std::chrono::steady_clock::now() + limit;
     while (std::chrono::steady_clock::now() < until) {
       {
         std::lock_guard<std::mutex> l(m_);
-        for (const auto& e : events_)
-          if (e.kind == pneu_lcm::event_t::KIND_FAULT) return e;
+        for (std::size_t i = from; i < events_.size(); ++i)
+          if (events_[i].kind == kind) return events_[i];
       }
       std::this_thread::sleep_for(5ms);
     }
     return std::nullopt;
+  }
+  std::optional<pneu_lcm::event_t> wait_fault(std::chrono::milliseconds limit) {
+    return wait_event(pneu_lcm::event_t::KIND_FAULT, 0, limit);
+  }
+  std::size_t events_received() {
+    std::lock_guard<std::mutex> l(m_);
+    return events_.size();
   }
   pneu_lcm::health_t health() {
     std::lock_guard<std::mutex> l(m_);
@@ -317,13 +325,19 @@ class HilFaults : public ::testing::Test {
     EXPECT_LT(r.fault_t_s - from_s, limit_s + 0.1) << r.fault_line;
   }
 
-  // The recovery, once the cause is gone: nothing happens without a reset; a reset disarms (valve
+  // The recovery, once the cause is gone: nothing happens without a reset (the loop runs 0.5 s
+  // more, by its health messages, and every one of them is in fault); a reset disarms (valve
   // power stays off, the outputs go to the neutral hold), an ARM drives again. The operator's
   // reset is repeated until pneud accepts it: when the cause has just gone (a link still
   // reconnecting), pneud refuses it and says so (event KIND_FAULT_RESET_REFUSED).
   void reset(const std::string& plant) {
-    std::this_thread::sleep_for(500ms);
-    EXPECT_EQ(telemetry_.health().mode, kModeFault) << "no recovery without a reset";
+    const std::size_t from = telemetry_.healths().size();
+    const std::int64_t ticks = telemetry_.health().ticks;
+    ASSERT_TRUE(telemetry_.wait_health([&](const auto& h) { return h.ticks >= ticks + 500; }, 10s))
+        << "the loop runs on";
+    const auto healths = telemetry_.healths();
+    for (std::size_t i = from; i < healths.size(); ++i)
+      EXPECT_EQ(healths[i].mode, kModeFault) << "no recovery without a reset (health at " << healths[i].t << " s)";
     bool reset = false;
     for (int i = 0; i < 20 && !reset; ++i) {
       telemetry_.send(pneu_lcm::command_t::KIND_FAULT_RESET);
@@ -340,12 +354,15 @@ class HilFaults : public ::testing::Test {
     ASSERT_TRUE(telemetry_.wait_health([](const auto& h) { return h.mode == kModeArmed; }, 3s)) << "armed again";
     EXPECT_TRUE(wait_outputs(plant, /*safe=*/false, 3s)) << "the law drives the valves again";
   }
-  // A reset while the cause is still there keeps the fault, and pneud says why.
+  // A reset while the cause is still there keeps the fault, and pneud says why: the refusal is
+  // published, and health published after it is still in fault.
   void reset_refused_while_the_cause_stays() {
+    const std::size_t from = telemetry_.events_received();
     telemetry_.send(pneu_lcm::command_t::KIND_FAULT_RESET);
-    std::this_thread::sleep_for(400ms);
+    const auto refused = telemetry_.wait_event(pneu_lcm::event_t::KIND_FAULT_RESET_REFUSED, from, 3s);
+    ASSERT_TRUE(refused) << "no refusal published; mode " << int{telemetry_.health().mode};
+    ASSERT_TRUE(telemetry_.wait_health([&](const auto& h) { return h.t > refused->t; }, 3s)) << "health after it";
     EXPECT_EQ(telemetry_.health().mode, kModeFault) << "reset with the cause still there";
-    EXPECT_TRUE(telemetry_.has_event(pneu_lcm::event_t::KIND_FAULT_RESET_REFUSED));
   }
 
   pneu::test::TestDir dir_{"pneu_hilf_"};

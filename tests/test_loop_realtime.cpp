@@ -7,6 +7,8 @@
 // code) are not seen; nothing in controller/, hal/ or sim_plant/ calls malloc directly.
 #include <gtest/gtest.h>
 
+#include <sys/prctl.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -413,5 +415,42 @@ TEST_P(LoopDeadlines, AreEachTickedOrSkippedOnceWhereverAStallComes) {
 
 INSTANTIATE_TEST_SUITE_P(StallAfterTick, LoopDeadlines, ::testing::Values(1, 10, 15, 17, 19),
                          [](const auto& p) { return "Tick" + std::to_string(p.param); });
+
+}  // namespace
+
+namespace {
+
+// The thread's timer slack [ns] (prctl PR_GET_TIMERSLACK).
+long timer_slack_ns() { return prctl(PR_GET_TIMERSLACK, 0, 0, 0, 0); }
+
+// The timer slack run_loop's thread has while it ticks on `clock`, starting from the 50 us a thread
+// under normal scheduling has by default. Runs on a thread of its own, so this one is left as it is.
+long slack_while_ticking(pneu::controller::Clock& clock) {
+  long during = -1;
+  std::thread loop_thread([&] {
+    (void)prctl(PR_SET_TIMERSLACK, 50'000UL, 0UL, 0UL, 0UL);
+    auto config = pneu::config::load_string(pneu::config::default_config_yaml());
+    FlakyBackend backend;
+    auto outputs = std::make_unique<pneu::controller::LoopOutputs>();
+    pneu::controller::ControlLoop loop(config, backend, *outputs);
+    pneu::controller::LoopTiming timing;
+    const std::atomic<bool> never{false};
+    pneu::controller::run_loop(loop, clock, 1e-3, 3, never, timing, [&] { during = timer_slack_ns(); });
+  });
+  loop_thread.join();
+  return during;
+}
+
+// Under normal scheduling the kernel may defer a thread's wake-up by its timer slack (50 us by
+// default) to group it with others: the loop's deadlines would all be met that much late.
+TEST(RealClock, RunsTheLoopThreadWithATimerSlackOf1ns) {
+  pneu::controller::RealClock clock;
+  EXPECT_EQ(slack_while_ticking(clock), 1);
+}
+
+TEST(SimulatedClock, LeavesTheLoopThreadsTimerSlackAsItIs) {
+  pneu::controller::SimulatedClock clock;
+  EXPECT_EQ(slack_while_ticking(clock), 50'000);
+}
 
 }  // namespace

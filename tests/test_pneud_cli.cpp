@@ -371,6 +371,9 @@ TEST_F(PneudCli, ASummaryJsonPathThatCannotBeWrittenFailsBeforeTheRun) {
 }
 
 TEST_F(PneudCli, AGpioChipThatDoesNotExistIsAClearStartUpError) {
+#ifndef PNEU_WITH_GPIOD
+  GTEST_SKIP() << "pneud was built without libgpiod (PNEU_WITH_GPIOD=OFF)";
+#endif
   const Outcome o = pneud(
       "--clock real --duration 0.1 --set telemetry.enabled=false --set hal.gpio.enabled=true --set "
       "hal.gpio.chip=pneu-no-such-chip");

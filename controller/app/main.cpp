@@ -169,6 +169,18 @@ int run(int argc, char** argv) {
     return cli::kExitOk;
   }
 
+  // What this build left out is refused before any output file is created.
+#ifndef PNEU_WITH_MODBUS
+  if (cfg.hal.backend == config::BackendKind::kModbus)
+    throw config::ConfigError("hal.backend", "this pneud was built without the modbus backend");
+#endif
+#ifndef PNEU_WITH_GPIOD
+  if (cfg.hal.gpio.enabled) throw config::ConfigError("hal.gpio.enabled", "this pneud was built without libgpiod");
+#endif
+#ifndef PNEU_WITH_LCM
+  if (args.flag("require-telemetry")) throw cli::UsageError("--require-telemetry: this pneud was built without LCM");
+#endif
+
   std::optional<std::ofstream> events, trajectory;
   if (auto p = args.value("events")) {
     events.emplace(*p);
@@ -199,8 +211,6 @@ int run(int argc, char** argv) {
   if (cfg.hal.backend == config::BackendKind::kModbus) {
 #ifdef PNEU_WITH_MODBUS
     inner = std::make_unique<hal::ModbusBackend>(cfg.hal.modbus, cfg.sensors);
-#else
-    throw config::ConfigError("hal.backend", "this pneud was built without the modbus backend");
 #endif
   } else if (cfg.hal.gpio.enabled) {
     inner = controller::make_sim_backend(cfg);
@@ -211,8 +221,6 @@ int run(int argc, char** argv) {
     lines = std::make_unique<hal::LibgpiodLines>(hal::GpioParams{g.chip, g.estop_line, g.estop_active_low,
                                                                  g.valve_power_line, g.valve_power_active_low, g.consumer});
     run = controller::make_hardware_run(cfg, *valve, std::make_unique<hal::GpioBackend>(*inner, *lines));
-#else
-    throw config::ConfigError("hal.gpio.enabled", "this pneud was built without libgpiod");
 #endif
   } else if (inner) {
     run = controller::make_hardware_run(cfg, *valve, std::move(inner));
@@ -239,6 +247,9 @@ int run(int argc, char** argv) {
       std::fprintf(stderr, "pneud: warning: telemetry off: %s\n", e.what());
     }
   }
+#else
+  if (cfg.telemetry.enabled && (real_clock || cfg.telemetry.in_simulated_time))
+    std::fprintf(stderr, "pneud: warning: telemetry off: this pneud was built without LCM\n");
 #endif
   std::unique_ptr<controller::Clock> clock;
   if (cfg.controller.clock == config::ClockKind::kReal) clock = std::make_unique<controller::RealClock>();

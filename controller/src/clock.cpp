@@ -2,6 +2,8 @@
 
 #include "pneu/hal/monotonic.hpp"
 
+#include <sys/prctl.h>
+
 #include <chrono>
 #include <algorithm>
 #include <cmath>
@@ -20,6 +22,11 @@ RealClock::RealClock() noexcept : epoch_s_(monotonic_s()) {}
 double RealClock::now_s() noexcept { return monotonic_s() - epoch_s_; }
 
 void RealClock::sleep_until(double t_s) noexcept { hal::sleep_until_monotonic_s(epoch_s_ + t_s); }
+
+void RealClock::prepare_loop_thread() noexcept {
+  // Cannot fail for a value above 0 (0 would restore the default slack).
+  (void)prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
+}
 
 namespace {
 void fill(const TimingStats& s, double (&out)[4]) noexcept {
@@ -68,6 +75,7 @@ void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t de
                                 : 0;
   std::uint64_t next_health = health_every;
   loop.start(0.0);  // opens the backend (a connect, a first exchange) before time starts
+  clock.prepare_loop_thread();
   if (after_start) after_start();
   const double epoch = clock.now_s();
   std::uint64_t k = 0;  // deadline index: deadline k is at k * period (no accumulated rounding)

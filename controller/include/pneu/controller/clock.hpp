@@ -18,6 +18,9 @@ class Clock {
   /// Returns at or after `t_s`. Real-time safe.
   virtual void sleep_until(double t_s) noexcept = 0;
   [[nodiscard]] virtual bool simulated() const noexcept = 0;
+  /// Prepares the calling thread for sleep_until; run_loop calls it once on the loop thread, after
+  /// the loop has started and before time starts. Does nothing unless a clock needs it.
+  virtual void prepare_loop_thread() noexcept {}
 };
 
 /// CLOCK_MONOTONIC, absolute-deadline sleep with clock_nanosleep(TIMER_ABSTIME).
@@ -27,6 +30,11 @@ class RealClock final : public Clock {
   [[nodiscard]] double now_s() noexcept override;
   void sleep_until(double t_s) noexcept override;
   [[nodiscard]] bool simulated() const noexcept override { return false; }
+  /// Sets the calling thread's timer slack to 1 ns (prctl PR_SET_TIMERSLACK). A thread under
+  /// normal scheduling has 50 us, by which the kernel may defer its wake-ups to group them: the
+  /// loop's would sit about that much late. Real-time (SCHED_FIFO) threads have none; there the
+  /// call changes nothing. Threads the loop thread creates afterwards inherit it.
+  void prepare_loop_thread() noexcept override;
 
  private:
   double epoch_s_;
@@ -63,7 +71,8 @@ struct LoopTiming {
 /// Every `health_period_s` (0: never) the period's timing goes to `health` (a full queue drops it).
 /// `after_start`, when set, runs once the loop has started (its backend open, with any thread of
 /// its own already created) and before time starts: the place for the loop thread's real-time
-/// set-up, which threads created later would otherwise inherit.
+/// set-up, which threads created later would otherwise inherit. `clock.prepare_loop_thread()` runs
+/// just before it.
 void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t deadlines,
               const std::atomic<bool>& stop_requested, LoopTiming& timing,
               const std::function<void()>& between_ticks = {}, double health_period_s = 0.0,

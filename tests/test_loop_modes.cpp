@@ -1,0 +1,330 @@
+// The loop's modes (docs/architecture.md, "Faults and the safe state"): armed, the law drives the
+// valves with power on; disarmed, the outputs sit at the neutral voltage u_0 with power off; a fault
+// latches the safe output until a reset received once its cause is gone, and the reset disarms.
+// Set points from commands are clamped to the soft limits. Specified on a real ControlLoop over a
+// fake backend whose sensors the test sets and whose last command it reads: no plant, no GPIO.
+// (The e-stop and valve power through the GPIO lines: tests/test_gpio.cpp.)
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <memory>
+#include <ostream>
+#include <vector>
+
+#include "pneu/config/config.hpp"
+#include "pneu/controller/loop.hpp"
+#include "pneu/controller/supervisor.hpp"
+#include "pneu/hal/backend.hpp"
+
+namespace pneu::hal {
+// How gtest prints a command.
+void PrintTo(const ActuatorCommand& c, std::ostream* os) {
+  *os << "{u_P " << c.u_p_v << " V, u_N " << c.u_n_v << " V, valve power " << (c.valve_power ? "on" : "off") << "}";
+}
+}  // namespace pneu::hal
+
+namespace {
+
+using namespace pneu;
+using controller::LoopCommand;
+using controller::LoopEvent;
+using controller::Mode;
+
+// The bench as the loop sees it: a sample the test sets (the carriage held still, plausible
+// pressures), and the commands the loop wrote.
+class FakeBackend final : public hal::Backend {
+ public:
+  void open(double) override {}
+  void close() noexcept override {}
+  hal::Status read(double t_s, hal::SensorFrame& frame) noexcept override {
+    frame = sample;
+    frame.t_s = t_s;
+    return hal::Status::kOk;
+  }
+  hal::Status write(const hal::ActuatorCommand& command) noexcept override {
+    written = command;
+    ++writes;
+    return hal::Status::kOk;
+  }
+
+  hal::SensorFrame sample{0.0, 0.2145, 3.4e5, 4.9e5, 0.0, false, true, hal::kSensorsValid};
+  hal::ActuatorCommand written{};
+  int writes = 0;
+};
+
+constexpr double kU0V = 0.25;  // u_0, set rather than derived from the valve model: any value does
+
+class LoopModes : public ::testing::Test {
+ protected:
+  LoopModes() {
+    config_.controller.law.offset_v = kU0V;
+    config_.controller.schedule.clear();  // the set point stays at initial_m (219.5 mm) until told
+  }
+
+  // Builds the loop from config_ (tests edit it first) and starts it at t = 0.
+  void start() {
+    loop_ = std::make_unique<controller::ControlLoop>(config_, backend_, *outputs_);
+    loop_->start(0.0);
+  }
+  // `n` ticks at the configured period, continuing from the last one.
+  void run_ticks(int n) {
+    for (int i = 0; i < n; ++i) loop_->tick(static_cast<double>(k_++) * config_.controller.period_s());
+  }
+  void send(LoopCommand::Kind kind, double value_m = 0.0) {
+    ASSERT_TRUE(outputs_->commands.try_push(LoopCommand{kind, value_m, ++seq_}));
+  }
+  // Sends and runs the one tick that applies it.
+  void command(LoopCommand::Kind kind, double value_m = 0.0) {
+    send(kind, value_m);
+    run_ticks(1);
+  }
+  [[nodiscard]] Mode mode() const { return loop_->mode(); }
+  [[nodiscard]] double setpoint_m() const { return outputs_->setpoint_m.load(); }
+  [[nodiscard]] double now_s() const { return static_cast<double>(k_ - 1) * config_.controller.period_s(); }
+  // The events queued since the last call.
+  std::vector<LoopEvent> events() {
+    std::vector<LoopEvent> v;
+    LoopEvent e;
+    while (outputs_->events.try_pop(e)) v.push_back(e);
+    return v;
+  }
+  // Latches an e-stop fault, armed, 0.1 s into the run.
+  void latch_estop_fault() {
+    start();
+    run_ticks(100);
+    ASSERT_EQ(mode(), Mode::kArmed);
+    backend_.sample.estop = true;
+    run_ticks(1);
+    ASSERT_EQ(mode(), Mode::kFault);
+  }
+
+  config::Config config_ = config::load_string(config::default_config_yaml());
+  FakeBackend backend_;
+  std::unique_ptr<controller::LoopOutputs> outputs_ = std::make_unique<controller::LoopOutputs>();  // large queues
+  std::unique_ptr<controller::ControlLoop> loop_;  // keeps a reference to config_
+  std::int64_t k_ = 0;
+  std::uint64_t seq_ = 0;
+};
+
+const hal::ActuatorCommand kNeutralPowerOff = hal::ActuatorCommand::from_control(kU0V, false);
+
+// u_0 and the safe voltages are copied, not computed: compared exactly.
+MATCHER_P(IsCommand, expected, "is " + ::testing::PrintToString(expected)) {
+  return arg.u_p_v == expected.u_p_v && arg.u_n_v == expected.u_n_v && arg.valve_power == expected.valve_power;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Armed and disarmed
+
+TEST_F(LoopModes, StartsArmedWithTheLawDrivingTheValvesAndPowerOn) {
+  start();
+  run_ticks(10);
+  EXPECT_EQ(mode(), Mode::kArmed);
+  // The carriage still, 5 mm short of the set point: u = K_y (y_d - y) + u_0 (no velocity).
+  const double u = loop_->law().control_v(0.2195, 0.2145, 0.0, 0.0);
+  ASSERT_GT(u, kU0V + 0.1) << "the law must ask for motion";
+  EXPECT_THAT(backend_.written, IsCommand(hal::ActuatorCommand::from_control(u, true)));
+}
+
+TEST_F(LoopModes, StartsDisarmedWhenConfiguredWithPowerOffAtTheNeutralVoltage) {
+  config_.controller.start_armed = false;
+  start();
+  run_ticks(10);
+  EXPECT_EQ(mode(), Mode::kDisarmed);
+  EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
+}
+
+TEST_F(LoopModes, DisarmCutsValvePowerAndHoldsTheNeutralVoltage) {
+  start();
+  run_ticks(10);
+  command(LoopCommand::Kind::kDisarm);
+  EXPECT_EQ(mode(), Mode::kDisarmed);
+  EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
+  run_ticks(100);  // and stays so
+  EXPECT_EQ(mode(), Mode::kDisarmed);
+  EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
+}
+
+TEST_F(LoopModes, ArmHoldsWhereTheCarriageIsWithPowerOn) {
+  config_.controller.start_armed = false;
+  backend_.sample.y_m = 0.1;  // away from the initial set point, 219.5 mm
+  start();
+  run_ticks(10);
+  command(LoopCommand::Kind::kArm);
+  EXPECT_EQ(mode(), Mode::kArmed);
+  EXPECT_EQ(setpoint_m(), 0.1) << "bumpless: the set point is where the carriage is";
+  EXPECT_THAT(backend_.written, IsCommand(hal::ActuatorCommand::from_control(kU0V, true)))
+      << "at the set point, still: the law asks for u_0";
+}
+
+TEST_F(LoopModes, ArmBeyondASoftLimitHoldsAtTheLimit) {
+  config_.controller.start_armed = false;
+  start();
+  backend_.sample.y_m = config_.controller.soft_limit_max_m + 0.005;  // within the overtravel
+  run_ticks(10);
+  command(LoopCommand::Kind::kArm);
+  EXPECT_EQ(mode(), Mode::kArmed);
+  EXPECT_EQ(setpoint_m(), config_.controller.soft_limit_max_m);
+}
+
+TEST_F(LoopModes, ArmWhileArmedKeepsTheSetPoint) {
+  start();
+  run_ticks(10);
+  command(LoopCommand::Kind::kArm);
+  EXPECT_EQ(mode(), Mode::kArmed);
+  EXPECT_EQ(setpoint_m(), config_.controller.initial_setpoint_m) << "not moved to the carriage";
+}
+
+// ---------------------------------------------------------------------------------------------
+// Faults, resets
+
+TEST_F(LoopModes, AnEStopLatchesTheFaultWithinOneTickAndDrivesTheNeutralSafeOutput) {
+  latch_estop_fault();
+  EXPECT_EQ(loop_->fault_cause(), controller::kFaultEStop);
+  EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
+}
+
+TEST_F(LoopModes, TheExhaustSafeOutputVentsBothChambersWithPowerOff) {
+  config_.controller.supervisor.safe_output = config::SafeOutput::kExhaust;
+  latch_estop_fault();
+  const double u_max = config_.controller.law.max_voltage_v;
+  EXPECT_THAT(backend_.written, IsCommand(hal::ActuatorCommand{-u_max, -u_max, false}));
+}
+
+TEST_F(LoopModes, TheFaultIsReportedOnceAsAnEventWithItsCause) {
+  start();
+  run_ticks(100);
+  (void)events();
+  backend_.sample.estop = true;
+  run_ticks(1);
+  const double t_fault_s = now_s();
+  run_ticks(49);  // held for 50 ms: one fault, not one per tick
+  const auto seen = events();
+  ASSERT_EQ(seen.size(), 1u);
+  EXPECT_EQ(seen[0].kind, LoopEvent::Kind::kFault);
+  EXPECT_EQ(seen[0].fault_cause, controller::kFaultEStop);
+  EXPECT_DOUBLE_EQ(seen[0].t_s, t_fault_s) << "dated at the tick that saw the e-stop";
+  EXPECT_EQ(loop_->faults(), 1u);
+  EXPECT_THAT(controller::fault_text(controller::kFaultEStop), ::testing::HasSubstr("e-stop"));
+}
+
+TEST_F(LoopModes, TheFaultStaysLatchedAfterTheCauseIsGone) {
+  latch_estop_fault();
+  backend_.sample.estop = false;
+  run_ticks(500);
+  EXPECT_EQ(mode(), Mode::kFault);
+  EXPECT_EQ(loop_->fault_cause(), controller::kFaultEStop);
+  EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
+}
+
+TEST_F(LoopModes, AResetWhileTheCauseStaysIsRefusedNamingTheCause) {
+  latch_estop_fault();
+  run_ticks(10);
+  (void)events();
+  command(LoopCommand::Kind::kFaultReset);
+  EXPECT_EQ(mode(), Mode::kFault);
+  const auto seen = events();
+  ASSERT_EQ(seen.size(), 1u);
+  EXPECT_EQ(seen[0].kind, LoopEvent::Kind::kResetRefused);
+  EXPECT_EQ(seen[0].fault_cause, controller::kFaultEStop);
+  EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
+}
+
+TEST_F(LoopModes, NeitherArmNorDisarmLeavesAFault) {
+  latch_estop_fault();
+  backend_.sample.estop = false;  // the cause gone: still only a reset clears the fault
+  run_ticks(10);
+  command(LoopCommand::Kind::kArm);
+  EXPECT_EQ(mode(), Mode::kFault);
+  command(LoopCommand::Kind::kDisarm);
+  EXPECT_EQ(mode(), Mode::kFault);
+  EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
+}
+
+TEST_F(LoopModes, AResetOnceTheCauseIsGoneDisarmsThenArmAndDisarmWorkAgain) {
+  latch_estop_fault();
+  backend_.sample.estop = false;
+  run_ticks(10);
+  (void)events();
+
+  command(LoopCommand::Kind::kFaultReset);
+  EXPECT_EQ(mode(), Mode::kDisarmed);
+  EXPECT_EQ(loop_->fault_cause(), controller::kFaultNone);
+  const auto seen = events();
+  ASSERT_EQ(seen.size(), 1u);
+  EXPECT_EQ(seen[0].kind, LoopEvent::Kind::kFaultReset);
+  EXPECT_EQ(seen[0].fault_cause, controller::kFaultEStop) << "the cause it cleared";
+  EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
+
+  command(LoopCommand::Kind::kArm);
+  EXPECT_EQ(mode(), Mode::kArmed);
+  EXPECT_TRUE(backend_.written.valve_power);
+  command(LoopCommand::Kind::kDisarm);
+  EXPECT_EQ(mode(), Mode::kDisarmed);
+  EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
+  command(LoopCommand::Kind::kArm);
+  EXPECT_EQ(mode(), Mode::kArmed);
+  EXPECT_TRUE(backend_.written.valve_power);
+}
+
+// Any latched fault, not the e-stop only: here the supervisor's overrun check (10 overrunning
+// ticks in a row). An overrun is an event, not a standing condition: a reset clears it at once.
+TEST_F(LoopModes, AnyOtherFaultAlsoDrivesTheSafeOutputAndAResetClearsIt) {
+  start();
+  run_ticks(100);
+  for (std::uint32_t i = 0; i < config_.controller.supervisor.overruns_in_a_row; ++i) loop_->note_overrun(true);
+  run_ticks(1);
+  EXPECT_EQ(mode(), Mode::kFault);
+  EXPECT_EQ(loop_->fault_cause(), controller::kFaultOverrun);
+  EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
+  command(LoopCommand::Kind::kFaultReset);
+  EXPECT_EQ(mode(), Mode::kDisarmed);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Set points from commands
+
+TEST_F(LoopModes, SetPointsAreClampedToTheSoftLimits) {
+  start();
+  run_ticks(10);
+  const double lo = config_.controller.soft_limit_min_m, hi = config_.controller.soft_limit_max_m;
+  command(LoopCommand::Kind::kSetPoint, 0.1);
+  EXPECT_EQ(setpoint_m(), 0.1);
+  command(LoopCommand::Kind::kSetPoint, hi + 0.05);
+  EXPECT_EQ(setpoint_m(), hi);
+  command(LoopCommand::Kind::kSetPoint, lo - 0.05);
+  EXPECT_EQ(setpoint_m(), lo);
+  EXPECT_EQ(mode(), Mode::kArmed);
+}
+
+TEST_F(LoopModes, SetPointStepsAreClampedToTheSoftLimits) {
+  start();
+  run_ticks(10);
+  const double lo = config_.controller.soft_limit_min_m, hi = config_.controller.soft_limit_max_m;
+  command(LoopCommand::Kind::kSetPointStep, -0.1195);
+  EXPECT_DOUBLE_EQ(setpoint_m(), 0.1);
+  command(LoopCommand::Kind::kSetPointStep, 1.0);  // steps the validator could not foresee
+  EXPECT_EQ(setpoint_m(), hi);
+  command(LoopCommand::Kind::kSetPointStep, -1.0);
+  EXPECT_EQ(setpoint_m(), lo);
+}
+
+TEST_F(LoopModes, SetPointsQueuedInAFaultAreDropped) {
+  latch_estop_fault();
+  const double before = setpoint_m();
+  command(LoopCommand::Kind::kSetPoint, 0.1);
+  command(LoopCommand::Kind::kSetPointStep, -0.05);
+  EXPECT_EQ(setpoint_m(), before);
+}
+
+TEST_F(LoopModes, ASetPointCommandEndsTheConfiguredSchedule) {
+  config_.controller.schedule = {{0.05, 0.170}};
+  start();
+  run_ticks(10);
+  command(LoopCommand::Kind::kSetPoint, 0.1);
+  run_ticks(100);  // past the schedule's step at 50 ms
+  EXPECT_EQ(setpoint_m(), 0.1);
+}
+
+}  // namespace
