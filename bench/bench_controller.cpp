@@ -29,7 +29,7 @@
 #include "pneu/controller/runtime.hpp"
 #include "pneu/controller/session.hpp"
 #include "pneu/hal/backend.hpp"
-#include "pneu/sim_plant/valve.hpp"
+#include "pneu/model/valve.hpp"
 
 namespace {
 
@@ -84,7 +84,7 @@ class ReplayBackend final : public hal::Backend {
 
 struct Recording {
   config::Config config;
-  std::unique_ptr<plant::ValveModel> valve;
+  std::unique_ptr<model::ValveModel> valve;
   std::uint64_t ticks = 0;               ///< ticks of the 12 s run (both ends included)
   std::vector<hal::SensorFrame> frames;  ///< what the loop read: start()'s reading, then each tick
   std::vector<double> control_v;         ///< u of each tick
@@ -100,7 +100,7 @@ std::optional<Recording> g_rec;
 
 void record_paper_scenario(Recording& rec) {
   rec.config = config::load_string(config::default_config_yaml());
-  rec.valve = std::make_unique<plant::ValveModel>(rec.config.plant.valve, rec.config.plant.gas);
+  rec.valve = std::make_unique<model::ValveModel>(rec.config.plant.valve, rec.config.plant.gas);
   controller::resolve_offset(rec.config, *rec.valve);
   rec.model = controller::predictor_model(rec.config, *rec.valve);
   const double period = rec.config.controller.period_s();

@@ -214,7 +214,7 @@ class FakeLines final : public hal::GpioLines {
 // the config: built in place, never moved.
 struct Bench {
   config::Config config = config::load_string(config::default_config_yaml());
-  std::unique_ptr<plant::ValveCharacteristic> valve =
+  std::unique_ptr<model::ValveCharacteristic> valve =
       controller::make_valve_characteristic(config, {});
   Bench() { controller::resolve_offset(config, *valve); }
   Bench(const Bench&) = delete;

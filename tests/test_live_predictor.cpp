@@ -42,7 +42,7 @@ namespace fs = std::filesystem;
 // One simulated run of the default configuration, drained every `drain_every` ticks.
 struct LiveRun {
   config::Config config;
-  std::unique_ptr<plant::ValveCharacteristic> valve;
+  std::unique_ptr<model::ValveCharacteristic> valve;
   std::ostringstream events, trajectory;
   controller::EventsFile events_sink{events};
   controller::TrajectoryFile trajectory_sink{trajectory};

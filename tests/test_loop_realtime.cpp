@@ -29,7 +29,7 @@
 #include "pneu/controller/spsc_queue.hpp"
 #include "pneu/controller/timing_stats.hpp"
 #include "pneu/hal/backend.hpp"
-#include "pneu/sim_plant/valve.hpp"
+#include "pneu/model/valve.hpp"
 
 namespace {
 
@@ -132,7 +132,7 @@ void reset_counters() {
 // reference to the config, so this object stays where it was built.
 struct DefaultRun {
   config::Config config = config::load_string(config::default_config_yaml());
-  plant::ValveModel valve{config.plant.valve, config.plant.gas};
+  model::ValveModel valve{config.plant.valve, config.plant.gas};
   controller::SimulatedRun run;
 
   DefaultRun() {

@@ -27,7 +27,7 @@
 #include "pneu/controller/runtime.hpp"
 #include "pneu/controller/session.hpp"
 #include "pneu/controller/verdict.hpp"
-#include "pneu/sim_plant/valve_table.hpp"
+#include "pneu/model/valve_table.hpp"
 
 namespace {
 
@@ -46,7 +46,7 @@ constexpr double kShortStickingBound_s = 0.010;  // both methods, below kLongSti
 // One complete simulated run. The loop keeps a reference to `config`: built in place, never moved.
 struct PaperRun {
   config::Config config;
-  std::unique_ptr<plant::ValveCharacteristic> valve;
+  std::unique_ptr<model::ValveCharacteristic> valve;
   controller::SimulatedRun run;
 
   explicit PaperRun(const std::vector<std::string>& overrides = {})
@@ -205,7 +205,7 @@ TEST(PaperScenario, ForecastsFromAMeasuredValveTableMeetTheSameCriteria) {
 
   const PaperRun r({"controller.predictor.valve_table=" + table.string()});
   // The forecasts really came from the table, not from the model.
-  ASSERT_NE(dynamic_cast<const plant::ValveTable*>(r.valve.get()), nullptr);
+  ASSERT_NE(dynamic_cast<const model::ValveTable*>(r.valve.get()), nullptr);
   EXPECT_TRUE(has_long_sticking_phase_ending_in_restart(r));
   expect_all_forecasts_meet_criteria(r);
 }

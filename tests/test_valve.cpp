@@ -9,10 +9,10 @@
 #include <numbers>
 #include <vector>
 
-#include "pneu/sim_plant/params.hpp"
-#include "pneu/sim_plant/valve.hpp"
+#include "pneu/model/params.hpp"
+#include "pneu/model/valve.hpp"
 
-namespace pneu::plant {
+namespace pneu::model {
 namespace {
 
 // Paper bench constants (docs/model.md section 7), restated so that the tests do not trust params.hpp.
@@ -283,4 +283,4 @@ TEST(ValveModel, EquilibriumForceIncreasesWithVoltage) {
 }
 
 }  // namespace
-}  // namespace pneu::plant
+}  // namespace pneu::model

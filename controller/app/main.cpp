@@ -153,11 +153,11 @@ int run(int argc, char** argv) {
   config::Config cfg = config::load_file_or_default(config_path, overrides);
   if (args.flag("require-rt") && cfg.controller.clock != config::ClockKind::kReal)
     throw cli::UsageError("--require-rt needs the real clock (the simulated clock runs as fast as it can)");
-  std::unique_ptr<plant::ValveCharacteristic> valve;
+  std::unique_ptr<model::ValveCharacteristic> valve;
   try {
     valve = controller::make_valve_characteristic(
         cfg, config_path.empty() ? std::filesystem::path() : std::filesystem::path(config_path).parent_path());
-  } catch (const plant::ValveTableError& e) {
+  } catch (const model::ValveTableError& e) {
     throw config::ConfigError("controller.predictor.valve_table", e.what());
   }
   controller::resolve_offset(cfg, *valve);

@@ -108,7 +108,7 @@ struct P2 {
 // chamber relaxes on its own towards its null-flow pressure.
 struct PressureOde {
   const Common& c;
-  const plant::ValveCharacteristic& valve;
+  const model::ValveCharacteristic& valve;
   double u;
 
   P2 rhs(const P2& x) const noexcept {

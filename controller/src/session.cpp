@@ -6,23 +6,23 @@
 
 namespace pneu::controller {
 
-std::unique_ptr<plant::ValveCharacteristic> make_valve_characteristic(
+std::unique_ptr<model::ValveCharacteristic> make_valve_characteristic(
     const config::Config& config, const std::filesystem::path& config_dir) {
   const std::string& table = config.controller.predictor.valve_table;
   if (table.empty())
-    return std::make_unique<plant::ValveModel>(config.plant.valve, config.plant.gas);
+    return std::make_unique<model::ValveModel>(config.plant.valve, config.plant.gas);
   std::filesystem::path path(table);
   if (path.is_relative() && !config_dir.empty()) path = config_dir / path;
-  return std::make_unique<plant::ValveTable>(plant::ValveTable::load(path));
+  return std::make_unique<model::ValveTable>(model::ValveTable::load(path));
 }
 
-void resolve_offset(config::Config& config, const plant::ValveCharacteristic& valve) {
+void resolve_offset(config::Config& config, const model::ValveCharacteristic& valve) {
   if (config.controller.offset_auto)
     config.controller.law.offset_v =
-        plant::equilibrium_voltage_v(valve, config.plant.geometry, config.plant.gas.exhaust_pressure_pa);
+        model::equilibrium_voltage_v(valve, config.plant.geometry, config.plant.gas.exhaust_pressure_pa);
 }
 
-PredictorModel predictor_model(const config::Config& config, const plant::ValveCharacteristic& valve) {
+PredictorModel predictor_model(const config::Config& config, const model::ValveCharacteristic& valve) {
   PredictorModel m;
   m.geometry = config.plant.geometry;
   m.gas = config.plant.gas;
@@ -43,7 +43,7 @@ std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config) 
 
 namespace {
 // The loop, its outputs and the runtime around `backend`.
-void assemble(SimulatedRun& run, const config::Config& config, const plant::ValveCharacteristic& valve,
+void assemble(SimulatedRun& run, const config::Config& config, const model::ValveCharacteristic& valve,
               hal::Backend& backend) {
   run.outputs = std::make_unique<LoopOutputs>();
   run.loop = std::make_unique<ControlLoop>(config, backend, *run.outputs);
@@ -54,14 +54,14 @@ void assemble(SimulatedRun& run, const config::Config& config, const plant::Valv
 }
 }  // namespace
 
-SimulatedRun make_simulated_run(const config::Config& config, const plant::ValveCharacteristic& valve) {
+SimulatedRun make_simulated_run(const config::Config& config, const model::ValveCharacteristic& valve) {
   SimulatedRun run;
   run.backend = make_sim_backend(config);
   assemble(run, config, valve, *run.backend);
   return run;
 }
 
-SimulatedRun make_hardware_run(const config::Config& config, const plant::ValveCharacteristic& valve,
+SimulatedRun make_hardware_run(const config::Config& config, const model::ValveCharacteristic& valve,
                                std::unique_ptr<hal::Backend> backend) {
   SimulatedRun run;
   run.hardware = std::move(backend);

@@ -54,7 +54,7 @@ constexpr double kEventTimeTolerance_s = 1.0e-11;
 
 }  // namespace
 
-Plant::Plant(const PlantParams& params)
+Plant::Plant(const model::PlantParams& params)
     : params_(params),
       valve_(params.valve, params.gas),
       area_p_m2_(params.geometry.area_p_m2()),
@@ -72,7 +72,7 @@ Plant::Plant(const PlantParams& params)
                           v.leak_conductance_out_m3_per_s_pa;
   const double k = max_open * v.reference_density_kg_per_m3 * valve_.orifice().temperature_factor;
   const double max_dq_dp =
-      k * (1.0 + std::abs(flow_function_slope(1.0, v.critical_pressure_ratio)));
+      k * (1.0 + std::abs(model::flow_function_slope(1.0, v.critical_pressure_ratio)));
   const double min_volume =
       std::min(params.geometry.dead_volume_p_m3, params.geometry.dead_volume_n_m3);
   const double lambda_max = k_r_t_ * max_dq_dp / min_volume;

@@ -11,9 +11,9 @@
 #include <vector>
 
 #include "pneu/config/register_map.hpp"
-#include "pneu/sim_plant/params.hpp"
+#include "pneu/model/params.hpp"
+#include "pneu/model/valve.hpp"
 #include "pneu/sim_plant/sensors.hpp"
-#include "pneu/sim_plant/valve.hpp"
 
 namespace pneu::config {
 
@@ -205,7 +205,7 @@ struct HalConfig {
 
 /// The whole configuration.
 struct Config {
-  plant::PlantParams plant;          ///< plant.*
+  model::PlantParams plant;          ///< plant.*
   plant::SensorParams sensors;       ///< sensors.*
   SimulationConfig simulation;       ///< simulation.*
   ControllerConfig controller;       ///< controller.*

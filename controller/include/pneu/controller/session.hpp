@@ -10,22 +10,22 @@
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/runtime.hpp"
 #include "pneu/hal/sim_backend.hpp"
-#include "pneu/sim_plant/valve_table.hpp"
+#include "pneu/model/valve_table.hpp"
 
 namespace pneu::controller {
 
 /// The valve characteristic the controller uses (u_0 of Eq. 7, the predictors): the measured table
 /// of controller.predictor.valve_table (relative paths against `config_dir`) or the model.
-/// Throws plant::ValveTableError.
-[[nodiscard]] std::unique_ptr<plant::ValveCharacteristic> make_valve_characteristic(
+/// Throws model::ValveTableError.
+[[nodiscard]] std::unique_ptr<model::ValveCharacteristic> make_valve_characteristic(
     const config::Config& config, const std::filesystem::path& config_dir);
 
 /// Fills controller.law.offset_v with u_e of Eq. 7 when it is "auto".
-void resolve_offset(config::Config& config, const plant::ValveCharacteristic& valve);
+void resolve_offset(config::Config& config, const model::ValveCharacteristic& valve);
 
 /// The predictors' view of the bench.
 [[nodiscard]] PredictorModel predictor_model(const config::Config& config,
-                                             const plant::ValveCharacteristic& valve);
+                                             const model::ValveCharacteristic& valve);
 
 /// A complete run: backend, loop, runtime (without sinks: add them with Runtime::add_sink).
 /// `backend` is set for the in-process simulated bench; `hardware` for any other backend (modbus),
@@ -46,10 +46,10 @@ struct SimulatedRun {
 /// Builds the run for `config` (offset already resolved). The plant starts at rest at
 /// simulation.initial_position_m, at complete equilibrium for the loop's first output.
 [[nodiscard]] SimulatedRun make_simulated_run(const config::Config& config,
-                                              const plant::ValveCharacteristic& valve);
+                                              const model::ValveCharacteristic& valve);
 /// The same on another backend (opened when the run starts).
 [[nodiscard]] SimulatedRun make_hardware_run(const config::Config& config,
-                                             const plant::ValveCharacteristic& valve,
+                                             const model::ValveCharacteristic& valve,
                                              std::unique_ptr<hal::Backend> backend);
 
 /// Runs it for controller.duration_s on `clock` (the simulated clock drains the runtime between

@@ -6,8 +6,8 @@
 #include <cstdint>
 #include <span>
 
-#include "pneu/sim_plant/params.hpp"
-#include "pneu/sim_plant/valve.hpp"
+#include "pneu/model/params.hpp"
+#include "pneu/model/valve.hpp"
 
 namespace pneu::plant {
 
@@ -49,7 +49,7 @@ class Plant {
   /// Largest number of events one call to step() reports; more are counted in events_dropped().
   static constexpr std::size_t kMaxEventsPerStep = 16;
 
-  explicit Plant(const PlantParams& params);
+  explicit Plant(const model::PlantParams& params);
 
   /// Puts the carriage at rest at `y_m` with both pressures at their null-flow values for the
   /// valve voltages u_P = u, u_N = -u (complete equilibrium when F_e(u) is inside the stiction band).
@@ -82,8 +82,8 @@ class Plant {
   /// Number of right-hand-side evaluations since construction (for benchmarks).
   [[nodiscard]] std::uint64_t rhs_evaluations() const noexcept { return rhs_evaluations_; }
 
-  [[nodiscard]] const PlantParams& params() const noexcept { return params_; }
-  [[nodiscard]] const ValveModel& valve() const noexcept { return valve_; }
+  [[nodiscard]] const model::PlantParams& params() const noexcept { return params_; }
+  [[nodiscard]] const model::ValveModel& valve() const noexcept { return valve_; }
   /// Friction force in the current sliding mode at velocity v [N] (docs/model.md section 4).
   [[nodiscard]] double sliding_friction_n(Motion motion, double v_m_per_s) const noexcept;
 
@@ -103,8 +103,8 @@ class Plant {
   void record(PlantEvent::Kind kind, int direction) noexcept;
   void settle_mode_at_rest() noexcept;
 
-  PlantParams params_;
-  ValveModel valve_;
+  model::PlantParams params_;
+  model::ValveModel valve_;
   double area_p_m2_, area_n_m2_, area_rod_m2_, half_stroke_m_, k_r_t_, r_t_;
   double step_s_;
   PlantState state_;

@@ -2,9 +2,9 @@
 // model (ISO 6358 orifices) or as a measured table, behind one interface the predictor uses.
 #pragma once
 
-#include "pneu/sim_plant/params.hpp"
+#include "pneu/model/params.hpp"
 
-namespace pneu::plant {
+namespace pneu::model {
 
 /// Pressure ratio above which the ISO 6358 flow function is replaced by its secant to x = 1
 /// (laminar region). phi has an infinite slope at x -> 1; linearising keeps dq/dp finite.
@@ -95,4 +95,4 @@ class ValveModel final : public ValveCharacteristic {
 [[nodiscard]] double equilibrium_voltage_v(const ValveCharacteristic& valve, const Geometry& geometry,
                                            double exhaust_pressure_pa) noexcept;
 
-}  // namespace pneu::plant
+}  // namespace pneu::model

@@ -1,9 +1,9 @@
-#include "pneu/sim_plant/valve.hpp"
+#include "pneu/model/valve.hpp"
 
 #include <algorithm>
 #include <cmath>
 
-namespace pneu::plant {
+namespace pneu::model {
 
 namespace {
 
@@ -139,4 +139,4 @@ double equilibrium_voltage_v(const ValveCharacteristic& valve, const Geometry& g
                          u_lim, 1.0e-12);
 }
 
-}  // namespace pneu::plant
+}  // namespace pneu::model
