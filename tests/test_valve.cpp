@@ -244,14 +244,6 @@ TEST(ValveModel, NoFlowAtTheNullPressure) {
   }
 }
 
-TEST(ValveModel, PressureForceIsEquation14) {
-  const Geometry geometry;
-  const double s_p = std::numbers::pi / 4.0 * 0.032 * 0.032;
-  const double s_r = std::numbers::pi / 4.0 * 0.020 * 0.020;
-  const double expected = s_p * 5.0e5 - (s_p - s_r) * 3.0e5 - s_r * kExhaustPa;
-  EXPECT_NEAR(pressure_force_n(geometry, kExhaustPa, 5.0e5, 3.0e5), expected, 1e-10);  // rounding
-}
-
 TEST(ValveModel, EquilibriumVoltageBalancesThePressureForces) {
   const ValveModel valve(ValveParams{}, Gas{});
   const Geometry geometry;

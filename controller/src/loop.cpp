@@ -18,10 +18,7 @@ ControlLoop::ControlLoop(const config::Config& config, hal::Backend& backend, Lo
       differentiator_(config.controller.differentiator, config.controller.period_s()),
       detector_(config.controller.stop_detector, config.controller.period_s()),
       half_stroke_m_(config.plant.geometry.half_stroke_m()),
-      area_p_m2_(config.plant.geometry.area_p_m2()),
-      area_n_m2_(config.plant.geometry.area_n_m2()),
-      area_rod_m2_(config.plant.geometry.area_rod_m2()),
-      p_e_pa_(config.plant.gas.exhaust_pressure_pa),
+      force_(config.plant.geometry, config.plant.gas.exhaust_pressure_pa),
       supervisor_(config) {}
 
 void ControlLoop::start(double t0_s) {
@@ -179,7 +176,7 @@ void ControlLoop::tick(double t_s) noexcept {
   out_.mode.store(static_cast<std::uint8_t>(mode_), std::memory_order_relaxed);
   out_.fault_cause.store(fault_cause_, std::memory_order_relaxed);
 
-  const double force = area_p_m2_ * frame.p_p_pa - area_n_m2_ * frame.p_n_pa - area_rod_m2_ * p_e_pa_;
+  const double force = force_.force_n(frame.p_p_pa, frame.p_n_pa);
   // Stops and starts are judged from good samples only (a snapshot must hold real pressures).
   switch (read_ok ? detector_.update(t_s, frame.y_m) : StopDetectorEvent::kNone) {
     case StopDetectorEvent::kStop: {

@@ -11,6 +11,7 @@
 #include "serve.hpp"
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
+#include "pneu/model/pressure_force.hpp"
 #include "pneu/model/valve_table.hpp"
 #include "pneu/sim_plant/plant.hpp"
 #include "pneu/sim_plant/sensors.hpp"
@@ -158,8 +159,8 @@ int simulate(int argc, char** argv) {
               duration, input.period_s * 1e3, config_path.empty() ? "embedded sim.yaml" : config_path.c_str());
   std::printf("  start   y = %8.3f mm at rest, p_P = %.4f bar, p_N = %.4f bar, F = %7.2f N, u = %+.4f V\n",
               start_state.y_m * 1e3, start_state.p_p_pa * 1e-5, start_state.p_n_pa * 1e-5,
-              model::pressure_force_n(cfg.plant.geometry, cfg.plant.gas.exhaust_pressure_pa,
-                                      start_state.p_p_pa, start_state.p_n_pa),
+              model::PressureForce(cfg.plant.geometry, cfg.plant.gas.exhaust_pressure_pa)
+                  .force_n(start_state.p_p_pa, start_state.p_n_pa),
               input.u_v.front());
   std::printf("  events  (stiction band [%.1f, %.1f] N)\n", cfg.plant.friction.static_negative_n,
               cfg.plant.friction.static_positive_n);
@@ -263,14 +264,13 @@ int null_flow(int argc, char** argv) {
   const std::string out_path = args.required("out");
   const std::vector<double> voltages = voltage_grid(args, cfg, 0.01);
   const model::ValveModel valve(cfg.plant.valve, cfg.plant.gas);
-  const auto& g = cfg.plant.geometry;
-  const double p_e = cfg.plant.gas.exhaust_pressure_pa;
+  const model::PressureForce force(cfg.plant.geometry, cfg.plant.gas.exhaust_pressure_pa);
   cli::AtomicFile out(out_path);
   auto& os = out.stream();
   os << "u_v,p_null_p_pa,p_null_n_pa,x_n,y_n,equilibrium_force_n\n" << std::setprecision(10);
   for (double w : voltages) {
     const double pp = valve.null_pressure_pa(w), pn = valve.null_pressure_pa(-w);
-    const double x = g.area_p_m2() * pp, y = g.area_n_m2() * pn + g.area_rod_m2() * p_e;
+    const double x = force.plane_x_n(pp), y = force.plane_y_n(pn);
     os << w << ',' << pp << ',' << pn << ',' << x << ',' << y << ',' << x - y << '\n';
   }
   out.commit();

@@ -57,9 +57,9 @@ constexpr double kEventTimeTolerance_s = 1.0e-11;
 Plant::Plant(const model::PlantParams& params)
     : params_(params),
       valve_(params.valve, params.gas),
-      area_p_m2_(params.geometry.area_p_m2()),
-      area_n_m2_(params.geometry.area_n_m2()),
-      area_rod_m2_(params.geometry.area_rod_m2()),
+      force_(params.geometry, params.gas.exhaust_pressure_pa),
+      area_p_m2_(force_.area_p_m2()),
+      area_n_m2_(force_.area_n_m2()),
       half_stroke_m_(params.geometry.half_stroke_m()),
       k_r_t_(params.gas.k_r_t()),
       r_t_(params.gas.gas_constant_j_per_kg_k * params.gas.temperature_k) {
@@ -94,7 +94,7 @@ double Plant::sliding_friction_n(Motion motion, double v) const noexcept {
 }
 
 double Plant::force_of(const Vec& x) const noexcept {
-  return area_p_m2_ * x[2] - area_n_m2_ * x[3] - area_rod_m2_ * params_.gas.exhaust_pressure_pa;
+  return force_.force_n(x[2], x[3]);
 }
 
 double Plant::pressure_force_n() const noexcept {

@@ -14,6 +14,7 @@
 #include "pneu/controller/stop_detector.hpp"
 #include "pneu/controller/supervisor.hpp"
 #include "pneu/hal/backend.hpp"
+#include "pneu/model/pressure_force.hpp"
 
 namespace pneu::controller {
 
@@ -144,7 +145,7 @@ class ControlLoop {
   Differentiator differentiator_;
   StopDetector detector_;
   double half_stroke_m_;
-  double area_p_m2_, area_n_m2_, area_rod_m2_, p_e_pa_;
+  model::PressureForce force_;
   std::uint64_t seq_ = 0;
   std::size_t next_step_ = 0;
   double y_d_m_ = 0.0;

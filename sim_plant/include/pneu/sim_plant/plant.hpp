@@ -7,6 +7,7 @@
 #include <span>
 
 #include "pneu/model/params.hpp"
+#include "pneu/model/pressure_force.hpp"
 #include "pneu/model/valve.hpp"
 
 namespace pneu::plant {
@@ -68,7 +69,7 @@ class Plant {
   void step(double dt_s, double u_p_v, double u_n_v) noexcept;
 
   [[nodiscard]] const PlantState& state() const noexcept { return state_; }
-  /// F = S_P p_P - S_N p_N - S_r p_E at the current state [N].
+  /// F = S_P p_P - S_N p_N - S_r p_E (Eq. 14) at the current state [N].
   [[nodiscard]] double pressure_force_n() const noexcept;
   /// Events located during the last call to step().
   [[nodiscard]] std::span<const PlantEvent> last_events() const noexcept {
@@ -105,7 +106,8 @@ class Plant {
 
   model::PlantParams params_;
   model::ValveModel valve_;
-  double area_p_m2_, area_n_m2_, area_rod_m2_, half_stroke_m_, k_r_t_, r_t_;
+  model::PressureForce force_;
+  double area_p_m2_, area_n_m2_, half_stroke_m_, k_r_t_, r_t_;
   double step_s_;
   PlantState state_;
   std::array<PlantEvent, kMaxEventsPerStep> events_{};
