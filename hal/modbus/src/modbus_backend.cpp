@@ -19,7 +19,7 @@ modbus_t* as_ctx(void* p) { return static_cast<modbus_t*>(p); }
 
 }  // namespace
 
-ModbusBackend::ModbusBackend(const config::ModbusConfig& modbus, const plant::SensorParams& calibration)
+ModbusBackend::ModbusBackend(const config::ModbusConfig& modbus, const model::SensorParams& calibration)
     : cfg_(modbus),
       position_(calibration.position),
       pressure_p_(calibration.pressure_p),
@@ -123,7 +123,7 @@ bool ModbusBackend::exchange(std::string* why) noexcept {
   // A channel's words (two for a float32: high word first). A NaN or infinite float32 reaches the
   // frame as a non-finite value, flagged invalid like any reading outside the raw range.
   const auto words = [&](const config::RegisterChannel& c) { return &in[c.address - read_start_]; };
-  const auto take = [&](const config::RegisterChannel& c, const plant::SensorChannel& cal, double& value,
+  const auto take = [&](const config::RegisterChannel& c, const model::SensorChannelParams& cal, double& value,
                         std::uint32_t invalid_flag) {
     const uint16_t* w = words(c);
     value = cal.to_si(c.to_volts(w));

@@ -12,8 +12,7 @@
 
 #include "pneu/config/register_map.hpp"
 #include "pneu/model/params.hpp"
-#include "pneu/model/valve.hpp"
-#include "pneu/sim_plant/sensors.hpp"
+#include "pneu/model/sensors.hpp"
 
 namespace pneu::config {
 
@@ -206,7 +205,7 @@ struct HalConfig {
 /// The whole configuration.
 struct Config {
   model::PlantParams plant;          ///< plant.*
-  plant::SensorParams sensors;       ///< sensors.*
+  model::SensorParams sensors;       ///< sensors.*
   SimulationConfig simulation;       ///< simulation.*
   ControllerConfig controller;       ///< controller.*
   HalConfig hal;                     ///< hal.*

@@ -48,8 +48,8 @@
 #include "pneu/config/config.hpp"
 #include "pneu/config/register_map.hpp"
 #include "pneu/model/params.hpp"
+#include "pneu/model/sensors.hpp"
 #include "pneu/model/valve.hpp"
-#include "pneu/sim_plant/sensors.hpp"
 
 namespace pneu::config::schema {
 
@@ -392,7 +392,7 @@ void describe(auto& a, Like<model::PlantParams> auto& p) {
 // sensors.*, simulation.*
 
 /// One channel; `gain_key` names its sensitivity with its unit (gain_v_per_m, gain_v_per_pa).
-void describe(auto& a, Like<plant::SensorChannelParams> auto& c, const char* gain_key) {
+void describe(auto& a, Like<model::SensorChannelParams> auto& c, const char* gain_key) {
   a.field(Field(gain_key, c.gain_v_per_unit), Range::non_zero(), "sensitivity [V per SI unit]");
   a.field(PNEU_NVP(c, offset_v), Range::any(), "output at a zero value [V]");
   a.field(PNEU_NVP(c, noise_std_v), Range::non_negative(), "additive Gaussian noise, standard deviation [V]");
@@ -404,7 +404,7 @@ void describe(auto& a, Like<plant::SensorChannelParams> auto& c, const char* gai
           [&] { return "must exceed range_min_v (" + fmt(c.range_max_v) + " <= " + fmt(c.range_min_v) + ")"; });
 }
 
-void describe(auto& a, Like<plant::SensorParams> auto& s) {
+void describe(auto& a, Like<model::SensorParams> auto& s) {
   a.field(PNEU_NVP(s, seed), IntRange::at_least(0), "seed of the noise generator");
   a.section(PNEU_NVP(s, position), "gain_v_per_m");
   a.section(PNEU_NVP(s, pressure_p), "gain_v_per_pa");

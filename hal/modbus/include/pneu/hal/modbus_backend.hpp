@@ -14,7 +14,7 @@
 #include "pneu/config/config.hpp"
 #include "pneu/hal/backend.hpp"
 #include "pneu/hal/latest_value.hpp"
-#include "pneu/sim_plant/sensors.hpp"
+#include "pneu/model/sensors.hpp"
 
 namespace pneu::hal {
 
@@ -41,7 +41,8 @@ class ModbusBackend final : public Backend {
   /// safe output before letting go of the module.
   static constexpr int kSafeOutputAttempts = 3;
 
-  ModbusBackend(const config::ModbusConfig& modbus, const plant::SensorParams& calibration);
+  /// `calibration`: the sensors' volts -> SI (sensors.*).
+  ModbusBackend(const config::ModbusConfig& modbus, const model::SensorParams& calibration);
   ~ModbusBackend() override;
 
   /// Connects (throws std::runtime_error naming the host/device and the reason) and starts the
@@ -74,7 +75,7 @@ class ModbusBackend final : public Backend {
   void disconnect() noexcept;
 
   config::ModbusConfig cfg_;
-  plant::SensorChannel position_, pressure_p_, pressure_n_;
+  model::SensorChannelParams position_, pressure_p_, pressure_n_;  // their calibrations
   void* ctx_ = nullptr;  // modbus_t*
   LatestValue<Sample> sample_;
   LatestValue<ActuatorCommand> command_;
