@@ -107,7 +107,7 @@ void record_paper_scenario(Recording& rec) {
   rec.ticks =
       static_cast<std::uint64_t>(std::llround(rec.config.controller.duration_s / period)) + 1;
 
-  auto run = controller::make_simulated_run(rec.config, *rec.valve);
+  auto run = controller::make_run(rec.config, *rec.valve, controller::make_sim_backend(rec.config));
   rec.frames.reserve(rec.ticks + 1);
   RecordingBackend recorder(*run.backend, rec.frames);
   auto outputs = std::make_unique<LoopOutputs>();
@@ -191,7 +191,7 @@ BENCHMARK(BM_TickReplayedPaperScenario);
 void BM_TickWithSimBackend(benchmark::State& state) {
   const Recording& rec = *g_rec;
   const double period = rec.config.controller.period_s();
-  auto run = controller::make_simulated_run(rec.config, *rec.valve);
+  auto run = controller::make_run(rec.config, *rec.valve, controller::make_sim_backend(rec.config));
   run.loop->start(0.0);
   std::uint64_t k = 0;
   for (auto _ : state) {
@@ -201,7 +201,7 @@ void BM_TickWithSimBackend(benchmark::State& state) {
       state.PauseTiming();
       discard_records(*run.outputs);
       if (k == rec.ticks) {
-        run = controller::make_simulated_run(rec.config, *rec.valve);
+        run = controller::make_run(rec.config, *rec.valve, controller::make_sim_backend(rec.config));
         run.loop->start(0.0);
         k = 0;
       }
@@ -212,14 +212,14 @@ void BM_TickWithSimBackend(benchmark::State& state) {
 BENCHMARK(BM_TickWithSimBackend);
 
 // (b) The 12 s paper scenario end to end in simulated time, as pneud runs it without output files:
-// assembly (make_simulated_run), the loop in lockstep with the plant, the runtime draining every
+// assembly (make_run on the sim backend), the loop in lockstep with the plant, the runtime draining every
 // tick and both predictors at every stop.
 void BM_PaperScenarioSimulatedEndToEnd(benchmark::State& state) {
   const Recording& rec = *g_rec;
   const std::atomic<bool> never_stop{false};
   std::size_t stops = 0;
   for (auto _ : state) {
-    auto run = controller::make_simulated_run(rec.config, *rec.valve);
+    auto run = controller::make_run(rec.config, *rec.valve, controller::make_sim_backend(rec.config));
     controller::SimulatedClock clock;
     controller::execute(run, rec.config, clock, never_stop);
     stops = run.runtime->stops().size();

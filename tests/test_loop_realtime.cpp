@@ -133,11 +133,14 @@ void reset_counters() {
 struct DefaultRun {
   config::Config config = config::load_string(config::default_config_yaml());
   model::ValveModel valve{config.plant.valve, config.plant.gas};
-  controller::SimulatedRun run;
+  controller::Run run;
+  const hal::SimBackend* bench = nullptr;  // the simulated truth, owned by the run
 
   DefaultRun() {
     controller::resolve_offset(config, valve);
-    run = controller::make_simulated_run(config, valve);
+    auto sim = controller::make_sim_backend(config);
+    bench = sim.get();
+    run = controller::make_run(config, valve, std::move(sim));
   }
   DefaultRun(const DefaultRun&) = delete;
   DefaultRun& operator=(const DefaultRun&) = delete;
@@ -227,7 +230,7 @@ TEST(ControlLoop, CountsDroppedTickRecordsAndKeepsTickingWhenNobodyDrains) {
   EXPECT_EQ(run.outputs->ticks_dropped, kExtra);  // the queue held exactly its capacity
   // The loop went on controlling while its records were dropped: the set point stepped at 1 s and
   // the carriage followed it (it started at 219.5 mm, the set point is 170 mm).
-  EXPECT_LT(run.backend->plant().state().y_m, 0.19);
+  EXPECT_LT(d.bench->plant().state().y_m, 0.19);
 
   // The reader sees the loss as one gap in the sequence numbers once the loop's records flow again.
   run.runtime->drain(*run.outputs);

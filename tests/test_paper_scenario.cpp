@@ -47,13 +47,13 @@ constexpr double kShortStickingBound_s = 0.010;  // both methods, below kLongSti
 struct PaperRun {
   config::Config config;
   std::unique_ptr<model::ValveCharacteristic> valve;
-  controller::SimulatedRun run;
+  controller::Run run;
 
   explicit PaperRun(const std::vector<std::string>& overrides = {})
       : config(config::load_string(config::default_config_yaml(), overrides)),
         valve(controller::make_valve_characteristic(config, {})) {
     controller::resolve_offset(config, *valve);
-    run = controller::make_simulated_run(config, *valve);
+    run = controller::make_run(config, *valve, controller::make_sim_backend(config));
     controller::SimulatedClock clock;
     const std::atomic<bool> never_stop{false};
     controller::execute(run, config, clock, never_stop);

@@ -207,7 +207,7 @@ int run(int argc, char** argv) {
 #ifdef PNEU_WITH_GPIOD
   std::unique_ptr<hal::LibgpiodLines> lines;
 #endif
-  controller::SimulatedRun run;
+  controller::Run run;
   if (cfg.hal.backend == config::BackendKind::kModbus) {
 #ifdef PNEU_WITH_MODBUS
     inner = std::make_unique<hal::ModbusBackend>(cfg.hal.modbus, cfg.sensors);
@@ -220,12 +220,12 @@ int run(int argc, char** argv) {
     const auto& g = cfg.hal.gpio;
     lines = std::make_unique<hal::LibgpiodLines>(hal::GpioParams{g.chip, g.estop_line, g.estop_active_low,
                                                                  g.valve_power_line, g.valve_power_active_low, g.consumer});
-    run = controller::make_hardware_run(cfg, *valve, std::make_unique<hal::GpioBackend>(*inner, *lines));
+    run = controller::make_run(cfg, *valve, std::make_unique<hal::GpioBackend>(*inner, *lines));
 #endif
   } else if (inner) {
-    run = controller::make_hardware_run(cfg, *valve, std::move(inner));
+    run = controller::make_run(cfg, *valve, std::move(inner));
   } else {
-    run = controller::make_simulated_run(cfg, *valve);
+    run = controller::make_run(cfg, *valve, controller::make_sim_backend(cfg));
   }
   // The runtime's sinks: the files asked for, then LCM.
   std::optional<controller::EventsFile> events_sink;
@@ -287,7 +287,7 @@ int run(int argc, char** argv) {
   }
   if (g_stop.load()) notifier.stopping();
 #ifdef PNEU_WITH_MODBUS
-  const auto* modbus = dynamic_cast<const hal::ModbusBackend*>(inner ? inner.get() : run.hardware.get());
+  const auto* modbus = dynamic_cast<const hal::ModbusBackend*>(inner ? inner.get() : run.backend.get());
   if (modbus && !modbus->safe_output_delivery().delivered)  // the journal's, quiet or not
     std::fprintf(stderr,
                  "pneud: warning: the module did not confirm the safe output on closing (%d attempts, last error: %s): "

@@ -41,35 +41,20 @@ std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config) 
                                            u_initial);
 }
 
-namespace {
-// The loop, its outputs and the runtime around `backend`.
-void assemble(SimulatedRun& run, const config::Config& config, const model::ValveCharacteristic& valve,
-              hal::Backend& backend) {
+Run make_run(const config::Config& config, const model::ValveCharacteristic& valve,
+             std::unique_ptr<hal::Backend> backend) {
+  Run run;
+  run.backend = std::move(backend);
   run.outputs = std::make_unique<LoopOutputs>();
-  run.loop = std::make_unique<ControlLoop>(config, backend, *run.outputs);
+  run.loop = std::make_unique<ControlLoop>(config, *run.backend, *run.outputs);
   const auto& p = config.controller.predictor;
   run.runtime = std::make_unique<Runtime>(predictor_model(config, valve), p.linearized, p.nonlinear,
                                           p.update_period_s);
   run.runtime->set_control_law(ControlLaw(config.controller.law));  // offset resolved by now
-}
-}  // namespace
-
-SimulatedRun make_simulated_run(const config::Config& config, const model::ValveCharacteristic& valve) {
-  SimulatedRun run;
-  run.backend = make_sim_backend(config);
-  assemble(run, config, valve, *run.backend);
   return run;
 }
 
-SimulatedRun make_hardware_run(const config::Config& config, const model::ValveCharacteristic& valve,
-                               std::unique_ptr<hal::Backend> backend) {
-  SimulatedRun run;
-  run.hardware = std::move(backend);
-  assemble(run, config, valve, *run.hardware);
-  return run;
-}
-
-void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
+void execute(Run& run, const config::Config& config, Clock& clock,
              const std::atomic<bool>& stop_requested,
              const std::function<void(int timeout_ms)>& wait_for_input,
              const std::function<void()>& on_loop_thread) {
@@ -95,7 +80,7 @@ void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
     } catch (...) {  // the backend failed to open, or the real-time set-up was refused: the safe
                      // output, the backend closed, the service thread stopped, then report
       run.loop->stop();
-      if (run.hardware) run.hardware->close();
+      run.backend->close();
       done.store(true, std::memory_order_release);
       service.join();
       throw;
@@ -105,7 +90,7 @@ void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
     service.join();
   }
   run.loop->stop();
-  if (run.hardware) run.hardware->close();
+  run.backend->close();
   run.runtime->drain(*run.outputs);
   run.runtime->finish(run.runtime->end_time_s());
 }

@@ -27,12 +27,11 @@ void resolve_offset(config::Config& config, const model::ValveCharacteristic& va
 [[nodiscard]] PredictorModel predictor_model(const config::Config& config,
                                              const model::ValveCharacteristic& valve);
 
-/// A complete run: backend, loop, runtime (without sinks: add them with Runtime::add_sink).
-/// `backend` is set for the in-process simulated bench; `hardware` for any other backend (modbus),
-/// which the loop then drives.
-struct SimulatedRun {
-  std::unique_ptr<hal::SimBackend> backend;
-  std::unique_ptr<hal::Backend> hardware;
+/// A complete run, on whatever backend: the backend the loop drives, the loop and its outputs, the
+/// runtime (without sinks: add them with Runtime::add_sink). Movable: the parts the loop refers to
+/// are held by pointer.
+struct Run {
+  std::unique_ptr<hal::Backend> backend;
   std::unique_ptr<LoopOutputs> outputs;
   std::unique_ptr<ControlLoop> loop;
   std::unique_ptr<Runtime> runtime;
@@ -43,14 +42,10 @@ struct SimulatedRun {
 /// at complete equilibrium for the loop's first output (offset already resolved).
 [[nodiscard]] std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config);
 
-/// Builds the run for `config` (offset already resolved). The plant starts at rest at
-/// simulation.initial_position_m, at complete equilibrium for the loop's first output.
-[[nodiscard]] SimulatedRun make_simulated_run(const config::Config& config,
-                                              const model::ValveCharacteristic& valve);
-/// The same on another backend (opened when the run starts).
-[[nodiscard]] SimulatedRun make_hardware_run(const config::Config& config,
-                                             const model::ValveCharacteristic& valve,
-                                             std::unique_ptr<hal::Backend> backend);
+/// Builds the run for `config` (offset already resolved) on `backend` (opened when the run
+/// starts, closed when it ends).
+[[nodiscard]] Run make_run(const config::Config& config, const model::ValveCharacteristic& valve,
+                           std::unique_ptr<hal::Backend> backend);
 
 /// Runs it for controller.duration_s on `clock` (the simulated clock drains the runtime between
 /// ticks; the real clock drains it from a service thread), then finishes the runtime.
@@ -59,7 +54,7 @@ struct SimulatedRun {
 /// `on_loop_thread`, when set, runs on the loop thread once the backend is open, just before time
 /// starts (real clock: its real-time set-up, so that the backend's own I/O thread, created
 /// earlier, keeps the ordinary scheduling; what it throws ends the run, the backend closed).
-void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
+void execute(Run& run, const config::Config& config, Clock& clock,
              const std::atomic<bool>& stop_requested,
              const std::function<void(int timeout_ms)>& wait_for_input = {},
              const std::function<void()>& on_loop_thread = {});
