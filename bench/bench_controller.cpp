@@ -22,6 +22,7 @@
 #include <optional>
 #include <vector>
 
+#include "pneu/backends/factory.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/loop.hpp"
@@ -107,7 +108,7 @@ void record_paper_scenario(Recording& rec) {
   rec.ticks =
       static_cast<std::uint64_t>(std::llround(rec.config.controller.duration_s / period)) + 1;
 
-  auto run = controller::make_run(rec.config, *rec.valve, controller::make_sim_backend(rec.config));
+  auto run = controller::make_run(rec.config, *rec.valve, backends::make_sim_backend(rec.config));
   rec.frames.reserve(rec.ticks + 1);
   RecordingBackend recorder(*run.backend, rec.frames);
   auto outputs = std::make_unique<LoopOutputs>();
@@ -191,7 +192,7 @@ BENCHMARK(BM_TickReplayedPaperScenario);
 void BM_TickWithSimBackend(benchmark::State& state) {
   const Recording& rec = *g_rec;
   const double period = rec.config.controller.period_s();
-  auto run = controller::make_run(rec.config, *rec.valve, controller::make_sim_backend(rec.config));
+  auto run = controller::make_run(rec.config, *rec.valve, backends::make_sim_backend(rec.config));
   run.loop->start(0.0);
   std::uint64_t k = 0;
   for (auto _ : state) {
@@ -201,7 +202,7 @@ void BM_TickWithSimBackend(benchmark::State& state) {
       state.PauseTiming();
       discard_records(*run.outputs);
       if (k == rec.ticks) {
-        run = controller::make_run(rec.config, *rec.valve, controller::make_sim_backend(rec.config));
+        run = controller::make_run(rec.config, *rec.valve, backends::make_sim_backend(rec.config));
         run.loop->start(0.0);
         k = 0;
       }
@@ -219,7 +220,7 @@ void BM_PaperScenarioSimulatedEndToEnd(benchmark::State& state) {
   const std::atomic<bool> never_stop{false};
   std::size_t stops = 0;
   for (auto _ : state) {
-    auto run = controller::make_run(rec.config, *rec.valve, controller::make_sim_backend(rec.config));
+    auto run = controller::make_run(rec.config, *rec.valve, backends::make_sim_backend(rec.config));
     controller::SimulatedClock clock;
     controller::execute(run, rec.config, clock, never_stop);
     stops = run.runtime->stops().size();

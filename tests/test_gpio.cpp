@@ -306,6 +306,40 @@ TEST_F(GpioBackend, CloseSwitchesValvePowerOff) {
   EXPECT_FALSE(lines.valve_power);
 }
 
+TEST_F(GpioBackend, ReportsNoLinkAroundTheInProcessPlant) { EXPECT_FALSE(backend.link_report()); }
+
+// A backend with a link to a device, as the modbus backend has, for what the decorator passes on.
+class LinkedBackend final : public hal::Backend {
+ public:
+  void open(double) override {}
+  void close() noexcept override {}
+  [[nodiscard]] Status read(double t_s, hal::SensorFrame& frame) noexcept override {
+    frame = hal::SensorFrame{};
+    frame.t_s = t_s;
+    return Status::kOk;
+  }
+  [[nodiscard]] Status write(const hal::ActuatorCommand&) noexcept override { return Status::kOk; }
+  [[nodiscard]] std::optional<hal::LinkReport> link_report() const override {
+    hal::LinkReport r;
+    r.transactions = 42;
+    r.last_error = "timeout";
+    r.safe_output_attempts = 1;
+    r.safe_output_delivered = true;
+    return r;
+  }
+};
+
+TEST(GpioBackendAroundADevice, ReportsTheDevicesLink) {
+  LinkedBackend device;
+  FakeLines lines;
+  const hal::GpioBackend backend(device, lines);
+  const std::optional<hal::LinkReport> link = backend.link_report();
+  ASSERT_TRUE(link) << "the summary's modbus figures come through the decorator";
+  EXPECT_EQ(link->transactions, 42u);
+  EXPECT_EQ(link->last_error, "timeout");
+  EXPECT_TRUE(link->safe_output_delivered);
+}
+
 // ---------------------------------------------------------------------------------------------
 // The e-stop and valve power lines through a real ControlLoop: the default paper run (set point
 // 219.5 mm -> 170 mm at t = 1 s), armed at start, on the simulated bench wrapped by GpioBackend

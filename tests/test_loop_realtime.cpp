@@ -22,6 +22,7 @@
 #include <utility>
 #include <vector>
 
+#include "pneu/backends/factory.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/loop.hpp"
@@ -138,7 +139,7 @@ struct DefaultRun {
 
   DefaultRun() {
     controller::resolve_offset(config, valve);
-    auto sim = controller::make_sim_backend(config);
+    auto sim = backends::make_sim_backend(config);
     bench = sim.get();
     run = controller::make_run(config, valve, std::move(sim));
   }

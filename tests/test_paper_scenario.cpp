@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "pneu/backends/factory.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/runtime.hpp"
@@ -53,7 +54,7 @@ struct PaperRun {
       : config(config::load_string(config::default_config_yaml(), overrides)),
         valve(controller::make_valve_characteristic(config, {})) {
     controller::resolve_offset(config, *valve);
-    run = controller::make_run(config, *valve, controller::make_sim_backend(config));
+    run = controller::make_run(config, *valve, backends::make_sim_backend(config));
     controller::SimulatedClock clock;
     const std::atomic<bool> never_stop{false};
     controller::execute(run, config, clock, never_stop);

@@ -33,14 +33,6 @@ PredictorModel predictor_model(const config::Config& config, const model::ValveC
   return m;
 }
 
-std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config) {
-  const ControlLaw law(config.controller.law);
-  const double u_initial =
-      law.resting_control_v(config.controller.initial_setpoint_m, config.simulation.initial_position_m);
-  return std::make_unique<hal::SimBackend>(config.plant, config.sensors, config.simulation.initial_position_m,
-                                           u_initial);
-}
-
 Run make_run(const config::Config& config, const model::ValveCharacteristic& valve,
              std::unique_ptr<hal::Backend> backend) {
   Run run;

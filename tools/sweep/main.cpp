@@ -15,11 +15,11 @@
 #include <thread>
 #include <vector>
 
+#include "pneu/backends/factory.hpp"
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/session.hpp"
 #include "pneu/controller/verdict.hpp"
-#include "pneu/hal/sim_backend.hpp"
 
 namespace {
 
@@ -249,7 +249,7 @@ int run(int argc, char** argv) {
         const auto valve = controller::make_valve_characteristic(
             cfg, config_path.empty() ? std::filesystem::path() : std::filesystem::path(config_path).parent_path());
         controller::resolve_offset(cfg, *valve);
-        auto plant = controller::make_sim_backend(cfg);
+        auto plant = backends::make_sim_backend(cfg);
         const hal::SimBackend& bench = *plant;  // the simulated truth, owned by the run
         auto sim = controller::make_run(cfg, *valve, std::move(plant));
         sim.runtime->set_follow_forecasts(false);  // nobody sees the tick-by-tick comparison here

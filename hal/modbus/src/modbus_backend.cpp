@@ -44,6 +44,21 @@ std::string ModbusBackend::last_error() const {
   return last_error_;
 }
 
+std::optional<LinkReport> ModbusBackend::link_report() const {
+  LinkReport r;
+  r.transactions = counters_.transactions.load();
+  r.errors = counters_.errors.load();
+  r.reconnects = counters_.reconnects.load();
+  r.out_of_range = counters_.out_of_range.load();
+  r.stale_reads = counters_.stale_reads.load();
+  r.oldest_sample_s = counters_.max_age_s.load();
+  r.last_error = last_error();
+  r.safe_output_attempts = safe_output_.attempts;
+  r.safe_output_max_attempts = kSafeOutputAttempts;
+  r.safe_output_delivered = safe_output_.delivered;
+  return r;
+}
+
 void ModbusBackend::set_error(const std::string& why) {
   const std::lock_guard<std::mutex> lock(error_mutex_);
   last_error_ = why;

@@ -9,7 +9,7 @@
 #include "pneu/config/config.hpp"
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/runtime.hpp"
-#include "pneu/hal/sim_backend.hpp"
+#include "pneu/hal/backend.hpp"
 #include "pneu/model/valve_table.hpp"
 
 namespace pneu::controller {
@@ -38,12 +38,8 @@ struct Run {
   LoopTiming timing;
 };
 
-/// The in-process simulated bench of `config`: the plant at rest at simulation.initial_position_m,
-/// at complete equilibrium for the loop's first output (offset already resolved).
-[[nodiscard]] std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config);
-
 /// Builds the run for `config` (offset already resolved) on `backend` (opened when the run
-/// starts, closed when it ends).
+/// starts, closed when it ends; pneu/backends/factory.hpp composes it from the configuration).
 [[nodiscard]] Run make_run(const config::Config& config, const model::ValveCharacteristic& valve,
                            std::unique_ptr<hal::Backend> backend);
 
