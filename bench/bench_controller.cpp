@@ -112,7 +112,7 @@ void record_paper_scenario(Recording& rec) {
   rec.frames.reserve(rec.ticks + 1);
   RecordingBackend recorder(*run.backend, rec.frames);
   auto outputs = std::make_unique<LoopOutputs>();
-  ControlLoop loop(rec.config, recorder, *outputs);
+  ControlLoop loop(controller::LoopParams::from(rec.config), recorder, *outputs);
   loop.start(0.0);
   for (std::uint64_t k = 0; k < rec.ticks; ++k) {
     loop.tick(static_cast<double>(k) * period);
@@ -135,7 +135,7 @@ void record_paper_scenario(Recording& rec) {
 bool replay_reproduces_recording(const Recording& rec) {
   ReplayBackend replay(rec.frames);
   auto outputs = std::make_unique<LoopOutputs>();
-  ControlLoop loop(rec.config, replay, *outputs);
+  ControlLoop loop(controller::LoopParams::from(rec.config), replay, *outputs);
   loop.start(0.0);
   std::size_t i = 0;
   for (std::uint64_t k = 0; k < rec.ticks; ++k) {
@@ -166,7 +166,7 @@ void BM_TickReplayedPaperScenario(benchmark::State& state) {
   const double period = rec.config.controller.period_s();
   ReplayBackend replay(rec.frames);
   auto outputs = std::make_unique<LoopOutputs>();
-  ControlLoop loop(rec.config, replay, *outputs);
+  ControlLoop loop(controller::LoopParams::from(rec.config), replay, *outputs);
   loop.start(0.0);
   std::uint64_t k = 0;
   for (auto _ : state) {

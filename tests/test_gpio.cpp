@@ -210,15 +210,12 @@ class FakeLines final : public hal::GpioLines {
   }
 };
 
-// The default bench (embedded config/sim.yaml) with u_0 resolved. The loop keeps a reference to
-// the config: built in place, never moved.
+// The default bench (embedded config/sim.yaml) with u_0 resolved.
 struct Bench {
   config::Config config = config::load_string(config::default_config_yaml());
   std::unique_ptr<model::ValveCharacteristic> valve =
       controller::make_valve_characteristic(config, {});
   Bench() { controller::resolve_offset(config, *valve); }
-  Bench(const Bench&) = delete;
-  Bench& operator=(const Bench&) = delete;
   [[nodiscard]] double u_0() const { return config.controller.law.offset_v; }
 };
 
@@ -352,7 +349,7 @@ class EStopLoop : public ::testing::Test {
       : sim_(make_sim(bench_)),
         backend_(*sim_, lines_),
         outputs_(std::make_unique<controller::LoopOutputs>()),
-        loop_(bench_.config, backend_, *outputs_) {
+        loop_(controller::LoopParams::from(bench_.config), backend_, *outputs_) {
     loop_.start(0.0);
   }
 
@@ -435,7 +432,7 @@ TEST_F(EStopLoop, AnyOtherFaultAlsoCutsValvePowerThroughTheLine) {
   for (int i = 0; i < 10; ++i) loop_.note_overrun(true);
   run_ticks(1);
   EXPECT_EQ(mode(), Mode::kFault);
-  EXPECT_EQ(loop_.fault_cause(), controller::kFaultOverrun);
+  EXPECT_EQ(loop_.fault_cause(), controller::FaultCause::kOverrun);
   EXPECT_FALSE(lines_.valve_power);
   EXPECT_EQ(last_u_v_, bench_.u_0()) << "safe_output: neutral";
 }

@@ -353,7 +353,7 @@ TEST(ControlLoop, CountsBackendFailuresAndHandsThemToHealth) {
   config.controller.schedule.clear();
   FlakyBackend backend;
   auto outputs = std::make_unique<pneu::controller::LoopOutputs>();
-  pneu::controller::ControlLoop loop(config, backend, *outputs);
+  pneu::controller::ControlLoop loop(pneu::controller::LoopParams::from(config), backend, *outputs);
   pneu::controller::SimulatedClock clock;
   pneu::controller::LoopTiming timing;
   const std::atomic<bool> never{false};
@@ -369,7 +369,7 @@ TEST(ControlLoop, CountsBackendFailuresAndHandsThemToHealth) {
   EXPECT_TRUE(last.is_final);
   EXPECT_EQ(last.comms_errors, 60u) << "the last health record saw every failure so far";
   EXPECT_EQ(last.mode, pneu::controller::Mode::kFault) << "50 ms of stale samples latch the comms fault";
-  EXPECT_EQ(last.fault_cause, pneu::controller::kFaultComms);
+  EXPECT_EQ(last.fault_cause, pneu::controller::FaultCause::kComms);
 }
 
 }  // namespace
@@ -401,7 +401,7 @@ TEST_P(LoopDeadlines, AreEachTickedOrSkippedOnceWhereverAStallComes) {
   config.controller.supervisor.max_tick_interval_s = 0.0;
   FlakyBackend backend;
   auto outputs = std::make_unique<pneu::controller::LoopOutputs>();
-  pneu::controller::ControlLoop loop(config, backend, *outputs);
+  pneu::controller::ControlLoop loop(pneu::controller::LoopParams::from(config), backend, *outputs);
   StallingClock clock;
   pneu::controller::LoopTiming timing;
   const std::atomic<bool> never{false};
@@ -436,7 +436,7 @@ long slack_while_ticking(pneu::controller::Clock& clock) {
     auto config = pneu::config::load_string(pneu::config::default_config_yaml());
     FlakyBackend backend;
     auto outputs = std::make_unique<pneu::controller::LoopOutputs>();
-    pneu::controller::ControlLoop loop(config, backend, *outputs);
+    pneu::controller::ControlLoop loop(pneu::controller::LoopParams::from(config), backend, *outputs);
     pneu::controller::LoopTiming timing;
     const std::atomic<bool> never{false};
     pneu::controller::run_loop(loop, clock, 1e-3, 3, never, timing, [&] { during = timer_slack_ns(); });

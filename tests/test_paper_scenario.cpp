@@ -44,7 +44,7 @@ constexpr double kNonlinearBoundPercent = 1.0;
 constexpr double kLinearizedBoundPercent = 5.0;
 constexpr double kShortStickingBound_s = 0.010;  // both methods, below kLongSticking_s
 
-// One complete simulated run. The loop keeps a reference to `config`: built in place, never moved.
+// One complete simulated run.
 struct PaperRun {
   config::Config config;
   std::unique_ptr<model::ValveCharacteristic> valve;
@@ -59,8 +59,6 @@ struct PaperRun {
     const std::atomic<bool> never_stop{false};
     controller::execute(run, config, clock, never_stop);
   }
-  PaperRun(const PaperRun&) = delete;
-  PaperRun& operator=(const PaperRun&) = delete;
 
   [[nodiscard]] const std::vector<StopOutcome>& stops() const { return run.runtime->stops(); }
   [[nodiscard]] double t_end_s() const { return run.runtime->end_time_s(); }

@@ -35,11 +35,14 @@ void SystemdNotifier::service() {
   }
   const auto mode = loop_.mode.load(std::memory_order_relaxed);
   const auto cause = loop_.fault_cause.load(std::memory_order_relaxed);
-  if (ready_ && (mode != last_mode_ || cause != last_cause_)) {
+  if (ready_ && (!status_said_ || mode != last_mode_ || cause != last_cause_)) {
+    status_said_ = true;
     last_mode_ = mode;
     last_cause_ = cause;
-    sd_notifyf(0, "STATUS=%s%s%s", mode == 0 ? "disarmed" : mode == 1 ? "armed" : "FAULT: ",
-               mode == 2 ? controller::fault_name(cause) : "", mode == 0 ? " (send ARM to drive)" : "");
+    using controller::Mode;
+    sd_notifyf(0, "STATUS=%s%s%s", mode == Mode::kDisarmed ? "disarmed" : mode == Mode::kArmed ? "armed" : "FAULT: ",
+               mode == Mode::kFault ? controller::fault_name(cause) : "",
+               mode == Mode::kDisarmed ? " (send ARM to drive)" : "");
   }
   const double now_s = std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
   if (watchdog_.due(beat, now_s)) sd_notify(0, "WATCHDOG=1");  // the loop ticked since the last check

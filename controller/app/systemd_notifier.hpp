@@ -26,7 +26,9 @@ class SystemdNotifier {
   const std::atomic<bool>& stop_requested_;
   controller::WatchdogGate watchdog_;
   bool ready_ = false, stopping_ = false;
-  std::uint8_t last_mode_ = 255, last_cause_ = 255;
+  bool status_said_ = false;  // STATUS= sent at least once
+  controller::Mode last_mode_ = controller::Mode::kArmed;
+  controller::FaultCause last_cause_ = controller::FaultCause::kNone;
 };
 
 }  // namespace pneu::pneud

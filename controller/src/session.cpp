@@ -38,7 +38,7 @@ Run make_run(const config::Config& config, const model::ValveCharacteristic& val
   Run run;
   run.backend = std::move(backend);
   run.outputs = std::make_unique<LoopOutputs>();
-  run.loop = std::make_unique<ControlLoop>(config, *run.backend, *run.outputs);
+  run.loop = std::make_unique<ControlLoop>(LoopParams::from(config), *run.backend, *run.outputs);
   const auto& p = config.controller.predictor;
   run.runtime = std::make_unique<Runtime>(predictor_model(config, valve), p.linearized, p.nonlinear,
                                           p.update_period_s);
