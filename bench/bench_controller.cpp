@@ -22,6 +22,7 @@
 #include <optional>
 #include <vector>
 
+#include "pneu/backends/factory.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/loop.hpp"
@@ -29,7 +30,7 @@
 #include "pneu/controller/runtime.hpp"
 #include "pneu/controller/session.hpp"
 #include "pneu/hal/backend.hpp"
-#include "pneu/sim_plant/valve.hpp"
+#include "pneu/model/valve.hpp"
 
 namespace {
 
@@ -84,7 +85,7 @@ class ReplayBackend final : public hal::Backend {
 
 struct Recording {
   config::Config config;
-  std::unique_ptr<plant::ValveModel> valve;
+  std::unique_ptr<model::ValveModel> valve;
   std::uint64_t ticks = 0;               ///< ticks of the 12 s run (both ends included)
   std::vector<hal::SensorFrame> frames;  ///< what the loop read: start()'s reading, then each tick
   std::vector<double> control_v;         ///< u of each tick
@@ -100,18 +101,18 @@ std::optional<Recording> g_rec;
 
 void record_paper_scenario(Recording& rec) {
   rec.config = config::load_string(config::default_config_yaml());
-  rec.valve = std::make_unique<plant::ValveModel>(rec.config.plant.valve, rec.config.plant.gas);
+  rec.valve = std::make_unique<model::ValveModel>(rec.config.plant.valve, rec.config.plant.gas);
   controller::resolve_offset(rec.config, *rec.valve);
   rec.model = controller::predictor_model(rec.config, *rec.valve);
   const double period = rec.config.controller.period_s();
   rec.ticks =
       static_cast<std::uint64_t>(std::llround(rec.config.controller.duration_s / period)) + 1;
 
-  auto run = controller::make_simulated_run(rec.config, *rec.valve);
+  auto run = controller::make_run(rec.config, *rec.valve, backends::make_sim_backend(rec.config));
   rec.frames.reserve(rec.ticks + 1);
   RecordingBackend recorder(*run.backend, rec.frames);
   auto outputs = std::make_unique<LoopOutputs>();
-  ControlLoop loop(rec.config, recorder, *outputs);
+  ControlLoop loop(controller::LoopParams::from(rec.config), recorder, *outputs);
   loop.start(0.0);
   for (std::uint64_t k = 0; k < rec.ticks; ++k) {
     loop.tick(static_cast<double>(k) * period);
@@ -134,7 +135,7 @@ void record_paper_scenario(Recording& rec) {
 bool replay_reproduces_recording(const Recording& rec) {
   ReplayBackend replay(rec.frames);
   auto outputs = std::make_unique<LoopOutputs>();
-  ControlLoop loop(rec.config, replay, *outputs);
+  ControlLoop loop(controller::LoopParams::from(rec.config), replay, *outputs);
   loop.start(0.0);
   std::size_t i = 0;
   for (std::uint64_t k = 0; k < rec.ticks; ++k) {
@@ -165,7 +166,7 @@ void BM_TickReplayedPaperScenario(benchmark::State& state) {
   const double period = rec.config.controller.period_s();
   ReplayBackend replay(rec.frames);
   auto outputs = std::make_unique<LoopOutputs>();
-  ControlLoop loop(rec.config, replay, *outputs);
+  ControlLoop loop(controller::LoopParams::from(rec.config), replay, *outputs);
   loop.start(0.0);
   std::uint64_t k = 0;
   for (auto _ : state) {
@@ -191,7 +192,7 @@ BENCHMARK(BM_TickReplayedPaperScenario);
 void BM_TickWithSimBackend(benchmark::State& state) {
   const Recording& rec = *g_rec;
   const double period = rec.config.controller.period_s();
-  auto run = controller::make_simulated_run(rec.config, *rec.valve);
+  auto run = controller::make_run(rec.config, *rec.valve, backends::make_sim_backend(rec.config));
   run.loop->start(0.0);
   std::uint64_t k = 0;
   for (auto _ : state) {
@@ -201,7 +202,7 @@ void BM_TickWithSimBackend(benchmark::State& state) {
       state.PauseTiming();
       discard_records(*run.outputs);
       if (k == rec.ticks) {
-        run = controller::make_simulated_run(rec.config, *rec.valve);
+        run = controller::make_run(rec.config, *rec.valve, backends::make_sim_backend(rec.config));
         run.loop->start(0.0);
         k = 0;
       }
@@ -212,14 +213,14 @@ void BM_TickWithSimBackend(benchmark::State& state) {
 BENCHMARK(BM_TickWithSimBackend);
 
 // (b) The 12 s paper scenario end to end in simulated time, as pneud runs it without output files:
-// assembly (make_simulated_run), the loop in lockstep with the plant, the runtime draining every
+// assembly (make_run on the sim backend), the loop in lockstep with the plant, the runtime draining every
 // tick and both predictors at every stop.
 void BM_PaperScenarioSimulatedEndToEnd(benchmark::State& state) {
   const Recording& rec = *g_rec;
   const std::atomic<bool> never_stop{false};
   std::size_t stops = 0;
   for (auto _ : state) {
-    auto run = controller::make_simulated_run(rec.config, *rec.valve);
+    auto run = controller::make_run(rec.config, *rec.valve, backends::make_sim_backend(rec.config));
     controller::SimulatedClock clock;
     controller::execute(run, rec.config, clock, never_stop);
     stops = run.runtime->stops().size();

@@ -38,7 +38,7 @@
 #include "pneu/config/register_map.hpp"
 #include "pneu/hal/modbus_backend.hpp"
 #include "pneu/hal/monotonic.hpp"
-#include "pneu/sim_plant/sensors.hpp"
+#include "pneu/model/sensors.hpp"
 
 namespace {
 
@@ -175,8 +175,8 @@ config::ModbusConfig hil_modbus(double min_exchange_period_s) {
   return c;
 }
 
-plant::SensorParams hil_calibration() {
-  plant::SensorParams p;
+model::SensorParams hil_calibration() {
+  model::SensorParams p;
   p.position = {20.0, 5.0, 0.0, 16, 0.0, 10.0};
   p.pressure_p = {1e-5, 0.0, 0.0, 16, 0.0, 10.0};
   p.pressure_n = {1e-5, 0.0, 0.0, 16, 0.0, 10.0};

@@ -19,8 +19,8 @@
 #include <vector>
 
 #include "pneu/config/config.hpp"
+#include "pneu/model/valve.hpp"
 #include "pneu/sim_plant/plant.hpp"
-#include "pneu/sim_plant/valve.hpp"
 
 namespace {
 
@@ -62,7 +62,7 @@ PaperScenario record_paper_scenario(const pneu::config::Config& config) {
   PaperScenario s;
   s.config = config;
   Plant plant(config.plant);
-  s.equilibrium_voltage_v = pneu::plant::equilibrium_voltage_v(
+  s.equilibrium_voltage_v = pneu::model::equilibrium_voltage_v(
       plant.valve(), config.plant.geometry, config.plant.gas.exhaust_pressure_pa);
   plant.reset_at_rest(kStartPosition_m, s.equilibrium_voltage_v);
   s.input_v.reserve(kSamples);
@@ -179,7 +179,7 @@ constexpr std::array<double, 8> kPressures_pa{1.0e5, 1.2e5, 2.0e5, 3.1e5,
                                               4.0e5, 5.5e5, 6.5e5, 7.0e5};
 
 void BM_ValveNullPressure(benchmark::State& state) {
-  const pneu::plant::ValveModel valve(g_scenario->config.plant.valve, g_scenario->config.plant.gas);
+  const pneu::model::ValveModel valve(g_scenario->config.plant.valve, g_scenario->config.plant.gas);
   std::size_t i = 0;
   for (auto _ : state) {
     benchmark::DoNotOptimize(valve.null_pressure_pa(kVoltages_v[i++ % kVoltages_v.size()]));
@@ -188,7 +188,7 @@ void BM_ValveNullPressure(benchmark::State& state) {
 BENCHMARK(BM_ValveNullPressure);
 
 void BM_ValveMassFlow(benchmark::State& state) {
-  const pneu::plant::ValveModel valve(g_scenario->config.plant.valve, g_scenario->config.plant.gas);
+  const pneu::model::ValveModel valve(g_scenario->config.plant.valve, g_scenario->config.plant.gas);
   std::size_t i = 0;
   for (auto _ : state) {
     const double w = kVoltages_v[i % kVoltages_v.size()];

@@ -1099,7 +1099,7 @@ constexpr std::size_t member_count() {
   if constexpr (takes_initializers<T>(std::make_index_sequence<N + 1>{})) return member_count<T, N + 1>();
   else return N;
 }
-static_assert(member_count<plant::Geometry>() == 5);
+static_assert(member_count<model::Geometry>() == 5);
 static_assert(member_count<HalConfig>() == 4);
 
 // Walks the schema noting, for each struct it describes, the members its description reaches

@@ -210,15 +210,12 @@ class FakeLines final : public hal::GpioLines {
   }
 };
 
-// The default bench (embedded config/sim.yaml) with u_0 resolved. The loop keeps a reference to
-// the config: built in place, never moved.
+// The default bench (embedded config/sim.yaml) with u_0 resolved.
 struct Bench {
   config::Config config = config::load_string(config::default_config_yaml());
-  std::unique_ptr<plant::ValveCharacteristic> valve =
+  std::unique_ptr<model::ValveCharacteristic> valve =
       controller::make_valve_characteristic(config, {});
   Bench() { controller::resolve_offset(config, *valve); }
-  Bench(const Bench&) = delete;
-  Bench& operator=(const Bench&) = delete;
   [[nodiscard]] double u_0() const { return config.controller.law.offset_v; }
 };
 
@@ -306,6 +303,40 @@ TEST_F(GpioBackend, CloseSwitchesValvePowerOff) {
   EXPECT_FALSE(lines.valve_power);
 }
 
+TEST_F(GpioBackend, ReportsNoLinkAroundTheInProcessPlant) { EXPECT_FALSE(backend.link_report()); }
+
+// A backend with a link to a device, as the modbus backend has, for what the decorator passes on.
+class LinkedBackend final : public hal::Backend {
+ public:
+  void open(double) override {}
+  void close() noexcept override {}
+  [[nodiscard]] Status read(double t_s, hal::SensorFrame& frame) noexcept override {
+    frame = hal::SensorFrame{};
+    frame.t_s = t_s;
+    return Status::kOk;
+  }
+  [[nodiscard]] Status write(const hal::ActuatorCommand&) noexcept override { return Status::kOk; }
+  [[nodiscard]] std::optional<hal::LinkReport> link_report() const override {
+    hal::LinkReport r;
+    r.transactions = 42;
+    r.last_error = "timeout";
+    r.safe_output_attempts = 1;
+    r.safe_output_delivered = true;
+    return r;
+  }
+};
+
+TEST(GpioBackendAroundADevice, ReportsTheDevicesLink) {
+  LinkedBackend device;
+  FakeLines lines;
+  const hal::GpioBackend backend(device, lines);
+  const std::optional<hal::LinkReport> link = backend.link_report();
+  ASSERT_TRUE(link) << "the summary's modbus figures come through the decorator";
+  EXPECT_EQ(link->transactions, 42u);
+  EXPECT_EQ(link->last_error, "timeout");
+  EXPECT_TRUE(link->safe_output_delivered);
+}
+
 // ---------------------------------------------------------------------------------------------
 // The e-stop and valve power lines through a real ControlLoop: the default paper run (set point
 // 219.5 mm -> 170 mm at t = 1 s), armed at start, on the simulated bench wrapped by GpioBackend
@@ -318,7 +349,7 @@ class EStopLoop : public ::testing::Test {
       : sim_(make_sim(bench_)),
         backend_(*sim_, lines_),
         outputs_(std::make_unique<controller::LoopOutputs>()),
-        loop_(bench_.config, backend_, *outputs_) {
+        loop_(controller::LoopParams::from(bench_.config), backend_, *outputs_) {
     loop_.start(0.0);
   }
 
@@ -401,7 +432,7 @@ TEST_F(EStopLoop, AnyOtherFaultAlsoCutsValvePowerThroughTheLine) {
   for (int i = 0; i < 10; ++i) loop_.note_overrun(true);
   run_ticks(1);
   EXPECT_EQ(mode(), Mode::kFault);
-  EXPECT_EQ(loop_.fault_cause(), controller::kFaultOverrun);
+  EXPECT_EQ(loop_.fault_cause(), controller::FaultCause::kOverrun);
   EXPECT_FALSE(lines_.valve_power);
   EXPECT_EQ(last_u_v_, bench_.u_0()) << "safe_output: neutral";
 }

@@ -20,6 +20,7 @@
 #include <utility>
 #include <vector>
 
+#include "pneu/backends/factory.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/events_file.hpp"
@@ -42,11 +43,11 @@ namespace fs = std::filesystem;
 // One simulated run of the default configuration, drained every `drain_every` ticks.
 struct LiveRun {
   config::Config config;
-  std::unique_ptr<plant::ValveCharacteristic> valve;
+  std::unique_ptr<model::ValveCharacteristic> valve;
   std::ostringstream events, trajectory;
   controller::EventsFile events_sink{events};
   controller::TrajectoryFile trajectory_sink{trajectory};
-  controller::SimulatedRun run;
+  controller::Run run;
 
   explicit LiveRun(const std::vector<std::string>& overrides = {}, int drain_every = 1, bool keep = true)
       : LiveRun(Loaded{config::load_string(config::default_config_yaml(), overrides)}, drain_every, keep) {}
@@ -57,7 +58,7 @@ struct LiveRun {
       : config(std::move(loaded.config)),
         valve(controller::make_valve_characteristic(config, {})) {
     controller::resolve_offset(config, *valve);
-    run = controller::make_simulated_run(config, *valve);
+    run = controller::make_run(config, *valve, backends::make_sim_backend(config));
     run.runtime->add_sink(events_sink);
     run.runtime->add_sink(trajectory_sink);
     run.runtime->set_keep_reforecasts(keep);
@@ -188,7 +189,7 @@ TEST(Runtime, KeepsTheLastStopsOfALongRunAndCountsTheOthers) {
   auto valve = controller::make_valve_characteristic(c, {});
   config::Config resolved = c;
   controller::resolve_offset(resolved, *valve);
-  auto run = controller::make_simulated_run(resolved, *valve);
+  auto run = controller::make_run(resolved, *valve, backends::make_sim_backend(resolved));
   run.runtime->set_max_stops_kept(8);
   controller::SimulatedClock clock;
   const std::atomic<bool> never{false};
@@ -242,7 +243,7 @@ TEST(Runtime, HandsEachSinkATicksEventsBeforeItsRecordAStopsForecastsAfterItAndT
   config::Config c = config::load_string(config::default_config_yaml(), {});
   auto valve = controller::make_valve_characteristic(c, {});
   controller::resolve_offset(c, *valve);
-  auto run = controller::make_simulated_run(c, *valve);
+  auto run = controller::make_run(c, *valve, backends::make_sim_backend(c));
   RecordingSink first, second;
   run.runtime->add_sink(first);
   run.runtime->add_sink(second);

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <memory>
 #include <ostream>
+#include <utility>
 #include <vector>
 
 #include "pneu/config/config.hpp"
@@ -64,7 +65,7 @@ class LoopModes : public ::testing::Test {
 
   // Builds the loop from config_ (tests edit it first) and starts it at t = 0.
   void start() {
-    loop_ = std::make_unique<controller::ControlLoop>(config_, backend_, *outputs_);
+    loop_ = std::make_unique<controller::ControlLoop>(controller::LoopParams::from(config_), backend_, *outputs_);
     loop_->start(0.0);
   }
   // `n` ticks at the configured period, continuing from the last one.
@@ -102,7 +103,7 @@ class LoopModes : public ::testing::Test {
   config::Config config_ = config::load_string(config::default_config_yaml());
   FakeBackend backend_;
   std::unique_ptr<controller::LoopOutputs> outputs_ = std::make_unique<controller::LoopOutputs>();  // large queues
-  std::unique_ptr<controller::ControlLoop> loop_;  // keeps a reference to config_
+  std::unique_ptr<controller::ControlLoop> loop_;
   std::int64_t k_ = 0;
   std::uint64_t seq_ = 0;
 };
@@ -181,7 +182,7 @@ TEST_F(LoopModes, ArmWhileArmedKeepsTheSetPoint) {
 
 TEST_F(LoopModes, AnEStopLatchesTheFaultWithinOneTickAndDrivesTheNeutralSafeOutput) {
   latch_estop_fault();
-  EXPECT_EQ(loop_->fault_cause(), controller::kFaultEStop);
+  EXPECT_EQ(loop_->fault_cause(), controller::FaultCause::kEStop);
   EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
 }
 
@@ -203,10 +204,10 @@ TEST_F(LoopModes, TheFaultIsReportedOnceAsAnEventWithItsCause) {
   const auto seen = events();
   ASSERT_EQ(seen.size(), 1u);
   EXPECT_EQ(seen[0].kind, LoopEvent::Kind::kFault);
-  EXPECT_EQ(seen[0].fault_cause, controller::kFaultEStop);
+  EXPECT_EQ(seen[0].fault_cause, controller::FaultCause::kEStop);
   EXPECT_DOUBLE_EQ(seen[0].t_s, t_fault_s) << "dated at the tick that saw the e-stop";
   EXPECT_EQ(loop_->faults(), 1u);
-  EXPECT_THAT(controller::fault_text(controller::kFaultEStop), ::testing::HasSubstr("e-stop"));
+  EXPECT_THAT(controller::fault_text(controller::FaultCause::kEStop), ::testing::HasSubstr("e-stop"));
 }
 
 TEST_F(LoopModes, TheFaultStaysLatchedAfterTheCauseIsGone) {
@@ -214,7 +215,7 @@ TEST_F(LoopModes, TheFaultStaysLatchedAfterTheCauseIsGone) {
   backend_.sample.estop = false;
   run_ticks(500);
   EXPECT_EQ(mode(), Mode::kFault);
-  EXPECT_EQ(loop_->fault_cause(), controller::kFaultEStop);
+  EXPECT_EQ(loop_->fault_cause(), controller::FaultCause::kEStop);
   EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
 }
 
@@ -227,7 +228,7 @@ TEST_F(LoopModes, AResetWhileTheCauseStaysIsRefusedNamingTheCause) {
   const auto seen = events();
   ASSERT_EQ(seen.size(), 1u);
   EXPECT_EQ(seen[0].kind, LoopEvent::Kind::kResetRefused);
-  EXPECT_EQ(seen[0].fault_cause, controller::kFaultEStop);
+  EXPECT_EQ(seen[0].fault_cause, controller::FaultCause::kEStop);
   EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
 }
 
@@ -250,11 +251,11 @@ TEST_F(LoopModes, AResetOnceTheCauseIsGoneDisarmsThenArmAndDisarmWorkAgain) {
 
   command(LoopCommand::Kind::kFaultReset);
   EXPECT_EQ(mode(), Mode::kDisarmed);
-  EXPECT_EQ(loop_->fault_cause(), controller::kFaultNone);
+  EXPECT_EQ(loop_->fault_cause(), controller::FaultCause::kNone);
   const auto seen = events();
   ASSERT_EQ(seen.size(), 1u);
   EXPECT_EQ(seen[0].kind, LoopEvent::Kind::kFaultReset);
-  EXPECT_EQ(seen[0].fault_cause, controller::kFaultEStop) << "the cause it cleared";
+  EXPECT_EQ(seen[0].fault_cause, controller::FaultCause::kEStop) << "the cause it cleared";
   EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
 
   command(LoopCommand::Kind::kArm);
@@ -276,7 +277,7 @@ TEST_F(LoopModes, AnyOtherFaultAlsoDrivesTheSafeOutputAndAResetClearsIt) {
   for (std::uint32_t i = 0; i < config_.controller.supervisor.overruns_in_a_row; ++i) loop_->note_overrun(true);
   run_ticks(1);
   EXPECT_EQ(mode(), Mode::kFault);
-  EXPECT_EQ(loop_->fault_cause(), controller::kFaultOverrun);
+  EXPECT_EQ(loop_->fault_cause(), controller::FaultCause::kOverrun);
   EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
   command(LoopCommand::Kind::kFaultReset);
   EXPECT_EQ(mode(), Mode::kDisarmed);
@@ -316,6 +317,28 @@ TEST_F(LoopModes, SetPointsQueuedInAFaultAreDropped) {
   command(LoopCommand::Kind::kSetPoint, 0.1);
   command(LoopCommand::Kind::kSetPointStep, -0.05);
   EXPECT_EQ(setpoint_m(), before);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The loop's parameters
+
+TEST_F(LoopModes, KeepsItsOwnParametersWhateverBecomesOfTheConfigAndWhenMoved) {
+  config_.controller.schedule = {{0.05, 0.170}};
+  start();
+  // The configuration it was built from changes (or goes): the loop goes on with what it was given.
+  config_.controller.schedule = {{0.05, -0.1}};
+  config_.controller.soft_limit_max_m = 0.0;
+  config_.controller.law.offset_v = -1.0;
+  controller::ControlLoop moved(std::move(*loop_));
+  loop_.reset();
+  for (int i = 0; i < 60; ++i) moved.tick(static_cast<double>(k_++) * config_.controller.period_s());
+  EXPECT_EQ(setpoint_m(), 0.170) << "the schedule it was built with";
+  send(LoopCommand::Kind::kSetPoint, 0.2);
+  moved.tick(static_cast<double>(k_++) * config_.controller.period_s());
+  EXPECT_EQ(setpoint_m(), 0.2) << "the soft limits it was built with";
+  send(LoopCommand::Kind::kDisarm);
+  moved.tick(static_cast<double>(k_++) * config_.controller.period_s());
+  EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff)) << "the u_0 it was built with";
 }
 
 TEST_F(LoopModes, ASetPointCommandEndsTheConfiguredSchedule) {

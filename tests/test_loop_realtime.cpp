@@ -22,6 +22,7 @@
 #include <utility>
 #include <vector>
 
+#include "pneu/backends/factory.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/loop.hpp"
@@ -29,7 +30,7 @@
 #include "pneu/controller/spsc_queue.hpp"
 #include "pneu/controller/timing_stats.hpp"
 #include "pneu/hal/backend.hpp"
-#include "pneu/sim_plant/valve.hpp"
+#include "pneu/model/valve.hpp"
 
 namespace {
 
@@ -132,12 +133,15 @@ void reset_counters() {
 // reference to the config, so this object stays where it was built.
 struct DefaultRun {
   config::Config config = config::load_string(config::default_config_yaml());
-  plant::ValveModel valve{config.plant.valve, config.plant.gas};
-  controller::SimulatedRun run;
+  model::ValveModel valve{config.plant.valve, config.plant.gas};
+  controller::Run run;
+  const hal::SimBackend* bench = nullptr;  // the simulated truth, owned by the run
 
   DefaultRun() {
     controller::resolve_offset(config, valve);
-    run = controller::make_simulated_run(config, valve);
+    auto sim = backends::make_sim_backend(config);
+    bench = sim.get();
+    run = controller::make_run(config, valve, std::move(sim));
   }
   DefaultRun(const DefaultRun&) = delete;
   DefaultRun& operator=(const DefaultRun&) = delete;
@@ -227,7 +231,7 @@ TEST(ControlLoop, CountsDroppedTickRecordsAndKeepsTickingWhenNobodyDrains) {
   EXPECT_EQ(run.outputs->ticks_dropped, kExtra);  // the queue held exactly its capacity
   // The loop went on controlling while its records were dropped: the set point stepped at 1 s and
   // the carriage followed it (it started at 219.5 mm, the set point is 170 mm).
-  EXPECT_LT(run.backend->plant().state().y_m, 0.19);
+  EXPECT_LT(d.bench->plant().state().y_m, 0.19);
 
   // The reader sees the loss as one gap in the sequence numbers once the loop's records flow again.
   run.runtime->drain(*run.outputs);
@@ -349,7 +353,7 @@ TEST(ControlLoop, CountsBackendFailuresAndHandsThemToHealth) {
   config.controller.schedule.clear();
   FlakyBackend backend;
   auto outputs = std::make_unique<pneu::controller::LoopOutputs>();
-  pneu::controller::ControlLoop loop(config, backend, *outputs);
+  pneu::controller::ControlLoop loop(pneu::controller::LoopParams::from(config), backend, *outputs);
   pneu::controller::SimulatedClock clock;
   pneu::controller::LoopTiming timing;
   const std::atomic<bool> never{false};
@@ -365,7 +369,7 @@ TEST(ControlLoop, CountsBackendFailuresAndHandsThemToHealth) {
   EXPECT_TRUE(last.is_final);
   EXPECT_EQ(last.comms_errors, 60u) << "the last health record saw every failure so far";
   EXPECT_EQ(last.mode, pneu::controller::Mode::kFault) << "50 ms of stale samples latch the comms fault";
-  EXPECT_EQ(last.fault_cause, pneu::controller::kFaultComms);
+  EXPECT_EQ(last.fault_cause, pneu::controller::FaultCause::kComms);
 }
 
 }  // namespace
@@ -397,7 +401,7 @@ TEST_P(LoopDeadlines, AreEachTickedOrSkippedOnceWhereverAStallComes) {
   config.controller.supervisor.max_tick_interval_s = 0.0;
   FlakyBackend backend;
   auto outputs = std::make_unique<pneu::controller::LoopOutputs>();
-  pneu::controller::ControlLoop loop(config, backend, *outputs);
+  pneu::controller::ControlLoop loop(pneu::controller::LoopParams::from(config), backend, *outputs);
   StallingClock clock;
   pneu::controller::LoopTiming timing;
   const std::atomic<bool> never{false};
@@ -432,7 +436,7 @@ long slack_while_ticking(pneu::controller::Clock& clock) {
     auto config = pneu::config::load_string(pneu::config::default_config_yaml());
     FlakyBackend backend;
     auto outputs = std::make_unique<pneu::controller::LoopOutputs>();
-    pneu::controller::ControlLoop loop(config, backend, *outputs);
+    pneu::controller::ControlLoop loop(pneu::controller::LoopParams::from(config), backend, *outputs);
     pneu::controller::LoopTiming timing;
     const std::atomic<bool> never{false};
     pneu::controller::run_loop(loop, clock, 1e-3, 3, never, timing, [&] { during = timer_slack_ns(); });

@@ -22,12 +22,13 @@
 #include <string>
 #include <vector>
 
+#include "pneu/backends/factory.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/runtime.hpp"
 #include "pneu/controller/session.hpp"
 #include "pneu/controller/verdict.hpp"
-#include "pneu/sim_plant/valve_table.hpp"
+#include "pneu/model/valve_table.hpp"
 
 namespace {
 
@@ -43,23 +44,21 @@ constexpr double kNonlinearBoundPercent = 1.0;
 constexpr double kLinearizedBoundPercent = 5.0;
 constexpr double kShortStickingBound_s = 0.010;  // both methods, below kLongSticking_s
 
-// One complete simulated run. The loop keeps a reference to `config`: built in place, never moved.
+// One complete simulated run.
 struct PaperRun {
   config::Config config;
-  std::unique_ptr<plant::ValveCharacteristic> valve;
-  controller::SimulatedRun run;
+  std::unique_ptr<model::ValveCharacteristic> valve;
+  controller::Run run;
 
   explicit PaperRun(const std::vector<std::string>& overrides = {})
       : config(config::load_string(config::default_config_yaml(), overrides)),
         valve(controller::make_valve_characteristic(config, {})) {
     controller::resolve_offset(config, *valve);
-    run = controller::make_simulated_run(config, *valve);
+    run = controller::make_run(config, *valve, backends::make_sim_backend(config));
     controller::SimulatedClock clock;
     const std::atomic<bool> never_stop{false};
     controller::execute(run, config, clock, never_stop);
   }
-  PaperRun(const PaperRun&) = delete;
-  PaperRun& operator=(const PaperRun&) = delete;
 
   [[nodiscard]] const std::vector<StopOutcome>& stops() const { return run.runtime->stops(); }
   [[nodiscard]] double t_end_s() const { return run.runtime->end_time_s(); }
@@ -205,7 +204,7 @@ TEST(PaperScenario, ForecastsFromAMeasuredValveTableMeetTheSameCriteria) {
 
   const PaperRun r({"controller.predictor.valve_table=" + table.string()});
   // The forecasts really came from the table, not from the model.
-  ASSERT_NE(dynamic_cast<const plant::ValveTable*>(r.valve.get()), nullptr);
+  ASSERT_NE(dynamic_cast<const model::ValveTable*>(r.valve.get()), nullptr);
   EXPECT_TRUE(has_long_sticking_phase_ending_in_restart(r));
   expect_all_forecasts_meet_criteria(r);
 }

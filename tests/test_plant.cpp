@@ -8,14 +8,17 @@
 #include <utility>
 #include <vector>
 
-#include "pneu/sim_plant/params.hpp"
+#include "pneu/model/params.hpp"
+#include "pneu/model/valve.hpp"
 #include "pneu/sim_plant/plant.hpp"
-#include "pneu/sim_plant/valve.hpp"
 
 namespace pneu::plant {
 namespace {
 
 using Kind = PlantEvent::Kind;
+using model::equilibrium_force_n;
+using model::equilibrium_voltage_v;
+using model::PlantParams;
 
 constexpr double kSampleS = 1.0e-3;  // the bench's sample period (docs/model.md section 7)
 constexpr double kExhaustPa = 1.0e5;

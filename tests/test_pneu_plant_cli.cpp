@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
+#include "pneu/model/valve_table.hpp"
 #include "pneu/sim_plant/plant.hpp"
-#include "pneu/sim_plant/valve_table.hpp"
 
 #include "support/child_process.hpp"
 
@@ -107,7 +107,7 @@ TEST_F(PneuPlantCli, SimulateWritesOneRowPerSampleTakenBeforeTheSamplesInputIsAp
 
   // The same run with the model directly: initial pressures at p_null(u), p_null(-u) of the first
   // sample, input held between samples.
-  const pneu::plant::PlantParams params;  // == config/sim.yaml (the embedded default)
+  const pneu::model::PlantParams params;  // == config/sim.yaml (the embedded default)
   pneu::plant::Plant plant(params);
   plant.reset_at_rest(0.2195, -0.19);
   EXPECT_NEAR(data[0][3], plant.valve().null_pressure_pa(-0.19), 1e-3);
@@ -208,12 +208,12 @@ TEST_F(PneuPlantCli, CharacterizeValveWritesATableThePredictorCanLoad) {
   const fs::path out = dir_ / "valve.csv";
   const Outcome r = run("characterize-valve --voltage-step-v 0.5 --pressure-step-pa 10000 --out " + out.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  const auto table = pneu::plant::ValveTable::load(out);
+  const auto table = pneu::model::ValveTable::load(out);
   // -10..10 V by 0.5 V holds 0 and both ends; 1e5..7e5 Pa by 1e4 Pa.
   EXPECT_EQ(table.voltages_v().size(), 41u);
   EXPECT_EQ(table.pressures_pa().size(), 61u);
-  const pneu::plant::PlantParams params;
-  const pneu::plant::ValveModel model(params.valve, params.gas);
+  const pneu::model::PlantParams params;
+  const pneu::model::ValveModel model(params.valve, params.gas);
   for (double w : {-10.0, -0.5, 0.0, 1.5, 10.0})
     for (double p : {1.0e5, 3.5e5, 7.0e5})
       EXPECT_NEAR(table.mass_flow_kg_per_s(w, p), model.mass_flow_kg_per_s(w, p),
@@ -230,8 +230,8 @@ TEST_F(PneuPlantCli, NullFlowCurveIsTheEquilibriumForceOfEquation7) {
   const auto data = rows(slurp(out), &header);
   EXPECT_EQ(header, "u_v,p_null_p_pa,p_null_n_pa,x_n,y_n,equilibrium_force_n");
   ASSERT_EQ(data.size(), 41u);
-  const pneu::plant::PlantParams params;
-  const pneu::plant::ValveModel model(params.valve, params.gas);
+  const pneu::model::PlantParams params;
+  const pneu::model::ValveModel model(params.valve, params.gas);
   const auto& g = params.geometry;
   // The file holds 10 significant digits: forces of a few hundred newtons to about 1e-7 N.
   for (const auto& row : data) {

@@ -17,8 +17,8 @@
 #include <string>
 
 #include "pneu/controller/predictor.hpp"
-#include "pneu/sim_plant/params.hpp"
-#include "pneu/sim_plant/valve.hpp"
+#include "pneu/model/params.hpp"
+#include "pneu/model/valve.hpp"
 
 namespace pneu::controller {
 
@@ -45,7 +45,7 @@ constexpr double kStopTimeS = 2.345;  // an arbitrary snapshot time: results are
 constexpr double kStopPositionM = 0.1717;
 
 // q(w, p) = g (p_null(w) - p), p_null(w) = a + b w: 2 to 6 bar over +-10 V.
-class LinearValve final : public plant::ValveCharacteristic {
+class LinearValve final : public model::ValveCharacteristic {
  public:
   static constexpr double kConductance = 7.0e-9;     // g = -dq/dp [kg/(s Pa)]: tau_P ~ 0.5 s
   static constexpr double kNullAtZeroPa = 4.0e5;     // a
@@ -358,11 +358,11 @@ class PredictorWithValveModel : public testing::TestWithParam<PredictionMethod> 
     m.valve = &valve_;
     return m;
   }
-  const plant::ValveModel& valve() const { return valve_; }
+  const model::ValveModel& valve() const { return valve_; }
 
  private:
-  plant::PlantParams params_;
-  plant::ValveModel valve_{params_.valve, params_.gas};
+  model::PlantParams params_;
+  model::ValveModel valve_{params_.valve, params_.gas};
 };
 
 INSTANTIATE_TEST_SUITE_P(BothMethods, PredictorWithValveModel,
@@ -382,7 +382,7 @@ StopSnapshot realistic_stop() {
 }
 
 // p_null(w) by bisection of the valve's flow (decreasing in p) over [p_E, p_S], to 6e5 / 2^60 Pa.
-double null_pressure_by_bisection(const plant::ValveCharacteristic& valve, double w) {
+double null_pressure_by_bisection(const model::ValveCharacteristic& valve, double w) {
   double lo = kExhaustPa, hi = kSupplyPa;
   for (int i = 0; i < 60; ++i) {
     const double mid = 0.5 * (lo + hi);
@@ -393,7 +393,7 @@ double null_pressure_by_bisection(const plant::ValveCharacteristic& valve, doubl
 
 // -dq/dp by central difference, step 10 Pa: both stop pressures are in smooth (subsonic or choked)
 // parts of the ISO 6358 law, far from the laminar knee, so truncation and rounding are < 1e-9.
-double flow_slope_by_difference(const plant::ValveCharacteristic& valve, double w, double p) {
+double flow_slope_by_difference(const model::ValveCharacteristic& valve, double w, double p) {
   constexpr double h = 10.0;
   return -(valve.mass_flow_kg_per_s(w, p + h) - valve.mass_flow_kg_per_s(w, p - h)) / (2.0 * h);
 }
@@ -426,7 +426,7 @@ struct BruteForceRestart {
   double delay_s = std::numeric_limits<double>::quiet_NaN();
   int direction = 0;
 };
-BruteForceRestart integrate_until_restart(const plant::ValveCharacteristic& valve,
+BruteForceRestart integrate_until_restart(const model::ValveCharacteristic& valve,
                                           const StopSnapshot& s, double t_max_s) {
   constexpr double dt = 1.0e-5;
   const double gain_p = kKrT / volume_p(s.y_m), gain_n = kKrT / volume_n(s.y_m);
@@ -466,8 +466,8 @@ struct ValveModelBench {
   ValveModelBench() = default;
   ValveModelBench(const ValveModelBench&) = delete;
   ValveModelBench& operator=(const ValveModelBench&) = delete;
-  plant::PlantParams params;
-  plant::ValveModel valve{params.valve, params.gas};
+  model::PlantParams params;
+  model::ValveModel valve{params.valve, params.gas};
   PredictorModel model = [this] {
     PredictorModel m;
     m.valve = &valve;

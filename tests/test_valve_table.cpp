@@ -8,11 +8,11 @@
 #include <string>
 #include <vector>
 
-#include "pneu/sim_plant/params.hpp"
-#include "pneu/sim_plant/valve.hpp"
-#include "pneu/sim_plant/valve_table.hpp"
+#include "pneu/model/params.hpp"
+#include "pneu/model/valve.hpp"
+#include "pneu/model/valve_table.hpp"
 
-namespace pneu::plant {
+namespace pneu::model {
 namespace {
 
 using ::testing::HasSubstr;
@@ -170,4 +170,4 @@ TEST(ValveTable, ConstructorRejectsAFlowCountNotMatchingTheGrid) {
 }
 
 }  // namespace
-}  // namespace pneu::plant
+}  // namespace pneu::model

@@ -23,6 +23,11 @@ double RealClock::now_s() noexcept { return monotonic_s() - epoch_s_; }
 
 void RealClock::sleep_until(double t_s) noexcept { hal::sleep_until_monotonic_s(epoch_s_ + t_s); }
 
+std::unique_ptr<Clock> make_clock(config::ClockKind kind) {
+  if (kind == config::ClockKind::kReal) return std::make_unique<RealClock>();
+  return std::make_unique<SimulatedClock>();
+}
+
 void RealClock::prepare_loop_thread() noexcept {
   // Cannot fail for a value above 0 (0 would restore the default slack).
   (void)prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);

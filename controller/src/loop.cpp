@@ -1,6 +1,7 @@
 #include "pneu/controller/loop.hpp"
 
 #include <algorithm>
+#include <utility>
 
 namespace pneu::controller {
 
@@ -9,37 +10,33 @@ namespace {
 constexpr double kEndStopTolerance_m = 1.0e-4;
 }  // namespace
 
-ControlLoop::ControlLoop(const config::Config& config, hal::Backend& backend, LoopOutputs& outputs)
-    : config_(config),
-      backend_(backend),
-      out_(outputs),
-      schedule_(config.controller.schedule),
-      law_(config.controller.law),
-      differentiator_(config.controller.differentiator, config.controller.period_s()),
-      detector_(config.controller.stop_detector, config.controller.period_s()),
-      half_stroke_m_(config.plant.geometry.half_stroke_m()),
-      area_p_m2_(config.plant.geometry.area_p_m2()),
-      area_n_m2_(config.plant.geometry.area_n_m2()),
-      area_rod_m2_(config.plant.geometry.area_rod_m2()),
-      p_e_pa_(config.plant.gas.exhaust_pressure_pa),
-      supervisor_(config) {}
+ControlLoop::ControlLoop(LoopParams params, hal::Backend& backend, LoopOutputs& outputs)
+    : params_(std::move(params)),
+      backend_(&backend),
+      out_(&outputs),
+      law_(params_.controller.law),
+      differentiator_(params_.controller.differentiator, params_.controller.period_s()),
+      detector_(params_.controller.stop_detector, params_.controller.period_s()),
+      half_stroke_m_(params_.geometry.half_stroke_m()),
+      force_(params_.geometry, params_.exhaust_pressure_pa),
+      supervisor_(params_) {}
 
 void ControlLoop::start(double t0_s) {
-  backend_.open(t0_s);
+  backend_->open(t0_s);
   seq_ = 0;
   comms_errors_ = 0;
   next_step_ = 0;
   stops_ = 0;
-  y_d_m_ = config_.controller.initial_setpoint_m;
-  mode_ = config_.controller.start_armed ? Mode::kArmed : Mode::kDisarmed;
-  fault_cause_ = kFaultNone;
+  y_d_m_ = params_.controller.initial_setpoint_m;
+  mode_ = params_.controller.start_armed ? Mode::kArmed : Mode::kDisarmed;
+  fault_cause_ = FaultCause::kNone;
   faults_ = 0;
   schedule_active_ = true;
-  out_.setpoint_m.store(y_d_m_, std::memory_order_relaxed);
-  out_.mode.store(static_cast<std::uint8_t>(mode_), std::memory_order_relaxed);
-  out_.fault_cause.store(kFaultNone, std::memory_order_relaxed);
+  out_->setpoint_m.store(y_d_m_, std::memory_order_relaxed);
+  out_->mode.store(mode_, std::memory_order_relaxed);
+  out_->fault_cause.store(FaultCause::kNone, std::memory_order_relaxed);
   hal::SensorFrame frame;
-  (void)backend_.read(t0_s, frame);
+  (void)backend_->read(t0_s, frame);
   differentiator_.reset(frame.y_m);
   detector_.reset_at_rest(t0_s, frame.y_m);
   detector_last_y_ = frame.y_m;
@@ -52,15 +49,15 @@ void ControlLoop::start(double t0_s) {
 
 void ControlLoop::push(LoopEvent e) noexcept {
   e.tick_seq = seq_;  // the record of this tick, pushed at its end, carries seq_
-  if (!out_.events.try_push(e)) ++out_.events_dropped;
+  if (!out_->events.try_push(e)) ++out_->events_dropped;
 }
 
 // Commands were validated off the loop; here they only take effect. A set point leaves the soft
 // limits only through a step that the validator could not foresee: clamp it.
 void ControlLoop::apply_commands(double y_m) noexcept {
-  const auto& c = config_.controller;
+  const auto& c = params_.controller;
   LoopCommand cmd;
-  while (out_.commands.try_pop(cmd)) {
+  while (out_->commands.try_pop(cmd)) {
     switch (cmd.kind) {
       case LoopCommand::Kind::kSetPoint:
         if (mode_ == Mode::kFault) break;  // queued before the fault: stale now
@@ -106,7 +103,7 @@ void ControlLoop::apply_commands(double y_m) noexcept {
             e.kind = LoopEvent::Kind::kFaultReset;
             e.fault_cause = fault_cause_;
             mode_ = Mode::kDisarmed;
-            fault_cause_ = kFaultNone;
+            fault_cause_ = FaultCause::kNone;
           }
           push(e);
         }
@@ -115,7 +112,7 @@ void ControlLoop::apply_commands(double y_m) noexcept {
   }
 }
 
-void ControlLoop::latch_fault(std::uint8_t cause, double t_s, double y_m) noexcept {
+void ControlLoop::latch_fault(FaultCause cause, double t_s, double y_m) noexcept {
   if (mode_ == Mode::kFault) return;
   mode_ = Mode::kFault;
   fault_cause_ = cause;
@@ -133,7 +130,7 @@ void ControlLoop::latch_fault(std::uint8_t cause, double t_s, double y_m) noexce
 void ControlLoop::tick(double t_s) noexcept {
   t_s_ = t_s;
   hal::SensorFrame frame;
-  const hal::Status status = backend_.read(t_s, frame);
+  const hal::Status status = backend_->read(t_s, frame);
   if (status != hal::Status::kOk) ++comms_errors_;  // counted for health
 
   // The supervisor, first on the sample: e-stop, readings, comms. A fault latches the safe output
@@ -142,27 +139,28 @@ void ControlLoop::tick(double t_s) noexcept {
   st.t_s = t_s;
   st.status = status;
   st.frame = &frame;
-  if (const FaultCause cause = supervisor_.check_sample(st); cause != kFaultNone) latch_fault(cause, t_s, frame.y_m);
+  if (const FaultCause cause = supervisor_.check_sample(st); cause != FaultCause::kNone) latch_fault(cause, t_s, frame.y_m);
   const bool read_ok = supervisor_.sample_good();
   const double y_measured_m = frame.y_m;
   // Without a good sample, keep the last position: a stale or invalid value must not reach the
   // differentiator or the detector.
   if (!read_ok) frame.y_m = detector_last_y_;
   apply_commands(frame.y_m);
-  while (schedule_active_ && next_step_ < schedule_.size() && schedule_[next_step_].t_s <= t_s + 1e-9)
-    y_d_m_ = schedule_[next_step_++].position_m;
+  const auto& schedule = params_.controller.schedule;
+  while (schedule_active_ && next_step_ < schedule.size() && schedule[next_step_].t_s <= t_s + 1e-9)
+    y_d_m_ = schedule[next_step_++].position_m;
   // ... then on the motion, with this tick's commands and set point in force: soft limits,
   // following error, timing, the set-point stream.
   st.armed = mode_ == Mode::kArmed;
   st.y_d_m = y_d_m_;
   st.last_setpoint_t_s = last_setpoint_t_s_;
-  if (const FaultCause cause = supervisor_.check_motion(st); cause != kFaultNone) latch_fault(cause, t_s, y_measured_m);
+  if (const FaultCause cause = supervisor_.check_motion(st); cause != FaultCause::kNone) latch_fault(cause, t_s, y_measured_m);
 
   // Differentiate new samples only (a slow link repeats them), over the ticks since the last new
   // one: the loop's period keeps the arrival jitter of the samples out of the derivatives.
   ++ticks_since_sample_;
   if (read_ok && frame.fresh) {
-    differentiator_.update(frame.y_m, static_cast<double>(ticks_since_sample_) * config_.controller.period_s());
+    differentiator_.update(frame.y_m, static_cast<double>(ticks_since_sample_) * params_.controller.period_s());
     ticks_since_sample_ = 0;
   }
   detector_last_y_ = frame.y_m;
@@ -171,15 +169,15 @@ void ControlLoop::tick(double t_s) noexcept {
   // Valve power follows the armed state. Disarmed, the outputs sit at the neutral voltage u_0
   // (F_e(u_0) = 0: the chambers hold); in fault, at the configured safe output.
   const bool armed = mode_ == Mode::kArmed;
-  const double u = armed ? law_.control_v(y_d_m_, frame.y_m, v_hat, a_hat) : config_.controller.law.offset_v;
+  const double u = armed ? law_.control_v(y_d_m_, frame.y_m, v_hat, a_hat) : params_.controller.law.offset_v;
   const hal::ActuatorCommand command =
       mode_ == Mode::kFault ? safe_command() : hal::ActuatorCommand::from_control(u, armed);
-  if (backend_.write(command) != hal::Status::kOk) ++comms_errors_;
-  out_.setpoint_m.store(y_d_m_, std::memory_order_relaxed);
-  out_.mode.store(static_cast<std::uint8_t>(mode_), std::memory_order_relaxed);
-  out_.fault_cause.store(fault_cause_, std::memory_order_relaxed);
+  if (backend_->write(command) != hal::Status::kOk) ++comms_errors_;
+  out_->setpoint_m.store(y_d_m_, std::memory_order_relaxed);
+  out_->mode.store(mode_, std::memory_order_relaxed);
+  out_->fault_cause.store(fault_cause_, std::memory_order_relaxed);
 
-  const double force = area_p_m2_ * frame.p_p_pa - area_n_m2_ * frame.p_n_pa - area_rod_m2_ * p_e_pa_;
+  const double force = force_.force_n(frame.p_p_pa, frame.p_n_pa);
   // Stops and starts are judged from good samples only (a snapshot must hold real pressures).
   switch (read_ok ? detector_.update(t_s, frame.y_m) : StopDetectorEvent::kNone) {
     case StopDetectorEvent::kStop: {
@@ -233,17 +231,17 @@ void ControlLoop::tick(double t_s) noexcept {
   r.stuck = detector_.stopped();
   r.mode = mode_;
   r.sensor_validity = frame.validity;
-  if (!out_.ticks.try_push(r)) ++out_.ticks_dropped;
-  out_.heartbeat.store(seq_, std::memory_order_release);
+  if (!out_->ticks.try_push(r)) ++out_->ticks_dropped;
+  out_->heartbeat.store(seq_, std::memory_order_release);
 }
 
 hal::ActuatorCommand ControlLoop::safe_command() const noexcept {
-  const auto& law = config_.controller.law;
-  if (config_.controller.supervisor.safe_output == config::SafeOutput::kExhaust)
+  const auto& law = params_.controller.law;
+  if (params_.controller.supervisor.safe_output == config::SafeOutput::kExhaust)
     return {-law.max_voltage_v, -law.max_voltage_v, false};  // both chambers to the exhaust
   return hal::ActuatorCommand::from_control(law.offset_v, false);
 }
 
-void ControlLoop::stop() noexcept { (void)backend_.write(safe_command()); }
+void ControlLoop::stop() noexcept { (void)backend_->write(safe_command()); }
 
 }  // namespace pneu::controller

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "pneu/model/pressure_force.hpp"
+
 namespace pneu::controller {
 
 namespace {
@@ -34,14 +36,14 @@ double margin(const Bounds& b, double force) noexcept {
 }
 
 struct Common {
-  double s_p, s_n, s_r, p_e, k_r_t, v_p, v_n;
-  double force(double p_p, double p_n) const noexcept { return s_p * p_p - s_n * p_n - s_r * p_e; }
+  model::PressureForce pressure_force;  // Eq. 14
+  double k_r_t, v_p, v_n;
+  double force(double p_p, double p_n) const noexcept { return pressure_force.force_n(p_p, p_n); }
 };
 
 Common common_of(const PredictorModel& m, const StopSnapshot& s) noexcept {
-  return {m.geometry.area_p_m2(), m.geometry.area_n_m2(), m.geometry.area_rod_m2(),
-          m.gas.exhaust_pressure_pa, m.gas.k_r_t(), m.geometry.volume_p_m3(s.y_m),
-          m.geometry.volume_n_m3(s.y_m)};
+  return {model::PressureForce(m.geometry, m.gas.exhaust_pressure_pa), m.gas.k_r_t(),
+          m.geometry.volume_p_m3(s.y_m), m.geometry.volume_n_m3(s.y_m)};
 }
 
 // Root of a function on [a, b] with f(a) <= 0 < f(b) (Illinois); returns the right end of the
@@ -108,7 +110,7 @@ struct P2 {
 // chamber relaxes on its own towards its null-flow pressure.
 struct PressureOde {
   const Common& c;
-  const plant::ValveCharacteristic& valve;
+  const model::ValveCharacteristic& valve;
   double u;
 
   P2 rhs(const P2& x) const noexcept {
@@ -151,8 +153,8 @@ Prediction predict_linearized(const PredictorModel& m, const StopSnapshot& s) no
   const Bounds b = bounds_of(m, s);
 
   // Eq. 17: F(x) = A e^{-x/tau_P} + B e^{-x/tau_N} + C, x = t - t_stop.
-  const double a = c.s_p * (s.p_p_pa - p.p_p_equilibrium_pa);
-  const double bb = -c.s_n * (s.p_n_pa - p.p_n_equilibrium_pa);
+  const double a = c.pressure_force.area_p_m2() * (s.p_p_pa - p.p_p_equilibrium_pa);
+  const double bb = -c.pressure_force.area_n_m2() * (s.p_n_pa - p.p_n_equilibrium_pa);
   const double cc = p.equilibrium_force_n;
   const double tp = p.tau_p_s, tn = p.tau_n_s;
   const auto force = [&](double x) {

@@ -119,7 +119,7 @@ void print_telemetry(std::FILE* out, const TelemetryFigures& t) {
                static_cast<ull>(c.mode));
 }
 
-void print_modbus(std::FILE* out, const ModbusFigures& m, double t_end_s) {
+void print_modbus(std::FILE* out, const hal::LinkReport& m, double t_end_s) {
   std::fprintf(out,
                "modbus: %llu transactions (%.0f per second), %llu errors, %llu reconnects, %llu samples out of range, "
                "%llu stale reads, oldest sample %.2f ms%s%s\n",

@@ -6,23 +6,23 @@
 
 namespace pneu::controller {
 
-std::unique_ptr<plant::ValveCharacteristic> make_valve_characteristic(
+std::unique_ptr<model::ValveCharacteristic> make_valve_characteristic(
     const config::Config& config, const std::filesystem::path& config_dir) {
   const std::string& table = config.controller.predictor.valve_table;
   if (table.empty())
-    return std::make_unique<plant::ValveModel>(config.plant.valve, config.plant.gas);
+    return std::make_unique<model::ValveModel>(config.plant.valve, config.plant.gas);
   std::filesystem::path path(table);
   if (path.is_relative() && !config_dir.empty()) path = config_dir / path;
-  return std::make_unique<plant::ValveTable>(plant::ValveTable::load(path));
+  return std::make_unique<model::ValveTable>(model::ValveTable::load(path));
 }
 
-void resolve_offset(config::Config& config, const plant::ValveCharacteristic& valve) {
+void resolve_offset(config::Config& config, const model::ValveCharacteristic& valve) {
   if (config.controller.offset_auto)
     config.controller.law.offset_v =
-        plant::equilibrium_voltage_v(valve, config.plant.geometry, config.plant.gas.exhaust_pressure_pa);
+        model::equilibrium_voltage_v(valve, config.plant.geometry, config.plant.gas.exhaust_pressure_pa);
 }
 
-PredictorModel predictor_model(const config::Config& config, const plant::ValveCharacteristic& valve) {
+PredictorModel predictor_model(const config::Config& config, const model::ValveCharacteristic& valve) {
   PredictorModel m;
   m.geometry = config.plant.geometry;
   m.gas = config.plant.gas;
@@ -33,43 +33,20 @@ PredictorModel predictor_model(const config::Config& config, const plant::ValveC
   return m;
 }
 
-std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config) {
-  const ControlLaw law(config.controller.law);
-  const double u_initial =
-      law.resting_control_v(config.controller.initial_setpoint_m, config.simulation.initial_position_m);
-  return std::make_unique<hal::SimBackend>(config.plant, config.sensors, config.simulation.initial_position_m,
-                                           u_initial);
-}
-
-namespace {
-// The loop, its outputs and the runtime around `backend`.
-void assemble(SimulatedRun& run, const config::Config& config, const plant::ValveCharacteristic& valve,
-              hal::Backend& backend) {
+Run make_run(const config::Config& config, const model::ValveCharacteristic& valve,
+             std::unique_ptr<hal::Backend> backend) {
+  Run run;
+  run.backend = std::move(backend);
   run.outputs = std::make_unique<LoopOutputs>();
-  run.loop = std::make_unique<ControlLoop>(config, backend, *run.outputs);
+  run.loop = std::make_unique<ControlLoop>(LoopParams::from(config), *run.backend, *run.outputs);
   const auto& p = config.controller.predictor;
   run.runtime = std::make_unique<Runtime>(predictor_model(config, valve), p.linearized, p.nonlinear,
                                           p.update_period_s);
   run.runtime->set_control_law(ControlLaw(config.controller.law));  // offset resolved by now
-}
-}  // namespace
-
-SimulatedRun make_simulated_run(const config::Config& config, const plant::ValveCharacteristic& valve) {
-  SimulatedRun run;
-  run.backend = make_sim_backend(config);
-  assemble(run, config, valve, *run.backend);
   return run;
 }
 
-SimulatedRun make_hardware_run(const config::Config& config, const plant::ValveCharacteristic& valve,
-                               std::unique_ptr<hal::Backend> backend) {
-  SimulatedRun run;
-  run.hardware = std::move(backend);
-  assemble(run, config, valve, *run.hardware);
-  return run;
-}
-
-void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
+void execute(Run& run, const config::Config& config, Clock& clock,
              const std::atomic<bool>& stop_requested,
              const std::function<void(int timeout_ms)>& wait_for_input,
              const std::function<void()>& on_loop_thread) {
@@ -95,7 +72,7 @@ void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
     } catch (...) {  // the backend failed to open, or the real-time set-up was refused: the safe
                      // output, the backend closed, the service thread stopped, then report
       run.loop->stop();
-      if (run.hardware) run.hardware->close();
+      run.backend->close();
       done.store(true, std::memory_order_release);
       service.join();
       throw;
@@ -105,7 +82,7 @@ void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
     service.join();
   }
   run.loop->stop();
-  if (run.hardware) run.hardware->close();
+  run.backend->close();
   run.runtime->drain(*run.outputs);
   run.runtime->finish(run.runtime->end_time_s());
 }

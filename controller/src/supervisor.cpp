@@ -8,53 +8,53 @@ namespace pneu::controller {
 namespace {
 // Keeps the first cause a check reports in a tick: the order of the checks is their priority.
 struct FirstCause {
-  FaultCause cause = kFaultNone;
+  FaultCause cause = FaultCause::kNone;
   void operator()(FaultCause c) noexcept {
-    if (cause == kFaultNone) cause = c;
+    if (cause == FaultCause::kNone) cause = c;
   }
 };
 }  // namespace
 
-const char* fault_name(std::uint8_t cause) noexcept {
+const char* fault_name(FaultCause cause) noexcept {
   switch (cause) {
-    case kFaultNone: return "none";
-    case kFaultEStop: return "e-stop";
-    case kFaultComms: return "comms";
-    case kFaultSensorRange: return "sensor-range";
-    case kFaultSensorNonFinite: return "sensor-non-finite";
-    case kFaultSensorFrozen: return "sensor-frozen";
-    case kFaultSensorJump: return "sensor-jump";
-    case kFaultSoftLimit: return "soft-limit";
-    case kFaultFollowingError: return "following-error";
-    case kFaultOverrun: return "overrun";
-    case kFaultCommandTimeout: return "command-timeout";
+    case FaultCause::kNone: return "none";
+    case FaultCause::kEStop: return "e-stop";
+    case FaultCause::kComms: return "comms";
+    case FaultCause::kSensorRange: return "sensor-range";
+    case FaultCause::kSensorNonFinite: return "sensor-non-finite";
+    case FaultCause::kSensorFrozen: return "sensor-frozen";
+    case FaultCause::kSensorJump: return "sensor-jump";
+    case FaultCause::kSoftLimit: return "soft-limit";
+    case FaultCause::kFollowingError: return "following-error";
+    case FaultCause::kOverrun: return "overrun";
+    case FaultCause::kCommandTimeout: return "command-timeout";
     default: return "unknown";
   }
 }
 
-const char* fault_text(std::uint8_t cause) noexcept {
+const char* fault_text(FaultCause cause) noexcept {
   switch (cause) {
-    case kFaultEStop: return "e-stop pressed: valve power off, safe output until a fault reset once released";
-    case kFaultComms: return "sensor samples stale, lost or unreadable (controller.comms_fault_after_s): safe output until a fault reset with good samples";
-    case kFaultSensorRange: return "a sensor reading is out of range (controller.supervisor position/pressure range, or the converter's raw range: a rail, a broken wire)";
-    case kFaultSensorNonFinite: return "a sensor reading is not a finite number";
-    case kFaultSensorFrozen: return "a pressure reading has not changed for controller.supervisor.frozen_after_s: sensor or converter frozen";
-    case kFaultSensorJump: return "the position jumped faster than controller.supervisor.max_speed_m_per_s allows: sensor fault";
-    case kFaultSoftLimit: return "armed, the position left the soft limits by more than controller.supervisor.overtravel_m";
-    case kFaultFollowingError: return "following error: |y_d - y| above controller.supervisor.following_error_m for longer than following_error_s";
-    case kFaultOverrun: return "the loop overran its deadlines (controller.supervisor.overruns_in_a_row or max_tick_interval_s)";
-    case kFaultCommandTimeout: return "armed, no set point for commands.setpoint_stream_timeout_s: the set-point stream fell silent";
+    case FaultCause::kEStop: return "e-stop pressed: valve power off, safe output until a fault reset once released";
+    case FaultCause::kComms: return "sensor samples stale, lost or unreadable (controller.comms_fault_after_s): safe output until a fault reset with good samples";
+    case FaultCause::kSensorRange: return "a sensor reading is out of range (controller.supervisor position/pressure range, or the converter's raw range: a rail, a broken wire)";
+    case FaultCause::kSensorNonFinite: return "a sensor reading is not a finite number";
+    case FaultCause::kSensorFrozen: return "a pressure reading has not changed for controller.supervisor.frozen_after_s: sensor or converter frozen";
+    case FaultCause::kSensorJump: return "the position jumped faster than controller.supervisor.max_speed_m_per_s allows: sensor fault";
+    case FaultCause::kSoftLimit: return "armed, the position left the soft limits by more than controller.supervisor.overtravel_m";
+    case FaultCause::kFollowingError: return "following error: |y_d - y| above controller.supervisor.following_error_m for longer than following_error_s";
+    case FaultCause::kOverrun: return "the loop overran its deadlines (controller.supervisor.overruns_in_a_row or max_tick_interval_s)";
+    case FaultCause::kCommandTimeout: return "armed, no set point for commands.setpoint_stream_timeout_s: the set-point stream fell silent";
     default: return "fault";
   }
 }
 
-Supervisor::Supervisor(const config::Config& config)
-    : cfg_(config.controller.supervisor),
-      period_s_(config.controller.period_s()),
-      comms_fault_after_s_(config.controller.comms_fault_after_s),
-      soft_min_m_(config.controller.soft_limit_min_m),
-      soft_max_m_(config.controller.soft_limit_max_m),
-      stream_timeout_s_(config.commands.setpoint_stream_timeout_s) {}
+Supervisor::Supervisor(const LoopParams& params)
+    : cfg_(params.controller.supervisor),
+      period_s_(params.controller.period_s()),
+      comms_fault_after_s_(params.controller.comms_fault_after_s),
+      soft_min_m_(params.controller.soft_limit_min_m),
+      soft_max_m_(params.controller.soft_limit_max_m),
+      stream_timeout_s_(params.setpoint_stream_timeout_s) {}
 
 void Supervisor::reset(double t_s) noexcept {
   estop_ = false;
@@ -77,18 +77,18 @@ void Supervisor::note_overrun(bool overran) noexcept {
 
 FaultCause Supervisor::check_reading(const hal::SensorFrame& f) noexcept {
   using namespace hal;
-  if (!std::isfinite(f.y_m) || !std::isfinite(f.p_p_pa) || !std::isfinite(f.p_n_pa)) return kFaultSensorNonFinite;
-  if ((f.validity & (kPositionInvalid | kPressurePInvalid | kPressureNInvalid)) != 0) return kFaultSensorRange;
-  if (f.y_m < cfg_.position_min_m || f.y_m > cfg_.position_max_m) return kFaultSensorRange;
+  if (!std::isfinite(f.y_m) || !std::isfinite(f.p_p_pa) || !std::isfinite(f.p_n_pa)) return FaultCause::kSensorNonFinite;
+  if ((f.validity & (kPositionInvalid | kPressurePInvalid | kPressureNInvalid)) != 0) return FaultCause::kSensorRange;
+  if (f.y_m < cfg_.position_min_m || f.y_m > cfg_.position_max_m) return FaultCause::kSensorRange;
   for (const double p : {f.p_p_pa, f.p_n_pa})
-    if (p < cfg_.pressure_min_pa || p > cfg_.pressure_max_pa) return kFaultSensorRange;
-  return kFaultNone;
+    if (p < cfg_.pressure_min_pa || p > cfg_.pressure_max_pa) return FaultCause::kSensorRange;
+  return FaultCause::kNone;
 }
 
 FaultCause Supervisor::check(const SupervisedTick& tick) noexcept {
   const FaultCause sample = check_sample(tick);
   const FaultCause motion = check_motion(tick);
-  return sample != kFaultNone ? sample : motion;
+  return sample != FaultCause::kNone ? sample : motion;
 }
 
 FaultCause Supervisor::check_sample(const SupervisedTick& tick) noexcept {
@@ -97,22 +97,22 @@ FaultCause Supervisor::check_sample(const SupervisedTick& tick) noexcept {
   FirstCause first;
 
   estop_ = f.estop;
-  if (estop_) first(kFaultEStop);
+  if (estop_) first(FaultCause::kEStop);
 
   // The sample: a reading that is there but wrong is a sensor fault at once; a sample that is
   // missing or old is a comms fault once it has lasted comms_fault_after_s.
   const bool delivered = tick.status == hal::Status::kOk &&
                          (f.validity & (hal::kSampleStale | hal::kCommsError)) == 0;
-  const FaultCause reading = delivered ? check_reading(f) : kFaultNone;
-  sample_good_ = delivered && reading == kFaultNone;
-  sample_cause_ = sample_good_ ? kFaultNone : delivered ? reading : kFaultComms;
+  const FaultCause reading = delivered ? check_reading(f) : FaultCause::kNone;
+  sample_good_ = delivered && reading == FaultCause::kNone;
+  sample_cause_ = sample_good_ ? FaultCause::kNone : delivered ? reading : FaultCause::kComms;
   if (!sample_good_) {
     if (bad_since_s_ < 0.0) bad_since_s_ = t;
   } else {
     bad_since_s_ = -1.0;
   }
   first(reading);
-  if (!delivered && bad_since_s_ >= 0.0 && t - bad_since_s_ >= comms_fault_after_s_ - 1e-9) first(kFaultComms);
+  if (!delivered && bad_since_s_ >= 0.0 && t - bad_since_s_ >= comms_fault_after_s_ - 1e-9) first(FaultCause::kComms);
 
   if (sample_good_ && f.fresh) {
     // The position sensor jumped: further than the fastest plausible motion since the last good
@@ -120,7 +120,7 @@ FaultCause Supervisor::check_sample(const SupervisedTick& tick) noexcept {
     // fast link are judged over a period).
     if (cfg_.max_speed_m_per_s > 0.0 && have_last_y_) {
       const double dt = std::max(f.t_s - last_y_t_s_, period_s_);
-      if (std::abs(f.y_m - last_y_m_) > cfg_.max_speed_m_per_s * dt) first(kFaultSensorJump);
+      if (std::abs(f.y_m - last_y_m_) > cfg_.max_speed_m_per_s * dt) first(FaultCause::kSensorJump);
     }
     have_last_y_ = true;
     last_y_m_ = f.y_m;
@@ -141,7 +141,7 @@ FaultCause Supervisor::check_sample(const SupervisedTick& tick) noexcept {
   if (sample_good_) {
     frozen_ = cfg_.frozen_after_s > 0.0 &&
               (t - p_p_changed_s_ > cfg_.frozen_after_s || t - p_n_changed_s_ > cfg_.frozen_after_s);
-    if (frozen_) first(kFaultSensorFrozen);
+    if (frozen_) first(FaultCause::kSensorFrozen);
   }
 
   return first.cause;
@@ -152,11 +152,11 @@ FaultCause Supervisor::check_motion(const SupervisedTick& tick) noexcept {
   const double t = tick.t_s;
   FirstCause first;
   if (tick.armed && sample_good_) {
-    if (f.y_m < soft_min_m_ - cfg_.overtravel_m || f.y_m > soft_max_m_ + cfg_.overtravel_m) first(kFaultSoftLimit);
+    if (f.y_m < soft_min_m_ - cfg_.overtravel_m || f.y_m > soft_max_m_ + cfg_.overtravel_m) first(FaultCause::kSoftLimit);
     if (cfg_.following_error_s > 0.0) {
       if (std::abs(tick.y_d_m - f.y_m) > cfg_.following_error_m) {
         if (following_since_s_ < 0.0) following_since_s_ = t;
-        if (t - following_since_s_ > cfg_.following_error_s) first(kFaultFollowingError);
+        if (t - following_since_s_ > cfg_.following_error_s) first(FaultCause::kFollowingError);
       } else {
         following_since_s_ = -1.0;
       }
@@ -167,15 +167,15 @@ FaultCause Supervisor::check_motion(const SupervisedTick& tick) noexcept {
 
   // Timing: the interval since the last tick (real clock: wake-up times) and overruns in a row.
   if (cfg_.max_tick_interval_s > 0.0 && last_tick_t_s_ >= 0.0 && t - last_tick_t_s_ > cfg_.max_tick_interval_s)
-    first(kFaultOverrun);
+    first(FaultCause::kOverrun);
   last_tick_t_s_ = t;
   if (overrun_fault_) {
     overrun_fault_ = false;
-    first(kFaultOverrun);
+    first(FaultCause::kOverrun);
   }
 
   if (tick.armed && stream_timeout_s_ > 0.0 && t - tick.last_setpoint_t_s > stream_timeout_s_)
-    first(kFaultCommandTimeout);
+    first(FaultCause::kCommandTimeout);
   return first.cause;
 }
 

@@ -11,9 +11,10 @@
 #include "serve.hpp"
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
+#include "pneu/model/pressure_force.hpp"
+#include "pneu/model/valve_table.hpp"
 #include "pneu/sim_plant/plant.hpp"
 #include "pneu/sim_plant/sensors.hpp"
-#include "pneu/sim_plant/valve_table.hpp"
 
 namespace {
 
@@ -158,8 +159,8 @@ int simulate(int argc, char** argv) {
               duration, input.period_s * 1e3, config_path.empty() ? "embedded sim.yaml" : config_path.c_str());
   std::printf("  start   y = %8.3f mm at rest, p_P = %.4f bar, p_N = %.4f bar, F = %7.2f N, u = %+.4f V\n",
               start_state.y_m * 1e3, start_state.p_p_pa * 1e-5, start_state.p_n_pa * 1e-5,
-              plant::pressure_force_n(cfg.plant.geometry, cfg.plant.gas.exhaust_pressure_pa,
-                                      start_state.p_p_pa, start_state.p_n_pa),
+              model::PressureForce(cfg.plant.geometry, cfg.plant.gas.exhaust_pressure_pa)
+                  .force_n(start_state.p_p_pa, start_state.p_n_pa),
               input.u_v.front());
   std::printf("  events  (stiction band [%.1f, %.1f] N)\n", cfg.plant.friction.static_negative_n,
               cfg.plant.friction.static_positive_n);
@@ -237,14 +238,14 @@ int characterize(int argc, char** argv) {
   const double p_e = cfg.plant.gas.exhaust_pressure_pa, p_s = cfg.plant.gas.supply_pressure_pa;
   if (!(dp > 0.0 && dp <= p_s - p_e)) throw cli::UsageError("--pressure-step-pa must be in (0, p_S - p_E]");
 
-  const plant::ValveModel model(cfg.plant.valve, cfg.plant.gas);
-  const auto table = plant::ValveTable::sample(model, voltages, grid(p_e, p_s, dp, false));
+  const model::ValveModel model(cfg.plant.valve, cfg.plant.gas);
+  const auto table = model::ValveTable::sample(model, voltages, grid(p_e, p_s, dp, false));
   cli::AtomicFile out(out_path);
   table.write(out.stream());
   out.commit();
 
-  const double ue_model = plant::equilibrium_voltage_v(model, cfg.plant.geometry, p_e);
-  const double ue_table = plant::equilibrium_voltage_v(table, cfg.plant.geometry, p_e);
+  const double ue_model = model::equilibrium_voltage_v(model, cfg.plant.geometry, p_e);
+  const double ue_table = model::equilibrium_voltage_v(table, cfg.plant.geometry, p_e);
   std::printf("pneu-plant characterize-valve: %zu voltages x %zu pressures = %zu rows -> %s\n",
               table.voltages_v().size(), table.pressures_pa().size(),
               table.voltages_v().size() * table.pressures_pa().size(), out_path.c_str());
@@ -262,15 +263,14 @@ int null_flow(int argc, char** argv) {
   const config::Config cfg = config::load_file_or_default(args.value("config").value_or(""), args.all("set"));
   const std::string out_path = args.required("out");
   const std::vector<double> voltages = voltage_grid(args, cfg, 0.01);
-  const plant::ValveModel valve(cfg.plant.valve, cfg.plant.gas);
-  const auto& g = cfg.plant.geometry;
-  const double p_e = cfg.plant.gas.exhaust_pressure_pa;
+  const model::ValveModel valve(cfg.plant.valve, cfg.plant.gas);
+  const model::PressureForce force(cfg.plant.geometry, cfg.plant.gas.exhaust_pressure_pa);
   cli::AtomicFile out(out_path);
   auto& os = out.stream();
   os << "u_v,p_null_p_pa,p_null_n_pa,x_n,y_n,equilibrium_force_n\n" << std::setprecision(10);
   for (double w : voltages) {
     const double pp = valve.null_pressure_pa(w), pn = valve.null_pressure_pa(-w);
-    const double x = g.area_p_m2() * pp, y = g.area_n_m2() * pn + g.area_rod_m2() * p_e;
+    const double x = force.plane_x_n(pp), y = force.plane_y_n(pn);
     os << w << ',' << pp << ',' << pn << ',' << x << ',' << y << ',' << x - y << '\n';
   }
   out.commit();

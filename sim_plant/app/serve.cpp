@@ -329,7 +329,7 @@ int serve(int argc, char** argv) {
 
   plant::Plant plant(cfg.plant);
   plant::SensorSuite sensors(cfg.sensors);
-  const double u_e = plant::equilibrium_voltage_v(plant.valve(), cfg.plant.geometry, cfg.plant.gas.exhaust_pressure_pa);
+  const double u_e = model::equilibrium_voltage_v(plant.valve(), cfg.plant.geometry, cfg.plant.gas.exhaust_pressure_pa);
   plant.reset_at_rest(cfg.simulation.initial_position_m, u_e);
   double u_p = u_e, u_n = -u_e;  // what the client wrote (at first: the neutral voltages)
   std::optional<double> stuck_p, stuck_n;  // a stuck spool drives its valve instead

@@ -54,12 +54,12 @@ constexpr double kEventTimeTolerance_s = 1.0e-11;
 
 }  // namespace
 
-Plant::Plant(const PlantParams& params)
+Plant::Plant(const model::PlantParams& params)
     : params_(params),
       valve_(params.valve, params.gas),
-      area_p_m2_(params.geometry.area_p_m2()),
-      area_n_m2_(params.geometry.area_n_m2()),
-      area_rod_m2_(params.geometry.area_rod_m2()),
+      force_(params.geometry, params.gas.exhaust_pressure_pa),
+      area_p_m2_(force_.area_p_m2()),
+      area_n_m2_(force_.area_n_m2()),
       half_stroke_m_(params.geometry.half_stroke_m()),
       k_r_t_(params.gas.k_r_t()),
       r_t_(params.gas.gas_constant_j_per_kg_k * params.gas.temperature_k) {
@@ -72,7 +72,7 @@ Plant::Plant(const PlantParams& params)
                           v.leak_conductance_out_m3_per_s_pa;
   const double k = max_open * v.reference_density_kg_per_m3 * valve_.orifice().temperature_factor;
   const double max_dq_dp =
-      k * (1.0 + std::abs(flow_function_slope(1.0, v.critical_pressure_ratio)));
+      k * (1.0 + std::abs(model::flow_function_slope(1.0, v.critical_pressure_ratio)));
   const double min_volume =
       std::min(params.geometry.dead_volume_p_m3, params.geometry.dead_volume_n_m3);
   const double lambda_max = k_r_t_ * max_dq_dp / min_volume;
@@ -94,7 +94,7 @@ double Plant::sliding_friction_n(Motion motion, double v) const noexcept {
 }
 
 double Plant::force_of(const Vec& x) const noexcept {
-  return area_p_m2_ * x[2] - area_n_m2_ * x[3] - area_rod_m2_ * params_.gas.exhaust_pressure_pa;
+  return force_.force_n(x[2], x[3]);
 }
 
 double Plant::pressure_force_n() const noexcept {

@@ -15,6 +15,7 @@
 #include <thread>
 #include <vector>
 
+#include "pneu/backends/factory.hpp"
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/session.hpp"
@@ -248,7 +249,9 @@ int run(int argc, char** argv) {
         const auto valve = controller::make_valve_characteristic(
             cfg, config_path.empty() ? std::filesystem::path() : std::filesystem::path(config_path).parent_path());
         controller::resolve_offset(cfg, *valve);
-        auto sim = controller::make_simulated_run(cfg, *valve);
+        auto plant = backends::make_sim_backend(cfg);
+        const hal::SimBackend& bench = *plant;  // the simulated truth, owned by the run
+        auto sim = controller::make_run(cfg, *valve, std::move(plant));
         sim.runtime->set_follow_forecasts(false);  // nobody sees the tick-by-tick comparison here
         sim.runtime->set_keep_reforecasts(true);   // judged below against the plant's breakaways
         controller::SimulatedClock clock;
@@ -257,11 +260,11 @@ int run(int argc, char** argv) {
         // Stops from the tail are not judged: the tail only lets the carriage show what it did
         // after the stops of the judged window.
         ScenarioResult r{s, {}, {}, sim.runtime->end_time_s()};
-        if (sim.backend->motion_events_dropped() > 0)
+        if (bench.motion_events_dropped() > 0)
           throw std::runtime_error("scenario " + std::to_string(s.index) + ": more plant events than recorded");
         for (auto stop : sim.runtime->stops()) {
           if (stop.t_stop_s > duration) continue;
-          r.truth.push_back(apply_plant_truth(stop, sim.backend->motion_events(), r.t_end_s, cfg.controller.period_s()));
+          r.truth.push_back(apply_plant_truth(stop, bench.motion_events(), r.t_end_s, cfg.controller.period_s()));
           r.stops.push_back(stop);
         }
         results[static_cast<std::size_t>(i)] = std::move(r);

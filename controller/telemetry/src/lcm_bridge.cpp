@@ -191,7 +191,7 @@ void LcmBridge::on_health(const controller::HealthRecord& h) {
   m.rejected_foreign = static_cast<std::int64_t>(c.foreign);
   m.rejected_oversized = static_cast<std::int64_t>(c.oversized);
   m.deadlines_skipped = static_cast<std::int64_t>(h.deadlines_skipped);
-  m.fault_cause = static_cast<std::int8_t>(h.fault_cause);
+  m.fault_cause = static_cast<std::int8_t>(controller::fault_number(h.fault_cause));
   m.faults = static_cast<std::int64_t>(h.faults);
   m.is_final = h.is_final;
   publish(health_channel_, m);
@@ -248,7 +248,7 @@ void LcmBridge::on_datagram(std::span<const std::uint8_t> bytes, const CommandSo
     v = validator_.malformed(decoded.why);
   } else {
     v = validator_.validate(decoded.fields, now_s, unix_now_us(), loop_.setpoint_m.load(std::memory_order_relaxed),
-                            static_cast<controller::Mode>(loop_.mode.load(std::memory_order_relaxed)));
+                            loop_.mode.load(std::memory_order_relaxed));
   }
   const char* reason = to_string(v.rejection);
   if (v.accepted && !loop_.commands.try_push(v.command)) {

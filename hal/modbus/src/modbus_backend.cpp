@@ -19,7 +19,7 @@ modbus_t* as_ctx(void* p) { return static_cast<modbus_t*>(p); }
 
 }  // namespace
 
-ModbusBackend::ModbusBackend(const config::ModbusConfig& modbus, const plant::SensorParams& calibration)
+ModbusBackend::ModbusBackend(const config::ModbusConfig& modbus, const model::SensorParams& calibration)
     : cfg_(modbus),
       position_(calibration.position),
       pressure_p_(calibration.pressure_p),
@@ -42,6 +42,21 @@ ModbusBackend::~ModbusBackend() { close(); }
 std::string ModbusBackend::last_error() const {
   const std::lock_guard<std::mutex> lock(error_mutex_);  // the I/O thread's, never the loop's
   return last_error_;
+}
+
+std::optional<LinkReport> ModbusBackend::link_report() const {
+  LinkReport r;
+  r.transactions = counters_.transactions.load();
+  r.errors = counters_.errors.load();
+  r.reconnects = counters_.reconnects.load();
+  r.out_of_range = counters_.out_of_range.load();
+  r.stale_reads = counters_.stale_reads.load();
+  r.oldest_sample_s = counters_.max_age_s.load();
+  r.last_error = last_error();
+  r.safe_output_attempts = safe_output_.attempts;
+  r.safe_output_max_attempts = kSafeOutputAttempts;
+  r.safe_output_delivered = safe_output_.delivered;
+  return r;
 }
 
 void ModbusBackend::set_error(const std::string& why) {
@@ -123,7 +138,7 @@ bool ModbusBackend::exchange(std::string* why) noexcept {
   // A channel's words (two for a float32: high word first). A NaN or infinite float32 reaches the
   // frame as a non-finite value, flagged invalid like any reading outside the raw range.
   const auto words = [&](const config::RegisterChannel& c) { return &in[c.address - read_start_]; };
-  const auto take = [&](const config::RegisterChannel& c, const plant::SensorChannel& cal, double& value,
+  const auto take = [&](const config::RegisterChannel& c, const model::SensorChannelParams& cal, double& value,
                         std::uint32_t invalid_flag) {
     const uint16_t* w = words(c);
     value = cal.to_si(c.to_volts(w));

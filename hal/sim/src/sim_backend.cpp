@@ -2,7 +2,7 @@
 
 namespace pneu::hal {
 
-SimBackend::SimBackend(const plant::PlantParams& plant, const plant::SensorParams& sensors,
+SimBackend::SimBackend(const model::PlantParams& plant, const model::SensorParams& sensors,
                        double initial_position_m, double initial_u_v)
     : plant_(plant),
       sensors_(sensors),

@@ -11,9 +11,8 @@
 #include <vector>
 
 #include "pneu/config/register_map.hpp"
-#include "pneu/sim_plant/params.hpp"
-#include "pneu/sim_plant/sensors.hpp"
-#include "pneu/sim_plant/valve.hpp"
+#include "pneu/model/params.hpp"
+#include "pneu/model/sensors.hpp"
 
 namespace pneu::config {
 
@@ -205,8 +204,8 @@ struct HalConfig {
 
 /// The whole configuration.
 struct Config {
-  plant::PlantParams plant;          ///< plant.*
-  plant::SensorParams sensors;       ///< sensors.*
+  model::PlantParams plant;          ///< plant.*
+  model::SensorParams sensors;       ///< sensors.*
   SimulationConfig simulation;       ///< simulation.*
   ControllerConfig controller;       ///< controller.*
   HalConfig hal;                     ///< hal.*

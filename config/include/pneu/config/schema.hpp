@@ -47,9 +47,9 @@
 
 #include "pneu/config/config.hpp"
 #include "pneu/config/register_map.hpp"
-#include "pneu/sim_plant/params.hpp"
-#include "pneu/sim_plant/sensors.hpp"
-#include "pneu/sim_plant/valve.hpp"
+#include "pneu/model/params.hpp"
+#include "pneu/model/sensors.hpp"
+#include "pneu/model/valve.hpp"
 
 namespace pneu::config::schema {
 
@@ -321,7 +321,7 @@ inline std::string outside_the_stroke(double half_stroke_m, double v) {
 // ---------------------------------------------------------------------------------------------
 // plant.*: the bench as the controller models it (docs/model.md)
 
-void describe(auto& a, Like<plant::Geometry> auto& g) {
+void describe(auto& a, Like<model::Geometry> auto& g) {
   a.field(PNEU_NVP(g, stroke_m), Range::positive(), "L: full stroke [m]; y runs over [-L/2, +L/2]");
   a.field(PNEU_NVP(g, bore_diameter_m), Range::positive(), "piston diameter [m]");
   a.field(PNEU_NVP(g, rod_diameter_m), Range::positive(), "rod diameter [m], < bore");
@@ -333,7 +333,7 @@ void describe(auto& a, Like<plant::Geometry> auto& g) {
   a.field(PNEU_NVP(g, dead_volume_n_m3), Range::positive(), "V_N0: chamber N volume at y = +L/2 [m^3]");
 }
 
-void describe(auto& a, Like<plant::Gas> auto& g) {
+void describe(auto& a, Like<model::Gas> auto& g) {
   a.field(PNEU_NVP(g, supply_pressure_pa), Range::positive(), "p_S: supply pressure [Pa abs], > p_E");
   a.field(PNEU_NVP(g, exhaust_pressure_pa), Range::positive(), "p_E: exhaust pressure [Pa abs]");
   a.check("supply_pressure_pa", g.supply_pressure_pa > g.exhaust_pressure_pa, [&] {
@@ -345,10 +345,10 @@ void describe(auto& a, Like<plant::Gas> auto& g) {
   a.field(PNEU_NVP(g, temperature_k), Range::positive(), "T: supply and chamber temperature [K]");
 }
 
-void describe(auto& a, Like<plant::ValveParams> auto& v) {
+void describe(auto& a, Like<model::ValveParams> auto& v) {
   a.field(PNEU_NVP(v, max_conductance_m3_per_s_pa), Range::positive(),
           "C_max: sonic conductance fully open [m^3/(s Pa)]");
-  a.field(PNEU_NVP(v, critical_pressure_ratio), Range::open(0.0, plant::kLaminarPressureRatio),
+  a.field(PNEU_NVP(v, critical_pressure_ratio), Range::open(0.0, model::kLaminarPressureRatio),
           "b: ISO 6358 critical pressure ratio [-]");
   a.field(PNEU_NVP(v, leak_conductance_in_m3_per_s_pa), Range::non_negative(),
           "C_leak_in: supply -> chamber leak [m^3/(s Pa)]");
@@ -360,7 +360,7 @@ void describe(auto& a, Like<plant::ValveParams> auto& v) {
   a.field(optional(PNEU_NVP(v, reference_temperature_k)), Range::positive(), "T_0 of ISO 6358 [K]");
 }
 
-void describe(auto& a, Like<plant::FrictionParams> auto& f) {
+void describe(auto& a, Like<model::FrictionParams> auto& f) {
   a.field(PNEU_NVP(f, static_positive_n), Range::positive(), "F_S+: stiction, positive motion [N]");
   a.field(PNEU_NVP(f, coulomb_positive_n), Range::positive(), "F_C+: Coulomb friction, positive motion [N]");
   a.check("coulomb_positive_n", f.coulomb_positive_n <= f.static_positive_n, [&] {
@@ -379,7 +379,7 @@ void describe(auto& a, Like<plant::FrictionParams> auto& f) {
           "|v| below which a decelerating carriage sticks [m/s]");
 }
 
-void describe(auto& a, Like<plant::PlantParams> auto& p) {
+void describe(auto& a, Like<model::PlantParams> auto& p) {
   a.field(PNEU_NVP(p, mass_kg), Range::positive(), "M: moving mass (piston, rod, carriage, load) [kg]");
   a.section(PNEU_NVP(p, geometry));
   a.section(PNEU_NVP(p, gas));
@@ -392,7 +392,7 @@ void describe(auto& a, Like<plant::PlantParams> auto& p) {
 // sensors.*, simulation.*
 
 /// One channel; `gain_key` names its sensitivity with its unit (gain_v_per_m, gain_v_per_pa).
-void describe(auto& a, Like<plant::SensorChannelParams> auto& c, const char* gain_key) {
+void describe(auto& a, Like<model::SensorChannelParams> auto& c, const char* gain_key) {
   a.field(Field(gain_key, c.gain_v_per_unit), Range::non_zero(), "sensitivity [V per SI unit]");
   a.field(PNEU_NVP(c, offset_v), Range::any(), "output at a zero value [V]");
   a.field(PNEU_NVP(c, noise_std_v), Range::non_negative(), "additive Gaussian noise, standard deviation [V]");
@@ -404,14 +404,14 @@ void describe(auto& a, Like<plant::SensorChannelParams> auto& c, const char* gai
           [&] { return "must exceed range_min_v (" + fmt(c.range_max_v) + " <= " + fmt(c.range_min_v) + ")"; });
 }
 
-void describe(auto& a, Like<plant::SensorParams> auto& s) {
+void describe(auto& a, Like<model::SensorParams> auto& s) {
   a.field(PNEU_NVP(s, seed), IntRange::at_least(0), "seed of the noise generator");
   a.section(PNEU_NVP(s, position), "gain_v_per_m");
   a.section(PNEU_NVP(s, pressure_p), "gain_v_per_pa");
   a.section(PNEU_NVP(s, pressure_n), "gain_v_per_pa");
 }
 
-void describe(auto& a, Like<SimulationConfig> auto& s, const plant::Geometry& geometry) {
+void describe(auto& a, Like<SimulationConfig> auto& s, const model::Geometry& geometry) {
   const double half = geometry.half_stroke_m();
   a.field(PNEU_NVP(s, initial_position_m), Range::any(), "rest position at t = 0 [m], inside the stroke");
   a.check("initial_position_m", std::abs(s.initial_position_m) <= half,
@@ -459,7 +459,7 @@ void describe(auto& a, Like<SetpointStep> auto& s, double half_stroke_m) {
 }
 
 /// `period_s`: the loop's.
-void describe(auto& a, Like<SupervisorConfig> auto& s, const plant::PlantParams& plant, double period_s) {
+void describe(auto& a, Like<SupervisorConfig> auto& s, const model::PlantParams& plant, double period_s) {
   const double half = plant.geometry.half_stroke_m();
   constexpr const char* kMustContainTheStroke =
       " m (the range must contain the stroke: a carriage at an end stop is not a fault)";
@@ -502,7 +502,7 @@ void describe(auto& a, Like<RealtimeConfig> auto& r) {
   a.field(PNEU_NVP(r, lock_memory), "mlockall and a pre-faulted stack");
 }
 
-void describe(auto& a, Like<ControllerConfig> auto& c, const plant::PlantParams& plant) {
+void describe(auto& a, Like<ControllerConfig> auto& c, const model::PlantParams& plant) {
   const double half = plant.geometry.half_stroke_m();
   a.field(PNEU_NVP(c, rate_hz), Range::closed(1.0, 20000.0), "loop rate [Hz]");
   a.field(PNEU_NVP(c, clock), one_of(kClocks),

@@ -4,6 +4,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <memory>
 
 #include "pneu/controller/loop.hpp"
 #include "pneu/controller/timing_stats.hpp"
@@ -53,6 +54,9 @@ class SimulatedClock final : public Clock {
  private:
   double now_s_ = 0.0;
 };
+
+/// The clock controller.clock names.
+[[nodiscard]] std::unique_ptr<Clock> make_clock(config::ClockKind kind);
 
 /// Timing of a run. Written by the loop thread; read after the run.
 struct LoopTiming {

@@ -4,16 +4,17 @@
 
 #include <atomic>
 #include <cstdint>
-#include <span>
 
 #include "pneu/config/config.hpp"
 #include "pneu/controller/control_law.hpp"
 #include "pneu/controller/differentiator.hpp"
+#include "pneu/controller/loop_params.hpp"
 #include "pneu/controller/predictor.hpp"
 #include "pneu/controller/spsc_queue.hpp"
 #include "pneu/controller/stop_detector.hpp"
 #include "pneu/controller/supervisor.hpp"
 #include "pneu/hal/backend.hpp"
+#include "pneu/model/pressure_force.hpp"
 
 namespace pneu::controller {
 
@@ -58,7 +59,7 @@ struct LoopEvent {
   int direction = 0;             ///< start: +1 / -1
   StopSnapshot snapshot;         ///< stop: state at confirmation, u* of Eq. 11
   bool controlled = true;        ///< stop: the law was driving (armed), so u* applies and a forecast makes sense
-  std::uint8_t fault_cause = 0;  ///< fault: FaultCause
+  FaultCause fault_cause = FaultCause::kNone;  ///< fault, reset, reset refused: which cause
   std::uint64_t tick_seq = 0;    ///< the tick that raised it (its TickRecord::seq)
 };
 
@@ -83,7 +84,7 @@ struct HealthRecord {
   std::uint64_t events_dropped = 0;
   std::uint64_t comms_errors = 0;  ///< backend reads and writes that did not return kOk, since start
   Mode mode = Mode::kArmed;
-  std::uint8_t fault_cause = 0;    ///< FaultCause latched (kFaultNone unless in fault)
+  FaultCause fault_cause = FaultCause::kNone;  ///< latched (kNone unless in fault)
   std::uint64_t faults = 0;        ///< faults latched since start
   bool is_final = false;           ///< the last record, sent as the loop stops
 };
@@ -99,16 +100,17 @@ struct LoopOutputs {
   std::uint64_t ticks_dropped = 0;   ///< written by the loop thread only
   std::uint64_t events_dropped = 0;  ///< written by the loop thread only
   std::atomic<double> setpoint_m{0.0};  ///< the loop's current set point
-  std::atomic<std::uint8_t> mode{static_cast<std::uint8_t>(Mode::kArmed)};
-  std::atomic<std::uint8_t> fault_cause{0};  ///< FaultCause latched
+  std::atomic<Mode> mode{Mode::kArmed};
+  std::atomic<FaultCause> fault_cause{FaultCause::kNone};  ///< latched
   std::atomic<std::uint64_t> heartbeat{0};   ///< ticks run: the watchdog checks that it advances
 };
 
 /// The controller's tick. Construct and start() outside the loop; tick() is real-time safe.
 class ControlLoop {
  public:
-  /// `config.controller.law.offset_v` must already hold u_0 (see resolve_offset()).
-  ControlLoop(const config::Config& config, hal::Backend& backend, LoopOutputs& outputs);
+  /// `params.controller.law.offset_v` must already hold u_0 (see resolve_offset()). The loop keeps
+  /// its parameters; it refers to `backend` and `outputs`, which must outlive it.
+  ControlLoop(LoopParams params, hal::Backend& backend, LoopOutputs& outputs);
 
   /// Opens the backend at loop time `t0_s` and arms the detector at rest at the first reading.
   void start(double t0_s);
@@ -128,23 +130,22 @@ class ControlLoop {
   [[nodiscard]] Mode mode() const noexcept { return mode_; }
   /// Backend reads and writes that did not return kOk (stale samples, comms or device errors).
   [[nodiscard]] std::uint64_t comms_errors() const noexcept { return comms_errors_; }
-  [[nodiscard]] std::uint8_t fault_cause() const noexcept { return fault_cause_; }
+  [[nodiscard]] FaultCause fault_cause() const noexcept { return fault_cause_; }
   [[nodiscard]] std::uint64_t faults() const noexcept { return faults_; }
 
  private:
   void push(LoopEvent e) noexcept;
   void apply_commands(double y_m) noexcept;
-  void latch_fault(std::uint8_t cause, double t_s, double y_m) noexcept;
+  void latch_fault(FaultCause cause, double t_s, double y_m) noexcept;
 
-  const config::Config& config_;
-  hal::Backend& backend_;
-  LoopOutputs& out_;
-  std::span<const config::SetpointStep> schedule_;
+  LoopParams params_;
+  hal::Backend* backend_;  // pointers, not references: the loop can be moved
+  LoopOutputs* out_;
   ControlLaw law_;
   Differentiator differentiator_;
   StopDetector detector_;
   double half_stroke_m_;
-  double area_p_m2_, area_n_m2_, area_rod_m2_, p_e_pa_;
+  model::PressureForce force_;
   std::uint64_t seq_ = 0;
   std::size_t next_step_ = 0;
   double y_d_m_ = 0.0;
@@ -153,7 +154,7 @@ class ControlLoop {
   Mode mode_ = Mode::kArmed;
   bool schedule_active_ = true;  ///< a set-point command ends the configured schedule
   Supervisor supervisor_;
-  std::uint8_t fault_cause_ = kFaultNone;
+  FaultCause fault_cause_ = FaultCause::kNone;
   std::uint64_t faults_ = 0;
   double last_setpoint_t_s_ = 0.0;        // loop time of the last set point received, or of arming
   double t_s_ = 0.0;                      // the current tick's loop time

@@ -8,8 +8,8 @@
 #include <limits>
 
 #include "pneu/config/config.hpp"
-#include "pneu/sim_plant/params.hpp"
-#include "pneu/sim_plant/valve.hpp"
+#include "pneu/model/params.hpp"
+#include "pneu/model/valve.hpp"
 
 namespace pneu::controller {
 
@@ -25,10 +25,10 @@ using LinearizedSlope = config::LinearizedSlope;
 
 /// What the predictor knows of the bench.
 struct PredictorModel {
-  plant::Geometry geometry;
-  plant::Gas gas;
-  plant::FrictionParams friction;                 ///< the stiction bounds F_S+, F_S-
-  const plant::ValveCharacteristic* valve = nullptr;  ///< model or measured table; must outlive use
+  model::Geometry geometry;
+  model::Gas gas;
+  model::FrictionParams friction;                 ///< the stiction bounds F_S+, F_S-
+  const model::ValveCharacteristic* valve = nullptr;  ///< model or measured table; must outlive use
   double horizon_s = 600.0;  ///< the nonlinear method gives up (no restart) this long after the stop
   /// The time constants' slope (the linearized method's; both methods report the time constants).
   LinearizedSlope linearized_slope = LinearizedSlope::kStopTangent;

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "pneu/controller/clock.hpp"
+#include "pneu/hal/backend.hpp"
 
 namespace pneu::controller {
 
@@ -29,22 +30,6 @@ struct TelemetryFigures {
   std::uint64_t commands_dropped = 0;
 };
 
-/// The modbus backend's link to the I/O module (hal::ModbusCounters, hal::SafeOutputDelivery).
-struct ModbusFigures {
-  std::uint64_t transactions = 0;   ///< successful exchanges
-  std::uint64_t errors = 0;         ///< failed exchanges
-  std::uint64_t reconnects = 0;
-  std::uint64_t out_of_range = 0;   ///< samples with a register outside its raw range
-  std::uint64_t stale_reads = 0;    ///< loop reads that found the sample too old
-  double oldest_sample_s = 0.0;     ///< the oldest sample the loop took [s]
-  std::string last_error;           ///< the last failure's text (empty: none)
-  /// The safe output written on closing: exchanges tried, of at most safe_output_max_attempts,
-  /// and whether one was answered.
-  int safe_output_attempts = 0;
-  int safe_output_max_attempts = 0;
-  bool safe_output_delivered = false;
-};
-
 /// Everything about a run that its Runtime does not know.
 struct RunFigures {
   std::string version;   ///< pneud's
@@ -57,7 +42,7 @@ struct RunFigures {
   std::uint64_t ticks_dropped = 0;   ///< tick records the loop's full queue dropped
   std::uint64_t events_dropped = 0;  ///< events the loop's full queue dropped
   std::optional<TelemetryFigures> telemetry;  ///< when LCM ran
-  std::optional<ModbusFigures> modbus;        ///< on the modbus backend
+  std::optional<hal::LinkReport> modbus;      ///< the backend's link (hal::Backend::link_report): modbus
 };
 
 }  // namespace pneu::controller

@@ -9,48 +9,39 @@
 #include "pneu/config/config.hpp"
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/runtime.hpp"
-#include "pneu/hal/sim_backend.hpp"
-#include "pneu/sim_plant/valve_table.hpp"
+#include "pneu/hal/backend.hpp"
+#include "pneu/model/valve_table.hpp"
 
 namespace pneu::controller {
 
 /// The valve characteristic the controller uses (u_0 of Eq. 7, the predictors): the measured table
 /// of controller.predictor.valve_table (relative paths against `config_dir`) or the model.
-/// Throws plant::ValveTableError.
-[[nodiscard]] std::unique_ptr<plant::ValveCharacteristic> make_valve_characteristic(
+/// Throws model::ValveTableError.
+[[nodiscard]] std::unique_ptr<model::ValveCharacteristic> make_valve_characteristic(
     const config::Config& config, const std::filesystem::path& config_dir);
 
 /// Fills controller.law.offset_v with u_e of Eq. 7 when it is "auto".
-void resolve_offset(config::Config& config, const plant::ValveCharacteristic& valve);
+void resolve_offset(config::Config& config, const model::ValveCharacteristic& valve);
 
 /// The predictors' view of the bench.
 [[nodiscard]] PredictorModel predictor_model(const config::Config& config,
-                                             const plant::ValveCharacteristic& valve);
+                                             const model::ValveCharacteristic& valve);
 
-/// A complete run: backend, loop, runtime (without sinks: add them with Runtime::add_sink).
-/// `backend` is set for the in-process simulated bench; `hardware` for any other backend (modbus),
-/// which the loop then drives.
-struct SimulatedRun {
-  std::unique_ptr<hal::SimBackend> backend;
-  std::unique_ptr<hal::Backend> hardware;
+/// A complete run, on whatever backend: the backend the loop drives, the loop and its outputs, the
+/// runtime (without sinks: add them with Runtime::add_sink). Movable: the parts the loop refers to
+/// are held by pointer.
+struct Run {
+  std::unique_ptr<hal::Backend> backend;
   std::unique_ptr<LoopOutputs> outputs;
   std::unique_ptr<ControlLoop> loop;
   std::unique_ptr<Runtime> runtime;
   LoopTiming timing;
 };
 
-/// The in-process simulated bench of `config`: the plant at rest at simulation.initial_position_m,
-/// at complete equilibrium for the loop's first output (offset already resolved).
-[[nodiscard]] std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config);
-
-/// Builds the run for `config` (offset already resolved). The plant starts at rest at
-/// simulation.initial_position_m, at complete equilibrium for the loop's first output.
-[[nodiscard]] SimulatedRun make_simulated_run(const config::Config& config,
-                                              const plant::ValveCharacteristic& valve);
-/// The same on another backend (opened when the run starts).
-[[nodiscard]] SimulatedRun make_hardware_run(const config::Config& config,
-                                             const plant::ValveCharacteristic& valve,
-                                             std::unique_ptr<hal::Backend> backend);
+/// Builds the run for `config` (offset already resolved) on `backend` (opened when the run
+/// starts, closed when it ends; pneu/backends/factory.hpp composes it from the configuration).
+[[nodiscard]] Run make_run(const config::Config& config, const model::ValveCharacteristic& valve,
+                           std::unique_ptr<hal::Backend> backend);
 
 /// Runs it for controller.duration_s on `clock` (the simulated clock drains the runtime between
 /// ticks; the real clock drains it from a service thread), then finishes the runtime.
@@ -59,7 +50,7 @@ struct SimulatedRun {
 /// `on_loop_thread`, when set, runs on the loop thread once the backend is open, just before time
 /// starts (real clock: its real-time set-up, so that the backend's own I/O thread, created
 /// earlier, keeps the ordinary scheduling; what it throws ends the run, the backend closed).
-void execute(SimulatedRun& run, const config::Config& config, Clock& clock,
+void execute(Run& run, const config::Config& config, Clock& clock,
              const std::atomic<bool>& stop_requested,
              const std::function<void(int timeout_ms)>& wait_for_input = {},
              const std::function<void()>& on_loop_thread = {});

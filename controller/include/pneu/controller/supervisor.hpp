@@ -3,32 +3,41 @@
 // or none. Pure logic and real-time safe (no allocation, no throw), tested on synthetic frames.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 
 #include "pneu/config/config.hpp"
+#include "pneu/controller/loop_params.hpp"
 #include "pneu/hal/types.hpp"
 
 namespace pneu::controller {
 
 /// Why the loop latched a fault. Stable numbers: they travel in event_t and health_t.
-enum FaultCause : std::uint8_t {
-  kFaultNone = 0,
-  kFaultEStop = 1,            ///< the e-stop input is pressed (or could not be read)
-  kFaultComms = 2,            ///< samples stale, lost or unreadable for comms_fault_after_s
-  kFaultSensorRange = 3,      ///< a reading outside its plausible range or its converter's range
-  kFaultSensorNonFinite = 4,  ///< a reading is NaN or infinite
-  kFaultSensorFrozen = 5,     ///< a pressure reading unchanged bit for bit for frozen_after_s
-  kFaultSensorJump = 6,       ///< the position moved faster than max_speed_m_per_s allows
-  kFaultSoftLimit = 7,        ///< armed, the position left the soft limits
-  kFaultFollowingError = 8,   ///< armed, |y_d - y| above the window for longer than its limit
-  kFaultOverrun = 9,          ///< overruns in a row, or one tick interval beyond its limit
-  kFaultCommandTimeout = 10,  ///< armed, the set-point stream fell silent
+enum class FaultCause : std::uint8_t {
+  kNone = 0,
+  kEStop = 1,            ///< the e-stop input is pressed (or could not be read)
+  kComms = 2,            ///< samples stale, lost or unreadable for comms_fault_after_s
+  kSensorRange = 3,      ///< a reading outside its plausible range or its converter's range
+  kSensorNonFinite = 4,  ///< a reading is NaN or infinite
+  kSensorFrozen = 5,     ///< a pressure reading unchanged bit for bit for frozen_after_s
+  kSensorJump = 6,       ///< the position moved faster than max_speed_m_per_s allows
+  kSoftLimit = 7,        ///< armed, the position left the soft limits
+  kFollowingError = 8,   ///< armed, |y_d - y| above the window for longer than its limit
+  kOverrun = 9,          ///< overruns in a row, or one tick interval beyond its limit
+  kCommandTimeout = 10,  ///< armed, the set-point stream fell silent
 };
-inline constexpr std::uint8_t kFaultCauseCount = 11;
+/// How many causes there are, kNone included.
+inline constexpr std::size_t kFaultCauseCount = 11;
 
-/// A short name and a sentence for people (static strings).
-[[nodiscard]] const char* fault_name(std::uint8_t cause) noexcept;
-[[nodiscard]] const char* fault_text(std::uint8_t cause) noexcept;
+/// The cause's stable number, as it travels in event_t and health_t.
+[[nodiscard]] constexpr std::uint8_t fault_number(FaultCause cause) noexcept {
+  return static_cast<std::uint8_t>(cause);
+}
+
+/// A short name and a sentence for people (static strings; "unknown" and "fault" for a number
+/// that is no cause).
+[[nodiscard]] const char* fault_name(FaultCause cause) noexcept;
+[[nodiscard]] const char* fault_text(FaultCause cause) noexcept;
 
 /// What one tick hands the supervisor.
 struct SupervisedTick {
@@ -42,7 +51,7 @@ struct SupervisedTick {
 
 class Supervisor {
  public:
-  explicit Supervisor(const config::Config& config);
+  explicit Supervisor(const LoopParams& params);
 
   /// Forgets the history (at start-up), at loop time `t_s`.
   void reset(double t_s) noexcept;
@@ -51,7 +60,7 @@ class Supervisor {
   /// Tells the supervisor whether the tick just finished overran its deadline (real clock).
   void note_overrun(bool overran) noexcept;
 
-  /// Checks one tick; returns the first cause found (kFaultNone: all well). The same as
+  /// Checks one tick; returns the first cause found (FaultCause::kNone: all well). The same as
   /// check_sample() then check_motion() on the same tick.
   [[nodiscard]] FaultCause check(const SupervisedTick& tick) noexcept;
   /// What the sample says: the e-stop, the readings (finite, in range, no jump, not frozen), comms.
@@ -67,9 +76,9 @@ class Supervisor {
   /// a frozen pressure. (A jump, a following error, an overrun are events: once latched, a reset
   /// clears them, and they latch again if they happen again.)
   [[nodiscard]] bool cause_present() const noexcept { return estop_ || !sample_good_ || frozen_; }
-  /// The cause a reset would meet now (kFaultNone: none).
+  /// The cause a reset would meet now (FaultCause::kNone: none).
   [[nodiscard]] FaultCause present_cause() const noexcept {
-    return estop_ ? kFaultEStop : !sample_good_ ? sample_cause_ : frozen_ ? kFaultSensorFrozen : kFaultNone;
+    return estop_ ? FaultCause::kEStop : !sample_good_ ? sample_cause_ : frozen_ ? FaultCause::kSensorFrozen : FaultCause::kNone;
   }
 
  private:
@@ -83,7 +92,7 @@ class Supervisor {
   bool estop_ = false;
   bool frozen_ = false;                   // a pressure reading is frozen now
   bool sample_good_ = true;
-  FaultCause sample_cause_ = kFaultNone;  // why the last sample was not good
+  FaultCause sample_cause_ = FaultCause::kNone;  // why the last sample was not good
   double bad_since_s_ = -1.0;           // first tick of the current run of bad reads
   bool have_last_y_ = false;
   double last_y_m_ = 0.0, last_y_t_s_ = 0.0;

@@ -6,8 +6,9 @@
 #include <cstdint>
 #include <span>
 
-#include "pneu/sim_plant/params.hpp"
-#include "pneu/sim_plant/valve.hpp"
+#include "pneu/model/params.hpp"
+#include "pneu/model/pressure_force.hpp"
+#include "pneu/model/valve.hpp"
 
 namespace pneu::plant {
 
@@ -49,7 +50,7 @@ class Plant {
   /// Largest number of events one call to step() reports; more are counted in events_dropped().
   static constexpr std::size_t kMaxEventsPerStep = 16;
 
-  explicit Plant(const PlantParams& params);
+  explicit Plant(const model::PlantParams& params);
 
   /// Puts the carriage at rest at `y_m` with both pressures at their null-flow values for the
   /// valve voltages u_P = u, u_N = -u (complete equilibrium when F_e(u) is inside the stiction band).
@@ -68,7 +69,7 @@ class Plant {
   void step(double dt_s, double u_p_v, double u_n_v) noexcept;
 
   [[nodiscard]] const PlantState& state() const noexcept { return state_; }
-  /// F = S_P p_P - S_N p_N - S_r p_E at the current state [N].
+  /// F = S_P p_P - S_N p_N - S_r p_E (Eq. 14) at the current state [N].
   [[nodiscard]] double pressure_force_n() const noexcept;
   /// Events located during the last call to step().
   [[nodiscard]] std::span<const PlantEvent> last_events() const noexcept {
@@ -82,8 +83,8 @@ class Plant {
   /// Number of right-hand-side evaluations since construction (for benchmarks).
   [[nodiscard]] std::uint64_t rhs_evaluations() const noexcept { return rhs_evaluations_; }
 
-  [[nodiscard]] const PlantParams& params() const noexcept { return params_; }
-  [[nodiscard]] const ValveModel& valve() const noexcept { return valve_; }
+  [[nodiscard]] const model::PlantParams& params() const noexcept { return params_; }
+  [[nodiscard]] const model::ValveModel& valve() const noexcept { return valve_; }
   /// Friction force in the current sliding mode at velocity v [N] (docs/model.md section 4).
   [[nodiscard]] double sliding_friction_n(Motion motion, double v_m_per_s) const noexcept;
 
@@ -103,9 +104,10 @@ class Plant {
   void record(PlantEvent::Kind kind, int direction) noexcept;
   void settle_mode_at_rest() noexcept;
 
-  PlantParams params_;
-  ValveModel valve_;
-  double area_p_m2_, area_n_m2_, area_rod_m2_, half_stroke_m_, k_r_t_, r_t_;
+  model::PlantParams params_;
+  model::ValveModel valve_;
+  model::PressureForce force_;
+  double area_p_m2_, area_n_m2_, half_stroke_m_, k_r_t_, r_t_;
   double step_s_;
   PlantState state_;
   std::array<PlantEvent, kMaxEventsPerStep> events_{};

@@ -1,61 +1,42 @@
-// Sensor models: true physical value -> sensor voltage (gain, offset) -> Gaussian noise ->
-// electrical range clamp -> ADC quantisation -> back to SI through the nominal calibration.
-// This is what a backend sees from a potentiometer or a pressure transmitter on an analog input.
+// Simulated sensors: true physical value -> sensor voltage (the calibration of
+// model::SensorChannelParams) -> Gaussian noise -> electrical range clamp -> ADC quantisation ->
+// back to SI through the same calibration. This is what a backend sees from a potentiometer or a
+// pressure transmitter on an analog input.
 #pragma once
 
 #include <cstdint>
 #include <random>
 
+#include "pneu/model/sensors.hpp"
+
 namespace pneu::plant {
 
-/// One analog sensor channel. Voltage = gain * value + offset.
-struct SensorChannelParams {
-  double gain_v_per_unit = 1.0;  ///< sensitivity [V per SI unit: V/m or V/Pa], != 0
-  double offset_v = 0.0;         ///< output at a zero value [V]
-  double noise_std_v = 0.0;      ///< standard deviation of additive white Gaussian noise [V], >= 0
-  int adc_bits = 0;              ///< ADC resolution [bits], 0 = no quantisation, else 1..24
-  double range_min_v = 0.0;      ///< electrical range of the input: outputs are clamped to it [V]
-  double range_max_v = 10.0;     ///< [V], > range_min_v
-};
-
-/// Real-time safe (no allocation) after construction.
+/// One simulated analog sensor channel. Real-time safe (no allocation) after construction.
 class SensorChannel {
  public:
-  explicit SensorChannel(const SensorChannelParams& params) noexcept : params_(params) {}
+  explicit SensorChannel(const model::SensorChannelParams& params) noexcept : params_(params) {}
 
   /// The voltage the ADC reports for a true value, noise drawn from `rng`.
   template <typename Rng>
   [[nodiscard]] double read_volts(double true_value, Rng& rng) const noexcept {
-    double volts = params_.gain_v_per_unit * true_value + params_.offset_v;
+    double volts = params_.to_volts(true_value);
     if (params_.noise_std_v > 0.0) volts += params_.noise_std_v * normal_(rng);
     return quantise(volts);
   }
   /// The measured value in SI units (calibration inverted) for a true value.
   template <typename Rng>
   [[nodiscard]] double measure(double true_value, Rng& rng) const noexcept {
-    return to_si(read_volts(true_value, rng));
+    return params_.to_si(read_volts(true_value, rng));
   }
   /// Clamp to the electrical range, then round to the nearest ADC level.
   [[nodiscard]] double quantise(double volts) const noexcept;
-  /// Volts -> SI through the nominal calibration.
-  [[nodiscard]] double to_si(double volts) const noexcept {
-    return (volts - params_.offset_v) / params_.gain_v_per_unit;
-  }
   /// One ADC step [V] (0 without quantisation).
   [[nodiscard]] double lsb_v() const noexcept;
-  [[nodiscard]] const SensorChannelParams& params() const noexcept { return params_; }
+  [[nodiscard]] const model::SensorChannelParams& params() const noexcept { return params_; }
 
  private:
-  SensorChannelParams params_;
+  model::SensorChannelParams params_;
   mutable std::normal_distribution<double> normal_{0.0, 1.0};
-};
-
-/// Parameters of the bench's three sensors.
-struct SensorParams {
-  std::uint64_t seed = 1;              ///< seed of the noise generator (runs are reproducible)
-  SensorChannelParams position;        ///< potentiometer, gain in V/m
-  SensorChannelParams pressure_p;      ///< chamber P transmitter, gain in V/Pa
-  SensorChannelParams pressure_n;      ///< chamber N transmitter, gain in V/Pa
 };
 
 /// What the three sensors report, in SI units (or in volts, from read_volts()).
@@ -68,7 +49,7 @@ struct SensorReadings {
 /// The potentiometer and both pressure sensors with one seeded noise source.
 class SensorSuite {
  public:
-  explicit SensorSuite(const SensorParams& params) noexcept
+  explicit SensorSuite(const model::SensorParams& params) noexcept
       : position_(params.position),
         pressure_p_(params.pressure_p),
         pressure_n_(params.pressure_n),

@@ -33,6 +33,8 @@ class GpioBackend final : public Backend {
   /// reads pressed), and drives the valve power line. Status: the inner backend's error first,
   /// else kDeviceError when the line refused, else kOk. Real-time safe.
   [[nodiscard]] Status write(const ActuatorCommand& command) noexcept override;
+  /// The inner backend's.
+  [[nodiscard]] std::optional<LinkReport> link_report() const override { return inner_.link_report(); }
 
  private:
   Backend& inner_;

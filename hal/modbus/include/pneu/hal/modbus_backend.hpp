@@ -14,7 +14,7 @@
 #include "pneu/config/config.hpp"
 #include "pneu/hal/backend.hpp"
 #include "pneu/hal/latest_value.hpp"
-#include "pneu/sim_plant/sensors.hpp"
+#include "pneu/model/sensors.hpp"
 
 namespace pneu::hal {
 
@@ -41,14 +41,15 @@ class ModbusBackend final : public Backend {
   /// safe output before letting go of the module.
   static constexpr int kSafeOutputAttempts = 3;
 
-  ModbusBackend(const config::ModbusConfig& modbus, const plant::SensorParams& calibration);
+  /// `calibration`: the sensors' volts -> SI (sensors.*).
+  ModbusBackend(const config::ModbusConfig& modbus, const model::SensorParams& calibration);
   ~ModbusBackend() override;
 
   /// Connects (throws std::runtime_error naming the host/device and the reason) and starts the
   /// I/O thread after a first successful exchange (so a wrong unit id or register map fails here).
   void open(double t0_s) override;
   /// Stops the I/O thread, then delivers the last command written (the caller's safe output) to
-  /// the module: see safe_output_delivery().
+  /// the module: see link_report().
   void close() noexcept override;
   /// The newest sample and its age; kStale (and kSampleStale) when older than max_sample_age_s,
   /// kCommsError while the link is down. Real-time safe.
@@ -57,10 +58,10 @@ class ModbusBackend final : public Backend {
   [[nodiscard]] Status write(const ActuatorCommand& command) noexcept override;
 
   [[nodiscard]] const ModbusCounters& counters() const noexcept { return counters_; }
-  /// After close(): whether the last command reached the module, in how many attempts.
-  [[nodiscard]] SafeOutputDelivery safe_output_delivery() const noexcept { return safe_output_; }
   /// Human-readable description of the last failure (I/O thread's; for start-up and summaries).
   [[nodiscard]] std::string last_error() const;
+  /// The counters, the last error and, after close(), the safe output's delivery.
+  [[nodiscard]] std::optional<LinkReport> link_report() const override;
 
  private:
   struct Sample {
@@ -74,7 +75,7 @@ class ModbusBackend final : public Backend {
   void disconnect() noexcept;
 
   config::ModbusConfig cfg_;
-  plant::SensorChannel position_, pressure_p_, pressure_n_;
+  model::SensorChannelParams position_, pressure_p_, pressure_n_;  // their calibrations
   void* ctx_ = nullptr;  // modbus_t*
   LatestValue<Sample> sample_;
   LatestValue<ActuatorCommand> command_;

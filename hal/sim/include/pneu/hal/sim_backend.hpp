@@ -16,7 +16,7 @@ namespace pneu::hal {
 class SimBackend final : public Backend {
  public:
   /// The plant starts at rest at `initial_position_m` at complete equilibrium for `initial_u_v`.
-  SimBackend(const plant::PlantParams& plant, const plant::SensorParams& sensors,
+  SimBackend(const model::PlantParams& plant, const model::SensorParams& sensors,
              double initial_position_m, double initial_u_v);
 
   void open(double t0_s) override;

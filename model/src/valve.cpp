@@ -1,9 +1,11 @@
-#include "pneu/sim_plant/valve.hpp"
+#include "pneu/model/valve.hpp"
 
 #include <algorithm>
 #include <cmath>
 
-namespace pneu::plant {
+#include "pneu/model/pressure_force.hpp"
+
+namespace pneu::model {
 
 namespace {
 
@@ -122,13 +124,9 @@ double ValveModel::dq_dp(double w, double p) const noexcept {
          orifice_.d_mass_flow_d_pa(outlet_conductance_m3_per_s_pa(w), p, p_exhaust_pa_);
 }
 
-double pressure_force_n(const Geometry& g, double p_e, double p_p, double p_n) noexcept {
-  return g.area_p_m2() * p_p - g.area_n_m2() * p_n - g.area_rod_m2() * p_e;
-}
-
 double equilibrium_force_n(const ValveCharacteristic& valve, const Geometry& g, double p_e,
                            double u) noexcept {
-  return pressure_force_n(g, p_e, valve.null_pressure_pa(u), valve.null_pressure_pa(-u));
+  return PressureForce(g, p_e).force_n(valve.null_pressure_pa(u), valve.null_pressure_pa(-u));
 }
 
 double equilibrium_voltage_v(const ValveCharacteristic& valve, const Geometry& g,
@@ -139,4 +137,4 @@ double equilibrium_voltage_v(const ValveCharacteristic& valve, const Geometry& g
                          u_lim, 1.0e-12);
 }
 
-}  // namespace pneu::plant
+}  // namespace pneu::model

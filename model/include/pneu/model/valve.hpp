@@ -2,9 +2,9 @@
 // model (ISO 6358 orifices) or as a measured table, behind one interface the predictor uses.
 #pragma once
 
-#include "pneu/sim_plant/params.hpp"
+#include "pneu/model/params.hpp"
 
-namespace pneu::plant {
+namespace pneu::model {
 
 /// Pressure ratio above which the ISO 6358 flow function is replaced by its secant to x = 1
 /// (laminar region). phi has an infinite slope at x -> 1; linearising keeps dq/dp finite.
@@ -81,12 +81,8 @@ class ValveModel final : public ValveCharacteristic {
   Orifice orifice_;
 };
 
-/// Pressure force of Eq. 14, F = S_P p_P - S_N p_N - S_r p_E [N].
-[[nodiscard]] double pressure_force_n(const Geometry& geometry, double exhaust_pressure_pa,
-                                      double p_p_pa, double p_n_pa) noexcept;
-
-/// Force gain characteristic: the pressure force at complete equilibrium under voltage u,
-/// F_e(u) = S_P p_null(u) - S_N p_null(-u) - S_r p_E [N]. Increasing in u.
+/// Force gain characteristic: the pressure force (Eq. 14, PressureForce) at complete equilibrium
+/// under voltage u, F_e(u) = S_P p_null(u) - S_N p_null(-u) - S_r p_E [N]. Increasing in u.
 [[nodiscard]] double equilibrium_force_n(const ValveCharacteristic& valve, const Geometry& geometry,
                                          double exhaust_pressure_pa, double u_v) noexcept;
 
@@ -95,4 +91,4 @@ class ValveModel final : public ValveCharacteristic {
 [[nodiscard]] double equilibrium_voltage_v(const ValveCharacteristic& valve, const Geometry& geometry,
                                            double exhaust_pressure_pa) noexcept;
 
-}  // namespace pneu::plant
+}  // namespace pneu::model

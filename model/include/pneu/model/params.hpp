@@ -1,10 +1,11 @@
-// Parameters of the simulated bench (docs/model.md sections 1-4 and 7). Plain aggregates in SI units;
-// user input is validated by pneu::config before it gets here, the plant only asserts invariants.
+// Parameters of the bench model (docs/model.md sections 1-4 and 7): what the simulated plant
+// integrates and the controller's predictors assume. Plain aggregates in SI units; user input is
+// validated by pneu::config before it gets here, the users only assert invariants.
 #pragma once
 
 #include <numbers>
 
-namespace pneu::plant {
+namespace pneu::model {
 
 /// Cylinder geometry. Position y is measured from mid-stroke, y in [-L/2, +L/2]; positive y grows
 /// chamber P (bore side).
@@ -83,4 +84,4 @@ struct PlantParams {
   double max_step_s = 2.0e-4;
 };
 
-}  // namespace pneu::plant
+}  // namespace pneu::model

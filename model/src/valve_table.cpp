@@ -1,4 +1,4 @@
-#include "pneu/sim_plant/valve_table.hpp"
+#include "pneu/model/valve_table.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -9,7 +9,7 @@
 #include <sstream>
 #include <string>
 
-namespace pneu::plant {
+namespace pneu::model {
 
 namespace {
 
@@ -200,4 +200,4 @@ ValveTable ValveTable::read(std::istream& in, const std::string& origin) {
   }
 }
 
-}  // namespace pneu::plant
+}  // namespace pneu::model

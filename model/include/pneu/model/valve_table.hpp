@@ -18,9 +18,9 @@
 #include <stdexcept>
 #include <vector>
 
-#include "pneu/sim_plant/valve.hpp"
+#include "pneu/model/valve.hpp"
 
-namespace pneu::plant {
+namespace pneu::model {
 
 /// A malformed valve table; the message names the file and line where it applies.
 class ValveTableError : public std::runtime_error {
@@ -70,4 +70,4 @@ class ValveTable final : public ValveCharacteristic {
   std::vector<double> slopes_;  // Fritsch-Carlson dq/dp at each grid point
 };
 
-}  // namespace pneu::plant
+}  // namespace pneu::model

@@ -1,0 +1,33 @@
+// pneud's LCM telemetry and commands (telemetry.*, commands.*): telemetry_lcm.cpp in a build with
+// LCM; in one without, telemetry_without_lcm.cpp says so (a refusal of --require-telemetry, a
+// warning when telemetry is configured).
+#pragma once
+
+#include <memory>
+
+#include "pneu/config/config.hpp"
+#include "pneu/controller/run_figures.hpp"
+#include "pneu/controller/session.hpp"
+
+namespace pneu::pneud {
+
+class Telemetry {
+ public:
+  virtual ~Telemetry() = default;
+
+  /// Refuses `--require-telemetry` in a build without LCM (cli::UsageError); else nothing.
+  static void require_built(bool required);
+  /// LCM for `run` when telemetry.enabled and the clock is real or telemetry.in_simulated_time:
+  /// a sink of its runtime and, on the real clock with commands.enabled, the command channel into
+  /// its loop. Null when off, or when LCM cannot start: then a warning on stderr says why, unless
+  /// `required`, which throws instead.
+  [[nodiscard]] static std::unique_ptr<Telemetry> start(const config::Config& config, controller::Run& run,
+                                                        bool required);
+
+  /// The service thread's wait between drains: up to `timeout_ms` for commands, then handles them.
+  virtual void handle(int timeout_ms) = 0;
+  /// For the run's summary.
+  [[nodiscard]] virtual controller::TelemetryFigures figures() const = 0;
+};
+
+}  // namespace pneu::pneud

@@ -1,0 +1,40 @@
+#include <cstdio>
+
+#include "pneu/telemetry/lcm_bridge.hpp"
+#include "telemetry.hpp"
+
+namespace pneu::pneud {
+
+namespace {
+
+class LcmTelemetry final : public Telemetry {
+ public:
+  LcmTelemetry(const config::Config& config, controller::Run& run, bool accept_commands)
+      : bridge_(config, *run.outputs, accept_commands) {
+    run.runtime->add_sink(bridge_);
+    bridge_.set_command_log(run.runtime.get());  // both on the service thread (execute)
+  }
+  void handle(int timeout_ms) override { (void)bridge_.handle(timeout_ms); }
+  [[nodiscard]] controller::TelemetryFigures figures() const override { return bridge_.figures(); }
+
+ private:
+  telemetry::LcmBridge bridge_;
+};
+
+}  // namespace
+
+void Telemetry::require_built(bool) {}
+
+std::unique_ptr<Telemetry> Telemetry::start(const config::Config& config, controller::Run& run, bool required) {
+  const bool real_clock = config.controller.clock == config::ClockKind::kReal;
+  if (!config.telemetry.enabled || !(real_clock || config.telemetry.in_simulated_time)) return nullptr;
+  try {
+    return std::make_unique<LcmTelemetry>(config, run, real_clock && config.commands.enabled);
+  } catch (const telemetry::LcmError& e) {
+    if (required) throw;
+    std::fprintf(stderr, "pneud: warning: telemetry off: %s\n", e.what());
+    return nullptr;
+  }
+}
+
+}  // namespace pneu::pneud

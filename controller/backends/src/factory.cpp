@@ -1,0 +1,89 @@
+#include "pneu/backends/factory.hpp"
+
+#include <utility>
+
+#include "pneu/controller/control_law.hpp"
+#ifdef PNEU_WITH_MODBUS
+#include "pneu/hal/modbus_backend.hpp"
+#endif
+#ifdef PNEU_WITH_GPIOD
+#include "pneu/hal/gpio_backend.hpp"
+#include "pneu/hal/gpio_lines.hpp"
+#endif
+
+namespace pneu::backends {
+
+namespace {
+
+#ifdef PNEU_WITH_GPIOD
+// The GPIO decorator together with what it borrows: the backend inside it and the lines. Destroyed
+// in reverse order of declaration: the decorator, then the lines (their destructor switches valve
+// power off), then the device.
+class WithGpioLines final : public hal::Backend {
+ public:
+  WithGpioLines(std::unique_ptr<hal::Backend> inner, std::unique_ptr<hal::LibgpiodLines> lines)
+      : inner_(std::move(inner)), lines_(std::move(lines)), gpio_(*inner_, *lines_) {}
+
+  void open(double t0_s) override { gpio_.open(t0_s); }
+  void close() noexcept override { gpio_.close(); }
+  [[nodiscard]] hal::Status read(double t_s, hal::SensorFrame& frame) noexcept override {
+    return gpio_.read(t_s, frame);
+  }
+  [[nodiscard]] hal::Status write(const hal::ActuatorCommand& command) noexcept override {
+    return gpio_.write(command);
+  }
+  [[nodiscard]] std::optional<hal::LinkReport> link_report() const override { return gpio_.link_report(); }
+
+ private:
+  std::unique_ptr<hal::Backend> inner_;
+  std::unique_ptr<hal::LibgpiodLines> lines_;
+  hal::GpioBackend gpio_;
+};
+#endif
+
+// The device: the I/O module or the in-process plant.
+std::unique_ptr<hal::Backend> make_device(const config::Config& config) {
+#ifdef PNEU_WITH_MODBUS
+  if (config.hal.backend == config::BackendKind::kModbus)
+    return std::make_unique<hal::ModbusBackend>(config.hal.modbus, config.sensors);
+#endif
+  return make_sim_backend(config);
+}
+
+}  // namespace
+
+std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config) {
+  const controller::ControlLaw law(config.controller.law);
+  const double u_initial =
+      law.resting_control_v(config.controller.initial_setpoint_m, config.simulation.initial_position_m);
+  return std::make_unique<hal::SimBackend>(config.plant, config.sensors, config.simulation.initial_position_m,
+                                           u_initial);
+}
+
+void require_built(const config::Config& config) {
+#ifndef PNEU_WITH_MODBUS
+  if (config.hal.backend == config::BackendKind::kModbus)
+    throw config::ConfigError("hal.backend", "this pneud was built without the modbus backend");
+#endif
+#ifndef PNEU_WITH_GPIOD
+  if (config.hal.gpio.enabled) throw config::ConfigError("hal.gpio.enabled", "this pneud was built without libgpiod");
+#endif
+  (void)config;
+}
+
+std::unique_ptr<hal::Backend> make_backend(const config::Config& config) {
+  require_built(config);
+  std::unique_ptr<hal::Backend> device = make_device(config);
+#ifdef PNEU_WITH_GPIOD
+  if (config.hal.gpio.enabled) {
+    const auto& g = config.hal.gpio;
+    auto lines = std::make_unique<hal::LibgpiodLines>(
+        hal::GpioParams{g.chip, g.estop_line, g.estop_active_low, g.valve_power_line, g.valve_power_active_low,
+                        g.consumer});
+    return std::make_unique<WithGpioLines>(std::move(device), std::move(lines));
+  }
+#endif
+  return device;
+}
+
+}  // namespace pneu::backends

@@ -1,0 +1,24 @@
+// What the loop and its supervisor know of the configuration, held by value: built once from the
+// Config off the loop thread, so that the loop keeps no reference into it (it may be moved, and
+// the Config may go).
+#pragma once
+
+#include "pneu/config/config.hpp"
+#include "pneu/model/params.hpp"
+
+namespace pneu::controller {
+
+struct LoopParams {
+  config::ControllerConfig controller;     ///< controller.*; law.offset_v must hold u_0 (resolve_offset())
+  double setpoint_stream_timeout_s = 0.0;  ///< commands.setpoint_stream_timeout_s
+  model::Geometry geometry;                ///< plant.geometry: the areas of Eq. 14 and the end stops
+  double exhaust_pressure_pa = 0.0;        ///< plant.gas.exhaust_pressure_pa: p_E of Eq. 14
+
+  /// The loop's parameters in `config`.
+  [[nodiscard]] static LoopParams from(const config::Config& config) {
+    return {config.controller, config.commands.setpoint_stream_timeout_s, config.plant.geometry,
+            config.plant.gas.exhaust_pressure_pa};
+  }
+};
+
+}  // namespace pneu::controller
