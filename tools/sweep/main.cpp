@@ -46,7 +46,9 @@ motion band for tens of milliseconds). --jobs threads (default: the cores) share
 The sweep studies the control law and the forecast, not the bench's protection: unless
 --supervised, the supervisor's motion and range checks are off (large steps slam the carriage
 into an end stop and push a chamber past the pressure sensor's range, which pneud would rightly
-latch as faults and so end the scenario).
+latch as faults and so end the scenario), and so are its settling rules (oscillation, settle
+time: controller.supervisor.oscillation_* and settle_time_s), so that every scenario runs its
+whole duration and every stop counts in the forecast figures.
 
 Stops are those pneud's stop detector sees; what happened after each is the simulated truth: the
 plant's first breakaway after the forecast was made is the restart, timed exactly, even when it
@@ -170,6 +172,8 @@ int run(int argc, char** argv) {
   config::Config base = config::load_file_or_default(config_path, args.all("set"));
   if (!args.flag("supervised")) {
     auto& v = base.controller.supervisor;
+    v.oscillation_sign_changes = 0;
+    v.settle_time_s = 0.0;
     v.position_min_m = v.pressure_min_pa = -1e300;
     v.position_max_m = v.pressure_max_pa = 1e300;
     v.overtravel_m = 1e300;
