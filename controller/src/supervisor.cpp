@@ -45,7 +45,7 @@ const char* fault_text(FaultCause cause) noexcept {
     case FaultCause::kFollowingError: return "following error: |y_d - y| above controller.supervisor.following_error_m for longer than following_error_s";
     case FaultCause::kOverrun: return "the loop overran its deadlines (controller.supervisor.overruns_in_a_row or max_tick_interval_s)";
     case FaultCause::kCommandTimeout: return "armed, no set point for commands.setpoint_stream_timeout_s: the set-point stream fell silent";
-    case FaultCause::kOscillation: return "the loop does not settle: y_d - y changed sign controller.supervisor.oscillation_sign_changes times beyond +-oscillation_amplitude_m within oscillation_window_s, or no rest within settle_time_s of a set-point change (gains too high for this position?)";
+    case FaultCause::kOscillation: return "the loop does not settle: y_d - y changed sign controller.supervisor.oscillation_sign_changes times beyond +-oscillation_amplitude_m within oscillation_window_s, or no rest within settle_time_s of a set-point change (the gains unstable at this position?)";
     default: return "fault";
   }
 }
