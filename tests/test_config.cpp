@@ -166,6 +166,10 @@ TEST(ShippedConfig, LoadsWithTheDocumentedPaperBenchValues) {
   EXPECT_EQ(s.overtravel_m, 0.008);
   EXPECT_EQ(s.following_error_m, 0.01);
   EXPECT_EQ(s.following_error_s, 2.0);
+  EXPECT_EQ(s.oscillation_amplitude_m, 0.01);
+  EXPECT_EQ(s.oscillation_sign_changes, 4u);
+  EXPECT_EQ(s.oscillation_window_s, 2.0);
+  EXPECT_EQ(s.settle_time_s, 3.0);
   EXPECT_EQ(s.overruns_in_a_row, 10u);
   EXPECT_EQ(s.max_tick_interval_s, 0.05);
   EXPECT_EQ(s.safe_output, SafeOutput::kNeutral);
@@ -309,6 +313,34 @@ TEST(OptionalKeys, ValveReferenceAtmosphereDefaultsToIso6358WhenAbsent) {
 
   EXPECT_EQ(c.plant.valve.reference_density_kg_per_m3, 1.185);
   EXPECT_EQ(c.plant.valve.reference_temperature_k, 293.15);
+}
+
+TEST(OptionalKeys, AConfigurationWrittenBeforeTheSettlingRulesGetsThemOn) {
+  const std::string yaml = shipped_yaml_edited([](YAML::Node& root) {
+    for (const char* key : {"oscillation_amplitude_m", "oscillation_sign_changes", "oscillation_window_s", "settle_time_s"})
+      root["controller"]["supervisor"].remove(key);
+  });
+
+  const SupervisorConfig s = load_string(yaml).controller.supervisor;
+
+  EXPECT_EQ(s.oscillation_amplitude_m, 0.01);
+  EXPECT_EQ(s.oscillation_sign_changes, 4u);
+  EXPECT_EQ(s.oscillation_window_s, 2.0);
+  EXPECT_EQ(s.settle_time_s, 3.0);
+}
+
+TEST(OptionalKeys, TheSettlingRulesRefuseWhatTheyCannotCheck) {
+  const auto with = [](const char* key, double value) {
+    return shipped_yaml_edited([&](YAML::Node& root) { root["controller"]["supervisor"][key] = value; });
+  };
+  EXPECT_THAT(loading(with("oscillation_amplitude_m", 0.0)),
+              refuses("controller.supervisor.oscillation_amplitude_m", "must be > 0"));
+  // The history of sign changes is fixed-size (no allocation on the loop thread).
+  EXPECT_THAT(loading(with("oscillation_sign_changes", 65)),
+              refuses("controller.supervisor.oscillation_sign_changes", "must be in [0, 64]"));
+  EXPECT_THAT(loading(with("oscillation_window_s", 0.0)),
+              refuses("controller.supervisor.oscillation_window_s", "must be > 0"));
+  EXPECT_THAT(loading(with("settle_time_s", -1.0)), refuses("controller.supervisor.settle_time_s", "must be in [0, 600]"));
 }
 
 TEST(OptionalKeys, AreStillRangeCheckedWhenPresent) {

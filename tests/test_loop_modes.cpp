@@ -7,6 +7,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <ostream>
@@ -281,6 +282,47 @@ TEST_F(LoopModes, AnyOtherFaultAlsoDrivesTheSafeOutputAndAResetClearsIt) {
   EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
   command(LoopCommand::Kind::kFaultReset);
   EXPECT_EQ(mode(), Mode::kDisarmed);
+}
+
+// A loop that does not settle (the supervisor's settling rules, on the loop's own stop detector):
+// the carriage swinging +-30 mm about the set point, a half-swing every 0.2 s, latches the
+// oscillation fault at the 4th sign change of the error (0.2 s + the time to pass the 10 mm band
+// after each zero: at 0.6 s + 0.0216 s), with the safe output; an event, so a reset clears it.
+TEST_F(LoopModes, ACarriageSwingingAboutTheSetPointLatchesAnOscillationFaultThatAResetClears) {
+  config_.controller.supervisor.following_error_s = 0.0;
+  config_.controller.initial_setpoint_m = 0.0;  // mid-stroke, well inside the soft limits
+  backend_.sample.y_m = 0.0;
+  start();
+  const double y_d = config_.controller.initial_setpoint_m;
+  const auto& v = config_.controller.supervisor;
+  for (int i = 0; i < 3000 && mode() == Mode::kArmed; ++i) {
+    backend_.sample.y_m = y_d - 0.03 * std::sin(6.283185307179586 * 2.5 * static_cast<double>(k_) * 1e-3);
+    run_ticks(1);
+  }
+  ASSERT_EQ(mode(), Mode::kFault);
+  EXPECT_EQ(loop_->fault_cause(), controller::FaultCause::kOscillation);
+  const double past_band_s = std::asin(v.oscillation_amplitude_m / 0.03) / (6.283185307179586 * 2.5);
+  EXPECT_NEAR(now_s(), v.oscillation_sign_changes * 0.2 + past_band_s, 1.5e-3);
+  EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
+  command(LoopCommand::Kind::kFaultReset);
+  EXPECT_EQ(mode(), Mode::kDisarmed) << "a reset clears it: the swing is over once the valves are off";
+}
+
+// No rest within the settle time of a set point: the carriage creeps on, its stop detector never
+// confirms a stop.
+TEST_F(LoopModes, NoRestWithinTheSettleTimeOfASetPointLatchesAnOscillationFault) {
+  config_.controller.supervisor.following_error_s = 0.0;
+  start();
+  run_ticks(100);
+  command(LoopCommand::Kind::kSetPoint, 0.15);
+  const double sent_s = now_s();
+  for (int i = 0; i < 5000 && mode() == Mode::kArmed; ++i) {
+    backend_.sample.y_m -= 1e-5;  // 10 mm/s, far from the set point's band, never still
+    run_ticks(1);
+  }
+  ASSERT_EQ(mode(), Mode::kFault);
+  EXPECT_EQ(loop_->fault_cause(), controller::FaultCause::kOscillation);
+  EXPECT_NEAR(now_s() - sent_s, config_.controller.supervisor.settle_time_s, 1.5e-3);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -354,6 +354,46 @@ TEST_F(PneudCli, SummaryJsonIsWrittenUnderQuietAndListsTheFaults) {
   EXPECT_NEAR(fault["y_m"].number(), 0.2195, 0.001) << "the carriage had barely moved";
 }
 
+// Issue 14: with the default (the paper's) gains the loop is unstable at mid-stroke. The carriage,
+// at rest at 0, stepped to 50 mm at 1 s, swings ever wider; the supervisor latches the
+// oscillation fault within 2 s of the step, and the valves go to the neutral safe output.
+TEST_F(PneudCli, ThePaperGainsAtMidStrokeLatchAnOscillationFaultWithinTwoSecondsOfTheStep) {
+  const Outcome o = pneud("--quiet --summary-json " + quoted(file("summary.json")) + " --events " +
+                          quoted(file("events.jsonl")) + " --trajectory " + quoted(file("traj.csv")) +
+                          " --set simulation.initial_position_m=0 --set controller.setpoints.initial_m=0"
+                          " --set \"controller.setpoints.schedule=[{t_s: 1, position_m: 0.05}]\"");
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  const Json j = Json::read(file("summary.json"));
+  ASSERT_EQ(j["faults"].elements().size(), 1u);
+  const Json& fault = j["faults"].elements().front();
+  EXPECT_EQ(fault["cause"].text(), "oscillation");
+  const double t_fault_s = fault["t_s"].number();
+  EXPECT_GT(t_fault_s, 1.0) << "after the step";
+  EXPECT_LT(t_fault_s, 3.0) << "within 2 s of it";
+  EXPECT_THAT(slurp(file("events.jsonl")), HasSubstr("\"event\":\"fault\",\"t\":"));
+  EXPECT_THAT(slurp(file("events.jsonl")), HasSubstr("\"cause\":\"oscillation\""));
+
+  // Not vacuous: before the fault the error swung beyond +-10 mm both ways; from the fault on, the
+  // valves are at the neutral safe output u_0.
+  const pneu::test::Csv traj = pneu::test::Csv::read(file("traj.csv"));
+  const std::size_t t = traj.col("t"), y_d = traj.col("y_d"), y = traj.col("y"), u = traj.col("u");
+  double lowest_error_m = 0.0, highest_error_m = 0.0;
+  std::size_t after = 0;
+  for (const auto& row : traj.rows) {
+    const double error_m = std::stod(row[y_d]) - std::stod(row[y]);
+    if (std::stod(row[t]) < t_fault_s) {
+      lowest_error_m = std::min(lowest_error_m, error_m);
+      highest_error_m = std::max(highest_error_m, error_m);
+    } else {
+      ++after;
+      ASSERT_NEAR(std::stod(row[u]), j["u_0_v"].number(), 1e-6) << "at t = " << row[t];
+    }
+  }
+  EXPECT_LT(lowest_error_m, -0.01);
+  EXPECT_GT(highest_error_m, 0.01);
+  EXPECT_GT(after, 9000u) << "the rest of the 12 s run in the safe output";
+}
+
 TEST_F(PneudCli, SummaryJsonIsNotLeftBehindWhenTheRunFailsNorFromAnEarlierRun) {
   std::ofstream(file("summary.json")) << "{\"from\": \"an earlier run\"}\n";
   const Outcome o = pneud("--clock real --duration 0.1 --set hal.gpio.enabled=true --set hal.gpio.chip=pneu-no-such-chip"

@@ -290,6 +290,162 @@ TEST_F(SupervisorChecks, ASilentSetPointStreamIsAFaultWhenOneIsConfigured) {
       << "disarmed, no stream is expected";
 }
 
+// The settling rules (oscillation, settle time), each on its own: the other motion checks off.
+class SettlingChecks : public SupervisorChecks {
+ protected:
+  SettlingChecks() {
+    auto& v = config_.controller.supervisor;
+    v.following_error_s = 0.0;
+    v.max_speed_m_per_s = 0.0;
+  }
+  // One armed tick (unless told otherwise) with the carriage at y, the set point y_d, and the
+  // stop detector's state.
+  FaultCause at(Supervisor& s, double t, double y, double y_d, bool at_rest, bool armed = true) {
+    hal::SensorFrame f = good(t);
+    f.y_m = y;
+    c::SupervisedTick st;
+    st.t_s = t;
+    st.frame = &f;
+    st.armed = armed;
+    st.y_d_m = y_d;
+    st.at_rest = at_rest;
+    return s.check(st);
+  }
+  const pneu::config::SupervisorConfig& v() const { return config_.controller.supervisor; }
+};
+
+constexpr double kTwoPi = 6.283185307179586;
+
+TEST_F(SettlingChecks, AnErrorSwingingBeyondTheBandIsAnOscillationAtTheNthSignChange) {
+  config_.controller.supervisor.settle_time_s = 0.0;
+  Supervisor s = make();
+  // The paper's gains at mid-stroke: +-30 mm about the set point, a half-swing every 0.2 s.
+  const double amplitude_m = 3 * v().oscillation_amplitude_m, frequency_hz = 2.5, y_d = 0.05;
+  // The error y_d - y = amplitude sin(2 pi f t) leaves the band on one side, then on the other:
+  // its k-th sign change is where it passes -band (k odd) or +band (k even) after the k-th zero.
+  const double past_band_s = std::asin(v().oscillation_amplitude_m / amplitude_m) / (kTwoPi * frequency_hz);
+  const double nth_change_s = v().oscillation_sign_changes * 0.5 / frequency_hz + past_band_s;
+  double raised_at = -1.0;
+  for (double t = 0.0; t < 3.0 && raised_at < 0.0; t += kPeriod)
+    if (at(s, t, y_d - amplitude_m * std::sin(kTwoPi * frequency_hz * t), y_d, false) == FaultCause::kOscillation)
+      raised_at = t;
+  EXPECT_NEAR(raised_at, nth_change_s, 1.5 * kPeriod);
+  EXPECT_FALSE(s.cause_present()) << "an event: a reset clears it";
+}
+
+TEST_F(SettlingChecks, ANormalApproachOvershootingTwiceIsNoOscillation) {
+  Supervisor s = make();
+  // A 100 mm step answered by a damped swing: beyond the set point by 45 mm, back short of it by
+  // 20 mm (two sign changes of the error beyond the band), a third swing of 9 mm inside the band,
+  // then rest at 0.8 s.
+  const double y0 = -0.05, y_d = 0.05;
+  for (double t = 0.0; t < 10.0; t += kPeriod) {
+    const double y = y_d - (y_d - y0) * std::exp(-t / 0.25) * std::cos(kTwoPi * 2.5 * t);
+    ASSERT_EQ(at(s, t, t < 0.8 ? y : y_d, y_d, t >= 0.805), FaultCause::kNone) << t;
+  }
+}
+
+TEST_F(SettlingChecks, NoiseAroundTheSetPointChangesNoSign) {
+  Supervisor s = make();
+  const double y_d = 0.0;
+  // Noise up to 95 % of the band on each side, flipping every tick: hysteresis, no sign change.
+  for (double t = 0.0; t < 5.0; t += kPeriod) {
+    const double noise_m = (static_cast<long>(std::llround(t / kPeriod)) % 2 ? 0.95 : -0.95) * v().oscillation_amplitude_m;
+    ASSERT_EQ(at(s, t, y_d + noise_m, y_d, true), FaultCause::kNone) << t;
+  }
+}
+
+TEST_F(SettlingChecks, SwingsSlowerThanTheWindowAllowsAreNoOscillation) {
+  config_.controller.supervisor.settle_time_s = 0.0;
+  Supervisor s = make();
+  // The sign changes 0.8 window apart: never oscillation_sign_changes of them within one window.
+  const double half_period_s = 0.8 * v().oscillation_window_s, y_d = 0.0;
+  for (double t = 0.0; t < 10 * half_period_s; t += kPeriod)
+    ASSERT_EQ(at(s, t, y_d - 0.05 * std::sin(kTwoPi * t / (2 * half_period_s)), y_d, false), FaultCause::kNone) << t;
+}
+
+TEST_F(SettlingChecks, AStepOfTheSetPointStartsTheCountAfresh) {
+  config_.controller.supervisor.settle_time_s = 0.0;
+  Supervisor s = make();
+  // An operator stepping back and forth between two set points 100 mm apart every 0.25 s, each
+  // step overshot once by 15 mm: a sign change per step, and no oscillation.
+  for (double t = 0.0; t < 5.0; t += kPeriod) {
+    const int move = static_cast<int>(t / 0.25);
+    const double y_d = move % 2 ? 0.05 : -0.05;
+    const double since_s = t - move * 0.25;
+    const double from = -y_d;
+    const double y = since_s < 0.1 ? from + (y_d + (y_d - from) * 0.15 - from) * since_s / 0.1 : y_d;
+    ASSERT_EQ(at(s, t, y, y_d, false), FaultCause::kNone) << t;
+  }
+}
+
+TEST_F(SettlingChecks, NoRestWithinTheSettleTimeOfASetPointChangeIsAFault) {
+  config_.controller.supervisor.oscillation_sign_changes = 0;
+  Supervisor s = make();
+  // At rest at 0 until the set point steps to 50 mm at 1 s; the carriage creeps towards it and
+  // never rests.
+  double raised_at = -1.0;
+  for (double t = 0.0; t < 10.0 && raised_at < 0.0; t += kPeriod) {
+    const double y_d = t < 1.0 ? 0.0 : 0.05;
+    const double y = t < 1.0 ? 0.0 : 0.045 * (1.0 - std::exp(-(t - 1.0) / 0.2));
+    if (at(s, t, y, y_d, t < 1.001) == FaultCause::kOscillation) raised_at = t;
+  }
+  EXPECT_NEAR(raised_at, 1.0 + v().settle_time_s, 1.5 * kPeriod);
+  EXPECT_FALSE(s.cause_present()) << "an event: a reset clears it";
+}
+
+TEST_F(SettlingChecks, ARestWithinTheSettleTimeSatisfiesItUntilTheNextChange) {
+  config_.controller.supervisor.oscillation_sign_changes = 0;
+  Supervisor s = make();
+  // The step at 1 s, a rest from 1.5 s to 2 s, then a restart and creeping on: settled once, the
+  // rule has nothing more to say until the set point changes again at 6 s.
+  const double t_change = 6.0;
+  double raised_at = -1.0;
+  for (double t = 0.0; t < 12.0 && raised_at < 0.0; t += kPeriod) {
+    const double y_d = t < 1.0 ? 0.0 : t < t_change ? 0.05 : 0.1;
+    const bool at_rest = t < 1.001 || (t >= 1.5 && t < 2.0);
+    if (at(s, t, 0.04, y_d, at_rest) == FaultCause::kOscillation) raised_at = t;
+  }
+  EXPECT_NEAR(raised_at, t_change + v().settle_time_s, 1.5 * kPeriod) << "only the change at 6 s goes unsettled";
+}
+
+TEST_F(SettlingChecks, AStepTooSmallToMoveTheCarriageHasSettled) {
+  Supervisor s = make();
+  for (double t = 0.0; t < 10.0; t += kPeriod)
+    ASSERT_EQ(at(s, t, 0.0, t < 1.0 ? 0.0 : 0.004, true), FaultCause::kNone) << t;
+}
+
+TEST_F(SettlingChecks, AreOffAtZeroAndWhileDisarmed) {
+  const auto swing = [](double t) { return -0.05 * std::sin(kTwoPi * 2.5 * t); };
+  config_.controller.supervisor.oscillation_sign_changes = 0;
+  config_.controller.supervisor.settle_time_s = 0.0;
+  Supervisor off = make();
+  for (double t = 0.0; t < 10.0; t += kPeriod) ASSERT_EQ(at(off, t, swing(t), 0.0, false), FaultCause::kNone) << t;
+  config_.controller.supervisor = pneu::config::SupervisorConfig{};
+  config_.controller.supervisor.following_error_s = 0.0;
+  Supervisor disarmed = make();
+  for (double t = 0.0; t < 10.0; t += kPeriod)
+    ASSERT_EQ(at(disarmed, t, swing(t), 0.0, false, /*armed=*/false), FaultCause::kNone) << t;
+}
+
+TEST_F(SettlingChecks, ArmingStartsBothRulesAfresh) {
+  Supervisor s = make();
+  const auto y = [](double t) { return -0.05 * std::sin(kTwoPi * 2.5 * t); };
+  // Three sign changes (one short of the fault), then re-armed: three more are still one short.
+  double t = 0.0;
+  for (; t < 0.5; t += kPeriod) ASSERT_EQ(at(s, t, y(t), 0.0, false), FaultCause::kNone) << t;
+  ASSERT_EQ(v().oscillation_sign_changes, 4u);
+  s.on_arm();
+  for (; t < 1.0; t += kPeriod) ASSERT_EQ(at(s, t, y(t), 0.0, false), FaultCause::kNone) << t;
+  // ... and the settle time runs from the arming.
+  const double armed_at = t;
+  s.on_arm();
+  double raised_at = -1.0;
+  for (; t < 10.0 && raised_at < 0.0; t += kPeriod)
+    if (at(s, t, 0.001 * t, 0.0, false) == FaultCause::kOscillation) raised_at = t;
+  EXPECT_NEAR(raised_at, armed_at + v().settle_time_s, 1.5 * kPeriod);
+}
+
 TEST_F(SupervisorChecks, TheEStopIsAFaultAndACausePresentWhilePressed) {
   Supervisor s = make();
   hal::SensorFrame f = good(0.0);
@@ -316,7 +472,9 @@ TEST(FaultCauses, KeepTheirNumbersOnTheWire) {
   EXPECT_EQ(c::fault_number(FaultCause::kEStop), 1);
   EXPECT_EQ(c::fault_number(FaultCause::kComms), 2);
   EXPECT_EQ(c::fault_number(FaultCause::kSoftLimit), 7);
-  EXPECT_EQ(c::fault_number(FaultCause::kCommandTimeout), c::kFaultCauseCount - 1);
+  EXPECT_EQ(c::fault_number(FaultCause::kCommandTimeout), 10);
+  EXPECT_EQ(c::fault_number(FaultCause::kOscillation), 11);
+  EXPECT_EQ(c::fault_number(FaultCause::kOscillation), c::kFaultCauseCount - 1);
   EXPECT_STREQ(c::fault_name(static_cast<FaultCause>(c::kFaultCauseCount)), "unknown");
 }
 

@@ -150,10 +150,11 @@ void ControlLoop::tick(double t_s) noexcept {
   while (schedule_active_ && next_step_ < schedule.size() && schedule[next_step_].t_s <= t_s + 1e-9)
     y_d_m_ = schedule[next_step_++].position_m;
   // ... then on the motion, with this tick's commands and set point in force: soft limits,
-  // following error, timing, the set-point stream.
+  // following error, settling, timing, the set-point stream.
   st.armed = mode_ == Mode::kArmed;
   st.y_d_m = y_d_m_;
   st.last_setpoint_t_s = last_setpoint_t_s_;
+  st.at_rest = detector_.stopped();  // as of the last good sample: the detector runs below
   if (const FaultCause cause = supervisor_.check_motion(st); cause != FaultCause::kNone) latch_fault(cause, t_s, y_measured_m);
 
   // Differentiate new samples only (a slow link repeats them), over the ticks since the last new

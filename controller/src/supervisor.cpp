@@ -28,6 +28,7 @@ const char* fault_name(FaultCause cause) noexcept {
     case FaultCause::kFollowingError: return "following-error";
     case FaultCause::kOverrun: return "overrun";
     case FaultCause::kCommandTimeout: return "command-timeout";
+    case FaultCause::kOscillation: return "oscillation";
     default: return "unknown";
   }
 }
@@ -44,6 +45,7 @@ const char* fault_text(FaultCause cause) noexcept {
     case FaultCause::kFollowingError: return "following error: |y_d - y| above controller.supervisor.following_error_m for longer than following_error_s";
     case FaultCause::kOverrun: return "the loop overran its deadlines (controller.supervisor.overruns_in_a_row or max_tick_interval_s)";
     case FaultCause::kCommandTimeout: return "armed, no set point for commands.setpoint_stream_timeout_s: the set-point stream fell silent";
+    case FaultCause::kOscillation: return "the loop does not settle: y_d - y changed sign controller.supervisor.oscillation_sign_changes times beyond +-oscillation_amplitude_m within oscillation_window_s, or no rest within settle_time_s of a set-point change (the gains unstable at this position?)";
     default: return "fault";
   }
 }
@@ -65,9 +67,65 @@ void Supervisor::reset(double t_s) noexcept {
   p_p_changed_s_ = p_n_changed_s_ = t_s;
   last_p_p_pa_ = last_p_n_pa_ = std::nan("");
   following_since_s_ = -1.0;
+  forget_settling();
   last_tick_t_s_ = -1.0;
   overruns_in_a_row_ = 0;
   overrun_fault_ = false;
+}
+
+void Supervisor::on_arm() noexcept {
+  following_since_s_ = -1.0;
+  forget_settling();
+}
+
+void Supervisor::forget_settling() noexcept {
+  last_y_d_m_ = std::nan("");
+  error_side_ = 0;
+  sign_changes_ = 0;
+  settle_since_s_ = -1.0;
+  was_at_rest_ = true;
+}
+
+bool Supervisor::not_settling(const SupervisedTick& tick) noexcept {
+  const double t = tick.t_s;
+  const double amplitude_m = cfg_.oscillation_amplitude_m;
+  const bool first = std::isnan(last_y_d_m_);  // the first armed tick: as if the set point just changed
+  const bool changed = first || tick.y_d_m != last_y_d_m_;
+  // A step beyond the band starts a new move: the swings before it were not this move's. (A
+  // stream of small increments, a ramp, keeps counting: an oscillation while tracking is one.)
+  if (first || std::abs(tick.y_d_m - last_y_d_m_) > amplitude_m) {
+    error_side_ = 0;
+    sign_changes_ = 0;
+  }
+  last_y_d_m_ = tick.y_d_m;
+  bool fault = false;
+
+  // Oscillation: the side changes only once the error is beyond the band on the other side, so
+  // each counted half-swing exceeded the amplitude and noise around zero error counts nothing.
+  const double error_m = tick.y_d_m - tick.frame->y_m;
+  const int side = error_m > amplitude_m ? +1 : error_m < -amplitude_m ? -1 : error_side_;
+  if (error_side_ != 0 && side != error_side_) {
+    constexpr std::size_t kRing = config::SupervisorConfig::kMaxOscillationSignChanges;
+    sign_change_t_s_[sign_changes_ % kRing] = t;
+    ++sign_changes_;
+    const std::uint32_t n = cfg_.oscillation_sign_changes;
+    // The n-th last sign change lies within the window.
+    if (n > 0 && sign_changes_ >= n && t - sign_change_t_s_[(sign_changes_ - n) % kRing] <= cfg_.oscillation_window_s)
+      fault = true;
+  }
+  error_side_ = side;
+
+  // Settle time: from each change of the set point, a rest must begin (a stop confirmed) within
+  // settle_time_s, unless the carriage is at rest then anyway (a step too small to move it).
+  if (changed) settle_since_s_ = t;
+  const bool rest_began = tick.at_rest && !was_at_rest_ && !changed;
+  was_at_rest_ = tick.at_rest;
+  if (rest_began) settle_since_s_ = -1.0;
+  if (cfg_.settle_time_s > 0.0 && settle_since_s_ >= 0.0 && t - settle_since_s_ > cfg_.settle_time_s) {
+    if (!tick.at_rest) fault = true;
+    settle_since_s_ = -1.0;
+  }
+  return fault;
 }
 
 void Supervisor::note_overrun(bool overran) noexcept {
@@ -161,8 +219,10 @@ FaultCause Supervisor::check_motion(const SupervisedTick& tick) noexcept {
         following_since_s_ = -1.0;
       }
     }
+    if (not_settling(tick)) first(FaultCause::kOscillation);
   } else if (!tick.armed) {
     following_since_s_ = -1.0;
+    forget_settling();
   }
 
   // Timing: the interval since the last tick (real clock: wake-up times) and overruns in a row.

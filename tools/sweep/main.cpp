@@ -8,6 +8,8 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <limits>
+#include <optional>
 #include <mutex>
 #include <random>
 #include <span>
@@ -19,6 +21,7 @@
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/session.hpp"
+#include "pneu/controller/supervisor.hpp"
 #include "pneu/controller/verdict.hpp"
 
 namespace {
@@ -31,7 +34,8 @@ constexpr const char* kHelp = R"(pneu-sweep: the restart predictor against many 
 Usage:
   pneu-sweep [--config FILE] --out SWEEP.csv [--steps N] [--seed S] [--jobs J] [--duration S]
              [--step-time S] [--tail S] [--margin-m M] [--min-step-m D] [--friction-spread F] [--gain-spread G]
-             [--set KEY=VALUE ...] [--supervised] [--strict] [--quiet]
+             [--scenarios-out SCENARIOS.csv] [--set KEY=VALUE ...] [--supervised] [--strict]
+             [--strict-forecasts] [--quiet]
 
 Scenario i starts at rest at a random position y0 and steps the set point at --step-time
 (default 1 s) to y_d, the targets spread evenly over the stroke less --margin-m (default 0.02 m)
@@ -46,7 +50,28 @@ motion band for tens of milliseconds). --jobs threads (default: the cores) share
 The sweep studies the control law and the forecast, not the bench's protection: unless
 --supervised, the supervisor's motion and range checks are off (large steps slam the carriage
 into an end stop and push a chamber past the pressure sensor's range, which pneud would rightly
-latch as faults and so end the scenario).
+latch as faults and so end the scenario), and so are its settling rules (oscillation, settle
+time: controller.supervisor.oscillation_* and settle_time_s), so that every scenario runs its
+whole duration and every stop counts in the forecast figures. Those rules are checked alongside
+instead: a supervisor of the sweep's own, with only them on, is fed each scenario's ticks and
+tells when it would have latched the oscillation fault (the run goes on). With --supervised
+every check is on as in pneud, and a fault ends the scenario's control (outcome fault).
+
+Each scenario gets an outcome, from the first time the carriage comes to rest after the step:
+the stop detector's first stop after it, before any fault, at which the plant was at rest (noisy
+sensors can make the detector confirm a stop while the plant turns slowly). settled: at rest
+inside the stroke; end-stop: at rest against an end stop (it may come off it later:
+final_error_m tells); never-settled: no rest to the end of the run, tail included; fault: a fault
+latched (--supervised). A carriage that the step does not move has settled at once. The summary
+counts them (their sum is the number of scenarios), says where on the stroke those that did not
+settle lie, and gives the settle time (the first rest, from the step) and the final error
+(|y_d - y| at the end of the run) percentiles over the settled ones. --scenarios-out writes one
+row per scenario: scenario,y0_m,y_d_m,friction_scale,gain_scale,outcome,settle_time_s,
+final_error_m,fault_cause,fault_after_s,stops,restarts,at_rest_at_end,last_second_swing_m,
+oscillation_rule_after_s (times from the step, empty where not applicable; stops and restarts
+over the whole run; last_second_swing_m: the peak-to-peak position over the run's last second;
+oscillation_rule_after_s: when the settling rules checked alongside would have latched the
+oscillation fault, unless --supervised).
 
 Stops are those pneud's stop detector sees; what happened after each is the simulated truth: the
 plant's first breakaway after the forecast was made is the restart, timed exactly, even when it
@@ -56,11 +81,13 @@ detector may confirm a stop while the plant still slides within its rest band: c
 judged (outcome plant_not_at_rest). SWEEP.csv has one row per stop: the scenario, the stop, what happened, and each
 method's forecast with its verdict and error. The summary gives the confusion matrix of restart / no restart and the
 error percentiles per method. Acceptance: restarts after >= 0.5 s of sticking within 1 % of the
-sticking time (nonlinear) and 5 % (linearized), shorter ones within 10 ms; --strict exits 1 when
-any forecast misses it. For those restarts the summary and the *_halfway_error_percent columns
-also give the error of the live predictor: the forecast made again (every
-controller.predictor.update_period_s) from the last pressures before half the sticking time, in %
-of the whole sticking time; it is not judged.
+sticking time (nonlinear) and 5 % (linearized), shorter ones within 10 ms. The forecast figures
+cover every stop of every scenario, whatever its outcome (a scenario that never settles has no
+stop to judge). --strict exits 1 when any forecast misses its criteria or any scenario does not
+settle, saying which; --strict-forecasts only on the forecasts. For those restarts the summary
+and the *_halfway_error_percent columns also give the error of the live predictor: the forecast
+made again (every controller.predictor.update_period_s) from the last pressures before half the
+sticking time, in % of the whole sticking time; it is not judged.
 )";
 
 struct Scenario {
@@ -73,11 +100,178 @@ struct Truth {
   bool not_at_rest = false;  // the plant was sliding when the stop was confirmed: not judged
 };
 
+// Whether the plant was at rest (stuck, or against an end stop) at `t_s`, by its motion events.
+bool plant_at_rest(std::span<const plant::PlantEvent> events, double t_s) {
+  bool at_rest = true;  // runs start at rest
+  for (const auto& e : events) {
+    if (e.t_s > t_s) break;
+    at_rest = e.kind != plant::PlantEvent::Kind::kBreakaway;
+  }
+  return at_rest;
+}
+
+// How a scenario ended up (see the help).
+enum class Outcome : std::uint8_t { kSettled, kNeverSettled, kEndStop, kFault };
+constexpr Outcome kOutcomes[] = {Outcome::kSettled, Outcome::kNeverSettled, Outcome::kEndStop, Outcome::kFault};
+
+const char* outcome_name(Outcome o) {
+  switch (o) {
+    case Outcome::kSettled: return "settled";
+    case Outcome::kNeverSettled: return "never-settled";
+    case Outcome::kEndStop: return "end-stop";
+    case Outcome::kFault: return "fault";
+  }
+  return "?";
+}
+
+// A rest this close to an end of the stroke is against its end stop [m] (the targets keep
+// --margin-m from the ends; a noisy, quantised sensor reads an end stop within tens of um).
+constexpr double kEndStopTolerance_m = 1.0e-3;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// What became of the scenario after its step (times from the step).
+struct Settling {
+  Outcome outcome = Outcome::kNeverSettled;
+  double settle_time_s = kNaN;     // the first rest after the step, before any fault
+  double rest_y_m = kNaN;          // ... its position
+  double final_error_m = kNaN;     // |y_d - y| at the end of the run
+  controller::FaultCause fault = controller::FaultCause::kNone;  // the first fault latched
+  double fault_after_s = kNaN;
+  std::uint64_t stops = 0, restarts = 0;  // over the whole run, tail included
+  bool at_rest_at_end = false;
+  double last_second_swing_m = kNaN;      // peak-to-peak position over the run's last second
+  double oscillation_rule_after_s = kNaN; // when the settling rules checked alongside would latch
+};
+
+// The supervisor's settling rules alone (oscillation, settle time): every other check off.
+controller::LoopParams settling_rules_only(controller::LoopParams params, const config::SupervisorConfig& rules) {
+  auto& v = params.controller.supervisor;
+  v = config::SupervisorConfig{};
+  v.oscillation_amplitude_m = rules.oscillation_amplitude_m;
+  v.oscillation_sign_changes = rules.oscillation_sign_changes;
+  v.oscillation_window_s = rules.oscillation_window_s;
+  v.settle_time_s = rules.settle_time_s;
+  v.overtravel_m = 1e300;
+  v.following_error_s = 0.0;
+  v.max_tick_interval_s = 0.0;
+  v.overruns_in_a_row = 0;
+  params.setpoint_stream_timeout_s = 0.0;
+  return params;
+}
+
+// Watches one scenario's run through the runtime's records: when and where the carriage first
+// came to rest after the step, the faults, where it is at the end; and feeds every tick to a
+// supervisor of its own with only the settling rules on, which tells when the oscillation fault
+// would have latched (the run itself goes on).
+class ScenarioWatch final : public controller::RunListener {
+ public:
+  /// `rules`: the supervisor checked alongside (none: the run has its own).
+  ScenarioWatch(std::optional<controller::LoopParams> rules, double step_time_s, double end_s, double half_stroke_m)
+      : step_time_s_(step_time_s), end_s_(end_s), half_stroke_m_(half_stroke_m) {
+    if (!rules) return;
+    shadow_.emplace(*rules);
+    shadow_->reset(0.0);
+  }
+
+  void on_tick(const controller::TickRecord& r, const controller::ExpectedAtTick&) override {
+    if (shadow_) check_alongside(r);
+    stuck_ = r.stuck;
+    if (r.t_s >= step_time_s_ && !r.stuck) moved_ = true;
+    last_ = r;
+    if (r.t_s >= end_s_ - 1.0) {
+      lowest_m_ = std::min(lowest_m_, r.y_m);
+      highest_m_ = std::max(highest_m_, r.y_m);
+    }
+  }
+
+  // The settling rules on the tick as the loop saw it.
+  void check_alongside(const controller::TickRecord& r) {
+    hal::SensorFrame f;
+    f.t_s = r.t_s;
+    f.y_m = r.y_m;
+    f.p_p_pa = r.p_p_pa;
+    f.p_n_pa = r.p_n_pa;
+    controller::SupervisedTick st;
+    st.t_s = r.t_s;
+    st.frame = &f;
+    st.armed = r.mode == controller::Mode::kArmed;
+    st.y_d_m = r.y_d_m;
+    st.last_setpoint_t_s = r.t_s;
+    st.at_rest = stuck_;  // as the loop hands it: the detector's state before this tick's sample
+    if (shadow_->check_motion(st) == controller::FaultCause::kOscillation && std::isnan(s_.oscillation_rule_after_s) &&
+        r.t_s >= step_time_s_)
+      s_.oscillation_rule_after_s = r.t_s - step_time_s_;
+  }
+
+  void on_event(const controller::LoopEvent& e) override {
+    using Kind = controller::LoopEvent::Kind;
+    switch (e.kind) {
+      case Kind::kStop:
+        ++s_.stops;
+        if (e.t_s >= step_time_s_ && s_.fault == controller::FaultCause::kNone && rest_candidates_.size() < kCandidates)
+          rest_candidates_.push_back({e.t_s, e.snapshot.t_s, e.y_m});
+        break;
+      case Kind::kStart:
+        if (e.restart) ++s_.restarts;
+        break;
+      case Kind::kFault:
+        if (s_.fault == controller::FaultCause::kNone) {
+          s_.fault = e.fault_cause;
+          s_.fault_after_s = e.t_s - step_time_s_;
+        }
+        break;
+      default: break;
+    }
+  }
+
+  // The account, once the run has ended, with the plant's motion events: the first rest is the
+  // first stop after the step (before any fault) that the plant confirms (a noisy detector can
+  // confirm a stop while the plant slides within its rest band, e.g. slowly through a turn).
+  [[nodiscard]] Settling settling(std::span<const plant::PlantEvent> plant_events) const {
+    Settling s = s_;
+    for (const RestCandidate& c : rest_candidates_)
+      if (plant_at_rest(plant_events, c.confirmed_t_s)) {
+        s.settle_time_s = c.t_s - step_time_s_;
+        s.rest_y_m = c.y_m;
+        break;
+      }
+    s.final_error_m = std::abs(last_.y_d_m - last_.y_m);
+    s.at_rest_at_end = last_.stuck;
+    if (lowest_m_ <= highest_m_) s.last_second_swing_m = highest_m_ - lowest_m_;
+    if (s.fault != controller::FaultCause::kNone) {
+      s.outcome = Outcome::kFault;
+    } else if (!std::isnan(s.settle_time_s)) {
+      s.outcome = std::abs(s.rest_y_m) >= half_stroke_m_ - kEndStopTolerance_m ? Outcome::kEndStop : Outcome::kSettled;
+    } else if (!moved_) {  // the step did not move it: at rest all along
+      s.outcome = Outcome::kSettled;
+      s.settle_time_s = 0.0;
+    } else {
+      s.outcome = Outcome::kNeverSettled;
+    }
+    return s;
+  }
+
+ private:
+  struct RestCandidate {
+    double t_s, confirmed_t_s, y_m;  // the stop (backdated), its confirmation, its position
+  };
+  static constexpr std::size_t kCandidates = 4096;
+  std::vector<RestCandidate> rest_candidates_;  // the stops after the step, before any fault
+  std::optional<controller::Supervisor> shadow_;
+  double step_time_s_, end_s_, half_stroke_m_;
+  Settling s_;
+  bool stuck_ = true;  // runs start at rest
+  bool moved_ = false;  // the detector saw the carriage move after the step
+  controller::TickRecord last_;
+  double lowest_m_ = 1e300, highest_m_ = -1e300;
+};
+
 struct ScenarioResult {
   Scenario scenario;
   std::vector<controller::StopOutcome> stops;
   std::vector<Truth> truth;  // per stop
   double t_end_s = 0.0;
+  Settling settling;
 };
 
 // What happened, by the simulated truth: the plant's first breakaway after the forecast was made
@@ -92,12 +286,7 @@ Truth apply_plant_truth(controller::StopOutcome& s, std::span<const plant::Plant
   using Kind = plant::PlantEvent::Kind;
   Truth truth;
   if (s.ended && !s.restarted) return truth;
-  bool at_rest = true;  // runs start at rest
-  for (const auto& e : events) {
-    if (e.t_s > s.snapshot.t_s) break;
-    at_rest = e.kind != Kind::kBreakaway;
-  }
-  if (!at_rest) {
+  if (!plant_at_rest(events, s.snapshot.t_s)) {
     truth.not_at_rest = true;
     return truth;
   }
@@ -160,16 +349,20 @@ bool within_criteria(const controller::StopOutcome& s, const Verdict& v, bool no
 int run(int argc, char** argv) {
   const cli::Args args(argc, argv, 1,
                        {"config", "out", "steps", "seed", "jobs", "duration", "step-time", "margin-m",
-                        "min-step-m", "friction-spread", "gain-spread", "tail"},
-                       {"strict", "quiet", "help", "supervised"}, {"set"});
+                        "min-step-m", "friction-spread", "gain-spread", "tail", "scenarios-out"},
+                       {"strict", "strict-forecasts", "quiet", "help", "supervised"}, {"set"});
   if (args.flag("help")) {
     std::cout << kHelp;
     return cli::kExitOk;
   }
   const std::string config_path = args.value("config").value_or("");
   config::Config base = config::load_file_or_default(config_path, args.all("set"));
-  if (!args.flag("supervised")) {
+  const config::SupervisorConfig settling_rules = base.controller.supervisor;  // checked alongside
+  const bool supervised = args.flag("supervised");
+  if (!supervised) {
     auto& v = base.controller.supervisor;
+    v.oscillation_sign_changes = 0;
+    v.settle_time_s = 0.0;
     v.position_min_m = v.pressure_min_pa = -1e300;
     v.position_max_m = v.pressure_max_pa = 1e300;
     v.overtravel_m = 1e300;
@@ -219,6 +412,8 @@ int run(int argc, char** argv) {
   }
 
   cli::AtomicFile out(out_path);  // created before the run: an unwritable path fails fast
+  std::optional<cli::AtomicFile> scenarios_out;
+  if (const auto path = args.value("scenarios-out")) scenarios_out.emplace(*path);
 
   std::vector<ScenarioResult> results(scenarios.size());
   std::atomic<int> next{0}, done{0};
@@ -254,12 +449,16 @@ int run(int argc, char** argv) {
         auto sim = controller::make_run(cfg, *valve, std::move(plant));
         sim.runtime->set_follow_forecasts(false);  // nobody sees the tick-by-tick comparison here
         sim.runtime->set_keep_reforecasts(true);   // judged below against the plant's breakaways
+        ScenarioWatch watch(supervised ? std::nullopt
+                                       : std::optional(settling_rules_only(controller::LoopParams::from(cfg), settling_rules)),
+                            step_time, cfg.controller.duration_s, half);
+        sim.runtime->add_sink(watch);
         controller::SimulatedClock clock;
         std::atomic<bool> never{false};
         controller::execute(sim, cfg, clock, never);
         // Stops from the tail are not judged: the tail only lets the carriage show what it did
         // after the stops of the judged window.
-        ScenarioResult r{s, {}, {}, sim.runtime->end_time_s()};
+        ScenarioResult r{s, {}, {}, sim.runtime->end_time_s(), watch.settling(bench.motion_events())};
         if (bench.motion_events_dropped() > 0)
           throw std::runtime_error("scenario " + std::to_string(s.index) + ": more plant events than recorded");
         for (auto stop : sim.runtime->stops()) {
@@ -386,6 +585,50 @@ int run(int argc, char** argv) {
   }
   out.commit();
 
+  // One row per scenario, and the outcomes' account.
+  std::uint64_t outcome_count[std::size(kOutcomes)] = {};
+  std::vector<double> settle_times_s, final_errors_m;
+  std::vector<double> rule_after_s[std::size(kOutcomes)];  // when the settling rules would latch, per outcome
+  std::vector<std::uint64_t> fault_count(controller::kFaultCauseCount, 0);
+  double y0_range_m[std::size(kOutcomes)][2], y_d_range_m[std::size(kOutcomes)][2];
+  for (std::size_t k = 0; k < std::size(kOutcomes); ++k)
+    y0_range_m[k][0] = y_d_range_m[k][0] = 1e300, y0_range_m[k][1] = y_d_range_m[k][1] = -1e300;
+  const auto cell = [](double v, int digits = 6) {  // empty: not applicable
+    if (std::isnan(v)) return std::string();
+    char b[64];
+    std::snprintf(b, sizeof b, "%.*f", digits, v);
+    return std::string(b);
+  };
+  if (scenarios_out)
+    scenarios_out->stream() << "scenario,y0_m,y_d_m,friction_scale,gain_scale,outcome,settle_time_s,final_error_m,"
+                               "fault_cause,fault_after_s,stops,restarts,at_rest_at_end,last_second_swing_m,"
+                               "oscillation_rule_after_s\n";
+  for (const auto& r : results) {
+    const Settling& g = r.settling;
+    const auto k = static_cast<std::size_t>(g.outcome);
+    ++outcome_count[k];
+    y0_range_m[k][0] = std::min(y0_range_m[k][0], r.scenario.y0_m);
+    y0_range_m[k][1] = std::max(y0_range_m[k][1], r.scenario.y0_m);
+    y_d_range_m[k][0] = std::min(y_d_range_m[k][0], r.scenario.y_d_m);
+    y_d_range_m[k][1] = std::max(y_d_range_m[k][1], r.scenario.y_d_m);
+    if (g.outcome == Outcome::kSettled) {
+      settle_times_s.push_back(g.settle_time_s);
+      final_errors_m.push_back(g.final_error_m);
+    }
+    if (g.fault != controller::FaultCause::kNone) ++fault_count[controller::fault_number(g.fault)];
+    if (!std::isnan(g.oscillation_rule_after_s)) rule_after_s[k].push_back(g.oscillation_rule_after_s);
+    if (!scenarios_out) continue;
+    scenarios_out->stream() << r.scenario.index << ',' << cell(r.scenario.y0_m) << ',' << cell(r.scenario.y_d_m) << ','
+                            << cell(r.scenario.friction_scale, 4) << ',' << cell(r.scenario.gain_scale, 4)
+                            << ',' << outcome_name(g.outcome) << ',' << cell(g.settle_time_s) << ','
+                            << cell(g.final_error_m, 9) << ','
+                            << (g.fault == controller::FaultCause::kNone ? "" : controller::fault_name(g.fault)) << ','
+                            << cell(g.fault_after_s) << ',' << g.stops << ',' << g.restarts << ','
+                            << (g.at_rest_at_end ? 1 : 0) << ',' << cell(g.last_second_swing_m, 9) << ','
+                            << cell(g.oscillation_rule_after_s) << '\n';
+  }
+  if (scenarios_out) scenarios_out->commit();
+
   std::printf("pneu-sweep: %d scenarios (%d set-point steps over [%.3f, %.3f] m, seed %llu, friction +-%.0f %%, gains +-%.0f %%), stops of the first %.0f s judged (+ %.1f s tail)\n",
               n, n, lo, hi, static_cast<unsigned long long>(seed_d), friction_spread * 100, gain_spread * 100, duration, tail);
   std::printf("  %llu stops, %llu restarts (%llu after >= 0.5 s of sticking, %llu after >= 1 s), timed by the plant's "
@@ -397,6 +640,49 @@ int run(int argc, char** argv) {
     std::printf("  %llu stops were confirmed while the plant was still sliding within the detector's rest band: "
                 "their forecasts are not judged\n",
                 static_cast<unsigned long long>(not_at_rest));
+  const auto count = [&](Outcome o) { return static_cast<unsigned long long>(outcome_count[static_cast<std::size_t>(o)]); };
+  std::printf("  outcomes (the first rest after the step): %llu settled, %llu never settled, %llu at rest against an end "
+              "stop, %llu faults\n",
+              count(Outcome::kSettled), count(Outcome::kNeverSettled), count(Outcome::kEndStop), count(Outcome::kFault));
+  if (outcome_count[static_cast<std::size_t>(Outcome::kFault)] > 0) {
+    std::printf("    faults by cause:");
+    for (std::size_t c = 1; c < fault_count.size(); ++c)
+      if (fault_count[c] > 0)
+        std::printf(" %s %llu", controller::fault_name(static_cast<controller::FaultCause>(c)),
+                    static_cast<unsigned long long>(fault_count[c]));
+    std::printf("\n");
+  }
+  for (const Outcome o : {Outcome::kNeverSettled, Outcome::kEndStop, Outcome::kFault}) {
+    const auto k = static_cast<std::size_t>(o);
+    if (outcome_count[k] == 0) continue;
+    std::printf("    %s: y0 in [%.3f, %.3f] m, y_d in [%.3f, %.3f] m\n", outcome_name(o), y0_range_m[k][0],
+                y0_range_m[k][1], y_d_range_m[k][0], y_d_range_m[k][1]);
+  }
+  std::printf("    settle time from the step (%zu settled): p50 %.3f s  p90 %.3f s  p99 %.3f s  max %.3f s\n",
+              settle_times_s.size(), percentile(settle_times_s, 0.5), percentile(settle_times_s, 0.9),
+              percentile(settle_times_s, 0.99), percentile(settle_times_s, 1.0));
+  std::printf("    final |y_d - y| (%zu settled): p50 %.3f mm  p90 %.3f mm  p99 %.3f mm  max %.3f mm\n",
+              final_errors_m.size(), percentile(final_errors_m, 0.5) * 1e3, percentile(final_errors_m, 0.9) * 1e3,
+              percentile(final_errors_m, 0.99) * 1e3, percentile(final_errors_m, 1.0) * 1e3);
+  if (!supervised && (settling_rules.oscillation_sign_changes > 0 || settling_rules.settle_time_s > 0.0)) {
+    std::vector<double> all_after_s;
+    for (const auto& v : rule_after_s) all_after_s.insert(all_after_s.end(), v.begin(), v.end());
+    std::printf("    the settling rules (%u sign changes beyond +-%.1f mm within %.2f s; settle time %.2f s), checked "
+                "alongside, would latch the oscillation fault in:",
+                settling_rules.oscillation_sign_changes, settling_rules.oscillation_amplitude_m * 1e3,
+                settling_rules.oscillation_window_s, settling_rules.settle_time_s);
+    const char* separator = " ";
+    for (const Outcome o : kOutcomes) {
+      const auto k = static_cast<std::size_t>(o);
+      if (outcome_count[k] == 0) continue;
+      std::printf("%s%zu of %llu %s", separator, rule_after_s[k].size(),
+                  static_cast<unsigned long long>(outcome_count[k]), outcome_name(o));
+      separator = ", ";
+    }
+    if (!all_after_s.empty())
+      std::printf("; after the step: p50 %.3f s  max %.3f s", percentile(all_after_s, 0.5), percentile(all_after_s, 1.0));
+    std::printf("\n");
+  }
   std::printf("  %.2f s wall on %d threads: %.1f scenarios/s\n", wall_s, jobs, n / wall_s);
   const config::LinearizedSlope slope = base.controller.predictor.linearized_slope;
   const std::string names[2] = {slope == config::LinearizedSlope::kStopTangent
@@ -430,8 +716,21 @@ int run(int argc, char** argv) {
                 percentile(st.halfway_error_pct, 1.0));
   }
   std::printf("  wrote %s\n", out_path.c_str());
-  if (args.flag("strict") && (stats[0].misses || stats[1].misses)) return cli::kExitFailure;
-  return cli::kExitOk;
+  if (scenarios_out) std::printf("  wrote %s\n", scenarios_out->path().c_str());
+  int exit_code = cli::kExitOk;
+  if ((args.flag("strict") || args.flag("strict-forecasts")) && (stats[0].misses || stats[1].misses)) {
+    std::fprintf(stderr, "pneu-sweep: strict: %llu forecasts outside the acceptance criteria (linearized %llu, nonlinear %llu)\n",
+                 static_cast<unsigned long long>(stats[0].misses + stats[1].misses),
+                 static_cast<unsigned long long>(stats[0].misses), static_cast<unsigned long long>(stats[1].misses));
+    exit_code = cli::kExitFailure;
+  }
+  const unsigned long long unsettled = static_cast<unsigned long long>(n) - count(Outcome::kSettled);
+  if (args.flag("strict") && unsettled > 0) {
+    std::fprintf(stderr, "pneu-sweep: strict: %llu of %d scenarios did not settle (%llu never settled, %llu at an end stop, %llu faults)\n",
+                 unsettled, n, count(Outcome::kNeverSettled), count(Outcome::kEndStop), count(Outcome::kFault));
+    exit_code = cli::kExitFailure;
+  }
+  return exit_code;
 }
 
 }  // namespace

@@ -104,6 +104,9 @@ enum class SafeOutput {
 
 /// The supervisor's fault checks (controller.supervisor.*). A check set to 0 is off.
 struct SupervisorConfig {
+  /// The most sign changes the oscillation check can count (its history is fixed-size).
+  static constexpr std::uint32_t kMaxOscillationSignChanges = 64;
+
   double position_min_m = -0.255;   ///< a position reading below is out of range [m]
   double position_max_m = 0.255;    ///< ... above [m]
   double pressure_min_pa = 2.0e4;   ///< a pressure reading below is out of range [Pa abs]
@@ -119,6 +122,15 @@ struct SupervisorConfig {
   double overtravel_m = 0.008;
   double following_error_m = 0.01;  ///< |y_d - y| above this ... [m]
   double following_error_s = 2.0;   ///< ... for longer than this while armed latches a fault [s]; 0 = off
+  /// Oscillation: armed, the position error y_d - y swings from beyond +oscillation_amplitude_m
+  /// to beyond -oscillation_amplitude_m (or back) oscillation_sign_changes times within
+  /// oscillation_window_s. The band is the hysteresis: noise around zero error changes no sign.
+  double oscillation_amplitude_m = 0.01;  ///< each half-swing exceeds this |y_d - y| [m]
+  std::uint32_t oscillation_sign_changes = 4;  ///< this many sign changes ... ; 0 = off
+  double oscillation_window_s = 2.0;      ///< ... within this long latch a fault [s]
+  /// Armed, no rest (the stop detector holding the carriage) within this long after a change of
+  /// the set point latches a fault [s]; 0 = off.
+  double settle_time_s = 3.0;
   std::uint32_t overruns_in_a_row = 10;  ///< this many overrunning ticks in a row latch a fault; 0 = off
   double max_tick_interval_s = 0.05;     ///< one tick interval longer than this latches a fault [s]; 0 = off
   SafeOutput safe_output = SafeOutput::kNeutral;

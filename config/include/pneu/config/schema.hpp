@@ -485,6 +485,14 @@ void describe(auto& a, Like<SupervisorConfig> auto& s, const model::PlantParams&
   a.field(PNEU_NVP(s, overtravel_m), Range::non_negative(), "armed: overshoot allowed past the soft limits [m]");
   a.field(PNEU_NVP(s, following_error_m), Range::positive(), "|y_d - y| above this ... [m]");
   a.field(PNEU_NVP(s, following_error_s), Range::closed(0.0, 600.0), "... this long is a fault [s]; 0 = off");
+  a.field(optional(PNEU_NVP(s, oscillation_amplitude_m)), Range::positive(),
+          "armed: each half-swing of y_d - y beyond +- this ... [m]");
+  a.field(optional(PNEU_NVP(s, oscillation_sign_changes)),
+          IntRange::in(0, SupervisorConfig::kMaxOscillationSignChanges),
+          "... this many sign changes of the error ...; 0 = off");
+  a.field(optional(PNEU_NVP(s, oscillation_window_s)), Range::positive(), "... within this long is a fault [s]");
+  a.field(optional(PNEU_NVP(s, settle_time_s)), Range::closed(0.0, 600.0),
+          "armed: no rest this long after a set-point change is a fault [s]; 0 = off");
   a.field(PNEU_NVP(s, overruns_in_a_row), IntRange::in(0, 1000000).says("must be in [0, 1000000] (0 = off)"),
           "this many overruns in a row are a fault; 0 = off");
   a.field(PNEU_NVP(s, max_tick_interval_s), Range::closed(0.0, 10.0),

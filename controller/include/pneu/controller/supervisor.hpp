@@ -3,6 +3,7 @@
 // or none. Pure logic and real-time safe (no allocation, no throw), tested on synthetic frames.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 
@@ -25,9 +26,11 @@ enum class FaultCause : std::uint8_t {
   kFollowingError = 8,   ///< armed, |y_d - y| above the window for longer than its limit
   kOverrun = 9,          ///< overruns in a row, or one tick interval beyond its limit
   kCommandTimeout = 10,  ///< armed, the set-point stream fell silent
+  kOscillation = 11,     ///< armed, the loop does not settle: the error swings from side to side,
+                         ///< or no rest within settle_time_s of a set-point change
 };
 /// How many causes there are, kNone included.
-inline constexpr std::size_t kFaultCauseCount = 11;
+inline constexpr std::size_t kFaultCauseCount = 12;
 
 /// The cause's stable number, as it travels in event_t and health_t.
 [[nodiscard]] constexpr std::uint8_t fault_number(FaultCause cause) noexcept {
@@ -47,6 +50,8 @@ struct SupervisedTick {
   bool armed = false;
   double y_d_m = 0.0;                ///< the set point in force
   double last_setpoint_t_s = 0.0;    ///< loop time of the last set point received (or of arming)
+  /// The stop detector holds the carriage at rest (as of the last good sample before this tick).
+  bool at_rest = true;
 };
 
 class Supervisor {
@@ -55,8 +60,9 @@ class Supervisor {
 
   /// Forgets the history (at start-up), at loop time `t_s`.
   void reset(double t_s) noexcept;
-  /// Re-arming: the following-error timer starts afresh.
-  void on_arm() noexcept { following_since_s_ = -1.0; }
+  /// Re-arming: the following-error timer, the oscillation count and the settle timer start
+  /// afresh (arming sets the set point: the carriage must settle from then on).
+  void on_arm() noexcept;
   /// Tells the supervisor whether the tick just finished overran its deadline (real clock).
   void note_overrun(bool overran) noexcept;
 
@@ -66,7 +72,7 @@ class Supervisor {
   /// What the sample says: the e-stop, the readings (finite, in range, no jump, not frozen), comms.
   [[nodiscard]] FaultCause check_sample(const SupervisedTick& tick) noexcept;
   /// What the loop does with it, once this tick's commands and set point are in force: soft
-  /// limits, following error, timing, the set-point stream.
+  /// limits, following error, settling (oscillation, settle time), timing, the set-point stream.
   [[nodiscard]] FaultCause check_motion(const SupervisedTick& tick) noexcept;
 
   /// Whether this tick's sample was good (read ok, every reading valid, finite and plausible):
@@ -83,6 +89,9 @@ class Supervisor {
 
  private:
   [[nodiscard]] FaultCause check_reading(const hal::SensorFrame& f) noexcept;
+  /// Armed, with a good sample: whether the loop fails to settle (FaultCause::kOscillation).
+  [[nodiscard]] bool not_settling(const SupervisedTick& tick) noexcept;
+  void forget_settling() noexcept;
 
   const config::SupervisorConfig cfg_;
   const double period_s_;
@@ -99,6 +108,16 @@ class Supervisor {
   double last_p_p_pa_ = 0.0, last_p_n_pa_ = 0.0;
   double p_p_changed_s_ = 0.0, p_n_changed_s_ = 0.0;
   double following_since_s_ = -1.0;
+  // Settling. The set point of the last armed tick (NaN: none yet, or re-armed).
+  double last_y_d_m_ = 0.0;
+  // Oscillation: the side of the error band the error was last seen beyond (+1, -1; 0: not yet),
+  // and the times of the last sign changes (a ring of kMaxOscillationSignChanges).
+  int error_side_ = 0;
+  std::array<double, config::SupervisorConfig::kMaxOscillationSignChanges> sign_change_t_s_{};
+  std::uint64_t sign_changes_ = 0;
+  // Settle time: the last set-point change, whether a rest began since, and the last tick's rest.
+  double settle_since_s_ = -1.0;  // -1: settled, or not armed
+  bool was_at_rest_ = true;
   double last_tick_t_s_ = -1.0;
   std::uint32_t overruns_in_a_row_ = 0;
   bool overrun_fault_ = false;

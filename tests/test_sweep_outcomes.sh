@@ -1,0 +1,82 @@
+#!/usr/bin/env bash
+# pneu-sweep reports every scenario (issue 14): each gets an outcome (settled, never-settled,
+# end-stop, fault), --scenarios-out writes one row per scenario, the summary's counts add up to
+# the number of scenarios and agree with the rows, and --strict fails, saying why, when any
+# scenario does not settle. On the default (the paper's) gains the mid-stroke scenarios never
+# settle, and the settling rules checked alongside would latch the oscillation fault on each of
+# them; on a stable law every scenario settles and --strict passes.
+#   test_sweep_outcomes.sh BINARY_DIR
+set -euo pipefail
+sweep=$1/bin/pneu-sweep
+tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+nonlinear=(--set "controller.predictor.methods=[nonlinear]")  # the forecasts held to their criteria
+stable=(--set controller.law.position_gain_v_per_m=40 --set controller.law.velocity_gain_v_s_per_m=3)
+
+# column NAME FILE: the values of a column of a CSV file with a header, one a line.
+column() { awk -F, -v name="$1" 'NR == 1 { for (i = 1; i <= NF; ++i) if ($i == name) c = i; next } { print $c }' "$2"; }
+# summary_count WHAT FILE: the count before WHAT on the summary's outcomes line.
+summary_count() { grep -E '^  outcomes ' "$2" | grep -oE "[0-9]+ $1" | grep -oE '^[0-9]+'; }
+
+echo "== the paper's gains: 40 scenarios"
+status=0
+"$sweep" --steps 40 --quiet --strict "${nonlinear[@]}" --out "$tmp/stops.csv" --scenarios-out "$tmp/scenarios.csv" \
+  > "$tmp/summary.txt" 2> "$tmp/err.txt" || status=$?
+cat "$tmp/summary.txt" "$tmp/err.txt"
+[ "$status" = 1 ] || fail "--strict exits 1 when scenarios do not settle (got $status)"
+grep -qE '^pneu-sweep: strict: [0-9]+ of 40 scenarios did not settle \([0-9]+ never settled' "$tmp/err.txt" \
+  || fail "--strict says why"
+grep -q 'forecasts outside' "$tmp/err.txt" && fail "the nonlinear forecasts are all within their criteria"
+
+[ "$(head -1 "$tmp/scenarios.csv")" = "scenario,y0_m,y_d_m,friction_scale,gain_scale,outcome,settle_time_s,final_error_m,fault_cause,fault_after_s,stops,restarts,at_rest_at_end,last_second_swing_m,oscillation_rule_after_s" ] \
+  || fail "the scenarios file's header: $(head -1 "$tmp/scenarios.csv")"
+[ "$(column scenario "$tmp/scenarios.csv" | tr '\n' ' ')" = "$(seq 0 39 | tr '\n' ' ')" ] || fail "one row per scenario, in order"
+settled=$(summary_count settled "$tmp/summary.txt")
+never=$(summary_count 'never settled' "$tmp/summary.txt")
+end_stop=$(summary_count 'at rest against' "$tmp/summary.txt")
+faults=$(summary_count faults "$tmp/summary.txt")
+[ $((settled + never + end_stop + faults)) = 40 ] || fail "the counts add up to the scenarios: $settled + $never + $end_stop + $faults"
+for outcome in settled never-settled end-stop fault; do
+  rows=$(column outcome "$tmp/scenarios.csv" | grep -cx -- "$outcome" || true)
+  case $outcome in settled) want=$settled ;; never-settled) want=$never ;; end-stop) want=$end_stop ;; fault) want=$faults ;; esac
+  [ "$rows" = "$want" ] || fail "$outcome: $rows rows, the summary says $want"
+done
+[ "$never" -ge 10 ] || fail "not vacuous: the paper's gains leave the mid-stroke scenarios unsettled (got $never)"
+[ "$settled" -ge 10 ] || fail "not vacuous: near the ends they settle (got $settled)"
+[ "$faults" = 0 ] || fail "unsupervised, no fault latches"
+# Each row: settled ones have a settle time and a final error within the stroke; never-settled
+# ones no settle time, a wide swing to the end, and the settling rules would latch on each within
+# 2 s of the step.
+awk -F, 'NR > 1 {
+  if ($6 == "settled" && ($7 == "" || $7 < 0 || $7 > 13 || $8 == "" || $8 > 0.5)) { print "settled row " $0; bad = 1 }
+  if ($6 == "never-settled" && ($7 != "" || $14 < 0.02 || $15 == "" || $15 > 2.0)) { print "never-settled row " $0; bad = 1 }
+  if ($8 == "" || $11 == "" || $12 == "" || $13 == "") { print "incomplete row " $0; bad = 1 }
+} END { exit bad }' "$tmp/scenarios.csv" || fail "rows"
+grep -qE "^    settle time from the step \($settled settled\): p50 [0-9.]+ s  p90 [0-9.]+ s  p99 [0-9.]+ s  max [0-9.]+ s$" \
+  "$tmp/summary.txt" || fail "settle time percentiles over the settled ones"
+grep -qE "^    final \|y_d - y\| \($settled settled\): p50 [0-9.]+ mm" "$tmp/summary.txt" || fail "final error percentiles"
+grep -qE "^    never-settled: y0 in \[-?[0-9.]+, -?[0-9.]+\] m, y_d in \[-?[0-9.]+, -?[0-9.]+\] m$" "$tmp/summary.txt" \
+  || fail "where the unsettled ones lie"
+grep -qE "would latch the oscillation fault in: [0-9]+ of $settled settled, $never of $never never-settled" "$tmp/summary.txt" \
+  || fail "the settling rules checked alongside latch on every never-settled scenario"
+
+echo "== --strict-forecasts: the forecasts only"
+"$sweep" --steps 40 --quiet --strict-forecasts "${nonlinear[@]}" --out "$tmp/stops2.csv" > /dev/null \
+  || fail "--strict-forecasts passes with every nonlinear forecast within its criteria"
+cmp -s "$tmp/stops.csv" "$tmp/stops2.csv" || fail "the outcomes change nothing of the per-stop CSV"
+
+echo "== --supervised: a fault is an outcome, named"
+"$sweep" --steps 40 --quiet --supervised --out "$tmp/stops3.csv" --scenarios-out "$tmp/supervised.csv" > "$tmp/summary3.txt"
+cat "$tmp/summary3.txt"
+osc=$(column fault_cause "$tmp/supervised.csv" | grep -cx oscillation || true)
+[ "$osc" -ge "$never" ] || fail "every scenario that never settled latches the oscillation fault ($osc < $never)"
+grep -qE "^    faults by cause:.* oscillation $osc" "$tmp/summary3.txt" || fail "the summary names the causes"
+awk -F, 'NR > 1 && $6 == "fault" && ($9 == "" || $10 == "") { print; bad = 1 } END { exit bad }' "$tmp/supervised.csv" \
+  || fail "a fault row names its cause and time"
+
+echo "== a stable law: every scenario settles, --strict passes"
+"$sweep" --steps 40 --quiet --strict "${nonlinear[@]}" "${stable[@]}" --out "$tmp/stops4.csv" \
+  --scenarios-out "$tmp/stable.csv" > "$tmp/summary4.txt" || { cat "$tmp/summary4.txt"; fail "--strict on a law that settles"; }
+[ "$(summary_count settled "$tmp/summary4.txt")" = 40 ] || fail "40 settled"
+grep -q "would latch the oscillation fault in: 0 of 40 settled$" "$tmp/summary4.txt" || fail "no false oscillation fault"
+echo "all well"
