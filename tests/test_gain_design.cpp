@@ -303,6 +303,8 @@ TEST(GainSchedule, InterpolatesLinearlyBetweenNodesAndHoldsTheEndsBeyondThem) {
   EXPECT_DOUBLE_EQ(table.gains_at(0.0).velocity_gain_v_s_per_m, 3.0);
   EXPECT_DOUBLE_EQ(table.gains_at(-0.3).position_gain_v_per_m, 100.0);
   EXPECT_DOUBLE_EQ(table.gains_at(0.3).position_gain_v_per_m, 400.0);
+  EXPECT_DOUBLE_EQ(table.gains_at(0.15).position_gain_v_per_m, 400.0);  // within a spacing of the last node
+  EXPECT_DOUBLE_EQ(table.gains_at(-0.15).velocity_gain_v_s_per_m, 1.0);
   EXPECT_DOUBLE_EQ(table.gains_at(0.1).acceleration_gain_v_s2_per_m, 0.07);
   EXPECT_DOUBLE_EQ(table.gains_at(std::nan("")).position_gain_v_per_m, 100.0);
 }
