@@ -228,6 +228,29 @@ TEST(ControlLoop, AllocatesNothingWithGainsScheduledByPosition) {
   ASSERT_FALSE(run.runtime->stops().empty());
 }
 
+// The forecasts made again while stuck take u* of Eq. 11 from the same scheduled law as the loop:
+// the gains at y*, not controller.law's fixed ones.
+TEST(ControlLoop, TheForecastsTakeUStarFromTheLoopsScheduledGains) {
+  DefaultRun d({"controller.law.gains=scheduled", "simulation.initial_position_m=0", "controller.setpoints.initial_m=0",
+                "controller.setpoints.schedule=[{t_s: 0.1, position_m: 0.05}]"});
+  auto& run = d.run;
+  run.runtime->set_keep_reforecasts(true);
+  run.loop->start(0.0);
+  for (std::uint64_t k = 0; k < 3'000; ++k) {
+    run.loop->tick(static_cast<double>(k) * d.period_s());
+    run.runtime->drain(*run.outputs);
+  }
+  ASSERT_FALSE(run.runtime->stops().empty());
+  const auto& stop = run.runtime->stops().back();
+  ASSERT_FALSE(stop.reforecasts.empty());
+  const double y_star = stop.snapshot.y_m;  // ideal sensors: every reading at rest is y*
+  const double scheduled = run.loop->law().resting_control_v(0.05, y_star);
+  const double fixed = controller::ControlLaw(d.config.controller.law).resting_control_v(0.05, y_star);
+  ASSERT_GT(std::abs(scheduled - fixed), 1e-3);  // the two laws tell apart here
+  EXPECT_NEAR(stop.snapshot.u_v, scheduled, 1e-12);
+  for (const auto& f : stop.reforecasts) EXPECT_NEAR(f.u_star_v, scheduled, 1e-9);
+}
+
 TEST(SpscQueue, FullQueueRefusesAndKeepsWhatItHolds) {
   SpscQueue<int, 4> q;
   for (int i = 0; i < 4; ++i) ASSERT_TRUE(q.try_push(i));
