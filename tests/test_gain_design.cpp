@@ -261,16 +261,16 @@ TEST(PolePlacement, ThePapersPolesGiveThePapersGainsBackAtThePapersPositions) {
 // --- the sampled loop ---------------------------------------------------------------------------
 
 TEST(SampledLoop, TendsToTheContinuousLoopAsThePeriodShrinks) {
-  // For a short period the plant's sampled poles are z = exp(s T) of the continuous ones; the
-  // differentiator adds three poles near z = 0 and z = 1 - alpha... only those near z = 1 belong to
-  // the plant: compare them.
+  // For a short period the sampled loop's poles near z = 1 are z = exp(s T) of the continuous
+  // loop's (the differences tend to the exact v and a); the differentiator's own three poles sit
+  // near z = 1 - alpha. With alpha = 1 (bare differences) those are at z = 0, well apart: compare
+  // the others, as s = ln(z) / T.
   const PlantParams plant;
   const ValveModel valve(plant.valve, plant.gas);
   const TangentLinearModel m = tangent_linear_model(plant, valve, 0.0, paper_u0(plant, valve));
   const Poles s = continuous_poles(m, kPaperGains);
   for (const double period : {1e-5, 1e-6}) {
     SCOPED_TRACE("T = " + std::to_string(period));
-    // alpha = 1: bare differences, whose poles sit at z = 0; the plant's near z = 1.
     const Poles z = sampled_poles(m, kPaperGains, {.period_s = period, .smoothing = 1.0, .delay_samples = 0});
     Poles near_one;
     for (const auto& p : z)

@@ -150,9 +150,9 @@ class GainSchedule {
   std::array<LawGains, kMaxNodes> gains_{};
 };
 
-/// The positions of a table over the stroke: -L/2, -L/2 + spacing, ..., +L/2 (the last step
-/// shortened onto +L/2 when the spacing does not divide the stroke is not allowed: the count is
-/// rounded so that the nodes are equally spaced at about `spacing_m`).
+/// The positions of a table over the stroke, from -L/2 to +L/2 inclusive, equally spaced: the
+/// number of intervals is L / `spacing_m` rounded (at least 1), so the spacing is about
+/// `spacing_m`. Throws GainDesignError beyond GainSchedule::kMaxNodes nodes.
 [[nodiscard]] std::vector<double> stroke_nodes_m(const Geometry& geometry, double spacing_m);
 
 /// The gains placed at every node of the stroke (stroke_nodes_m) for `poles`, around u_0 =
