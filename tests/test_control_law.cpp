@@ -171,6 +171,18 @@ TEST(ScheduledControlLaw, ADesignBeyondAGainLimitIsRefusedNamingTheGain) {
                                                             ::testing::HasSubstr("beyond its limit 100 V/m")))));
 }
 
+TEST(ScheduledControlLaw, ADesignTheSampledLoopCannotFollowIsRefusedNamingTheLoop) {
+  // Stable on the continuous model everywhere, but at 300 Hz the sampled loop is not (pneu-plant
+  // tune: max |z| 1.0089 near mid-stroke); at the default 1 kHz it is.
+  config::Config c = scheduled_config({"controller.rate_hz=300"});
+  const model::ValveModel valve(c.plant.valve, c.plant.gas);
+  resolve_offset(c, valve);
+  EXPECT_THAT([&] { (void)make_control_law(c, valve); },
+              ::testing::Throws<config::ConfigError>(test::IsConfigError(
+                  "controller.law.design", ::testing::AllOf(::testing::HasSubstr("the sampled loop is unstable"),
+                                                            ::testing::HasSubstr("higher loop rate")))));
+}
+
 TEST(ScheduledControlLaw, TheLoopsParametersRefuseAScheduledLawWithoutItsTable) {
   EXPECT_THROW((void)LoopParams::from(scheduled_config()), std::invalid_argument);
 }

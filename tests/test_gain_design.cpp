@@ -343,5 +343,20 @@ TEST(GainSchedule, ADesignRefusedAnywhereOnTheStrokeSaysWhere) {
   EXPECT_THROW((void)design_schedule(plant, valve, 0.0, {10.0, 30.0, 0.7}, GainLimits{}, 0.001), GainDesignError);
 }
 
+TEST(GainSchedule, ATableTheSampledLoopCannotFollowIsRefusedWhereItFails) {
+  const PlantParams plant;
+  const ValveModel valve(plant.valve, plant.gas);
+  const double u0 = paper_u0(plant, valve);
+  const GainSchedule table = design_schedule(plant, valve, u0, {10.0, 45.0, 0.7}, GainLimits{}, 0.05);
+  EXPECT_NO_THROW(require_sampled_stable(plant, valve, u0, table, {1e-3, 0.3, 0}));
+  try {
+    require_sampled_stable(plant, valve, u0, table, {1.0 / 300.0, 0.3, 0});
+    FAIL() << "no refusal at 300 Hz";
+  } catch (const GainDesignError& e) {
+    // The first node where it fails, from -L/2 upwards (tune: unstable from -200 mm at 300 Hz).
+    EXPECT_NE(std::string(e.what()).find("at y = -0.2 m the sampled loop is unstable"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace pneu::model

@@ -266,6 +266,13 @@ TEST_F(PneuPlantCli, TuneSaysWhereThePapersGainsAreUnstableAndTheDesignedSchedul
   // Every 25 mm: unstable everywhere but at the two ends (docs/model.md), and stable everywhere designed.
   EXPECT_THAT(r.out, HasSubstr("unstable, continuous: [-225, 225] mm; sampled: [-225, 225] mm"));
   EXPECT_THAT(r.out, HasSubstr("unstable, continuous: nowhere; sampled: nowhere"));
+  EXPECT_THAT(r.out, ::testing::Not(HasSubstr("note:")));
+  // At 300 Hz the same schedule is stable on the continuous model, not on the sampled loop: mapped,
+  // with a note that pneud refuses it.
+  const Outcome slow = run("tune --step-mm 50 --set controller.rate_hz=300");
+  ASSERT_EQ(slow.exit_code, 0) << slow.err;
+  EXPECT_THAT(slow.out, HasSubstr("unstable, continuous: nowhere; sampled: [-200, 150] mm"));
+  EXPECT_THAT(slow.out, HasSubstr("note: the designed schedule is unstable on the sampled loop: pneud refuses it"));
 }
 
 TEST_F(PneuPlantCli, TuneWritesTheMapAsCsvOneRowPerLawAndPosition) {

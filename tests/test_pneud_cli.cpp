@@ -295,6 +295,9 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"ScheduledGainsBeyondTheirLimit",
                  "--set controller.law.gains=scheduled --set controller.law.design.max_position_gain_v_per_m=300",
                  "controller.law.design", "K_y = 303.094 V/m is beyond its limit 300 V/m"},
+        BadInput{"ScheduledGainsTheSampledLoopCannotFollow",
+                 "--set controller.law.gains=scheduled --set controller.rate_hz=300", "controller.law.design",
+                 "the sampled loop is unstable"},
         BadInput{"UnknownGainsKind", "--set controller.law.gains=adaptive", "controller.law.gains",
                  "must be 'fixed' or 'scheduled'"}),
     [](const ::testing::TestParamInfo<BadInput>& p) { return p.param.name; });

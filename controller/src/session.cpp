@@ -22,17 +22,24 @@ void resolve_offset(config::Config& config, const model::ValveCharacteristic& va
         model::equilibrium_voltage_v(valve, config.plant.geometry, config.plant.gas.exhaust_pressure_pa);
 }
 
-ControlLaw make_control_law(const config::Config& config, const model::ValveCharacteristic& valve) {
+ControlLaw make_control_law(const config::Config& config, const model::ValveCharacteristic& valve,
+                            bool check_sampled) {
   const config::ControlLawParams& law = config.controller.law;
   if (law.gains == config::GainsKind::kFixed) return ControlLaw(law);
   const config::GainDesignParams& d = law.design;
   const double u_e = model::equilibrium_voltage_v(valve, config.plant.geometry, config.plant.gas.exhaust_pressure_pa);
   try {
-    return ControlLaw(law, model::design_schedule(config.plant, valve, u_e,
-                                                  {d.real_pole_1_per_s, d.natural_frequency_rad_per_s, d.damping},
-                                                  {d.max_position_gain_v_per_m, d.max_velocity_gain_v_s_per_m,
-                                                   d.max_acceleration_gain_v_s2_per_m},
-                                                  d.node_spacing_m));
+    const model::GainSchedule schedule =
+        model::design_schedule(config.plant, valve, u_e, {d.real_pole_1_per_s, d.natural_frequency_rad_per_s, d.damping},
+                               {d.max_position_gain_v_per_m, d.max_velocity_gain_v_s_per_m,
+                                d.max_acceleration_gain_v_s2_per_m},
+                               d.node_spacing_m);
+    // Placed on the continuous model: the loop as it samples must follow (no delay beyond the hold,
+    // as on the sim backend; a bus adds some: pneu-plant tune --delay-samples shows how much).
+    if (check_sampled)
+      model::require_sampled_stable(config.plant, valve, u_e, schedule,
+                                    {config.controller.period_s(), config.controller.differentiator.smoothing, 0});
+    return ControlLaw(law, schedule);
   } catch (const model::GainDesignError& e) {
     throw config::ConfigError("controller.law.design", std::string("the scheduled gains cannot be designed: ") + e.what());
   }

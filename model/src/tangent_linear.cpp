@@ -275,4 +275,16 @@ GainSchedule design_schedule(const PlantParams& plant, const ValveCharacteristic
   return GainSchedule(nodes.front(), spacing, gains);
 }
 
+void require_sampled_stable(const PlantParams& plant, const ValveCharacteristic& valve, double voltage_v,
+                            const GainSchedule& schedule, const SampledLoop& loop) {
+  for (std::size_t i = 0; i < schedule.size(); ++i) {
+    const double y = schedule.position_m(i);
+    const double z = max_magnitude(sampled_poles(tangent_linear_model(plant, valve, y, voltage_v), schedule.node(i), loop));
+    if (!(z < 1.0))
+      throw GainDesignError("at y = " + num(y) + " m the sampled loop is unstable (max |z| = " + num(z) + " at T = " +
+                            num(loop.period_s) + " s, differentiator smoothing " + num(loop.smoothing) +
+                            "): ask for slower poles, or a higher loop rate");
+  }
+}
+
 }  // namespace pneu::model

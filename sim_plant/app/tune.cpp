@@ -55,7 +55,8 @@ coded, the delay above: stable when every |z| < 1), and the sampled loop's gain 
 largest factor (in 2 % steps, up to 100) by which the three gains may grow together before it is
 unstable ("-" when it is unstable already).
 Exit codes: 0 done (whatever the map says), 2 bad command line or config, or a design refused
-(a gain negative or beyond its limit: the position, the gain and why).
+(a gain negative or beyond its limit: the position, the gain and why). A schedule unstable on
+the sampled loop is mapped, with a note: pneud refuses it at start-up.
 )";
 
 std::string pole_text(std::complex<double> p) {
@@ -238,13 +239,14 @@ int tune(int argc, char** argv) {
   const auto& law = cfg.controller.law;
   const bool fixed = law.gains == config::GainsKind::kFixed;
 
-  // Every design first: a refusal prints nothing else.
-  const controller::ControlLaw configured = controller::make_control_law(cfg, *valve);
+  // Every design first: a refusal prints nothing else. A schedule the sampled loop cannot follow
+  // is not refused here (pneud refuses it): the map shows where.
+  const controller::ControlLaw configured = controller::make_control_law(cfg, *valve, false);
   std::optional<controller::ControlLaw> designed;
   if (!map_only) {
     config::Config scheduled = cfg;
     scheduled.controller.law.gains = config::GainsKind::kScheduled;
-    designed = controller::make_control_law(scheduled, *valve);
+    designed = controller::make_control_law(scheduled, *valve, false);
   }
 
   std::printf("pneu-plant tune: %s\n", config_path.empty() ? "embedded sim.yaml" : config_path.c_str());
@@ -276,6 +278,15 @@ int tune(int argc, char** argv) {
     designed_map = stability_map(cfg, *valve, u_e, *designed, ys, loop);
     print_map(scheduled_title(law.design), designed_map, loop);
   }
+
+  const auto sampled_unstable = [](const std::vector<MapRow>& map) {
+    for (const MapRow& r : map)
+      if (!(r.max_z() < 1.0)) return true;
+    return false;
+  };
+  if (sampled_unstable(fixed ? designed_map : configured_map))
+    std::printf("\nnote: the designed schedule is unstable on the sampled loop: pneud refuses it (ask for slower "
+                "poles, or a higher controller.rate_hz)\n");
 
   if (const auto csv = args.value("csv")) {
     cli::AtomicFile out(*csv);

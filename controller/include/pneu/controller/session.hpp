@@ -27,9 +27,11 @@ void resolve_offset(config::Config& config, const model::ValveCharacteristic& va
 /// with controller.law.gains scheduled, the table designed by pole placement at nodes over the
 /// stroke (controller.law.design) on the tangent-linear model of plant: with `valve`, around u_e of
 /// Eq. 7. Start-up code: a design refused (a gain negative or beyond its limit somewhere on the
-/// stroke) throws config::ConfigError at controller.law.design, with the position, the gain and
-/// the reason.
-[[nodiscard]] ControlLaw make_control_law(const config::Config& config, const model::ValveCharacteristic& valve);
+/// stroke, or a table the sampled loop at controller.rate_hz cannot follow stably) throws
+/// config::ConfigError at controller.law.design, with the position, the gain and the reason.
+/// `check_sampled` false leaves out the sampled loop's check (pneu-plant tune, which maps it).
+[[nodiscard]] ControlLaw make_control_law(const config::Config& config, const model::ValveCharacteristic& valve,
+                                          bool check_sampled = true);
 
 /// The predictors' view of the bench.
 [[nodiscard]] PredictorModel predictor_model(const config::Config& config,

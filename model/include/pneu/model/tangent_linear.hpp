@@ -161,4 +161,10 @@ class GainSchedule {
                                            double voltage_v, const RequestedDynamics& poles,
                                            const GainLimits& limits, double spacing_m);
 
+/// Refuses (GainDesignError, naming the first position, its max |z| and the loop) a table whose
+/// sampled loop (sampled_poles at each node, around u_0 = `voltage_v`) is not stable: poles placed
+/// on the continuous model that the loop's period or differentiator cannot follow.
+void require_sampled_stable(const PlantParams& plant, const ValveCharacteristic& valve, double voltage_v,
+                            const GainSchedule& schedule, const SampledLoop& loop);
+
 }  // namespace pneu::model
