@@ -2,10 +2,15 @@
 //   u = K_y (y_d - y) - K_v v_hat - K_a a_hat + u_0, saturated to [-u_max, u_max],
 // and of the constant control u* = K_y (y_d - y*) + u_0 held while the carriage is stuck (Eq. 11).
 // Expected values are worked out by hand in the comments.
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include "pneu/config/config.hpp"
 #include "pneu/controller/control_law.hpp"
+#include "pneu/controller/loop_params.hpp"
+#include "pneu/controller/session.hpp"
+#include "pneu/model/valve.hpp"
+#include "support/config_error_matcher.hpp"
 
 namespace pneu::controller {
 namespace {
@@ -78,6 +83,108 @@ TEST(ControlLaw, RestingControlIsTheSaturatedValueActuallyHeld) {
   // 80 (0.2 - 0.0) + 0.25 = 16.25 V: the valve only ever sees 10 V, so u* is 10 V.
   EXPECT_EQ(law.resting_control_v(0.2, 0.0), 10.0);
   EXPECT_EQ(law.resting_control_v(-0.2, 0.0), -10.0);
+}
+
+// --- gains scheduled by position (controller.law.gains: scheduled) -------------------------------
+
+// Three nodes, 0.1 m apart from -0.1 m, gains that differ at each so that interpolation shows.
+model::GainSchedule three_nodes() {
+  return model::GainSchedule(-0.1, 0.1, {{100.0, 1.0, 0.01}, {200.0, 3.0, 0.03}, {400.0, 7.0, 0.07}});
+}
+
+TEST(ScheduledControlLaw, TakesTheGainsInterpolatedAtTheMeasuredPosition) {
+  const ControlLaw law(gains(), three_nodes());
+  // At y = -0.05, halfway between the first two nodes: K_y 150, K_v 2, K_a 0.02.
+  // 150 (0 - (-0.05)) - 2 (0.1) - 0.02 (-3) + 0.25 = 7.5 - 0.2 + 0.06 + 0.25 = 7.61 V
+  EXPECT_NEAR(law.control_v(0.0, -0.05, 0.1, -3.0), 7.61, kToleranceV);
+  // At y = 0.05, halfway between the last two: K_y 300, K_v 5, K_a 0.05.
+  // 300 (0.06 - 0.05) - 5 (-0.2) - 0.05 (10) + 0.25 = 3 + 1 - 0.5 + 0.25 = 3.75 V
+  EXPECT_NEAR(law.control_v(0.06, 0.05, -0.2, 10.0), 3.75, 1e-11);
+}
+
+TEST(ScheduledControlLaw, HoldsTheEndNodesGainsBeyondTheTable) {
+  const ControlLaw law(gains(), three_nodes());
+  // Below the first node: K_y 100; 100 (-0.2 - (-0.21)) + 0.25 = 1.25 V
+  EXPECT_NEAR(law.control_v(-0.2, -0.21, 0.0, 0.0), 1.25, 1e-11);
+  // Above the last node: K_v 7; -7 (0.1) + 0.25 = -0.45 V
+  EXPECT_NEAR(law.control_v(0.2, 0.2, 0.1, 0.0), -0.45, kToleranceV);
+}
+
+TEST(ScheduledControlLaw, RestingControlTakesTheGainsAtTheStopPosition) {
+  const ControlLaw law(gains(), three_nodes());
+  // u* of Eq. 11 with K_y at y* = 0.0 (the middle node, 200): 200 (0.01 - 0) + 0.25 = 2.25 V
+  EXPECT_NEAR(law.resting_control_v(0.01, 0.0), 2.25, 1e-11);
+  // ... and at y* = 0.05 (300): 300 (0.04 - 0.05) + 0.25 = -2.75 V
+  EXPECT_NEAR(law.resting_control_v(0.04, 0.05), -2.75, 1e-11);
+}
+
+TEST(ScheduledControlLaw, FixedGainsStayThoseOfTheConfiguration) {
+  const ControlLaw law(gains());
+  EXPECT_TRUE(law.schedule().empty());
+  EXPECT_EQ(law.gains_at(-0.2).position_gain_v_per_m, 80.0);
+  EXPECT_EQ(law.gains_at(0.2).acceleration_gain_v_s2_per_m, 0.002);
+}
+
+config::Config scheduled_config(std::vector<std::string> overrides = {}) {
+  overrides.push_back("controller.law.gains=scheduled");
+  return config::load_string(config::default_config_yaml(), overrides);
+}
+
+TEST(ScheduledControlLaw, IsDesignedFromTheConfigurationAtEveryNode) {
+  config::Config c = scheduled_config();
+  const model::ValveModel valve(c.plant.valve, c.plant.gas);
+  resolve_offset(c, valve);
+  const ControlLaw law = make_control_law(c, valve);
+  const auto& d = c.controller.law.design;
+  const model::GainSchedule expected = model::design_schedule(
+      c.plant, valve, c.controller.law.offset_v, {d.real_pole_1_per_s, d.natural_frequency_rad_per_s, d.damping},
+      {d.max_position_gain_v_per_m, d.max_velocity_gain_v_s_per_m, d.max_acceleration_gain_v_s2_per_m},
+      d.node_spacing_m);
+  ASSERT_EQ(law.schedule().size(), expected.size());
+  ASSERT_GT(law.schedule().size(), 40u);  // 10 mm over the 0.5 m stroke: 51 nodes
+  for (std::size_t i = 0; i < expected.size(); ++i) {
+    EXPECT_EQ(law.gains_at(expected.position_m(i)).position_gain_v_per_m, expected.node(i).position_gain_v_per_m);
+    EXPECT_EQ(law.gains_at(expected.position_m(i)).velocity_gain_v_s_per_m, expected.node(i).velocity_gain_v_s_per_m);
+  }
+  // The loop's parameters carry the same law.
+  EXPECT_EQ(LoopParams::from(c, law).law.gains_at(0.123).position_gain_v_per_m, law.gains_at(0.123).position_gain_v_per_m);
+}
+
+TEST(ScheduledControlLaw, ADesignThatNeedsANegativeGainIsRefusedBeforeTheLoopWithTheReason) {
+  // omega 20 rad/s is below sqrt(k_s / M) at the stroke's ends: K_v would be negative there.
+  config::Config c = scheduled_config({"controller.law.design.natural_frequency_rad_per_s=20"});
+  const model::ValveModel valve(c.plant.valve, c.plant.gas);
+  resolve_offset(c, valve);
+  EXPECT_THAT([&] { (void)make_control_law(c, valve); },
+              ::testing::Throws<config::ConfigError>(test::IsConfigError(
+                  "controller.law.design", ::testing::AllOf(::testing::HasSubstr("at y = -0.25 m"),
+                                                            ::testing::HasSubstr("K_v would be negative")))));
+}
+
+TEST(ScheduledControlLaw, ADesignBeyondAGainLimitIsRefusedNamingTheGain) {
+  config::Config c = scheduled_config({"controller.law.design.max_position_gain_v_per_m=100"});
+  const model::ValveModel valve(c.plant.valve, c.plant.gas);
+  resolve_offset(c, valve);
+  EXPECT_THAT([&] { (void)make_control_law(c, valve); },
+              ::testing::Throws<config::ConfigError>(test::IsConfigError(
+                  "controller.law.design", ::testing::AllOf(::testing::HasSubstr("K_y = "),
+                                                            ::testing::HasSubstr("beyond its limit 100 V/m")))));
+}
+
+TEST(ScheduledControlLaw, ADesignTheSampledLoopCannotFollowIsRefusedNamingTheLoop) {
+  // Stable on the continuous model everywhere, but at 300 Hz the sampled loop is not (pneu-plant
+  // tune: max |z| 1.0089 near mid-stroke); at the default 1 kHz it is.
+  config::Config c = scheduled_config({"controller.rate_hz=300"});
+  const model::ValveModel valve(c.plant.valve, c.plant.gas);
+  resolve_offset(c, valve);
+  EXPECT_THAT([&] { (void)make_control_law(c, valve); },
+              ::testing::Throws<config::ConfigError>(test::IsConfigError(
+                  "controller.law.design", ::testing::AllOf(::testing::HasSubstr("the sampled loop is unstable"),
+                                                            ::testing::HasSubstr("higher loop rate")))));
+}
+
+TEST(ScheduledControlLaw, TheLoopsParametersRefuseAScheduledLawWithoutItsTable) {
+  EXPECT_THROW((void)LoopParams::from(scheduled_config()), std::invalid_argument);
 }
 
 }  // namespace

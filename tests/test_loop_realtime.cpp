@@ -18,6 +18,7 @@
 #include <memory>
 #include <new>
 #include <random>
+#include <string>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -132,12 +133,13 @@ void reset_counters() {
 // The default bench running the paper scenario (embedded config/sim.yaml). The loop keeps a
 // reference to the config, so this object stays where it was built.
 struct DefaultRun {
-  config::Config config = config::load_string(config::default_config_yaml());
+  config::Config config;
   model::ValveModel valve{config.plant.valve, config.plant.gas};
   controller::Run run;
   const hal::SimBackend* bench = nullptr;  // the simulated truth, owned by the run
 
-  DefaultRun() {
+  explicit DefaultRun(const std::vector<std::string>& overrides = {})
+      : config(config::load_string(config::default_config_yaml(), overrides)) {
     controller::resolve_offset(config, valve);
     auto sim = backends::make_sim_backend(config);
     bench = sim.get();
@@ -200,6 +202,53 @@ TEST(ControlLoop, AllocatesNothingOverTenThousandTicksAfterStart) {
   EXPECT_TRUE(run.runtime->stops().front().ended);
   EXPECT_EQ(run.outputs->ticks_dropped, 0u);
   EXPECT_EQ(run.outputs->events_dropped, 0u);
+}
+
+// The gains scheduled by position: a step from mid-stroke, the gains read from the table at
+// every tick as the carriage travels (controller.law.gains: scheduled).
+TEST(ControlLoop, AllocatesNothingWithGainsScheduledByPosition) {
+  DefaultRun d({"controller.law.gains=scheduled", "simulation.initial_position_m=0", "controller.setpoints.initial_m=0",
+                "controller.setpoints.schedule=[{t_s: 0.1, position_m: 0.05}]"});
+  auto& run = d.run;
+  ASSERT_FALSE(run.loop->law().schedule().empty());
+  run.loop->start(0.0);
+  reset_counters();
+  constexpr std::uint64_t kTicks = 2'000;
+  for (std::uint64_t k = 0; k < kTicks; ++k) {
+    {
+      CountedWindow window;
+      run.loop->tick(static_cast<double>(k) * d.period_s());
+    }
+    run.runtime->drain(*run.outputs);
+  }
+  EXPECT_EQ(g_allocations.load(), 0u);
+  EXPECT_EQ(g_deallocations.load(), 0u);
+  // The carriage travelled to the set point and came to rest there (the table's gains settle it).
+  EXPECT_NEAR(d.bench->plant().state().y_m, 0.05, 1e-3);
+  ASSERT_FALSE(run.runtime->stops().empty());
+}
+
+// The forecasts made again while stuck take u* of Eq. 11 from the same scheduled law as the loop:
+// the gains at y*, not controller.law's fixed ones.
+TEST(ControlLoop, TheForecastsTakeUStarFromTheLoopsScheduledGains) {
+  DefaultRun d({"controller.law.gains=scheduled", "simulation.initial_position_m=0", "controller.setpoints.initial_m=0",
+                "controller.setpoints.schedule=[{t_s: 0.1, position_m: 0.05}]"});
+  auto& run = d.run;
+  run.runtime->set_keep_reforecasts(true);
+  run.loop->start(0.0);
+  for (std::uint64_t k = 0; k < 3'000; ++k) {
+    run.loop->tick(static_cast<double>(k) * d.period_s());
+    run.runtime->drain(*run.outputs);
+  }
+  ASSERT_FALSE(run.runtime->stops().empty());
+  const auto& stop = run.runtime->stops().back();
+  ASSERT_FALSE(stop.reforecasts.empty());
+  const double y_star = stop.snapshot.y_m;  // ideal sensors: every reading at rest is y*
+  const double scheduled = run.loop->law().resting_control_v(0.05, y_star);
+  const double fixed = controller::ControlLaw(d.config.controller.law).resting_control_v(0.05, y_star);
+  ASSERT_GT(std::abs(scheduled - fixed), 1e-3);  // the two laws tell apart here
+  EXPECT_NEAR(stop.snapshot.u_v, scheduled, 1e-12);
+  for (const auto& f : stop.reforecasts) EXPECT_NEAR(f.u_star_v, scheduled, 1e-9);
 }
 
 TEST(SpscQueue, FullQueueRefusesAndKeepsWhatItHolds) {

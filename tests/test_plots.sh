@@ -175,5 +175,19 @@ expect_refusal "both inputs" "not both" --log-csv "$tmp/log" --trajectory "$tmp/
   --events "$tmp/events.jsonl"
 [ ! -e "$tmp/bad" ] || [ -z "$(ls -A "$tmp/bad")" ] || fail "a refused run left files in its --out-dir"
 
+# 4. The stability map (tools/plots/stability_map.py) from pneu-plant tune's map: both laws drawn,
+# a missing map and a map without its columns refused with exit code 2.
+map_tool="$src/tools/plots/stability_map.py"
+"$bin/pneu-plant" tune --step-mm 25 --csv "$tmp/map.csv" > /dev/null
+"$py" "$map_tool" --map "$tmp/map.csv" --out "$tmp/stability_map" > /dev/null || fail "stability_map.py failed"
+check_figure "$tmp" stability_map
+grep -q "paper's fixed gains" "$tmp/stability_map.svg" || fail "the map draws no fixed-gain line"
+grep -q "designed schedule" "$tmp/stability_map.svg" || fail "the map draws no schedule line"
+rc=0; "$py" "$map_tool" --map "$tmp/nothing.csv" --out "$tmp/none" 2> "$tmp/map.err" || rc=$?
+[ "$rc" -eq 2 ] && grep -q "no such file" "$tmp/map.err" || fail "a missing map: exit $rc, $(cat "$tmp/map.err")"
+cut -d, -f1-3 "$tmp/map.csv" > "$tmp/short_map.csv"
+rc=0; "$py" "$map_tool" --map "$tmp/short_map.csv" --out "$tmp/none" 2> "$tmp/map.err" || rc=$?
+[ "$rc" -eq 2 ] && grep -q "missing column(s)" "$tmp/map.err" || fail "a map without columns: exit $rc, $(cat "$tmp/map.err")"
+
 echo "plots: $stops stops; paper_time, paper_plane and paper_forecast (PNG and SVG) from pneud's output," \
-     "the first two from LCM CSVs and from a trajectory without forecast columns; bad input refused"
+     "the first two from LCM CSVs and from a trajectory without forecast columns; the stability map; bad input refused"

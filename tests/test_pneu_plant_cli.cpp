@@ -84,7 +84,7 @@ TEST_F(PneuPlantCli, PrintsItsVersionAndHelpForEveryCommand) {
   const Outcome v = run("--version");
   EXPECT_EQ(v.exit_code, 0);
   EXPECT_THAT(v.out, HasSubstr("pneu-plant 0."));
-  for (const char* cmd : {"--help", "simulate --help", "characterize-valve --help"}) {
+  for (const char* cmd : {"--help", "simulate --help", "characterize-valve --help", "tune --help"}) {
     const Outcome h = run(cmd);
     EXPECT_EQ(h.exit_code, 0) << cmd;
     EXPECT_THAT(h.out, HasSubstr("--config")) << cmd;
@@ -241,6 +241,88 @@ TEST_F(PneuPlantCli, NullFlowCurveIsTheEquilibriumForceOfEquation7) {
     EXPECT_NEAR(row[5], row[3] - row[4], 1e-6);
   }
   for (std::size_t i = 1; i < data.size(); ++i) EXPECT_GT(data[i][5], data[i - 1][5]) << "increasing in u";
+}
+
+// --- tune: the gains designed on the tangent-linear model, the stability map -------------------
+
+TEST_F(PneuPlantCli, TuneRunsOnEveryShippedConfig) {
+  int configs = 0;
+  for (const auto& e : fs::directory_iterator(fs::path(PNEU_SOURCE_DIR) / "config")) {
+    if (e.path().extension() != ".yaml") continue;
+    ++configs;
+    const Outcome r = run("tune --config " + e.path().string());
+    EXPECT_EQ(r.exit_code, 0) << e.path() << ": " << r.err;
+    EXPECT_THAT(r.out, HasSubstr("Stability map: the configured law")) << e.path();
+  }
+  EXPECT_GE(configs, 3);
+}
+
+TEST_F(PneuPlantCli, TuneSaysWhereThePapersGainsAreUnstableAndTheDesignedScheduleIsNot) {
+  // The embedded sim.yaml: the paper's fixed gains, and the designed schedule beside them.
+  const Outcome r = run("tune");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("Designed gains: gains scheduled by position"));
+  EXPECT_THAT(r.out, HasSubstr("fixed gains K_y 80 V/m, K_v 1.5 V/(m/s), K_a 0.002 V/(m/s^2)"));
+  // Every 25 mm: unstable everywhere but at the two ends (docs/model.md), and stable everywhere designed.
+  EXPECT_THAT(r.out, HasSubstr("unstable, continuous: [-225, 225] mm; sampled: [-225, 225] mm"));
+  EXPECT_THAT(r.out, HasSubstr("unstable, continuous: nowhere; sampled: nowhere"));
+  EXPECT_THAT(r.out, ::testing::Not(HasSubstr("note:")));
+  // At 300 Hz the same schedule is stable on the continuous model, not on the sampled loop: mapped,
+  // with a note that pneud refuses it.
+  const Outcome slow = run("tune --step-mm 50 --set controller.rate_hz=300");
+  ASSERT_EQ(slow.exit_code, 0) << slow.err;
+  EXPECT_THAT(slow.out, HasSubstr("unstable, continuous: nowhere; sampled: [-200, 150] mm"));
+  EXPECT_THAT(slow.out, HasSubstr("note: the designed schedule is unstable on the sampled loop: pneud refuses it"));
+}
+
+TEST_F(PneuPlantCli, TuneWritesTheMapAsCsvOneRowPerLawAndPosition) {
+  const fs::path out = dir_ / "map.csv";
+  const Outcome r = run("tune --step-mm 50 --csv " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::stringstream ss(slurp(out));
+  std::string line;
+  std::getline(ss, line);
+  EXPECT_EQ(line,
+            "law,y_m,position_gain_v_per_m,velocity_gain_v_s_per_m,acceleration_gain_v_s2_per_m,force_gain_n_per_v_s,"
+            "stiffness_n_per_m,max_real_part_1_per_s,max_abs_z,gain_margin,stable_continuous,stable_sampled,"
+            "continuous_poles,sampled_poles");
+  int fixed = 0, scheduled = 0, fixed_stable = 0, scheduled_stable = 0;
+  while (std::getline(ss, line)) {
+    std::vector<std::string> cells;
+    std::stringstream ls(line);
+    for (std::string cell; std::getline(ls, cell, ',');) cells.push_back(cell);
+    ASSERT_EQ(cells.size(), 14u) << line;
+    const bool stable = cells[10] == "1" && cells[11] == "1";
+    EXPECT_EQ(std::stod(cells[7]) < 0.0, cells[10] == "1") << line;
+    EXPECT_EQ(std::stod(cells[8]) < 1.0, cells[11] == "1") << line;
+    if (cells[0] == "fixed") {
+      ++fixed;
+      fixed_stable += stable;
+      EXPECT_EQ(std::stod(cells[2]), 80.0);
+    } else {
+      ++scheduled;
+      scheduled_stable += stable;
+    }
+  }
+  EXPECT_EQ(fixed, 11);  // -250 .. 250 mm by 50 mm
+  EXPECT_EQ(scheduled, 11);
+  EXPECT_EQ(fixed_stable, 2);  // the two ends
+  EXPECT_EQ(scheduled_stable, 11);
+}
+
+TEST_F(PneuPlantCli, TuneRefusesBadArgumentsAndImpossibleDesignsWithExitTwoSayingWhy) {
+  EXPECT_EQ(run("tune --step-mm 0").exit_code, 2);
+  EXPECT_EQ(run("tune --delay-samples 1.5").exit_code, 2);
+  EXPECT_THAT(run("tune --frobnicate").err, HasSubstr("unknown option --frobnicate"));
+  const Outcome negative = run("tune --set controller.law.design.natural_frequency_rad_per_s=20");
+  EXPECT_EQ(negative.exit_code, 2);
+  EXPECT_THAT(negative.err, HasSubstr("controller.law.design"));
+  EXPECT_THAT(negative.err, HasSubstr("K_v would be negative"));
+  EXPECT_EQ(negative.out, "");  // refused before printing anything
+  const Outcome beyond = run("tune --set controller.law.design.max_acceleration_gain_v_s2_per_m=0.5");
+  EXPECT_EQ(beyond.exit_code, 2);
+  EXPECT_THAT(beyond.err, HasSubstr("beyond its limit 0.5 V/(m/s^2)"));
+  EXPECT_EQ(run("tune --set controller.law.design.damping=0").exit_code, 2);  // the schema: > 0
 }
 
 // --- serve: fault injection and outputs record, refused before serving --------------------------

@@ -288,7 +288,18 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"UnknownClock", "--clock bogus", "--clock", "real or simulated"},
         BadInput{"DurationNotANumber", "--duration abc", "--duration", "not a finite number"},
         BadInput{"ZeroDurationOnTheSimulatedClock", "--duration 0", "controller.duration_s",
-                 "needs the real clock"}),
+                 "needs the real clock"},
+        BadInput{"ScheduledGainsThatNeedANegativeGain",
+                 "--set controller.law.gains=scheduled --set controller.law.design.natural_frequency_rad_per_s=30",
+                 "controller.law.design", "at y = -0.25 m: K_v would be negative"},
+        BadInput{"ScheduledGainsBeyondTheirLimit",
+                 "--set controller.law.gains=scheduled --set controller.law.design.max_position_gain_v_per_m=300",
+                 "controller.law.design", "K_y = 303.094 V/m is beyond its limit 300 V/m"},
+        BadInput{"ScheduledGainsTheSampledLoopCannotFollow",
+                 "--set controller.law.gains=scheduled --set controller.rate_hz=300", "controller.law.design",
+                 "the sampled loop is unstable"},
+        BadInput{"UnknownGainsKind", "--set controller.law.gains=adaptive", "controller.law.gains",
+                 "must be 'fixed' or 'scheduled'"}),
     [](const ::testing::TestParamInfo<BadInput>& p) { return p.param.name; });
 
 TEST_F(PneudCli, ShortRunOnTheRealClockCompletesAndReportsLoopTiming) {

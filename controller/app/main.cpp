@@ -129,6 +129,7 @@ int run(int argc, char** argv) {
     throw cli::UsageError("--require-rt needs the real clock (the simulated clock runs as fast as it can)");
   const std::unique_ptr<model::ValveCharacteristic> valve = load_valve(cfg, config_path);  // outlives the run
   controller::resolve_offset(cfg, *valve);
+  (void)controller::make_control_law(cfg, *valve);  // a scheduled law's design refused: before any output
   if (args.flag("check-config")) {
     std::cout << "# effective configuration of pneud (u_0 = u_e of Eq. 7 = " << cfg.controller.law.offset_v
               << " V)\n"

@@ -14,7 +14,7 @@ ControlLoop::ControlLoop(LoopParams params, hal::Backend& backend, LoopOutputs& 
     : params_(std::move(params)),
       backend_(&backend),
       out_(&outputs),
-      law_(params_.controller.law),
+      law_(params_.law),
       differentiator_(params_.controller.differentiator, params_.controller.period_s()),
       detector_(params_.controller.stop_detector, params_.controller.period_s()),
       half_stroke_m_(params_.geometry.half_stroke_m()),

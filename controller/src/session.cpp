@@ -22,6 +22,29 @@ void resolve_offset(config::Config& config, const model::ValveCharacteristic& va
         model::equilibrium_voltage_v(valve, config.plant.geometry, config.plant.gas.exhaust_pressure_pa);
 }
 
+ControlLaw make_control_law(const config::Config& config, const model::ValveCharacteristic& valve,
+                            bool check_sampled) {
+  const config::ControlLawParams& law = config.controller.law;
+  if (law.gains == config::GainsKind::kFixed) return ControlLaw(law);
+  const config::GainDesignParams& d = law.design;
+  const double u_e = model::equilibrium_voltage_v(valve, config.plant.geometry, config.plant.gas.exhaust_pressure_pa);
+  try {
+    const model::GainSchedule schedule =
+        model::design_schedule(config.plant, valve, u_e, {d.real_pole_1_per_s, d.natural_frequency_rad_per_s, d.damping},
+                               {d.max_position_gain_v_per_m, d.max_velocity_gain_v_s_per_m,
+                                d.max_acceleration_gain_v_s2_per_m},
+                               d.node_spacing_m);
+    // Placed on the continuous model: the loop as it samples must follow (no delay beyond the hold,
+    // as on the sim backend; a bus adds some: pneu-plant tune --delay-samples shows how much).
+    if (check_sampled)
+      model::require_sampled_stable(config.plant, valve, u_e, schedule,
+                                    {config.controller.period_s(), config.controller.differentiator.smoothing, 0});
+    return ControlLaw(law, schedule);
+  } catch (const model::GainDesignError& e) {
+    throw config::ConfigError("controller.law.design", std::string("the scheduled gains cannot be designed: ") + e.what());
+  }
+}
+
 PredictorModel predictor_model(const config::Config& config, const model::ValveCharacteristic& valve) {
   PredictorModel m;
   m.geometry = config.plant.geometry;
@@ -38,11 +61,12 @@ Run make_run(const config::Config& config, const model::ValveCharacteristic& val
   Run run;
   run.backend = std::move(backend);
   run.outputs = std::make_unique<LoopOutputs>();
-  run.loop = std::make_unique<ControlLoop>(LoopParams::from(config), *run.backend, *run.outputs);
+  const ControlLaw law = make_control_law(config, valve);
+  run.loop = std::make_unique<ControlLoop>(LoopParams::from(config, law), *run.backend, *run.outputs);
   const auto& p = config.controller.predictor;
   run.runtime = std::make_unique<Runtime>(predictor_model(config, valve), p.linearized, p.nonlinear,
                                           p.update_period_s);
-  run.runtime->set_control_law(ControlLaw(config.controller.law));  // offset resolved by now
+  run.runtime->set_control_law(law);  // the loop's: u* of Eq. 11 with the gains at y*
   return run;
 }
 

@@ -1,4 +1,5 @@
-// pneu-plant: the simulated bench. Open-loop runs and valve characterisation (serve: issue 5).
+// pneu-plant: the simulated bench. Open-loop runs, valve characterisation, the plant behind a
+// Modbus server (serve.cpp) and the gain design on its tangent-linear model (tune.cpp).
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -9,6 +10,7 @@
 
 #include "input_csv.hpp"
 #include "serve.hpp"
+#include "tune.hpp"
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/model/pressure_force.hpp"
@@ -26,6 +28,8 @@ Usage:
   pneu-plant simulate [--config FILE] --input U.csv --out TRAJ.csv [--set KEY=VALUE ...] [--sensors] [--quiet]
   pneu-plant characterize-valve [--config FILE] --out TABLE.csv [--voltage-step-v V] [--pressure-step-pa P]
   pneu-plant null-flow [--config FILE] --out CURVE.csv [--voltage-step-v V]
+  pneu-plant tune [--config FILE] [--set KEY=VALUE ...] [--step-mm N] [--map-only] [--delay-samples N]
+                  [--csv MAP.csv]
   pneu-plant serve --config FILE [--set KEY=VALUE ...] [--duration S] [--outputs FILE] [--fault CHANNEL:MODE@T ...]
                    [--max-clients N]
   pneu-plant COMMAND --help
@@ -283,6 +287,7 @@ int dispatch(int argc, char** argv) {
   if (command == "characterize-valve") return characterize(argc, argv);
   if (command == "null-flow") return null_flow(argc, argv);
   if (command == "serve") return plant_app::serve(argc, argv);
+  if (command == "tune") return plant_app::tune(argc, argv);
   if (command == "--version") {
     std::printf("pneu-plant %s\n", PNEU_VERSION);
     return cli::kExitOk;

@@ -41,13 +41,37 @@ struct DifferentiatorParams {
   double smoothing = 0.3;
 };
 
+/// Where the gains of Eq. 4 come from (controller.law.gains).
+enum class GainsKind : std::uint8_t {
+  kFixed,      ///< "fixed": the three gains of controller.law, the same over the whole stroke
+  kScheduled,  ///< "scheduled": designed at start-up at nodes over the stroke (pole placement on
+               ///< the tangent-linear model, controller.law.design) and interpolated in position
+};
+
+/// The design of scheduled gains (controller.law.design; pneu-plant tune designs with it too):
+/// the requested closed-loop dynamics, the table's node spacing and the largest gains accepted.
+struct GainDesignParams {
+  double real_pole_1_per_s = 10.0;             ///< alpha: real pole at s = -alpha [1/s], > 0
+  double natural_frequency_rad_per_s = 45.0;   ///< omega of the damped pair [rad/s], > 0
+  double damping = 0.7;                        ///< zeta of the damped pair [-], > 0
+  double node_spacing_m = 0.01;                ///< the table's nodes over the stroke, about this far apart [m]
+  double max_position_gain_v_per_m = 1000.0;          ///< a design beyond this K_y is refused [V/m]
+  double max_velocity_gain_v_s_per_m = 200.0;         ///< ... K_v [V/(m/s)]
+  double max_acceleration_gain_v_s2_per_m = 5.0;      ///< ... K_a [V/(m/s^2)]
+};
+
 struct ControlLawParams {
+  GainsKind gains = GainsKind::kFixed;             ///< fixed gains, or scheduled by position
   double position_gain_v_per_m = 80.0;             ///< K_y [V/m]
   double velocity_gain_v_s_per_m = 1.5;            ///< K_v [V/(m/s)]
   double acceleration_gain_v_s2_per_m = 0.002;     ///< K_a [V/(m/s^2)]
   double offset_v = 0.0;                           ///< u_0 [V]: u_e of Eq. 7 unless configured
   double max_voltage_v = 10.0;                     ///< u_max: saturation [V], > 0
+  GainDesignParams design;                         ///< controller.law.design (optional section)
 };
+
+/// The key's value: "fixed" or "scheduled".
+[[nodiscard]] const char* to_string(GainsKind g) noexcept;
 
 struct StopDetectorParams {
   /// Positions within this band of the first still sample count as "not moving" [m], >= 0.

@@ -49,6 +49,7 @@
 #include "pneu/config/register_map.hpp"
 #include "pneu/model/params.hpp"
 #include "pneu/model/sensors.hpp"
+#include "pneu/model/tangent_linear.hpp"
 #include "pneu/model/valve.hpp"
 
 namespace pneu::config::schema {
@@ -298,6 +299,7 @@ inline constexpr Choice<LinearizedSlope> kLinearizedSlopes[] = {{"stop", Lineari
                                                                {"equilibrium", LinearizedSlope::kEquilibriumTangent}};
 inline constexpr Flag<PredictorConfig> kPredictorMethods[] = {{"linearized", &PredictorConfig::linearized},
                                                               {"nonlinear", &PredictorConfig::nonlinear}};
+inline constexpr Choice<GainsKind> kGainsKinds[] = {{"fixed", GainsKind::kFixed}, {"scheduled", GainsKind::kScheduled}};
 inline constexpr Choice<SafeOutput> kSafeOutputs[] = {{"neutral", SafeOutput::kNeutral},
                                                       {"exhaust", SafeOutput::kExhaust}};
 inline constexpr Choice<BackendKind> kBackends[] = {{"sim", BackendKind::kSim}, {"modbus", BackendKind::kModbus}};
@@ -421,12 +423,31 @@ void describe(auto& a, Like<SimulationConfig> auto& s, const model::Geometry& ge
 // ---------------------------------------------------------------------------------------------
 // controller.*
 
-void describe(auto& a, Like<ControlLawParams> auto& law, Like<bool> auto& offset_auto) {
+void describe(auto& a, Like<GainDesignParams> auto& d, const model::Geometry& geometry) {
+  a.field(PNEU_NVP(d, real_pole_1_per_s), Range::positive(), "alpha: the real pole, s = -alpha [1/s]");
+  a.field(PNEU_NVP(d, natural_frequency_rad_per_s), Range::positive(), "omega: the damped pair's natural frequency [rad/s]");
+  a.field(PNEU_NVP(d, damping), Range::positive(), "zeta: the damped pair's damping");
+  a.field(PNEU_NVP(d, node_spacing_m), Range::positive(), "the gain table's nodes over the stroke, about this far apart [m]");
+  a.check("node_spacing_m", geometry.stroke_m / d.node_spacing_m <= static_cast<double>(model::GainSchedule::kMaxNodes - 1),
+          [&] {
+            return "makes more than " + std::to_string(model::GainSchedule::kMaxNodes) +
+                   " nodes over the stroke (plant.geometry.stroke_m " + fmt(geometry.stroke_m) + " m): at least " +
+                   fmt(geometry.stroke_m / static_cast<double>(model::GainSchedule::kMaxNodes - 1)) + " m";
+          });
+  a.field(PNEU_NVP(d, max_position_gain_v_per_m), Range::positive(), "a design beyond this K_y is refused [V/m]");
+  a.field(PNEU_NVP(d, max_velocity_gain_v_s_per_m), Range::positive(), "... K_v [V/(m/s)]");
+  a.field(PNEU_NVP(d, max_acceleration_gain_v_s2_per_m), Range::positive(), "... K_a [V/(m/s^2)]");
+}
+
+void describe(auto& a, Like<ControlLawParams> auto& law, Like<bool> auto& offset_auto, const model::Geometry& geometry) {
+  a.field(optional(PNEU_NVP(law, gains)), one_of(kGainsKinds),
+          "fixed: the three gains below | scheduled: designed by position from controller.law.design");
   a.field(PNEU_NVP(law, position_gain_v_per_m), Range::non_negative(), "K_y [V/m]");
   a.field(PNEU_NVP(law, velocity_gain_v_s_per_m), Range::non_negative(), "K_v [V/(m/s)]");
   a.field(PNEU_NVP(law, acceleration_gain_v_s2_per_m), Range::non_negative(), "K_a [V/(m/s^2)]");
   a.number_or_auto(PNEU_NVP(law, offset_v), offset_auto, "u_0 [V]; auto = u_e of Eq. 7");
   a.field(PNEU_NVP(law, max_voltage_v), Range::positive(), "u_max: the control saturates at +-u_max [V]");
+  a.section(optional(PNEU_NVP(law, design)), geometry);
 }
 
 void describe(auto& a, Like<DifferentiatorParams> auto& d) {
@@ -516,7 +537,7 @@ void describe(auto& a, Like<ControllerConfig> auto& c, const model::PlantParams&
   a.field(PNEU_NVP(c, clock), one_of(kClocks),
           "simulated: lockstep with the in-process plant; real: CLOCK_MONOTONIC");
   a.field(PNEU_NVP(c, duration_s), Range::non_negative(), "run length [s]; 0 = until SIGINT/SIGTERM");
-  a.section(PNEU_NVP(c, law), c.offset_auto);
+  a.section(PNEU_NVP(c, law), c.offset_auto, plant.geometry);
   a.section(PNEU_NVP(c, differentiator));
   a.section(PNEU_NVP(c, stop_detector));
   a.section(PNEU_NVP(c, predictor));

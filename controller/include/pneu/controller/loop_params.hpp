@@ -3,7 +3,10 @@
 // the Config may go).
 #pragma once
 
+#include <stdexcept>
+
 #include "pneu/config/config.hpp"
+#include "pneu/controller/control_law.hpp"
 #include "pneu/model/params.hpp"
 
 namespace pneu::controller {
@@ -13,11 +16,21 @@ struct LoopParams {
   double setpoint_stream_timeout_s = 0.0;  ///< commands.setpoint_stream_timeout_s
   model::Geometry geometry;                ///< plant.geometry: the areas of Eq. 14 and the end stops
   double exhaust_pressure_pa = 0.0;        ///< plant.gas.exhaust_pressure_pa: p_E of Eq. 14
+  /// The law of Eq. 4 the loop runs, its gain table designed already when scheduled
+  /// (make_control_law(), session.hpp).
+  ControlLaw law{controller.law};
 
-  /// The loop's parameters in `config`.
-  [[nodiscard]] static LoopParams from(const config::Config& config) {
+  /// The loop's parameters in `config`, running `law`.
+  [[nodiscard]] static LoopParams from(const config::Config& config, const ControlLaw& law) {
     return {config.controller, config.commands.setpoint_stream_timeout_s, config.plant.geometry,
-            config.plant.gas.exhaust_pressure_pa};
+            config.plant.gas.exhaust_pressure_pa, law};
+  }
+  /// ... with the fixed gains of controller.law; a scheduled law needs its table (the overload
+  /// above): refused (std::invalid_argument).
+  [[nodiscard]] static LoopParams from(const config::Config& config) {
+    if (config.controller.law.gains != config::GainsKind::kFixed)
+      throw std::invalid_argument("LoopParams::from: a scheduled law needs its designed table (make_control_law)");
+    return from(config, ControlLaw(config.controller.law));
   }
 };
 

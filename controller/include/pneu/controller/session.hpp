@@ -23,6 +23,16 @@ namespace pneu::controller {
 /// Fills controller.law.offset_v with u_e of Eq. 7 when it is "auto".
 void resolve_offset(config::Config& config, const model::ValveCharacteristic& valve);
 
+/// The law of Eq. 4 for `config` (offset already resolved): the fixed gains of controller.law, or
+/// with controller.law.gains scheduled, the table designed by pole placement at nodes over the
+/// stroke (controller.law.design) on the tangent-linear model of plant: with `valve`, around u_e of
+/// Eq. 7. Start-up code: a design refused (a gain negative or beyond its limit somewhere on the
+/// stroke, or a table the sampled loop at controller.rate_hz cannot follow stably) throws
+/// config::ConfigError at controller.law.design, with the position, the gain and the reason.
+/// `check_sampled` false leaves out the sampled loop's check (pneu-plant tune, which maps it).
+[[nodiscard]] ControlLaw make_control_law(const config::Config& config, const model::ValveCharacteristic& valve,
+                                          bool check_sampled = true);
+
 /// The predictors' view of the bench.
 [[nodiscard]] PredictorModel predictor_model(const config::Config& config,
                                              const model::ValveCharacteristic& valve);
@@ -38,7 +48,8 @@ struct Run {
   LoopTiming timing;
 };
 
-/// Builds the run for `config` (offset already resolved) on `backend` (opened when the run
+/// Builds the run for `config` (offset already resolved) on `backend`, the loop and the runtime's
+/// forecasts with one law (make_control_law(): throws config::ConfigError for a design refused) (opened when the run
 /// starts, closed when it ends; pneu/backends/factory.hpp composes it from the configuration).
 [[nodiscard]] Run make_run(const config::Config& config, const model::ValveCharacteristic& valve,
                            std::unique_ptr<hal::Backend> backend);

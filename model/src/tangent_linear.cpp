@@ -1,0 +1,290 @@
+#include "pneu/model/tangent_linear.hpp"
+
+#include <Eigen/Dense>
+#include <unsupported/Eigen/MatrixFunctions>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace pneu::model {
+
+namespace {
+
+std::string num(double v) {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+Eigen::Matrix4d a_matrix(const TangentLinearModel& m) {
+  Eigen::Matrix4d a;
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) a(i, j) = m.a[static_cast<std::size_t>(i)][static_cast<std::size_t>(j)];
+  return a;
+}
+
+Eigen::Vector4d b_vector(const TangentLinearModel& m) {
+  return {m.b[0], m.b[1], m.b[2], m.b[3]};
+}
+
+// The state feedback of Eq. 4 with exact v and a: du = -k x.
+Eigen::RowVector4d feedback_row(const TangentLinearModel& m, const LawGains& g) {
+  Eigen::RowVector4d k = Eigen::RowVector4d::Zero();
+  k(0) = g.position_gain_v_per_m;
+  k(1) = g.velocity_gain_v_s_per_m;
+  const auto& acc = m.acceleration_row();
+  for (int j = 0; j < 4; ++j) k(j) += g.acceleration_gain_v_s2_per_m * acc[static_cast<std::size_t>(j)];
+  return k;
+}
+
+// Balances `m` by a diagonal similarity (Parlett and Reinsch, powers of 2: exact), so that the
+// eigenvalues of a badly scaled matrix (pressures in Pa beside positions in m, 1/T^2 beside 1)
+// come out to the precision of the well-scaled one. Eigen's EigenSolver does not balance.
+Eigen::MatrixXd balanced(Eigen::MatrixXd m) {
+  const Eigen::Index n = m.rows();
+  for (int sweep = 0; sweep < 100; ++sweep) {
+    bool done = true;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      double c = 0.0, r = 0.0;  // off-diagonal 1-norms of column and row i
+      for (Eigen::Index j = 0; j < n; ++j)
+        if (j != i) {
+          c += std::abs(m(j, i));
+          r += std::abs(m(i, j));
+        }
+      if (!(c > 0.0) || !(r > 0.0) || !std::isfinite(c + r)) continue;
+      const double sum = c + r;
+      double f = 1.0;
+      for (double g = r / 2.0; c < g; c *= 4.0) f *= 2.0;
+      for (double g = r * 2.0; c > g; c /= 4.0) f /= 2.0;
+      if ((c + r) / f < 0.95 * sum) {
+        done = false;
+        m.row(i) /= f;
+        m.col(i) *= f;
+      }
+    }
+    if (done) break;
+  }
+  return m;
+}
+
+std::vector<std::complex<double>> eigenvalues(const Eigen::MatrixXd& m) {
+  Eigen::EigenSolver<Eigen::MatrixXd> solver(balanced(m), false);
+  std::vector<std::complex<double>> out;
+  for (Eigen::Index i = 0; i < solver.eigenvalues().size(); ++i) out.push_back(solver.eigenvalues()(i));
+  std::sort(out.begin(), out.end(), [](auto x, auto y) {
+    return x.real() != y.real() ? x.real() > y.real() : x.imag() > y.imag();
+  });
+  return out;
+}
+
+}  // namespace
+
+TangentLinearModel tangent_linear_model(const PlantParams& plant, const ValveCharacteristic& valve,
+                                        double position_m, double voltage_v) {
+  const Geometry& g = plant.geometry;
+  TangentLinearModel m;
+  m.position_m = position_m;
+  m.voltage_v = voltage_v;
+  m.pressure_p_pa = valve.null_pressure_pa(voltage_v);
+  m.pressure_n_pa = valve.null_pressure_pa(-voltage_v);
+  m.volume_p_m3 = g.volume_p_m3(position_m);
+  m.volume_n_m3 = g.volume_n_m3(position_m);
+  const double h = kValveVoltageStep_v;
+  const auto dq_dw = [&](double w, double p) {
+    return (valve.mass_flow_kg_per_s(w + h, p) - valve.mass_flow_kg_per_s(w - h, p)) / (2.0 * h);
+  };
+  m.dq_dw_p = dq_dw(voltage_v, m.pressure_p_pa);
+  m.dq_dw_n = dq_dw(-voltage_v, m.pressure_n_pa);
+  m.dq_dp_p = valve.dq_dp(voltage_v, m.pressure_p_pa);
+  m.dq_dp_n = valve.dq_dp(-voltage_v, m.pressure_n_pa);
+
+  // Eq. 2 linearised (docs/model.md): valve N sees w = -u, so its flow changes by -q_w,N du.
+  const double c = plant.gas.k_r_t();
+  const double k = plant.gas.polytropic_index;
+  const double s_p = g.area_p_m2(), s_n = g.area_n_m2();
+  const double mass = plant.mass_kg, sigma = plant.friction.viscous_n_s_per_m;
+  const double v_p = m.volume_p_m3, v_n = m.volume_n_m3;
+  m.a = {{{0.0, 1.0, 0.0, 0.0},
+          {0.0, -sigma / mass, s_p / mass, -s_n / mass},
+          {0.0, -k * m.pressure_p_pa * s_p / v_p, c / v_p * m.dq_dp_p, 0.0},
+          {0.0, k * m.pressure_n_pa * s_n / v_n, 0.0, c / v_n * m.dq_dp_n}}};
+  m.b = {0.0, 0.0, c / v_p * m.dq_dw_p, -c / v_n * m.dq_dw_n};
+
+  m.third_order.mass_kg = mass;
+  m.third_order.viscous_n_s_per_m = sigma;
+  m.third_order.force_gain_n_per_v_s = c * (s_p * m.dq_dw_p / v_p + s_n * m.dq_dw_n / v_n);
+  m.third_order.stiffness_n_per_m =
+      k * (s_p * s_p * m.pressure_p_pa / v_p + s_n * s_n * m.pressure_n_pa / v_n);
+  if (!(m.third_order.force_gain_n_per_v_s > 0.0))
+    throw GainDesignError("at y = " + num(position_m) + " m the valves have no force gain b (" +
+                          num(m.third_order.force_gain_n_per_v_s) + " N/(V s)) around u_0 = " + num(voltage_v) +
+                          " V: no gain can place the poles there");
+  return m;
+}
+
+LawGains place_poles(const ThirdOrderModel& m, const RequestedDynamics& p, const GainLimits& limits) {
+  if (!(p.real_pole_1_per_s > 0.0))
+    throw GainDesignError("real pole alpha must be > 0 1/s (got " + num(p.real_pole_1_per_s) + ")");
+  if (!(p.natural_frequency_rad_per_s > 0.0))
+    throw GainDesignError("natural frequency omega must be > 0 rad/s (got " + num(p.natural_frequency_rad_per_s) + ")");
+  if (!std::isfinite(p.damping)) throw GainDesignError("damping zeta must be a number (got " + num(p.damping) + ")");
+  if (!(m.force_gain_n_per_v_s > 0.0))
+    throw GainDesignError("the plant has no force gain b (" + num(m.force_gain_n_per_v_s) + " N/(V s))");
+  const double alpha = p.real_pole_1_per_s, w = p.natural_frequency_rad_per_s, z = p.damping;
+  const double b = m.force_gain_n_per_v_s, mass = m.mass_kg;
+  LawGains g;
+  g.position_gain_v_per_m = mass * alpha * w * w / b;
+  g.velocity_gain_v_s_per_m = (mass * (w * w + 2.0 * z * w * alpha) - m.stiffness_n_per_m) / b;
+  g.acceleration_gain_v_s2_per_m = (mass * (alpha + 2.0 * z * w) - m.viscous_n_s_per_m) / b;
+  if (g.velocity_gain_v_s_per_m < 0.0)
+    throw GainDesignError("K_v would be negative (" + num(g.velocity_gain_v_s_per_m) +
+                          " V/(m/s)): the air spring alone (k_s = " + num(m.stiffness_n_per_m) +
+                          " N/m) is stiffer than M (omega^2 + 2 zeta omega alpha) = " +
+                          num(mass * (w * w + 2.0 * z * w * alpha)) + " N/m; ask for faster poles");
+  if (g.acceleration_gain_v_s2_per_m < 0.0)
+    throw GainDesignError("K_a would be negative (" + num(g.acceleration_gain_v_s2_per_m) +
+                          " V/(m/s^2)): the viscous friction alone (sigma = " + num(m.viscous_n_s_per_m) +
+                          " N s/m) damps more than M (alpha + 2 zeta omega) = " +
+                          num(mass * (alpha + 2.0 * z * w)) + " N s/m; ask for faster poles");
+  if (g.position_gain_v_per_m > limits.max_position_gain_v_per_m)
+    throw GainDesignError("K_y = " + num(g.position_gain_v_per_m) + " V/m is beyond its limit " +
+                          num(limits.max_position_gain_v_per_m) + " V/m");
+  if (g.velocity_gain_v_s_per_m > limits.max_velocity_gain_v_s_per_m)
+    throw GainDesignError("K_v = " + num(g.velocity_gain_v_s_per_m) + " V/(m/s) is beyond its limit " +
+                          num(limits.max_velocity_gain_v_s_per_m) + " V/(m/s)");
+  if (g.acceleration_gain_v_s2_per_m > limits.max_acceleration_gain_v_s2_per_m)
+    throw GainDesignError("K_a = " + num(g.acceleration_gain_v_s2_per_m) + " V/(m/s^2) is beyond its limit " +
+                          num(limits.max_acceleration_gain_v_s2_per_m) + " V/(m/s^2)");
+  return g;
+}
+
+std::vector<std::complex<double>> continuous_poles(const TangentLinearModel& m, const LawGains& g) {
+  const Eigen::Matrix4d closed = a_matrix(m) - b_vector(m) * feedback_row(m, g);
+  return eigenvalues(closed);
+}
+
+std::vector<std::complex<double>> sampled_poles(const TangentLinearModel& m, const LawGains& g,
+                                                const SampledLoop& loop) {
+  const double t = loop.period_s, alpha = loop.smoothing;
+  // Zero-order hold: exp([[A, B], [0, 0]] T) = [[Ad, Bd], [0, 1]].
+  Eigen::Matrix<double, 5, 5> aug = Eigen::Matrix<double, 5, 5>::Zero();
+  aug.topLeftCorner<4, 4>() = a_matrix(m) * t;
+  aug.topRightCorner<4, 1>() = b_vector(m) * t;
+  const Eigen::Matrix<double, 5, 5> e = aug.exp();
+  const Eigen::Matrix4d ad = e.topLeftCorner<4, 4>();
+  const Eigen::Vector4d bd = e.topRightCorner<4, 1>();
+
+  // State at tick k, before its update: plant x_k (4), the differentiator's y_k-1, v_k-1, a_k-1,
+  // then the controls still to be applied u_k-d .. u_k-1 (oldest first).
+  const int d = std::max(0, loop.delay_samples);
+  const int n = 7 + d;
+  const int iy = 4, iv = 5, ia = 6;
+  // This tick's outputs as rows over the state: y_k, v_k, a_k, u_k.
+  Eigen::RowVectorXd y_k = Eigen::RowVectorXd::Zero(n);
+  y_k(0) = 1.0;
+  Eigen::RowVectorXd v_k = Eigen::RowVectorXd::Zero(n);
+  v_k(iv) = 1.0 - alpha;
+  v_k += alpha / t * y_k;
+  v_k(iy) -= alpha / t;
+  Eigen::RowVectorXd a_k = Eigen::RowVectorXd::Zero(n);
+  a_k(ia) = 1.0 - alpha;
+  a_k += alpha / t * v_k;
+  a_k(iv) -= alpha / t;
+  const Eigen::RowVectorXd u_k =
+      -(g.position_gain_v_per_m * y_k + g.velocity_gain_v_s_per_m * v_k + g.acceleration_gain_v_s2_per_m * a_k);
+
+  Eigen::MatrixXd phi = Eigen::MatrixXd::Zero(n, n);
+  phi.topLeftCorner(4, 4) = ad;
+  // The control held over [t_k, t_k+1): u_k itself, or the oldest one waiting.
+  if (d == 0) {
+    phi.topRows(4) += bd * u_k;
+  } else {
+    phi.block(0, 7, 4, 1) += bd;
+    for (int i = 0; i + 1 < d; ++i) phi(7 + i, 7 + i + 1) = 1.0;
+    phi.row(7 + d - 1) = u_k;
+  }
+  phi.row(iy) = y_k;
+  phi.row(iv) = v_k;
+  phi.row(ia) = a_k;
+  return eigenvalues(phi);
+}
+
+double max_real_part(const std::vector<std::complex<double>>& poles) noexcept {
+  double r = -HUGE_VAL;
+  for (const auto& p : poles) r = std::max(r, p.real());
+  return r;
+}
+
+double max_magnitude(const std::vector<std::complex<double>>& poles) noexcept {
+  double r = 0.0;
+  for (const auto& p : poles) r = std::max(r, std::abs(p));
+  return r;
+}
+
+GainSchedule::GainSchedule(double first_m, double spacing_m, const std::vector<LawGains>& gains)
+    : first_m_(first_m), spacing_m_(spacing_m), count_(gains.size()) {
+  if (gains.empty() || gains.size() > kMaxNodes)
+    throw GainDesignError("a gain table holds 1 to " + std::to_string(kMaxNodes) + " nodes (got " +
+                          std::to_string(gains.size()) + ")");
+  if (gains.size() > 1 && !(spacing_m > 0.0))
+    throw GainDesignError("the nodes' spacing must be > 0 m (got " + num(spacing_m) + ")");
+  std::copy(gains.begin(), gains.end(), gains_.begin());
+}
+
+LawGains GainSchedule::gains_at(double y_m) const noexcept {
+  if (count_ <= 1) return gains_[0];
+  const double s = (y_m - first_m_) / spacing_m_;
+  if (!(s > 0.0)) return gains_[0];  // below the first node, or NaN
+  const auto last = count_ - 1;
+  if (s >= static_cast<double>(last)) return gains_[last];
+  const auto i = static_cast<std::size_t>(s);
+  const double f = s - static_cast<double>(i);
+  const LawGains& lo = gains_[i];
+  const LawGains& hi = gains_[i + 1];
+  return {lo.position_gain_v_per_m + f * (hi.position_gain_v_per_m - lo.position_gain_v_per_m),
+          lo.velocity_gain_v_s_per_m + f * (hi.velocity_gain_v_s_per_m - lo.velocity_gain_v_s_per_m),
+          lo.acceleration_gain_v_s2_per_m + f * (hi.acceleration_gain_v_s2_per_m - lo.acceleration_gain_v_s2_per_m)};
+}
+
+std::vector<double> stroke_nodes_m(const Geometry& geometry, double spacing_m) {
+  if (!(spacing_m > 0.0)) throw GainDesignError("the nodes' spacing must be > 0 m (got " + num(spacing_m) + ")");
+  const double length = geometry.stroke_m;
+  const auto intervals = static_cast<std::size_t>(std::max(1.0, std::round(length / spacing_m)));
+  if (intervals + 1 > GainSchedule::kMaxNodes)
+    throw GainDesignError("a spacing of " + num(spacing_m) + " m makes " + std::to_string(intervals + 1) +
+                          " nodes over the stroke, more than the table's " + std::to_string(GainSchedule::kMaxNodes));
+  std::vector<double> nodes;
+  for (std::size_t i = 0; i <= intervals; ++i)
+    nodes.push_back(-geometry.half_stroke_m() + length * static_cast<double>(i) / static_cast<double>(intervals));
+  return nodes;
+}
+
+GainSchedule design_schedule(const PlantParams& plant, const ValveCharacteristic& valve, double voltage_v,
+                             const RequestedDynamics& poles, const GainLimits& limits, double spacing_m) {
+  const std::vector<double> nodes = stroke_nodes_m(plant.geometry, spacing_m);
+  std::vector<LawGains> gains;
+  for (const double y : nodes) {
+    const TangentLinearModel model = tangent_linear_model(plant, valve, y, voltage_v);
+    try {
+      gains.push_back(place_poles(model.third_order, poles, limits));
+    } catch (const GainDesignError& e) {
+      throw GainDesignError("at y = " + num(y) + " m: " + e.what());
+    }
+  }
+  const double spacing = nodes.size() > 1 ? nodes[1] - nodes[0] : 0.0;
+  return GainSchedule(nodes.front(), spacing, gains);
+}
+
+void require_sampled_stable(const PlantParams& plant, const ValveCharacteristic& valve, double voltage_v,
+                            const GainSchedule& schedule, const SampledLoop& loop) {
+  for (std::size_t i = 0; i < schedule.size(); ++i) {
+    const double y = schedule.position_m(i);
+    const double z = max_magnitude(sampled_poles(tangent_linear_model(plant, valve, y, voltage_v), schedule.node(i), loop));
+    if (!(z < 1.0))
+      throw GainDesignError("at y = " + num(y) + " m the sampled loop is unstable (max |z| = " + num(z) + " at T = " +
+                            num(loop.period_s) + " s, differentiator smoothing " + num(loop.smoothing) +
+                            "): ask for slower poles, or a higher loop rate");
+  }
+}
+
+}  // namespace pneu::model
