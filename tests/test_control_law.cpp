@@ -125,6 +125,20 @@ TEST(ScheduledControlLaw, FixedGainsStayThoseOfTheConfiguration) {
   EXPECT_EQ(law.gains_at(0.2).acceleration_gain_v_s2_per_m, 0.002);
 }
 
+TEST(ScheduledControlLaw, ScaledMultipliesEveryGainFixedOrScheduledAndKeepsTheOffset) {
+  // A sweep's mistuned law (--gain-spread): every gain times the factor, u_0 and u_max unchanged.
+  const ControlLaw scheduled = ControlLaw(gains(), three_nodes()).scaled(1.5);
+  EXPECT_DOUBLE_EQ(scheduled.gains_at(-0.05).position_gain_v_per_m, 225.0);  // 1.5 x 150
+  EXPECT_DOUBLE_EQ(scheduled.gains_at(0.1).velocity_gain_v_s_per_m, 10.5);   // 1.5 x 7
+  EXPECT_DOUBLE_EQ(scheduled.gains_at(-0.1).acceleration_gain_v_s2_per_m, 0.015);
+  EXPECT_NEAR(scheduled.resting_control_v(0.01, 0.0), 300.0 * 0.01 + 0.25, 1e-11);  // K_y 1.5 x 200
+  const ControlLaw fixed = ControlLaw(gains()).scaled(0.5);
+  EXPECT_DOUBLE_EQ(fixed.gains_at(0.0).position_gain_v_per_m, 40.0);
+  EXPECT_DOUBLE_EQ(fixed.gains_at(0.0).velocity_gain_v_s_per_m, gains().velocity_gain_v_s_per_m * 0.5);
+  EXPECT_EQ(fixed.params().offset_v, gains().offset_v);
+  EXPECT_NEAR(fixed.resting_control_v(-0.2, 0.0), -7.75, 1e-12);  // 40 (-0.2) + 0.25, not saturated
+}
+
 config::Config scheduled_config(std::vector<std::string> overrides = {}) {
   overrides.push_back("controller.law.gains=scheduled");
   return config::load_string(config::default_config_yaml(), overrides);

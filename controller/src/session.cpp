@@ -58,10 +58,14 @@ PredictorModel predictor_model(const config::Config& config, const model::ValveC
 
 Run make_run(const config::Config& config, const model::ValveCharacteristic& valve,
              std::unique_ptr<hal::Backend> backend) {
+  return make_run(config, valve, std::move(backend), make_control_law(config, valve));
+}
+
+Run make_run(const config::Config& config, const model::ValveCharacteristic& valve,
+             std::unique_ptr<hal::Backend> backend, const ControlLaw& law) {
   Run run;
   run.backend = std::move(backend);
   run.outputs = std::make_unique<LoopOutputs>();
-  const ControlLaw law = make_control_law(config, valve);
   run.loop = std::make_unique<ControlLoop>(LoopParams::from(config, law), *run.backend, *run.outputs);
   const auto& p = config.controller.predictor;
   run.runtime = std::make_unique<Runtime>(predictor_model(config, valve), p.linearized, p.nonlinear,

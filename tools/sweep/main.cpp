@@ -40,8 +40,8 @@ Usage:
 Scenario i starts at rest at a random position y0 and steps the set point at --step-time
 (default 1 s) to y_d, the targets spread evenly over the stroke less --margin-m (default 0.02 m)
 at each end, |y_d - y0| >= --min-step-m (default 0.005 m). --friction-spread F scales all friction
-values of a scenario by a factor drawn in [1-F, 1+F], --gain-spread G the three gains likewise
-(default 0: the config's values). Each scenario runs --duration seconds (default 12) in simulated
+values of a scenario by a factor drawn in [1-F, 1+F], --gain-spread G the three gains likewise,
+fixed or scheduled (every node of the table) (default 0: the config's values). Each scenario runs --duration seconds (default 12) in simulated
 time, then --tail seconds more (default 1) in which no new stop is judged: a restart forecast just
 before the end of the window is then seen or refuted by the signals rather than cut off (a
 breakaway with a force a hair beyond stiction moves the carriage by less than the detector's
@@ -437,20 +437,19 @@ int run(int argc, char** argv) {
         f.static_negative_n *= s.friction_scale;
         f.coulomb_negative_n *= s.friction_scale;
         f.viscous_n_s_per_m *= s.friction_scale;
-        auto& law = cfg.controller.law;
-        law.position_gain_v_per_m *= s.gain_scale;
-        law.velocity_gain_v_s_per_m *= s.gain_scale;
-        law.acceleration_gain_v_s2_per_m *= s.gain_scale;
         const auto valve = controller::make_valve_characteristic(
             cfg, config_path.empty() ? std::filesystem::path() : std::filesystem::path(config_path).parent_path());
         controller::resolve_offset(cfg, *valve);
         auto plant = backends::make_sim_backend(cfg);
         const hal::SimBackend& bench = *plant;  // the simulated truth, owned by the run
-        auto sim = controller::make_run(cfg, *valve, std::move(plant));
+        // The gains, fixed or scheduled, mistuned by the scenario's factor (the set point starts
+        // at y0: the plant's start does not depend on them).
+        const controller::ControlLaw law = controller::make_control_law(cfg, *valve).scaled(s.gain_scale);
+        auto sim = controller::make_run(cfg, *valve, std::move(plant), law);
         sim.runtime->set_follow_forecasts(false);  // nobody sees the tick-by-tick comparison here
         sim.runtime->set_keep_reforecasts(true);   // judged below against the plant's breakaways
         ScenarioWatch watch(supervised ? std::nullopt
-                                       : std::optional(settling_rules_only(controller::LoopParams::from(cfg), settling_rules)),
+                                       : std::optional(settling_rules_only(controller::LoopParams::from(cfg, law), settling_rules)),
                             step_time, cfg.controller.duration_s, half);
         sim.runtime->add_sink(watch);
         controller::SimulatedClock clock;

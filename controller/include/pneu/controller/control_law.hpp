@@ -41,6 +41,15 @@ class ControlLaw {
     return control_v(y_d_m, y_star_m, 0.0, 0.0);
   }
   [[nodiscard]] const ControlLawParams& params() const noexcept { return p_; }
+  /// The same law with every gain, fixed or scheduled, multiplied by `factor` (u_0 and u_max kept).
+  [[nodiscard]] ControlLaw scaled(double factor) const noexcept {
+    ControlLaw law = *this;
+    law.p_.position_gain_v_per_m *= factor;
+    law.p_.velocity_gain_v_s_per_m *= factor;
+    law.p_.acceleration_gain_v_s2_per_m *= factor;
+    law.schedule_ = schedule_.scaled(factor);
+    return law;
+  }
   /// The table of scheduled gains; empty with fixed gains.
   [[nodiscard]] const model::GainSchedule& schedule() const noexcept { return schedule_; }
 

@@ -48,11 +48,15 @@ struct Run {
   LoopTiming timing;
 };
 
-/// Builds the run for `config` (offset already resolved) on `backend`, the loop and the runtime's
-/// forecasts with one law (make_control_law(): throws config::ConfigError for a design refused) (opened when the run
-/// starts, closed when it ends; pneu/backends/factory.hpp composes it from the configuration).
+/// Builds the run for `config` (offset already resolved) on `backend` (opened when the run starts,
+/// closed when it ends; pneu/backends/factory.hpp composes it from the configuration), the loop and
+/// the runtime's forecasts with one law, make_control_law()'s (throws config::ConfigError for a
+/// design refused) ...
 [[nodiscard]] Run make_run(const config::Config& config, const model::ValveCharacteristic& valve,
                            std::unique_ptr<hal::Backend> backend);
+/// ... or `law` (a sweep's mistuned copy of it).
+[[nodiscard]] Run make_run(const config::Config& config, const model::ValveCharacteristic& valve,
+                           std::unique_ptr<hal::Backend> backend, const ControlLaw& law);
 
 /// Runs it for controller.duration_s on `clock` (the simulated clock drains the runtime between
 /// ticks; the real clock drains it from a service thread), then finishes the runtime.

@@ -142,6 +142,16 @@ class GainSchedule {
   [[nodiscard]] const LawGains& node(std::size_t i) const noexcept { return gains_[i]; }
   /// The gains at position y [m], interpolated, clamped to the end nodes. Real-time safe.
   [[nodiscard]] LawGains gains_at(double y_m) const noexcept;
+  /// The same table with every gain multiplied by `factor` (a mistuned copy, for sweeps).
+  [[nodiscard]] GainSchedule scaled(double factor) const noexcept {
+    GainSchedule s = *this;
+    for (std::size_t i = 0; i < count_; ++i) {
+      s.gains_[i].position_gain_v_per_m *= factor;
+      s.gains_[i].velocity_gain_v_s_per_m *= factor;
+      s.gains_[i].acceleration_gain_v_s2_per_m *= factor;
+    }
+    return s;
+  }
 
  private:
   double first_m_ = 0.0;
