@@ -129,7 +129,8 @@ int run(int argc, char** argv) {
     throw cli::UsageError("--require-rt needs the real clock (the simulated clock runs as fast as it can)");
   const std::unique_ptr<model::ValveCharacteristic> valve = load_valve(cfg, config_path);  // outlives the run
   controller::resolve_offset(cfg, *valve);
-  (void)controller::make_control_law(cfg, *valve);  // a scheduled law's design refused: before any output
+  // Designed once, here: a scheduled law's design refused before any output.
+  const controller::ControlLaw law = controller::make_control_law(cfg, *valve);
   if (args.flag("check-config")) {
     std::cout << "# effective configuration of pneud (u_0 = u_e of Eq. 7 = " << cfg.controller.law.offset_v
               << " V)\n"
@@ -143,7 +144,7 @@ int run(int argc, char** argv) {
   RunFiles files(args);
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
-  controller::Run run = controller::make_run(cfg, *valve, backends::make_backend(cfg));
+  controller::Run run = controller::make_run(cfg, *valve, backends::make_backend(cfg), law);
   files.add_sinks(*run.runtime);
   const std::unique_ptr<Telemetry> telemetry = Telemetry::start(cfg, run, args.flag("require-telemetry"));
   SystemdNotifier notifier(*run.outputs, g_stop);

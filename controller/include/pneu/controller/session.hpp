@@ -54,7 +54,7 @@ struct Run {
 /// design refused) ...
 [[nodiscard]] Run make_run(const config::Config& config, const model::ValveCharacteristic& valve,
                            std::unique_ptr<hal::Backend> backend);
-/// ... or `law` (a sweep's mistuned copy of it).
+/// ... or `law`, one already made (pneud's, designed before any output file; a sweep's mistuned copy).
 [[nodiscard]] Run make_run(const config::Config& config, const model::ValveCharacteristic& valve,
                            std::unique_ptr<hal::Backend> backend, const ControlLaw& law);
 
