@@ -337,41 +337,37 @@ TEST(LivePredictor, AnUpdatePeriodUnderTheLoopsMakesTheForecastsAgainEveryTick) 
 }
 
 // HIL's sensors (16-bit ADCs, noise) on the in-process plant: while the carriage is still, the
-// potentiometer reading toggles between two codes 7.6 um apart, the law's output with it
-// (0.6 mV), and the valves follow the mean. The stop's snapshot had one reading; the forecasts
-// made again take u* at the mean reading so far.
-TEST(LivePredictor, WithAQuantisedPotentiometerTheForecastsMadeAgainTakeUStarAtTheMeanReading) {
+// potentiometer reading toggles between codes 7.6 um apart and the velocity and acceleration
+// estimates carry the noise. At rest the loop holds u* at the stop's rest position: the valves see
+// one constant u through the whole sticking phase, the u* every forecast of that stop assumed.
+TEST(LivePredictor, AtRestTheLoopHoldsTheUStarOfTheForecastsWhateverThePotentiometerReads) {
   const LiveRun r(LiveRun::Loaded{config::load_file(fs::path(PNEU_SOURCE_DIR) / "config/hil.yaml",
                                                     {"hal.backend=sim", "controller.clock=simulated"})},
                   1, true);
   const StopOutcome& s = r.longest_restart();
   ASSERT_GE(s.sticking_s(), 1.0);
   ASSERT_FALSE(s.reforecasts.empty());
-  // The readings the runtime saw from the snapshot to each re-forecast, from the trajectory.
+  for (const Reforecast& f : s.reforecasts) EXPECT_EQ(f.u_star_v, s.snapshot.u_v) << "at " << f.t_s;
+  // From the tick after the snapshot (the stop's confirmation) to the last tick still at rest.
   const Csv traj = Csv::parse(r.trajectory.str());
-  const std::size_t t_col = traj.col("t"), y_col = traj.col("y");
-  std::vector<std::pair<double, double>> readings;  // t, y
-  for (const auto& row : traj.rows) readings.emplace_back(std::stod(row[t_col]), std::stod(row[y_col]));
-  const controller::ControlLaw law(r.config.controller.law);
+  const std::size_t t_col = traj.col("t"), y_col = traj.col("y"), u_col = traj.col("u");
   std::set<double> codes;
-  for (const Reforecast& f : s.reforecasts) {
-    double sum = 0.0;
-    int n = 0;
-    for (const auto& [t, y] : readings)
-      if (t >= s.snapshot.t_s - 1e-9 && t <= f.t_s + 1e-9) {
-        sum += y;
-        ++n;
-        codes.insert(y);
-      }
-    ASSERT_GT(n, 0);
-    // The trajectory prints y to 12 digits (1e-12 m, 1e-10 V through K_y); one code is 0.6 mV.
-    EXPECT_NEAR(f.u_star_v, law.resting_control_v(s.y_d_m, sum / n), 1e-9) << "at " << f.t_s;
+  int ticks = 0;
+  for (const auto& row : traj.rows) {
+    const double t = std::stod(row[t_col]);
+    if (t <= s.snapshot.t_s + 1e-9 || t >= s.t_end_s) continue;
+    codes.insert(std::stod(row[y_col]));
+    // The trajectory prints u to 1e-9 V; one code of the reading is 0.6 mV or more through K_y.
+    EXPECT_NEAR(std::stod(row[u_col]), s.snapshot.u_v, 1e-9) << "at " << t;
+    ++ticks;
   }
+  EXPECT_GE(ticks, 900);
   EXPECT_GE(codes.size(), 2u) << "the reading toggled";
-  // What it buys: made half-way, the nonlinear forecast is within 2 % (measured 0.90 %); with the
-  // snapshot's u* it was 4.44 % off, and the one made at the stop is 4.9 % off.
-  ASSERT_TRUE(s.halfway_nonlinear.has_value());
-  const auto v = controller::judge(s, s.halfway_nonlinear->prediction, r.run.runtime->end_time_s());
+  // What it buys: the forecast made at the stop is within 2 % (measured 1.70 %, the paper
+  // scenario's 3.6 s phase); when the valves followed the toggling reading and the estimates'
+  // noise, it was 4.9 % off.
+  ASSERT_TRUE(s.nonlinear.has_value());
+  const auto v = controller::judge(s, *s.nonlinear, r.run.runtime->end_time_s());
   ASSERT_EQ(v.kind, controller::Verdict::Kind::kTruePositive);
   EXPECT_LT(v.error_percent, 2.0);
 }

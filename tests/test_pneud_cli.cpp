@@ -344,7 +344,7 @@ TEST_F(PneudCli, SummaryJsonHoldsTheFiguresTheSummaryPrints) {
   EXPECT_EQ(runtime["ticks_seen"].count(), 12001u);
   EXPECT_EQ(runtime["sequence_gaps"].count(), 0u);
   EXPECT_EQ(runtime["stops_forgotten"].count(), 0u);
-  EXPECT_EQ(runtime["stops"].count(), 5u) << "the five sticking phases of the README's table";
+  EXPECT_EQ(runtime["stops"].count(), 12u) << "the twelve sticking phases of the run's table";
   EXPECT_TRUE(j["faults"].elements().empty());
   EXPECT_TRUE(j["telemetry"].is_null()) << "telemetry off";
   EXPECT_TRUE(j["modbus"].is_null()) << "the sim backend";

@@ -165,19 +165,6 @@ void ControlLoop::tick(double t_s) noexcept {
     ticks_since_sample_ = 0;
   }
   detector_last_y_ = frame.y_m;
-  const double v_hat = differentiator_.velocity_m_per_s();
-  const double a_hat = differentiator_.acceleration_m_per_s2();
-  // Valve power follows the armed state. Disarmed, the outputs sit at the neutral voltage u_0
-  // (F_e(u_0) = 0: the chambers hold); in fault, at the configured safe output.
-  const bool armed = mode_ == Mode::kArmed;
-  const double u = armed ? law_.control_v(y_d_m_, frame.y_m, v_hat, a_hat) : params_.controller.law.offset_v;
-  const hal::ActuatorCommand command =
-      mode_ == Mode::kFault ? safe_command() : hal::ActuatorCommand::from_control(u, armed);
-  if (backend_->write(command) != hal::Status::kOk) ++comms_errors_;
-  out_->setpoint_m.store(y_d_m_, std::memory_order_relaxed);
-  out_->mode.store(mode_, std::memory_order_relaxed);
-  out_->fault_cause.store(fault_cause_, std::memory_order_relaxed);
-
   const double force = force_.force_n(frame.p_p_pa, frame.p_n_pa);
   // Stops and starts are judged from good samples only (a snapshot must hold real pressures).
   switch (read_ok ? detector_.update(t_s, frame.y_m) : StopDetectorEvent::kNone) {
@@ -217,6 +204,24 @@ void ControlLoop::tick(double t_s) noexcept {
     }
     case StopDetectorEvent::kNone: break;
   }
+
+  const double v_hat = differentiator_.velocity_m_per_s();
+  const double a_hat = differentiator_.acceleration_m_per_s2();
+  // Valve power follows the armed state. Disarmed, the outputs sit at the neutral voltage u_0
+  // (F_e(u_0) = 0: the chambers hold); in fault, at the configured safe output.
+  const bool armed = mode_ == Mode::kArmed;
+  // At rest the law holds u* (Eq. 11) at the rest position, exactly as the restart forecasts
+  // assume: the carriage has no velocity or acceleration to damp, and neither the differentiator's
+  // decaying residue nor the sensor's noise and steps reach the valves through the gains.
+  const double u = !armed                 ? params_.controller.law.offset_v
+                   : detector_.stopped() ? law_.resting_control_v(y_d_m_, detector_.rest_position_m())
+                                         : law_.control_v(y_d_m_, frame.y_m, v_hat, a_hat);
+  const hal::ActuatorCommand command =
+      mode_ == Mode::kFault ? safe_command() : hal::ActuatorCommand::from_control(u, armed);
+  if (backend_->write(command) != hal::Status::kOk) ++comms_errors_;
+  out_->setpoint_m.store(y_d_m_, std::memory_order_relaxed);
+  out_->mode.store(mode_, std::memory_order_relaxed);
+  out_->fault_cause.store(fault_cause_, std::memory_order_relaxed);
 
   TickRecord r;
   r.seq = seq_++;

@@ -63,10 +63,6 @@ void Runtime::on_tick(const TickRecord& r) {
     if (s.ended || !r.stuck || !std::isnan(s.forecast_void_at_s)) {
       following_.reset();
     } else if (r.t_s >= s.snapshot.t_s) {
-      if (std::isfinite(r.y_m)) {
-        following_->sum_y_m += r.y_m;
-        ++following_->readings;
-      }
       double* gaps[2] = {&s.largest_gap_linearized_n, &s.largest_gap_nonlinear_n};
       ForecastPoint* at[2] = {&expected.linearized, &expected.nonlinear};
       for (int i = 0; i < 2 && follow_; ++i) {
@@ -93,10 +89,6 @@ void Runtime::reforecast(StopOutcome& s, const TickRecord& r, const ExpectedAtTi
   now.t_s = r.t_s;
   now.p_p_pa = r.p_p_pa;
   now.p_n_pa = r.p_n_pa;
-  if (law_ && following_->readings > 0) {
-    now.y_m = following_->sum_y_m / static_cast<double>(following_->readings);
-    now.u_v = law_->resting_control_v(s.y_d_m, now.y_m);
-  }
   if (!snapshot_is_finite(now)) return;
   ++s.updates;
   // Bounded history: past the cap, every other update kept is let go, evenly over the phase.

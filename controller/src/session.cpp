@@ -70,7 +70,6 @@ Run make_run(const config::Config& config, const model::ValveCharacteristic& val
   const auto& p = config.controller.predictor;
   run.runtime = std::make_unique<Runtime>(predictor_model(config, valve), p.linearized, p.nonlinear,
                                           p.update_period_s);
-  run.runtime->set_control_law(law);  // the loop's: u* of Eq. 11 with the gains at y*
   return run;
 }
 

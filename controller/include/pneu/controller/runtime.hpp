@@ -32,11 +32,6 @@ class Runtime {
   /// Whether each stop keeps its forecasts made again after it ended (tests, the sweep); else
   /// only its half-way ones, so that a daemon's memory does not grow with the time spent at rest.
   void set_keep_reforecasts(bool on) noexcept { keep_reforecasts_ = on; }
-  /// The law the loop runs: the forecasts made again while stuck then take u* (Eq. 11) at the
-  /// mean position read since the stop, not at the one sample the stop's snapshot had. With a
-  /// quantised or noisy potentiometer the reading toggles between codes while the carriage is
-  /// still, the law's output with it, and the valves follow the mean.
-  void set_control_law(const ControlLaw& law) noexcept { law_ = law; }
   /// Adds a sink: every record goes to each sink, in the order they were added. Not owned; it
   /// must outlive the runtime's last drain(), finish() or record_command().
   void add_sink(RunListener& sink) { sinks_.push_back(&sink); }
@@ -79,8 +74,6 @@ class Runtime {
   struct Following {
     std::optional<ForecastTrack> tracks[2];  // linearized, nonlinear
     double next_update_s = 0.0;
-    double sum_y_m = 0.0;      // readings since the snapshot, for u*
-    std::uint64_t readings = 0;
     std::uint32_t stride = 1;  // updates kept: every stride-th (thinned beyond kMaxReforecastsKept)
   };
 
@@ -92,7 +85,6 @@ class Runtime {
   std::uint64_t stops_forgotten_ = 0;
   std::size_t max_stops_kept_ = kMaxStopsKept;
   std::vector<RunListener*> sinks_;
-  std::optional<ControlLaw> law_;
   std::vector<StopOutcome> stops_;
   std::optional<Following> following_;
   std::vector<LoopEvent> faults_;  // the faults latched, for the summary

@@ -18,8 +18,7 @@ struct Reforecast {
   std::uint32_t update = 0;       ///< 1, 2, ... within its stop
   double t_s = 0.0;               ///< the tick it was made from [s]
   double force_n = 0.0;           ///< F measured at that tick [N]
-  /// u* it assumed: from the mean position read since the snapshot when the runtime knows the law
-  /// (Runtime::set_control_law), else the snapshot's [V]
+  /// u* it assumed: the stop's, which the loop holds while the carriage is at rest [V]
   double u_star_v = 0.0;
   /// F the same method's forecast made at the stop expected then (NaN when the runtime does not
   /// follow the forecasts, Runtime::set_follow_forecasts) [N]
