@@ -86,6 +86,7 @@ class ReplayBackend final : public hal::Backend {
 struct Recording {
   config::Config config;
   std::unique_ptr<model::ValveModel> valve;
+  std::optional<controller::ControlLaw> law;  ///< the default's: designed once, as pneud does
   std::uint64_t ticks = 0;               ///< ticks of the 12 s run (both ends included)
   std::vector<hal::SensorFrame> frames;  ///< what the loop read: start()'s reading, then each tick
   std::vector<double> control_v;         ///< u of each tick
@@ -103,16 +104,17 @@ void record_paper_scenario(Recording& rec) {
   rec.config = config::load_string(config::default_config_yaml());
   rec.valve = std::make_unique<model::ValveModel>(rec.config.plant.valve, rec.config.plant.gas);
   controller::resolve_offset(rec.config, *rec.valve);
+  rec.law = controller::make_control_law(rec.config, *rec.valve);
   rec.model = controller::predictor_model(rec.config, *rec.valve);
   const double period = rec.config.controller.period_s();
   rec.ticks =
       static_cast<std::uint64_t>(std::llround(rec.config.controller.duration_s / period)) + 1;
 
-  auto run = controller::make_run(rec.config, *rec.valve, backends::make_sim_backend(rec.config));
+  auto run = controller::make_run(rec.config, *rec.valve, backends::make_sim_backend(rec.config, *rec.law), *rec.law);
   rec.frames.reserve(rec.ticks + 1);
   RecordingBackend recorder(*run.backend, rec.frames);
   auto outputs = std::make_unique<LoopOutputs>();
-  ControlLoop loop(controller::LoopParams::from(rec.config), recorder, *outputs);
+  ControlLoop loop(controller::LoopParams::from(rec.config, *rec.law), recorder, *outputs);
   loop.start(0.0);
   for (std::uint64_t k = 0; k < rec.ticks; ++k) {
     loop.tick(static_cast<double>(k) * period);
@@ -135,7 +137,7 @@ void record_paper_scenario(Recording& rec) {
 bool replay_reproduces_recording(const Recording& rec) {
   ReplayBackend replay(rec.frames);
   auto outputs = std::make_unique<LoopOutputs>();
-  ControlLoop loop(controller::LoopParams::from(rec.config), replay, *outputs);
+  ControlLoop loop(controller::LoopParams::from(rec.config, *rec.law), replay, *outputs);
   loop.start(0.0);
   std::size_t i = 0;
   for (std::uint64_t k = 0; k < rec.ticks; ++k) {
@@ -166,7 +168,7 @@ void BM_TickReplayedPaperScenario(benchmark::State& state) {
   const double period = rec.config.controller.period_s();
   ReplayBackend replay(rec.frames);
   auto outputs = std::make_unique<LoopOutputs>();
-  ControlLoop loop(controller::LoopParams::from(rec.config), replay, *outputs);
+  ControlLoop loop(controller::LoopParams::from(rec.config, *rec.law), replay, *outputs);
   loop.start(0.0);
   std::uint64_t k = 0;
   for (auto _ : state) {
@@ -192,7 +194,7 @@ BENCHMARK(BM_TickReplayedPaperScenario);
 void BM_TickWithSimBackend(benchmark::State& state) {
   const Recording& rec = *g_rec;
   const double period = rec.config.controller.period_s();
-  auto run = controller::make_run(rec.config, *rec.valve, backends::make_sim_backend(rec.config));
+  auto run = controller::make_run(rec.config, *rec.valve, backends::make_sim_backend(rec.config, *rec.law), *rec.law);
   run.loop->start(0.0);
   std::uint64_t k = 0;
   for (auto _ : state) {
@@ -202,7 +204,7 @@ void BM_TickWithSimBackend(benchmark::State& state) {
       state.PauseTiming();
       discard_records(*run.outputs);
       if (k == rec.ticks) {
-        run = controller::make_run(rec.config, *rec.valve, backends::make_sim_backend(rec.config));
+        run = controller::make_run(rec.config, *rec.valve, backends::make_sim_backend(rec.config, *rec.law), *rec.law);
         run.loop->start(0.0);
         k = 0;
       }
@@ -220,7 +222,7 @@ void BM_PaperScenarioSimulatedEndToEnd(benchmark::State& state) {
   const std::atomic<bool> never_stop{false};
   std::size_t stops = 0;
   for (auto _ : state) {
-    auto run = controller::make_run(rec.config, *rec.valve, backends::make_sim_backend(rec.config));
+    auto run = controller::make_run(rec.config, *rec.valve, backends::make_sim_backend(rec.config, *rec.law), *rec.law);
     controller::SimulatedClock clock;
     controller::execute(run, rec.config, clock, never_stop);
     stops = run.runtime->stops().size();

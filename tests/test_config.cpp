@@ -208,10 +208,25 @@ TEST(ShippedConfig, LoadsTheSameFromTextAsFromTheFile) {
   expect_same_values(load_string(shipped_yaml()), load_file(kShippedConfig));
 }
 
-const char* const kShippedNames[] = {"sim.yaml", "hil.yaml", "bench.yaml"};
+const char* const kShippedNames[] = {"sim.yaml", "paper.yaml", "hil.yaml", "bench.yaml"};
 
 Config load_shipped(const std::string& name, const std::vector<std::string>& overrides = {}) {
   return load_file(std::filesystem::path(PNEU_SOURCE_DIR) / "config" / name, overrides);
+}
+
+// paper.yaml keeps the paper's fixed gains for comparison; everything else is the default bench's,
+// so that a comparison of the two laws compares nothing else.
+TEST(ShippedConfig, PaperIsTheDefaultBenchWithThePapersFixedGains) {
+  const Config paper = load_shipped("paper.yaml");
+  const Config sim = load_shipped("sim.yaml");
+  EXPECT_EQ(paper.controller.law.gains, GainsKind::kFixed);
+  EXPECT_EQ(sim.controller.law.gains, GainsKind::kScheduled);
+  EXPECT_EQ(paper.controller.law.position_gain_v_per_m, 80.0);
+  EXPECT_EQ(paper.controller.law.velocity_gain_v_s_per_m, 1.5);
+  EXPECT_EQ(paper.controller.law.acceleration_gain_v_s2_per_m, 0.002);
+  Config paper_scheduled = paper;
+  paper_scheduled.controller.law.gains = GainsKind::kScheduled;
+  expect_same_values(paper_scheduled, sim);
 }
 
 TEST(ToYaml, OutputOfEachShippedConfigLoadsBackToTheSameValues) {

@@ -207,7 +207,7 @@ TEST(ShippedKeys, CoverBothFilesEveryKindAndEveryKeyOfTheSchema) {
 // The comments of the shipped files, which users read (and docs/configuration.md is generated
 // from), say "optional" on exactly the keys the schema lets be left out.
 TEST(ShippedFiles, MarkOptionalExactlyTheKeysTheSchemaLetsBeLeftOut) {
-  for (const char* relative : {"config/sim.yaml", "config/hil.yaml", "config/bench.yaml"}) {
+  for (const char* relative : {"config/sim.yaml", "config/paper.yaml", "config/hil.yaml", "config/bench.yaml"}) {
     const std::string text = test::slurp(fs::path(PNEU_SOURCE_DIR) / relative);
     std::vector<std::string> lines;
     std::istringstream in(text);

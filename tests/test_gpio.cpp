@@ -349,7 +349,8 @@ class EStopLoop : public ::testing::Test {
       : sim_(make_sim(bench_)),
         backend_(*sim_, lines_),
         outputs_(std::make_unique<controller::LoopOutputs>()),
-        loop_(controller::LoopParams::from(bench_.config), backend_, *outputs_) {
+        loop_(controller::LoopParams::from(bench_.config, controller::make_control_law(bench_.config, *bench_.valve)),
+              backend_, *outputs_) {
     loop_.start(0.0);
   }
 

@@ -152,11 +152,16 @@ TEST_F(Hil, PaperScenarioOverModbusSticksRestartsAndTheNonlinearForecastHoldsWit
   // 4.6 s over our runs, or never when the equilibrium force lies inside the stiction band (both
   // methods then forecast no restart). Every run's restarts are judged; the phenomenon, a stop of
   // half a second or more under constant control then a restart, must show in one of 3 runs.
+  // The paper's step with the paper's gains (config/paper.yaml's law on hil.yaml): hil.yaml's
+  // designed law stops this step with the equilibrium force a newton inside the stiction band,
+  // where the time to break it varies most from run to run (no restart in process; over Modbus,
+  // one run restarted after 5.8 s, forecast 2.7 % off).
   int long_restarts = 0, runs = 0;
   for (; runs < 3 && long_restarts == 0; ++runs) {
     const std::string events = "events" + std::to_string(runs) + ".jsonl";
     Child plant = serve(15.0);
-    Child pneud = Child::spawn(pneud_args({"--events", (dir_ / events).string(), "--summary-json", summary_json()}),
+    Child pneud = Child::spawn(pneud_args({"--events", (dir_ / events).string(), "--summary-json", summary_json(),
+                                           "--set", "controller.law.gains=fixed"}),
                                dir_ / "pneud.out", dir_ / "pneud.err");
     ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
     kill(plant.pid, SIGINT);

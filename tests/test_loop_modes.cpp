@@ -60,6 +60,9 @@ constexpr double kU0V = 0.25;  // u_0, set rather than derived from the valve mo
 class LoopModes : public ::testing::Test {
  protected:
   LoopModes() {
+    // The modes do not depend on the law: the paper's fixed gains keep each expected output a
+    // line of arithmetic (and are the unstable ones the oscillation tests need).
+    config_.controller.law.gains = config::GainsKind::kFixed;
     config_.controller.law.offset_v = kU0V;
     config_.controller.schedule.clear();  // the set point stays at initial_m (219.5 mm) until told
   }

@@ -398,7 +398,7 @@ class FlakyBackend final : public pneu::hal::Backend {
 };
 
 TEST(ControlLoop, CountsBackendFailuresAndHandsThemToHealth) {
-  auto config = pneu::config::load_string(pneu::config::default_config_yaml());
+  auto config = pneu::config::load_string(pneu::config::default_config_yaml(), {"controller.law.gains=fixed"});
   config.controller.schedule.clear();
   FlakyBackend backend;
   auto outputs = std::make_unique<pneu::controller::LoopOutputs>();
@@ -445,7 +445,7 @@ class StallingClock final : public pneu::controller::Clock {
 class LoopDeadlines : public ::testing::TestWithParam<int> {};
 
 TEST_P(LoopDeadlines, AreEachTickedOrSkippedOnceWhereverAStallComes) {
-  auto config = pneu::config::load_string(pneu::config::default_config_yaml());
+  auto config = pneu::config::load_string(pneu::config::default_config_yaml(), {"controller.law.gains=fixed"});
   config.controller.supervisor.overruns_in_a_row = 0;
   config.controller.supervisor.max_tick_interval_s = 0.0;
   FlakyBackend backend;
@@ -482,7 +482,7 @@ long slack_while_ticking(pneu::controller::Clock& clock) {
   long during = -1;
   std::thread loop_thread([&] {
     (void)prctl(PR_SET_TIMERSLACK, 50'000UL, 0UL, 0UL, 0UL);
-    auto config = pneu::config::load_string(pneu::config::default_config_yaml());
+    auto config = pneu::config::load_string(pneu::config::default_config_yaml(), {"controller.law.gains=fixed"});
     FlakyBackend backend;
     auto outputs = std::make_unique<pneu::controller::LoopOutputs>();
     pneu::controller::ControlLoop loop(pneu::controller::LoopParams::from(config), backend, *outputs);

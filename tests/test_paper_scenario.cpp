@@ -50,8 +50,10 @@ struct PaperRun {
   std::unique_ptr<model::ValveCharacteristic> valve;
   controller::Run run;
 
-  explicit PaperRun(const std::vector<std::string>& overrides = {})
-      : config(config::load_string(config::default_config_yaml(), overrides)),
+  // The default bench (the embedded config/sim.yaml, its designed law), or a shipped config by name.
+  explicit PaperRun(const std::vector<std::string>& overrides = {}, const std::string& shipped = "")
+      : config(shipped.empty() ? config::load_string(config::default_config_yaml(), overrides)
+                               : config::load_file(fs::path(PNEU_SOURCE_DIR) / "config" / shipped, overrides)),
         valve(controller::make_valve_characteristic(config, {})) {
     controller::resolve_offset(config, *valve);
     run = controller::make_run(config, *valve, backends::make_sim_backend(config));
@@ -117,23 +119,28 @@ bool has_long_sticking_phase_ending_in_restart(const PaperRun& r) {
   return false;
 }
 
-TEST(PaperScenario, RunsTwelveSecondsAndHasALongStickingPhaseEndingInARestart) {
-  const PaperRun r;
+// The paper's step on the default bench (its designed law) and with the paper's own gains.
+class PaperScenarioWith : public ::testing::TestWithParam<const char*> {};
+INSTANTIATE_TEST_SUITE_P(Laws, PaperScenarioWith, ::testing::Values("sim.yaml", "paper.yaml"),
+                         [](const auto& p) { return std::string(p.param[0] == 's' ? "DesignedGains" : "PapersGains"); });
+
+TEST_P(PaperScenarioWith, RunsTwelveSecondsAndHasALongStickingPhaseEndingInARestart) {
+  const PaperRun r({}, GetParam());
   EXPECT_DOUBLE_EQ(r.t_end_s(), 12.0);
   EXPECT_EQ(r.run.runtime->ticks_seen(), 12001u);  // t = 0 .. 12 s inclusive at 1 kHz
   EXPECT_EQ(r.run.runtime->sequence_gaps(), 0u);
   EXPECT_TRUE(has_long_sticking_phase_ending_in_restart(r));
 }
 
-TEST(PaperScenario, EveryRestartIsForecastWithinTheAcceptanceBoundsInTheRightDirection) {
-  const PaperRun r;
+TEST_P(PaperScenarioWith, EveryRestartIsForecastWithinTheAcceptanceBoundsInTheRightDirection) {
+  const PaperRun r({}, GetParam());
   ASSERT_FALSE(r.stops().empty());
   expect_all_forecasts_meet_criteria(r);
 }
 
 TEST(PaperScenario, AStopStillStuckWhenTheRunEndsIsForecastAsNoRestartBeforeTheEnd) {
-  // Cut the run at 4 s, inside the long sticking phase (stuck from about 2.0 s to 6.0 s).
-  const PaperRun r({"controller.duration_s=4"});
+  // Cut the run at 3 s, inside the long sticking phase (stuck from about 1.4 s to 3.9 s).
+  const PaperRun r({"controller.duration_s=3"});
   ASSERT_FALSE(r.stops().empty());
   const StopOutcome& last = r.stops().back();
   ASSERT_FALSE(last.ended) << "the cut should fall inside a sticking phase";
@@ -210,3 +217,32 @@ TEST(PaperScenario, ForecastsFromAMeasuredValveTableMeetTheSameCriteria) {
 }
 
 }  // namespace
+
+// The simulated bench starts at rest with its chambers at null flow for the loop's first output:
+// u* (Eq. 11) of the run's law at the initial set point. A scheduled law's K_y at the start is not
+// the fixed gains' key, so a bench started from those would drift from the first tick.
+TEST(SimulatedBench, StartsAtEquilibriumForTheFirstOutputOfTheRunsLawFixedOrScheduled) {
+  config::Config c = config::load_string(config::default_config_yaml(),
+                                         {"simulation.initial_position_m=0.0", "controller.setpoints.initial_m=0.00002",
+                                          "controller.setpoints.schedule=[]"});
+  const auto valve = controller::make_valve_characteristic(c, {});
+  controller::resolve_offset(c, *valve);
+  const controller::ControlLaw scheduled = controller::make_control_law(c, *valve);
+  const controller::ControlLaw fixed(c.controller.law);
+  const double u_first = scheduled.resting_control_v(0.00002, 0.0);
+  ASSERT_GT(std::abs(u_first - fixed.resting_control_v(0.00002, 0.0)), 0.01) << "the two laws start apart";
+  // The pressures after 0.2 s of the first output, against those at the start.
+  const auto drift_pa = [&](std::unique_ptr<hal::SimBackend> bench) {
+    hal::SensorFrame f0, f;
+    EXPECT_EQ(bench->read(0.0, f0), hal::Status::kOk);
+    for (int k = 0; k < 200; ++k) {
+      EXPECT_EQ(bench->write(hal::ActuatorCommand::from_control(u_first, true)), hal::Status::kOk);
+      EXPECT_EQ(bench->read((k + 1) * 1e-3, f), hal::Status::kOk);
+    }
+    EXPECT_EQ(f.y_m, 0.0) << "still at rest";
+    return std::max(std::abs(f.p_p_pa - f0.p_p_pa), std::abs(f.p_n_pa - f0.p_n_pa));
+  };
+  EXPECT_LT(drift_pa(backends::make_sim_backend(c, scheduled)), 1.0);
+  EXPECT_LT(drift_pa(backends::make_sim_backend(c)), 1.0) << "designs the same law itself";
+  EXPECT_GT(drift_pa(backends::make_sim_backend(c, fixed)), 100.0) << "started for another law";
+}

@@ -2,8 +2,9 @@
 # What a run writes, pinned byte for byte: a change of structure must leave it as it is. Each mode
 # runs a program and compares its outputs with tests/pinned/ (text files, so a real change shows
 # as a readable diff; the 1.7 MB trajectory by its SHA-256):
-#   paper          pneud on the embedded sim.yaml (the paper scenario): the events file and the
-#                  trajectory
+#   paper          pneud on the paper's step: the events file and the trajectory, with the
+#                  embedded sim.yaml (its designed law) and with config/paper.yaml (the paper's
+#                  gains)
 #   sweep          pneu-sweep --steps 200: its CSV and its summary (the wall-time and path lines
 #                  left out)
 #   check-config   pneud --check-config on each shipped configuration
@@ -25,7 +26,12 @@ case $mode in
     "$bin/pneud" --quiet --events "$work/events.jsonl" --trajectory "$work/trajectory.csv"
     same paper_events.jsonl "$work/events.jsonl"
     (cd "$work" && sha256sum trajectory.csv) > "$work/trajectory.sha256"
-    same paper_trajectory.sha256 "$work/trajectory.sha256" ;;
+    same paper_trajectory.sha256 "$work/trajectory.sha256"
+    "$bin/pneud" --quiet --config "$src/config/paper.yaml" --events "$work/paper_gains_events.jsonl" \
+      --trajectory "$work/paper_gains_trajectory.csv"
+    same paper_gains_events.jsonl "$work/paper_gains_events.jsonl"
+    (cd "$work" && sha256sum paper_gains_trajectory.csv) > "$work/paper_gains_trajectory.sha256"
+    same paper_gains_trajectory.sha256 "$work/paper_gains_trajectory.sha256" ;;
   sweep)
     "$bin/pneu-sweep" --steps 200 --quiet --out "$work/sweep.csv" > "$work/summary.full"
     grep -v -E '^  [0-9.]+ s wall on |^  wrote ' "$work/summary.full" > "$work/summary.txt"
@@ -33,7 +39,7 @@ case $mode in
     (cd "$work" && sha256sum sweep.csv) > "$work/sweep.sha256"
     same sweep_200.sha256 "$work/sweep.sha256" ;;
   check-config)
-    for name in sim hil bench; do
+    for name in sim paper hil bench; do
       "$bin/pneud" --check-config --config "$src/config/$name.yaml" > "$work/$name.yaml"
       same "check_config_$name.yaml" "$work/$name.yaml"
     done ;;

@@ -81,10 +81,10 @@ check_forecast_figure "$tmp/out" paper
 cmp -s "$tmp/out/paper_plane.svg" "$tmp/again/paper_plane.svg" || fail "two renderings of the plane SVG differ"
 cmp -s "$tmp/out/paper_forecast.svg" "$tmp/again/paper_forecast.svg" || fail "two renderings of the forecast SVG differ"
 
-# --time-range slices the forecast columns with the rest: the 4 s phase and its restart are kept.
+# --time-range slices the forecast columns with the rest: the 2.5 s phase and its restart are kept.
 "$bin/pneu-plant" null-flow --config "$tmp/config.yaml" --out "$tmp/null_flow.csv"
 "$py" "$tool" --trajectory "$tmp/traj.csv" --events "$tmp/events.jsonl" --config "$tmp/config.yaml" \
-  --null-flow "$tmp/null_flow.csv" --time-range 1.9 6.3 --out-dir "$tmp/range" --name range > /dev/null \
+  --null-flow "$tmp/null_flow.csv" --time-range 1.3 4.2 --out-dir "$tmp/range" --name range > /dev/null \
   || fail "pneu_plots.py failed with --time-range"
 check_forecast_figure "$tmp/range" range
 
@@ -178,7 +178,7 @@ expect_refusal "both inputs" "not both" --log-csv "$tmp/log" --trajectory "$tmp/
 # 4. The stability map (tools/plots/stability_map.py) from pneu-plant tune's map: both laws drawn,
 # a missing map and a map without its columns refused with exit code 2.
 map_tool="$src/tools/plots/stability_map.py"
-"$bin/pneu-plant" tune --step-mm 25 --csv "$tmp/map.csv" > /dev/null
+"$bin/pneu-plant" tune --config "$src/config/paper.yaml" --step-mm 25 --csv "$tmp/map.csv" > /dev/null
 "$py" "$map_tool" --map "$tmp/map.csv" --out "$tmp/stability_map" > /dev/null || fail "stability_map.py failed"
 check_figure "$tmp" stability_map
 grep -q "paper's fixed gains" "$tmp/stability_map.svg" || fail "the map draws no fixed-gain line"

@@ -258,8 +258,9 @@ TEST_F(PneuPlantCli, TuneRunsOnEveryShippedConfig) {
 }
 
 TEST_F(PneuPlantCli, TuneSaysWhereThePapersGainsAreUnstableAndTheDesignedScheduleIsNot) {
-  // The embedded sim.yaml: the paper's fixed gains, and the designed schedule beside them.
-  const Outcome r = run("tune");
+  // config/paper.yaml: the paper's fixed gains, and the designed schedule beside them.
+  const std::string paper = (fs::path(PNEU_SOURCE_DIR) / "config/paper.yaml").string();
+  const Outcome r = run("tune --config " + paper);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_THAT(r.out, HasSubstr("Designed gains: gains scheduled by position"));
   EXPECT_THAT(r.out, HasSubstr("fixed gains K_y 80 V/m, K_v 1.5 V/(m/s), K_a 0.002 V/(m/s^2)"));
@@ -267,17 +268,24 @@ TEST_F(PneuPlantCli, TuneSaysWhereThePapersGainsAreUnstableAndTheDesignedSchedul
   EXPECT_THAT(r.out, HasSubstr("unstable, continuous: [-225, 225] mm; sampled: [-225, 225] mm"));
   EXPECT_THAT(r.out, HasSubstr("unstable, continuous: nowhere; sampled: nowhere"));
   EXPECT_THAT(r.out, ::testing::Not(HasSubstr("note:")));
+  // The embedded sim.yaml drives the designed schedule: one map, stable everywhere.
+  const Outcome designed = run("tune");
+  ASSERT_EQ(designed.exit_code, 0) << designed.err;
+  EXPECT_THAT(designed.out, HasSubstr("Stability map: the configured law, gains scheduled by position"));
+  EXPECT_THAT(designed.out, ::testing::Not(HasSubstr("fixed gains K_y")));
+  EXPECT_THAT(designed.out, HasSubstr("unstable, continuous: nowhere; sampled: nowhere"));
   // At 300 Hz the same schedule is stable on the continuous model, not on the sampled loop: mapped,
   // with a note that pneud refuses it.
   const Outcome slow = run("tune --step-mm 50 --set controller.rate_hz=300");
   ASSERT_EQ(slow.exit_code, 0) << slow.err;
-  EXPECT_THAT(slow.out, HasSubstr("unstable, continuous: nowhere; sampled: [-200, 150] mm"));
+  EXPECT_THAT(slow.out, HasSubstr("unstable, continuous: nowhere; sampled: [-200, 200] mm"));
   EXPECT_THAT(slow.out, HasSubstr("note: the designed schedule is unstable on the sampled loop: pneud refuses it"));
 }
 
 TEST_F(PneuPlantCli, TuneWritesTheMapAsCsvOneRowPerLawAndPosition) {
   const fs::path out = dir_ / "map.csv";
-  const Outcome r = run("tune --step-mm 50 --csv " + out.string());
+  const Outcome r = run("tune --step-mm 50 --csv " + out.string() + " --config " +
+                        (fs::path(PNEU_SOURCE_DIR) / "config/paper.yaml").string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   std::stringstream ss(slurp(out));
   std::string line;

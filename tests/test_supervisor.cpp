@@ -20,7 +20,8 @@ constexpr double kPeriod = 1e-3;
 
 class SupervisorChecks : public ::testing::Test {
  protected:
-  SupervisorChecks() : config_(pneu::config::load_string(pneu::config::default_config_yaml())) {
+  SupervisorChecks()
+      : config_(pneu::config::load_string(pneu::config::default_config_yaml(), {"controller.law.gains=fixed"})) {
     // Every check on, as on a bench with real (noisy) sensors.
     config_.controller.supervisor.frozen_after_s = 0.2;
     config_.commands.setpoint_stream_timeout_s = 0.0;

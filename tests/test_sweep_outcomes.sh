@@ -2,16 +2,17 @@
 # pneu-sweep reports every scenario (issue 14): each gets an outcome (settled, never-settled,
 # end-stop, fault), --scenarios-out writes one row per scenario, the summary's counts add up to
 # the number of scenarios and agree with the rows, and --strict fails, saying why, when any
-# scenario does not settle. On the default (the paper's) gains the mid-stroke scenarios never
-# settle, and the settling rules checked alongside would latch the oscillation fault on each of
-# them; on a stable law every scenario settles and --strict passes.
+# scenario does not settle. With the paper's gains the mid-stroke scenarios never settle, and the
+# settling rules checked alongside would latch the oscillation fault on each of them; with the
+# shipped default (the designed schedule) every scenario of the 200-step sweep settles, --strict
+# passes, and supervised no fault latches.
 #   test_sweep_outcomes.sh BINARY_DIR
 set -euo pipefail
 sweep=$1/bin/pneu-sweep
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
 fail() { echo "FAIL: $*"; exit 1; }
 nonlinear=(--set "controller.predictor.methods=[nonlinear]")  # the forecasts held to their criteria
-stable=(--set controller.law.position_gain_v_per_m=40 --set controller.law.velocity_gain_v_s_per_m=3)
+paper=(--set controller.law.gains=fixed)  # config/paper.yaml's law: the paper's gains
 
 # column NAME FILE: the values of a column of a CSV file with a header, one a line.
 column() { awk -F, -v name="$1" 'NR == 1 { for (i = 1; i <= NF; ++i) if ($i == name) c = i; next } { print $c }' "$2"; }
@@ -20,7 +21,7 @@ summary_count() { grep -E '^  outcomes ' "$2" | grep -oE "[0-9]+ $1" | grep -oE 
 
 echo "== the paper's gains: 40 scenarios"
 status=0
-"$sweep" --steps 40 --quiet --strict "${nonlinear[@]}" --out "$tmp/stops.csv" --scenarios-out "$tmp/scenarios.csv" \
+"$sweep" --steps 40 --quiet --strict "${paper[@]}" "${nonlinear[@]}" --out "$tmp/stops.csv" --scenarios-out "$tmp/scenarios.csv" \
   > "$tmp/summary.txt" 2> "$tmp/err.txt" || status=$?
 cat "$tmp/summary.txt" "$tmp/err.txt"
 [ "$status" = 1 ] || fail "--strict exits 1 when scenarios do not settle (got $status)"
@@ -61,12 +62,12 @@ grep -qE "would latch the oscillation fault in: [0-9]+ of $settled settled, $nev
   || fail "the settling rules checked alongside latch on every never-settled scenario"
 
 echo "== --strict-forecasts: the forecasts only"
-"$sweep" --steps 40 --quiet --strict-forecasts "${nonlinear[@]}" --out "$tmp/stops2.csv" > /dev/null \
+"$sweep" --steps 40 --quiet --strict-forecasts "${paper[@]}" "${nonlinear[@]}" --out "$tmp/stops2.csv" > /dev/null \
   || fail "--strict-forecasts passes with every nonlinear forecast within its criteria"
 cmp -s "$tmp/stops.csv" "$tmp/stops2.csv" || fail "the outcomes change nothing of the per-stop CSV"
 
 echo "== --supervised: a fault is an outcome, named"
-"$sweep" --steps 40 --quiet --supervised --out "$tmp/stops3.csv" --scenarios-out "$tmp/supervised.csv" > "$tmp/summary3.txt"
+"$sweep" --steps 40 --quiet --supervised "${paper[@]}" --out "$tmp/stops3.csv" --scenarios-out "$tmp/supervised.csv" > "$tmp/summary3.txt"
 cat "$tmp/summary3.txt"
 osc=$(column fault_cause "$tmp/supervised.csv" | grep -cx oscillation || true)
 [ "$osc" -ge "$never" ] || fail "every scenario that never settled latches the oscillation fault ($osc < $never)"
@@ -74,9 +75,13 @@ grep -qE "^    faults by cause:.* oscillation $osc" "$tmp/summary3.txt" || fail 
 awk -F, 'NR > 1 && $6 == "fault" && ($9 == "" || $10 == "") { print; bad = 1 } END { exit bad }' "$tmp/supervised.csv" \
   || fail "a fault row names its cause and time"
 
-echo "== a stable law: every scenario settles, --strict passes"
-"$sweep" --steps 40 --quiet --strict "${nonlinear[@]}" "${stable[@]}" --out "$tmp/stops4.csv" \
-  --scenarios-out "$tmp/stable.csv" > "$tmp/summary4.txt" || { cat "$tmp/summary4.txt"; fail "--strict on a law that settles"; }
-[ "$(summary_count settled "$tmp/summary4.txt")" = 40 ] || fail "40 settled"
-grep -q "would latch the oscillation fault in: 0 of 40 settled$" "$tmp/summary4.txt" || fail "no false oscillation fault"
+echo "== the shipped default, the designed schedule: all 200 scenarios settle, --strict passes, no fault"
+"$sweep" --steps 200 --quiet --strict "${nonlinear[@]}" --out "$tmp/stops4.csv" \
+  --scenarios-out "$tmp/designed.csv" > "$tmp/summary4.txt" || { cat "$tmp/summary4.txt"; fail "--strict on the default"; }
+cat "$tmp/summary4.txt"
+[ "$(summary_count settled "$tmp/summary4.txt")" = 200 ] || fail "200 settled"
+grep -q "would latch the oscillation fault in: 0 of 200 settled$" "$tmp/summary4.txt" || fail "no false oscillation fault"
+"$sweep" --steps 200 --quiet --supervised --out "$tmp/stops5.csv" --scenarios-out "$tmp/designed5.csv" > "$tmp/summary5.txt"
+[ "$(summary_count faults "$tmp/summary5.txt")" = 0 ] || { cat "$tmp/summary5.txt"; fail "supervised, no fault latches"; }
+[ "$(column outcome "$tmp/designed5.csv" | grep -cx settled)" = 200 ] || fail "supervised, 200 rows settled"
 echo "all well"

@@ -144,7 +144,7 @@ int run(int argc, char** argv) {
   RunFiles files(args);
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
-  controller::Run run = controller::make_run(cfg, *valve, backends::make_backend(cfg), law);
+  controller::Run run = controller::make_run(cfg, *valve, backends::make_backend(cfg, law), law);
   files.add_sinks(*run.runtime);
   const std::unique_ptr<Telemetry> telemetry = Telemetry::start(cfg, run, args.flag("require-telemetry"));
   SystemdNotifier notifier(*run.outputs, g_stop);

@@ -440,11 +440,10 @@ int run(int argc, char** argv) {
         const auto valve = controller::make_valve_characteristic(
             cfg, config_path.empty() ? std::filesystem::path() : std::filesystem::path(config_path).parent_path());
         controller::resolve_offset(cfg, *valve);
-        auto plant = backends::make_sim_backend(cfg);
-        const hal::SimBackend& bench = *plant;  // the simulated truth, owned by the run
-        // The gains, fixed or scheduled, mistuned by the scenario's factor (the set point starts
-        // at y0: the plant's start does not depend on them).
+        // The gains, fixed or scheduled, mistuned by the scenario's factor.
         const controller::ControlLaw law = controller::make_control_law(cfg, *valve).scaled(s.gain_scale);
+        auto plant = backends::make_sim_backend(cfg, law);
+        const hal::SimBackend& bench = *plant;  // the simulated truth, owned by the run
         auto sim = controller::make_run(cfg, *valve, std::move(plant), law);
         sim.runtime->set_follow_forecasts(false);  // nobody sees the tick-by-tick comparison here
         sim.runtime->set_keep_reforecasts(true);   // judged below against the plant's breakaways

@@ -2,7 +2,7 @@
 
 #include <utility>
 
-#include "pneu/controller/control_law.hpp"
+#include "pneu/controller/session.hpp"
 #ifdef PNEU_WITH_MODBUS
 #include "pneu/hal/modbus_backend.hpp"
 #endif
@@ -42,22 +42,25 @@ class WithGpioLines final : public hal::Backend {
 #endif
 
 // The device: the I/O module or the in-process plant.
-std::unique_ptr<hal::Backend> make_device(const config::Config& config) {
+std::unique_ptr<hal::Backend> make_device(const config::Config& config, const controller::ControlLaw& law) {
 #ifdef PNEU_WITH_MODBUS
   if (config.hal.backend == config::BackendKind::kModbus)
     return std::make_unique<hal::ModbusBackend>(config.hal.modbus, config.sensors);
 #endif
-  return make_sim_backend(config);
+  return make_sim_backend(config, law);
 }
 
 }  // namespace
 
-std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config) {
-  const controller::ControlLaw law(config.controller.law);
+std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config, const controller::ControlLaw& law) {
   const double u_initial =
       law.resting_control_v(config.controller.initial_setpoint_m, config.simulation.initial_position_m);
   return std::make_unique<hal::SimBackend>(config.plant, config.sensors, config.simulation.initial_position_m,
                                            u_initial);
+}
+
+std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config) {
+  return make_sim_backend(config, controller::make_control_law(config, *controller::make_valve_characteristic(config, {})));
 }
 
 void require_built(const config::Config& config) {
@@ -71,9 +74,9 @@ void require_built(const config::Config& config) {
   (void)config;
 }
 
-std::unique_ptr<hal::Backend> make_backend(const config::Config& config) {
+std::unique_ptr<hal::Backend> make_backend(const config::Config& config, const controller::ControlLaw& law) {
   require_built(config);
-  std::unique_ptr<hal::Backend> device = make_device(config);
+  std::unique_ptr<hal::Backend> device = make_device(config, law);
 #ifdef PNEU_WITH_GPIOD
   if (config.hal.gpio.enabled) {
     const auto& g = config.hal.gpio;

@@ -7,13 +7,19 @@
 #include <memory>
 
 #include "pneu/config/config.hpp"
+#include "pneu/controller/control_law.hpp"
 #include "pneu/hal/backend.hpp"
 #include "pneu/hal/sim_backend.hpp"
 
 namespace pneu::backends {
 
 /// The in-process simulated bench of `config`: the plant at rest at simulation.initial_position_m,
-/// at complete equilibrium for the loop's first output (controller.law.offset_v already resolved).
+/// at complete equilibrium for the loop's first output under `law` (the run's, fixed or scheduled:
+/// u* of Eq. 11 at the initial set point; controller.law.offset_v already resolved).
+[[nodiscard]] std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config,
+                                                                const controller::ControlLaw& law);
+/// The same with the law controller::make_control_law designs from `config` (its valve table, if
+/// any, relative to the working directory): for tests and benchmarks.
 [[nodiscard]] std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config);
 
 /// Refuses what `config` asks of this build and it left out, before anything is driven or
@@ -24,6 +30,8 @@ void require_built(const config::Config& config);
 /// The backend `config` describes: the sim or the modbus backend, inside the GPIO decorator with
 /// the lines of hal.gpio when enabled; opened when the run starts. Calls require_built() first.
 /// Throws std::runtime_error when the register map or the GPIO lines cannot be had.
-[[nodiscard]] std::unique_ptr<hal::Backend> make_backend(const config::Config& config);
+/// `law` is the run's: the sim backend starts at equilibrium for its first output.
+[[nodiscard]] std::unique_ptr<hal::Backend> make_backend(const config::Config& config,
+                                                         const controller::ControlLaw& law);
 
 }  // namespace pneu::backends
