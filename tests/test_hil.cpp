@@ -155,7 +155,7 @@ TEST_F(Hil, PaperScenarioOverModbusSticksRestartsAndTheNonlinearForecastHoldsWit
   // The paper's step with the paper's gains (config/paper.yaml's law on hil.yaml): hil.yaml's
   // designed law stops this step with the equilibrium force a newton inside the stiction band,
   // where the time to break it varies most from run to run (no restart in process; over Modbus,
-  // one run restarted after 5.8 s, forecast 2.7 % off).
+  // one run restarted after 5.8 s, forecast 2.7 % off the start the detector dated).
   int long_restarts = 0, runs = 0;
   for (; runs < 3 && long_restarts == 0; ++runs) {
     const std::string events = "events" + std::to_string(runs) + ".jsonl";

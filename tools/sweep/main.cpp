@@ -76,7 +76,8 @@ oscillation fault, unless --supervised).
 Stops are those pneud's stop detector sees; what happened after each is the simulated truth: the
 plant's first breakaway after the forecast was made is the restart, timed exactly, even when it
 moves the carriage less than the detector's motion band (a set-point change before it ends the
-stop unjudged). With noisy sensors (e.g. --config config/hil.yaml --set hal.backend=sim) the
+stop unjudged); the summary says how far the detector's dates of the starts it saw fall from the
+breakaways. With noisy sensors (e.g. --config config/hil.yaml --set hal.backend=sim) the
 detector may confirm a stop while the plant still slides within its rest band: counted, not
 judged (outcome plant_not_at_rest). SWEEP.csv has one row per stop: the scenario, the stop, what happened, and each
 method's forecast with its verdict and error. The summary gives the confusion matrix of restart / no restart and the
@@ -98,6 +99,7 @@ struct Scenario {
 struct Truth {
   bool unseen = false;       // a true restart the stop detector did not see
   bool not_at_rest = false;  // the plant was sliding when the stop was confirmed: not judged
+  double start_dating_s = NAN;  // the detector's start time minus the plant's breakaway, when it saw one
 };
 
 // Whether the plant was at rest (stuck, or against an end stop) at `t_s`, by its motion events.
@@ -277,12 +279,14 @@ struct ScenarioResult {
 // What happened, by the simulated truth: the plant's first breakaway after the forecast was made
 // (the stop's confirmation) is the restart. The stop detector sees a start only once the carriage
 // has moved beyond its motion band; a breakaway under a force a hair beyond stiction can move it
-// less than that before the pneumatic stiffness stops it again, a restart all the same. With
-// noisy sensors the detector can also confirm a stop while the plant still slides slowly within
-// its rest band: a forecast made then assumed a rest that was not there, and is not judged.
-// Stops ended by a set-point change keep that outcome.
-Truth apply_plant_truth(controller::StopOutcome& s, std::span<const plant::PlantEvent> events, double run_end_s,
-                        double period_s) {
+// less than that before the pneumatic stiffness stops it again, a restart all the same. The
+// detector's start comes after the breakaway, once the carriage has moved; its date is
+// backdated from the samples, exactly to within a period with ideal sensors and less surely with
+// noisy ones (earlier or later by milliseconds): it plays no part here, and the gap is reported.
+// With noisy sensors the detector can also confirm a stop while the plant still slides slowly
+// within its rest band: a forecast made then assumed a rest that was not there, and is not
+// judged. Stops ended by a set-point change keep that outcome.
+Truth apply_plant_truth(controller::StopOutcome& s, std::span<const plant::PlantEvent> events, double run_end_s) {
   using Kind = plant::PlantEvent::Kind;
   Truth truth;
   if (s.ended && !s.restarted) return truth;
@@ -290,13 +294,11 @@ Truth apply_plant_truth(controller::StopOutcome& s, std::span<const plant::Plant
     truth.not_at_rest = true;
     return truth;
   }
-  // The detector dates a start midway between the last sample at rest and the first that moved:
-  // the breakaway may lie up to a period after that.
-  const double limit_s = s.ended ? s.t_end_s + period_s : run_end_s;
   for (const auto& e : events) {
     if (e.kind != Kind::kBreakaway || e.t_s <= s.snapshot.t_s) continue;
-    if (e.t_s > limit_s) break;
+    if (e.t_s > run_end_s) break;
     truth.unseen = !s.ended;
+    if (s.ended) truth.start_dating_s = s.t_end_s - e.t_s;
     s.ended = s.restarted = true;
     s.t_end_s = e.t_s;
     s.direction = e.direction;
@@ -461,7 +463,7 @@ int run(int argc, char** argv) {
           throw std::runtime_error("scenario " + std::to_string(s.index) + ": more plant events than recorded");
         for (auto stop : sim.runtime->stops()) {
           if (stop.t_stop_s > duration) continue;
-          r.truth.push_back(apply_plant_truth(stop, bench.motion_events(), r.t_end_s, cfg.controller.period_s()));
+          r.truth.push_back(apply_plant_truth(stop, bench.motion_events(), r.t_end_s));
           r.stops.push_back(stop);
         }
         results[static_cast<std::size_t>(i)] = std::move(r);
@@ -511,12 +513,14 @@ int run(int argc, char** argv) {
   os << ",lin_halfway_error_percent,nl_halfway_error_percent\n";
   MethodStats stats[2];
   std::uint64_t stops = 0, restarts = 0, long_restarts = 0, longest_restart_count_1s = 0, unseen = 0, not_at_rest = 0;
+  std::vector<double> start_dating_ms;  // detector's start - plant's breakaway, over the starts it saw
   char buf[512];
   for (const auto& r : results) {
     for (std::size_t k = 0; k < r.stops.size(); ++k) {
       const auto& s = r.stops[k];
       ++stops;
       if (r.truth[k].unseen) ++unseen;
+      if (!std::isnan(r.truth[k].start_dating_s)) start_dating_ms.push_back(1e3 * r.truth[k].start_dating_s);
       const bool judged = !r.truth[k].not_at_rest;  // else the forecast's premise, rest, was not there
       if (!judged) ++not_at_rest;
       const char* outcome = !judged    ? "plant_not_at_rest"
@@ -634,6 +638,14 @@ int run(int argc, char** argv) {
               static_cast<unsigned long long>(stops), static_cast<unsigned long long>(restarts),
               static_cast<unsigned long long>(long_restarts), static_cast<unsigned long long>(longest_restart_count_1s),
               static_cast<unsigned long long>(unseen));
+  if (!start_dating_ms.empty()) {
+    std::vector<double> early_ms, late_ms;
+    for (const double d : start_dating_ms) (d < 0.0 ? early_ms : late_ms).push_back(std::abs(d));
+    std::printf("  the detector dated the %zu starts it saw %zu before the plant's breakaway (max %.1f ms), %zu at or after it (max "
+                "%.1f ms)\n",
+                start_dating_ms.size(), early_ms.size(), early_ms.empty() ? 0.0 : percentile(early_ms, 1.0), late_ms.size(),
+                late_ms.empty() ? 0.0 : percentile(late_ms, 1.0));
+  }
   if (not_at_rest > 0)
     std::printf("  %llu stops were confirmed while the plant was still sliding within the detector's rest band: "
                 "their forecasts are not judged\n",
