@@ -313,7 +313,7 @@ TEST_F(LoopModes, ACarriageSwingingAboutTheSetPointLatchesAnOscillationFaultThat
 
 // No rest within the settle time of a set point: the carriage creeps on, its stop detector never
 // confirms a stop.
-TEST_F(LoopModes, NoRestWithinTheSettleTimeOfASetPointLatchesAnOscillationFault) {
+TEST_F(LoopModes, NoRestWithinTheSettleTimeOfASetPointLatchesANotSettledFault) {
   config_.controller.supervisor.following_error_s = 0.0;
   start();
   run_ticks(100);
@@ -324,7 +324,7 @@ TEST_F(LoopModes, NoRestWithinTheSettleTimeOfASetPointLatchesAnOscillationFault)
     run_ticks(1);
   }
   ASSERT_EQ(mode(), Mode::kFault);
-  EXPECT_EQ(loop_->fault_cause(), controller::FaultCause::kOscillation);
+  EXPECT_EQ(loop_->fault_cause(), controller::FaultCause::kNotSettled);
   EXPECT_NEAR(now_s() - sent_s, config_.controller.supervisor.settle_time_s, 1.5e-3);
 }
 

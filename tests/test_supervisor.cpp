@@ -389,7 +389,7 @@ TEST_F(SettlingChecks, NoRestWithinTheSettleTimeOfASetPointChangeIsAFault) {
   for (double t = 0.0; t < 10.0 && raised_at < 0.0; t += kPeriod) {
     const double y_d = t < 1.0 ? 0.0 : 0.05;
     const double y = t < 1.0 ? 0.0 : 0.045 * (1.0 - std::exp(-(t - 1.0) / 0.2));
-    if (at(s, t, y, y_d, t < 1.001) == FaultCause::kOscillation) raised_at = t;
+    if (at(s, t, y, y_d, t < 1.001) == FaultCause::kNotSettled) raised_at = t;
   }
   EXPECT_NEAR(raised_at, 1.0 + v().settle_time_s, 1.5 * kPeriod);
   EXPECT_FALSE(s.cause_present()) << "an event: a reset clears it";
@@ -405,7 +405,7 @@ TEST_F(SettlingChecks, ARestWithinTheSettleTimeSatisfiesItUntilTheNextChange) {
   for (double t = 0.0; t < 12.0 && raised_at < 0.0; t += kPeriod) {
     const double y_d = t < 1.0 ? 0.0 : t < t_change ? 0.05 : 0.1;
     const bool at_rest = t < 1.001 || (t >= 1.5 && t < 2.0);
-    if (at(s, t, 0.04, y_d, at_rest) == FaultCause::kOscillation) raised_at = t;
+    if (at(s, t, 0.04, y_d, at_rest) == FaultCause::kNotSettled) raised_at = t;
   }
   EXPECT_NEAR(raised_at, t_change + v().settle_time_s, 1.5 * kPeriod) << "only the change at 6 s goes unsettled";
 }
@@ -443,7 +443,7 @@ TEST_F(SettlingChecks, ArmingStartsBothRulesAfresh) {
   s.on_arm();
   double raised_at = -1.0;
   for (; t < 10.0 && raised_at < 0.0; t += kPeriod)
-    if (at(s, t, 0.001 * t, 0.0, false) == FaultCause::kOscillation) raised_at = t;
+    if (at(s, t, 0.001 * t, 0.0, false) == FaultCause::kNotSettled) raised_at = t;
   EXPECT_NEAR(raised_at, armed_at + v().settle_time_s, 1.5 * kPeriod);
 }
 
@@ -475,7 +475,8 @@ TEST(FaultCauses, KeepTheirNumbersOnTheWire) {
   EXPECT_EQ(c::fault_number(FaultCause::kSoftLimit), 7);
   EXPECT_EQ(c::fault_number(FaultCause::kCommandTimeout), 10);
   EXPECT_EQ(c::fault_number(FaultCause::kOscillation), 11);
-  EXPECT_EQ(c::fault_number(FaultCause::kOscillation), c::kFaultCauseCount - 1);
+  EXPECT_EQ(c::fault_number(FaultCause::kNotSettled), 12);
+  EXPECT_EQ(c::fault_number(FaultCause::kNotSettled), c::kFaultCauseCount - 1);
   EXPECT_STREQ(c::fault_name(static_cast<FaultCause>(c::kFaultCauseCount)), "unknown");
 }
 

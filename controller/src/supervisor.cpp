@@ -29,6 +29,7 @@ const char* fault_name(FaultCause cause) noexcept {
     case FaultCause::kOverrun: return "overrun";
     case FaultCause::kCommandTimeout: return "command-timeout";
     case FaultCause::kOscillation: return "oscillation";
+    case FaultCause::kNotSettled: return "not-settled";
     default: return "unknown";
   }
 }
@@ -45,7 +46,8 @@ const char* fault_text(FaultCause cause) noexcept {
     case FaultCause::kFollowingError: return "following error: |y_d - y| above controller.supervisor.following_error_m for longer than following_error_s";
     case FaultCause::kOverrun: return "the loop overran its deadlines (controller.supervisor.overruns_in_a_row or max_tick_interval_s)";
     case FaultCause::kCommandTimeout: return "armed, no set point for commands.setpoint_stream_timeout_s: the set-point stream fell silent";
-    case FaultCause::kOscillation: return "the loop does not settle: y_d - y changed sign controller.supervisor.oscillation_sign_changes times beyond +-oscillation_amplitude_m within oscillation_window_s, or no rest within settle_time_s of a set-point change (the gains unstable at this position?)";
+    case FaultCause::kOscillation: return "the loop does not settle: y_d - y changed sign controller.supervisor.oscillation_sign_changes times beyond +-oscillation_amplitude_m within oscillation_window_s (the gains unstable at this position?)";
+    case FaultCause::kNotSettled: return "the loop does not settle: no rest within controller.supervisor.settle_time_s of a set-point change (the carriage still moving: unstable or creeping gains?)";
     default: return "fault";
   }
 }
@@ -86,7 +88,7 @@ void Supervisor::forget_settling() noexcept {
   was_at_rest_ = true;
 }
 
-bool Supervisor::not_settling(const SupervisedTick& tick) noexcept {
+FaultCause Supervisor::not_settling(const SupervisedTick& tick) noexcept {
   const double t = tick.t_s;
   const double amplitude_m = cfg_.oscillation_amplitude_m;
   const bool first = std::isnan(last_y_d_m_);  // the first armed tick: as if the set point just changed
@@ -98,7 +100,7 @@ bool Supervisor::not_settling(const SupervisedTick& tick) noexcept {
     sign_changes_ = 0;
   }
   last_y_d_m_ = tick.y_d_m;
-  bool fault = false;
+  FaultCause fault = FaultCause::kNone;
 
   // Oscillation: the side changes only once the error is beyond the band on the other side, so
   // each counted half-swing exceeded the amplitude and noise around zero error counts nothing.
@@ -111,7 +113,7 @@ bool Supervisor::not_settling(const SupervisedTick& tick) noexcept {
     const std::uint32_t n = cfg_.oscillation_sign_changes;
     // The n-th last sign change lies within the window.
     if (n > 0 && sign_changes_ >= n && t - sign_change_t_s_[(sign_changes_ - n) % kRing] <= cfg_.oscillation_window_s)
-      fault = true;
+      fault = FaultCause::kOscillation;
   }
   error_side_ = side;
 
@@ -122,7 +124,7 @@ bool Supervisor::not_settling(const SupervisedTick& tick) noexcept {
   was_at_rest_ = tick.at_rest;
   if (rest_began) settle_since_s_ = -1.0;
   if (cfg_.settle_time_s > 0.0 && settle_since_s_ >= 0.0 && t - settle_since_s_ > cfg_.settle_time_s) {
-    if (!tick.at_rest) fault = true;
+    if (!tick.at_rest && fault == FaultCause::kNone) fault = FaultCause::kNotSettled;
     settle_since_s_ = -1.0;
   }
   return fault;
@@ -219,7 +221,7 @@ FaultCause Supervisor::check_motion(const SupervisedTick& tick) noexcept {
         following_since_s_ = -1.0;
       }
     }
-    if (not_settling(tick)) first(FaultCause::kOscillation);
+    if (const FaultCause c = not_settling(tick); c != FaultCause::kNone) first(c);
   } else if (!tick.armed) {
     following_since_s_ = -1.0;
     forget_settling();

@@ -54,7 +54,7 @@ latch as faults and so end the scenario), and so are its settling rules (oscilla
 time: controller.supervisor.oscillation_* and settle_time_s), so that every scenario runs its
 whole duration and every stop counts in the forecast figures. Those rules are checked alongside
 instead: a supervisor of the sweep's own, with only them on, is fed each scenario's ticks and
-tells when it would have latched the oscillation fault (the run goes on). With --supervised
+tells when it would have latched the oscillation or the not-settled fault (the run goes on). With --supervised
 every check is on as in pneud, and a fault ends the scenario's control (outcome fault).
 
 Each scenario gets an outcome, from the first time the carriage comes to rest after the step:
@@ -71,7 +71,7 @@ final_error_m,fault_cause,fault_after_s,stops,restarts,at_rest_at_end,last_secon
 oscillation_rule_after_s (times from the step, empty where not applicable; stops and restarts
 over the whole run; last_second_swing_m: the peak-to-peak position over the run's last second;
 oscillation_rule_after_s: when the settling rules checked alongside would have latched the
-oscillation fault, unless --supervised).
+oscillation or the not-settled fault, unless --supervised).
 
 Stops are those pneud's stop detector sees; what happened after each is the simulated truth: the
 plant's first breakaway after the forecast was made is the restart, timed exactly, even when it
@@ -163,8 +163,8 @@ controller::LoopParams settling_rules_only(controller::LoopParams params, const 
 
 // Watches one scenario's run through the runtime's records: when and where the carriage first
 // came to rest after the step, the faults, where it is at the end; and feeds every tick to a
-// supervisor of its own with only the settling rules on, which tells when the oscillation fault
-// would have latched (the run itself goes on).
+// supervisor of its own with only the settling rules on, which tells when the oscillation or the
+// not-settled fault would have latched (the run itself goes on).
 class ScenarioWatch final : public controller::RunListener {
  public:
   /// `rules`: the supervisor checked alongside (none: the run has its own).
@@ -200,7 +200,9 @@ class ScenarioWatch final : public controller::RunListener {
     st.y_d_m = r.y_d_m;
     st.last_setpoint_t_s = r.t_s;
     st.at_rest = stuck_;  // as the loop hands it: the detector's state before this tick's sample
-    if (shadow_->check_motion(st) == controller::FaultCause::kOscillation && std::isnan(s_.oscillation_rule_after_s) &&
+    const controller::FaultCause c = shadow_->check_motion(st);
+    if ((c == controller::FaultCause::kOscillation || c == controller::FaultCause::kNotSettled) &&
+        std::isnan(s_.oscillation_rule_after_s) &&
         r.t_s >= step_time_s_)
       s_.oscillation_rule_after_s = r.t_s - step_time_s_;
   }
@@ -678,7 +680,7 @@ int run(int argc, char** argv) {
     std::vector<double> all_after_s;
     for (const auto& v : rule_after_s) all_after_s.insert(all_after_s.end(), v.begin(), v.end());
     std::printf("    the settling rules (%u sign changes beyond +-%.1f mm within %.2f s; settle time %.2f s), checked "
-                "alongside, would latch the oscillation fault in:",
+                "alongside, would latch the oscillation or not-settled fault in:",
                 settling_rules.oscillation_sign_changes, settling_rules.oscillation_amplitude_m * 1e3,
                 settling_rules.oscillation_window_s, settling_rules.settle_time_s);
     const char* separator = " ";

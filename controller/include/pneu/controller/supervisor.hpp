@@ -26,11 +26,11 @@ enum class FaultCause : std::uint8_t {
   kFollowingError = 8,   ///< armed, |y_d - y| above the window for longer than its limit
   kOverrun = 9,          ///< overruns in a row, or one tick interval beyond its limit
   kCommandTimeout = 10,  ///< armed, the set-point stream fell silent
-  kOscillation = 11,     ///< armed, the loop does not settle: the error swings from side to side,
-                         ///< or no rest within settle_time_s of a set-point change
+  kOscillation = 11,     ///< armed, the loop does not settle: the error swings from side to side
+  kNotSettled = 12,      ///< armed, no rest within settle_time_s of a set-point change
 };
 /// How many causes there are, kNone included.
-inline constexpr std::size_t kFaultCauseCount = 12;
+inline constexpr std::size_t kFaultCauseCount = 13;
 
 /// The cause's stable number, as it travels in event_t and health_t.
 [[nodiscard]] constexpr std::uint8_t fault_number(FaultCause cause) noexcept {
@@ -89,8 +89,9 @@ class Supervisor {
 
  private:
   [[nodiscard]] FaultCause check_reading(const hal::SensorFrame& f) noexcept;
-  /// Armed, with a good sample: whether the loop fails to settle (FaultCause::kOscillation).
-  [[nodiscard]] bool not_settling(const SupervisedTick& tick) noexcept;
+  /// Armed, with a good sample: whether the loop fails to settle, and by which rule
+  /// (FaultCause::kOscillation or kNotSettled; kNone when it does not fail).
+  [[nodiscard]] FaultCause not_settling(const SupervisedTick& tick) noexcept;
   void forget_settling() noexcept;
 
   const config::SupervisorConfig cfg_;
