@@ -643,10 +643,13 @@ int run(int argc, char** argv) {
   if (!start_dating_ms.empty()) {
     std::vector<double> early_ms, late_ms;
     for (const double d : start_dating_ms) (d < 0.0 ? early_ms : late_ms).push_back(std::abs(d));
+    std::vector<double> abs_ms;
+    for (const double d : start_dating_ms) abs_ms.push_back(std::abs(d));
     std::printf("  the detector dated the %zu starts it saw %zu before the plant's breakaway (max %.1f ms), %zu at or after it (max "
-                "%.1f ms)\n",
+                "%.1f ms); |gap| p50 %.2f ms p90 %.2f ms p99 %.1f ms\n",
                 start_dating_ms.size(), early_ms.size(), early_ms.empty() ? 0.0 : percentile(early_ms, 1.0), late_ms.size(),
-                late_ms.empty() ? 0.0 : percentile(late_ms, 1.0));
+                late_ms.empty() ? 0.0 : percentile(late_ms, 1.0), percentile(abs_ms, 0.5), percentile(abs_ms, 0.9),
+                percentile(abs_ms, 0.99));
   }
   if (not_at_rest > 0)
     std::printf("  %llu stops were confirmed while the plant was still sliding within the detector's rest band: "
