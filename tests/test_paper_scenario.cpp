@@ -28,6 +28,7 @@
 #include "pneu/controller/runtime.hpp"
 #include "pneu/controller/session.hpp"
 #include "pneu/controller/verdict.hpp"
+#include "pneu/model/valve.hpp"
 #include "pneu/model/valve_table.hpp"
 
 namespace {
@@ -245,4 +246,33 @@ TEST(SimulatedBench, StartsAtEquilibriumForTheFirstOutputOfTheRunsLawFixedOrSche
   EXPECT_LT(drift_pa(backends::make_sim_backend(c, scheduled)), 1.0);
   EXPECT_LT(drift_pa(backends::make_sim_backend(c)), 1.0) << "designs the same law itself";
   EXPECT_GT(drift_pa(backends::make_sim_backend(c, fixed)), 100.0) << "started for another law";
+}
+
+// A simulated bench of its own (pneu-sweep --bench-spread): config.plant stays the controller's
+// model, and the plant runs `bench`, starting at its own equilibrium for the loop's first output.
+TEST(SimulatedBench, WithABenchOfItsOwnRunsThatBenchNotTheModel) {
+  config::Config c = config::load_string(config::default_config_yaml(), {"controller.setpoints.schedule=[]"});
+  const auto valve = controller::make_valve_characteristic(c, {});
+  controller::resolve_offset(c, *valve);
+  const controller::ControlLaw law = controller::make_control_law(c, *valve);
+  model::PlantParams bench = c.plant;
+  bench.valve.null_offset_v = 0.05;
+  const double u_first = law.resting_control_v(c.controller.initial_setpoint_m, c.simulation.initial_position_m);
+  hal::SensorFrame as_model, as_bench, after;
+  auto model_bench = backends::make_sim_backend(c, law);
+  auto own_bench = backends::make_sim_backend(c, law, bench);
+  ASSERT_EQ(model_bench->read(0.0, as_model), hal::Status::kOk);
+  ASSERT_EQ(own_bench->read(0.0, as_bench), hal::Status::kOk);
+  // The null-flow pressures of the offset valve at u*: kilopascals from the model's.
+  EXPECT_GT(std::abs(as_bench.p_p_pa - as_model.p_p_pa), 1e3);
+  const model::ValveModel bench_valve(bench.valve, bench.gas);
+  EXPECT_NEAR(as_bench.p_p_pa, bench_valve.null_pressure_pa(u_first), 1e-3);
+  // ... at its own equilibrium: 0.2 s of the first output moves nothing.
+  for (int k = 0; k < 200; ++k) {
+    ASSERT_EQ(own_bench->write(hal::ActuatorCommand::from_control(u_first, true)), hal::Status::kOk);
+    ASSERT_EQ(own_bench->read((k + 1) * 1e-3, after), hal::Status::kOk);
+  }
+  EXPECT_NEAR(after.p_p_pa, as_bench.p_p_pa, 1.0);
+  EXPECT_NEAR(after.p_n_pa, as_bench.p_n_pa, 1.0);
+  EXPECT_EQ(after.y_m, as_bench.y_m) << "still at rest";
 }

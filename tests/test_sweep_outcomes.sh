@@ -29,7 +29,7 @@ grep -qE '^pneu-sweep: strict: [0-9]+ of 40 scenarios did not settle \([0-9]+ ne
   || fail "--strict says why"
 grep -q 'forecasts outside' "$tmp/err.txt" && fail "the nonlinear forecasts are all within their criteria"
 
-[ "$(head -1 "$tmp/scenarios.csv")" = "scenario,y0_m,y_d_m,friction_scale,gain_scale,outcome,settle_time_s,final_error_m,fault_cause,fault_after_s,stops,restarts,at_rest_at_end,last_second_swing_m,oscillation_rule_after_s" ] \
+[ "$(head -1 "$tmp/scenarios.csv")" = "scenario,y0_m,y_d_m,friction_scale,gain_scale,outcome,settle_time_s,final_error_m,fault_cause,fault_after_s,stops,restarts,at_rest_at_end,last_second_swing_m,oscillation_rule_after_s,bench_static_positive_n,bench_coulomb_positive_n,bench_static_negative_n,bench_coulomb_negative_n,bench_viscous_n_s_per_m,bench_max_conductance_m3_per_s_pa,bench_leak_conductance_in_m3_per_s_pa,bench_leak_conductance_out_m3_per_s_pa,bench_dead_volume_p_m3,bench_dead_volume_n_m3,bench_null_offset_v" ] \
   || fail "the scenarios file's header: $(head -1 "$tmp/scenarios.csv")"
 [ "$(column scenario "$tmp/scenarios.csv" | tr '\n' ' ')" = "$(seq 0 39 | tr '\n' ' ')" ] || fail "one row per scenario, in order"
 settled=$(summary_count settled "$tmp/summary.txt")
@@ -84,4 +84,26 @@ grep -q "would latch the oscillation or not-settled fault in: 0 of 200 settled$"
 "$sweep" --steps 200 --quiet --supervised --out "$tmp/stops5.csv" --scenarios-out "$tmp/designed5.csv" > "$tmp/summary5.txt"
 [ "$(summary_count faults "$tmp/summary5.txt")" = 0 ] || { cat "$tmp/summary5.txt"; fail "supervised, no fault latches"; }
 [ "$(column outcome "$tmp/designed5.csv" | grep -cx settled)" = 200 ] || fail "supervised, 200 rows settled"
+
+echo "== --bench-spread: each scenario a bench of its own, the controller's model unchanged"
+"$sweep" --steps 40 --quiet --bench-spread 0.2 --out "$tmp/bench.csv" --scenarios-out "$tmp/bench_sc.csv" > "$tmp/bench.txt"
+grep -q "bench +-20 % of the model and a valve null offset within +-0.1 V" "$tmp/bench.txt" || fail "the summary names the bench spread"
+"$sweep" --steps 40 --quiet --out "$tmp/nobench.csv" --scenarios-out "$tmp/nobench_sc.csv" > /dev/null
+[ "$(cut -d, -f1-3 "$tmp/bench_sc.csv")" = "$(cut -d, -f1-3 "$tmp/nobench_sc.csv")" ] || fail "the same scenarios (y0, y_d) as without it"
+# Without it every bench is the model (sim.yaml): F_S+ 45, F_C+ 35, F_S- -50, F_C- -38, sigma 60,
+# C_max 1.6e-8, leaks 8e-10 and 1.28e-9, dead volumes 1e-5, no null offset.
+awk -F, 'NR > 1 && ($16 != 45 || $17 != 35 || $18 != -50 || $19 != -38 || $20 != 60 || $21 != 1.6e-08 || $22 != 8e-10 ||
+                    $23 != 1.28e-09 || $24 != 1e-05 || $25 != 1e-05 || $26 != 0) { print; bad = 1 } END { exit bad }' \
+  "$tmp/nobench_sc.csv" || fail "without --bench-spread the bench is the model"
+# With it each value within +-20 % of the model's, each Coulomb level within its stiction bound, the
+# null offset within +-0.1 V, and the values drawn, not all alike.
+awk -F, 'function off(v, m) { return m > 0 ? v < m * 0.8 - 1e-12 || v > m * 1.2 + 1e-12 : off(-v, -m) }
+  NR > 1 { if (off($16, 45) || off($18, -50) || off($20, 60) || off($21, 1.6e-8) || off($22, 8e-10) ||
+               off($23, 1.28e-9) || off($24, 1e-5) || off($25, 1e-5) || $17 > $16 || $19 < $18 ||
+               $26 < -0.1 || $26 > 0.1) { print; bad = 1 }
+           distinct[$16] = 1; if ($26 != 0) offsets++ }
+  END { n = 0; for (k in distinct) n++; if (n < 30 || offsets < 30) { print "too alike: " n " " offsets; bad = 1 }; exit bad }' \
+  "$tmp/bench_sc.csv" || fail "the drawn benches"
+"$sweep" --steps 4 --quiet --bench-spread 1 --out "$tmp/x.csv" 2> "$tmp/err.txt" && fail "--bench-spread 1 accepted"
+grep -q -- "--bench-spread must be in \[0, 1)" "$tmp/err.txt" || fail "--bench-spread 1 refused saying why"
 echo "all well"

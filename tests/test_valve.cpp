@@ -161,6 +161,24 @@ TEST(ValveModel, ConductancesOpenLinearlyFromTheLeaksToFullOpening) {
   }
 }
 
+// A real servo-valve's null offset w_0: the valve closes at w_0, not at 0, and opens from there.
+TEST(ValveModel, ANullOffsetShiftsTheOpeningAndTheValveClosesAtTheOffset) {
+  ValveParams shifted;
+  shifted.null_offset_v = 0.05;
+  const ValveModel valve(shifted, Gas{}), ideal(ValveParams{}, Gas{});
+  EXPECT_EQ(valve.inlet_conductance_m3_per_s_pa(0.05), kCLeakIn);
+  EXPECT_EQ(valve.outlet_conductance_m3_per_s_pa(0.05), kCLeakOut);
+  EXPECT_GT(valve.outlet_conductance_m3_per_s_pa(0.0), kCLeakOut) << "at 0 V it vents";
+  for (double w : linspace(-9.9, 9.9, 67))
+    for (double p : {1.5e5, 3.0e5, 5.5e5}) {
+      EXPECT_NEAR(valve.mass_flow_kg_per_s(w + 0.05, p), ideal.mass_flow_kg_per_s(w, p), 1e-15) << w << " " << p;
+      EXPECT_NEAR(valve.null_pressure_pa(w + 0.05), ideal.null_pressure_pa(w), 1e-6) << w;
+    }
+  // Near u = 0 the null-flow pressure moves by kilopascals per 10 mV: an offset of 10 mV is a
+  // pressure the forecasts must not ignore.
+  EXPECT_GT(ideal.null_pressure_pa(0.01) - ideal.null_pressure_pa(0.0), 1e3);
+}
+
 TEST(ValveModel, FlowIsTheInletOrificeMinusTheOutletOrifice) {
   const ValveModel valve(ValveParams{}, Gas{});
   for (double w : {-10.0, -4.0, -0.3, 0.0, 0.2, 5.0, 10.0}) {

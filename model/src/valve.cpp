@@ -104,14 +104,15 @@ ValveModel::ValveModel(const ValveParams& valve, const Gas& gas) noexcept
       orifice_{valve.critical_pressure_ratio, valve.reference_density_kg_per_m3,
                std::sqrt(valve.reference_temperature_k / gas.temperature_k)} {}
 
+// The opening is measured from the null offset w_0: w = w_0 closes both orifices to their leaks.
 double ValveModel::inlet_conductance_m3_per_s_pa(double w) const noexcept {
   return valve_.leak_conductance_in_m3_per_s_pa +
-         valve_.max_conductance_m3_per_s_pa * std::clamp(w / valve_.max_voltage_v, 0.0, 1.0);
+         valve_.max_conductance_m3_per_s_pa * std::clamp((w - valve_.null_offset_v) / valve_.max_voltage_v, 0.0, 1.0);
 }
 
 double ValveModel::outlet_conductance_m3_per_s_pa(double w) const noexcept {
   return valve_.leak_conductance_out_m3_per_s_pa +
-         valve_.max_conductance_m3_per_s_pa * std::clamp(-w / valve_.max_voltage_v, 0.0, 1.0);
+         valve_.max_conductance_m3_per_s_pa * std::clamp((valve_.null_offset_v - w) / valve_.max_voltage_v, 0.0, 1.0);
 }
 
 double ValveModel::mass_flow_kg_per_s(double w, double p) const noexcept {

@@ -34,14 +34,19 @@ constexpr const char* kHelp = R"(pneu-sweep: the restart predictor against many 
 Usage:
   pneu-sweep [--config FILE] --out SWEEP.csv [--steps N] [--seed S] [--jobs J] [--duration S]
              [--step-time S] [--tail S] [--margin-m M] [--min-step-m D] [--friction-spread F] [--gain-spread G]
-             [--scenarios-out SCENARIOS.csv] [--set KEY=VALUE ...] [--supervised] [--strict]
+             [--bench-spread B] [--scenarios-out SCENARIOS.csv] [--set KEY=VALUE ...] [--supervised] [--strict]
              [--strict-forecasts] [--quiet]
 
 Scenario i starts at rest at a random position y0 and steps the set point at --step-time
 (default 1 s) to y_d, the targets spread evenly over the stroke less --margin-m (default 0.02 m)
 at each end, |y_d - y0| >= --min-step-m (default 0.005 m). --friction-spread F scales all friction
 values of a scenario by a factor drawn in [1-F, 1+F], --gain-spread G the three gains likewise,
-fixed or scheduled (every node of the table) (default 0: the config's values). Each scenario runs --duration seconds (default 12) in simulated
+fixed or scheduled (every node of the table) (default 0: the config's values): model and bench
+alike. --bench-spread B gives each scenario a simulated bench of its own while plant: stays the
+controller's model: each friction value (F_S+, F_C+, F_S-, F_C-, sigma; a Coulomb level kept
+within its stiction bound), each valve conductance (C_max, both leaks) and each dead volume
+scaled by its own factor drawn in [1-B, 1+B], and a valve null offset drawn in [-B/2, B/2] V
+(from a generator of its own: the scenarios stay those of the seed). Each scenario runs --duration seconds (default 12) in simulated
 time, then --tail seconds more (default 1) in which no new stop is judged: a restart forecast just
 before the end of the window is then seen or refuted by the signals rather than cut off (a
 breakaway with a force a hair beyond stiction moves the carriage by less than the detector's
@@ -91,9 +96,35 @@ made again (every controller.predictor.update_period_s) from the last pressures 
 sticking time, in % of the whole sticking time; it is not judged.
 )";
 
+// A simulated bench that is not its model (--bench-spread): factors on the model's values and a
+// valve null offset, drawn per scenario.
+struct BenchDraw {
+  double static_positive = 1.0, coulomb_positive = 1.0, static_negative = 1.0, coulomb_negative = 1.0,
+         viscous = 1.0, max_conductance = 1.0, leak_in = 1.0, leak_out = 1.0, dead_volume_p = 1.0,
+         dead_volume_n = 1.0, null_offset_v = 0.0;
+
+  // The bench: `model` with these applied. Each Coulomb level stays within its stiction bound.
+  [[nodiscard]] model::PlantParams applied_to(model::PlantParams p) const {
+    auto& f = p.friction;
+    f.static_positive_n *= static_positive;
+    f.static_negative_n *= static_negative;
+    f.coulomb_positive_n = std::min(f.coulomb_positive_n * coulomb_positive, f.static_positive_n);
+    f.coulomb_negative_n = std::max(f.coulomb_negative_n * coulomb_negative, f.static_negative_n);
+    f.viscous_n_s_per_m *= viscous;
+    p.valve.max_conductance_m3_per_s_pa *= max_conductance;
+    p.valve.leak_conductance_in_m3_per_s_pa *= leak_in;
+    p.valve.leak_conductance_out_m3_per_s_pa *= leak_out;
+    p.valve.null_offset_v += null_offset_v;
+    p.geometry.dead_volume_p_m3 *= dead_volume_p;
+    p.geometry.dead_volume_n_m3 *= dead_volume_n;
+    return p;
+  }
+};
+
 struct Scenario {
   int index = 0;
   double y0_m = 0.0, y_d_m = 0.0, friction_scale = 1.0, gain_scale = 1.0;
+  BenchDraw bench;
 };
 
 struct Truth {
@@ -272,6 +303,7 @@ class ScenarioWatch final : public controller::RunListener {
 
 struct ScenarioResult {
   Scenario scenario;
+  model::PlantParams bench;  // the simulated bench it ran (the model's plant: unless --bench-spread)
   std::vector<controller::StopOutcome> stops;
   std::vector<Truth> truth;  // per stop
   double t_end_s = 0.0;
@@ -353,7 +385,7 @@ bool within_criteria(const controller::StopOutcome& s, const Verdict& v, bool no
 int run(int argc, char** argv) {
   const cli::Args args(argc, argv, 1,
                        {"config", "out", "steps", "seed", "jobs", "duration", "step-time", "margin-m",
-                        "min-step-m", "friction-spread", "gain-spread", "tail", "scenarios-out"},
+                        "min-step-m", "friction-spread", "gain-spread", "bench-spread", "tail", "scenarios-out"},
                        {"strict", "strict-forecasts", "quiet", "help", "supervised"}, {"set"});
   if (args.flag("help")) {
     std::cout << kHelp;
@@ -383,6 +415,7 @@ int run(int argc, char** argv) {
   const double min_step = args.number("min-step-m", 0.005);
   const double friction_spread = args.number("friction-spread", 0.0);
   const double gain_spread = args.number("gain-spread", 0.0);
+  const double bench_spread = args.number("bench-spread", 0.0);
   const double tail = args.number("tail", 1.0);
   const double half = base.plant.geometry.half_stroke_m();
   if (!(steps_d >= 1 && steps_d == std::floor(steps_d))) throw cli::UsageError("--steps must be a whole number >= 1");
@@ -395,6 +428,7 @@ int run(int argc, char** argv) {
   if (!(min_step < half - margin)) throw cli::UsageError("--min-step-m must be below half the usable stroke");
   if (!(friction_spread >= 0 && friction_spread < 1)) throw cli::UsageError("--friction-spread must be in [0, 1)");
   if (!(gain_spread >= 0 && gain_spread < 1)) throw cli::UsageError("--gain-spread must be in [0, 1)");
+  if (!(bench_spread >= 0 && bench_spread < 1)) throw cli::UsageError("--bench-spread must be in [0, 1)");
   if (!(tail >= 0)) throw cli::UsageError("--tail must be >= 0");
   const auto n = static_cast<int>(steps_d);
   const auto jobs = static_cast<int>(std::min<double>(jobs_d, n));
@@ -413,6 +447,18 @@ int run(int argc, char** argv) {
     } while (std::abs(s.y0_m - s.y_d_m) < min_step);
     s.friction_scale = 1.0 + friction_spread * unit(rng);
     s.gain_scale = 1.0 + gain_spread * unit(rng);
+  }
+  // The benches from a generator of their own, so that the scenarios above stay those of the seed.
+  if (bench_spread > 0.0) {
+    std::mt19937_64 bench_rng(static_cast<std::uint64_t>(seed_d) ^ 0x9e3779b97f4a7c15ULL);
+    const auto factor = [&] { return 1.0 + bench_spread * unit(bench_rng); };
+    for (Scenario& s : scenarios) {
+      BenchDraw& b = s.bench;
+      for (double* x : {&b.static_positive, &b.coulomb_positive, &b.static_negative, &b.coulomb_negative, &b.viscous,
+                        &b.max_conductance, &b.leak_in, &b.leak_out, &b.dead_volume_p, &b.dead_volume_n})
+        *x = factor();
+      b.null_offset_v = 0.5 * bench_spread * unit(bench_rng);
+    }
   }
 
   cli::AtomicFile out(out_path);  // created before the run: an unwritable path fails fast
@@ -446,7 +492,8 @@ int run(int argc, char** argv) {
         controller::resolve_offset(cfg, *valve);
         // The gains, fixed or scheduled, mistuned by the scenario's factor.
         const controller::ControlLaw law = controller::make_control_law(cfg, *valve).scaled(s.gain_scale);
-        auto plant = backends::make_sim_backend(cfg, law);
+        const model::PlantParams bench_params = s.bench.applied_to(cfg.plant);
+        auto plant = backends::make_sim_backend(cfg, law, bench_params);
         const hal::SimBackend& bench = *plant;  // the simulated truth, owned by the run
         auto sim = controller::make_run(cfg, *valve, std::move(plant), law);
         sim.runtime->set_follow_forecasts(false);  // nobody sees the tick-by-tick comparison here
@@ -460,7 +507,7 @@ int run(int argc, char** argv) {
         controller::execute(sim, cfg, clock, never);
         // Stops from the tail are not judged: the tail only lets the carriage show what it did
         // after the stops of the judged window.
-        ScenarioResult r{s, {}, {}, sim.runtime->end_time_s(), watch.settling(bench.motion_events())};
+        ScenarioResult r{s, bench_params, {}, {}, sim.runtime->end_time_s(), watch.settling(bench.motion_events())};
         if (bench.motion_events_dropped() > 0)
           throw std::runtime_error("scenario " + std::to_string(s.index) + ": more plant events than recorded");
         for (auto stop : sim.runtime->stops()) {
@@ -606,7 +653,11 @@ int run(int argc, char** argv) {
   if (scenarios_out)
     scenarios_out->stream() << "scenario,y0_m,y_d_m,friction_scale,gain_scale,outcome,settle_time_s,final_error_m,"
                                "fault_cause,fault_after_s,stops,restarts,at_rest_at_end,last_second_swing_m,"
-                               "oscillation_rule_after_s\n";
+                               "oscillation_rule_after_s,bench_static_positive_n,bench_coulomb_positive_n,"
+                               "bench_static_negative_n,bench_coulomb_negative_n,bench_viscous_n_s_per_m,"
+                               "bench_max_conductance_m3_per_s_pa,bench_leak_conductance_in_m3_per_s_pa,"
+                               "bench_leak_conductance_out_m3_per_s_pa,bench_dead_volume_p_m3,bench_dead_volume_n_m3,"
+                               "bench_null_offset_v\n";
   for (const auto& r : results) {
     const Settling& g = r.settling;
     const auto k = static_cast<std::size_t>(g.outcome);
@@ -629,12 +680,27 @@ int run(int argc, char** argv) {
                             << (g.fault == controller::FaultCause::kNone ? "" : controller::fault_name(g.fault)) << ','
                             << cell(g.fault_after_s) << ',' << g.stops << ',' << g.restarts << ','
                             << (g.at_rest_at_end ? 1 : 0) << ',' << cell(g.last_second_swing_m, 9) << ','
-                            << cell(g.oscillation_rule_after_s) << '\n';
+                            << cell(g.oscillation_rule_after_s);
+    {
+      const model::PlantParams& b = r.bench;
+      char row[512];
+      std::snprintf(row, sizeof row, ",%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n", b.friction.static_positive_n,
+                    b.friction.coulomb_positive_n, b.friction.static_negative_n, b.friction.coulomb_negative_n,
+                    b.friction.viscous_n_s_per_m, b.valve.max_conductance_m3_per_s_pa,
+                    b.valve.leak_conductance_in_m3_per_s_pa, b.valve.leak_conductance_out_m3_per_s_pa,
+                    b.geometry.dead_volume_p_m3, b.geometry.dead_volume_n_m3, b.valve.null_offset_v);
+      scenarios_out->stream() << row;
+    }
   }
   if (scenarios_out) scenarios_out->commit();
 
-  std::printf("pneu-sweep: %d scenarios (%d set-point steps over [%.3f, %.3f] m, seed %llu, friction +-%.0f %%, gains +-%.0f %%), stops of the first %.0f s judged (+ %.1f s tail)\n",
-              n, n, lo, hi, static_cast<unsigned long long>(seed_d), friction_spread * 100, gain_spread * 100, duration, tail);
+  char bench_text[96] = "";
+  if (bench_spread > 0.0)
+    std::snprintf(bench_text, sizeof bench_text, ", bench +-%.0f %% of the model and a valve null offset within +-%.3g V",
+                  bench_spread * 100, 0.5 * bench_spread);
+  std::printf("pneu-sweep: %d scenarios (%d set-point steps over [%.3f, %.3f] m, seed %llu, friction +-%.0f %%, gains +-%.0f %%%s), stops of the first %.0f s judged (+ %.1f s tail)\n",
+              n, n, lo, hi, static_cast<unsigned long long>(seed_d), friction_spread * 100, gain_spread * 100, bench_text,
+              duration, tail);
   std::printf("  %llu stops, %llu restarts (%llu after >= 0.5 s of sticking, %llu after >= 1 s), timed by the plant's "
               "breakaways; %llu of them moved the carriage less than the stop detector's motion band\n",
               static_cast<unsigned long long>(stops), static_cast<unsigned long long>(restarts),

@@ -52,11 +52,15 @@ std::unique_ptr<hal::Backend> make_device(const config::Config& config, const co
 
 }  // namespace
 
-std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config, const controller::ControlLaw& law) {
+std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config, const controller::ControlLaw& law,
+                                                  const model::PlantParams& bench) {
   const double u_initial =
       law.resting_control_v(config.controller.initial_setpoint_m, config.simulation.initial_position_m);
-  return std::make_unique<hal::SimBackend>(config.plant, config.sensors, config.simulation.initial_position_m,
-                                           u_initial);
+  return std::make_unique<hal::SimBackend>(bench, config.sensors, config.simulation.initial_position_m, u_initial);
+}
+
+std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config, const controller::ControlLaw& law) {
+  return make_sim_backend(config, law, config.plant);
 }
 
 std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config) {

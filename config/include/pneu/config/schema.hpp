@@ -357,6 +357,8 @@ void describe(auto& a, Like<model::ValveParams> auto& v) {
   a.field(PNEU_NVP(v, leak_conductance_out_m3_per_s_pa), Range::non_negative(),
           "C_leak_out: chamber -> exhaust leak [m^3/(s Pa)]");
   a.field(PNEU_NVP(v, max_voltage_v), Range::positive(), "u_max: the voltage that opens a valve fully [V]");
+  a.field(optional(PNEU_NVP(v, null_offset_v)), Range::open(-v.max_voltage_v, v.max_voltage_v),
+          "w_0: the voltage at which a valve is closed, its null offset [V]");
   a.field(optional(PNEU_NVP(v, reference_density_kg_per_m3)), Range::positive(),
           "rho_0 of ISO 6358 [kg/m^3]");
   a.field(optional(PNEU_NVP(v, reference_temperature_k)), Range::positive(), "T_0 of ISO 6358 [K]");

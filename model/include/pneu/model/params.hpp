@@ -55,6 +55,9 @@ struct ValveParams {
   double leak_conductance_in_m3_per_s_pa = 8.0e-10;    ///< C_leak_in [m^3/(s Pa)], >= 0
   double leak_conductance_out_m3_per_s_pa = 1.28e-9;   ///< C_leak_out [m^3/(s Pa)], >= 0
   double max_voltage_v = 10.0;                    ///< u_max: full opening [V], > 0
+  /// The voltage at which a valve is closed (both orifices at their leaks): a real servo-valve's
+  /// null offset [V], |w_0| < u_max; the opening is w - w_0.
+  double null_offset_v = 0.0;
   double reference_density_kg_per_m3 = 1.185;     ///< rho_0 of ISO 6358 [kg/m^3]
   double reference_temperature_k = 293.15;        ///< T_0 of ISO 6358 [K]
 };

@@ -18,6 +18,12 @@ namespace pneu::backends {
 /// u* of Eq. 11 at the initial set point; controller.law.offset_v already resolved).
 [[nodiscard]] std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config,
                                                                 const controller::ControlLaw& law);
+/// The same with a simulated bench of its own, `bench`, in place of config.plant (which stays the
+/// controller's model): a bench that is not its datasheet (pneu-sweep --bench-spread). It starts at
+/// its own equilibrium for the loop's first output.
+[[nodiscard]] std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config,
+                                                                const controller::ControlLaw& law,
+                                                                const model::PlantParams& bench);
 /// The same with the law controller::make_control_law designs from `config` (its valve table, if
 /// any, relative to the working directory): for tests and benchmarks.
 [[nodiscard]] std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config);
