@@ -76,7 +76,9 @@ final_error_m,fault_cause,fault_after_s,stops,restarts,at_rest_at_end,last_secon
 oscillation_rule_after_s (times from the step, empty where not applicable; stops and restarts
 over the whole run; last_second_swing_m: the peak-to-peak position over the run's last second;
 oscillation_rule_after_s: when the settling rules checked alongside would have latched the
-oscillation or the not-settled fault, unless --supervised).
+oscillation or the not-settled fault, unless --supervised), then the simulated bench the scenario
+ran, bench_* (the model's friction, conductances, dead volumes and null offset unless
+--bench-spread).
 
 Stops are those pneud's stop detector sees; what happened after each is the simulated truth: the
 plant's first breakaway after the forecast was made is the restart, timed exactly, even when it
