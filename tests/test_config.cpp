@@ -1147,7 +1147,7 @@ constexpr std::size_t member_count() {
   else return N;
 }
 static_assert(member_count<model::Geometry>() == 5);
-static_assert(member_count<HalConfig>() == 4);
+static_assert(member_count<HalConfig>() == 5);
 
 // Walks the schema noting, for each struct it describes, the members its description reaches
 // (each reference goes to the innermost struct being described that holds it), beside the
@@ -1246,9 +1246,9 @@ TEST(Schema, MakesEveryMemberOfEveryConfigurationStructAKey) {
 
   EXPECT_THAT(counter.mismatches, ::testing::IsEmpty());
   // Config; plant and its 4 sections; sensors and its 3 channels; simulation; controller, its 6
-  // sections, the law's design and a schedule step; hal, modbus and its 5 channels, gpio;
-  // telemetry; commands.
-  EXPECT_EQ(counter.structs, 30);
+  // sections, the law's design and a schedule step; hal, modbus and its 5 channels, gpio, sim and
+  // its plant with that plant's 4 sections; telemetry; commands.
+  EXPECT_EQ(counter.structs, 36);
 }
 
 // The key paths of a YAML document, in order ("a.list[0].b" for the keys of a list's mappings).
@@ -1313,6 +1313,60 @@ TEST(Schema, RulesRefuseAtKeysOfTheSchema) {
     EXPECT_GE(rules.size(), 30u);  // sim.yaml: 30; more with a modbus section
     for (const std::string& path : rules) EXPECT_TRUE(keys.count(path)) << path;
   }
+}
+
+}  // namespace
+}  // namespace pneu::config
+
+// --- hal.sim.plant: a simulated bench that is not its model ----------------------------------
+
+namespace pneu::config {
+namespace {
+
+Config with_bench(const std::vector<std::string>& overrides) {
+  return load_string(default_config_yaml(), overrides);
+}
+
+TEST(SimulatedBenchSection, AbsentTheBenchIsTheModel) {
+  const Config c = with_bench({});
+  EXPECT_FALSE(c.hal.sim.has_plant);
+  EXPECT_EQ(&simulated_bench(c), &c.plant);
+  EXPECT_EQ(to_yaml(c).find("  sim:"), std::string::npos) << "not written when absent";
+}
+
+TEST(SimulatedBenchSection, AnySubsetOfThePlantsKeysLaysOverThePlantsValues) {
+  const Config c = with_bench({"hal.sim.plant.friction.static_positive_n=54", "hal.sim.plant.valve.null_offset_v=0.02",
+                               "hal.sim.plant.geometry.dead_volume_p_m3=1.2e-5"});
+  ASSERT_TRUE(c.hal.sim.has_plant);
+  const model::PlantParams& bench = simulated_bench(c);
+  EXPECT_EQ(bench.friction.static_positive_n, 54.0);
+  EXPECT_EQ(bench.valve.null_offset_v, 0.02);
+  EXPECT_EQ(bench.geometry.dead_volume_p_m3, 1.2e-5);
+  // Every other value is plant:'s, and plant: (the controller's model) is untouched.
+  EXPECT_EQ(bench.friction.static_negative_n, c.plant.friction.static_negative_n);
+  EXPECT_EQ(bench.geometry.dead_volume_n_m3, c.plant.geometry.dead_volume_n_m3);
+  EXPECT_EQ(bench.mass_kg, c.plant.mass_kg);
+  EXPECT_EQ(bench.valve.max_conductance_m3_per_s_pa, c.plant.valve.max_conductance_m3_per_s_pa);
+  EXPECT_EQ(c.plant.friction.static_positive_n, 45.0);
+  EXPECT_EQ(c.plant.valve.null_offset_v, 0.0);
+}
+
+TEST(SimulatedBenchSection, IsWrittenWholeAndReadsBackToTheSameBench) {
+  const Config c = with_bench({"hal.sim.plant.friction.static_positive_n=54"});
+  const Config again = load_string(to_yaml(c), {}, "to_yaml");
+  ASSERT_TRUE(again.hal.sim.has_plant);
+  expect_same_values(again, c);
+}
+
+TEST(SimulatedBenchSection, ItsKeysAreRefusedAtItsOwnPaths) {
+  EXPECT_THAT([] { (void)with_bench({"hal.sim.plant.friction.static_positive_n=-1"}); },
+              refuses("hal.sim.plant.friction.static_positive_n", "must be > 0"));
+  EXPECT_THAT([] { (void)with_bench({"hal.sim.plant.friction.stiction=1"}); },
+              refuses("hal.sim.plant.friction.stiction", "unknown key"));
+  // A rule between keys holds on the bench as laid over: Coulomb above stiction.
+  EXPECT_THAT([] { (void)with_bench({"hal.sim.plant.friction.coulomb_positive_n=50"}); },
+              refuses("hal.sim.plant.friction.coulomb_positive_n", "must not exceed friction.static_positive_n (50 > 45)"));
+  EXPECT_THAT([] { (void)with_bench({"hal.sim.plant=3"}); }, refuses("hal.sim.plant", ""));
 }
 
 }  // namespace

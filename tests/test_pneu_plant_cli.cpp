@@ -125,6 +125,19 @@ TEST_F(PneuPlantCli, SimulateWritesOneRowPerSampleTakenBeforeTheSamplesInputIsAp
   EXPECT_THAT(r.out, HasSubstr("5 samples"));
 }
 
+// hal.sim.plant: the simulated bench runs its own parameters, laid over plant:.
+TEST_F(PneuPlantCli, SimulateRunsTheBenchOfHalSimPlant) {
+  const auto in = write("in.csv", "t,u\n0,-0.19\n0.01,-0.19\n");
+  const fs::path out = dir_ / "traj.csv";
+  const Outcome model = run("simulate --input " + in.string() + " --out " + out.string());
+  ASSERT_EQ(model.exit_code, 0) << model.err;
+  EXPECT_THAT(model.out, HasSubstr("stiction band [-50.0, 45.0] N"));
+  const Outcome bench = run("simulate --input " + in.string() + " --out " + out.string() +
+                            " --set hal.sim.plant.friction.static_negative_n=-60");
+  ASSERT_EQ(bench.exit_code, 0) << bench.err;
+  EXPECT_THAT(bench.out, HasSubstr("stiction band [-60.0, 45.0] N"));
+}
+
 TEST_F(PneuPlantCli, SimulateAddsSensorReadingsOnRequest) {
   const auto in = write("in.csv", constant_input(-0.19, 3, 0.001));
   const fs::path out = dir_ / "traj.csv";

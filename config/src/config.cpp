@@ -207,7 +207,12 @@ void apply_override(YAML::Node& root, const std::string& assignment) {
     YAML::Node next = chain.back()[keys[i]];
     if (next.IsDefined() && !next.IsNull() && !next.IsMap())
       throw ConfigError(walked, "is a value, not a section: cannot override '" + path + "'");
-    if (!next.IsDefined() || next.IsNull()) throw ConfigError(path, unknown_override_key(keys));
+    if (!next.IsDefined() || next.IsNull()) {
+      // An optional section the file leaves out (hal.sim.plant): created for the key.
+      if (detail::key_catalogue().count(walked) == 0) throw ConfigError(path, unknown_override_key(keys));
+      chain.back()[keys[i]] = YAML::Node(YAML::NodeType::Map);
+      next = chain.back()[keys[i]];
+    }
     chain.push_back(next);
   }
   // A key absent from the file may still be an optional key of the schema: create it and let
@@ -218,7 +223,35 @@ void apply_override(YAML::Node& root, const std::string& assignment) {
   chain.back()[keys.back()] = value;
 }
 
-Config decode(const YAML::Node& root) {
+// `over`'s keys laid over a copy of `base`, mapping by mapping.
+YAML::Node laid_over(const YAML::Node& base, const YAML::Node& over) {
+  YAML::Node out = YAML::Clone(base);
+  for (const auto& kv : over) {
+    const std::string key = kv.first.Scalar();
+    const YAML::Node below = out[key];
+    if (below.IsDefined() && below.IsMap() && kv.second.IsMap()) out[key] = laid_over(below, kv.second);
+    else out[key] = YAML::Clone(kv.second);
+  }
+  return out;
+}
+
+Config decode(const YAML::Node& given) {
+  // hal.sim.plant gives any subset of plant:'s keys: the bench is plant: with them over it, read
+  // (and refused, key by key, at hal.sim.plant's paths) as a whole plant description.
+  // (A const node's missing key is an invalid node: IsDefined() first, then the type.)
+  const auto map_at = [](const YAML::Node& node, const char* key) {
+    const YAML::Node child = node[key];
+    return child.IsDefined() && child.IsMap() ? child : YAML::Node(YAML::NodeType::Undefined);
+  };
+  YAML::Node root = given;
+  if (const YAML::Node hal = map_at(given, "hal"); hal.IsDefined()) {
+    if (const YAML::Node sim = map_at(hal, "sim"); sim.IsDefined()) {
+      if (const YAML::Node over = map_at(sim, "plant"); over.IsDefined() && map_at(given, "plant").IsDefined()) {
+        root = YAML::Clone(given);
+        root["hal"]["sim"]["plant"] = laid_over(given["plant"], over);
+      }
+    }
+  }
   Config c;
   YamlReader r(MapReader(root, ""));
   schema::describe(r, c);
@@ -415,6 +448,10 @@ Config load_file(const std::filesystem::path& path, const std::vector<std::strin
   in.read(text.data(), static_cast<std::streamsize>(text.size()));
   text.resize(static_cast<std::size_t>(in.gcount()));
   return load_string(text, overrides, path.string());
+}
+
+const model::PlantParams& simulated_bench(const Config& config) noexcept {
+  return config.hal.sim.has_plant ? config.hal.sim.plant : config.plant;
 }
 
 Config load_file_or_default(const std::filesystem::path& path,

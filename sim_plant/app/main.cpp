@@ -106,7 +106,8 @@ int simulate(int argc, char** argv) {
   const std::string out_path = args.required("out");
   const bool with_sensors = args.flag("sensors");
 
-  plant::Plant plant(cfg.plant);
+  const model::PlantParams& bench = config::simulated_bench(cfg);  // hal.sim.plant over plant:
+  plant::Plant plant(bench);
   plant::SensorSuite sensors(cfg.sensors);
   plant.reset_at_rest(cfg.simulation.initial_position_m, input.u_v.front(), input.t_s.front());
 
@@ -163,11 +164,11 @@ int simulate(int argc, char** argv) {
               duration, input.period_s * 1e3, config_path.empty() ? "embedded sim.yaml" : config_path.c_str());
   std::printf("  start   y = %8.3f mm at rest, p_P = %.4f bar, p_N = %.4f bar, F = %7.2f N, u = %+.4f V\n",
               start_state.y_m * 1e3, start_state.p_p_pa * 1e-5, start_state.p_n_pa * 1e-5,
-              model::PressureForce(cfg.plant.geometry, cfg.plant.gas.exhaust_pressure_pa)
+              model::PressureForce(bench.geometry, bench.gas.exhaust_pressure_pa)
                   .force_n(start_state.p_p_pa, start_state.p_n_pa),
               input.u_v.front());
-  std::printf("  events  (stiction band [%.1f, %.1f] N)\n", cfg.plant.friction.static_negative_n,
-              cfg.plant.friction.static_positive_n);
+  std::printf("  events  (stiction band [%.1f, %.1f] N)\n", bench.friction.static_negative_n,
+              bench.friction.static_positive_n);
   constexpr std::size_t kShown = 24;
   for (std::size_t i = 0; i < events.size() && i < kShown; ++i) {
     const auto& e = events[i];
@@ -242,8 +243,10 @@ int characterize(int argc, char** argv) {
   const double p_e = cfg.plant.gas.exhaust_pressure_pa, p_s = cfg.plant.gas.supply_pressure_pa;
   if (!(dp > 0.0 && dp <= p_s - p_e)) throw cli::UsageError("--pressure-step-pa must be in (0, p_S - p_E]");
 
+  // The table measures the simulated bench's valve (hal.sim.plant over plant:); "model" is plant:'s.
   const model::ValveModel model(cfg.plant.valve, cfg.plant.gas);
-  const auto table = model::ValveTable::sample(model, voltages, grid(p_e, p_s, dp, false));
+  const model::PlantParams& bench = config::simulated_bench(cfg);
+  const auto table = model::ValveTable::sample(model::ValveModel(bench.valve, bench.gas), voltages, grid(p_e, p_s, dp, false));
   cli::AtomicFile out(out_path);
   table.write(out.stream());
   out.commit();

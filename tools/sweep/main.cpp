@@ -42,8 +42,8 @@ Scenario i starts at rest at a random position y0 and steps the set point at --s
 at each end, |y_d - y0| >= --min-step-m (default 0.005 m). --friction-spread F scales all friction
 values of a scenario by a factor drawn in [1-F, 1+F], --gain-spread G the three gains likewise,
 fixed or scheduled (every node of the table) (default 0: the config's values): model and bench
-alike. --bench-spread B gives each scenario a simulated bench of its own while plant: stays the
-controller's model: each friction value (F_S+, F_C+, F_S-, F_C-, sigma; a Coulomb level kept
+alike. --bench-spread B gives each scenario a simulated bench of its own, drawn around the configured
+one (plant:, or hal.sim.plant over it), while plant: stays the controller's model: each friction value (F_S+, F_C+, F_S-, F_C-, sigma; a Coulomb level kept
 within its stiction bound), each valve conductance (C_max, both leaks) and each dead volume
 scaled by its own factor drawn in [1-B, 1+B], and a valve null offset drawn in [-B/2, B/2] V
 (from a generator of its own: the scenarios stay those of the seed). Each scenario runs --duration seconds (default 12) in simulated
@@ -483,18 +483,20 @@ int run(int argc, char** argv) {
         cfg.controller.schedule = {{step_time, s.y_d_m}};
         cfg.controller.duration_s = duration + tail;
         cfg.controller.clock = config::ClockKind::kSimulated;
-        auto& f = cfg.plant.friction;
-        f.static_positive_n *= s.friction_scale;
-        f.coulomb_positive_n *= s.friction_scale;
-        f.static_negative_n *= s.friction_scale;
-        f.coulomb_negative_n *= s.friction_scale;
-        f.viscous_n_s_per_m *= s.friction_scale;
+        // The friction spread scales the model's friction and the bench's alike.
+        for (model::FrictionParams* f : {&cfg.plant.friction, &cfg.hal.sim.plant.friction}) {
+          f->static_positive_n *= s.friction_scale;
+          f->coulomb_positive_n *= s.friction_scale;
+          f->static_negative_n *= s.friction_scale;
+          f->coulomb_negative_n *= s.friction_scale;
+          f->viscous_n_s_per_m *= s.friction_scale;
+        }
         const auto valve = controller::make_valve_characteristic(
             cfg, config_path.empty() ? std::filesystem::path() : std::filesystem::path(config_path).parent_path());
         controller::resolve_offset(cfg, *valve);
         // The gains, fixed or scheduled, mistuned by the scenario's factor.
         const controller::ControlLaw law = controller::make_control_law(cfg, *valve).scaled(s.gain_scale);
-        const model::PlantParams bench_params = s.bench.applied_to(cfg.plant);
+        const model::PlantParams bench_params = s.bench.applied_to(config::simulated_bench(cfg));
         auto plant = backends::make_sim_backend(cfg, law, bench_params);
         const hal::SimBackend& bench = *plant;  // the simulated truth, owned by the run
         auto sim = controller::make_run(cfg, *valve, std::move(plant), law);

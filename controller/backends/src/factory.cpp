@@ -60,7 +60,7 @@ std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config, 
 }
 
 std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config, const controller::ControlLaw& law) {
-  return make_sim_backend(config, law, config.plant);
+  return make_sim_backend(config, law, config::simulated_bench(config));
 }
 
 std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config) {

@@ -229,6 +229,14 @@ struct GpioConfig {
 
 enum class BackendKind { kSim, kModbus };
 
+/// hal.sim: the simulated bench (in process, and pneu-plant serve and simulate).
+struct SimBenchConfig {
+  /// hal.sim.plant present: the simulated bench is not the controller's model. Any subset of
+  /// plant:'s keys, each over plant:'s value.
+  bool has_plant = false;
+  model::PlantParams plant;  ///< the bench: plant: with hal.sim.plant's keys over it
+};
+
 /// The hardware abstraction layer: which backend pneud drives.
 struct HalConfig {
   BackendKind backend = BackendKind::kSim;  ///< hal.backend: "sim" (in-process plant) or "modbus"
@@ -236,7 +244,12 @@ struct HalConfig {
                                             ///< and by pneu-plant serve)
   ModbusConfig modbus;
   GpioConfig gpio;                          ///< hal.gpio (optional section; absent: disabled)
+  SimBenchConfig sim;                       ///< hal.sim (optional section)
 };
+
+struct Config;
+/// The simulated bench's parameters: hal.sim.plant when given, else plant: (the bench is its model).
+[[nodiscard]] const model::PlantParams& simulated_bench(const Config& config) noexcept;
 
 /// The whole configuration.
 struct Config {

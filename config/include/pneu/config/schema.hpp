@@ -692,12 +692,19 @@ void describe(auto& a, Like<GpioConfig> auto& g) {
   a.field(optional(PNEU_NVP(g, consumer)), "the name gpioinfo shows for both lines");
 }
 
+// hal.sim.plant: any subset of plant:'s keys (the loader lays them over plant:'s before reading);
+// written whole.
+void describe(auto& a, Like<SimBenchConfig> auto& s) {
+  a.optional_section(optional(PNEU_NVP(s, plant)), s.has_plant);
+}
+
 void describe(auto& a, Like<HalConfig> auto& h) {
   a.field(PNEU_NVP(h, backend), one_of(kBackends).unknown("backend"), "sim: the plant in-process | modbus");
   a.optional_section(
       required_when(h.backend == BackendKind::kModbus, PNEU_NVP(h, modbus), "the modbus backend needs its section"),
       h.has_modbus);
   a.section(optional(PNEU_NVP(h, gpio)));
+  a.optional_section(optional(PNEU_NVP(h, sim)), h.sim.has_plant);  // written only with its plant
 }
 
 // ---------------------------------------------------------------------------------------------

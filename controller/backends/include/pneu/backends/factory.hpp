@@ -13,13 +13,14 @@
 
 namespace pneu::backends {
 
-/// The in-process simulated bench of `config`: the plant at rest at simulation.initial_position_m,
+/// The in-process simulated bench of `config` (hal.sim.plant over plant:, config::simulated_bench):
+/// the plant at rest at simulation.initial_position_m,
 /// at complete equilibrium for the loop's first output under `law` (the run's, fixed or scheduled:
 /// u* of Eq. 11 at the initial set point; controller.law.offset_v already resolved).
 [[nodiscard]] std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config,
                                                                 const controller::ControlLaw& law);
-/// The same with a simulated bench of its own, `bench`, in place of config.plant (which stays the
-/// controller's model): a bench that is not its datasheet (pneu-sweep --bench-spread). It starts at
+/// The same with a simulated bench of its own, `bench`, in place of the configured one (plant:
+/// stays the controller's model): a bench that is not its datasheet (pneu-sweep --bench-spread). It starts at
 /// its own equilibrium for the loop's first output.
 [[nodiscard]] std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config,
                                                                 const controller::ControlLaw& law,
