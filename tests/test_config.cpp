@@ -1367,6 +1367,11 @@ TEST(SimulatedBenchSection, ItsKeysAreRefusedAtItsOwnPaths) {
   EXPECT_THAT([] { (void)with_bench({"hal.sim.plant.friction.coulomb_positive_n=50"}); },
               refuses("hal.sim.plant.friction.coulomb_positive_n", "must not exceed friction.static_positive_n (50 > 45)"));
   EXPECT_THAT([] { (void)with_bench({"hal.sim.plant=3"}); }, refuses("hal.sim.plant", ""));
+  // A key given twice in the section is refused, not laid over twice.
+  std::string twice(default_config_yaml());
+  const auto hal_line_end = twice.find('\n', twice.find("\nhal:") + 1);
+  twice.insert(hal_line_end + 1, "  sim:\n    plant:\n      mass_kg: 18.0\n      mass_kg: 19.0\n");
+  EXPECT_THAT([&] { (void)load_string(twice); }, refuses("hal.sim.plant.mass_kg", "given twice"));
 }
 
 }  // namespace

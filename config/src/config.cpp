@@ -9,6 +9,7 @@
 #include <concepts>
 #include <fstream>
 #include <iterator>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <type_traits>
@@ -223,13 +224,17 @@ void apply_override(YAML::Node& root, const std::string& assignment) {
   chain.back()[keys.back()] = value;
 }
 
-// `over`'s keys laid over a copy of `base`, mapping by mapping.
-YAML::Node laid_over(const YAML::Node& base, const YAML::Node& over) {
+// `over`'s keys (at `path`) laid over a copy of `base`, mapping by mapping. A key of `over` given
+// twice, or not a plain name, is refused here: laid over, the reader would see it once.
+YAML::Node laid_over(const YAML::Node& base, const YAML::Node& over, const std::string& path) {
   YAML::Node out = YAML::Clone(base);
+  std::set<std::string> seen;
   for (const auto& kv : over) {
+    if (!kv.first.IsScalar()) throw ConfigError(path, "keys must be plain names");
     const std::string key = kv.first.Scalar();
+    if (!seen.insert(key).second) throw ConfigError(path + "." + key, "given twice");
     const YAML::Node below = out[key];
-    if (below.IsDefined() && below.IsMap() && kv.second.IsMap()) out[key] = laid_over(below, kv.second);
+    if (below.IsDefined() && below.IsMap() && kv.second.IsMap()) out[key] = laid_over(below, kv.second, path + "." + key);
     else out[key] = YAML::Clone(kv.second);
   }
   return out;
@@ -248,7 +253,7 @@ Config decode(const YAML::Node& given) {
     if (const YAML::Node sim = map_at(hal, "sim"); sim.IsDefined()) {
       if (const YAML::Node over = map_at(sim, "plant"); over.IsDefined() && map_at(given, "plant").IsDefined()) {
         root = YAML::Clone(given);
-        root["hal"]["sim"]["plant"] = laid_over(given["plant"], over);
+        root["hal"]["sim"]["plant"] = laid_over(given["plant"], over, "hal.sim.plant");
       }
     }
   }
