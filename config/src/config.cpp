@@ -9,7 +9,6 @@
 #include <concepts>
 #include <fstream>
 #include <iterator>
-#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <type_traits>
@@ -224,15 +223,14 @@ void apply_override(YAML::Node& root, const std::string& assignment) {
   chain.back()[keys.back()] = value;
 }
 
-// `over`'s keys (at `path`) laid over a copy of `base`, mapping by mapping. A key of `over` given
-// twice, or not a plain name, is refused here: laid over, the reader would see it once.
+// `over`'s keys (at `path`) laid over a copy of `base`, mapping by mapping. `over` is checked as
+// the reader checks every mapping (a key given twice, or not a plain name, is refused): laid
+// over, the reader would see such a key once.
 YAML::Node laid_over(const YAML::Node& base, const YAML::Node& over, const std::string& path) {
+  (void)MapReader(over, path);
   YAML::Node out = YAML::Clone(base);
-  std::set<std::string> seen;
   for (const auto& kv : over) {
-    if (!kv.first.IsScalar()) throw ConfigError(path, "keys must be plain names");
     const std::string key = kv.first.Scalar();
-    if (!seen.insert(key).second) throw ConfigError(path + "." + key, "given twice");
     const YAML::Node below = out[key];
     if (below.IsDefined() && below.IsMap() && kv.second.IsMap()) out[key] = laid_over(below, kv.second, path + "." + key);
     else out[key] = YAML::Clone(kv.second);
