@@ -1,0 +1,87 @@
+// The identification run (pneud --identify): a short automatic sequence of moves and holds within
+// the soft limits that makes the bench show what identify() needs, recorded from the run's ticks.
+//
+// The sequence: at three positions (near each end of the soft limits, then mid-way), the carriage
+// settles, then the set point ramps slowly up, down and back, so that u* of Eq. 11 ramps while the
+// carriage is stuck: the pressure force drifts slowly to each stiction bound and the carriage
+// breaks away, sticks again further on, and so on (stick-slip at both bounds, stuck phases at
+// many u and three positions). The moves between the positions are the sliding phases, at
+// different speeds.
+#pragma once
+
+#include <atomic>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "pneu/config/config.hpp"
+#include "pneu/controller/control_law.hpp"
+#include "pneu/controller/run_listener.hpp"
+#include "pneu/hal/backend.hpp"
+#include "pneu/identify/identify.hpp"
+#include "pneu/model/valve.hpp"
+
+namespace pneu::identify {
+
+/// The run's set points and length.
+struct RunPlan {
+  double initial_setpoint_m = 0.0;
+  std::vector<config::SetpointStep> schedule;
+  double duration_s = 0.0;
+  std::vector<double> positions_m;  ///< where it ramps
+};
+
+/// What the plan is made of.
+struct PlanOptions {
+  double settle_s = 1.2;           ///< after each move, before the ramp
+  double ramp_s = 2.5;             ///< each quarter of the up-down-up ramp
+  double step_s = 0.01;            ///< the ramp's staircase: a set point this often
+  /// The ramp's reach in force: this many times the prior's stiction band (F_S+ - F_S-), either
+  /// way, so a bench whose stiction is off by half still breaks away both ways.
+  double force_reach = 1.2;
+  double margin_m = 0.03;          ///< the positions stay this far inside the soft limits
+};
+
+/// The plan for `config` (soft limits, plant: as the prior) driven by `law`, starting at rest at
+/// `start_m`. Throws std::invalid_argument when the soft limits leave no room for it.
+[[nodiscard]] RunPlan plan_run(const config::Config& config, const controller::ControlLaw& law,
+                               const model::ValveCharacteristic& valve, double start_m,
+                               const PlanOptions& options = {});
+
+/// A sink of the run that keeps every tick as a Sample, and asks the run to stop at the first
+/// fault (`stop`, the flag controller::execute() watches).
+class Recorder final : public controller::RunListener {
+ public:
+  explicit Recorder(std::atomic<bool>& stop) : stop_(stop) {}
+  void on_tick(const controller::TickRecord& tick, const controller::ExpectedAtTick&) override;
+  void on_event(const controller::LoopEvent& event) override;
+
+  [[nodiscard]] const std::vector<Sample>& samples() const noexcept { return samples_; }
+  /// The fault that ended the run early, or empty.
+  [[nodiscard]] const std::string& fault() const noexcept { return fault_; }
+  [[nodiscard]] double fault_time_s() const noexcept { return fault_t_s_; }
+
+ private:
+  std::atomic<bool>& stop_;
+  std::vector<Sample> samples_;
+  std::string fault_;
+  double fault_t_s_ = 0.0;
+};
+
+/// The sample a tick gives.
+[[nodiscard]] Sample sample_of(const controller::TickRecord& tick) noexcept;
+
+/// `config` with the plan's set points and length in force (armed from the start).
+[[nodiscard]] config::Config configured_for(config::Config config, const RunPlan& plan);
+
+/// The whole run on the simulated clock, for a simulated bench (tests, pneu-sweep): plans from
+/// `config` (plant: the prior), runs on `backend` with `law` starting at rest at `start_m`, and
+/// identifies. Throws std::runtime_error naming the fault that ended the run, or InsufficientData.
+[[nodiscard]] Identification identify_by_run(const config::Config& config, const model::ValveCharacteristic& valve,
+                                             const controller::ControlLaw& law, std::unique_ptr<hal::Backend> backend,
+                                             double start_m);
+
+/// identify()'s options for a run of `config` (the stop detector's rest band).
+[[nodiscard]] Options options_for(const config::Config& config);
+
+}  // namespace pneu::identify

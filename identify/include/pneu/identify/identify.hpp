@@ -1,0 +1,105 @@
+// Identification of the bench from its own signals (position, both chamber pressures, the voltage
+// u the loop sent): what a bench is, rather than what its datasheet says. Pure computation on a
+// recorded trajectory; no I/O, no threads. The estimators (docs/identification.md):
+//   - stiction F_S+ and F_S- from the breakaways (Eq. 15): the force just before the carriage
+//     moved, and every force it held while stuck (a lower bound on F_S+, an upper one on F_S-);
+//   - Coulomb friction and viscous coefficient from the sliding phases (Eq. 3, F_f = F - M a);
+//   - the valves' conductances, their null offset and the two dead volumes from the pressure
+//     transients of the stuck phases, where each chamber is a closed volume fed by its valve
+//     (Eq. 19): an output-error fit of Eq. 19 integrated over every stuck phase. Stops at
+//     different positions separate the volumes from the conductances.
+#pragma once
+
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "pneu/model/params.hpp"
+
+namespace pneu::identify {
+
+/// One sample of the bench as the controller saw it.
+struct Sample {
+  double t_s = 0.0;       ///< time [s]
+  double y_m = 0.0;       ///< measured position [m]
+  double p_p_pa = 0.0;    ///< measured chamber P pressure [Pa abs]
+  double p_n_pa = 0.0;    ///< measured chamber N pressure [Pa abs]
+  double u_v = 0.0;       ///< voltage sent to valve P (valve N got -u) [V]
+  /// The valves were driven with +-u_v (armed, no fault): the samples of a phase the loop did not
+  /// drive as recorded (disarmed, fault: the outputs were neutral or the safe output) are left
+  /// out of the valve fit.
+  bool driven = true;
+};
+
+/// How the trajectory is read.
+struct Options {
+  /// A stuck carriage's position readings stay this close to the first still sample [m]
+  /// (controller.stop_detector.rest_band_m: 0 for ideal sensors, noise and one ADC step else).
+  double rest_band_m = 0.0;
+  /// A stuck phase is one at least this long [s].
+  double min_stuck_s = 0.02;
+  /// The valve fit uses stuck phases at least this long [s] ...
+  double min_fit_phase_s = 0.1;
+  /// ... and compares the measured pressures with Eq. 19 this often [s].
+  double fit_sample_s = 0.005;
+  /// Positions closer than this to an end of the stroke are at the end stop, not stuck [m].
+  double end_stop_margin_m = 0.002;
+  /// Sliding samples for Coulomb and viscous friction: |v| at least this many Stribeck velocities.
+  double sliding_min_stribeck = 4.0;
+  /// A parameter whose relative standard deviation (1 sigma) exceeds this is not identified: the
+  /// data cannot tell it apart from the others, and the prior is kept.
+  double max_relative_std = 0.2;
+};
+
+/// One parameter before and after.
+struct Estimate {
+  std::string key;        ///< its config path (plant.friction.static_positive_n ...)
+  double prior = 0.0;     ///< the value in the configuration the run started from
+  double value = 0.0;     ///< identified (or the prior when not identified)
+  double std = 0.0;       ///< 1-sigma uncertainty of `value` [same unit]; 0 when not identified
+  bool identified = false;
+  std::string basis;      ///< what it was identified from, or why not
+};
+
+/// What the trajectory held, counted.
+struct Evidence {
+  int stuck_phases = 0;            ///< away from the end stops
+  int fitted_phases = 0;           ///< long enough for the valve fit
+  int breakaways_positive = 0;
+  int breakaways_negative = 0;
+  double stuck_s = 0.0;            ///< time stuck, in all
+  double sliding_s = 0.0;          ///< time sliding fast enough for Coulomb and viscous friction
+  double stuck_position_span_m = 0.0;  ///< the stuck phases' positions, max - min
+  double voltage_span_v = 0.0;     ///< the stuck phases' u, max - min
+  double pressure_rms_residual_pa = 0.0;  ///< the valve fit's residual, both chambers
+};
+
+/// The result: the bench's parameters (the prior where not identified), each estimate, and the
+/// evidence.
+struct Identification {
+  model::PlantParams plant;
+  std::vector<Estimate> estimates;
+  Evidence evidence;
+
+  /// The estimate of `key`; throws std::out_of_range when there is none.
+  [[nodiscard]] const Estimate& at(const std::string& key) const;
+};
+
+/// The trajectory cannot identify the bench: `what()` names what is missing.
+class InsufficientData : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Identifies the bench from `samples` (time increasing), starting from `prior` (the geometry's
+/// areas and stroke, the gas, the mass and the ISO 6358 reference values are taken as known).
+/// Throws InsufficientData when there is no sticking phase, no breakaway in either direction, or
+/// too little excitation to fit the valves.
+[[nodiscard]] Identification identify(std::span<const Sample> samples, const model::PlantParams& prior,
+                                      const Options& options = {});
+
+/// The keys of the parameters identify() estimates, in the order of Identification::estimates.
+[[nodiscard]] std::span<const char* const> identified_keys() noexcept;
+
+}  // namespace pneu::identify

@@ -1,0 +1,106 @@
+#include "pneu/identify/identification_run.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+#include "pneu/controller/clock.hpp"
+#include "pneu/controller/session.hpp"
+#include "pneu/controller/supervisor.hpp"
+
+namespace pneu::identify {
+
+RunPlan plan_run(const config::Config& cfg, const controller::ControlLaw& law, const model::ValveCharacteristic& valve,
+                 double start_m, const PlanOptions& o) {
+  const auto& c = cfg.controller;
+  const double lo = c.soft_limit_min_m + o.margin_m, hi = c.soft_limit_max_m - o.margin_m;
+  if (!(hi - lo > 0.05))
+    throw std::invalid_argument("the soft limits leave under 50 mm inside a margin of " + std::to_string(o.margin_m) +
+                                " m: no room for the identification run");
+  // The force the ramps must reach either way, and the voltage that moves the equilibrium force
+  // that much (F_e(u) of the prior, about u_0).
+  const model::PlantParams& p = cfg.plant;
+  const double band_n = p.friction.static_positive_n - p.friction.static_negative_n;
+  const double u0 = c.law.offset_v;
+  constexpr double kDu = 0.02;
+  const double slope_n_per_v = (model::equilibrium_force_n(valve, p.geometry, p.gas.exhaust_pressure_pa, u0 + kDu) -
+                                model::equilibrium_force_n(valve, p.geometry, p.gas.exhaust_pressure_pa, u0 - kDu)) /
+                               (2 * kDu);
+  if (!(slope_n_per_v > 0)) throw std::invalid_argument("the valve model's equilibrium force does not grow with u");
+  const double reach_v = o.force_reach * band_n / slope_n_per_v;
+
+  RunPlan plan;
+  plan.initial_setpoint_m = start_m;
+  plan.positions_m = {lo + 0.1 * (hi - lo), hi - 0.1 * (hi - lo), lo + 0.5 * (hi - lo)};
+  double t = 0.2;
+  for (const double y : plan.positions_m) {
+    plan.schedule.push_back({t, y});
+    t += o.settle_s;
+    const double k_y = law.gains_at(y).position_gain_v_per_m;
+    if (!(k_y > 0)) throw std::invalid_argument("the law has no position gain at " + std::to_string(y) + " m");
+    const double reach_m = reach_v / k_y;
+    // Up, down, back: set points from y to y + reach, to y - reach, to y, in steps.
+    const double legs[][2] = {{0.0, 1.0}, {1.0, -1.0}, {-1.0, 0.0}};
+    const double lengths[] = {1.0, 2.0, 1.0};
+    for (int leg = 0; leg < 3; ++leg) {
+      const int steps = std::max(1, static_cast<int>(std::lround(lengths[leg] * o.ramp_s / o.step_s)));
+      for (int i = 1; i <= steps; ++i) {
+        const double f = legs[leg][0] + (legs[leg][1] - legs[leg][0]) * i / steps;
+        plan.schedule.push_back({t + i * o.step_s, std::clamp(y + f * reach_m, c.soft_limit_min_m, c.soft_limit_max_m)});
+      }
+      t += steps * o.step_s;
+    }
+    t += 0.2;
+  }
+  plan.duration_s = t + 0.3;
+  return plan;
+}
+
+Sample sample_of(const controller::TickRecord& r) noexcept {
+  return {r.t_s, r.y_m, r.p_p_pa, r.p_n_pa, r.u_v, r.mode == controller::Mode::kArmed};
+}
+
+void Recorder::on_tick(const controller::TickRecord& tick, const controller::ExpectedAtTick&) {
+  samples_.push_back(sample_of(tick));
+}
+
+void Recorder::on_event(const controller::LoopEvent& e) {
+  if (e.kind != controller::LoopEvent::Kind::kFault || !fault_.empty()) return;
+  fault_ = std::string(controller::fault_name(e.fault_cause)) + " (" + controller::fault_text(e.fault_cause) + ")";
+  fault_t_s_ = e.t_s;
+  stop_.store(true);
+}
+
+config::Config configured_for(config::Config cfg, const RunPlan& plan) {
+  cfg.controller.initial_setpoint_m = plan.initial_setpoint_m;
+  cfg.controller.schedule = plan.schedule;
+  cfg.controller.duration_s = plan.duration_s;
+  cfg.controller.start_armed = true;
+  return cfg;
+}
+
+Identification identify_by_run(const config::Config& config, const model::ValveCharacteristic& valve,
+                               const controller::ControlLaw& law, std::unique_ptr<hal::Backend> backend,
+                               double start_m) {
+  const RunPlan plan = plan_run(config, law, valve, start_m);
+  config::Config cfg = configured_for(config, plan);
+  cfg.controller.clock = config::ClockKind::kSimulated;
+  controller::Run run = controller::make_run(cfg, valve, std::move(backend), law);
+  run.runtime->set_follow_forecasts(false);
+  std::atomic<bool> stop{false};
+  Recorder recorder(stop);
+  run.runtime->add_sink(recorder);
+  controller::SimulatedClock clock;
+  controller::execute(run, cfg, clock, stop);
+  if (!recorder.fault().empty())
+    throw std::runtime_error("the identification run faulted at t = " + std::to_string(recorder.fault_time_s()) +
+                             " s: " + recorder.fault());
+  return identify(recorder.samples(), config.plant, options_for(config));
+}
+
+Options options_for(const config::Config& cfg) {
+  Options o;
+  o.rest_band_m = cfg.controller.stop_detector.rest_band_m;
+  return o;
+}
+
+}  // namespace pneu::identify

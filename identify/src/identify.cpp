@@ -1,0 +1,376 @@
+#include "pneu/identify/identify.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
+#include <limits>
+
+#include "phases.hpp"
+#include "pneu/model/pressure_force.hpp"
+#include "valve_fit.hpp"
+
+namespace pneu::identify {
+
+namespace {
+
+using detail::StuckPhase;
+
+constexpr const char* kKeys[] = {
+    "plant.friction.static_positive_n",
+    "plant.friction.static_negative_n",
+    "plant.friction.coulomb_positive_n",
+    "plant.friction.coulomb_negative_n",
+    "plant.friction.viscous_n_s_per_m",
+    "plant.valve.max_conductance_m3_per_s_pa",
+    "plant.valve.leak_conductance_in_m3_per_s_pa",
+    "plant.valve.leak_conductance_out_m3_per_s_pa",
+    "plant.valve.null_offset_v",
+    "plant.geometry.dead_volume_p_m3",
+    "plant.geometry.dead_volume_n_m3",
+    "plant.friction.stribeck_velocity_m_per_s",
+    "plant.mass_kg",
+};
+
+// A phase's first samples may still be the carriage sliding into the rest band.
+constexpr double kSettleIntoPhase_s = 0.02;
+
+// The breakaway's force brackets (Eq. 15): what one side of the stiction band is, from below and
+// from above, and how many breakaways gave it.
+struct Bracket {
+  double lower = -std::numeric_limits<double>::infinity();  // the largest force surely held
+  double upper = std::numeric_limits<double>::infinity();   // the smallest force surely moved
+  int breakaways = 0;
+  /// How far the force may have moved on between the breakaway and the first reading that
+  /// showed it (the onset hidden in the rest band), at the breakaway that gave the bound from beyond [N].
+  double onset_force = 0.0;
+};
+
+// The onset of a breakaway can hide within a rest band: with the force rising at `rate` past F_S,
+// the carriage accelerates at about rate (t - t_b) / M (the Stribeck drop is quadratic in v), and
+// covers `band` in (6 M band / rate)^(1/3). Longest at slow rates; capped at `cap`.
+double onset_s(double mass_kg, double band_m, double rate_n_per_s, double cap_s) {
+  if (band_m <= 0.0) return 0.0;
+  if (rate_n_per_s <= 0.0) return cap_s;
+  return std::min(cap_s, std::cbrt(6.0 * mass_kg * band_m / rate_n_per_s));
+}
+
+// The last sample of [first, k] at or before `dt` ahead of sample k's time.
+std::size_t index_before(std::span<const Sample> s, std::size_t first, std::size_t k, double dt) {
+  const double t = s[k].t_s - dt;
+  while (k > first && s[k].t_s > t) --k;
+  return k;
+}
+
+// Stiction from the stuck phases: for each side, every force held is a lower bound of |F_S|, every
+// force at which the carriage was seen moving away an upper one.
+struct Stiction {
+  Bracket positive, negative;
+  double force_noise_n = 0.0;
+};
+
+Stiction stiction_from(std::span<const Sample> s, std::span<const double> force, std::span<const StuckPhase> phases,
+                       double mass_kg, const Options& o) {
+  Stiction st;
+  // The force's noise: successive differences inside the stuck phases, robustly (median).
+  std::vector<double> diffs;
+  for (const StuckPhase& p : phases)
+    for (std::size_t k = p.first + 1; k <= p.last; ++k) diffs.push_back(std::abs(force[k] - force[k - 1]));
+  if (!diffs.empty()) {
+    std::nth_element(diffs.begin(), diffs.begin() + static_cast<std::ptrdiff_t>(diffs.size() / 2), diffs.end());
+    st.force_noise_n = diffs[diffs.size() / 2] / (0.6745 * std::sqrt(2.0));
+  }
+  const double noise = 2.0 * st.force_noise_n;
+  for (const StuckPhase& p : phases) {
+    // The force's rate before the end of the phase, over 200 ms ending 50 ms before it (the last
+    // samples may already move, and the moving chambers change the force).
+    const std::size_t rate_end = index_before(s, p.first, p.last, 0.05);
+    const std::size_t rate_begin = index_before(s, p.first, rate_end, 0.2);
+    const double dt = s[rate_end].t_s - s[rate_begin].t_s;
+    const double rate = dt > 0.0 ? (force[rate_end] - force[rate_begin]) / dt : 0.0;
+    // Held: every sample before the onset could have begun, once the carriage has settled into
+    // the phase (a turning point can look still for a few ms within a rest band), in phases long
+    // enough to be stuck for sure.
+    const double onset = onset_s(mass_kg, o.rest_band_m, std::abs(rate), 0.2);
+    const std::size_t held_last = p.breakaway ? index_before(s, p.first, p.last, onset) : p.last;
+    const bool long_enough = s[p.last].t_s - s[p.first].t_s >= o.min_fit_phase_s;
+    double held_max = -std::numeric_limits<double>::infinity(), held_min = std::numeric_limits<double>::infinity();
+    for (std::size_t k = p.first; long_enough && k <= held_last; ++k) {
+      if (s[k].t_s - s[p.first].t_s < kSettleIntoPhase_s) continue;
+      held_max = std::max(held_max, force[k]);
+      held_min = std::min(held_min, force[k]);
+    }
+    st.positive.lower = std::max(st.positive.lower, held_max - noise);
+    st.negative.upper = std::min(st.negative.upper, held_min + noise);
+    if (!p.breakaway || p.last + 1 >= s.size()) continue;
+    // Moved: the first sample out of the band.
+    const double moved = force[p.last + 1];
+    // The bound this breakaway gives, and the onset it may hide, kept for the tightest one.
+    const double onset_force = std::abs(rate) * onset;
+    if (p.direction > 0) {
+      const double upper = std::max(moved, force[p.last]) + noise;
+      if (upper < st.positive.upper) {
+        st.positive.upper = upper;
+        st.positive.onset_force = onset_force;
+      }
+      ++st.positive.breakaways;
+    } else {
+      const double lower = std::min(moved, force[p.last]) - noise;
+      if (lower > st.negative.lower) {
+        st.negative.lower = lower;
+        st.negative.onset_force = onset_force;
+      }
+      ++st.negative.breakaways;
+    }
+  }
+  return st;
+}
+
+// Savitzky-Golay: velocity and acceleration at each sample from a quadratic fitted over +-half_s.
+struct Motion {
+  std::vector<double> v, a;
+  std::vector<bool> valid;
+};
+
+Motion motion_of(std::span<const Sample> s, double half_s) {
+  Motion m{std::vector<double>(s.size(), 0.0), std::vector<double>(s.size(), 0.0), std::vector<bool>(s.size(), false)};
+  std::size_t lo = 0, hi = 0;
+  for (std::size_t k = 0; k < s.size(); ++k) {
+    while (s[k].t_s - s[lo].t_s > half_s) ++lo;
+    while (hi + 1 < s.size() && s[hi + 1].t_s - s[k].t_s <= half_s) ++hi;
+    if (s[k].t_s - s[lo].t_s < 0.9 * half_s || s[hi].t_s - s[k].t_s < 0.9 * half_s) continue;
+    Eigen::Matrix3d a = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    for (std::size_t j = lo; j <= hi; ++j) {
+      const double t = s[j].t_s - s[k].t_s;
+      const Eigen::Vector3d phi(1.0, t, t * t);
+      a += phi * phi.transpose();
+      b += phi * (s[j].y_m - s[k].y_m);
+    }
+    const Eigen::Vector3d c = a.ldlt().solve(b);
+    m.v[k] = c[1];
+    m.a[k] = 2.0 * c[2];
+    m.valid[k] = true;
+  }
+  return m;
+}
+
+// Coulomb friction both ways and the viscous coefficient, by least squares on the sliding samples
+// (Eq. 3: F_f = F - M a), with the Stribeck term of the prior's v_s and the identified stiction.
+struct Sliding {
+  double coulomb_positive = 0, coulomb_negative = 0, viscous = 0;
+  double std_positive = 0, std_negative = 0, std_viscous = 0;
+  int samples_positive = 0, samples_negative = 0;
+  double seconds = 0.0;
+  double speed_span = 0.0;
+  bool solved = false;
+};
+
+Sliding sliding_from(std::span<const Sample> s, std::span<const double> force, std::span<const StuckPhase> phases,
+                     const model::PlantParams& p, double fs_pos, double fs_neg, const Options& o) {
+  constexpr double kWindow_s = 0.015;
+  Sliding out;
+  const Motion m = motion_of(s, kWindow_s);
+  // Samples near a stuck phase (the stick is a jump in acceleration) or an end stop are left out.
+  std::vector<bool> use(s.size(), true);
+  for (const StuckPhase& ph : phases) {
+    const double t0 = s[ph.first].t_s - 2 * kWindow_s, t1 = s[ph.last].t_s + 2 * kWindow_s;
+    for (std::size_t k = ph.first; k > 0 && s[k].t_s >= t0; --k) use[k] = false;
+    for (std::size_t k = ph.first; k < s.size() && s[k].t_s <= t1; ++k) use[k] = false;
+  }
+  const double half = p.geometry.half_stroke_m() - o.end_stop_margin_m - 0.01;
+  const double v_s = p.friction.stribeck_velocity_m_per_s;
+  std::vector<Eigen::Vector3d> rows;
+  std::vector<double> rhs;
+  double v_min = std::numeric_limits<double>::infinity(), v_max = 0.0;
+  for (std::size_t k = 0; k < s.size(); ++k) {
+    if (!use[k] || !m.valid[k] || std::abs(s[k].y_m) > half) continue;
+    const double v = m.v[k];
+    if (std::abs(v) < o.sliding_min_stribeck * v_s) continue;
+    const double e = std::exp(-(v / v_s) * (v / v_s));
+    const double f_f = force[k] - p.mass_kg * m.a[k];
+    // F_f = F_C (1 - e) + F_S e + sigma v
+    if (v > 0) {
+      rows.emplace_back(1.0 - e, 0.0, v);
+      rhs.push_back(f_f - fs_pos * e);
+      ++out.samples_positive;
+    } else {
+      rows.emplace_back(0.0, 1.0 - e, v);
+      rhs.push_back(f_f - fs_neg * e);
+      ++out.samples_negative;
+    }
+    v_min = std::min(v_min, std::abs(v));
+    v_max = std::max(v_max, std::abs(v));
+    if (k > 0) out.seconds += s[k].t_s - s[k - 1].t_s;
+  }
+  out.speed_span = rows.empty() ? 0.0 : v_max - v_min;
+  if (out.samples_positive < 20 || out.samples_negative < 20) return out;
+  Eigen::MatrixXd a(static_cast<Eigen::Index>(rows.size()), 3);
+  Eigen::VectorXd b(static_cast<Eigen::Index>(rows.size()));
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    a.row(static_cast<Eigen::Index>(i)) = rows[i].transpose();
+    b[static_cast<Eigen::Index>(i)] = rhs[i];
+  }
+  const Eigen::Matrix3d ata = a.transpose() * a;
+  const Eigen::Vector3d x = ata.ldlt().solve(a.transpose() * b);
+  const double dof = static_cast<double>(rows.size()) - 3.0;
+  const double s2 = (a * x - b).squaredNorm() / dof;
+  const Eigen::Matrix3d cov = s2 * ata.inverse();
+  out.coulomb_positive = x[0];
+  out.coulomb_negative = x[1];
+  out.viscous = x[2];
+  out.std_positive = std::sqrt(cov(0, 0));
+  out.std_negative = std::sqrt(cov(1, 1));
+  out.std_viscous = std::sqrt(cov(2, 2));
+  out.solved = std::isfinite(x.sum());
+  return out;
+}
+
+[[gnu::format(printf, 1, 2)]] std::string format(const char* fmt, ...) {
+  char buf[320];
+  va_list args;
+  va_start(args, fmt);
+  std::vsnprintf(buf, sizeof buf, fmt, args);
+  va_end(args);
+  return buf;
+}
+
+}  // namespace
+
+std::span<const char* const> identified_keys() noexcept { return kKeys; }
+
+const Estimate& Identification::at(const std::string& key) const {
+  for (const Estimate& e : estimates)
+    if (e.key == key) return e;
+  throw std::out_of_range("no estimate of " + key);
+}
+
+Identification identify(std::span<const Sample> s, const model::PlantParams& prior, const Options& o) {
+  const model::PressureForce pf(prior.geometry, prior.gas.exhaust_pressure_pa);
+  std::vector<double> force(s.size());
+  for (std::size_t k = 0; k < s.size(); ++k) force[k] = pf.force_n(s[k].p_p_pa, s[k].p_n_pa);
+
+  const std::vector<StuckPhase> phases = detail::stuck_phases(s, prior.geometry.half_stroke_m(), o);
+  Identification id;
+  id.plant = prior;
+  Evidence& ev = id.evidence;
+  ev.stuck_phases = static_cast<int>(phases.size());
+  if (phases.empty())
+    throw InsufficientData(format("no sticking phase: the carriage never stood still for %.3g s away from the end stops",
+                                  o.min_stuck_s));
+  double y_lo = 1e9, y_hi = -1e9, u_lo = 1e9, u_hi = -1e9;
+  for (const StuckPhase& p : phases) {
+    ev.stuck_s += s[p.last].t_s - s[p.first].t_s;
+    y_lo = std::min(y_lo, p.y_m);
+    y_hi = std::max(y_hi, p.y_m);
+    for (std::size_t k = p.first; k <= p.last; ++k) {
+      u_lo = std::min(u_lo, s[k].u_v);
+      u_hi = std::max(u_hi, s[k].u_v);
+    }
+  }
+  ev.stuck_position_span_m = y_hi - y_lo;
+  ev.voltage_span_v = u_hi - u_lo;
+
+  // Stiction (Eq. 15 and the forces held).
+  const Stiction st = stiction_from(s, force, phases, prior.mass_kg, o);
+  ev.breakaways_positive = st.positive.breakaways;
+  ev.breakaways_negative = st.negative.breakaways;
+  if (st.positive.breakaways + st.negative.breakaways == 0)
+    throw InsufficientData("no breakaway: the carriage never left a stuck phase under its own pressure force, so "
+                           "neither stiction bound can be bounded from beyond");
+  auto& f = id.plant.friction;
+  const auto stiction_estimate = [&](const char* key, double prior_n, const Bracket& b, bool positive) {
+    Estimate e{key, prior_n, prior_n, 0.0, false, ""};
+    if (b.breakaways == 0) {
+      e.basis = std::string("no breakaway in the ") + (positive ? "positive" : "negative") +
+                " direction: prior kept (the forces held bound it from " + (positive ? "below" : "above") + " at " +
+                format("%.2f N)", positive ? b.lower : b.upper);
+      return e;
+    }
+    double lo = b.lower, hi = b.upper;
+    if (lo > hi) std::swap(lo, hi);  // noise beyond its allowance: the spread is the uncertainty
+    e.value = 0.5 * (lo + hi);
+    e.std = 0.5 * (hi - lo) + b.onset_force;
+    e.identified = (positive ? e.value > 0 : e.value < 0) && e.std <= o.max_relative_std * std::abs(e.value);
+    e.basis = format("%d breakaways; held up to %.3f N, moved from %.3f N", b.breakaways, positive ? b.lower : b.upper,
+                     positive ? b.upper : b.lower);
+    if (!e.identified) {
+      e.basis += ": too wide, prior kept";
+      e.value = prior_n;
+      e.std = 0.0;
+    }
+    return e;
+  };
+  id.estimates.push_back(stiction_estimate(kKeys[0], prior.friction.static_positive_n, st.positive, true));
+  id.estimates.push_back(stiction_estimate(kKeys[1], prior.friction.static_negative_n, st.negative, false));
+  f.static_positive_n = id.estimates[0].value;
+  f.static_negative_n = id.estimates[1].value;
+
+  // Coulomb and viscous friction from the sliding phases (Eq. 3).
+  const Sliding sl = sliding_from(s, force, phases, prior, f.static_positive_n, f.static_negative_n, o);
+  ev.sliding_s = sl.seconds;
+  const auto sliding_estimate = [&](const char* key, double prior_v, double value, double sd, bool sign_ok) {
+    Estimate e{key, prior_v, prior_v, 0.0, false, ""};
+    if (!sl.solved) {
+      e.basis = format("too little sliding faster than %.3g m/s each way (%d samples positive, %d negative): prior kept",
+                       o.sliding_min_stribeck * prior.friction.stribeck_velocity_m_per_s, sl.samples_positive,
+                       sl.samples_negative);
+      return e;
+    }
+    e.basis = format("%d sliding samples, speeds over %.3g m/s", sl.samples_positive + sl.samples_negative,
+                     sl.speed_span);
+    if (!sign_ok || sd > o.max_relative_std * std::abs(value)) {
+      e.basis += format(": %.4g +- %.2g not separable, prior kept", value, sd);
+      return e;
+    }
+    e.value = value;
+    e.std = sd;
+    e.identified = true;
+    return e;
+  };
+  id.estimates.push_back(sliding_estimate(kKeys[2], prior.friction.coulomb_positive_n, sl.coulomb_positive, sl.std_positive,
+                                          sl.coulomb_positive > 0));
+  id.estimates.push_back(sliding_estimate(kKeys[3], prior.friction.coulomb_negative_n, sl.coulomb_negative, sl.std_negative,
+                                          sl.coulomb_negative < 0));
+  id.estimates.push_back(sliding_estimate(kKeys[4], prior.friction.viscous_n_s_per_m, sl.viscous, sl.std_viscous,
+                                          sl.viscous >= 0));
+  f.coulomb_positive_n = std::min(id.estimates[2].value, f.static_positive_n);
+  f.coulomb_negative_n = std::max(id.estimates[3].value, f.static_negative_n);
+  f.viscous_n_s_per_m = id.estimates[4].value;
+  if (f.coulomb_positive_n != id.estimates[2].value) id.estimates[2].basis += "; capped at F_S+";
+  if (f.coulomb_negative_n != id.estimates[3].value) id.estimates[3].basis += "; capped at F_S-";
+  id.estimates[2].value = f.coulomb_positive_n;
+  id.estimates[3].value = f.coulomb_negative_n;
+
+  // The valves and the dead volumes from the stuck phases' pressure transients (Eq. 19).
+  const detail::ValveFit vf = detail::fit_valves(s, phases, id.plant, o);
+  ev.fitted_phases = vf.phases;
+  ev.pressure_rms_residual_pa = vf.rms_residual_pa;
+  if (vf.phases == 0)
+    throw InsufficientData(format("too little excitation: no stuck phase of %.3g s or more driven by the loop, so the "
+                                  "valves' pressure transients cannot be fitted",
+                                  o.min_fit_phase_s));
+  id.plant.valve = vf.plant.valve;
+  id.plant.geometry = vf.plant.geometry;
+  const double priors[] = {prior.valve.max_conductance_m3_per_s_pa, prior.valve.leak_conductance_in_m3_per_s_pa,
+                           prior.valve.leak_conductance_out_m3_per_s_pa, prior.valve.null_offset_v,
+                           prior.geometry.dead_volume_p_m3, prior.geometry.dead_volume_n_m3};
+  const double values[] = {vf.plant.valve.max_conductance_m3_per_s_pa, vf.plant.valve.leak_conductance_in_m3_per_s_pa,
+                           vf.plant.valve.leak_conductance_out_m3_per_s_pa, vf.plant.valve.null_offset_v,
+                           vf.plant.geometry.dead_volume_p_m3, vf.plant.geometry.dead_volume_n_m3};
+  for (std::size_t i = 0; i < detail::kValveFitParams; ++i) {
+    Estimate e{kKeys[5 + i], priors[i], values[i], vf.std[i], vf.identified[i], vf.basis[i]};
+    if (e.identified)
+      e.basis = format("%d stuck phases over %.0f mm, u over %.3f V", vf.phases, ev.stuck_position_span_m * 1e3,
+                       ev.voltage_span_v);
+    id.estimates.push_back(e);
+  }
+  id.estimates.push_back({kKeys[11], prior.friction.stribeck_velocity_m_per_s, prior.friction.stribeck_velocity_m_per_s,
+                          0.0, false, "not identified: taken from the configuration"});
+  id.estimates.push_back({kKeys[12], prior.mass_kg, prior.mass_kg, 0.0, false,
+                          "not identified: taken from the configuration (friction is F - M a with it)"});
+  return id;
+}
+
+}  // namespace pneu::identify

@@ -1,0 +1,29 @@
+// The trajectory cut into stuck phases (internal to pneu_identify).
+#pragma once
+
+#include <cstddef>
+#include <span>
+#include <vector>
+
+#include "pneu/identify/identify.hpp"
+
+namespace pneu::identify::detail {
+
+/// A run of samples whose positions stay within the rest band of the first one.
+struct StuckPhase {
+  std::size_t first = 0;   ///< first sample of the phase
+  std::size_t last = 0;    ///< last sample within the rest band
+  double y_m = 0.0;        ///< the rest position (mean of the phase's readings) [m]
+  /// The carriage left: the samples after `last` moved on beyond the band (not noise, not the
+  /// end of the trajectory); `direction` is then +1 or -1.
+  bool breakaway = false;
+  int direction = 0;
+  bool driven = true;      ///< every sample of the phase was driven as recorded
+};
+
+/// The stuck phases of `samples` at least options.min_stuck_s long, away from the end stops of a
+/// stroke of `half_stroke_m` either side of mid-stroke.
+[[nodiscard]] std::vector<StuckPhase> stuck_phases(std::span<const Sample> samples, double half_stroke_m,
+                                                   const Options& options);
+
+}  // namespace pneu::identify::detail

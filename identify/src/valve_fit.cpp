@@ -1,0 +1,292 @@
+#include "valve_fit.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+
+#include "pneu/model/valve.hpp"
+
+namespace pneu::identify::detail {
+
+namespace {
+
+// A phase as the fit sees it: where it starts, and the samples it is compared at.
+struct FitPhase {
+  std::size_t first = 0, last = 0;
+  double y_m = 0.0;
+  std::vector<std::size_t> observed;
+};
+
+// The null offset is not a scale: it is "not identified" beyond this standard deviation [V]
+// (p_null moves about 3.3 kPa per 10 mV near u = 0).
+constexpr double kMaxNullOffsetStd_v = 0.01;
+// The pressure noise the uncertainty assumes at least: a 16-bit reading of a 10 bar transmitter
+// steps by 15 Pa [Pa].
+constexpr double kPressureNoiseFloor_pa = 20.0;
+// Leaks in the prior at 0 start the fit from this fraction of C_max (a logarithm needs > 0).
+constexpr double kLeakFloorOfMax = 1.0e-3;
+
+// theta: ln C_max, ln C_leak_in, ln C_leak_out, w_0, ln V_P0, ln V_N0.
+using Theta = Eigen::Matrix<double, kValveFitParams, 1>;
+
+model::PlantParams applied(model::PlantParams p, const Theta& th) {
+  p.valve.max_conductance_m3_per_s_pa = std::exp(th[kMaxConductance]);
+  p.valve.leak_conductance_in_m3_per_s_pa = std::exp(th[kLeakIn]);
+  p.valve.leak_conductance_out_m3_per_s_pa = std::exp(th[kLeakOut]);
+  p.valve.null_offset_v = th[kNullOffset];
+  p.geometry.dead_volume_p_m3 = std::exp(th[kDeadVolumeP]);
+  p.geometry.dead_volume_n_m3 = std::exp(th[kDeadVolumeN]);
+  return p;
+}
+
+Theta theta_of(const model::PlantParams& p) {
+  const auto& v = p.valve;
+  const double floor = kLeakFloorOfMax * v.max_conductance_m3_per_s_pa;
+  Theta th;
+  th << std::log(v.max_conductance_m3_per_s_pa), std::log(std::max(v.leak_conductance_in_m3_per_s_pa, floor)),
+      std::log(std::max(v.leak_conductance_out_m3_per_s_pa, floor)), v.null_offset_v,
+      std::log(p.geometry.dead_volume_p_m3), std::log(p.geometry.dead_volume_n_m3);
+  return th;
+}
+
+// One chamber closed at volume v (Eq. 19): dp/dt = k r T / V q(w, p).
+struct Chamber {
+  const model::ValveModel* valve;
+  double c_over_v;
+  [[nodiscard]] double rate(double w, double p) const noexcept { return c_over_v * valve->mass_flow_kg_per_s(w, p); }
+  // Advances p by h at constant w, in RK4 steps short enough for the chamber's time constant.
+  [[nodiscard]] double advance(double w, double p, double h) const noexcept {
+    const double slope = -c_over_v * valve->dq_dp(w, p);  // 1/tau
+    const int steps = std::max(1, static_cast<int>(std::ceil(h * slope / 0.5)));
+    const double dt = h / steps;
+    for (int i = 0; i < steps; ++i) {
+      const double k1 = rate(w, p);
+      const double k2 = rate(w, p + 0.5 * dt * k1);
+      const double k3 = rate(w, p + 0.5 * dt * k2);
+      const double k4 = rate(w, p + dt * k3);
+      p += dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+    }
+    return p;
+  }
+};
+
+class Problem {
+ public:
+  Problem(std::span<const Sample> s, std::vector<FitPhase> phases, const model::PlantParams& prior)
+      : s_(s), phases_(std::move(phases)), prior_(prior) {
+    for (const auto& p : phases_) size_ += 2 * static_cast<Eigen::Index>(p.observed.size());
+  }
+  [[nodiscard]] Eigen::Index size() const noexcept { return size_; }
+
+  // Measured minus Eq. 19's pressures at every observed sample, P then N [Pa].
+  [[nodiscard]] Eigen::VectorXd residuals(const Theta& th) const {
+    const model::PlantParams p = applied(prior_, th);
+    const model::ValveModel valve(p.valve, p.gas);
+    const double c = p.gas.k_r_t();
+    Eigen::VectorXd r(size_);
+    Eigen::Index row = 0;
+    for (const FitPhase& ph : phases_) {
+      const Chamber cp{&valve, c / p.geometry.volume_p_m3(ph.y_m)};
+      const Chamber cn{&valve, c / p.geometry.volume_n_m3(ph.y_m)};
+      double pp = s_[ph.first].p_p_pa, pn = s_[ph.first].p_n_pa;
+      std::size_t k = ph.first;
+      for (const std::size_t obs : ph.observed) {
+        // Each u holds from its sample to the next (the command of a tick until the next tick).
+        while (k < obs) {
+          std::size_t j = k + 1;
+          while (j < obs && s_[j].u_v == s_[k].u_v) ++j;
+          const double h = s_[j].t_s - s_[k].t_s;
+          pp = cp.advance(s_[k].u_v, pp, h);
+          pn = cn.advance(-s_[k].u_v, pn, h);
+          k = j;
+        }
+        r[row++] = s_[obs].p_p_pa - pp;
+        r[row++] = s_[obs].p_n_pa - pn;
+      }
+    }
+    return r;
+  }
+
+ private:
+  std::span<const Sample> s_;
+  std::vector<FitPhase> phases_;
+  model::PlantParams prior_;
+  Eigen::Index size_ = 0;
+};
+
+struct Solution {
+  Theta theta;
+  Eigen::Matrix<double, kValveFitParams, kValveFitParams> covariance;
+  double rms_pa = 0.0;
+};
+
+// Levenberg-Marquardt on the free parameters, numerical Jacobian by central differences.
+Solution levenberg_marquardt(const Problem& problem, Theta theta, const std::array<bool, kValveFitParams>& free) {
+  std::vector<std::size_t> idx;
+  for (std::size_t i = 0; i < kValveFitParams; ++i)
+    if (free[i]) idx.push_back(i);
+  const auto nf = static_cast<Eigen::Index>(idx.size());
+  const auto jacobian = [&](const Theta& th) {
+    Eigen::MatrixXd j(problem.size(), nf);
+    for (Eigen::Index c = 0; c < nf; ++c) {
+      const std::size_t i = idx[static_cast<std::size_t>(c)];
+      constexpr double h = 1.0e-5;
+      Theta up = th, down = th;
+      up[static_cast<Eigen::Index>(i)] += h;
+      down[static_cast<Eigen::Index>(i)] -= h;
+      // d(measured - model)/d theta
+      j.col(c) = (problem.residuals(up) - problem.residuals(down)) / (2.0 * h);
+    }
+    return j;
+  };
+  Eigen::VectorXd r = problem.residuals(theta);
+  double cost = r.squaredNorm();
+  double lambda = 1.0e-3;
+  Eigen::MatrixXd j = jacobian(theta);
+  for (int iteration = 0; iteration < 100 && nf > 0; ++iteration) {
+    const Eigen::MatrixXd a = j.transpose() * j;
+    const Eigen::VectorXd g = j.transpose() * r;
+    bool improved = false;
+    for (int tries = 0; tries < 12 && !improved; ++tries) {
+      Eigen::MatrixXd damped = a;
+      for (Eigen::Index d = 0; d < nf; ++d) damped(d, d) += lambda * std::max(a(d, d), 1e-30);
+      const Eigen::VectorXd step = damped.ldlt().solve(-g);
+      Theta trial = theta;
+      for (Eigen::Index c = 0; c < nf; ++c) trial[static_cast<Eigen::Index>(idx[static_cast<std::size_t>(c)])] += step[c];
+      trial[kNullOffset] = std::clamp(trial[kNullOffset], -5.0, 5.0);
+      const Eigen::VectorXd rt = problem.residuals(trial);
+      const double ct = rt.squaredNorm();
+      if (std::isfinite(ct) && ct < cost) {
+        const double gain = (cost - ct) / cost;
+        theta = trial;
+        r = rt;
+        cost = ct;
+        lambda = std::max(lambda / 3.0, 1e-12);
+        improved = true;
+        j = jacobian(theta);
+        if (gain < 1e-12) iteration = 1000;  // converged
+      } else {
+        lambda *= 4.0;
+      }
+    }
+    if (!improved) break;
+  }
+  Solution sol;
+  sol.theta = theta;
+  sol.covariance.setZero();
+  const auto m = problem.size();
+  sol.rms_pa = m > 0 ? std::sqrt(cost / static_cast<double>(m)) : 0.0;
+  if (nf > 0 && m > nf) {
+    // The residual's variance, but no less than a real pressure reading's: noise-free samples
+    // (a simulation) would otherwise call a direction the data barely sees well determined.
+    const double s2 = std::max(cost / static_cast<double>(m - nf), kPressureNoiseFloor_pa * kPressureNoiseFloor_pa);
+    const Eigen::MatrixXd a = j.transpose() * j;
+    // The pseudo-inverse: a direction the data does not see gets an infinite variance.
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(a);
+    const double top = eig.eigenvalues().maxCoeff();
+    Eigen::MatrixXd inv = Eigen::MatrixXd::Zero(nf, nf);
+    for (Eigen::Index e = 0; e < nf; ++e) {
+      const double l = eig.eigenvalues()[e];
+      const double inv_l = l > top * 1e-14 ? 1.0 / l : 1e300;
+      inv += inv_l * eig.eigenvectors().col(e) * eig.eigenvectors().col(e).transpose();
+    }
+    for (Eigen::Index a_ = 0; a_ < nf; ++a_)
+      for (Eigen::Index b_ = 0; b_ < nf; ++b_)
+        sol.covariance(static_cast<Eigen::Index>(idx[static_cast<std::size_t>(a_)]),
+                       static_cast<Eigen::Index>(idx[static_cast<std::size_t>(b_)])) = s2 * inv(a_, b_);
+  }
+  return sol;
+}
+
+}  // namespace
+
+ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phases, const model::PlantParams& prior,
+                    const Options& o) {
+  std::vector<FitPhase> fit;
+  for (const StuckPhase& p : phases) {
+    if (!p.driven || s[p.last].t_s - s[p.first].t_s < o.min_fit_phase_s) continue;
+    FitPhase f{p.first, p.last, p.y_m, {}};
+    double next_t = s[p.first].t_s + o.fit_sample_s;
+    for (std::size_t k = p.first + 1; k <= p.last; ++k)
+      if (s[k].t_s >= next_t - 1e-9) {
+        f.observed.push_back(k);
+        next_t = s[k].t_s + o.fit_sample_s;
+      }
+    if (!f.observed.empty()) fit.push_back(std::move(f));
+  }
+  ValveFit out;
+  out.plant = prior;
+  out.phases = static_cast<int>(fit.size());
+  if (fit.empty()) {
+    out.basis.fill("no stuck phase long enough to fit the pressure transients");
+    return out;
+  }
+  const Problem problem(s, std::move(fit), prior);
+  std::array<bool, kValveFitParams> free{};
+  free.fill(true);
+  // Fit all; the parameters the data cannot tell apart (their standard deviation with all the
+  // others free) go back to their priors, and the rest is fitted again. The rest keep the larger
+  // of their two standard deviations: fitted around a prior that may be wrong, they are no
+  // surer than the data made them with everything free.
+  const Solution all = levenberg_marquardt(problem, theta_of(prior), free);
+  std::array<double, kValveFitParams> marginal{};
+  for (std::size_t i = 0; i < kValveFitParams; ++i) {
+    marginal[i] = std::sqrt(std::max(0.0, all.covariance(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(i))));
+    const double score = i == kNullOffset ? marginal[i] / kMaxNullOffsetStd_v : marginal[i] / o.max_relative_std;
+    if (!(score <= 1.0)) {
+      free[i] = false;
+      out.basis[i] = "not separable from the others by these stuck phases (1 sigma " +
+                     std::string(i == kNullOffset ? "over 10 mV" : "over the relative limit") + "): prior kept";
+    }
+  }
+  Solution sol = all;
+  if (std::find(free.begin(), free.end(), false) != free.end()) {
+    Theta start = all.theta;
+    for (std::size_t i = 0; i < kValveFitParams; ++i)
+      if (!free[i]) start[static_cast<Eigen::Index>(i)] = theta_of(prior)[static_cast<Eigen::Index>(i)];
+    sol = levenberg_marquardt(problem, start, free);
+    for (std::size_t i = 0; i < kValveFitParams; ++i) {
+      const auto d = static_cast<Eigen::Index>(i);
+      sol.covariance(d, d) = std::max(sol.covariance(d, d), marginal[i] * marginal[i]);
+    }
+  }
+  out.plant = applied(prior, sol.theta);
+  // Parameters not identified keep the prior exactly (a leak of 0 stays 0).
+  for (std::size_t i = 0; i < kValveFitParams; ++i) {
+    out.identified[i] = free[i];
+    const double var = sol.covariance(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(i));
+    const double sd = std::sqrt(std::max(0.0, var));
+    switch (i) {
+      case kMaxConductance:
+        if (!free[i]) out.plant.valve.max_conductance_m3_per_s_pa = prior.valve.max_conductance_m3_per_s_pa;
+        out.std[i] = sd * out.plant.valve.max_conductance_m3_per_s_pa;
+        break;
+      case kLeakIn:
+        if (!free[i]) out.plant.valve.leak_conductance_in_m3_per_s_pa = prior.valve.leak_conductance_in_m3_per_s_pa;
+        out.std[i] = sd * out.plant.valve.leak_conductance_in_m3_per_s_pa;
+        break;
+      case kLeakOut:
+        if (!free[i]) out.plant.valve.leak_conductance_out_m3_per_s_pa = prior.valve.leak_conductance_out_m3_per_s_pa;
+        out.std[i] = sd * out.plant.valve.leak_conductance_out_m3_per_s_pa;
+        break;
+      case kNullOffset:
+        if (!free[i]) out.plant.valve.null_offset_v = prior.valve.null_offset_v;
+        out.std[i] = sd;
+        break;
+      case kDeadVolumeP:
+        if (!free[i]) out.plant.geometry.dead_volume_p_m3 = prior.geometry.dead_volume_p_m3;
+        out.std[i] = sd * out.plant.geometry.dead_volume_p_m3;
+        break;
+      case kDeadVolumeN:
+        if (!free[i]) out.plant.geometry.dead_volume_n_m3 = prior.geometry.dead_volume_n_m3;
+        out.std[i] = sd * out.plant.geometry.dead_volume_n_m3;
+        break;
+      default: break;
+    }
+    if (!free[i]) out.std[i] = 0.0;
+  }
+  out.rms_residual_pa = sol.rms_pa;
+  return out;
+}
+
+}  // namespace pneu::identify::detail

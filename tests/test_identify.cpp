@@ -1,0 +1,265 @@
+// Identification of the bench from its own signals (pneu/identify): the identification run on a
+// simulated bench that is not its model, and what identify() makes of it.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "pneu/backends/factory.hpp"
+#include "pneu/controller/session.hpp"
+#include "pneu/identify/identification_run.hpp"
+#include "pneu/model/valve.hpp"
+
+namespace {
+
+using namespace pneu;
+
+struct Bench {
+  config::Config cfg;
+  model::PlantParams bench;
+};
+
+Bench mismatched(const std::string& shipped = "") {
+  Bench b{shipped.empty() ? config::load_string(config::default_config_yaml())
+                          : config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/" + shipped, {"hal.backend=sim"}),
+          {}};
+  b.bench = b.cfg.plant;
+  b.bench.friction.static_positive_n = 54.0;
+  b.bench.friction.static_negative_n = -42.0;
+  b.bench.friction.coulomb_positive_n = 40.0;
+  b.bench.friction.coulomb_negative_n = -33.0;
+  b.bench.friction.viscous_n_s_per_m = 75.0;
+  b.bench.valve.max_conductance_m3_per_s_pa *= 1.15;
+  b.bench.valve.leak_conductance_in_m3_per_s_pa *= 0.85;
+  b.bench.valve.leak_conductance_out_m3_per_s_pa *= 1.2;
+  b.bench.valve.null_offset_v = 0.07;
+  b.bench.geometry.dead_volume_p_m3 *= 1.2;
+  b.bench.geometry.dead_volume_n_m3 *= 0.85;
+  return b;
+}
+
+double truth(const model::PlantParams& p, const std::string& key) {
+  if (key == "plant.friction.static_positive_n") return p.friction.static_positive_n;
+  if (key == "plant.friction.static_negative_n") return p.friction.static_negative_n;
+  if (key == "plant.friction.coulomb_positive_n") return p.friction.coulomb_positive_n;
+  if (key == "plant.friction.coulomb_negative_n") return p.friction.coulomb_negative_n;
+  if (key == "plant.friction.viscous_n_s_per_m") return p.friction.viscous_n_s_per_m;
+  if (key == "plant.valve.max_conductance_m3_per_s_pa") return p.valve.max_conductance_m3_per_s_pa;
+  if (key == "plant.valve.leak_conductance_in_m3_per_s_pa") return p.valve.leak_conductance_in_m3_per_s_pa;
+  if (key == "plant.valve.leak_conductance_out_m3_per_s_pa") return p.valve.leak_conductance_out_m3_per_s_pa;
+  if (key == "plant.valve.null_offset_v") return p.valve.null_offset_v;
+  if (key == "plant.geometry.dead_volume_p_m3") return p.geometry.dead_volume_p_m3;
+  if (key == "plant.geometry.dead_volume_n_m3") return p.geometry.dead_volume_n_m3;
+  if (key == "plant.friction.stribeck_velocity_m_per_s") return p.friction.stribeck_velocity_m_per_s;
+  if (key == "plant.mass_kg") return p.mass_kg;
+  return NAN;
+}
+
+// The largest |p_null(u) - p_null_bench(u)| over |u| < 1 V [Pa].
+double null_pressure_error_pa(const model::PlantParams& a, const model::PlantParams& b) {
+  const model::ValveModel va(a.valve, a.gas), vb(b.valve, b.gas);
+  double worst = 0.0;
+  for (double u = -1.0; u <= 1.0 + 1e-9; u += 0.005)
+    worst = std::max(worst, std::abs(va.null_pressure_pa(u) - vb.null_pressure_pa(u)));
+  return worst;
+}
+
+identify::Identification run_identification(const Bench& b) {
+  config::Config cfg = b.cfg;
+  const auto valve = controller::make_valve_characteristic(cfg, {});
+  controller::resolve_offset(cfg, *valve);
+  const controller::ControlLaw law = controller::make_control_law(cfg, *valve);
+  cfg.controller.initial_setpoint_m = cfg.simulation.initial_position_m;
+  return identify::identify_by_run(cfg, *valve, law, backends::make_sim_backend(cfg, law, b.bench),
+                                   cfg.simulation.initial_position_m);
+}
+
+void print(const identify::Identification& id, const model::PlantParams& bench) {
+  const auto& e = id.evidence;
+  std::printf("phases %d fitted %d breakaways +%d -%d stuck %.1f s sliding %.2f s span %.0f mm u %.3f V rms %.1f Pa\n",
+              e.stuck_phases, e.fitted_phases, e.breakaways_positive, e.breakaways_negative, e.stuck_s, e.sliding_s,
+              e.stuck_position_span_m * 1e3, e.voltage_span_v, e.pressure_rms_residual_pa);
+  for (const auto& x : id.estimates) {
+    const double t = truth(bench, x.key);
+    std::printf("%-48s prior %-11.4g value %-11.4g +- %-9.2g bench %-11.4g err %+.2f %% %s %s\n", x.key.c_str(), x.prior,
+                x.value, x.std, t, t != 0 ? 100 * (x.value - t) / std::abs(t) : 0.0, x.identified ? "id" : "--",
+                x.basis.c_str());
+  }
+  std::printf("p_null error over |u| < 1 V: %.0f Pa\n", null_pressure_error_pa(id.plant, bench));
+}
+
+// The samples of an identification run on `b`'s bench, and its plan.
+struct Recorded {
+  identify::RunPlan plan;
+  std::vector<identify::Sample> samples;
+  std::string fault;
+};
+
+Recorded record_run(const Bench& b, const std::vector<std::string>& overrides = {}) {
+  config::Config cfg = b.cfg;
+  for (const auto& o : overrides) cfg = config::load_string(config::to_yaml(cfg), {o});
+  const auto valve = controller::make_valve_characteristic(cfg, {});
+  controller::resolve_offset(cfg, *valve);
+  const controller::ControlLaw law = controller::make_control_law(cfg, *valve);
+  Recorded r;
+  r.plan = identify::plan_run(cfg, law, *valve, cfg.simulation.initial_position_m);
+  const config::Config rc = identify::configured_for(cfg, r.plan);
+  controller::Run run = controller::make_run(rc, *valve, backends::make_sim_backend(rc, law, b.bench), law);
+  std::atomic<bool> stop{false};
+  identify::Recorder rec(stop);
+  run.runtime->add_sink(rec);
+  controller::SimulatedClock clock;
+  controller::execute(run, rc, clock, stop);
+  r.samples = rec.samples();
+  r.fault = rec.fault();
+  return r;
+}
+
+void expect_close_to_bench(const identify::Identification& id, const model::PlantParams& bench, double stiction_tolerance) {
+  for (const char* key : {"plant.friction.static_positive_n", "plant.friction.static_negative_n"}) {
+    const auto& e = id.at(key);
+    EXPECT_TRUE(e.identified) << key << ": " << e.basis;
+    EXPECT_NEAR(e.value, truth(bench, key), stiction_tolerance * std::abs(truth(bench, key))) << key;
+    // The uncertainty it states covers its error.
+    EXPECT_LE(std::abs(e.value - truth(bench, key)), 3 * e.std) << key;
+  }
+  EXPECT_LT(null_pressure_error_pa(id.plant, bench), 5e3) << "p_null(u) within 5 kPa over |u| < 1 V";
+  for (const auto& e : id.estimates) {
+    if (!e.identified) continue;
+    const double t = truth(bench, e.key);
+    EXPECT_NEAR(e.value, t, std::max(0.03 * std::abs(t), 1e-3)) << e.key << ": " << e.basis;
+  }
+}
+
+TEST(IdentificationRun, IdentifiesABenchThatIsNotItsModelWithIdealSensors) {
+  const Bench b = mismatched();
+  const identify::Identification id = run_identification(b);
+  print(id, b.bench);
+  expect_close_to_bench(id, b.bench, 0.02);
+  for (const char* key : {"plant.valve.max_conductance_m3_per_s_pa", "plant.valve.leak_conductance_in_m3_per_s_pa",
+                          "plant.valve.leak_conductance_out_m3_per_s_pa", "plant.valve.null_offset_v",
+                          "plant.geometry.dead_volume_p_m3", "plant.geometry.dead_volume_n_m3",
+                          "plant.friction.coulomb_positive_n", "plant.friction.coulomb_negative_n",
+                          "plant.friction.viscous_n_s_per_m"})
+    EXPECT_TRUE(id.at(key).identified) << key << ": " << id.at(key).basis;
+  EXPECT_NEAR(id.plant.valve.null_offset_v, 0.07, 0.001);
+  // What it does not identify, it says, and keeps.
+  EXPECT_FALSE(id.at("plant.mass_kg").identified);
+  EXPECT_EQ(id.plant.mass_kg, b.cfg.plant.mass_kg);
+}
+
+TEST(IdentificationRun, IdentifiesABenchThatIsNotItsModelWithHilSensors) {
+  const Bench b = mismatched("hil.yaml");
+  const identify::Identification id = run_identification(b);
+  print(id, b.bench);
+  expect_close_to_bench(id, b.bench, 0.05);
+}
+
+TEST(IdentificationRun, StaysWithinTheSoftLimitsAndTakesUnderAMinute) {
+  const Bench b = mismatched();
+  const Recorded r = record_run(b);
+  EXPECT_TRUE(r.fault.empty()) << r.fault;
+  EXPECT_LT(r.plan.duration_s, 60.0);
+  ASSERT_FALSE(r.samples.empty());
+  EXPECT_NEAR(r.samples.back().t_s, r.plan.duration_s, 0.002);
+  for (const auto& step : r.plan.schedule) {
+    EXPECT_GE(step.position_m, b.cfg.controller.soft_limit_min_m);
+    EXPECT_LE(step.position_m, b.cfg.controller.soft_limit_max_m);
+  }
+  double lo = 1, hi = -1;
+  for (const auto& x : r.samples) {
+    lo = std::min(lo, x.y_m);
+    hi = std::max(hi, x.y_m);
+  }
+  EXPECT_GE(lo, b.cfg.controller.soft_limit_min_m);
+  EXPECT_LE(hi, b.cfg.controller.soft_limit_max_m);
+  // ... and it goes near both ends of them, which separates the dead volumes.
+  EXPECT_LT(lo, b.cfg.controller.soft_limit_min_m + 0.1);
+  EXPECT_GT(hi, b.cfg.controller.soft_limit_max_m - 0.1);
+}
+
+TEST(IdentificationRun, AFaultEndsTheRunAndNothingIsIdentified) {
+  Bench b = mismatched();
+  b.cfg = config::load_string(config::default_config_yaml(), {"controller.supervisor.following_error_m=0.002",
+                                                                "controller.supervisor.following_error_s=0.05"});
+  const Recorded r = record_run(b);
+  EXPECT_NE(r.fault.find("following"), std::string::npos) << r.fault;
+  EXPECT_LT(r.samples.back().t_s, r.plan.duration_s - 10.0) << "ended at the fault";
+  config::Config cfg = b.cfg;
+  const auto valve = controller::make_valve_characteristic(cfg, {});
+  controller::resolve_offset(cfg, *valve);
+  const controller::ControlLaw law = controller::make_control_law(cfg, *valve);
+  try {
+    (void)identify::identify_by_run(cfg, *valve, law, backends::make_sim_backend(cfg, law, b.bench),
+                                    cfg.simulation.initial_position_m);
+    ADD_FAILURE() << "identified from a run that faulted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("faulted"), std::string::npos) << e.what();
+  }
+}
+
+std::string refusal(std::span<const identify::Sample> samples, const model::PlantParams& prior) {
+  try {
+    (void)identify::identify(samples, prior);
+  } catch (const identify::InsufficientData& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Identify, RefusesATrajectoryWithNoStickingPhaseNamingIt) {
+  const model::PlantParams prior;
+  std::vector<identify::Sample> sliding;
+  for (int k = 0; k < 2000; ++k) sliding.push_back({k * 1e-3, -0.2 + 0.1 * k * 1e-3, 4e5, 3e5, 1.0, true});
+  EXPECT_NE(refusal(sliding, prior).find("no sticking phase"), std::string::npos) << refusal(sliding, prior);
+}
+
+TEST(Identify, RefusesATrajectoryWithNoBreakawayNamingIt) {
+  const model::PlantParams prior;
+  std::vector<identify::Sample> still;
+  for (int k = 0; k < 2000; ++k) still.push_back({k * 1e-3, 0.01, 4e5 - 10.0 * k, 3e5, 0.1, true});
+  EXPECT_NE(refusal(still, prior).find("no breakaway"), std::string::npos) << refusal(still, prior);
+}
+
+TEST(Identify, RefusesTooLittleExcitationNamingIt) {
+  // Stuck phases of 50 ms with breakaways between them: stiction, but no transient to fit.
+  const model::PlantParams prior;
+  std::vector<identify::Sample> s;
+  double y = 0.0;
+  for (int k = 0; k < 3000; ++k) {
+    const int phase = k % 100;
+    if (phase >= 50) y += 1e-5 * ((k / 100) % 2 ? -1 : 1);
+    const double force_p = phase < 50 ? 4e5 + 200.0 * phase : 4e5;
+    s.push_back({k * 1e-3, y, force_p, 3e5, 0.1, true});
+  }
+  EXPECT_NE(refusal(s, prior).find("too little excitation"), std::string::npos) << refusal(s, prior);
+}
+
+TEST(Identify, SaysWhatOnePositionCannotSeparate) {
+  // The stuck phases of the run's last position alone: one volume per chamber for one conductance
+  // scale, so the dead volumes and C_max cannot all be told apart.
+  const Bench b = mismatched();
+  const Recorded r = record_run(b);
+  const double t_last = r.plan.schedule.back().t_s;
+  double t_from = -1;
+  for (const auto& step : r.plan.schedule)
+    if (t_from < 0 && step.position_m == r.plan.positions_m.back()) t_from = step.t_s;
+  std::vector<identify::Sample> one_position;
+  for (const auto& x : r.samples)
+    if (x.t_s > t_from + 0.8 && x.t_s <= t_last) one_position.push_back(x);
+  const identify::Identification id = identify::identify(one_position, b.cfg.plant);
+  int not_separable = 0;
+  for (const char* key : {"plant.valve.max_conductance_m3_per_s_pa", "plant.geometry.dead_volume_p_m3",
+                          "plant.geometry.dead_volume_n_m3"}) {
+    const auto& e = id.at(key);
+    if (!e.identified) {
+      ++not_separable;
+      EXPECT_NE(e.basis.find("not separable"), std::string::npos) << e.basis;
+      EXPECT_EQ(e.value, e.prior);
+    }
+  }
+  EXPECT_GE(not_separable, 1);
+  print(id, b.bench);
+}
+
+}  // namespace
