@@ -7,6 +7,7 @@
 #include <functional>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <thread>
 
 #include "pneu/backends/factory.hpp"
@@ -15,6 +16,7 @@
 #include "pneu/controller/realtime.hpp"
 #include "pneu/controller/run_summary.hpp"
 #include "pneu/controller/session.hpp"
+#include "pneu/identify/identification_run.hpp"
 #include "run_files.hpp"
 #include "systemd_notifier.hpp"
 #include "telemetry.hpp"
@@ -32,6 +34,7 @@ Usage:
   pneud [--config FILE] [--clock real|simulated] [--duration S] [--events FILE]
         [--trajectory FILE] [--summary-json FILE] [--set KEY=VALUE ...] [--check-config]
         [--require-telemetry] [--require-rt] [--quiet]
+  pneud --identify OUT.yaml [--armed] [--config FILE] [--clock real|simulated] [--set KEY=VALUE ...] ...
   pneud --help | --version
 
   --config FILE      YAML configuration (default: the embedded config/sim.yaml, the simulated bench
@@ -57,6 +60,16 @@ Usage:
   --require-rt       exit with an error when controller.realtime cannot be applied (SCHED_FIFO,
                      CPU affinity, mlockall), instead of warning and running without it
   --quiet            no summary on stdout
+  --identify OUT.yaml  an identification run instead of the configured set points: an automatic
+                     sequence of moves and slow set-point ramps within the soft limits (under a
+                     minute), supervised as any run, then plant: identified from the run's own
+                     signals (stiction, Coulomb and viscous friction, the valves' conductances and
+                     null offset, the dead volumes) and written, with the rest of the configuration,
+                     to OUT.yaml; each parameter is printed before and after with its uncertainty.
+                     A fault ends the run in the safe state and writes nothing (exit 1); so does a
+                     run that showed too little to identify, naming what is missing
+  --armed            required with --identify on hal.backend modbus (a real bench, or pneu-plant
+                     serve): the run moves the carriage over the stroke on its own
 
 Faults (controller.supervisor, the e-stop, comms) latch the safe output until a FAULT_RESET
 command once the cause is gone; the daemon then waits disarmed for an ARM command.
@@ -111,8 +124,9 @@ controller::RunFigures figures_of(const config::Config& cfg, const std::string& 
 }
 
 int run(int argc, char** argv) {
-  const cli::Args args(argc, argv, 1, {"config", "clock", "duration", "events", "trajectory", "summary-json"},
-                       {"check-config", "quiet", "help", "version", "require-telemetry", "require-rt"}, {"set"});
+  const cli::Args args(argc, argv, 1,
+                       {"config", "clock", "duration", "events", "trajectory", "summary-json", "identify"},
+                       {"check-config", "quiet", "help", "version", "require-telemetry", "require-rt", "armed"}, {"set"});
   if (args.flag("help")) {
     std::cout << kHelp;
     return cli::kExitOk;
@@ -131,6 +145,29 @@ int run(int argc, char** argv) {
   controller::resolve_offset(cfg, *valve);
   // Designed once, here: a scheduled law's design refused before any output.
   const controller::ControlLaw law = controller::make_control_law(cfg, *valve);
+  // An identification run: its own set points and length, on the configured backend.
+  const std::optional<std::string> identify_path = args.value("identify");
+  const config::Config as_configured = cfg;
+  std::optional<cli::AtomicFile> identified;
+  if (identify_path) {
+    if (args.flag("check-config")) throw cli::UsageError("--identify and --check-config do not go together");
+    if (args.value("duration")) throw cli::UsageError("--identify makes its own run: no --duration");
+    if (cfg.hal.backend == config::BackendKind::kModbus && !args.flag("armed"))
+      throw cli::UsageError("--identify on hal.backend modbus moves the carriage over the stroke on its own: "
+                            "clear the stroke and add --armed");
+    // The simulated bench starts at rest at simulation.initial_position_m; a real one goes to the
+    // configured first set point.
+    if (cfg.hal.backend == config::BackendKind::kSim) cfg.controller.initial_setpoint_m = cfg.simulation.initial_position_m;
+    identify::RunPlan plan;
+    try {
+      plan = identify::plan_run(cfg, law, *valve, cfg.controller.initial_setpoint_m);
+    } catch (const std::invalid_argument& e) {
+      throw config::ConfigError("controller.soft_limit_min_m", e.what());
+    }
+    cfg = identify::configured_for(cfg, plan);
+  } else if (args.flag("armed")) {
+    throw cli::UsageError("--armed goes with --identify");
+  }
   if (args.flag("check-config")) {
     std::cout << "# effective configuration of pneud (u_0 = u_e of Eq. 7 = " << cfg.controller.law.offset_v
               << " V)\n"
@@ -142,10 +179,14 @@ int run(int argc, char** argv) {
   backends::require_built(cfg);
   Telemetry::require_built(args.flag("require-telemetry"));
   RunFiles files(args);
+  if (identify_path) identified.emplace(*identify_path);  // an unwritable path fails before the run
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   controller::Run run = controller::make_run(cfg, *valve, backends::make_backend(cfg, law), law);
   files.add_sinks(*run.runtime);
+  std::atomic<bool> fault_stop{false};
+  identify::Recorder recorder(fault_stop);
+  if (identify_path) run.runtime->add_sink(recorder);
   const std::unique_ptr<Telemetry> telemetry = Telemetry::start(cfg, run, args.flag("require-telemetry"));
   SystemdNotifier notifier(*run.outputs, g_stop);
   std::function<void(int)> wait_for_input;
@@ -164,7 +205,19 @@ int run(int argc, char** argv) {
   const auto clock = controller::make_clock(cfg.controller.clock);
   const auto wall0 = std::chrono::steady_clock::now();
   try {
-    controller::execute(run, cfg, *clock, g_stop, wait_for_input, on_loop_thread);
+    // An identification run also stops at its first fault (the loop holds the safe output).
+    std::atomic<bool> stop_either{false};
+    std::function<void(int)> wait = wait_for_input;
+    if (identify_path) {
+      const std::function<void(int)> inner = wait_for_input;
+      wait = [&, inner](int ms) {
+        if (inner) inner(ms);
+        else std::this_thread::sleep_for(std::chrono::milliseconds(ms));
+        if (g_stop.load() || fault_stop.load()) stop_either.store(true);
+      };
+    }
+    controller::execute(run, cfg, *clock, identify_path && real_clock ? stop_either : identify_path ? fault_stop : g_stop,
+                        wait, on_loop_thread);
   } catch (...) {
     if (run.outputs->heartbeat.load() == 0) files.discard();  // nothing ran: no empty output left
     throw;
@@ -181,6 +234,25 @@ int run(int argc, char** argv) {
   if (telemetry) figures.telemetry = telemetry->figures();
   files.write_summary_json(figures, *run.runtime);
   if (!args.flag("quiet")) controller::print_summary(stdout, figures, *run.runtime);
+  if (identify_path) {
+    if (!recorder.fault().empty())
+      throw std::runtime_error("the identification run ended at t = " + std::to_string(recorder.fault_time_s()) +
+                               " s by a fault, " + recorder.fault() + ": outputs in the safe state, nothing written");
+    if (g_stop.load()) throw std::runtime_error("the identification run was interrupted: nothing written");
+    identify::Identification id;
+    try {
+      id = identify::identify(recorder.samples(), as_configured.plant, identify::options_for(as_configured));
+    } catch (const identify::InsufficientData& e) {
+      throw std::runtime_error(std::string("the identification run showed too little: ") + e.what() + "; nothing written");
+    }
+    if (!args.flag("quiet")) {
+      std::printf("identified from the run's own signals (%zu ticks):\n", recorder.samples().size());
+      identify::print_report(stdout, id);
+    }
+    identified->stream() << identify::identified_config_yaml(as_configured, id, "pneud --identify");
+    identified->commit();
+    std::printf("written: %s\n", identified->path().c_str());
+  }
   return cli::kExitOk;
 }
 

@@ -97,6 +97,44 @@ Identification identify_by_run(const config::Config& config, const model::ValveC
   return identify(recorder.samples(), config.plant, options_for(config));
 }
 
+std::string identified_config_yaml(const config::Config& config, const Identification& id, const std::string& source) {
+  config::Config out = config;
+  out.plant = id.plant;
+  // A simulated bench that was its model stays what it was: the run identified it, it did not change.
+  if (config.hal.backend == config::BackendKind::kSim && !config.hal.sim.has_plant) {
+    out.hal.sim.has_plant = true;
+    out.hal.sim.plant = config.plant;
+  }
+  std::string text = "# plant: identified by pneu " + source + "\n# identified (value +- 1 sigma, was):\n";
+  char line[256];
+  for (const Estimate& e : id.estimates) {
+    if (e.identified)
+      std::snprintf(line, sizeof line, "#   %s: %.6g +- %.2g (was %.6g)\n", e.key.c_str(), e.value, e.std, e.prior);
+    else
+      std::snprintf(line, sizeof line, "#   %s: %.6g kept (%s)\n", e.key.c_str(), e.value, e.basis.c_str());
+    text += line;
+  }
+  text += config::to_yaml(out);
+  (void)config::load_string(text, {}, "the identified configuration");  // a rule broken is refused here
+  return text;
+}
+
+void print_report(std::FILE* out, const Identification& id) {
+  const Evidence& e = id.evidence;
+  std::fprintf(out,
+               "evidence: %d stuck phases (%d fitted, %.1f s stuck, over %.0f mm, u over %.3f V), breakaways %d "
+               "positive / %d negative, %.2f s sliding; pressure fit residual %.1f Pa rms\n",
+               e.stuck_phases, e.fitted_phases, e.stuck_s, e.stuck_position_span_m * 1e3, e.voltage_span_v,
+               e.breakaways_positive, e.breakaways_negative, e.sliding_s, e.pressure_rms_residual_pa);
+  std::fprintf(out, "%-46s %12s %12s %10s  %s\n", "parameter", "before", "after", "+- 1 sigma", "from");
+  for (const Estimate& x : id.estimates) {
+    if (x.identified)
+      std::fprintf(out, "%-46s %12.5g %12.5g %10.2g  %s\n", x.key.c_str(), x.prior, x.value, x.std, x.basis.c_str());
+    else
+      std::fprintf(out, "%-46s %12.5g %12s %10s  %s\n", x.key.c_str(), x.prior, "(kept)", "", x.basis.c_str());
+  }
+}
+
 Options options_for(const config::Config& cfg) {
   Options o;
   o.rest_band_m = cfg.controller.stop_detector.rest_band_m;

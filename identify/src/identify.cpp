@@ -33,6 +33,9 @@ constexpr const char* kKeys[] = {
     "plant.mass_kg",
 };
 
+// A dated breakaway's weight is 1 / (how far the force had moved on + this)^2 [N].
+constexpr double kOnsetWeightFloor_n = 0.05;
+
 // A phase's first samples may still be the carriage sliding into the rest band.
 constexpr double kSettleIntoPhase_s = 0.02;
 
@@ -45,6 +48,9 @@ struct Bracket {
   /// How far the force may have moved on between the breakaway and the first reading that
   /// showed it (the onset hidden in the rest band), at the breakaway that gave the bound from beyond [N].
   double onset_force = 0.0;
+  /// The breakaways dated by the first moved reading (ideal sensors): F_S within these.
+  double dated_lower = -std::numeric_limits<double>::infinity();
+  double dated_upper = std::numeric_limits<double>::infinity();
 };
 
 // The onset of a breakaway can hide within a rest band: with the force rising at `rate` past F_S,
@@ -73,13 +79,16 @@ struct Stiction {
 Stiction stiction_from(std::span<const Sample> s, std::span<const double> force, std::span<const StuckPhase> phases,
                        double mass_kg, const Options& o) {
   Stiction st;
-  // The force's noise: successive differences inside the stuck phases, robustly (median).
+  // The force's noise: second differences inside the stuck phases (the drift's slope cancels),
+  // robustly (median absolute value; white noise of deviation s gives second differences of
+  // deviation s sqrt(6)).
   std::vector<double> diffs;
   for (const StuckPhase& p : phases)
-    for (std::size_t k = p.first + 1; k <= p.last; ++k) diffs.push_back(std::abs(force[k] - force[k - 1]));
+    for (std::size_t k = p.first + 1; k < p.last; ++k)
+      diffs.push_back(std::abs(force[k + 1] - 2.0 * force[k] + force[k - 1]));
   if (!diffs.empty()) {
     std::nth_element(diffs.begin(), diffs.begin() + static_cast<std::ptrdiff_t>(diffs.size() / 2), diffs.end());
-    st.force_noise_n = diffs[diffs.size() / 2] / (0.6745 * std::sqrt(2.0));
+    st.force_noise_n = diffs[diffs.size() / 2] / (0.6745 * std::sqrt(6.0));
   }
   const double noise = 2.0 * st.force_noise_n;
   for (const StuckPhase& p : phases) {
@@ -92,7 +101,8 @@ Stiction stiction_from(std::span<const Sample> s, std::span<const double> force,
     // Held: every sample before the onset could have begun, once the carriage has settled into
     // the phase (a turning point can look still for a few ms within a rest band), in phases long
     // enough to be stuck for sure.
-    const double onset = onset_s(mass_kg, o.rest_band_m, std::abs(rate), 0.2);
+    // (An ideal sensor too: the first picometre takes about a millisecond at 10 N/s.)
+    const double onset = onset_s(mass_kg, o.rest_band_m + detail::kSamePosition_m, std::abs(rate), 0.2);
     const std::size_t held_last = p.breakaway ? index_before(s, p.first, p.last, onset) : p.last;
     const bool long_enough = s[p.last].t_s - s[p.first].t_s >= o.min_fit_phase_s;
     double held_max = -std::numeric_limits<double>::infinity(), held_min = std::numeric_limits<double>::infinity();
@@ -104,8 +114,11 @@ Stiction stiction_from(std::span<const Sample> s, std::span<const double> force,
     st.positive.lower = std::max(st.positive.lower, held_max - noise);
     st.negative.upper = std::min(st.negative.upper, held_min + noise);
     if (!p.breakaway || p.last + 1 >= s.size()) continue;
-    // Moved: the first sample out of the band.
+    // Moved: the first sample out of the band. A stuck carriage leaves towards the side the force
+    // pushes it; one that left the other way was not stuck (a creep at nanometres per second
+    // onto a stiction bound reads still to an ideal sensor, and turns when the set point does).
     const double moved = force[p.last + 1];
+    if ((p.direction > 0) != (moved > 0.0)) continue;
     // The bound this breakaway gives, and the onset it may hide, kept for the tightest one.
     const double onset_force = std::abs(rate) * onset;
     if (p.direction > 0) {
@@ -123,8 +136,126 @@ Stiction stiction_from(std::span<const Sample> s, std::span<const double> force,
       }
       ++st.negative.breakaways;
     }
+    // With an ideal position sensor the first moved reading also dates the breakaway: the force
+    // crossed F_S at t_b and grows on at `local_rate`, the carriage accelerates at
+    // local_rate (t - t_b) / M (the Stribeck drop is quadratic in v, nothing yet), so it has moved
+    // dy = local_rate (t - t_b)^3 / (6 M) by the reading. F_S = F(t_b), within a fifth of the
+    // correction.
+    if (o.rest_band_m <= 0.0 && p.last > p.first) {
+      const double local_rate = (force[p.last] - force[p.last - 1]) / (s[p.last].t_s - s[p.last - 1].t_s);
+      const double dy = std::abs(s[p.last + 1].y_m - s[p.last].y_m);
+      const double step = s[p.last + 1].t_s - s[p.last].t_s;
+      if (local_rate * p.direction > 0.0 && dy > 0.0) {
+        const double since_s = std::cbrt(6.0 * mass_kg * dy / std::abs(local_rate));
+        if (since_s <= step) {
+          const double at_breakaway = force[p.last + 1] - local_rate * since_s;
+          const double allowance = 0.2 * std::abs(local_rate) * since_s + noise;
+          Bracket& side = p.direction > 0 ? st.positive : st.negative;
+          side.dated_lower = std::max(side.dated_lower, at_breakaway - allowance);
+          side.dated_upper = std::min(side.dated_upper, at_breakaway + allowance);
+        }
+      }
+    }
+  }
+  for (Bracket* side : {&st.positive, &st.negative}) {
+    // Dated breakaways narrow the bracket where they agree with it.
+    const double lo = std::max(side->lower, side->dated_lower), hi = std::min(side->upper, side->dated_upper);
+    if (lo <= hi) {
+      side->lower = lo;
+      side->upper = hi;
+    }
   }
   return st;
+}
+
+// The breakaway dated by the carriage's own onset (noisy sensors): the onset hides within the
+// rest band for tens of milliseconds, so the reading that shows the motion comes after the force
+// has moved on. From a candidate F_S, the carriage breaks away when the measured force crosses it
+// and then moves as M dv/dt = F(t) - F_f(v) (the friction law of docs/model.md with the Coulomb and
+// viscous values given); the candidate whose positions best match the readings, from 0.3 s before
+// the reading that showed the motion to 30 ms after it, is the estimate. NaN when the window has
+// too few readings or the best candidate lies at the end of the range searched.
+double fit_onset(std::span<const Sample> s, std::span<const double> force, const StuckPhase& p,
+                 const model::FrictionParams& f, double mass_kg) {
+  const std::size_t k = p.last + 1;
+  std::size_t a = k, b = k;
+  while (a > p.first && s[k].t_s - s[a - 1].t_s <= 0.3) --a;
+  while (b + 1 < s.size() && s[b + 1].t_s - s[k].t_s <= 0.03) ++b;
+  if (b - a < 20) return std::numeric_limits<double>::quiet_NaN();
+  const int d = p.direction;
+  const double f_c = d > 0 ? f.coulomb_positive_n : f.coulomb_negative_n;
+  const double v_s = f.stribeck_velocity_m_per_s;
+  // The squared mismatch of the positions for a candidate stiction level.
+  const auto cost = [&](double f_s) {
+    double y = p.y_m, v = 0.0, sum = 0.0;
+    bool stuck = true;
+    for (std::size_t j = a; j < b; ++j) {
+      const double e = s[j].y_m - y;
+      sum += e * e;
+      const double h = s[j + 1].t_s - s[j].t_s;
+      const double f0 = force[j], f1 = force[j + 1];
+      constexpr int kSub = 8;
+      for (int i = 0; i < kSub; ++i) {
+        const double fa = f0 + (f1 - f0) * i / kSub, fb = f0 + (f1 - f0) * (i + 1) / kSub;
+        double dt = h / kSub;
+        if (stuck) {
+          if (d * (fb - f_s) <= 0.0) continue;
+          // Breaks away inside this sub-step, where the force crosses F_S.
+          const double frac = d * (fa - f_s) >= 0.0 ? 0.0 : (f_s - fa) / (fb - fa);
+          dt *= 1.0 - frac;
+          stuck = false;
+        }
+        const double vm = v;
+        const double ff = f_c + (f_s - f_c) * std::exp(-(vm / v_s) * (vm / v_s)) + f.viscous_n_s_per_m * vm;
+        const double acc = (0.5 * (fa + fb) - ff) / mass_kg;
+        const double v_new = v + acc * dt;
+        // Sliding towards d only: it sticks again where the velocity would turn.
+        const double v_next = d * v_new < 0.0 ? 0.0 : v_new;
+        y += 0.5 * (v + v_next) * dt;
+        v = v_next;
+      }
+    }
+    const double e = s[b].y_m - y;
+    return sum + e * e;
+  };
+  // The candidates: from the force 0.3 s before the motion showed to the force when it showed.
+  double lo = std::min(force[a], force[k]), hi = std::max(force[a], force[k]);
+  lo = std::min(lo, force[k] - d * 0.5);
+  hi = std::max(hi, force[k] - d * 0.5);
+  constexpr int kGrid = 120;
+  double best = lo, best_cost = std::numeric_limits<double>::infinity();
+  int best_i = 0;
+  for (int i = 0; i <= kGrid; ++i) {
+    const double c = lo + (hi - lo) * i / kGrid;
+    const double v = cost(c);
+    if (v < best_cost) {
+      best_cost = v;
+      best = c;
+      best_i = i;
+    }
+  }
+  if (best_i == 0 || best_i == kGrid) return std::numeric_limits<double>::quiet_NaN();
+  // Golden section around the best grid point.
+  double x0 = best - (hi - lo) / kGrid, x1 = best + (hi - lo) / kGrid;
+  const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+  double c1 = x1 - g * (x1 - x0), c2 = x0 + g * (x1 - x0);
+  double v1 = cost(c1), v2 = cost(c2);
+  for (int i = 0; i < 40; ++i) {
+    if (v1 < v2) {
+      x1 = c2;
+      c2 = c1;
+      v2 = v1;
+      c1 = x1 - g * (x1 - x0);
+      v1 = cost(c1);
+    } else {
+      x0 = c1;
+      c1 = c2;
+      v1 = v2;
+      c2 = x0 + g * (x1 - x0);
+      v2 = cost(c2);
+    }
+  }
+  return 0.5 * (x0 + x1);
 }
 
 // Savitzky-Golay: velocity and acceleration at each sample from a quadratic fitted over +-half_s.
@@ -342,6 +473,56 @@ Identification identify(std::span<const Sample> s, const model::PlantParams& pri
   if (f.coulomb_negative_n != id.estimates[3].value) id.estimates[3].basis += "; capped at F_S-";
   id.estimates[2].value = f.coulomb_positive_n;
   id.estimates[3].value = f.coulomb_negative_n;
+
+  // Noisy sensors: the breakaways dated by the onset itself replace the brackets, whose reading
+  // of the motion comes late. Each fit is weighted by how slowly the force crossed (how little it
+  // had moved on by the reading that showed the motion): a slow crossing is dated best.
+  if (o.rest_band_m > 0.0) {
+    struct Fit {
+      double value, weight;
+    };
+    std::vector<Fit> fits[2];
+    for (const StuckPhase& p : phases) {
+      if (!p.breakaway || p.last + 1 >= s.size() || (p.direction > 0) != (force[p.last + 1] > 0.0)) continue;
+      const double fit = fit_onset(s, force, p, f, prior.mass_kg);
+      if (!std::isfinite(fit)) continue;
+      const double moved_on = std::abs(force[p.last] - fit) + kOnsetWeightFloor_n;
+      fits[p.direction > 0 ? 0 : 1].push_back({fit, 1.0 / (moved_on * moved_on)});
+    }
+    for (int side = 0; side < 2; ++side) {
+      Estimate& e = id.estimates[static_cast<std::size_t>(side)];
+      if (fits[side].empty()) continue;
+      double sw = 0, swx = 0, sw2 = 0;
+      for (const Fit& x : fits[side]) {
+        sw += x.weight;
+        swx += x.weight * x.value;
+        sw2 += x.weight * x.weight;
+      }
+      const double mean = swx / sw;
+      double spread2 = 0;
+      for (const Fit& x : fits[side]) spread2 += x.weight * (x.value - mean) * (x.value - mean);
+      const double n_eff = sw * sw / sw2;
+      const double sd = std::sqrt(spread2 / sw) / std::sqrt(std::max(1.0, n_eff - 1.0)) + st.force_noise_n;
+      const bool ok = (side == 0 ? mean > 0 : mean < 0) && sd <= o.max_relative_std * std::abs(mean);
+      if (!ok) continue;
+      e.value = mean;
+      e.std = sd;
+      e.identified = true;
+      e.basis = format("%d breakaways dated by their onset (%d bracketed: held up to %.3f N, moved from %.3f N)",
+                       static_cast<int>(fits[side].size()), side == 0 ? st.positive.breakaways : st.negative.breakaways,
+                       side == 0 ? st.positive.lower : st.negative.upper, side == 0 ? st.positive.upper : st.negative.lower);
+    }
+    f.static_positive_n = id.estimates[0].value;
+    f.static_negative_n = id.estimates[1].value;
+    for (const std::size_t i : {std::size_t{2}, std::size_t{3}}) {
+      Estimate& c = id.estimates[i];
+      const double capped = i == 2 ? std::min(c.value, f.static_positive_n) : std::max(c.value, f.static_negative_n);
+      if (capped != c.value) c.basis += "; capped at the stiction";
+      c.value = capped;
+    }
+    f.coulomb_positive_n = id.estimates[2].value;
+    f.coulomb_negative_n = id.estimates[3].value;
+  }
 
   // The valves and the dead volumes from the stuck phases' pressure transients (Eq. 19).
   const detail::ValveFit vf = detail::fit_valves(s, phases, id.plant, o);

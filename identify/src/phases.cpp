@@ -7,8 +7,6 @@ namespace pneu::identify::detail {
 
 namespace {
 
-// Readings this close are the same position (an ideal sensor's conversions differ in the last bits).
-constexpr double kSamePosition_m = 1.0e-12;
 // How far beyond the rest band, and how soon, the position must go for the carriage to have left.
 constexpr double kMotionBandFactor = 2.0;
 constexpr double kMinMotion_m = 1.0e-6;

@@ -9,6 +9,10 @@
 
 namespace pneu::identify::detail {
 
+/// Readings this close are the same position (an ideal sensor's conversions differ in the last
+/// bits) [m].
+inline constexpr double kSamePosition_m = 1.0e-12;
+
 /// A run of samples whose positions stay within the rest band of the first one.
 struct StuckPhase {
   std::size_t first = 0;   ///< first sample of the phase

@@ -21,6 +21,8 @@
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/session.hpp"
+#include "pneu/identify/identification_run.hpp"
+#include "pneu/model/valve.hpp"
 #include "pneu/controller/supervisor.hpp"
 #include "pneu/controller/verdict.hpp"
 
@@ -35,7 +37,7 @@ Usage:
   pneu-sweep [--config FILE] --out SWEEP.csv [--steps N] [--seed S] [--jobs J] [--duration S]
              [--step-time S] [--tail S] [--margin-m M] [--min-step-m D] [--friction-spread F] [--gain-spread G]
              [--bench-spread B] [--scenarios-out SCENARIOS.csv] [--set KEY=VALUE ...] [--supervised] [--strict]
-             [--strict-forecasts] [--quiet]
+             [--strict-forecasts] [--identify] [--quiet]
 
 Scenario i starts at rest at a random position y0 and steps the set point at --step-time
 (default 1 s) to y_d, the targets spread evenly over the stroke less --margin-m (default 0.02 m)
@@ -51,6 +53,13 @@ time, then --tail seconds more (default 1) in which no new stop is judged: a res
 before the end of the window is then seen or refuted by the signals rather than cut off (a
 breakaway with a force a hair beyond stiction moves the carriage by less than the detector's
 motion band for tens of milliseconds). --jobs threads (default: the cores) share the scenarios.
+
+--identify first runs pneud's identification run (pneud --identify) on each scenario's bench, from
+the configured model, and runs the scenario on the model it identified: plant: then holds what
+was identified (u_0, the gain design and the forecasts use it); the bench stays the scenario's.
+A scenario whose identification fails (a fault, too little shown) is counted as such, with the
+reason, and not run. The summary gives the identified stiction's and null-flow pressure's errors
+against each bench; the scenarios file, identified_* columns.
 
 The sweep studies the control law and the forecast, not the bench's protection: unless
 --supervised, the supervisor's motion and range checks are off (large steps slam the carriage
@@ -306,6 +315,9 @@ class ScenarioWatch final : public controller::RunListener {
 struct ScenarioResult {
   Scenario scenario;
   model::PlantParams bench;  // the simulated bench it ran (the model's plant: unless --bench-spread)
+  std::optional<model::PlantParams> identified;  // --identify: the model the scenario ran on
+  std::string identification_failed;             // --identify: why it failed, or why its model could not
+                                                 // run (the scenario did not run)
   std::vector<controller::StopOutcome> stops;
   std::vector<Truth> truth;  // per stop
   double t_end_s = 0.0;
@@ -388,7 +400,7 @@ int run(int argc, char** argv) {
   const cli::Args args(argc, argv, 1,
                        {"config", "out", "steps", "seed", "jobs", "duration", "step-time", "margin-m",
                         "min-step-m", "friction-spread", "gain-spread", "bench-spread", "tail", "scenarios-out"},
-                       {"strict", "strict-forecasts", "quiet", "help", "supervised"}, {"set"});
+                       {"strict", "strict-forecasts", "quiet", "help", "supervised", "identify"}, {"set"});
   if (args.flag("help")) {
     std::cout << kHelp;
     return cli::kExitOk;
@@ -397,6 +409,7 @@ int run(int argc, char** argv) {
   config::Config base = config::load_file_or_default(config_path, args.all("set"));
   const config::SupervisorConfig settling_rules = base.controller.supervisor;  // checked alongside
   const bool supervised = args.flag("supervised");
+  const bool identify_first = args.flag("identify");
   if (!supervised) {
     auto& v = base.controller.supervisor;
     v.oscillation_sign_changes = 0;
@@ -491,12 +504,46 @@ int run(int argc, char** argv) {
           f->coulomb_negative_n *= s.friction_scale;
           f->viscous_n_s_per_m *= s.friction_scale;
         }
-        const auto valve = controller::make_valve_characteristic(
-            cfg, config_path.empty() ? std::filesystem::path() : std::filesystem::path(config_path).parent_path());
-        controller::resolve_offset(cfg, *valve);
-        // The gains, fixed or scheduled, mistuned by the scenario's factor.
-        const controller::ControlLaw law = controller::make_control_law(cfg, *valve).scaled(s.gain_scale);
+        const std::filesystem::path config_dir =
+            config_path.empty() ? std::filesystem::path() : std::filesystem::path(config_path).parent_path();
         const model::PlantParams bench_params = s.bench.applied_to(config::simulated_bench(cfg));
+        std::optional<model::PlantParams> identified;
+        if (identify_first) {
+          // pneud --identify on the scenario's bench, from the configured model; the scenario then
+          // runs on what it identified.
+          config::Config id_cfg = cfg;
+          const auto prior_valve = controller::make_valve_characteristic(id_cfg, config_dir);
+          controller::resolve_offset(id_cfg, *prior_valve);
+          const controller::ControlLaw prior_law = controller::make_control_law(id_cfg, *prior_valve);
+          try {
+            identified = identify::identify_by_run(id_cfg, *prior_valve, prior_law,
+                                                   backends::make_sim_backend(id_cfg, prior_law, bench_params), s.y0_m)
+                             .plant;
+          } catch (const std::exception& e) {
+            ScenarioResult failed{s, bench_params, std::nullopt, e.what(), {}, {}, 0.0, {}};
+            results[static_cast<std::size_t>(i)] = std::move(failed);
+            if (done.fetch_add(1) + 1 == n) finished = std::chrono::steady_clock::now();
+            continue;
+          }
+          cfg.plant = *identified;
+        }
+        const auto valve = controller::make_valve_characteristic(cfg, config_dir);
+        controller::resolve_offset(cfg, *valve);
+        // The gains, fixed or scheduled, mistuned by the scenario's factor. Designed on an identified
+        // model, the design may be refused (the bench's air spring stiffer than the model's): the
+        // scenario is then counted with the reason, as pneud would refuse to start on it.
+        std::optional<controller::ControlLaw> designed;
+        try {
+          designed.emplace(controller::make_control_law(cfg, *valve).scaled(s.gain_scale));
+        } catch (const config::ConfigError& e) {
+          if (!identified) throw;
+          ScenarioResult failed{s, bench_params, identified,
+                                std::string("the gain design on the identified model is refused: ") + e.what(), {}, {}, 0.0, {}};
+          results[static_cast<std::size_t>(i)] = std::move(failed);
+          if (done.fetch_add(1) + 1 == n) finished = std::chrono::steady_clock::now();
+          continue;
+        }
+        const controller::ControlLaw& law = *designed;
         auto plant = backends::make_sim_backend(cfg, law, bench_params);
         const hal::SimBackend& bench = *plant;  // the simulated truth, owned by the run
         auto sim = controller::make_run(cfg, *valve, std::move(plant), law);
@@ -511,7 +558,7 @@ int run(int argc, char** argv) {
         controller::execute(sim, cfg, clock, never);
         // Stops from the tail are not judged: the tail only lets the carriage show what it did
         // after the stops of the judged window.
-        ScenarioResult r{s, bench_params, {}, {}, sim.runtime->end_time_s(), watch.settling(bench.motion_events())};
+        ScenarioResult r{s, bench_params, identified, "", {}, {}, sim.runtime->end_time_s(), watch.settling(bench.motion_events())};
         if (bench.motion_events_dropped() > 0)
           throw std::runtime_error("scenario " + std::to_string(s.index) + ": more plant events than recorded");
         for (auto stop : sim.runtime->stops()) {
@@ -661,8 +708,42 @@ int run(int argc, char** argv) {
                                "bench_static_negative_n,bench_coulomb_negative_n,bench_viscous_n_s_per_m,"
                                "bench_max_conductance_m3_per_s_pa,bench_leak_conductance_in_m3_per_s_pa,"
                                "bench_leak_conductance_out_m3_per_s_pa,bench_dead_volume_p_m3,bench_dead_volume_n_m3,"
-                               "bench_null_offset_v\n";
+                               "bench_null_offset_v"
+                            << (identify_first ? ",identified_static_positive_n,identified_static_negative_n,"
+                                                 "identified_null_offset_v,identified_null_pressure_error_pa,"
+                                                 "identification_failed"
+                                               : "")
+                            << '\n';
+  // --identify: what was identified against each bench.
+  std::vector<double> id_stiction_error_pct[2], id_null_error_pa;
+  std::vector<std::string> id_failures;
+  const auto null_pressure_error_pa = [](const model::PlantParams& a, const model::PlantParams& b) {
+    const model::ValveModel va(a.valve, a.gas), vb(b.valve, b.gas);
+    double worst = 0.0;
+    for (int k = -200; k <= 200; ++k)  // |u| <= 1 V, every 5 mV
+      worst = std::max(worst, std::abs(va.null_pressure_pa(k * 0.005) - vb.null_pressure_pa(k * 0.005)));
+    return worst;
+  };
   for (const auto& r : results) {
+    if (!r.identification_failed.empty()) {
+      id_failures.push_back("scenario " + std::to_string(r.scenario.index) + ": " + r.identification_failed);
+      if (scenarios_out) {
+        std::string reason = r.identification_failed;
+        std::replace(reason.begin(), reason.end(), ',', ';');
+        std::replace(reason.begin(), reason.end(), '"', '\'');
+        scenarios_out->stream() << r.scenario.index << ',' << cell(r.scenario.y0_m) << ',' << cell(r.scenario.y_d_m)
+                                << ',' << cell(r.scenario.friction_scale, 4) << ',' << cell(r.scenario.gain_scale, 4)
+                                << ",identification_failed" << std::string(20, ',') << ",\"" << reason << "\"\n";
+      }
+      continue;
+    }
+    double id_null_error = NAN;
+    if (r.identified) {
+      id_stiction_error_pct[0].push_back(100 * std::abs(r.identified->friction.static_positive_n / r.bench.friction.static_positive_n - 1));
+      id_stiction_error_pct[1].push_back(100 * std::abs(r.identified->friction.static_negative_n / r.bench.friction.static_negative_n - 1));
+      id_null_error = null_pressure_error_pa(*r.identified, r.bench);
+      id_null_error_pa.push_back(id_null_error);
+    }
     const Settling& g = r.settling;
     const auto k = static_cast<std::size_t>(g.outcome);
     ++outcome_count[k];
@@ -688,12 +769,18 @@ int run(int argc, char** argv) {
     {
       const model::PlantParams& b = r.bench;
       char row[512];
-      std::snprintf(row, sizeof row, ",%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n", b.friction.static_positive_n,
+      std::snprintf(row, sizeof row, ",%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g", b.friction.static_positive_n,
                     b.friction.coulomb_positive_n, b.friction.static_negative_n, b.friction.coulomb_negative_n,
                     b.friction.viscous_n_s_per_m, b.valve.max_conductance_m3_per_s_pa,
                     b.valve.leak_conductance_in_m3_per_s_pa, b.valve.leak_conductance_out_m3_per_s_pa,
                     b.geometry.dead_volume_p_m3, b.geometry.dead_volume_n_m3, b.valve.null_offset_v);
       scenarios_out->stream() << row;
+      if (r.identified) {
+        std::snprintf(row, sizeof row, ",%.6g,%.6g,%.6g,%.1f,", r.identified->friction.static_positive_n,
+                      r.identified->friction.static_negative_n, r.identified->valve.null_offset_v, id_null_error);
+        scenarios_out->stream() << row;
+      }
+      scenarios_out->stream() << '\n';
     }
   }
   if (scenarios_out) scenarios_out->commit();
@@ -768,6 +855,19 @@ int run(int argc, char** argv) {
       std::printf("; after the step: p50 %.3f s  max %.3f s", percentile(all_after_s, 0.5), percentile(all_after_s, 1.0));
     std::printf("\n");
   }
+  if (identify_first) {
+    std::printf("  identified first (pneud's identification run on each bench): %zu of %d, %zu failed\n",
+                id_null_error_pa.size(), n, id_failures.size());
+    for (const auto& f : id_failures) std::printf("    failed: %s\n", f.c_str());
+    if (!id_null_error_pa.empty()) {
+      for (int side = 0; side < 2; ++side)
+        std::printf("    %s error against the bench: p50 %.3f %%  p90 %.3f %%  max %.3f %%\n",
+                    side == 0 ? "F_S+" : "F_S-", percentile(id_stiction_error_pct[side], 0.5),
+                    percentile(id_stiction_error_pct[side], 0.9), percentile(id_stiction_error_pct[side], 1.0));
+      std::printf("    p_null(u) over |u| < 1 V, largest error against the bench: p50 %.0f Pa  p90 %.0f Pa  max %.0f Pa\n",
+                  percentile(id_null_error_pa, 0.5), percentile(id_null_error_pa, 0.9), percentile(id_null_error_pa, 1.0));
+    }
+  }
   std::printf("  %.2f s wall on %d threads: %.1f scenarios/s\n", wall_s, jobs, n / wall_s);
   const config::LinearizedSlope slope = base.controller.predictor.linearized_slope;
   const std::string names[2] = {slope == config::LinearizedSlope::kStopTangent
@@ -792,6 +892,17 @@ int run(int argc, char** argv) {
     std::printf("    error, sticking <  0.5 s (%zu): p50 %.3f ms p90 %.3f ms p99 %.3f ms max %.3f ms\n",
                 st.short_error_ms.size(), percentile(st.short_error_ms, 0.5), percentile(st.short_error_ms, 0.9),
                 percentile(st.short_error_ms, 0.99), percentile(st.short_error_ms, 1.0));
+    {
+      std::size_t within[3] = {0, 0, 0};
+      for (const double e : st.long_error_pct)
+        for (int b = 0; b < 3; ++b) within[b] += e <= (b == 0 ? 2.0 : b == 1 ? 5.0 : 10.0) ? 1 : 0;
+      const std::uint64_t judged_stops = st.tp + st.tn + st.fp + st.fn;
+      std::printf("    sticking >= 0.5 s, within 2 %%: %zu, 5 %%: %zu, 10 %%: %zu of %zu; verdict wrong (restart or "
+                  "none): %llu of %llu judged stops (%.2f %%)\n",
+                  within[0], within[1], within[2], st.long_error_pct.size(),
+                  static_cast<unsigned long long>(st.fp + st.fn), static_cast<unsigned long long>(judged_stops),
+                  judged_stops ? 100.0 * static_cast<double>(st.fp + st.fn) / static_cast<double>(judged_stops) : 0.0);
+    }
     std::printf("    outside the acceptance criteria (%s %%, 10 ms): %llu\n", m == 0 ? "5" : "1",
                 static_cast<unsigned long long>(st.misses));
     std::printf("    made again half-way, sticking >= 0.5 s (%zu): p50 %.3f %%  p90 %.3f %%  p99 %.3f %%  max %.3f %% "

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <atomic>
+#include <cstdio>
 #include <memory>
 #include <string>
 #include <vector>
@@ -80,6 +81,16 @@ class Recorder final : public controller::RunListener {
 [[nodiscard]] Identification identify_by_run(const config::Config& config, const model::ValveCharacteristic& valve,
                                              const controller::ControlLaw& law, std::unique_ptr<hal::Backend> backend,
                                              double start_m);
+
+/// The configuration to write: `config` (the one the run started from, its own set points and
+/// length) with plant: identified, as YAML headed by a comment saying what was identified and from
+/// what. Validated by loading it back: throws config::ConfigError when the identified values break
+/// a rule of the configuration.
+[[nodiscard]] std::string identified_config_yaml(const config::Config& config, const Identification& id,
+                                                 const std::string& source);
+
+/// Each parameter before and after, with its uncertainty and what it came from, and the evidence.
+void print_report(std::FILE* out, const Identification& id);
 
 /// identify()'s options for a run of `config` (the stop detector's rest band).
 [[nodiscard]] Options options_for(const config::Config& config);
