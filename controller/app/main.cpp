@@ -62,7 +62,9 @@ Usage:
   --quiet            no summary on stdout
   --identify OUT.yaml  an identification run instead of the configured set points: an automatic
                      sequence of moves and slow set-point ramps within the soft limits (under a
-                     minute), supervised as any run, then plant: identified from the run's own
+                     minute), driven by gains designed on the model (controller.law.design, even
+                     with gains: fixed: the run visits the whole stroke), supervised as any run,
+                     then plant: identified from the run's own
                      signals (stiction, Coulomb and viscous friction, the valves' conductances and
                      null offset, the dead volumes) and written, with the rest of the configuration,
                      to OUT.yaml; each parameter is printed before and after with its uncertainty.
@@ -147,6 +149,7 @@ int run(int argc, char** argv) {
   const controller::ControlLaw law = controller::make_control_law(cfg, *valve);
   // An identification run: its own set points and length, on the configured backend.
   const std::optional<std::string> identify_path = args.value("identify");
+  std::optional<controller::ControlLaw> run_law;  // the identification run's, when not the configured one
   const config::Config as_configured = cfg;
   std::optional<cli::AtomicFile> identified;
   if (identify_path) {
@@ -159,8 +162,9 @@ int run(int argc, char** argv) {
     // configured first set point.
     if (cfg.hal.backend == config::BackendKind::kSim) cfg.controller.initial_setpoint_m = cfg.simulation.initial_position_m;
     identify::RunPlan plan;
+    run_law = identify::identification_law(cfg, *valve);
     try {
-      plan = identify::plan_run(cfg, law, *valve, cfg.controller.initial_setpoint_m);
+      plan = identify::plan_run(cfg, *run_law, *valve, cfg.controller.initial_setpoint_m);
     } catch (const std::invalid_argument& e) {
       throw config::ConfigError("controller.soft_limit_min_m", e.what());
     }
@@ -182,7 +186,8 @@ int run(int argc, char** argv) {
   if (identify_path) identified.emplace(*identify_path);  // an unwritable path fails before the run
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
-  controller::Run run = controller::make_run(cfg, *valve, backends::make_backend(cfg, law), law);
+  const controller::ControlLaw& driving = run_law ? *run_law : law;
+  controller::Run run = controller::make_run(cfg, *valve, backends::make_backend(cfg, driving), driving);
   files.add_sinks(*run.runtime);
   std::atomic<bool> fault_stop{false};
   identify::Recorder recorder(fault_stop);

@@ -9,6 +9,12 @@
 
 namespace pneu::identify {
 
+controller::ControlLaw identification_law(const config::Config& config, const model::ValveCharacteristic& valve) {
+  config::Config designed = config;
+  designed.controller.law.gains = config::GainsKind::kScheduled;
+  return controller::make_control_law(designed, valve);
+}
+
 RunPlan plan_run(const config::Config& cfg, const controller::ControlLaw& law, const model::ValveCharacteristic& valve,
                  double start_m, const PlanOptions& o) {
   const auto& c = cfg.controller;

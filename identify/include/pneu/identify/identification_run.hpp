@@ -43,6 +43,13 @@ struct PlanOptions {
   double margin_m = 0.03;          ///< the positions stay this far inside the soft limits
 };
 
+/// The law an identification run drives: gains designed on `config`'s model (controller.law.design,
+/// as with controller.law.gains: scheduled) whatever controller.law.gains says, because the run
+/// visits the whole stroke and fixed gains need not be stable over it (the paper's are not, at
+/// mid-stroke). Throws config::ConfigError when the design is refused.
+[[nodiscard]] controller::ControlLaw identification_law(const config::Config& config,
+                                                        const model::ValveCharacteristic& valve);
+
 /// The plan for `config` (soft limits, plant: as the prior) driven by `law`, starting at rest at
 /// `start_m`. Throws std::invalid_argument when the soft limits leave no room for it.
 [[nodiscard]] RunPlan plan_run(const config::Config& config, const controller::ControlLaw& law,
