@@ -120,26 +120,49 @@ struct Solution {
   double rms_pa = 0.0;
 };
 
-// Levenberg-Marquardt on the free parameters, numerical Jacobian by central differences.
-Solution levenberg_marquardt(const Problem& problem, Theta theta, const std::array<bool, kValveFitParams>& free) {
+// The prior's spread: how far the bench may be from the model before the data says otherwise
+// (1 sigma): half the value for the conductances and volumes (theta is their logarithm), 0.1 V
+// for the null offset. The fit is the posterior's mode: a combination the data sees is set by
+// the data, one it does not see stays near the model's value.
+constexpr double kPriorSpreadLog = 0.5;
+constexpr double kPriorSpreadNullOffset_v = 0.1;
+
+double prior_spread(std::size_t i) { return i == kNullOffset ? kPriorSpreadNullOffset_v : kPriorSpreadLog; }
+
+// Levenberg-Marquardt on the free parameters (numerical Jacobian by central differences) for the
+// measured pressures, at kPressureNoiseFloor_pa, and the prior; the posterior covariance, scaled
+// up when the residual is noisier than the floor.
+Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& prior,
+                             const std::array<bool, kValveFitParams>& free) {
   std::vector<std::size_t> idx;
   for (std::size_t i = 0; i < kValveFitParams; ++i)
     if (free[i]) idx.push_back(i);
   const auto nf = static_cast<Eigen::Index>(idx.size());
+  const auto m = problem.size();
+  const double noise = kPressureNoiseFloor_pa;
+  // The residuals: the measurements' (weighted by the noise), then the prior's.
+  const auto residuals = [&](const Theta& th) {
+    Eigen::VectorXd r(m + nf);
+    r.head(m) = problem.residuals(th) / noise;
+    for (Eigen::Index c = 0; c < nf; ++c) {
+      const std::size_t i = idx[static_cast<std::size_t>(c)];
+      r[m + c] = (th[static_cast<Eigen::Index>(i)] - prior[static_cast<Eigen::Index>(i)]) / prior_spread(i);
+    }
+    return r;
+  };
   const auto jacobian = [&](const Theta& th) {
-    Eigen::MatrixXd j(problem.size(), nf);
+    Eigen::MatrixXd j(m + nf, nf);
     for (Eigen::Index c = 0; c < nf; ++c) {
       const std::size_t i = idx[static_cast<std::size_t>(c)];
       constexpr double h = 1.0e-5;
       Theta up = th, down = th;
       up[static_cast<Eigen::Index>(i)] += h;
       down[static_cast<Eigen::Index>(i)] -= h;
-      // d(measured - model)/d theta
-      j.col(c) = (problem.residuals(up) - problem.residuals(down)) / (2.0 * h);
+      j.col(c) = (residuals(up) - residuals(down)) / (2.0 * h);
     }
     return j;
   };
-  Eigen::VectorXd r = problem.residuals(theta);
+  Eigen::VectorXd r = residuals(theta);
   double cost = r.squaredNorm();
   double lambda = 1.0e-3;
   Eigen::MatrixXd j = jacobian(theta);
@@ -154,7 +177,7 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const std::arr
       Theta trial = theta;
       for (Eigen::Index c = 0; c < nf; ++c) trial[static_cast<Eigen::Index>(idx[static_cast<std::size_t>(c)])] += step[c];
       trial[kNullOffset] = std::clamp(trial[kNullOffset], -5.0, 5.0);
-      const Eigen::VectorXd rt = problem.residuals(trial);
+      const Eigen::VectorXd rt = residuals(trial);
       const double ct = rt.squaredNorm();
       if (std::isfinite(ct) && ct < cost) {
         const double gain = (cost - ct) / cost;
@@ -174,26 +197,19 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const std::arr
   Solution sol;
   sol.theta = theta;
   sol.covariance.setZero();
-  const auto m = problem.size();
-  sol.rms_pa = m > 0 ? std::sqrt(cost / static_cast<double>(m)) : 0.0;
-  if (nf > 0 && m > nf) {
-    // The residual's variance, but no less than a real pressure reading's: noise-free samples
-    // (a simulation) would otherwise call a direction the data barely sees well determined.
-    const double s2 = std::max(cost / static_cast<double>(m - nf), kPressureNoiseFloor_pa * kPressureNoiseFloor_pa);
-    const Eigen::MatrixXd a = j.transpose() * j;
-    // The pseudo-inverse: a direction the data does not see gets an infinite variance.
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(a);
-    const double top = eig.eigenvalues().maxCoeff();
-    Eigen::MatrixXd inv = Eigen::MatrixXd::Zero(nf, nf);
-    for (Eigen::Index e = 0; e < nf; ++e) {
-      const double l = eig.eigenvalues()[e];
-      const double inv_l = l > top * 1e-14 ? 1.0 / l : 1e300;
-      inv += inv_l * eig.eigenvectors().col(e) * eig.eigenvectors().col(e).transpose();
-    }
+  const double data_cost = r.head(m).squaredNorm() * noise * noise;
+  sol.rms_pa = m > 0 ? std::sqrt(data_cost / static_cast<double>(m)) : 0.0;
+  if (nf > 0) {
+    // Residuals noisier than the floor: the data's information is that much less.
+    const double scale = std::max(1.0, (sol.rms_pa / noise) * (sol.rms_pa / noise));
+    Eigen::MatrixXd info = j.topRows(m).transpose() * j.topRows(m) / scale;
+    for (Eigen::Index c = 0; c < nf; ++c) info(c, c) += 1.0 / (prior_spread(idx[static_cast<std::size_t>(c)]) *
+                                                               prior_spread(idx[static_cast<std::size_t>(c)]));
+    const Eigen::MatrixXd cov = info.inverse();
     for (Eigen::Index a_ = 0; a_ < nf; ++a_)
       for (Eigen::Index b_ = 0; b_ < nf; ++b_)
         sol.covariance(static_cast<Eigen::Index>(idx[static_cast<std::size_t>(a_)]),
-                       static_cast<Eigen::Index>(idx[static_cast<std::size_t>(b_)])) = s2 * inv(a_, b_);
+                       static_cast<Eigen::Index>(idx[static_cast<std::size_t>(b_)])) = cov(a_, b_);
   }
   return sol;
 }
@@ -224,11 +240,12 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
   const Problem problem(s, std::move(fit), prior);
   std::array<bool, kValveFitParams> free{};
   free.fill(true);
-  // Fit all; the parameters the data cannot tell apart (their standard deviation with all the
-  // others free) go back to their priors, and the rest is fitted again. The rest keep the larger
-  // of their two standard deviations: fitted around a prior that may be wrong, they are no
-  // surer than the data made them with everything free.
-  const Solution all = levenberg_marquardt(problem, theta_of(prior), free);
+  // Fit all; the parameters the data cannot tell apart (their posterior standard deviation with
+  // all the others free stays near the prior's) go back to their priors, and the rest is fitted
+  // again. The rest keep the larger of their two standard deviations: fitted around a prior that
+  // may be wrong, they are no surer than the data made them with everything free.
+  const Theta prior_theta = theta_of(prior);
+  const Solution all = levenberg_marquardt(problem, prior_theta, prior_theta, free);
   std::array<double, kValveFitParams> marginal{};
   for (std::size_t i = 0; i < kValveFitParams; ++i) {
     marginal[i] = std::sqrt(std::max(0.0, all.covariance(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(i))));
@@ -244,7 +261,7 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
     Theta start = all.theta;
     for (std::size_t i = 0; i < kValveFitParams; ++i)
       if (!free[i]) start[static_cast<Eigen::Index>(i)] = theta_of(prior)[static_cast<Eigen::Index>(i)];
-    sol = levenberg_marquardt(problem, start, free);
+    sol = levenberg_marquardt(problem, start, prior_theta, free);
     for (std::size_t i = 0; i < kValveFitParams; ++i) {
       const auto d = static_cast<Eigen::Index>(i);
       sol.covariance(d, d) = std::max(sol.covariance(d, d), marginal[i] * marginal[i]);

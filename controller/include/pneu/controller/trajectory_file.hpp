@@ -1,5 +1,5 @@
 // A sink of the runtime: the trajectory file (pneud --trajectory), one CSV row per tick drained:
-// seq,t,y_d,y,v_hat,a_hat,p_P,p_N,F,u,stuck,validity, then the pressures and force each forecast
+// seq,t,y_d,y,v_hat,a_hat,p_P,p_N,F,u,stuck,mode,validity, then the pressures and force each forecast
 // made at the open stop expects at that tick (p_P_linearized,...,F_nonlinear; empty when not
 // followed).
 #pragma once
