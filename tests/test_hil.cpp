@@ -9,6 +9,7 @@
 #include <sys/socket.h>
 #include <sys/wait.h>
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <map>
@@ -18,6 +19,7 @@
 #include <thread>
 #include <vector>
 
+#include "pneu/config/config.hpp"
 #include "support/child_process.hpp"
 
 namespace {
@@ -197,6 +199,74 @@ TEST_F(Hil, PaperScenarioOverModbusSticksRestartsAndTheNonlinearForecastHoldsWit
     }
     if (long_restarts == 0) std::printf("run %d: no sticking phase of 0.5 s or more ended in a restart\n%s", runs,
                                         slurp(dir_ / "pneud.out").c_str());
+  }
+  EXPECT_GE(long_restarts, 1) << "a sticking phase of 0.5 s or more ending in a restart, in " << runs << " runs";
+}
+
+// Issue 15 over Modbus: pneu-plant serve plays a bench that is not pneud's model (stiction 20 %
+// high, the exhaust leak 22 % low, a valve null offset of 50 mV); pneud --identify identifies it
+// over the link (refused without --armed), and the paper's step on the identified configuration
+// forecasts its long sticking phases within 5 %, where the model as configured was tens of % off.
+TEST_F(Hil, IdentifiedOverModbusThePaperStepsLongStickingPhaseIsForecastWithin5Percent) {
+  const std::vector<std::string> bench{"--set", "hal.sim.plant.friction.static_positive_n=54",
+                                       "--set", "hal.sim.plant.friction.static_negative_n=-60",
+                                       "--set", "hal.sim.plant.valve.leak_conductance_out_m3_per_s_pa=9.98e-10",
+                                       "--set", "hal.sim.plant.valve.null_offset_v=0.05"};
+  const fs::path identified = dir_ / "identified.yaml";
+  {
+    Child refused = Child::spawn(pneud_args({"--identify", identified.string()}), dir_ / "refused.out", dir_ / "refused.err");
+    EXPECT_EQ(refused.wait(), 2);
+    EXPECT_THAT(slurp(dir_ / "refused.err"), HasSubstr("--armed"));
+    EXPECT_FALSE(fs::exists(identified));
+  }
+  {
+    Child plant = serve(90.0, bench);
+    Child pneud = Child::spawn(pneud_args({"--identify", identified.string(), "--armed"}), dir_ / "identify.out",
+                               dir_ / "identify.err");
+    ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "identify.err") << slurp(dir_ / "identify.out");
+    kill(plant.pid, SIGINT);
+    ASSERT_EQ(plant.wait(), 0) << slurp(dir_ / "serve.err");
+  }
+  const std::string report = slurp(dir_ / "identify.out");
+  std::printf("%s", report.substr(report.find("identified from")).c_str());
+  ASSERT_TRUE(fs::exists(identified));
+  const pneu::config::Config id = pneu::config::load_file(identified);
+  EXPECT_NEAR(id.plant.friction.static_positive_n, 54.0, 0.05 * 54.0);
+  EXPECT_NEAR(id.plant.friction.static_negative_n, -60.0, 0.05 * 60.0);
+  EXPECT_NEAR(id.plant.valve.null_offset_v, 0.05, 0.015);
+  EXPECT_EQ(id.hal.backend, pneu::config::BackendKind::kModbus) << "the rest of the configuration as it was";
+
+  // The paper's step (its gains) on the identified configuration; every restart after 0.5 s or
+  // more of sticking, as pneud dated it.
+  int long_restarts = 0, runs = 0;
+  for (; runs < 3 && long_restarts == 0; ++runs) {
+    const std::string events = "paper" + std::to_string(runs) + ".jsonl";
+    Child plant = serve(15.0, bench);
+    std::vector<std::string> args = pneud_args({"--events", (dir_ / events).string(), "--set", "controller.law.gains=fixed"});
+    args[2] = identified.string();  // --config
+    Child pneud = Child::spawn(args, dir_ / "paper.out", dir_ / "paper.err");
+    ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "paper.err");
+    kill(plant.pid, SIGINT);
+    ASSERT_EQ(plant.wait(), 0) << slurp(dir_ / "serve.err");
+    std::map<int, std::array<double, 3>> stops;  // t, nonlinear forecast, restart
+    std::istringstream lines(slurp(dir_ / events));
+    for (std::string line; std::getline(lines, line);) {
+      const int idx = static_cast<int>(field(line, "stop"));
+      auto& s = stops.try_emplace(idx, std::array<double, 3>{NAN, NAN, NAN}).first->second;
+      if (line.find("\"event\":\"stop\"") != std::string::npos) s[0] = field(line, "t");
+      if (line.find("\"event\":\"prediction\"") != std::string::npos && line.find("\"method\":\"nonlinear\"") != std::string::npos)
+        s[1] = field(line, "t_restart");
+      if (line.find("\"event\":\"start\"") != std::string::npos && line.find("\"restart\":true") != std::string::npos)
+        s[2] = field(line, "t");
+    }
+    for (const auto& [idx, s] : stops) {
+      if (std::isnan(s[2]) || s[2] - s[0] < 0.5) continue;
+      ++long_restarts;
+      const double sticking = s[2] - s[0];
+      std::printf("run %d, stop %d: stuck %.3f s, forecast %.2f %% off\n", runs, idx, sticking,
+                  100 * std::abs(s[1] - s[2]) / sticking);
+      EXPECT_LE(std::abs(s[1] - s[2]), 0.05 * sticking) << "run " << runs << ", stop " << idx;
+    }
   }
   EXPECT_GE(long_restarts, 1) << "a sticking phase of 0.5 s or more ending in a restart, in " << runs << " runs";
 }

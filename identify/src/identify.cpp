@@ -525,8 +525,15 @@ Identification identify(std::span<const Sample> s, const model::PlantParams& pri
   }
 
   // The valves and the dead volumes from the stuck phases' pressure transients (Eq. 19).
-  const detail::ValveFit vf = detail::fit_valves(s, phases, id.plant, o);
-  ev.fitted_phases = vf.phases;
+  detail::ValveFit vf;
+  if (o.fit_valves) {
+    vf = detail::fit_valves(s, phases, id.plant, o);
+  } else {
+    vf.plant = id.plant;
+    vf.phases = -1;
+    vf.basis.fill("not refitted: no new stuck phase long enough");
+  }
+  ev.fitted_phases = std::max(vf.phases, 0);
   ev.pressure_rms_residual_pa = vf.rms_residual_pa;
   if (vf.phases == 0)
     throw InsufficientData(format("too little excitation: no stuck phase of %.3g s or more driven by the loop, so the "

@@ -22,6 +22,7 @@
 #include "pneu/config/config.hpp"
 #include "pneu/controller/session.hpp"
 #include "pneu/identify/identification_run.hpp"
+#include "pneu/identify/online.hpp"
 #include "pneu/model/valve.hpp"
 #include "pneu/controller/supervisor.hpp"
 #include "pneu/controller/verdict.hpp"
@@ -37,7 +38,7 @@ Usage:
   pneu-sweep [--config FILE] --out SWEEP.csv [--steps N] [--seed S] [--jobs J] [--duration S]
              [--step-time S] [--tail S] [--margin-m M] [--min-step-m D] [--friction-spread F] [--gain-spread G]
              [--bench-spread B] [--scenarios-out SCENARIOS.csv] [--set KEY=VALUE ...] [--supervised] [--strict]
-             [--strict-forecasts] [--identify] [--quiet]
+             [--strict-forecasts] [--identify] [--online] [--quiet]
 
 Scenario i starts at rest at a random position y0 and steps the set point at --step-time
 (default 1 s) to y_d, the targets spread evenly over the stroke less --margin-m (default 0.02 m)
@@ -53,6 +54,10 @@ time, then --tail seconds more (default 1) in which no new stop is judged: a res
 before the end of the window is then seen or refuted by the signals rather than cut off (a
 breakaway with a force a hair beyond stiction moves the carriage by less than the detector's
 motion band for tens of milliseconds). --jobs threads (default: the cores) share the scenarios.
+
+--online adds pneud's online identification to each scenario's run: the forecasts use what it has
+identified so far, from the configured model (with --identify, from the identified one); the
+stops before the scenario's 3rd restart (while it learns) are not judged, and counted.
 
 --identify first runs pneud's identification run (pneud --identify) on each scenario's bench, from
 the configured model, and runs the scenario on the model it identified: plant: then holds what
@@ -400,7 +405,7 @@ int run(int argc, char** argv) {
   const cli::Args args(argc, argv, 1,
                        {"config", "out", "steps", "seed", "jobs", "duration", "step-time", "margin-m",
                         "min-step-m", "friction-spread", "gain-spread", "bench-spread", "tail", "scenarios-out"},
-                       {"strict", "strict-forecasts", "quiet", "help", "supervised", "identify"}, {"set"});
+                       {"strict", "strict-forecasts", "quiet", "help", "supervised", "identify", "online"}, {"set"});
   if (args.flag("help")) {
     std::cout << kHelp;
     return cli::kExitOk;
@@ -410,6 +415,9 @@ int run(int argc, char** argv) {
   const config::SupervisorConfig settling_rules = base.controller.supervisor;  // checked alongside
   const bool supervised = args.flag("supervised");
   const bool identify_first = args.flag("identify");
+  const bool online = args.flag("online");
+  // --online: a stop is judged once the scenario's bench has restarted this many times.
+  constexpr int kOnlineLearningRestarts = 3;
   if (!supervised) {
     auto& v = base.controller.supervisor;
     v.oscillation_sign_changes = 0;
@@ -553,6 +561,8 @@ int run(int argc, char** argv) {
                                        : std::optional(settling_rules_only(controller::LoopParams::from(cfg, law), settling_rules)),
                             step_time, cfg.controller.duration_s, half);
         sim.runtime->add_sink(watch);
+        std::optional<identify::OnlineIdentifier> learner;
+        if (online) sim.runtime->add_sink(learner.emplace(cfg, *sim.runtime));
         controller::SimulatedClock clock;
         std::atomic<bool> never{false};
         controller::execute(sim, cfg, clock, never);
@@ -615,15 +625,22 @@ int run(int argc, char** argv) {
   std::uint64_t stops = 0, restarts = 0, long_restarts = 0, longest_restart_count_1s = 0, unseen = 0, not_at_rest = 0;
   std::vector<double> start_dating_ms;  // detector's start - plant's breakaway, over the starts it saw
   char buf[512];
+  std::uint64_t learning = 0;  // --online: stops before their bench's kOnlineLearningRestarts-th restart
   for (const auto& r : results) {
+    int restarts_seen = 0;  // by the daemon, before this stop
     for (std::size_t k = 0; k < r.stops.size(); ++k) {
       const auto& s = r.stops[k];
       ++stops;
       if (r.truth[k].unseen) ++unseen;
       if (!std::isnan(r.truth[k].start_dating_s)) start_dating_ms.push_back(1e3 * r.truth[k].start_dating_s);
-      const bool judged = !r.truth[k].not_at_rest;  // else the forecast's premise, rest, was not there
-      if (!judged) ++not_at_rest;
-      const char* outcome = !judged    ? "plant_not_at_rest"
+      const bool before_learning = online && restarts_seen < kOnlineLearningRestarts;
+      if (s.restarted) ++restarts_seen;
+      if (before_learning) ++learning;
+      // else the forecast's premise, rest, was not there
+      const bool judged = !r.truth[k].not_at_rest && !before_learning;
+      if (r.truth[k].not_at_rest) ++not_at_rest;
+      const char* outcome = before_learning     ? "before_learning"
+                            : !judged          ? "plant_not_at_rest"
                             : !s.ended ? "stuck_to_end"
                                        : (s.restarted ? "restart" : "setpoint_changed");
       if (judged && s.restarted) {
@@ -855,6 +872,9 @@ int run(int argc, char** argv) {
       std::printf("; after the step: p50 %.3f s  max %.3f s", percentile(all_after_s, 0.5), percentile(all_after_s, 1.0));
     std::printf("\n");
   }
+  if (online)
+    std::printf("  online identification: %llu stops before their bench's %d-th restart (while it learns) not judged\n",
+                static_cast<unsigned long long>(learning), kOnlineLearningRestarts);
   if (identify_first) {
     std::printf("  identified first (pneud's identification run on each bench): %zu of %d, %zu failed\n",
                 id_null_error_pa.size(), n, id_failures.size());

@@ -58,6 +58,10 @@ class Runtime {
   [[nodiscard]] std::uint64_t sequence_gaps() const noexcept { return sequence_gaps_; }
 
   [[nodiscard]] const PredictorModel& model() const noexcept { return model_; }
+  /// The model the forecasts use from now on (online identification): the forecasts made again
+  /// while stuck from the next one, each stop's from its own. A forecast already followed keeps the
+  /// model it was made with, so the old valve characteristic must stay alive.
+  void set_model(const PredictorModel& model) noexcept { model_ = model; }
   [[nodiscard]] bool forecasts(PredictionMethod method) const noexcept {
     return method == PredictionMethod::kLinearized ? linearized_ : nonlinear_;
   }

@@ -47,6 +47,9 @@ struct Options {
   double end_stop_margin_m = 0.002;
   /// Sliding samples for Coulomb and viscous friction: |v| at least this many Stribeck velocities.
   double sliding_min_stribeck = 4.0;
+  /// Fit the valves and dead volumes (the costly part); false keeps them at the prior, "not
+  /// refitted" (online refinement between new long stuck phases).
+  bool fit_valves = true;
   /// A parameter whose relative standard deviation (1 sigma) exceeds this is not identified: the
   /// data cannot tell it apart from the others, and the prior is kept.
   double max_relative_std = 0.2;

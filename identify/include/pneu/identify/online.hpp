@@ -1,0 +1,64 @@
+// Online refinement: while pneud runs, the bench identified again from its own recent signals at
+// every stop that follows a breakaway, and the restart forecasts made on what was identified.
+#pragma once
+
+#include <deque>
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include "pneu/config/config.hpp"
+#include "pneu/controller/run_listener.hpp"
+#include "pneu/controller/runtime.hpp"
+#include "pneu/identify/identify.hpp"
+#include "pneu/model/valve.hpp"
+
+namespace pneu::identify {
+
+/// A sink of the run that keeps the last `window_s` of samples and, at each stop that follows a
+/// breakaway (the stop event comes before the stop's forecasts), identifies the bench from them
+/// with identify(), starting from `config`'s plant: as the prior. Each parameter identified
+/// replaces the running estimate; one the window cannot tell (no breakaway that way, the valve fit
+/// not separable) keeps it. The runtime's forecasts then use the running estimate: the stiction
+/// bounds and the valves' model with the identified conductances, null offset and dead volumes
+/// (not with controller.predictor.valve_table: a measured table is not refined). Runs on the
+/// thread that drains (not the loop's): allocation and the fit's milliseconds are fine there.
+class OnlineIdentifier final : public controller::RunListener {
+ public:
+  OnlineIdentifier(const config::Config& config, controller::Runtime& runtime, double window_s = kDefaultWindow_s);
+  static constexpr double kDefaultWindow_s = 60.0;
+
+  void on_tick(const controller::TickRecord& tick, const controller::ExpectedAtTick&) override;
+  void on_event(const controller::LoopEvent& event) override;
+
+  /// Called after each update with the running estimate (LCM publishes it).
+  void on_update(std::function<void(const Identification&, double t_s)> callback) { callback_ = std::move(callback); }
+
+  /// The running estimate: the configuration's plant: until the first update.
+  [[nodiscard]] const Identification& estimate() const noexcept { return estimate_; }
+  [[nodiscard]] int updates() const noexcept { return updates_; }
+  /// Updates the window could not make (no breakaway, too little to fit), and the last reason.
+  [[nodiscard]] int refused() const noexcept { return refused_; }
+  [[nodiscard]] const std::string& last_refusal() const noexcept { return last_refusal_; }
+  /// The restarts seen (starts with the set point unchanged since the stop).
+  [[nodiscard]] int restarts() const noexcept { return restarts_; }
+
+ private:
+  void update(double t_s);
+
+  controller::Runtime& runtime_;
+  model::PlantParams prior_;
+  Options options_;
+  double window_s_;
+  std::deque<Sample> window_;
+  Identification estimate_;
+  std::vector<std::unique_ptr<model::ValveModel>> valves_;  // every model a forecast may still use
+  std::function<void(const Identification&, double)> callback_;
+  int updates_ = 0, refused_ = 0, restarts_ = 0;
+  int starts_since_update_ = 0;
+  bool new_long_phase_ = false;  // a stuck phase long enough for the valve fit ended since the last fit
+  double stuck_since_s_ = -1.0;
+  std::string last_refusal_;
+};
+
+}  // namespace pneu::identify

@@ -1,0 +1,80 @@
+#include "pneu/identify/online.hpp"
+
+#include "pneu/identify/identification_run.hpp"
+
+namespace pneu::identify {
+
+OnlineIdentifier::OnlineIdentifier(const config::Config& config, controller::Runtime& runtime, double window_s)
+    : runtime_(runtime), prior_(config.plant), options_(options_for(config)), window_s_(window_s) {
+  estimate_.plant = prior_;
+}
+
+void OnlineIdentifier::on_tick(const controller::TickRecord& tick, const controller::ExpectedAtTick&) {
+  window_.push_back(sample_of(tick));
+  while (!window_.empty() && window_.front().t_s < tick.t_s - window_s_) window_.pop_front();
+}
+
+void OnlineIdentifier::on_event(const controller::LoopEvent& e) {
+  using Kind = controller::LoopEvent::Kind;
+  if (e.kind == Kind::kStart) {
+    ++starts_since_update_;
+    if (e.restart) ++restarts_;
+    if (stuck_since_s_ >= 0.0 && e.t_s - stuck_since_s_ >= options_.min_fit_phase_s) new_long_phase_ = true;
+    stuck_since_s_ = -1.0;
+  } else if (e.kind == Kind::kStop) {
+    if (starts_since_update_ > 0 && !window_.empty()) update(window_.back().t_s);
+    stuck_since_s_ = e.t_s;
+  }
+}
+
+void OnlineIdentifier::update(double t_s) {
+  starts_since_update_ = 0;
+  const std::vector<Sample> samples(window_.begin(), window_.end());
+  Options o = options_;
+  o.fit_valves = new_long_phase_;
+  Identification id;
+  try {
+    id = identify(samples, prior_, o);
+  } catch (const InsufficientData& e) {
+    ++refused_;
+    last_refusal_ = e.what();
+    return;
+  }
+  if (o.fit_valves) new_long_phase_ = false;
+  // Each parameter identified in this window replaces the running estimate; the others keep it.
+  if (estimate_.estimates.empty()) {
+    estimate_ = id;
+    for (Estimate& x : estimate_.estimates)
+      if (!x.identified) x.value = x.prior;
+  } else {
+    for (std::size_t i = 0; i < id.estimates.size(); ++i)
+      if (id.estimates[i].identified) estimate_.estimates[i] = id.estimates[i];
+    estimate_.evidence = id.evidence;
+  }
+  // The running plant: the prior with every estimate's value.
+  model::PlantParams p = prior_;
+  const auto value = [&](const char* key) { return estimate_.at(key).value; };
+  p.friction.static_positive_n = value("plant.friction.static_positive_n");
+  p.friction.static_negative_n = value("plant.friction.static_negative_n");
+  p.friction.coulomb_positive_n = std::min(value("plant.friction.coulomb_positive_n"), p.friction.static_positive_n);
+  p.friction.coulomb_negative_n = std::max(value("plant.friction.coulomb_negative_n"), p.friction.static_negative_n);
+  p.friction.viscous_n_s_per_m = value("plant.friction.viscous_n_s_per_m");
+  p.valve.max_conductance_m3_per_s_pa = value("plant.valve.max_conductance_m3_per_s_pa");
+  p.valve.leak_conductance_in_m3_per_s_pa = value("plant.valve.leak_conductance_in_m3_per_s_pa");
+  p.valve.leak_conductance_out_m3_per_s_pa = value("plant.valve.leak_conductance_out_m3_per_s_pa");
+  p.valve.null_offset_v = value("plant.valve.null_offset_v");
+  p.geometry.dead_volume_p_m3 = value("plant.geometry.dead_volume_p_m3");
+  p.geometry.dead_volume_n_m3 = value("plant.geometry.dead_volume_n_m3");
+  estimate_.plant = p;
+  ++updates_;
+  // The forecasts from now on: the running estimate's stiction, valves and volumes.
+  controller::PredictorModel m = runtime_.model();
+  m.geometry = p.geometry;
+  m.friction = p.friction;
+  valves_.push_back(std::make_unique<model::ValveModel>(p.valve, p.gas));
+  m.valve = valves_.back().get();
+  runtime_.set_model(m);
+  if (callback_) callback_(estimate_, t_s);
+}
+
+}  // namespace pneu::identify
