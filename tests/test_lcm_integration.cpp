@@ -28,6 +28,7 @@
 #include "pneu_lcm/command_t.hpp"
 #include "pneu_lcm/event_t.hpp"
 #include "pneu_lcm/health_t.hpp"
+#include "pneu_lcm/identification_t.hpp"
 #include "pneu_lcm/prediction_t.hpp"
 #include "pneu_lcm/state_t.hpp"
 
@@ -213,6 +214,71 @@ pneu_lcm::command_t command(int64_t seq, int8_t kind, double value) {
   c.kind = kind;
   c.value = value;
   return c;
+}
+
+// Issue 15, online: pneud learning online (controller.predictor.learn_online) on a bench whose
+// stiction is not the model's publishes its running estimate on PNEU_IDENTIFICATION, and
+// pneu-identify, offline from the LCM log of the same run, gives the same estimates within their
+// uncertainty.
+TEST_F(LcmIntegration, OnlineIdentificationIsPublishedAndTheLogIdentifiesTheSameOffline) {
+  const fs::path log = dir_ / "run.lcm";
+  Child logger = Child::spawn({"lcm-logger", "-q", "-f", std::string("--lcm-url=") + kUrl, "-c", "PNEU_.*", log.string()},
+                              dir_ / "logger.out", dir_ / "logger.err");
+  ASSERT_GT(logger.pid, 0) << "lcm-logger (package liblcm-bin) did not start";
+  lcm::LCM probe(kUrl);
+  ASSERT_TRUE(probe.good());
+  const char probe_data[1] = {0};
+  for (int i = 0; i < 100 && events_in_log(log, "PNEU_PROBE") == 0; ++i) {
+    probe.publish("PNEU_PROBE", probe_data, sizeof probe_data);
+    std::this_thread::sleep_for(100ms);
+  }
+  ASSERT_GT(events_in_log(log, "PNEU_PROBE"), 0) << "lcm-logger did not subscribe within 10 s";
+  Child pneud = Child::spawn(
+      loop_timing_faults_off({bin("pneud"), "--clock", "real", "--duration", "4", "--require-telemetry", "--set",
+                              "controller.predictor.learn_online=true", "--set",
+                              "hal.sim.plant.friction.static_negative_n=-53", "--trajectory", (dir_ / "traj.csv").string()}),
+      dir_ / "pneud.out", dir_ / "pneud.err");
+  ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
+  const std::size_t ticks_recorded = Csv::read(dir_ / "traj.csv").rows.size();
+  (void)pneu::test::eventually(
+      [&] { return events_in_log(log, "PNEU_STATE") >= static_cast<int>(ticks_recorded); }, 10s, 100ms);
+  kill(logger.pid, SIGINT);
+  ASSERT_EQ(logger.wait(), 0) << slurp(dir_ / "logger.err");
+  EXPECT_THAT(slurp(dir_ / "pneud.out"), HasSubstr("online identification: "));
+
+  lcm::LogFile file(log.string(), "r");
+  ASSERT_TRUE(file.good());
+  std::vector<pneu_lcm::identification_t> updates;
+  for (const lcm::LogEvent* e = file.readNextEvent(); e; e = file.readNextEvent()) {
+    if (e->channel != "PNEU_IDENTIFICATION") continue;
+    pneu_lcm::identification_t m{};
+    ASSERT_EQ(m.decode(e->data, 0, e->datalen), e->datalen);
+    updates.push_back(m);
+  }
+  ASSERT_FALSE(updates.empty()) << "an update at each stop after a breakaway";
+  const auto& online = updates.back();
+  EXPECT_EQ(online.updates, static_cast<int32_t>(updates.size()));
+  const int fs_neg = pneu_lcm::identification_t::STATIC_NEGATIVE_N;
+  ASSERT_EQ(online.identified[fs_neg], 1) << "the restarts of the paper's step are negative";
+  EXPECT_NEAR(online.value[fs_neg], -53.0, 0.02 * 53.0);
+
+  // Offline, from the log.
+  const fs::path identified = dir_ / "identified.yaml";
+  Child offline = Child::spawn({bin("pneu-identify"), "--lcm-log", log.string(), "--out", identified.string()},
+                               dir_ / "identify.out", dir_ / "identify.err");
+  ASSERT_EQ(offline.wait(), 0) << slurp(dir_ / "identify.err");
+  // The written F_S- against the online one, within their uncertainties (3 sigma of both).
+  const std::string yaml = slurp(identified);
+  const auto at = yaml.find("\n    static_negative_n: ");
+  ASSERT_NE(at, std::string::npos) << yaml;
+  const double offline_fs_neg = std::stod(yaml.substr(at + 24));
+  const auto sigma_at = yaml.find("plant.friction.static_negative_n: ");
+  ASSERT_NE(sigma_at, std::string::npos);
+  const std::string comment = yaml.substr(sigma_at, yaml.find('\n', sigma_at) - sigma_at);
+  const double offline_sigma = std::stod(comment.substr(comment.find("+- ") + 3));
+  std::printf("F_S-: online %.4f +- %.4f (%d updates), offline %.4f +- %.4f\n", online.value[fs_neg],
+              online.sigma[fs_neg], online.updates, offline_fs_neg, offline_sigma);
+  EXPECT_LE(std::abs(online.value[fs_neg] - offline_fs_neg), 3 * (online.sigma[fs_neg] + offline_sigma));
 }
 
 TEST_F(LcmIntegration, CommandsAreValidatedAndOnlyValidOnesReachTheLoop) {

@@ -17,6 +17,7 @@
 #include "pneu/controller/run_summary.hpp"
 #include "pneu/controller/session.hpp"
 #include "pneu/identify/identification_run.hpp"
+#include "pneu/identify/online.hpp"
 #include "run_files.hpp"
 #include "systemd_notifier.hpp"
 #include "telemetry.hpp"
@@ -192,6 +193,9 @@ int run(int argc, char** argv) {
   std::atomic<bool> fault_stop{false};
   identify::Recorder recorder(fault_stop);
   if (identify_path) run.runtime->add_sink(recorder);
+  // Online identification (controller.predictor.learn_online): the forecasts on what it learns.
+  std::optional<identify::OnlineIdentifier> learner;
+  if (cfg.controller.predictor.learn_online && !identify_path) run.runtime->add_sink(learner.emplace(as_configured, *run.runtime));
   const std::unique_ptr<Telemetry> telemetry = Telemetry::start(cfg, run, args.flag("require-telemetry"));
   SystemdNotifier notifier(*run.outputs, g_stop);
   std::function<void(int)> wait_for_input;
@@ -239,6 +243,13 @@ int run(int argc, char** argv) {
   if (telemetry) figures.telemetry = telemetry->figures();
   files.write_summary_json(figures, *run.runtime);
   if (!args.flag("quiet")) controller::print_summary(stdout, figures, *run.runtime);
+  if (learner && !args.flag("quiet")) {
+    std::printf("online identification: %d updates from the run's own signals (%d stops after a breakaway could not "
+                "update%s%s)\n",
+                learner->updates(), learner->refused(), learner->refused() > 0 ? ": " : "",
+                learner->last_refusal().c_str());
+    if (learner->updates() > 0) identify::print_report(stdout, learner->estimate());
+  }
   if (identify_path) {
     if (!recorder.fault().empty())
       throw std::runtime_error("the identification run ended at t = " + std::to_string(recorder.fault_time_s()) +

@@ -199,4 +199,8 @@ void Runtime::record_command(CommandRecord command) {
   for (RunListener* sink : sinks_) sink->on_command(command);
 }
 
+void Runtime::record_identification(const IdentificationRecord& record) {
+  for (RunListener* sink : sinks_) sink->on_identification(record);
+}
+
 }  // namespace pneu::controller

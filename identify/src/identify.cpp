@@ -2,12 +2,14 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
 #include <limits>
 
 #include "phases.hpp"
+#include "pneu/controller/run_listener.hpp"
 #include "pneu/model/pressure_force.hpp"
 #include "valve_fit.hpp"
 
@@ -17,21 +19,14 @@ namespace {
 
 using detail::StuckPhase;
 
-constexpr const char* kKeys[] = {
-    "plant.friction.static_positive_n",
-    "plant.friction.static_negative_n",
-    "plant.friction.coulomb_positive_n",
-    "plant.friction.coulomb_negative_n",
-    "plant.friction.viscous_n_s_per_m",
-    "plant.valve.max_conductance_m3_per_s_pa",
-    "plant.valve.leak_conductance_in_m3_per_s_pa",
-    "plant.valve.leak_conductance_out_m3_per_s_pa",
-    "plant.valve.null_offset_v",
-    "plant.geometry.dead_volume_p_m3",
-    "plant.geometry.dead_volume_n_m3",
-    "plant.friction.stribeck_velocity_m_per_s",
-    "plant.mass_kg",
-};
+// The keys: those online identification publishes (run_listener.hpp), then the two taken as known.
+constexpr std::array<const char*, 13> kKeys = [] {
+  std::array<const char*, 13> k{};
+  for (std::size_t i = 0; i < controller::kIdentifiedParameterKeys.size(); ++i) k[i] = controller::kIdentifiedParameterKeys[i];
+  k[11] = "plant.friction.stribeck_velocity_m_per_s";
+  k[12] = "plant.mass_kg";
+  return k;
+}();
 
 // A dated breakaway's weight is 1 / (how far the force had moved on + this)^2 [N].
 constexpr double kOnsetWeightFloor_n = 0.05;

@@ -74,7 +74,16 @@ void OnlineIdentifier::update(double t_s) {
   valves_.push_back(std::make_unique<model::ValveModel>(p.valve, p.gas));
   m.valve = valves_.back().get();
   runtime_.set_model(m);
-  if (callback_) callback_(estimate_, t_s);
+  controller::IdentificationRecord record;
+  record.t_s = t_s;
+  record.updates = static_cast<std::uint32_t>(updates_);
+  for (std::size_t i = 0; i < controller::kIdentifiedParameterKeys.size(); ++i) {
+    const Estimate& e = estimate_.at(controller::kIdentifiedParameterKeys[i]);
+    record.value[i] = e.value;
+    record.sigma[i] = e.identified ? e.std : 0.0;
+    record.identified[i] = e.identified;
+  }
+  runtime_.record_identification(record);
 }
 
 }  // namespace pneu::identify

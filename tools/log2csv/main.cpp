@@ -65,6 +65,9 @@ the Unix epoch]; then the message's fields in the order and units of lcmtypes/*.
                 rejected_invalid,rejected_rate,rejected_mode,rejected_sequence,rejected_stale,
                 rejected_foreign,rejected_oversized,deadlines_skipped,fault_cause,faults,is_final
   command_t     log_utime,utime,seq,kind,kind_name,value
+  identification_t  log_utime,utime,t,updates, then for each parameter of lcmtypes/identification_t.lcm
+                in its order: NAME,NAME_sigma,NAME_identified (NAME its config key's last part:
+                static_positive_n ... dead_volume_n_m3)
   unknown       log_utime,bytes,fingerprint_hex: a message of another type, or one that does not
                 decode as the type its fingerprint names (too short, or bytes left over); bytes
                 is its size, fingerprint_hex its first 8 bytes. Counted on stderr.

@@ -7,6 +7,7 @@
 #include "pneu_lcm/command_t.hpp"
 #include "pneu_lcm/event_t.hpp"
 #include "pneu_lcm/health_t.hpp"
+#include "pneu_lcm/identification_t.hpp"
 #include "pneu_lcm/prediction_t.hpp"
 #include "pneu_lcm/state_t.hpp"
 
@@ -170,6 +171,8 @@ const char* type_name(MessageType type) {
       return "health_t";
     case MessageType::kCommand:
       return "command_t";
+    case MessageType::kIdentification:
+      return "identification_t";
     case MessageType::kUnknown:
       return "unknown";
   }
@@ -195,6 +198,21 @@ std::string_view csv_header(MessageType type) {
              "rejected_oversized,deadlines_skipped,fault_cause,faults,is_final";
     case MessageType::kCommand:
       return "log_utime,utime,seq,kind,kind_name,value";
+    case MessageType::kIdentification:
+      return "log_utime,utime,t,updates,"
+             "static_positive_n,static_positive_n_sigma,static_positive_n_identified,"
+             "static_negative_n,static_negative_n_sigma,static_negative_n_identified,"
+             "coulomb_positive_n,coulomb_positive_n_sigma,coulomb_positive_n_identified,"
+             "coulomb_negative_n,coulomb_negative_n_sigma,coulomb_negative_n_identified,"
+             "viscous_n_s_per_m,viscous_n_s_per_m_sigma,viscous_n_s_per_m_identified,"
+             "max_conductance_m3_per_s_pa,max_conductance_m3_per_s_pa_sigma,max_conductance_m3_per_s_pa_identified,"
+             "leak_conductance_in_m3_per_s_pa,leak_conductance_in_m3_per_s_pa_sigma,"
+             "leak_conductance_in_m3_per_s_pa_identified,"
+             "leak_conductance_out_m3_per_s_pa,leak_conductance_out_m3_per_s_pa_sigma,"
+             "leak_conductance_out_m3_per_s_pa_identified,"
+             "null_offset_v,null_offset_v_sigma,null_offset_v_identified,"
+             "dead_volume_p_m3,dead_volume_p_m3_sigma,dead_volume_p_m3_identified,"
+             "dead_volume_n_m3,dead_volume_n_m3_sigma,dead_volume_n_m3_identified";
     case MessageType::kUnknown:
       return "log_utime,bytes,fingerprint_hex";
   }
@@ -217,6 +235,8 @@ MessageType classify(const void* data, std::int32_t size) {
     return as(pneu_lcm::health_t{}, MessageType::kHealth);
   if (fingerprint == pneu_lcm::command_t::getHash())
     return as(pneu_lcm::command_t{}, MessageType::kCommand);
+  if (fingerprint == pneu_lcm::identification_t::getHash())
+    return as(pneu_lcm::identification_t{}, MessageType::kIdentification);
   return MessageType::kUnknown;
 }
 
@@ -331,6 +351,15 @@ RowInfo format_csv_row(std::int64_t log_utime, const void* data, std::int32_t si
           .number(m.value)
           .end();
       return {MessageType::kCommand, 0};
+    }
+  } else if (fingerprint == pneu_lcm::identification_t::getHash()) {
+    pneu_lcm::identification_t m{};
+    if (decode_whole(data, size, &m)) {
+      Row row(line, log_utime);
+      row.integer(m.utime).number(m.t).integer(m.updates);
+      for (int i = 0; i < 11; ++i) row.number(m.value[i]).number(m.sigma[i]).integer(m.identified[i]);
+      row.end();
+      return {MessageType::kIdentification, 0};
     }
   }
   unknown_row(log_utime, data, size, line);

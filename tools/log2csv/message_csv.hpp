@@ -12,13 +12,13 @@ namespace pneu::log2csv {
 
 /// What a logged message decodes as. kUnknown: a fingerprint of no pneu_lcm type, or a payload
 /// that does not decode as the type its fingerprint names (too short, or bytes left over).
-enum class MessageType : std::uint8_t { kState, kEvent, kPrediction, kHealth, kCommand, kUnknown };
-inline constexpr std::size_t kMessageTypeCount = 6;
+enum class MessageType : std::uint8_t { kState, kEvent, kPrediction, kHealth, kCommand, kIdentification, kUnknown };
+inline constexpr std::size_t kMessageTypeCount = 7;
 inline constexpr std::array<MessageType, kMessageTypeCount> kAllMessageTypes = {
-    MessageType::kState,  MessageType::kEvent,   MessageType::kPrediction,
-    MessageType::kHealth, MessageType::kCommand, MessageType::kUnknown};
+    MessageType::kState,   MessageType::kEvent,          MessageType::kPrediction, MessageType::kHealth,
+    MessageType::kCommand, MessageType::kIdentification, MessageType::kUnknown};
 
-/// "state_t", "event_t", "prediction_t", "health_t", "command_t" or "unknown".
+/// "state_t", "event_t", "prediction_t", "health_t", "command_t", "identification_t" or "unknown".
 [[nodiscard]] const char* type_name(MessageType type);
 
 /// The CSV header of a type's file, without the newline.

@@ -415,7 +415,7 @@ int run(int argc, char** argv) {
   const config::SupervisorConfig settling_rules = base.controller.supervisor;  // checked alongside
   const bool supervised = args.flag("supervised");
   const bool identify_first = args.flag("identify");
-  const bool online = args.flag("online");
+  const bool online = args.flag("online") || base.controller.predictor.learn_online;
   // --online: a stop is judged once the scenario's bench has restarted this many times.
   constexpr int kOnlineLearningRestarts = 3;
   if (!supervised) {

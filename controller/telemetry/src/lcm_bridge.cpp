@@ -14,6 +14,7 @@
 #include "pneu_lcm/command_t.hpp"
 #include "pneu_lcm/event_t.hpp"
 #include "pneu_lcm/health_t.hpp"
+#include "pneu_lcm/identification_t.hpp"
 #include "pneu_lcm/prediction_t.hpp"
 #include "pneu_lcm/state_t.hpp"
 
@@ -40,6 +41,7 @@ LcmBridge::LcmBridge(const config::Config& config, controller::LoopOutputs& loop
       prediction_channel_(prefix_ + "PREDICTION"),
       health_channel_(prefix_ + "HEALTH"),
       command_channel_(prefix_ + "COMMAND"),
+      identification_channel_(prefix_ + "IDENTIFICATION"),
       loop_(loop),
       validator_(config),
       epoch_utime_(unix_now_us()),
@@ -163,6 +165,19 @@ void LcmBridge::on_forecast(const controller::ForecastRecord& f) {
   m.force = f.force_n;
   m.stop_forecast_force = f.stop_forecast_force_n;
   publish(prediction_channel_, m);
+}
+
+void LcmBridge::on_identification(const controller::IdentificationRecord& r) {
+  pneu_lcm::identification_t m{};
+  m.utime = utime_of(r.t_s);
+  m.t = r.t_s;
+  m.updates = static_cast<std::int32_t>(r.updates);
+  for (std::size_t i = 0; i < r.value.size(); ++i) {
+    m.value[i] = r.value[i];
+    m.sigma[i] = r.sigma[i];
+    m.identified[i] = r.identified[i] ? 1 : 0;
+  }
+  publish(identification_channel_, m);
 }
 
 void LcmBridge::on_health(const controller::HealthRecord& h) {

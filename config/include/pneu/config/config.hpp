@@ -109,6 +109,10 @@ struct PredictorConfig {
   /// While stuck, the forecasts are made again from the pressures of the moment this often
   /// (0: only at the stop) [s].
   double update_period_s = 0.1;
+  /// Online identification: at each stop after a breakaway, the bench identified again from the
+  /// last minute of the run's own signals, and the forecasts made on the running estimate
+  /// (stiction, the valves' conductances and null offset, the dead volumes).
+  bool learn_online = false;
 };
 
 /// One step of the set-point schedule.

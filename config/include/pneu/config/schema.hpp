@@ -471,6 +471,8 @@ void describe(auto& a, Like<PredictorConfig> auto& p) {
           "the linearized method's flow slope (Eq. 23)");
   a.field(optional(PNEU_NVP(p, update_period_s)), Range::non_negative(),
           "while stuck, forecast again this often [s]; 0 = only at the stop");
+  a.field(optional(PNEU_NVP(p, learn_online)),
+          "identify the bench again at each stop after a breakaway and forecast on what was identified");
 }
 
 /// One step of controller.setpoints.schedule.

@@ -4,6 +4,7 @@
 // between simulated ticks), never on the loop thread.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <limits>
 #include <string_view>
@@ -52,6 +53,25 @@ struct CommandRecord {
   std::string_view text;       ///< what was done, or why not, for people
 };
 
+/// The parameters online identification estimates, in the order of IdentificationRecord's
+/// arrays (and of <prefix>IDENTIFICATION's): their config keys.
+inline constexpr std::array<const char*, 11> kIdentifiedParameterKeys = {
+    "plant.friction.static_positive_n",           "plant.friction.static_negative_n",
+    "plant.friction.coulomb_positive_n",          "plant.friction.coulomb_negative_n",
+    "plant.friction.viscous_n_s_per_m",           "plant.valve.max_conductance_m3_per_s_pa",
+    "plant.valve.leak_conductance_in_m3_per_s_pa", "plant.valve.leak_conductance_out_m3_per_s_pa",
+    "plant.valve.null_offset_v",                  "plant.geometry.dead_volume_p_m3",
+    "plant.geometry.dead_volume_n_m3"};
+
+/// The running estimate of online identification, after an update.
+struct IdentificationRecord {
+  double t_s = 0.0;               ///< the update's loop time [s]
+  std::uint32_t updates = 0;      ///< updates since the start
+  std::array<double, kIdentifiedParameterKeys.size()> value{};   ///< unit of the key
+  std::array<double, kIdentifiedParameterKeys.size()> sigma{};   ///< 1 sigma; 0 when not identified
+  std::array<bool, kIdentifiedParameterKeys.size()> identified{};
+};
+
 /// A sink of the runtime: receives, in order, what the runtime drains from the loop and what it
 /// makes of it. For each tick: its events (each before the record of the tick that raised it; a
 /// stop's event before its forecasts), then the tick, then the forecasts made again from it. Each
@@ -69,6 +89,8 @@ class RunListener {
   virtual void on_health(const HealthRecord& /*health*/) {}
   /// A command's verdict (Runtime::record_command).
   virtual void on_command(const CommandRecord& /*command*/) {}
+  /// An update of online identification (Runtime::record_identification).
+  virtual void on_identification(const IdentificationRecord& /*record*/) {}
   /// The end of the run at `t_end_s`.
   virtual void on_end(double /*t_end_s*/) {}
 };

@@ -45,6 +45,8 @@ class Runtime {
   /// Hands a command's verdict to the sinks, dated by the last tick drained. Not real-time, not
   /// thread-safe: call from the thread that drains (the service thread).
   void record_command(CommandRecord command);
+  /// Hands an update of online identification to the sinks. Same thread rule.
+  void record_identification(const IdentificationRecord& record);
 
   /// The stops of the run, the last max_stops_kept of them (kMaxStopsKept unless set; at least 4).
   [[nodiscard]] const std::vector<StopOutcome>& stops() const noexcept { return stops_; }

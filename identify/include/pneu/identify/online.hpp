@@ -3,7 +3,6 @@
 #pragma once
 
 #include <deque>
-#include <functional>
 #include <memory>
 #include <vector>
 
@@ -23,6 +22,8 @@ namespace pneu::identify {
 /// bounds and the valves' model with the identified conductances, null offset and dead volumes
 /// (not with controller.predictor.valve_table: a measured table is not refined). Runs on the
 /// thread that drains (not the loop's): allocation and the fit's milliseconds are fine there.
+/// Each update goes to the runtime's sinks (Runtime::record_identification: LCM's
+/// <prefix>IDENTIFICATION).
 class OnlineIdentifier final : public controller::RunListener {
  public:
   OnlineIdentifier(const config::Config& config, controller::Runtime& runtime, double window_s = kDefaultWindow_s);
@@ -30,9 +31,6 @@ class OnlineIdentifier final : public controller::RunListener {
 
   void on_tick(const controller::TickRecord& tick, const controller::ExpectedAtTick&) override;
   void on_event(const controller::LoopEvent& event) override;
-
-  /// Called after each update with the running estimate (LCM publishes it).
-  void on_update(std::function<void(const Identification&, double t_s)> callback) { callback_ = std::move(callback); }
 
   /// The running estimate: the configuration's plant: until the first update.
   [[nodiscard]] const Identification& estimate() const noexcept { return estimate_; }
@@ -53,7 +51,6 @@ class OnlineIdentifier final : public controller::RunListener {
   std::deque<Sample> window_;
   Identification estimate_;
   std::vector<std::unique_ptr<model::ValveModel>> valves_;  // every model a forecast may still use
-  std::function<void(const Identification&, double)> callback_;
   int updates_ = 0, refused_ = 0, restarts_ = 0;
   int starts_since_update_ = 0;
   bool new_long_phase_ = false;  // a stuck phase long enough for the valve fit ended since the last fit

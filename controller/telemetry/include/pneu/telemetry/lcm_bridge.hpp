@@ -48,6 +48,7 @@ class LcmBridge final : public controller::RunListener {
   void on_event(const controller::LoopEvent& event) override;
   void on_forecast(const controller::ForecastRecord& forecast) override;
   void on_health(const controller::HealthRecord& health) override;
+  void on_identification(const controller::IdentificationRecord& record) override;
   void on_end(double t_end_s) override;
 
   /// For the run's summary.
@@ -71,7 +72,8 @@ class LcmBridge final : public controller::RunListener {
   std::string url_;
   std::string prefix_;
   // <prefix>STATE, ...: built once, not per message (STATE goes out every tick).
-  std::string state_channel_, event_channel_, prediction_channel_, health_channel_, command_channel_;
+  std::string state_channel_, event_channel_, prediction_channel_, health_channel_, command_channel_,
+      identification_channel_;
   controller::LoopOutputs& loop_;
   CommandValidator validator_;
   controller::Runtime* command_log_ = nullptr;
