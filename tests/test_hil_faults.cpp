@@ -183,7 +183,7 @@ class Telemetry {
 };
 
 // pneud's own record of when the samples went bad: the validity column (stale, comms error).
-bool stale_row(const std::vector<std::string>& row) { return std::stoul(row[11]) != 0; }
+bool stale_row(const std::vector<std::string>& row) { return std::stoul(row[12]) != 0; }  // seq,t,...,stuck,mode,validity
 
 struct Outputs {
   double t_s = NAN, u_p_v = NAN, u_n_v = NAN;
