@@ -6,6 +6,8 @@ namespace pneu::identify {
 
 OnlineIdentifier::OnlineIdentifier(const config::Config& config, controller::Runtime& runtime, double window_s)
     : runtime_(runtime), prior_(config.plant), options_(options_for(config)), window_s_(window_s) {
+  // The short stuck phases of ordinary stick-slip carry the valves too: fit every one.
+  options_.min_fit_phase_s = options_.min_stuck_s;
   estimate_.plant = prior_;
 }
 
