@@ -29,23 +29,36 @@ constexpr double kLeakFloorOfMax = 1.0e-3;
 // theta: ln C_max, ln C_leak_in, ln C_leak_out, w_0, ln V_P0, ln V_N0.
 using Theta = Eigen::Matrix<double, kValveFitParams, 1>;
 
+// The plant's value of fitted parameter i.
+double& parameter(model::PlantParams& p, std::size_t i) {
+  switch (i) {
+    case kMaxConductance: return p.valve.max_conductance_m3_per_s_pa;
+    case kLeakIn: return p.valve.leak_conductance_in_m3_per_s_pa;
+    case kLeakOut: return p.valve.leak_conductance_out_m3_per_s_pa;
+    case kNullOffset: return p.valve.null_offset_v;
+    case kDeadVolumeP: return p.geometry.dead_volume_p_m3;
+    default: return p.geometry.dead_volume_n_m3;
+  }
+}
+
+// theta_i is the logarithm of the value, but for the null offset, an offset.
+bool logarithmic(std::size_t i) { return i != kNullOffset; }
+
 model::PlantParams applied(model::PlantParams p, const Theta& th) {
-  p.valve.max_conductance_m3_per_s_pa = std::exp(th[kMaxConductance]);
-  p.valve.leak_conductance_in_m3_per_s_pa = std::exp(th[kLeakIn]);
-  p.valve.leak_conductance_out_m3_per_s_pa = std::exp(th[kLeakOut]);
-  p.valve.null_offset_v = th[kNullOffset];
-  p.geometry.dead_volume_p_m3 = std::exp(th[kDeadVolumeP]);
-  p.geometry.dead_volume_n_m3 = std::exp(th[kDeadVolumeN]);
+  for (std::size_t i = 0; i < kValveFitParams; ++i) {
+    const double t = th[static_cast<Eigen::Index>(i)];
+    parameter(p, i) = logarithmic(i) ? std::exp(t) : t;
+  }
   return p;
 }
 
-Theta theta_of(const model::PlantParams& p) {
-  const auto& v = p.valve;
-  const double floor = kLeakFloorOfMax * v.max_conductance_m3_per_s_pa;
+Theta theta_of(model::PlantParams p) {
+  const double floor = kLeakFloorOfMax * p.valve.max_conductance_m3_per_s_pa;
   Theta th;
-  th << std::log(v.max_conductance_m3_per_s_pa), std::log(std::max(v.leak_conductance_in_m3_per_s_pa, floor)),
-      std::log(std::max(v.leak_conductance_out_m3_per_s_pa, floor)), v.null_offset_v,
-      std::log(p.geometry.dead_volume_p_m3), std::log(p.geometry.dead_volume_n_m3);
+  for (std::size_t i = 0; i < kValveFitParams; ++i) {
+    const double v = i == kLeakIn || i == kLeakOut ? std::max(parameter(p, i), floor) : parameter(p, i);
+    th[static_cast<Eigen::Index>(i)] = logarithmic(i) ? std::log(v) : v;
+  }
   return th;
 }
 
@@ -268,39 +281,14 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
     }
   }
   out.plant = applied(prior, sol.theta);
-  // Parameters not identified keep the prior exactly (a leak of 0 stays 0).
+  // Parameters not identified keep the prior exactly (a leak of 0 stays 0), and no spread.
+  model::PlantParams kept = prior;
   for (std::size_t i = 0; i < kValveFitParams; ++i) {
     out.identified[i] = free[i];
-    const double var = sol.covariance(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(i));
-    const double sd = std::sqrt(std::max(0.0, var));
-    switch (i) {
-      case kMaxConductance:
-        if (!free[i]) out.plant.valve.max_conductance_m3_per_s_pa = prior.valve.max_conductance_m3_per_s_pa;
-        out.std[i] = sd * out.plant.valve.max_conductance_m3_per_s_pa;
-        break;
-      case kLeakIn:
-        if (!free[i]) out.plant.valve.leak_conductance_in_m3_per_s_pa = prior.valve.leak_conductance_in_m3_per_s_pa;
-        out.std[i] = sd * out.plant.valve.leak_conductance_in_m3_per_s_pa;
-        break;
-      case kLeakOut:
-        if (!free[i]) out.plant.valve.leak_conductance_out_m3_per_s_pa = prior.valve.leak_conductance_out_m3_per_s_pa;
-        out.std[i] = sd * out.plant.valve.leak_conductance_out_m3_per_s_pa;
-        break;
-      case kNullOffset:
-        if (!free[i]) out.plant.valve.null_offset_v = prior.valve.null_offset_v;
-        out.std[i] = sd;
-        break;
-      case kDeadVolumeP:
-        if (!free[i]) out.plant.geometry.dead_volume_p_m3 = prior.geometry.dead_volume_p_m3;
-        out.std[i] = sd * out.plant.geometry.dead_volume_p_m3;
-        break;
-      case kDeadVolumeN:
-        if (!free[i]) out.plant.geometry.dead_volume_n_m3 = prior.geometry.dead_volume_n_m3;
-        out.std[i] = sd * out.plant.geometry.dead_volume_n_m3;
-        break;
-      default: break;
-    }
-    if (!free[i]) out.std[i] = 0.0;
+    const auto d = static_cast<Eigen::Index>(i);
+    const double sd = std::sqrt(std::max(0.0, sol.covariance(d, d)));
+    if (!free[i]) parameter(out.plant, i) = parameter(kept, i);
+    out.std[i] = !free[i] ? 0.0 : logarithmic(i) ? sd * parameter(out.plant, i) : sd;
   }
   out.rms_residual_pa = sol.rms_pa;
   return out;
