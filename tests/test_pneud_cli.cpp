@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "pneu/config/config.hpp"
 #include "support/child_process.hpp"
 
 namespace {
@@ -488,6 +489,51 @@ TEST_F(PneudCli, GpioLinesWithTheSimulatedClockAreRefused) {
   const Outcome o = pneud("--set hal.gpio.enabled=true");
   EXPECT_EQ(o.exit_code, 2);
   EXPECT_THAT(o.err, HasSubstr("hal.gpio.enabled: real lines (e-stop, valve power) need the real clock"));
+}
+
+}  // namespace
+
+namespace {
+
+// pneud --identify on the simulated bench (issue 15): a bench whose stiction and null offset are
+// not the model's, identified and written whole; the written file runs the same bench.
+TEST_F(PneudCli, IdentifyWritesTheConfigurationWithPlantIdentifiedAndTheSameBench) {
+  const fs::path out = file("identified.yaml");
+  const Outcome o = pneud("--identify " + quoted(out) +
+                          " --set hal.sim.plant.friction.static_positive_n=50 --set hal.sim.plant.valve.null_offset_v=0.04");
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_THAT(o.out, ::testing::HasSubstr("plant.friction.static_positive_n"));
+  EXPECT_THAT(o.out, ::testing::HasSubstr("written: " + out.string()));
+  const pneu::config::Config c = pneu::config::load_file(out);
+  EXPECT_NEAR(c.plant.friction.static_positive_n, 50.0, 0.02 * 50.0);
+  EXPECT_NEAR(c.plant.valve.null_offset_v, 0.04, 0.005);
+  EXPECT_TRUE(c.hal.sim.has_plant);
+  EXPECT_EQ(c.hal.sim.plant.friction.static_positive_n, 50.0) << "the simulated bench as it was";
+  EXPECT_EQ(c.controller.schedule.size(), 1u) << "the configured set points, not the identification run's";
+  EXPECT_EQ(c.controller.duration_s, 12.0);
+  // What it identified, at the top of the file.
+  EXPECT_THAT(slurp(out), ::testing::StartsWith("# plant: identified by pneu pneud --identify\n"));
+}
+
+TEST_F(PneudCli, IdentifyStopsAtAFaultInTheSafeStateAndWritesNothing) {
+  const fs::path out = file("identified.yaml");
+  const Outcome o = pneud("--identify " + quoted(out) +
+                          " --set controller.supervisor.following_error_m=0.002 --set controller.supervisor.following_error_s=0.05");
+  EXPECT_EQ(o.exit_code, 1);
+  EXPECT_THAT(o.err, ::testing::HasSubstr("by a fault, following"));
+  EXPECT_THAT(o.err, ::testing::HasSubstr("nothing written"));
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST_F(PneudCli, IdentifyRefusesADurationAndArmedGoesOnlyWithIt) {
+  const fs::path out = file("identified.yaml");
+  Outcome o = pneud("--identify " + quoted(out) + " --duration 5");
+  EXPECT_EQ(o.exit_code, 2);
+  EXPECT_THAT(o.err, ::testing::HasSubstr("no --duration"));
+  o = pneud("--armed");
+  EXPECT_EQ(o.exit_code, 2);
+  EXPECT_THAT(o.err, ::testing::HasSubstr("--armed goes with --identify"));
+  EXPECT_FALSE(fs::exists(out));
 }
 
 }  // namespace
