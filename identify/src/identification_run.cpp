@@ -129,9 +129,11 @@ void print_report(std::FILE* out, const Identification& id) {
   const Evidence& e = id.evidence;
   std::fprintf(out,
                "evidence: %d stuck phases (%d fitted, %.1f s stuck, over %.0f mm, u over %.3f V), breakaways %d "
-               "positive / %d negative, %.2f s sliding; pressure fit residual %.1f Pa rms\n",
+               "positive / %d negative, %.2f s sliding; pressure fit residual %.1f Pa rms, the valves acting %d samples "
+               "after the command's record\n",
                e.stuck_phases, e.fitted_phases, e.stuck_s, e.stuck_position_span_m * 1e3, e.voltage_span_v,
-               e.breakaways_positive, e.breakaways_negative, e.sliding_s, e.pressure_rms_residual_pa);
+               e.breakaways_positive, e.breakaways_negative, e.sliding_s, e.pressure_rms_residual_pa,
+               e.command_delay_samples);
   std::fprintf(out, "%-46s %12s %12s %10s  %s\n", "parameter", "before", "after", "+- 1 sigma", "from");
   for (const Estimate& x : id.estimates) {
     if (x.identified)

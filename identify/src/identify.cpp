@@ -530,6 +530,7 @@ Identification identify(std::span<const Sample> s, const model::PlantParams& pri
   }
   ev.fitted_phases = std::max(vf.phases, 0);
   ev.pressure_rms_residual_pa = vf.rms_residual_pa;
+  ev.command_delay_samples = vf.command_delay_samples;
   if (vf.phases == 0)
     throw InsufficientData(format("too little excitation: no stuck phase of %.3g s or more driven by the loop, so the "
                                   "valves' pressure transients cannot be fitted",

@@ -42,7 +42,12 @@ void OnlineIdentifier::update(double t_s) {
     last_refusal_ = e.what();
     return;
   }
-  if (o.fit_valves) new_long_phase_ = false;
+  if (o.fit_valves) {
+    new_long_phase_ = false;
+    // The link's delay, found by the first fit, is kept: the next fits need not search it.
+    if (options_.command_delay_samples < 0 && id.evidence.fitted_phases > 0)
+      options_.command_delay_samples = id.evidence.command_delay_samples;
+  }
   // Each parameter identified in this window replaces the running estimate; the others keep it.
   if (estimate_.estimates.empty()) {
     estimate_ = id;

@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "pneu/model/valve.hpp"
 
@@ -23,6 +24,8 @@ constexpr double kMaxNullOffsetStd_v = 0.01;
 // The pressure noise the uncertainty assumes at least: a 16-bit reading of a 10 bar transmitter
 // steps by 15 Pa [Pa].
 constexpr double kPressureNoiseFloor_pa = 20.0;
+// The command delays tried [samples].
+constexpr std::size_t kMaxCommandDelaySamples = 4;
 // Leaks in the prior at 0 start the fit from this fraction of C_max (a logarithm needs > 0).
 constexpr double kLeakFloorOfMax = 1.0e-3;
 
@@ -85,8 +88,9 @@ struct Chamber {
 
 class Problem {
  public:
-  Problem(std::span<const Sample> s, std::vector<FitPhase> phases, const model::PlantParams& prior)
-      : s_(s), phases_(std::move(phases)), prior_(prior) {
+  // `delay`: the samples between a command's record and the valves acting on it (a bus's).
+  Problem(std::span<const Sample> s, std::vector<FitPhase> phases, const model::PlantParams& prior, std::size_t delay)
+      : s_(s), phases_(std::move(phases)), prior_(prior), delay_(delay) {
     for (const auto& p : phases_) size_ += 2 * static_cast<Eigen::Index>(p.observed.size());
   }
   [[nodiscard]] Eigen::Index size() const noexcept { return size_; }
@@ -105,12 +109,14 @@ class Problem {
       std::size_t k = ph.first;
       for (const std::size_t obs : ph.observed) {
         // Each u holds from its sample to the next (the command of a tick until the next tick).
+        // The valves act on the command recorded `delay_` samples before (within the phase).
+        const auto u_at = [&](std::size_t i) { return s_[i >= ph.first + delay_ ? i - delay_ : ph.first].u_v; };
         while (k < obs) {
           std::size_t j = k + 1;
-          while (j < obs && s_[j].u_v == s_[k].u_v) ++j;
+          while (j < obs && u_at(j) == u_at(k)) ++j;
           const double h = s_[j].t_s - s_[k].t_s;
-          pp = cp.advance(s_[k].u_v, pp, h);
-          pn = cn.advance(-s_[k].u_v, pn, h);
+          pp = cp.advance(u_at(k), pp, h);
+          pn = cn.advance(-u_at(k), pn, h);
           k = j;
         }
         r[row++] = s_[obs].p_p_pa - pp;
@@ -124,6 +130,7 @@ class Problem {
   std::span<const Sample> s_;
   std::vector<FitPhase> phases_;
   model::PlantParams prior_;
+  std::size_t delay_ = 0;
   Eigen::Index size_ = 0;
 };
 
@@ -250,15 +257,28 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
     out.basis.fill("no stuck phase long enough to fit the pressure transients");
     return out;
   }
-  const Problem problem(s, std::move(fit), prior);
+  // The command delay: the whole samples that fit best (0 in process; a Modbus link adds one),
+  // tried from 0 up while the fit improves, unless given.
+  const Theta prior_theta = theta_of(prior);
   std::array<bool, kValveFitParams> free{};
   free.fill(true);
-  // Fit all; the parameters the data cannot tell apart (their posterior standard deviation with
-  // all the others free stays near the prior's) go back to their priors, and the rest is fitted
-  // again. The rest keep the larger of their two standard deviations: fitted around a prior that
-  // may be wrong, they are no surer than the data made them with everything free.
-  const Theta prior_theta = theta_of(prior);
-  const Solution all = levenberg_marquardt(problem, prior_theta, prior_theta, free);
+  std::size_t delay = o.command_delay_samples >= 0 ? static_cast<std::size_t>(o.command_delay_samples) : 0;
+  std::optional<Problem> problem;
+  problem.emplace(s, fit, prior, delay);
+  Solution all = levenberg_marquardt(*problem, prior_theta, prior_theta, free);
+  for (std::size_t d = 1; o.command_delay_samples < 0 && d <= kMaxCommandDelaySamples; ++d) {
+    Problem later(s, fit, prior, d);
+    Solution fitted = levenberg_marquardt(later, all.theta, prior_theta, free);
+    if (!(fitted.rms_pa < all.rms_pa)) break;
+    all = fitted;
+    delay = d;
+    problem.emplace(std::move(later));
+  }
+  out.command_delay_samples = static_cast<int>(delay);
+  // The parameters the data cannot tell apart (their posterior standard deviation with all the
+  // others free stays near the prior's) go back to their priors, and the rest is fitted again.
+  // The rest keep the larger of their two standard deviations: fitted around a prior that may be
+  // wrong, they are no surer than the data made them with everything free.
   std::array<double, kValveFitParams> marginal{};
   for (std::size_t i = 0; i < kValveFitParams; ++i) {
     marginal[i] = std::sqrt(std::max(0.0, all.covariance(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(i))));
@@ -274,7 +294,7 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
     Theta start = all.theta;
     for (std::size_t i = 0; i < kValveFitParams; ++i)
       if (!free[i]) start[static_cast<Eigen::Index>(i)] = theta_of(prior)[static_cast<Eigen::Index>(i)];
-    sol = levenberg_marquardt(problem, start, prior_theta, free);
+    sol = levenberg_marquardt(*problem, start, prior_theta, free);
     for (std::size_t i = 0; i < kValveFitParams; ++i) {
       const auto d = static_cast<Eigen::Index>(i);
       sol.covariance(d, d) = std::max(sol.covariance(d, d), marginal[i] * marginal[i]);

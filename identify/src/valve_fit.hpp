@@ -29,6 +29,7 @@ struct ValveFit {
   std::array<std::string, kValveFitParams> basis;   ///< why not identified
   int phases = 0;
   double rms_residual_pa = 0.0;
+  int command_delay_samples = 0;   ///< the delay the fit found (or was given)
 };
 
 /// Fits the conductances, the null offset and the dead volumes so that Eq. 19, integrated over each

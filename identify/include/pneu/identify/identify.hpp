@@ -47,6 +47,9 @@ struct Options {
   double end_stop_margin_m = 0.002;
   /// Sliding samples for Coulomb and viscous friction: |v| at least this many Stribeck velocities.
   double sliding_min_stribeck = 4.0;
+  /// Samples between a command's record and the valves acting on it: -1 finds it (0 in process, 1
+  /// over a Modbus link: the command written at a tick reaches the module after that tick's read).
+  int command_delay_samples = -1;
   /// Fit the valves and dead volumes (the costly part); false keeps them at the prior, "not
   /// refitted" (online refinement between new long stuck phases).
   bool fit_valves = true;
@@ -76,6 +79,7 @@ struct Evidence {
   double stuck_position_span_m = 0.0;  ///< the stuck phases' positions, max - min
   double voltage_span_v = 0.0;     ///< the stuck phases' u, max - min
   double pressure_rms_residual_pa = 0.0;  ///< the valve fit's residual, both chambers
+  int command_delay_samples = 0;         ///< the valve fit's command delay [samples]
 };
 
 /// The result: the bench's parameters (the prior where not identified), each estimate, and the
