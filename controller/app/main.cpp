@@ -244,10 +244,10 @@ int run(int argc, char** argv) {
   files.write_summary_json(figures, *run.runtime);
   if (!args.flag("quiet")) controller::print_summary(stdout, figures, *run.runtime);
   if (learner && !args.flag("quiet")) {
-    std::printf("online identification: %d updates from the run's own signals (%d stops after a breakaway could not "
-                "update%s%s)\n",
-                learner->updates(), learner->refused(), learner->refused() > 0 ? ": " : "",
-                learner->last_refusal().c_str());
+    std::printf("online identification: %d updates from the run's own signals, the longest %.0f ms off the loop's "
+                "thread (%d stops after a breakaway could not update%s%s)\n",
+                learner->updates(), learner->longest_update_s() * 1e3, learner->refused(),
+                learner->refused() > 0 ? ": " : "", learner->last_refusal().c_str());
     if (learner->updates() > 0) identify::print_report(stdout, learner->estimate());
   }
   if (identify_path) {

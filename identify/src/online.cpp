@@ -1,5 +1,8 @@
 #include "pneu/identify/online.hpp"
 
+#include <algorithm>
+#include <chrono>
+
 #include "pneu/identify/identification_run.hpp"
 
 namespace pneu::identify {
@@ -30,6 +33,14 @@ void OnlineIdentifier::on_event(const controller::LoopEvent& e) {
 }
 
 void OnlineIdentifier::update(double t_s) {
+  const auto wall0 = std::chrono::steady_clock::now();
+  struct Timed {  // the update's wall time, however it ends
+    std::chrono::steady_clock::time_point from;
+    double& longest;
+    ~Timed() {
+      longest = std::max(longest, std::chrono::duration<double>(std::chrono::steady_clock::now() - from).count());
+    }
+  } timed{wall0, longest_update_s_};
   starts_since_update_ = 0;
   const std::vector<Sample> samples(window_.begin(), window_.end());
   Options o = options_;

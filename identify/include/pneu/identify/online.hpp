@@ -38,6 +38,8 @@ class OnlineIdentifier final : public controller::RunListener {
   /// Updates the window could not make (no breakaway, too little to fit), and the last reason.
   [[nodiscard]] int refused() const noexcept { return refused_; }
   [[nodiscard]] const std::string& last_refusal() const noexcept { return last_refusal_; }
+  /// The longest an update took on the thread that drains, wall time [s].
+  [[nodiscard]] double longest_update_s() const noexcept { return longest_update_s_; }
   /// The restarts seen (starts with the set point unchanged since the stop).
   [[nodiscard]] int restarts() const noexcept { return restarts_; }
 
@@ -56,6 +58,7 @@ class OnlineIdentifier final : public controller::RunListener {
   bool new_long_phase_ = false;  // a stuck phase long enough for the valve fit ended since the last fit
   double stuck_since_s_ = -1.0;
   std::string last_refusal_;
+  double longest_update_s_ = 0.0;
 };
 
 }  // namespace pneu::identify
