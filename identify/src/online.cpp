@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <exception>
 
 #include "pneu/identify/identification_run.hpp"
 
@@ -48,8 +49,8 @@ void OnlineIdentifier::update(double t_s) {
   Identification id;
   try {
     id = identify(samples, prior_, o);
-  } catch (const InsufficientData& e) {
-    ++refused_;
+  } catch (const std::exception& e) {  // too little in the window (InsufficientData), or worse:
+    ++refused_;                         // the run goes on, forecasting on the last estimate
     last_refusal_ = e.what();
     return;
   }
