@@ -293,7 +293,7 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
   if (std::find(free.begin(), free.end(), false) != free.end()) {
     Theta start = all.theta;
     for (std::size_t i = 0; i < kValveFitParams; ++i)
-      if (!free[i]) start[static_cast<Eigen::Index>(i)] = theta_of(prior)[static_cast<Eigen::Index>(i)];
+      if (!free[i]) start[static_cast<Eigen::Index>(i)] = prior_theta[static_cast<Eigen::Index>(i)];
     sol = levenberg_marquardt(*problem, start, prior_theta, free);
     for (std::size_t i = 0; i < kValveFitParams; ++i) {
       const auto d = static_cast<Eigen::Index>(i);
