@@ -56,13 +56,8 @@ double truth(const model::PlantParams& p, const std::string& key) {
   return NAN;
 }
 
-// The largest |p_null(u) - p_null_bench(u)| over |u| < 1 V [Pa].
 double null_pressure_error_pa(const model::PlantParams& a, const model::PlantParams& b) {
-  const model::ValveModel va(a.valve, a.gas), vb(b.valve, b.gas);
-  double worst = 0.0;
-  for (double u = -1.0; u <= 1.0 + 1e-9; u += 0.005)
-    worst = std::max(worst, std::abs(va.null_pressure_pa(u) - vb.null_pressure_pa(u)));
-  return worst;
+  return identify::largest_null_pressure_difference_pa(a, b, 1.0);
 }
 
 identify::Identification run_identification(const Bench& b) {

@@ -11,6 +11,7 @@
 #include "phases.hpp"
 #include "pneu/controller/run_listener.hpp"
 #include "pneu/model/pressure_force.hpp"
+#include "pneu/model/valve.hpp"
 #include "valve_fit.hpp"
 
 namespace pneu::identify {
@@ -365,6 +366,15 @@ Sliding sliding_from(std::span<const Sample> s, std::span<const double> force, s
 }  // namespace
 
 std::span<const char* const> identified_keys() noexcept { return kKeys; }
+
+double largest_null_pressure_difference_pa(const model::PlantParams& a, const model::PlantParams& b, double u_max_v) {
+  const model::ValveModel va(a.valve, a.gas), vb(b.valve, b.gas);
+  double worst = 0.0;
+  const int steps = static_cast<int>(std::lround(u_max_v / 0.005));
+  for (int k = -steps; k <= steps; ++k)
+    worst = std::max(worst, std::abs(va.null_pressure_pa(k * 0.005) - vb.null_pressure_pa(k * 0.005)));
+  return worst;
+}
 
 const Estimate& Identification::at(const std::string& key) const {
   for (const Estimate& e : estimates)

@@ -23,7 +23,6 @@
 #include "pneu/controller/session.hpp"
 #include "pneu/identify/identification_run.hpp"
 #include "pneu/identify/online.hpp"
-#include "pneu/model/valve.hpp"
 #include "pneu/controller/supervisor.hpp"
 #include "pneu/controller/verdict.hpp"
 
@@ -512,6 +511,11 @@ int run(int argc, char** argv) {
           f->coulomb_negative_n *= s.friction_scale;
           f->viscous_n_s_per_m *= s.friction_scale;
         }
+        // A scenario that cannot run is recorded as it is, and counted done.
+        const auto give_up = [&](ScenarioResult failed) {
+          results[static_cast<std::size_t>(i)] = std::move(failed);
+          if (done.fetch_add(1) + 1 == n) finished = std::chrono::steady_clock::now();
+        };
         const std::filesystem::path config_dir =
             config_path.empty() ? std::filesystem::path() : std::filesystem::path(config_path).parent_path();
         const model::PlantParams bench_params = s.bench.applied_to(config::simulated_bench(cfg));
@@ -522,15 +526,13 @@ int run(int argc, char** argv) {
           config::Config id_cfg = cfg;
           const auto prior_valve = controller::make_valve_characteristic(id_cfg, config_dir);
           controller::resolve_offset(id_cfg, *prior_valve);
-          const controller::ControlLaw prior_law = controller::make_control_law(id_cfg, *prior_valve);
+          const controller::ControlLaw prior_law = identify::identification_law(id_cfg, *prior_valve);
           try {
             identified = identify::identify_by_run(id_cfg, *prior_valve, prior_law,
                                                    backends::make_sim_backend(id_cfg, prior_law, bench_params), s.y0_m)
                              .plant;
           } catch (const std::exception& e) {
-            ScenarioResult failed{s, bench_params, std::nullopt, e.what(), {}, {}, 0.0, {}};
-            results[static_cast<std::size_t>(i)] = std::move(failed);
-            if (done.fetch_add(1) + 1 == n) finished = std::chrono::steady_clock::now();
+            give_up(ScenarioResult{s, bench_params, std::nullopt, e.what(), {}, {}, 0.0, {}});
             continue;
           }
           cfg.plant = *identified;
@@ -545,10 +547,9 @@ int run(int argc, char** argv) {
           designed.emplace(controller::make_control_law(cfg, *valve).scaled(s.gain_scale));
         } catch (const config::ConfigError& e) {
           if (!identified) throw;
-          ScenarioResult failed{s, bench_params, identified,
-                                std::string("the gain design on the identified model is refused: ") + e.what(), {}, {}, 0.0, {}};
-          results[static_cast<std::size_t>(i)] = std::move(failed);
-          if (done.fetch_add(1) + 1 == n) finished = std::chrono::steady_clock::now();
+          give_up(ScenarioResult{s, bench_params, identified,
+                                 std::string("the gain design on the identified model is refused: ") + e.what(), {}, {},
+                                 0.0, {}});
           continue;
         }
         const controller::ControlLaw& law = *designed;
@@ -734,71 +735,63 @@ int run(int argc, char** argv) {
   // --identify: what was identified against each bench.
   std::vector<double> id_stiction_error_pct[2], id_null_error_pa;
   std::vector<std::string> id_failures;
-  const auto null_pressure_error_pa = [](const model::PlantParams& a, const model::PlantParams& b) {
-    const model::ValveModel va(a.valve, a.gas), vb(b.valve, b.gas);
-    double worst = 0.0;
-    for (int k = -200; k <= 200; ++k)  // |u| <= 1 V, every 5 mV
-      worst = std::max(worst, std::abs(va.null_pressure_pa(k * 0.005) - vb.null_pressure_pa(k * 0.005)));
-    return worst;
-  };
   for (const auto& r : results) {
-    if (!r.identification_failed.empty()) {
-      id_failures.push_back("scenario " + std::to_string(r.scenario.index) + ": " + r.identification_failed);
-      if (scenarios_out) {
-        std::string reason = r.identification_failed;
-        std::replace(reason.begin(), reason.end(), ',', ';');
-        std::replace(reason.begin(), reason.end(), '"', '\'');
-        scenarios_out->stream() << r.scenario.index << ',' << cell(r.scenario.y0_m) << ',' << cell(r.scenario.y_d_m)
-                                << ',' << cell(r.scenario.friction_scale, 4) << ',' << cell(r.scenario.gain_scale, 4)
-                                << ",identification_failed" << std::string(20, ',') << ",\"" << reason << "\"\n";
-      }
-      continue;
-    }
-    double id_null_error = NAN;
-    if (r.identified) {
-      id_stiction_error_pct[0].push_back(100 * std::abs(r.identified->friction.static_positive_n / r.bench.friction.static_positive_n - 1));
-      id_stiction_error_pct[1].push_back(100 * std::abs(r.identified->friction.static_negative_n / r.bench.friction.static_negative_n - 1));
-      id_null_error = null_pressure_error_pa(*r.identified, r.bench);
-      id_null_error_pa.push_back(id_null_error);
-    }
+    // A scenario whose identification failed, or whose identified model could not be designed
+    // for, did not run: its row has no outcome's figures, and says why.
+    const bool ran = r.identification_failed.empty();
+    if (!ran) id_failures.push_back("scenario " + std::to_string(r.scenario.index) + ": " + r.identification_failed);
+    const double id_null_error =
+        r.identified ? identify::largest_null_pressure_difference_pa(*r.identified, r.bench, 1.0) : NAN;
     const Settling& g = r.settling;
-    const auto k = static_cast<std::size_t>(g.outcome);
-    ++outcome_count[k];
-    y0_range_m[k][0] = std::min(y0_range_m[k][0], r.scenario.y0_m);
-    y0_range_m[k][1] = std::max(y0_range_m[k][1], r.scenario.y0_m);
-    y_d_range_m[k][0] = std::min(y_d_range_m[k][0], r.scenario.y_d_m);
-    y_d_range_m[k][1] = std::max(y_d_range_m[k][1], r.scenario.y_d_m);
-    if (g.outcome == Outcome::kSettled) {
-      settle_times_s.push_back(g.settle_time_s);
-      final_errors_m.push_back(g.final_error_m);
-    }
-    if (g.fault != controller::FaultCause::kNone) ++fault_count[controller::fault_number(g.fault)];
-    if (!std::isnan(g.oscillation_rule_after_s)) rule_after_s[k].push_back(g.oscillation_rule_after_s);
-    if (!scenarios_out) continue;
-    scenarios_out->stream() << r.scenario.index << ',' << cell(r.scenario.y0_m) << ',' << cell(r.scenario.y_d_m) << ','
-                            << cell(r.scenario.friction_scale, 4) << ',' << cell(r.scenario.gain_scale, 4)
-                            << ',' << outcome_name(g.outcome) << ',' << cell(g.settle_time_s) << ','
-                            << cell(g.final_error_m, 9) << ','
-                            << (g.fault == controller::FaultCause::kNone ? "" : controller::fault_name(g.fault)) << ','
-                            << cell(g.fault_after_s) << ',' << g.stops << ',' << g.restarts << ','
-                            << (g.at_rest_at_end ? 1 : 0) << ',' << cell(g.last_second_swing_m, 9) << ','
-                            << cell(g.oscillation_rule_after_s);
-    {
-      const model::PlantParams& b = r.bench;
-      char row[512];
-      std::snprintf(row, sizeof row, ",%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g", b.friction.static_positive_n,
-                    b.friction.coulomb_positive_n, b.friction.static_negative_n, b.friction.coulomb_negative_n,
-                    b.friction.viscous_n_s_per_m, b.valve.max_conductance_m3_per_s_pa,
-                    b.valve.leak_conductance_in_m3_per_s_pa, b.valve.leak_conductance_out_m3_per_s_pa,
-                    b.geometry.dead_volume_p_m3, b.geometry.dead_volume_n_m3, b.valve.null_offset_v);
-      scenarios_out->stream() << row;
+    if (ran) {
       if (r.identified) {
-        std::snprintf(row, sizeof row, ",%.6g,%.6g,%.6g,%.1f,", r.identified->friction.static_positive_n,
-                      r.identified->friction.static_negative_n, r.identified->valve.null_offset_v, id_null_error);
-        scenarios_out->stream() << row;
+        id_stiction_error_pct[0].push_back(100 * std::abs(r.identified->friction.static_positive_n / r.bench.friction.static_positive_n - 1));
+        id_stiction_error_pct[1].push_back(100 * std::abs(r.identified->friction.static_negative_n / r.bench.friction.static_negative_n - 1));
+        id_null_error_pa.push_back(id_null_error);
       }
-      scenarios_out->stream() << '\n';
+      const auto k = static_cast<std::size_t>(g.outcome);
+      ++outcome_count[k];
+      y0_range_m[k][0] = std::min(y0_range_m[k][0], r.scenario.y0_m);
+      y0_range_m[k][1] = std::max(y0_range_m[k][1], r.scenario.y0_m);
+      y_d_range_m[k][0] = std::min(y_d_range_m[k][0], r.scenario.y_d_m);
+      y_d_range_m[k][1] = std::max(y_d_range_m[k][1], r.scenario.y_d_m);
+      if (g.outcome == Outcome::kSettled) {
+        settle_times_s.push_back(g.settle_time_s);
+        final_errors_m.push_back(g.final_error_m);
+      }
+      if (g.fault != controller::FaultCause::kNone) ++fault_count[controller::fault_number(g.fault)];
+      if (!std::isnan(g.oscillation_rule_after_s)) rule_after_s[k].push_back(g.oscillation_rule_after_s);
     }
+    if (!scenarios_out) continue;
+    auto& os_sc = scenarios_out->stream();
+    os_sc << r.scenario.index << ',' << cell(r.scenario.y0_m) << ',' << cell(r.scenario.y_d_m) << ','
+          << cell(r.scenario.friction_scale, 4) << ',' << cell(r.scenario.gain_scale, 4) << ',';
+    if (ran)
+      os_sc << outcome_name(g.outcome) << ',' << cell(g.settle_time_s) << ',' << cell(g.final_error_m, 9) << ','
+            << (g.fault == controller::FaultCause::kNone ? "" : controller::fault_name(g.fault)) << ','
+            << cell(g.fault_after_s) << ',' << g.stops << ',' << g.restarts << ',' << (g.at_rest_at_end ? 1 : 0) << ','
+            << cell(g.last_second_swing_m, 9) << ',' << cell(g.oscillation_rule_after_s);
+    else
+      os_sc << "identification_failed" << std::string(9, ',');  // the outcome's 9 figures: none
+    const model::PlantParams& b = r.bench;
+    char row[512];
+    std::snprintf(row, sizeof row, ",%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g", b.friction.static_positive_n,
+                  b.friction.coulomb_positive_n, b.friction.static_negative_n, b.friction.coulomb_negative_n,
+                  b.friction.viscous_n_s_per_m, b.valve.max_conductance_m3_per_s_pa,
+                  b.valve.leak_conductance_in_m3_per_s_pa, b.valve.leak_conductance_out_m3_per_s_pa,
+                  b.geometry.dead_volume_p_m3, b.geometry.dead_volume_n_m3, b.valve.null_offset_v);
+    os_sc << row;
+    if (identify_first) {
+      if (r.identified)
+        std::snprintf(row, sizeof row, ",%.6g,%.6g,%.6g,%.1f", r.identified->friction.static_positive_n,
+                      r.identified->friction.static_negative_n, r.identified->valve.null_offset_v, id_null_error);
+      else
+        std::snprintf(row, sizeof row, ",,,,");
+      std::string reason = r.identification_failed;  // one quoted cell
+      std::replace(reason.begin(), reason.end(), '"', '\'');
+      os_sc << row << ',' << (reason.empty() ? "" : "\"" + reason + "\"");
+    }
+    os_sc << '\n';
   }
   if (scenarios_out) scenarios_out->commit();
 

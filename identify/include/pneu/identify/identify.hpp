@@ -106,6 +106,11 @@ class InsufficientData : public std::runtime_error {
 [[nodiscard]] Identification identify(std::span<const Sample> samples, const model::PlantParams& prior,
                                       const Options& options = {});
 
+/// The largest |p_null(u) of `a`'s valve - p_null(u) of `b`'s| over |u| <= `u_max_v`, every 5 mV
+/// [Pa]: how far two benches' null-flow characteristics (Fig. 6) lie apart.
+[[nodiscard]] double largest_null_pressure_difference_pa(const model::PlantParams& a, const model::PlantParams& b,
+                                                         double u_max_v);
+
 /// The keys of the parameters identify() estimates, in the order of Identification::estimates.
 [[nodiscard]] std::span<const char* const> identified_keys() noexcept;
 
