@@ -84,31 +84,15 @@ void print(const identify::Identification& id, const model::PlantParams& bench) 
   std::printf("p_null error over |u| < 1 V: %.0f Pa\n", null_pressure_error_pa(id.plant, bench));
 }
 
-// The samples of an identification run on `b`'s bench, and its plan.
-struct Recorded {
-  identify::RunPlan plan;
-  std::vector<identify::Sample> samples;
-  std::string fault;
-};
-
-Recorded record_run(const Bench& b, const std::vector<std::string>& overrides = {}) {
+// The identification run on `b`'s bench (the configured law), recorded.
+identify::RecordedRun record_run(const Bench& b, const std::vector<std::string>& overrides = {}) {
   config::Config cfg = b.cfg;
   for (const auto& o : overrides) cfg = config::load_string(config::to_yaml(cfg), {o});
   const auto valve = controller::make_valve_characteristic(cfg, {});
   controller::resolve_offset(cfg, *valve);
   const controller::ControlLaw law = controller::make_control_law(cfg, *valve);
-  Recorded r;
-  r.plan = identify::plan_run(cfg, law, *valve, cfg.simulation.initial_position_m);
-  const config::Config rc = identify::configured_for(cfg, r.plan);
-  controller::Run run = controller::make_run(rc, *valve, backends::make_sim_backend(rc, law, b.bench), law);
-  std::atomic<bool> stop{false};
-  identify::Recorder rec(stop);
-  run.runtime->add_sink(rec);
-  controller::SimulatedClock clock;
-  controller::execute(run, rc, clock, stop);
-  r.samples = rec.samples();
-  r.fault = rec.fault();
-  return r;
+  return identify::record_run(cfg, *valve, law, backends::make_sim_backend(cfg, law, b.bench),
+                              cfg.simulation.initial_position_m);
 }
 
 void expect_close_to_bench(const identify::Identification& id, const model::PlantParams& bench, double stiction_tolerance) {
@@ -153,7 +137,7 @@ TEST(IdentificationRun, IdentifiesABenchThatIsNotItsModelWithHilSensors) {
 
 TEST(IdentificationRun, StaysWithinTheSoftLimitsAndTakesUnderAMinute) {
   const Bench b = mismatched();
-  const Recorded r = record_run(b);
+  const identify::RecordedRun r = record_run(b);
   EXPECT_TRUE(r.fault.empty()) << r.fault;
   EXPECT_LT(r.plan.duration_s, 60.0);
   ASSERT_FALSE(r.samples.empty());
@@ -178,7 +162,7 @@ TEST(IdentificationRun, AFaultEndsTheRunAndNothingIsIdentified) {
   Bench b = mismatched();
   b.cfg = config::load_string(config::default_config_yaml(), {"controller.supervisor.following_error_m=0.002",
                                                                 "controller.supervisor.following_error_s=0.05"});
-  const Recorded r = record_run(b);
+  const identify::RecordedRun r = record_run(b);
   EXPECT_NE(r.fault.find("following"), std::string::npos) << r.fault;
   EXPECT_LT(r.samples.back().t_s, r.plan.duration_s - 10.0) << "ended at the fault";
   config::Config cfg = b.cfg;
@@ -235,7 +219,7 @@ TEST(Identify, SaysWhatOnePositionCannotSeparate) {
   // The stuck phases of the run's last position alone: one volume per chamber for one conductance
   // scale, so the dead volumes and C_max cannot all be told apart.
   const Bench b = mismatched();
-  const Recorded r = record_run(b);
+  const identify::RecordedRun r = record_run(b);
   const double t_last = r.plan.schedule.back().t_s;
   double t_from = -1;
   for (const auto& step : r.plan.schedule)

@@ -84,11 +84,11 @@ config::Config configured_for(config::Config cfg, const RunPlan& plan) {
   return cfg;
 }
 
-Identification identify_by_run(const config::Config& config, const model::ValveCharacteristic& valve,
-                               const controller::ControlLaw& law, std::unique_ptr<hal::Backend> backend,
-                               double start_m) {
-  const RunPlan plan = plan_run(config, law, valve, start_m);
-  config::Config cfg = configured_for(config, plan);
+RecordedRun record_run(const config::Config& config, const model::ValveCharacteristic& valve,
+                       const controller::ControlLaw& law, std::unique_ptr<hal::Backend> backend, double start_m) {
+  RecordedRun r;
+  r.plan = plan_run(config, law, valve, start_m);
+  config::Config cfg = configured_for(config, r.plan);
   cfg.controller.clock = config::ClockKind::kSimulated;
   controller::Run run = controller::make_run(cfg, valve, std::move(backend), law);
   run.runtime->set_follow_forecasts(false);
@@ -97,10 +97,19 @@ Identification identify_by_run(const config::Config& config, const model::ValveC
   run.runtime->add_sink(recorder);
   controller::SimulatedClock clock;
   controller::execute(run, cfg, clock, stop);
-  if (!recorder.fault().empty())
-    throw std::runtime_error("the identification run faulted at t = " + std::to_string(recorder.fault_time_s()) +
-                             " s: " + recorder.fault());
-  return identify(recorder.samples(), config.plant, options_for(config));
+  r.samples = recorder.samples();
+  r.fault = recorder.fault();
+  r.fault_t_s = recorder.fault_time_s();
+  return r;
+}
+
+Identification identify_by_run(const config::Config& config, const model::ValveCharacteristic& valve,
+                               const controller::ControlLaw& law, std::unique_ptr<hal::Backend> backend,
+                               double start_m) {
+  const RecordedRun r = record_run(config, valve, law, std::move(backend), start_m);
+  if (!r.fault.empty())
+    throw std::runtime_error("the identification run faulted at t = " + std::to_string(r.fault_t_s) + " s: " + r.fault);
+  return identify(r.samples, config.plant, options_for(config));
 }
 
 std::string identified_config_yaml(const config::Config& config, const Identification& id, const std::string& source) {

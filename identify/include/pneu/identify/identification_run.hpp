@@ -82,6 +82,20 @@ class Recorder final : public controller::RunListener {
 /// `config` with the plan's set points and length in force (armed from the start).
 [[nodiscard]] config::Config configured_for(config::Config config, const RunPlan& plan);
 
+/// An identification run as recorded.
+struct RecordedRun {
+  RunPlan plan;
+  std::vector<Sample> samples;
+  std::string fault;        ///< the fault that ended it early, or empty
+  double fault_t_s = 0.0;
+};
+
+/// The run on the simulated clock, for a simulated bench: plans from `config` with `law`, starting
+/// at rest at `start_m`, runs on `backend` and records every tick, stopping at the first fault.
+[[nodiscard]] RecordedRun record_run(const config::Config& config, const model::ValveCharacteristic& valve,
+                                     const controller::ControlLaw& law, std::unique_ptr<hal::Backend> backend,
+                                     double start_m);
+
 /// The whole run on the simulated clock, for a simulated bench (tests, pneu-sweep): plans from
 /// `config` (plant: the prior), runs on `backend` with `law` starting at rest at `start_m`, and
 /// identifies. Throws std::runtime_error naming the fault that ended the run, or InsufficientData.
