@@ -259,6 +259,25 @@ void BM_PredictNonlinearLongStop(benchmark::State& state) {
 }
 BENCHMARK(BM_PredictNonlinearLongStop)->Unit(benchmark::kMicrosecond);
 
+// (c') The relaxation method made again half-way through the long stop: its pressures since the
+// snapshot (about 2,000 ticks, thinned to at most 512 samples), both chambers fitted, the crossing
+// solved. Also what the history costs to fill, per tick.
+void BM_PredictRelaxationHalfWayLongStop(benchmark::State& state) {
+  const Recording& rec = *g_rec;
+  const double half_s = rec.long_stop.t_s + 0.5 * rec.long_stop_sticking_s;
+  controller::PhaseHistory history;
+  for (const auto& f : rec.frames)
+    if (f.t_s >= rec.long_stop.t_s && f.t_s <= half_s) history.add(f.t_s, f.p_p_pa, f.p_n_pa);
+  controller::StopSnapshot now = rec.long_stop;
+  now.t_s = half_s;
+  for (auto _ : state) {
+    auto p = controller::predict_relaxation(rec.model, now, history);
+    benchmark::DoNotOptimize(p);
+  }
+  state.counters["samples"] = static_cast<double>(history.size());
+}
+BENCHMARK(BM_PredictRelaxationHalfWayLongStop)->Unit(benchmark::kMicrosecond);
+
 // (d) The live predictor's per-tick work: following the forecast made at the long stop through
 // its whole sticking phase, one point per 1 ms tick (reported per tick).
 void follow_long_stop(benchmark::State& state, controller::PredictionMethod method) {

@@ -603,6 +603,17 @@ TEST(ConfigRefusal, UnknownPredictorMethodIsNamedByItsIndex) {
               refuses("controller.predictor.methods[1]", "unknown method 'psychic'"));
 }
 
+TEST(ConfigRefusal, TheRelaxationMethodWithoutUpdatesIsRefused) {
+  // It forecasts from the phase's own pressures, so only when made again while stuck.
+  EXPECT_THAT(loading(shipped_yaml(), {"controller.predictor.methods=[nonlinear, relaxation]",
+                                       "controller.predictor.update_period_s=0"}),
+              refuses("controller.predictor.update_period_s", "must be > 0 with the relaxation method"));
+  const Config c = load_string(shipped_yaml(), {"controller.predictor.methods=[relaxation]"});
+  EXPECT_TRUE(c.controller.predictor.relaxation);
+  EXPECT_FALSE(c.controller.predictor.nonlinear);
+  EXPECT_TRUE(load_string(to_yaml(c)).controller.predictor.relaxation);
+}
+
 TEST(ConfigRefusal, UnknownLinearizedSlopeNamesTheChoices) {
   const std::string yaml = shipped_yaml_edited(
       [](YAML::Node& root) { root["controller"]["predictor"]["linearized_slope"] = "secant"; });
@@ -1125,7 +1136,7 @@ TEST(Schema, DocumentsEveryKeyAndStatesWhatItAccepts) {
   EXPECT_EQ(keys.at("plant.valve.critical_pressure_ratio").range, "in (0, 0.999)");
   EXPECT_EQ(keys.at("hal.modbus.unit_id").range, "in [1, 247]");
   EXPECT_EQ(keys.at("hal.modbus.transport").range, "tcp | rtu");
-  EXPECT_EQ(keys.at("controller.predictor.methods").range, "[linearized, nonlinear]");
+  EXPECT_EQ(keys.at("controller.predictor.methods").range, "[linearized, nonlinear, relaxation]");
   EXPECT_EQ(keys.at("controller.law.offset_v").range, "a number | auto");
   EXPECT_EQ(keys.at("hal.modbus.channels.position.signed").presence, schema::Presence::kRequired);  // int16
   EXPECT_EQ(keys.at("hal.modbus.host").presence, schema::Presence::kOptional);

@@ -140,6 +140,40 @@ TEST(LivePredictor, TheLinearizedForecastMadeAgainHalfWayIsCloserThanTheOneMadeA
   EXPECT_LT(again.error_percent, 0.5 * at_stop.error_percent);
 }
 
+TEST(LivePredictor, TheRelaxationMethodForecastsFromThePhasesOwnPressuresOnceItHasHistory) {
+  const LiveRun r({"controller.predictor.methods=[linearized, nonlinear, relaxation]"});
+  const StopOutcome& s = r.longest_restart();
+  ASSERT_GE(s.sticking_s(), 1.0);
+  // Made again only: each update, after the two model-based ones, from 0.1 s of history on (more
+  // than the 50 ms it wants); at the stop there is no history, and no forecast of it to follow.
+  ASSERT_EQ(s.reforecasts.size() % 3, 0u);
+  for (std::size_t i = 0; i < s.reforecasts.size(); ++i) {
+    const Reforecast& f = s.reforecasts[i];
+    EXPECT_EQ(f.update, i / 3 + 1);
+    const PredictionMethod expected[3] = {PredictionMethod::kLinearized, PredictionMethod::kNonlinear,
+                                          PredictionMethod::kRelaxation};
+    EXPECT_EQ(f.prediction.method, expected[i % 3]) << i;
+    if (i % 3 == 2) {
+      EXPECT_TRUE(std::isnan(f.stop_forecast_force_n)) << i;
+    }
+  }
+  // Half-way, from 2 s of the phase's own pressures and the stiction bounds, without the valve
+  // model: within 2 % of the 4 s sticking time (measured 0.94 %; the nonlinear one, on the
+  // plant's own valve model, 0.00 %).
+  ASSERT_TRUE(s.halfway_relaxation.has_value());
+  const auto v = controller::judge(s, s.halfway_relaxation->prediction, r.run.runtime->end_time_s());
+  ASSERT_EQ(v.kind, controller::Verdict::Kind::kTruePositive);
+  EXPECT_TRUE(v.direction_ok);
+  EXPECT_LT(v.error_percent, 2.0);
+  // The runtime reports it runs, and the summary shows its half-way column.
+  EXPECT_TRUE(r.run.runtime->forecasts(PredictionMethod::kRelaxation));
+  std::string summary(16384, '\0');
+  FILE* out = fmemopen(summary.data(), summary.size(), "w");
+  controller::print_summary(out, controller::RunFigures{}, *r.run.runtime);
+  std::fclose(out);
+  EXPECT_NE(summary.find("half-way relaxation"), std::string::npos) << summary;
+}
+
 TEST(LivePredictor, AnEndedStopKeepsOnlyItsHalfWayForecastsUnlessAskedToKeepAll) {
   const LiveRun kept;
   const LiveRun daemon(std::vector<std::string>{}, 1, false);

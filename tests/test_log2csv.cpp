@@ -380,10 +380,15 @@ TEST_F(Log2Csv, PredictionWithoutRestartHasAnEmptyRestartTime) {
   restart.direction = -1;
   restart.t_restart = 3.1415926535897931;
   restart.horizon_reached = 1;
-  const std::vector<pneu_lcm::prediction_t> msgs = {none, restart};
+  pneu_lcm::prediction_t relaxation = restart;  // fitted to the phase's pressures: none at the stop
+  relaxation.method = pneu_lcm::prediction_t::METHOD_RELAXATION;
+  relaxation.horizon_reached = 0;
+  relaxation.stop_forecast_force = kNaN;
+  const std::vector<pneu_lcm::prediction_t> msgs = {none, restart, relaxation};
 
   const auto r = convert(write_log({{"PNEU_PREDICTION", kLogStart, encode(none)},
-                                    {"PNEU_PREDICTION", kLogStart + 1, encode(restart)}}));
+                                    {"PNEU_PREDICTION", kLogStart + 1, encode(restart)},
+                                    {"PNEU_PREDICTION", kLogStart + 2, encode(relaxation)}}));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const Csv csv = read_csv("PNEU_PREDICTION.csv");
   EXPECT_EQ(csv.header,
@@ -391,10 +396,11 @@ TEST_F(Log2Csv, PredictionWithoutRestartHasAnEmptyRestartTime) {
                 "log_utime,utime,t,stop,t_stop,update,method,method_name,will_restart,direction,t_restart,"
                 "u_star,equilibrium_force,p_p_equilibrium,p_n_equilibrium,tau_p,tau_n,min_margin,"
                 "horizon_reached,force,stop_forecast_force"));
-  ASSERT_EQ(csv.rows.size(), 2u);
+  ASSERT_EQ(csv.rows.size(), 3u);
   EXPECT_EQ(csv.at(0, "t_restart"), "");
   EXPECT_EQ(csv.at(0, "method_name"), "linearized");
   EXPECT_EQ(csv.at(1, "method_name"), "nonlinear");
+  EXPECT_EQ(csv.at(2, "method_name"), "relaxation");
   for (std::size_t i = 0; i < msgs.size(); ++i) {
     const auto& m = msgs[i];
     const std::string row = "prediction " + std::to_string(i) + " ";

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <limits>
 #include <numbers>
@@ -647,6 +648,139 @@ TEST(LinearizedSlope, OnThePapersLongStopChordAndEquilibriumForecastNearerTheExa
   EXPECT_GT(paper, 2.0);
   EXPECT_LT(error_percent(LinearizedSlope::kChord), paper / 2.0);
   EXPECT_LT(error_percent(LinearizedSlope::kEquilibriumTangent), paper / 2.0);
+}
+
+
+// The relaxation method (the live predictor's third): each chamber's pressure fitted, from the
+// pressures measured since the stop, as an exponential towards its own asymptote; no valve model.
+
+// One chamber relaxing exactly: p(t) = p_inf + (p0 - p_inf) e^{-(t - t0)/tau}, sampled every ms.
+PhaseHistory exponential_history(double t0_s, double span_s, double p0_p, double pinf_p, double tau_p,
+                                 double p0_n, double pinf_n, double tau_n, double noise_pa = 0.0) {
+  PhaseHistory h;
+  std::uint64_t state = 0x9e3779b97f4a7c15ull;  // a fixed noise sequence (splitmix64), uniform in +-noise
+  const auto noise = [&] {
+    state += 0x9e3779b97f4a7c15ull;
+    std::uint64_t z = state;
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    z ^= z >> 31;
+    return noise_pa * (2.0 * static_cast<double>(z >> 11) / 9007199254740992.0 - 1.0);
+  };
+  for (int k = 0; k <= static_cast<int>(std::llround(span_s * 1e3)); ++k) {
+    const double x = k * 1e-3;
+    h.add(t0_s + x, pinf_p + (p0_p - pinf_p) * std::exp(-x / tau_p) + noise(),
+          pinf_n + (p0_n - pinf_n) * std::exp(-x / tau_n) + noise());
+  }
+  return h;
+}
+
+TEST(RelaxationFit, RecoversAnExactExponentialsAsymptoteAndTimeConstant) {
+  // Half a second of a 0.4 s relaxation from 5 to 3 bar (chamber P), a 0.07 s one on N.
+  const PhaseHistory h = exponential_history(kStopTimeS, 0.5, 5.0e5, 3.0e5, 0.4, 2.0e5, 4.0e5, 0.07);
+  const double now = kStopTimeS + 0.5;
+  const RelaxationFit p = fit_relaxation(h, 0, now), n = fit_relaxation(h, 1, now);
+  // Golden section in ln(tau) to 1e-6: the relative error in tau is ~1e-6 and the asymptote
+  // follows it (measured below 0.1 Pa).
+  EXPECT_NEAR(p.tau_s, 0.4, 1e-5);
+  EXPECT_NEAR(p.p_inf_pa, 3.0e5, 1.0);
+  EXPECT_NEAR(p.p_now_pa, 3.0e5 + 2.0e5 * std::exp(-0.5 / 0.4), 1.0);
+  EXPECT_NEAR(n.tau_s, 0.07, 1e-6);
+  EXPECT_NEAR(n.p_inf_pa, 4.0e5, 1.0);
+  EXPECT_LT(p.rms_pa, 1.0);
+  EXPECT_FALSE(p.tau_at_cap);
+}
+
+TEST(RelaxationFit, ThroughSensorNoiseStaysNearTheTrueRelaxation) {
+  // hil.yaml's pressure noise is a few hundred Pa; 500 Pa uniform here, on 0.6 s of a 0.4 s relaxation.
+  const PhaseHistory h = exponential_history(0.0, 0.6, 5.0e5, 3.0e5, 0.4, 2.0e5, 4.0e5, 0.07, 500.0);
+  const RelaxationFit p = fit_relaxation(h, 0, 0.6);
+  EXPECT_NEAR(p.tau_s, 0.4, 0.02);
+  EXPECT_NEAR(p.p_inf_pa, 3.0e5, 1.0e3);
+  EXPECT_NEAR(p.rms_pa, 500.0 / std::sqrt(3.0), 30.0);  // the noise itself: a uniform's rms
+}
+
+TEST(RelaxationFit, AChamberThatDoesNotMoveIsHeldWhereItIs) {
+  const PhaseHistory h = exponential_history(0.0, 0.3, 4.0e5, 4.0e5, 0.4, 2.0e5, 2.0e5, 0.07);
+  for (int chamber : {0, 1}) {
+    const RelaxationFit f = fit_relaxation(h, chamber, 0.3);
+    const double p = chamber == 0 ? 4.0e5 : 2.0e5;
+    EXPECT_NEAR(f.p_now_pa, p, 1e-6);
+    EXPECT_NEAR(f.p_inf_pa, p, 1e-6);
+  }
+}
+
+TEST(RelaxationFit, AStraightDriftIsCappedAtTenSpansNotExtrapolatedFurther) {
+  // 0.1 s of a 100 s relaxation: a straight line, whose asymptote no history this short can tell.
+  const PhaseHistory h = exponential_history(0.0, 0.1, 3.0e5, 4.0e5, 100.0, 2.0e5, 2.0e5, 1.0);
+  const RelaxationFit f = fit_relaxation(h, 0, 0.1);
+  EXPECT_TRUE(f.tau_at_cap);
+  EXPECT_NEAR(f.tau_s, kRelaxationMaxTauSpans * 0.1, 1e-3);
+}
+
+TEST(PhaseHistory, PastItsCapacityKeepsEvenlySpreadSamplesOfTheWholePhase) {
+  PhaseHistory h;
+  for (int k = 0; k < 5000; ++k) h.add(k * 1e-3, 1.0 * k, -1.0 * k);
+  EXPECT_LE(h.size(), PhaseHistory::kCapacity);
+  EXPECT_GE(h.size(), PhaseHistory::kCapacity / 2);
+  EXPECT_EQ(h.t_s(0), 0.0);
+  EXPECT_GT(h.t_s(h.size() - 1), 4.98);  // the latest within a stride of the last one added
+  const double step = h.t_s(1) - h.t_s(0);
+  for (std::size_t i = 1; i < h.size(); ++i) {
+    EXPECT_NEAR(h.t_s(i) - h.t_s(i - 1), step, 1e-9) << i;
+    EXPECT_NEAR(h.p_pa(0, i), 1e3 * h.t_s(i), 1e-9);  // each sample's pressures with its time
+    EXPECT_NEAR(h.p_pa(1, i), -1e3 * h.t_s(i), 1e-9);
+  }
+}
+
+TEST(PredictRelaxation, FromTheLinearValvesOwnPressuresForecastsItsClosedFormRestart) {
+  // The linear valve's pressures are exact exponentials: fitted from the first 0.3 s of the phase,
+  // the forecast is the closed form's. F from -30 N towards -52 N, beyond F_S- (at 1.1 s).
+  const double span = 0.3;
+  const ExactForce g{20.0, 2.0, -52.0};
+  const StopSnapshot sg = stop_for(g);
+  const double ge_p = LinearValve::null_pressure(sg.u_v), ge_n = LinearValve::null_pressure(-sg.u_v);
+  const PhaseHistory h = exponential_history(kStopTimeS, span, sg.p_p_pa, ge_p, kTauP, sg.p_n_pa, ge_n, kTauN);
+  StopSnapshot now = sg;
+  now.t_s = kStopTimeS + span;
+  PredictorModel m;  // no valve
+  const auto p = predict_relaxation(m, now, h);
+  ASSERT_TRUE(p.has_value());
+  EXPECT_EQ(p->method, PredictionMethod::kRelaxation);
+  const double x_restart = first_crossing_s([&](double x) { return g.at(x) < kForceSMinusN; }, 1e-3, 10.0);
+  ASSERT_FALSE(std::isnan(x_restart));
+  ASSERT_TRUE(p->will_restart);
+  EXPECT_EQ(p->direction, -1);
+  EXPECT_NEAR(p->t_restart_s, kStopTimeS + x_restart, 1e-5);
+  EXPECT_NEAR(p->tau_p_s, kTauP, 1e-4);
+  EXPECT_NEAR(p->tau_n_s, kTauN, 1e-5);
+  EXPECT_NEAR(p->equilibrium_force_n, g.c_n, 0.01);
+}
+
+TEST(PredictRelaxation, AnApproachThatStaysInsideTheBandIsNoRestartWithItsMargin) {
+  const ExactForce g{-10.0, 5.0, 20.0};  // F from 15 N to 20 N: 25 N from F_S+
+  const StopSnapshot sg = stop_for(g);
+  const PhaseHistory h = exponential_history(kStopTimeS, 0.2, sg.p_p_pa, LinearValve::null_pressure(sg.u_v), kTauP,
+                                             sg.p_n_pa, LinearValve::null_pressure(-sg.u_v), kTauN);
+  StopSnapshot now = sg;
+  now.t_s = kStopTimeS + 0.2;
+  const auto p = predict_relaxation(PredictorModel{}, now, h);
+  ASSERT_TRUE(p.has_value());
+  EXPECT_FALSE(p->will_restart);
+  EXPECT_TRUE(std::isnan(p->t_restart_s));
+  EXPECT_NEAR(p->min_margin_n, kForceSPlusN - 20.0, 0.01);
+}
+
+TEST(PredictRelaxation, GivesNoForecastBeforeTheHistorySpansItsMinimum) {
+  const PhaseHistory h = exponential_history(kStopTimeS, 0.04, 5.0e5, 3.0e5, 0.4, 2.0e5, 4.0e5, 0.07);
+  StopSnapshot now;
+  now.t_s = kStopTimeS + 0.04;
+  ASSERT_LT(h.span_s(), kRelaxationMinSpan_s);
+  EXPECT_FALSE(predict_relaxation(PredictorModel{}, now, h).has_value());
+  // predict() without a history gives none either, and says so.
+  const Prediction none = predict(PredictionMethod::kRelaxation, PredictorModel{}, now);
+  EXPECT_FALSE(none.will_restart);
+  EXPECT_TRUE(none.horizon_reached);
 }
 
 }  // namespace

@@ -141,21 +141,12 @@ void mark_restart(Prediction& p, const StopSnapshot& s, double dt, double force,
   p.min_margin_n = 0.0;
 }
 
-}  // namespace
 
-const char* to_string(PredictionMethod m) noexcept {
-  return m == PredictionMethod::kLinearized ? "linearized" : "nonlinear";
-}
-
-Prediction predict_linearized(const PredictorModel& m, const StopSnapshot& s) noexcept {
-  const Common c = common_of(m, s);
-  Prediction p = base(PredictionMethod::kLinearized, m, s, c);
-  const Bounds b = bounds_of(m, s);
-
-  // Eq. 17: F(x) = A e^{-x/tau_P} + B e^{-x/tau_N} + C, x = t - t_stop.
-  const double a = c.pressure_force.area_p_m2() * (s.p_p_pa - p.p_p_equilibrium_pa);
-  const double bb = -c.pressure_force.area_n_m2() * (s.p_n_pa - p.p_n_equilibrium_pa);
-  const double cc = p.equilibrium_force_n;
+// Eq. 17: F(x) = A e^{-x/tau_P} + B e^{-x/tau_N} + C, x = t - s.t_s, with p's time constants:
+// whether and when it leaves the band b, checked exactly over all x >= 0 (F is monotone on both
+// sides of its one possible extremum). Fills p's restart fields and smallest margin.
+void two_exponential_crossing(Prediction& p, const StopSnapshot& s, const Bounds& b, double a, double bb,
+                              double cc) noexcept {
   const double tp = p.tau_p_s, tn = p.tau_n_s;
   const auto force = [&](double x) {
     const double ep = std::isinf(tp) ? 1.0 : std::exp(-x / tp);
@@ -165,7 +156,7 @@ Prediction predict_linearized(const PredictorModel& m, const StopSnapshot& s) no
   const double f0 = force(0.0);
   if (excess(b, f0) > 0.0) {
     mark_restart(p, s, 0.0, f0, b);
-    return p;
+    return;
   }
   // F' = 0 at most once: -A/tau_P e^{-x/tau_P} = B/tau_N e^{-x/tau_N}.
   double x_ext = -1.0;
@@ -193,13 +184,57 @@ Prediction predict_linearized(const PredictorModel& m, const StopSnapshot& s) no
       const auto g = [&](double x) { return excess(b, force(x)); };
       const double x = bracketed_root(g, seg_start, hi, excess(b, f_start), g(hi), kTimeTolerance_s);
       mark_restart(p, s, x, force(x), b);
-      return p;
+      return;
     }
     min_margin = std::min(min_margin, margin(b, f_end));
     seg_start = seg_end;
     f_start = f_end;
   }
   p.min_margin_n = min_margin;
+}
+
+// The least-squares fit of a + b e^{-x/tau} to one chamber's history for a given tau (x from the
+// first sample; the pressures centred on their mean, which the caller gives): a, b and the sum of
+// squared residuals.
+struct LinearPart {
+  double a = 0.0, b = 0.0, sse = std::numeric_limits<double>::infinity();
+};
+
+LinearPart fit_linear_part(const PhaseHistory& h, int chamber, double mean_pa, double tau_s) noexcept {
+  const std::size_t n = h.size();
+  const double t0 = h.t_s(0);
+  double se = 0.0, see = 0.0, sp = 0.0, sep = 0.0, spp = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double e = std::exp(-(h.t_s(i) - t0) / tau_s);
+    const double q = h.p_pa(chamber, i) - mean_pa;
+    se += e, see += e * e, sp += q, sep += e * q, spp += q * q;
+  }
+  const double dn = static_cast<double>(n);
+  const double det = dn * see - se * se;
+  LinearPart r;
+  if (!(det > 1e-12 * dn * dn)) return r;  // e^{-x/tau} is flat over the history: no fit at this tau
+  r.b = (dn * sep - se * sp) / det;
+  r.a = (sp - r.b * se) / dn;
+  r.sse = std::max(0.0, spp - r.a * sp - r.b * sep);
+  return r;
+}
+}  // namespace
+
+const char* to_string(PredictionMethod m) noexcept {
+  switch (m) {
+    case PredictionMethod::kLinearized: return "linearized";
+    case PredictionMethod::kNonlinear: return "nonlinear";
+    case PredictionMethod::kRelaxation: return "relaxation";
+  }
+  return "?";
+}
+
+Prediction predict_linearized(const PredictorModel& m, const StopSnapshot& s) noexcept {
+  const Common c = common_of(m, s);
+  Prediction p = base(PredictionMethod::kLinearized, m, s, c);
+  // Eq. 17: each chamber relaxes from its stop pressure to p_null(+-u*) with its Eq. 23 tau.
+  two_exponential_crossing(p, s, bounds_of(m, s), c.pressure_force.area_p_m2() * (s.p_p_pa - p.p_p_equilibrium_pa),
+                           -c.pressure_force.area_n_m2() * (s.p_n_pa - p.p_n_equilibrium_pa), p.equilibrium_force_n);
   return p;
 }
 
@@ -254,8 +289,108 @@ Prediction predict_nonlinear(const PredictorModel& m, const StopSnapshot& s) noe
 }
 
 Prediction predict(PredictionMethod method, const PredictorModel& model, const StopSnapshot& stop) noexcept {
-  return method == PredictionMethod::kLinearized ? predict_linearized(model, stop)
-                                                 : predict_nonlinear(model, stop);
+  switch (method) {
+    case PredictionMethod::kLinearized: return predict_linearized(model, stop);
+    case PredictionMethod::kNonlinear: return predict_nonlinear(model, stop);
+    case PredictionMethod::kRelaxation: break;
+  }
+  Prediction none;  // no history: no forecast
+  none.method = method;
+  none.horizon_reached = true;
+  return none;
+}
+
+void PhaseHistory::add(double t_s, double p_p_pa, double p_n_pa) noexcept {
+  if (skipped_ + 1 < stride_) {
+    ++skipped_;
+    return;
+  }
+  skipped_ = 0;
+  if (n_ == kCapacity) {  // keep every other sample, and take every other one from now on
+    for (std::size_t i = 0; i < kCapacity / 2; ++i) t_[i] = t_[2 * i], p_p_[i] = p_p_[2 * i], p_n_[i] = p_n_[2 * i];
+    n_ = kCapacity / 2;
+    stride_ *= 2;
+  }
+  t_[n_] = t_s, p_p_[n_] = p_p_pa, p_n_[n_] = p_n_pa;
+  ++n_;
+}
+
+RelaxationFit fit_relaxation(const PhaseHistory& h, int chamber, double t_now_s) noexcept {
+  RelaxationFit fit;
+  const std::size_t n = h.size();
+  if (n == 0) return fit;
+  double mean = 0.0;
+  for (std::size_t i = 0; i < n; ++i) mean += h.p_pa(chamber, i);
+  mean /= static_cast<double>(n);
+  const double span = h.span_s();
+  const auto constant = [&] {  // no time constant can be told: the mean, held
+    fit.p_now_pa = fit.p_inf_pa = mean;
+    fit.tau_s = std::numeric_limits<double>::infinity();
+    double sse = 0.0;
+    for (std::size_t i = 0; i < n; ++i) sse += (h.p_pa(chamber, i) - mean) * (h.p_pa(chamber, i) - mean);
+    fit.rms_pa = std::sqrt(sse / static_cast<double>(n));
+    return fit;
+  };
+  if (n < 3 || !(span > 0.0)) return constant();
+  // tau on a log grid from a few sample intervals to the cap, then golden section around the best.
+  const double lo = std::log(std::max(1e-4, 2.0 * span / static_cast<double>(n)));
+  const double hi = std::log(kRelaxationMaxTauSpans * span);
+  constexpr int kGrid = 33;
+  double best_x = hi;
+  LinearPart best;
+  double xs[kGrid];
+  for (int k = 0; k < kGrid; ++k) {
+    xs[k] = lo + (hi - lo) * k / (kGrid - 1);
+    const LinearPart r = fit_linear_part(h, chamber, mean, std::exp(xs[k]));
+    if (r.sse < best.sse) best = r, best_x = xs[k];
+  }
+  if (!std::isfinite(best.sse)) return constant();
+  int k_best = 0;
+  while (xs[k_best] != best_x) ++k_best;
+  double a = xs[std::max(k_best - 1, 0)], b = xs[std::min(k_best + 1, kGrid - 1)];
+  constexpr double kGolden = 0.6180339887498949;
+  double x1 = b - kGolden * (b - a), x2 = a + kGolden * (b - a);
+  LinearPart f1 = fit_linear_part(h, chamber, mean, std::exp(x1)), f2 = fit_linear_part(h, chamber, mean, std::exp(x2));
+  for (int i = 0; i < 40 && b - a > 1e-6; ++i) {
+    if (f1.sse < f2.sse) {
+      b = x2, x2 = x1, f2 = f1;
+      x1 = b - kGolden * (b - a);
+      f1 = fit_linear_part(h, chamber, mean, std::exp(x1));
+    } else {
+      a = x1, x1 = x2, f1 = f2;
+      x2 = a + kGolden * (b - a);
+      f2 = fit_linear_part(h, chamber, mean, std::exp(x2));
+    }
+  }
+  if (f1.sse < best.sse) best = f1, best_x = x1;
+  if (f2.sse < best.sse) best = f2, best_x = x2;
+  fit.tau_s = std::exp(best_x);
+  fit.tau_at_cap = best_x >= hi - 1e-3;
+  fit.p_inf_pa = mean + best.a;
+  fit.p_now_pa = fit.p_inf_pa + best.b * std::exp(-(t_now_s - h.t_s(0)) / fit.tau_s);
+  fit.rms_pa = std::sqrt(best.sse / static_cast<double>(n));
+  return fit;
+}
+
+std::optional<Prediction> predict_relaxation(const PredictorModel& m, const StopSnapshot& now,
+                                             const PhaseHistory& history) noexcept {
+  if (history.size() < kRelaxationMinSamples || history.span_s() < kRelaxationMinSpan_s) return std::nullopt;
+  const RelaxationFit fp = fit_relaxation(history, 0, now.t_s), fn = fit_relaxation(history, 1, now.t_s);
+  const Common c = common_of(m, now);
+  Prediction p;
+  p.method = PredictionMethod::kRelaxation;
+  p.p_p_equilibrium_pa = fp.p_inf_pa;
+  p.p_n_equilibrium_pa = fn.p_inf_pa;
+  p.equilibrium_force_n = c.force(fp.p_inf_pa, fn.p_inf_pa);
+  p.tau_p_s = fp.tau_s;
+  p.tau_n_s = fn.tau_s;
+  // The fitted curves from now on, the form of Eq. 17.
+  StopSnapshot from = now;
+  from.p_p_pa = fp.p_now_pa;
+  from.p_n_pa = fn.p_now_pa;
+  two_exponential_crossing(p, from, bounds_of(m, now), c.pressure_force.area_p_m2() * (fp.p_now_pa - fp.p_inf_pa),
+                           -c.pressure_force.area_n_m2() * (fn.p_now_pa - fn.p_inf_pa), p.equilibrium_force_n);
+  return p;
 }
 
 ForecastTrack::ForecastTrack(PredictionMethod method, const PredictorModel& model, const StopSnapshot& stop) noexcept

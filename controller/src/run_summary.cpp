@@ -74,23 +74,25 @@ void print_stops(std::FILE* out, const Runtime& runtime) {
 void print_live(std::FILE* out, const Runtime& runtime) {
   const auto& stops = runtime.stops();
   const auto followed = [](const StopOutcome& s) {
-    return !std::isnan(s.largest_gap_linearized_n) || !std::isnan(s.largest_gap_nonlinear_n);
+    return !std::isnan(s.largest_gap_linearized_n) || !std::isnan(s.largest_gap_nonlinear_n) || s.updates > 0;
   };
   if (std::none_of(stops.begin(), stops.end(), followed)) return;
   std::fprintf(out, "while stuck: the largest gap between the measured force and each forecast made at the stop (until\n"
                     "the start is seen), and the forecast made again from the pressures half-way through the phase%s:\n",
                runtime.update_period_s() > 0.0 ? "" : " (off: controller.predictor.update_period_s = 0)");
-  std::fprintf(out, "  %3s %11s %12s %12s %7s  %-24s %-24s\n", "#", "stuck[s]", "gap lin[N]", "gap nl[N]",
-               "updates", "half-way linearized", "half-way nonlinear");
+  // The relaxation method's column only when it runs (it has no forecast at the stop to follow).
+  const bool relaxation = runtime.forecasts(PredictionMethod::kRelaxation);
+  std::fprintf(out, "  %3s %11s %12s %12s %7s  %-24s %-24s%s\n", "#", "stuck[s]", "gap lin[N]", "gap nl[N]",
+               "updates", "half-way linearized", "half-way nonlinear", relaxation ? " half-way relaxation" : "");
   for (const auto& s : stops) {
     if (!followed(s)) continue;
-    std::string cells[2] = {"-", "-"};
-    const std::optional<Reforecast>* halfway[2] = {&s.halfway_linearized, &s.halfway_nonlinear};
-    for (int i = 0; i < 2; ++i)
+    std::string cells[3] = {"-", "-", "-"};
+    const std::optional<Reforecast>* halfway[3] = {&s.halfway_linearized, &s.halfway_nonlinear, &s.halfway_relaxation};
+    for (int i = 0; i < 3; ++i)
       if (*halfway[i]) cells[i] = forecast_cell(s, (*halfway[i])->prediction, runtime.end_time_s());
-    std::fprintf(out, "  %3llu %11.3f %12.3f %12.3f %7u  %-24s %-24s\n", static_cast<ull>(s.index), s.sticking_s(),
-                 s.largest_gap_linearized_n, s.largest_gap_nonlinear_n, s.updates, cells[0].c_str(),
-                 cells[1].c_str());
+    std::fprintf(out, "  %3llu %11.3f %12.3f %12.3f %7u  %-24s %-24s%s%s\n", static_cast<ull>(s.index),
+                 s.sticking_s(), s.largest_gap_linearized_n, s.largest_gap_nonlinear_n, s.updates, cells[0].c_str(),
+                 cells[1].c_str(), relaxation ? " " : "", relaxation ? cells[2].c_str() : "");
   }
 }
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "pneu/controller/verdict.hpp"
 
@@ -71,6 +72,8 @@ void Runtime::on_tick(const TickRecord& r) {
         const double gap = std::abs(r.force_n - at[i]->force_n);
         if (std::isfinite(gap)) *gaps[i] = std::isnan(*gaps[i]) ? gap : std::max(*gaps[i], gap);
       }
+      if (relaxation_ && std::isfinite(r.p_p_pa) && std::isfinite(r.p_n_pa))
+        following_->history.add(r.t_s, r.p_p_pa, r.p_n_pa);
       // (Not at the snapshot's own tick: that forecast is the stop's.)
       if (update_period_s_ > 0.0 && r.t_s > s.snapshot.t_s && r.t_s >= following_->next_update_s - 1e-9) {
         reforecast_due = true;
@@ -92,27 +95,30 @@ void Runtime::reforecast(StopOutcome& s, const TickRecord& r, const ExpectedAtTi
   if (!snapshot_is_finite(now)) return;
   ++s.updates;
   // Bounded history: past the cap, every other update kept is let go, evenly over the phase.
-  if (s.reforecasts.size() + 2 > StopOutcome::kMaxReforecastsKept) {
+  if (s.reforecasts.size() + 3 > StopOutcome::kMaxReforecastsKept) {
     following_->stride *= 2;
     const std::uint32_t stride = following_->stride;
     std::erase_if(s.reforecasts, [stride](const Reforecast& f) { return f.update % stride != 0; });
   }
   const bool keep = s.updates % following_->stride == 0;
-  const bool enabled[2] = {linearized_, nonlinear_};
-  const ForecastPoint* at[2] = {&expected.linearized, &expected.nonlinear};
-  for (int i = 0; i < 2; ++i) {
-    if (!enabled[i]) continue;
+  const auto emit = [&](const Prediction& prediction, double stop_forecast_force_n) {
     Reforecast f;
     f.update = s.updates;
     f.t_s = r.t_s;
     f.force_n = r.force_n;
     f.u_star_v = now.u_v;
-    f.stop_forecast_force_n = at[i]->force_n;
-    f.prediction = predict(i == 0 ? PredictionMethod::kLinearized : PredictionMethod::kNonlinear, model_, now);
+    f.stop_forecast_force_n = stop_forecast_force_n;
+    f.prediction = prediction;
     if (keep) s.reforecasts.push_back(f);
     const ForecastRecord record = forecast_record(s, f);
     for (RunListener* sink : sinks_) sink->on_forecast(record);
-  }
+  };
+  if (linearized_) emit(predict_linearized(model_, now), expected.linearized.force_n);
+  if (nonlinear_) emit(predict_nonlinear(model_, now), expected.nonlinear.force_n);
+  // (No forecast of this method was made at the stop: nothing to follow.)
+  if (relaxation_)
+    if (const auto p = predict_relaxation(model_, now, following_->history))
+      emit(*p, std::numeric_limits<double>::quiet_NaN());
 }
 
 void Runtime::emit_forecast(const StopOutcome& s, const Prediction& p) {
@@ -131,8 +137,10 @@ void Runtime::emit_forecast(const StopOutcome& s, const Prediction& p) {
 void Runtime::settle(StopOutcome& s) const {
   s.halfway_linearized.reset();
   s.halfway_nonlinear.reset();
+  s.halfway_relaxation.reset();
   if (const Reforecast* f = halfway_reforecast(s, PredictionMethod::kLinearized)) s.halfway_linearized = *f;
   if (const Reforecast* f = halfway_reforecast(s, PredictionMethod::kNonlinear)) s.halfway_nonlinear = *f;
+  if (const Reforecast* f = halfway_reforecast(s, PredictionMethod::kRelaxation)) s.halfway_relaxation = *f;
   if (!keep_reforecasts_) std::vector<Reforecast>().swap(s.reforecasts);
 }
 
@@ -159,7 +167,7 @@ void Runtime::on_event(const LoopEvent& e) {
       stops_forgotten_ += n;
     }
     stops_.push_back(s);
-    if (forecastable && (linearized_ || nonlinear_)) {
+    if (forecastable && (linearized_ || nonlinear_ || forecasts(PredictionMethod::kRelaxation))) {
       following_.emplace();
       if (linearized_) following_->tracks[0].emplace(PredictionMethod::kLinearized, model_, s.snapshot);
       if (nonlinear_) following_->tracks[1].emplace(PredictionMethod::kNonlinear, model_, s.snapshot);

@@ -70,6 +70,7 @@ Run make_run(const config::Config& config, const model::ValveCharacteristic& val
   const auto& p = config.controller.predictor;
   run.runtime = std::make_unique<Runtime>(predictor_model(config, valve), p.linearized, p.nonlinear,
                                           p.update_period_s);
+  run.runtime->set_relaxation_forecasts(p.relaxation);
   return run;
 }
 

@@ -121,6 +121,8 @@ const char* method_name(std::int8_t method) {
       return "linearized";
     case P::METHOD_NONLINEAR:
       return "nonlinear";
+    case P::METHOD_RELAXATION:
+      return "relaxation";
     default:
       return "unknown";
   }

@@ -108,7 +108,10 @@ stop to judge). --strict exits 1 when any forecast misses its criteria or any sc
 settle, saying which; --strict-forecasts only on the forecasts. For those restarts the summary
 and the *_halfway_error_percent columns also give the error of the live predictor: the forecast
 made again (every controller.predictor.update_period_s) from the last pressures before half the
-sticking time, in % of the whole sticking time; it is not judged.
+sticking time, in % of the whole sticking time; it is not judged. With "relaxation" among
+controller.predictor.methods, the relaxation method (each chamber's relaxation fitted to the
+phase's own pressures, no valve model) is reported the same way: it makes no forecast at the stop,
+only half-way ones (rx_halfway_error_percent).
 )";
 
 // A simulated bench that is not its model (--bench-spread): factors on the model's values and a
@@ -364,12 +367,16 @@ struct MethodStats {
   std::vector<double> long_error_pct;  // sticking >= 0.5 s
   std::vector<double> short_error_ms;  // shorter
   std::vector<double> halfway_error_pct;  // sticking >= 0.5 s: the forecast made again half-way
+  // ... and of those restarts: the half-way forecast was none, not judged (its restart after the
+  // run's end), missing; and among the timed ones above, in the wrong direction
+  std::uint64_t halfway_none = 0, halfway_not_judged = 0, halfway_missing = 0, halfway_wrong_direction = 0;
 };
 
 constexpr double kLongSticking_s = 0.5;
-// The CSV's and the summary's order: lin, nl.
-constexpr controller::PredictionMethod kMethods[2] = {controller::PredictionMethod::kLinearized,
-                                                      controller::PredictionMethod::kNonlinear};
+// The CSV's and the summary's order: lin, nl, rx (the relaxation method: half-way only).
+constexpr controller::PredictionMethod kMethods[3] = {controller::PredictionMethod::kLinearized,
+                                                      controller::PredictionMethod::kNonlinear,
+                                                      controller::PredictionMethod::kRelaxation};
 
 double percentile(std::vector<double> v, double q) {
   if (v.empty()) return NAN;
@@ -621,8 +628,13 @@ int run(int argc, char** argv) {
   for (const char* m : {"lin", "nl"})
     os << ',' << m << "_will_restart," << m << "_t_restart_s," << m << "_direction," << m << "_verdict,"
        << m << "_error_ms," << m << "_error_percent," << m << "_within_criteria";
-  os << ",lin_halfway_error_percent,nl_halfway_error_percent\n";
-  MethodStats stats[2];
+  os << ",lin_halfway_error_percent,nl_halfway_error_percent,rx_halfway_error_percent\n";
+  MethodStats stats[3];
+  // The methods that forecast half-way (every method made again, when update_period_s > 0).
+  const auto& predictor = base.controller.predictor;
+  const bool halfway_enabled[3] = {predictor.update_period_s > 0.0 && predictor.linearized,
+                                   predictor.update_period_s > 0.0 && predictor.nonlinear,
+                                   predictor.update_period_s > 0.0 && predictor.relaxation};
   std::uint64_t stops = 0, restarts = 0, long_restarts = 0, longest_restart_count_1s = 0, unseen = 0, not_at_rest = 0;
   std::vector<double> start_dating_ms;  // detector's start - plant's breakaway, over the starts it saw
   char buf[512];
@@ -687,12 +699,17 @@ int run(int argc, char** argv) {
       }
       // The live predictor: the forecast made again from the last pressures before half the
       // sticking time (restarts after >= 0.5 s only; not an acceptance figure).
-      for (int m = 0; m < 2; ++m) {
+      for (int m = 0; m < 3; ++m) {
         // (The half-way of the plant's truth: the runtime settled its own by the detector's.)
-        const controller::Reforecast* halfway = judged && s.restarted && s.sticking_s() >= kLongSticking_s
-                                                    ? controller::halfway_reforecast(s, kMethods[m])
-                                                    : nullptr;
+        const bool long_restart = judged && s.restarted && s.sticking_s() >= kLongSticking_s;
+        const controller::Reforecast* halfway = long_restart ? controller::halfway_reforecast(s, kMethods[m]) : nullptr;
         const Verdict v = halfway ? controller::judge(s, halfway->prediction, r.t_end_s) : Verdict{};
+        if (long_restart && halfway_enabled[m]) {
+          if (!halfway) ++stats[m].halfway_missing;
+          else if (v.kind == Verdict::Kind::kFalseNegative) ++stats[m].halfway_none;
+          else if (v.kind == Verdict::Kind::kNotJudged) ++stats[m].halfway_not_judged;
+          else if (v.kind == Verdict::Kind::kTruePositive && !v.direction_ok) ++stats[m].halfway_wrong_direction;
+        }
         if (v.kind == Verdict::Kind::kTruePositive) {
           stats[m].halfway_error_pct.push_back(v.error_percent);
           os << ',' << std::to_string(v.error_percent);
@@ -882,6 +899,25 @@ int run(int argc, char** argv) {
     }
   }
   std::printf("  %.2f s wall on %d threads: %.1f scenarios/s\n", wall_s, jobs, n / wall_s);
+  // The live predictor's half-way forecasts of the restarts after >= 0.5 s.
+  const auto print_halfway = [](const MethodStats& st) {
+    std::printf("    made again half-way, sticking >= 0.5 s (%zu): p50 %.3f %%  p90 %.3f %%  p99 %.3f %%  max %.3f %% "
+                "(the live predictor, from the pressures of the moment; not judged)\n",
+                st.halfway_error_pct.size(), percentile(st.halfway_error_pct, 0.5),
+                percentile(st.halfway_error_pct, 0.9), percentile(st.halfway_error_pct, 0.99),
+                percentile(st.halfway_error_pct, 1.0));
+    std::size_t within[3] = {0, 0, 0};
+    for (const double e : st.halfway_error_pct)
+      for (int b = 0; b < 3; ++b) within[b] += e <= (b == 0 ? 2.0 : b == 1 ? 5.0 : 10.0) ? 1 : 0;
+    const std::uint64_t restarts_seen =
+        st.halfway_error_pct.size() + st.halfway_none + st.halfway_not_judged + st.halfway_missing;
+    std::printf("      of %llu such restarts: within 2 %%: %zu, 5 %%: %zu, 10 %%: %zu (wrong direction: %llu); forecast "
+                "none: %llu; restart after the run: %llu; no forecast by half-way: %llu\n",
+                static_cast<unsigned long long>(restarts_seen), within[0], within[1], within[2],
+                static_cast<unsigned long long>(st.halfway_wrong_direction),
+                static_cast<unsigned long long>(st.halfway_none), static_cast<unsigned long long>(st.halfway_not_judged),
+                static_cast<unsigned long long>(st.halfway_missing));
+  };
   const config::LinearizedSlope slope = base.controller.predictor.linearized_slope;
   const std::string names[2] = {slope == config::LinearizedSlope::kStopTangent
                                     ? std::string("linearized")
@@ -918,11 +954,11 @@ int run(int argc, char** argv) {
     }
     std::printf("    outside the acceptance criteria (%s %%, 10 ms): %llu\n", m == 0 ? "5" : "1",
                 static_cast<unsigned long long>(st.misses));
-    std::printf("    made again half-way, sticking >= 0.5 s (%zu): p50 %.3f %%  p90 %.3f %%  p99 %.3f %%  max %.3f %% "
-                "(the live predictor, from the pressures of the moment; not judged)\n",
-                st.halfway_error_pct.size(), percentile(st.halfway_error_pct, 0.5),
-                percentile(st.halfway_error_pct, 0.9), percentile(st.halfway_error_pct, 0.99),
-                percentile(st.halfway_error_pct, 1.0));
+    print_halfway(st);
+  }
+  if (halfway_enabled[2]) {
+    std::printf("  relaxation (made again only, fitted to the phase's own pressures; no valve model):\n");
+    print_halfway(stats[2]);
   }
   std::printf("  wrote %s\n", out_path.c_str());
   if (scenarios_out) std::printf("  wrote %s\n", scenarios_out->path().c_str());

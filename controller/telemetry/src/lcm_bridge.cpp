@@ -149,8 +149,11 @@ void LcmBridge::on_forecast(const controller::ForecastRecord& f) {
   m.stop = static_cast<std::int64_t>(f.stop);
   m.t_stop = f.t_stop_s;
   m.update = static_cast<std::int32_t>(f.update);
-  m.method = p.method == controller::PredictionMethod::kLinearized ? pneu_lcm::prediction_t::METHOD_LINEARIZED
-                                                                    : pneu_lcm::prediction_t::METHOD_NONLINEAR;
+  switch (p.method) {
+    case controller::PredictionMethod::kLinearized: m.method = pneu_lcm::prediction_t::METHOD_LINEARIZED; break;
+    case controller::PredictionMethod::kNonlinear: m.method = pneu_lcm::prediction_t::METHOD_NONLINEAR; break;
+    case controller::PredictionMethod::kRelaxation: m.method = pneu_lcm::prediction_t::METHOD_RELAXATION; break;
+  }
   m.will_restart = p.will_restart;
   m.direction = static_cast<std::int8_t>(p.direction);
   m.t_restart = p.t_restart_s;

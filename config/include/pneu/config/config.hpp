@@ -103,6 +103,10 @@ enum class LinearizedSlope : std::uint8_t {
 struct PredictorConfig {
   bool linearized = true;           ///< controller.predictor.methods holds "linearized"
   bool nonlinear = true;            ///< controller.predictor.methods holds "nonlinear"
+  /// controller.predictor.methods holds "relaxation": while stuck, forecasts also from each
+  /// chamber's relaxation fitted to the phase's own pressures (no valve model; needs
+  /// update_period_s > 0)
+  bool relaxation = false;
   std::string valve_table;          ///< table from `pneu-plant characterize-valve`; empty: the model
   double horizon_s = 600.0;         ///< the nonlinear method stops looking this long after a stop [s]
   LinearizedSlope linearized_slope = LinearizedSlope::kStopTangent;  ///< optional key

@@ -298,7 +298,8 @@ inline constexpr Choice<LinearizedSlope> kLinearizedSlopes[] = {{"stop", Lineari
                                                                {"chord", LinearizedSlope::kChord},
                                                                {"equilibrium", LinearizedSlope::kEquilibriumTangent}};
 inline constexpr Flag<PredictorConfig> kPredictorMethods[] = {{"linearized", &PredictorConfig::linearized},
-                                                              {"nonlinear", &PredictorConfig::nonlinear}};
+                                                              {"nonlinear", &PredictorConfig::nonlinear},
+                                                              {"relaxation", &PredictorConfig::relaxation}};
 inline constexpr Choice<GainsKind> kGainsKinds[] = {{"fixed", GainsKind::kFixed}, {"scheduled", GainsKind::kScheduled}};
 inline constexpr Choice<SafeOutput> kSafeOutputs[] = {{"neutral", SafeOutput::kNeutral},
                                                       {"exhaust", SafeOutput::kExhaust}};
@@ -471,6 +472,8 @@ void describe(auto& a, Like<PredictorConfig> auto& p) {
           "the linearized method's flow slope (Eq. 23)");
   a.field(optional(PNEU_NVP(p, update_period_s)), Range::non_negative(),
           "while stuck, forecast again this often [s]; 0 = only at the stop");
+  a.check("update_period_s", !p.relaxation || p.update_period_s > 0.0,
+          "must be > 0 with the relaxation method, which forecasts only while stuck");
   a.field(optional(PNEU_NVP(p, learn_online)),
           "identify the bench again at each stop after a breakaway and forecast on what was identified");
 }

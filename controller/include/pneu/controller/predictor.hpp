@@ -5,7 +5,9 @@
 
 #include <array>
 #include <cstdint>
+#include <cstddef>
 #include <limits>
+#include <optional>
 
 #include "pneu/config/config.hpp"
 #include "pneu/model/params.hpp"
@@ -16,6 +18,10 @@ namespace pneu::controller {
 enum class PredictionMethod : std::uint8_t {
   kLinearized,  ///< the paper's closed form, Eq. 16/17/23-25
   kNonlinear,   ///< the two pressure equations of Eq. 19 integrated with u held at u*
+  /// Each chamber's relaxation fitted to the pressures measured since the stop (an exponential
+  /// towards its own asymptote), without the valve model: the live predictor only, once the
+  /// phase has some history (predict_relaxation).
+  kRelaxation,
 };
 
 [[nodiscard]] const char* to_string(PredictionMethod m) noexcept;
@@ -69,8 +75,58 @@ struct Prediction {
 /// Integrates dp/dt = k r T / V(y*) q(+-u*, p) for both chambers (RK4, step a fraction of the
 /// local time constant) and locates the first crossing of a stiction bound inside the step.
 [[nodiscard]] Prediction predict_nonlinear(const PredictorModel& model, const StopSnapshot& stop) noexcept;
+/// The model-based methods. kRelaxation needs the phase's history (predict_relaxation): here it
+/// gives no forecast (no restart, horizon_reached set).
 [[nodiscard]] Prediction predict(PredictionMethod method, const PredictorModel& model,
                                  const StopSnapshot& stop) noexcept;
+
+/// The chamber pressures measured since the stop, as the relaxation method fits them. Bounded:
+/// past kCapacity samples, every other one is let go and only every 2nd (4th, ...) new one is
+/// taken, so that the samples stay spread over the whole phase. A value type, no allocation.
+class PhaseHistory {
+ public:
+  static constexpr std::size_t kCapacity = 512;
+  void clear() noexcept { n_ = 0, stride_ = 1, skipped_ = 0; }
+  void add(double t_s, double p_p_pa, double p_n_pa) noexcept;
+  [[nodiscard]] std::size_t size() const noexcept { return n_; }
+  [[nodiscard]] double t_s(std::size_t i) const noexcept { return t_[i]; }
+  [[nodiscard]] double p_pa(int chamber, std::size_t i) const noexcept { return chamber == 0 ? p_p_[i] : p_n_[i]; }
+  /// From the first sample kept to the last [s].
+  [[nodiscard]] double span_s() const noexcept { return n_ < 2 ? 0.0 : t_[n_ - 1] - t_[0]; }
+
+ private:
+  std::array<double, kCapacity> t_{}, p_p_{}, p_n_{};
+  std::size_t n_ = 0;
+  std::uint32_t stride_ = 1, skipped_ = 0;
+};
+
+/// One chamber's pressure as the relaxation method fits it: p(t) = p_inf + (p(t_ref) - p_inf)
+/// exp(-(t - t_ref) / tau), least squares over the history.
+struct RelaxationFit {
+  double p_now_pa = 0.0;     ///< the fitted curve at the time forecast from [Pa]
+  double p_inf_pa = 0.0;     ///< its asymptote [Pa]
+  double tau_s = 0.0;        ///< its time constant [s]
+  double rms_pa = 0.0;       ///< the residual [Pa]
+  bool tau_at_cap = false;   ///< the history shows no curvature: tau is kMaxTauSpans spans, its cap
+};
+
+/// The relaxation method wants this much history before it forecasts.
+inline constexpr double kRelaxationMinSpan_s = 0.05;
+inline constexpr std::size_t kRelaxationMinSamples = 10;
+/// Its time constants are searched up to this many times the history's span: a longer one would
+/// extrapolate a straight drift into a far asymptote the history cannot see.
+inline constexpr double kRelaxationMaxTauSpans = 10.0;
+
+/// Fits one chamber's relaxation to `history` (chamber 0: P, 1: N) and evaluates it at `t_now_s`.
+[[nodiscard]] RelaxationFit fit_relaxation(const PhaseHistory& history, int chamber, double t_now_s) noexcept;
+
+/// The live predictor's third method: each chamber's relaxation fitted to the phase's own history
+/// (fit_relaxation), then the pressure force of the two fitted exponentials (Eq. 14, the form of
+/// Eq. 17) against the stiction bounds of `model`, from `now` on. It uses the geometry and the
+/// friction of `model`, not its valve. Empty with less history than kRelaxationMinSpan_s and
+/// kRelaxationMinSamples.
+[[nodiscard]] std::optional<Prediction> predict_relaxation(const PredictorModel& model, const StopSnapshot& now,
+                                                           const PhaseHistory& history) noexcept;
 /// The chamber pressures and the pressure force a forecast expects at one instant of the
 /// sticking phase.
 struct ForecastPoint {

@@ -32,6 +32,9 @@ class Runtime {
   /// Whether each stop keeps its forecasts made again after it ended (tests, the sweep); else
   /// only its half-way ones, so that a daemon's memory does not grow with the time spent at rest.
   void set_keep_reforecasts(bool on) noexcept { keep_reforecasts_ = on; }
+  /// Whether the forecasts made again while stuck include the relaxation method's, fitted to the
+  /// phase's own pressures (predict_relaxation; off by default). It needs update_period_s > 0.
+  void set_relaxation_forecasts(bool on) noexcept { relaxation_ = on; }
   /// Adds a sink: every record goes to each sink, in the order they were added. Not owned; it
   /// must outlive the runtime's last drain(), finish() or record_command().
   void add_sink(RunListener& sink) { sinks_.push_back(&sink); }
@@ -65,7 +68,12 @@ class Runtime {
   /// model it was made with, so the old valve characteristic must stay alive.
   void set_model(const PredictorModel& model) noexcept { model_ = model; }
   [[nodiscard]] bool forecasts(PredictionMethod method) const noexcept {
-    return method == PredictionMethod::kLinearized ? linearized_ : nonlinear_;
+    switch (method) {
+      case PredictionMethod::kLinearized: return linearized_;
+      case PredictionMethod::kNonlinear: return nonlinear_;
+      case PredictionMethod::kRelaxation: return relaxation_ && update_period_s_ > 0.0;
+    }
+    return false;
   }
   [[nodiscard]] double update_period_s() const noexcept { return update_period_s_; }
 
@@ -81,10 +89,12 @@ class Runtime {
     std::optional<ForecastTrack> tracks[2];  // linearized, nonlinear
     double next_update_s = 0.0;
     std::uint32_t stride = 1;  // updates kept: every stride-th (thinned beyond kMaxReforecastsKept)
+    PhaseHistory history;      // the pressures since the snapshot, for the relaxation method
   };
 
   PredictorModel model_;
   bool linearized_, nonlinear_;
+  bool relaxation_ = false;
   double update_period_s_;
   bool follow_ = true;
   bool keep_reforecasts_ = false;

@@ -21,7 +21,8 @@ struct Reforecast {
   /// u* it assumed: the stop's, which the loop holds while the carriage is at rest [V]
   double u_star_v = 0.0;
   /// F the same method's forecast made at the stop expected then (NaN when the runtime does not
-  /// follow the forecasts, Runtime::set_follow_forecasts) [N]
+  /// follow the forecasts, Runtime::set_follow_forecasts, and for the relaxation method, which
+  /// makes none at the stop) [N]
   double stop_forecast_force_n = std::numeric_limits<double>::quiet_NaN();
   Prediction prediction;
 };
@@ -52,8 +53,8 @@ struct StopOutcome {
   std::uint32_t updates = 0;            ///< times the forecasts were made again while stuck
   /// Each method's last forecast made again before half the sticking time, settled when the stop
   /// ends (or the run does).
-  std::optional<Reforecast> halfway_linearized, halfway_nonlinear;
-  /// The forecasts made again, in time order, both methods interleaved: while the stop is open,
+  std::optional<Reforecast> halfway_linearized, halfway_nonlinear, halfway_relaxation;
+  /// The forecasts made again, in time order, the methods interleaved: while the stop is open,
   /// and after it only when the runtime keeps them (Runtime::set_keep_reforecasts). At most
   /// kMaxReforecastsKept: a longer sticking phase keeps every 2nd, 4th, ... update.
   std::vector<Reforecast> reforecasts;
