@@ -614,6 +614,30 @@ TEST(ConfigRefusal, TheRelaxationMethodWithoutUpdatesIsRefused) {
   EXPECT_TRUE(load_string(to_yaml(c)).controller.predictor.relaxation);
 }
 
+TEST(ConfigOverride, PushesOnTheSimulatedBenchAreReadAndWrittenBack) {
+  const Config c = load_string(shipped_yaml(), {"hal.sim.pushes=[{t_s: 6, force_n: -80.5, duration_s: 0.2}, "
+                                                "{t_s: 7, force_n: 30, duration_s: 1}]"});
+  ASSERT_EQ(c.hal.sim.pushes.size(), 2u);
+  EXPECT_EQ(c.hal.sim.pushes[0].t_s, 6.0);
+  EXPECT_EQ(c.hal.sim.pushes[0].force_n, -80.5);
+  EXPECT_EQ(c.hal.sim.pushes[0].duration_s, 0.2);
+  EXPECT_FALSE(c.hal.sim.has_plant);  // the bench is still its model
+  const Config again = load_string(to_yaml(c));
+  expect_same_values(c, again);
+  ASSERT_EQ(again.hal.sim.pushes.size(), 2u);
+  EXPECT_EQ(again.hal.sim.pushes[1].duration_s, 1.0);
+}
+
+TEST(ConfigRefusal, APushWithoutDurationOrBeforeTimeZeroIsNamedByItsIndex) {
+  EXPECT_THAT(loading(shipped_yaml(), {"hal.sim.pushes=[{t_s: 6, force_n: 80, duration_s: 0.2}, "
+                                       "{t_s: 7, force_n: 80, duration_s: 0}]"}),
+              refuses("hal.sim.pushes[1].duration_s", "must be > 0"));
+  EXPECT_THAT(loading(shipped_yaml(), {"hal.sim.pushes=[{t_s: -1, force_n: 80, duration_s: 0.2}]"}),
+              refuses("hal.sim.pushes[0].t_s", "must be >= 0"));
+  EXPECT_THAT(loading(shipped_yaml(), {"hal.sim.pushes=[{t_s: 1, force: 80, duration_s: 0.2}]"}),
+              refuses("hal.sim.pushes[0].force_n", "missing"));  // (force: a typo)
+}
+
 TEST(ConfigRefusal, UnknownLinearizedSlopeNamesTheChoices) {
   const std::string yaml = shipped_yaml_edited(
       [](YAML::Node& root) { root["controller"]["predictor"]["linearized_slope"] = "secant"; });
@@ -1158,7 +1182,7 @@ constexpr std::size_t member_count() {
   else return N;
 }
 static_assert(member_count<model::Geometry>() == 5);
-static_assert(member_count<HalConfig>() == 5);
+static_assert(member_count<HalConfig>() == 6);
 
 // Walks the schema noting, for each struct it describes, the members its description reaches
 // (each reference goes to the innermost struct being described that holds it), beside the
@@ -1258,8 +1282,8 @@ TEST(Schema, MakesEveryMemberOfEveryConfigurationStructAKey) {
   EXPECT_THAT(counter.mismatches, ::testing::IsEmpty());
   // Config; plant and its 4 sections; sensors and its 3 channels; simulation; controller, its 6
   // sections, the law's design and a schedule step; hal, modbus and its 5 channels, gpio, sim and
-  // its plant with that plant's 4 sections; telemetry; commands.
-  EXPECT_EQ(counter.structs, 36);
+  // its plant with that plant's 4 sections, and a push; telemetry; commands.
+  EXPECT_EQ(counter.structs, 37);
 }
 
 // The key paths of a YAML document, in order ("a.list[0].b" for the keys of a list's mappings).

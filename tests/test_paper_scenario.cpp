@@ -12,6 +12,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <bit>
 #include <cmath>
@@ -275,4 +276,42 @@ TEST(SimulatedBench, WithABenchOfItsOwnRunsThatBenchNotTheModel) {
   EXPECT_NEAR(after.p_p_pa, as_bench.p_p_pa, 1.0);
   EXPECT_NEAR(after.p_n_pa, as_bench.p_n_pa, 1.0);
   EXPECT_EQ(after.y_m, as_bench.y_m) << "still at rest";
+}
+
+// The disturbance input (hal.sim.pushes): a push on the carriage of the in-process bench, at the
+// loop's time. The paper's run is stuck at 171.7 mm from 9.76 s (its last stop); 150 N for 0.1 s
+// from 10.5 s throws it beyond F_S+ at once, and the loop brings it back.
+TEST(SimulatedBench, APushOfTheConfigurationMovesTheCarriageAtItsTimeAndTheLoopBringsItBack) {
+  config::Config c = config::load_file(fs::path(PNEU_SOURCE_DIR) / "config/paper.yaml",
+                                       {"controller.duration_s=16", "hal.sim.pushes=[{t_s: 10.5, force_n: 150, duration_s: 0.1}]"});
+  const auto valve = controller::make_valve_characteristic(c, {});
+  controller::resolve_offset(c, *valve);
+  controller::Run run = controller::make_run(c, *valve, backends::make_sim_backend(c));
+  const auto& bench = dynamic_cast<const hal::SimBackend&>(*run.backend);
+  const double period = c.controller.period_s();
+  const double y_d = c.controller.schedule.back().position_m;
+  run.loop->start(0.0);
+  double y_before = NAN, y_most = -1.0;
+  for (int k = 1; k <= 16000; ++k) {
+    run.loop->tick(k * period);
+    run.runtime->drain(*run.outputs);
+    const double y = bench.plant().state().y_m;
+    if (k == 10499) y_before = y;
+    if (k >= 10500) y_most = std::max(y_most, y);
+  }
+  ASSERT_EQ(bench.plant().external_force_n(), 0.0);
+  // Stuck before it, within 2 mm of the set point.
+  ASSERT_LT(std::abs(y_before - y_d), 2e-3);
+  // A breakaway towards + at the push's start: the first motion event from 10.5 s on.
+  const auto events = bench.motion_events();
+  const auto first =
+      std::find_if(events.begin(), events.end(), [](const plant::PlantEvent& e) { return e.t_s > 10.5 - 1e-6; });
+  ASSERT_NE(first, events.end());
+  EXPECT_EQ(first->kind, plant::PlantEvent::Kind::kBreakaway);
+  EXPECT_EQ(first->direction, +1);
+  EXPECT_NEAR(first->t_s, 10.5, 1e-9);
+  EXPECT_GT(y_most, y_before + 1e-3);
+  // Back within a millimetre of the set point by the end, no fault.
+  EXPECT_LT(std::abs(bench.plant().state().y_m - y_d), 1e-3);
+  EXPECT_TRUE(run.runtime->faults().empty());
 }

@@ -427,5 +427,63 @@ TEST(Plant, EachValveDrivesItsOwnChamber) {
   EXPECT_NEAR(plant.state().p_n_pa, start.p_n_pa, 1.0e3);
 }
 
+
+// The disturbance input (hal.sim.pushes): an external force on the carriage adds to the pressure
+// force against friction.
+TEST(PlantPush, AForceWithinTheStictionBandMovesNothingAndOneBeyondItBreaksAwayAtOnce) {
+  Plant plant(PlantParams{});
+  const double u_e = equilibrium_voltage(plant);  // F = 0 at rest
+  plant.reset_at_rest(0.05, u_e);
+  const std::vector<model::Push> within{{0.1, 40.0, 0.3}};  // 40 N < F_S+ = 45 N
+  for (int i = 1; i <= 500; ++i)
+    step_with_pushes(plant, i * kSampleS, u_e, -u_e, within, [](auto events) { ASSERT_TRUE(events.empty()); });
+  EXPECT_EQ(plant.state().y_m, 0.05);
+  // 60 N from 0.6 s: beyond F_S+, the carriage breaks away at the push's start, towards +.
+  const std::vector<model::Push> beyond{{0.6, 60.0, 0.05}};
+  std::vector<PlantEvent> events;
+  for (int i = 501; i <= 1500; ++i)
+    step_with_pushes(plant, i * kSampleS, u_e, -u_e, beyond, [&](auto piece) {
+      events.insert(events.end(), piece.begin(), piece.end());
+    });
+  ASSERT_GE(events.size(), 2u);
+  EXPECT_EQ(events.front().kind, Kind::kBreakaway);
+  EXPECT_EQ(events.front().direction, +1);
+  EXPECT_NEAR(events.front().t_s, 0.6, 1e-9);
+  EXPECT_NEAR(events.front().force_n, 0.0, 1e-6);  // the events report the pressure force
+  // It slides on after the push (50 ms at 15 N net), then the air spring and friction stop it.
+  EXPECT_GT(plant.state().y_m, 0.05 + 1e-4);
+  EXPECT_EQ(plant.state().motion, Motion::kStuck);
+  EXPECT_EQ(plant.external_force_n(), 0.0);  // the push is over
+}
+
+TEST(PlantPush, PushesAddUpWhileTheyOverlapAndChangeOnlyAtTheirEnds) {
+  const std::vector<model::Push> pushes{{1.0, 10.0, 2.0}, {2.0, -25.0, 0.5}};
+  EXPECT_EQ(push_force_n(pushes, 0.5), 0.0);
+  EXPECT_EQ(push_force_n(pushes, 1.0), 10.0);
+  EXPECT_EQ(push_force_n(pushes, 2.25), -15.0);
+  EXPECT_EQ(push_force_n(pushes, 2.5), 10.0);
+  EXPECT_EQ(push_force_n(pushes, 3.0), 0.0);
+  EXPECT_EQ(next_push_change_s(pushes, 0.0), 1.0);
+  EXPECT_EQ(next_push_change_s(pushes, 1.0), 2.0);
+  EXPECT_EQ(next_push_change_s(pushes, 2.0), 2.5);
+  EXPECT_EQ(next_push_change_s(pushes, 2.5), 3.0);
+  EXPECT_TRUE(std::isinf(next_push_change_s(pushes, 3.0)));
+}
+
+TEST(PlantPush, WithoutPushesSteppingInPiecesIsPlantStepBitForBit) {
+  Plant a(PlantParams{}), b(PlantParams{});
+  const double u = equilibrium_voltage(a) + 0.4;
+  a.reset_at_rest(0.0, u - 0.4);
+  b.reset_at_rest(0.0, u - 0.4);
+  for (int i = 1; i <= 2000; ++i) {
+    const double t = i * kSampleS;  // as the sim backend steps: to the tick's time
+    a.step(t - a.state().t_s, u);
+    step_with_pushes(b, t, u, -u, {}, [](auto) {});
+    ASSERT_EQ(a.state().y_m, b.state().y_m);
+    ASSERT_EQ(a.state().p_p_pa, b.state().p_p_pa);
+  }
+  EXPECT_GT(a.state().y_m, 1e-3);  // not vacuous: it moved
+}
+
 }  // namespace
 }  // namespace pneu::plant

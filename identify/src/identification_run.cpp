@@ -117,7 +117,7 @@ std::string identified_config_yaml(const config::Config& config, const Identific
   out.plant = id.plant;
   // A simulated bench that was its model stays what it was: the run identified it, it did not change.
   if (config.hal.backend == config::BackendKind::kSim && !config.hal.sim.has_plant) {
-    out.hal.sim.has_plant = true;
+    out.hal.has_sim = out.hal.sim.has_plant = true;
     out.hal.sim.plant = config.plant;
   }
   std::string text = "# plant: identified by pneu " + source + "\n# identified (value +- 1 sigma, was):\n";

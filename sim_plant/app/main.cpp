@@ -138,18 +138,19 @@ int simulate(int argc, char** argv) {
     os << '\n';
     if (i + 1 == n) break;
     const auto t0 = std::chrono::steady_clock::now();
-    plant.step(input.t_s[i + 1] - input.t_s[i], input.u_v[i]);
-    plant_time += std::chrono::steady_clock::now() - t0;
-    for (const auto& e : plant.last_events()) {
-      events.push_back(e);
-      const bool now_stuck = e.kind == plant::PlantEvent::Kind::kStick ||
-                             e.kind == plant::PlantEvent::Kind::kEndStop;
-      if (now_stuck) stuck_since = e.t_s;
-      if (e.kind == plant::PlantEvent::Kind::kBreakaway && !std::isnan(stuck_since)) {
-        sticks.push_back({stuck_since, e.t_s});
-        stuck_since = NAN;
+    plant::step_with_pushes(plant, input.t_s[i + 1], input.u_v[i], -input.u_v[i], cfg.hal.sim.pushes, [&](auto piece) {
+      for (const auto& e : piece) {
+        events.push_back(e);
+        const bool now_stuck = e.kind == plant::PlantEvent::Kind::kStick ||
+                               e.kind == plant::PlantEvent::Kind::kEndStop;
+        if (now_stuck) stuck_since = e.t_s;
+        if (e.kind == plant::PlantEvent::Kind::kBreakaway && !std::isnan(stuck_since)) {
+          sticks.push_back({stuck_since, e.t_s});
+          stuck_since = NAN;
+        }
       }
-    }
+    });
+    plant_time += std::chrono::steady_clock::now() - t0;
     y_min = std::min(y_min, plant.state().y_m);
     y_max = std::max(y_max, plant.state().y_m);
   }

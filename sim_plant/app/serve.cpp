@@ -414,10 +414,14 @@ int serve(int argc, char** argv) {
   std::size_t next_fault = 0;
   const auto drive_p = [&] { return stuck_p.value_or(u_p); };
   const auto drive_n = [&] { return stuck_n.value_or(u_n); };
+  // The plant to `t`, each push of hal.sim.pushes (on serve's time) from its start to its end.
+  const auto step_to = [&](double t) {
+    plant::step_with_pushes(plant, t, drive_p(), drive_n(), cfg.hal.sim.pushes, [](auto) {});
+  };
   const auto advance_to = [&](double t) {
     for (; next_fault < faults.size() && faults[next_fault].t_s <= t; ++next_fault) {
       Fault& f = faults[next_fault];
-      if (f.t_s > plant.state().t_s) plant.step(f.t_s - plant.state().t_s, drive_p(), drive_n());
+      if (f.t_s > plant.state().t_s) step_to(f.t_s);
       switch (f.channel) {
         case FaultChannel::kValveP: stuck_p = f.stuck_v; break;
         case FaultChannel::kValveN: stuck_n = f.stuck_v; break;
@@ -431,7 +435,7 @@ int serve(int argc, char** argv) {
       std::printf("pneu-plant serve: fault %s active at t = %.6f s\n", f.spec.c_str(), monotonic_s() - t0);
       std::fflush(stdout);
     }
-    if (t > plant.state().t_s) plant.step(t - plant.state().t_s, drive_p(), drive_n());
+    step_to(t);
   };
   // A held reply answers with the readings of its request's time, as a module that answers late.
   const auto sensor_words = [&](std::array<std::uint16_t, 6>& words, bool restore) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <limits>
 
 namespace pneu::plant {
 
@@ -117,7 +118,7 @@ Plant::Vec Plant::derivative(const Vec& x, Motion motion, Drive u) const noexcep
     dx[1] = 0.0;
   } else {
     dx[0] = v;
-    dx[1] = (force_of(x) - sliding_friction_n(motion, v)) / params_.mass_kg;
+    dx[1] = (driving_force_of(x) - sliding_friction_n(motion, v)) / params_.mass_kg;
   }
   return dx;
 }
@@ -145,7 +146,7 @@ void Plant::record(PlantEvent::Kind kind, int direction) noexcept {
 
 void Plant::settle_mode_at_rest() noexcept {
   const auto& f = params_.friction;
-  const double force = pressure_force_n();
+  const double force = pressure_force_n() + external_n_;
   if (state_.v_m_per_s > 0.0) {
     state_.motion = Motion::kSlidingPositive;
   } else if (state_.v_m_per_s < 0.0) {
@@ -210,7 +211,7 @@ void Plant::advance(double h, Drive u) noexcept {
       const bool may_go_up = x0[0] < half_stroke_m_;
       const bool may_go_down = x0[0] > -half_stroke_m_;
       const auto g = [&](const Vec& xs) {
-        const double force = force_of(xs);
+        const double force = driving_force_of(xs);
         const double up = may_go_up ? force - f.static_positive_n : -1.0;
         const double down = may_go_down ? f.static_negative_n - force : -1.0;
         return std::max(up, down);
@@ -225,7 +226,7 @@ void Plant::advance(double h, Drive u) noexcept {
           [&](double th) { return g(rk4(x0, th * remaining, m, u)); }, g0, g1, theta_tolerance);
       const Vec xe = rk4(x0, theta * remaining, m, u);
       commit(xe, theta * remaining);
-      const double force = force_of(xe);
+      const double force = driving_force_of(xe);
       const int dir = (may_go_up && force > f.static_positive_n) ? kPositive : kNegative;
       state_.motion = sliding(dir);
       record(PlantEvent::Kind::kBreakaway, dir);
@@ -243,7 +244,7 @@ void Plant::advance(double h, Drive u) noexcept {
       // Asymptotic approach to rest: inside the velocity band, decelerating, F inside the
       // stiction band -> stick.
       if (std::abs(x[1]) < f.stick_velocity_m_per_s && s * derivative(x, m, u)[1] < 0.0 &&
-          force_of(x) >= f.static_negative_n && force_of(x) <= f.static_positive_n) {
+          driving_force_of(x) >= f.static_negative_n && driving_force_of(x) <= f.static_positive_n) {
         state_.v_m_per_s = 0.0;
         state_.motion = Motion::kStuck;
         record(PlantEvent::Kind::kStick, s);
@@ -258,7 +259,7 @@ void Plant::advance(double h, Drive u) noexcept {
     xe[1] = 0.0;
     if (hit_stop) xe[0] = s * half_stroke_m_;
     commit(xe, theta * remaining);
-    const double force = force_of(xe);
+    const double force = driving_force_of(xe);
     if (hit_stop) {
       state_.motion = Motion::kStuck;
       record(PlantEvent::Kind::kEndStop, s);
@@ -275,6 +276,22 @@ void Plant::advance(double h, Drive u) noexcept {
     commit(rk4(x, remaining, state_.motion, u), remaining);
     ++events_dropped_;
   }
+}
+
+double push_force_n(std::span<const model::Push> pushes, double t_s) noexcept {
+  double f = 0.0;
+  for (const auto& p : pushes)
+    if (t_s >= p.t_s && t_s < p.t_s + p.duration_s) f += p.force_n;
+  return f;
+}
+
+double next_push_change_s(std::span<const model::Push> pushes, double t_s) noexcept {
+  double next = std::numeric_limits<double>::infinity();
+  for (const auto& p : pushes) {
+    if (p.t_s > t_s) next = std::min(next, p.t_s);
+    else if (p.t_s + p.duration_s > t_s) next = std::min(next, p.t_s + p.duration_s);
+  }
+  return next;
 }
 
 }  // namespace pneu::plant

@@ -56,7 +56,8 @@ std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config, 
                                                   const model::PlantParams& bench) {
   const double u_initial =
       law.resting_control_v(config.controller.initial_setpoint_m, config.simulation.initial_position_m);
-  return std::make_unique<hal::SimBackend>(bench, config.sensors, config.simulation.initial_position_m, u_initial);
+  return std::make_unique<hal::SimBackend>(bench, config.sensors, config.simulation.initial_position_m, u_initial,
+                                           config.hal.sim.pushes);
 }
 
 std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config, const controller::ControlLaw& law) {

@@ -243,6 +243,9 @@ struct SimBenchConfig {
   /// plant:'s keys, each over plant:'s value.
   bool has_plant = false;
   model::PlantParams plant;  ///< the bench: plant: with hal.sim.plant's keys over it
+  /// hal.sim.pushes: external forces on the carriage (the simulated bench's disturbance input), on
+  /// the loop's time in process, on pneu-plant serve's own (from its start) over Modbus.
+  std::vector<model::Push> pushes;
 };
 
 /// The hardware abstraction layer: which backend pneud drives.
@@ -252,6 +255,9 @@ struct HalConfig {
                                             ///< and by pneu-plant serve)
   ModbusConfig modbus;
   GpioConfig gpio;                          ///< hal.gpio (optional section; absent: disabled)
+  /// hal.sim present (code that gives a configuration a bench or pushes of its own sets it, so
+  /// that the configuration is written with them)
+  bool has_sim = false;
   SimBenchConfig sim;                       ///< hal.sim (optional section)
 };
 

@@ -699,8 +699,16 @@ void describe(auto& a, Like<GpioConfig> auto& g) {
 
 // hal.sim.plant: any subset of plant:'s keys (the loader lays them over plant:'s before reading);
 // written whole.
+/// One of hal.sim.pushes.
+void describe(auto& a, Like<model::Push> auto& p) {
+  a.field(PNEU_NVP(p, t_s), Range::non_negative(), "it starts [s]");
+  a.field(PNEU_NVP(p, force_n), Range::any(), "towards +y while it lasts [N]");
+  a.field(PNEU_NVP(p, duration_s), Range::positive(), "it lasts [s]");
+}
+
 void describe(auto& a, Like<SimBenchConfig> auto& s) {
   a.optional_section(optional(PNEU_NVP(s, plant)), s.has_plant);
+  a.list(optional(PNEU_NVP(s, pushes)));
 }
 
 void describe(auto& a, Like<HalConfig> auto& h) {
@@ -709,7 +717,7 @@ void describe(auto& a, Like<HalConfig> auto& h) {
       required_when(h.backend == BackendKind::kModbus, PNEU_NVP(h, modbus), "the modbus backend needs its section"),
       h.has_modbus);
   a.section(optional(PNEU_NVP(h, gpio)));
-  a.optional_section(optional(PNEU_NVP(h, sim)), h.sim.has_plant);  // written only with its plant
+  a.optional_section(optional(PNEU_NVP(h, sim)), h.has_sim);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -87,4 +87,12 @@ struct PlantParams {
   double max_step_s = 2.0e-4;
 };
 
+/// An external force on the carriage, a step from `t_s` for `duration_s` (a push by hand, a
+/// collision): the simulated bench's disturbance input, not a parameter of the plant's model.
+struct Push {
+  double t_s = 0.0;         ///< it starts [s]
+  double force_n = 0.0;     ///< towards +y while it lasts [N]
+  double duration_s = 0.0;  ///< [s], > 0
+};
+
 }  // namespace pneu::model

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <span>
@@ -68,6 +69,12 @@ class Plant {
   /// vents both chambers to the exhaust (a safe state), a stuck spool drives one valve alone.
   void step(double dt_s, double u_p_v, double u_n_v) noexcept;
 
+  /// An external force on the carriage from now on, towards +y (a push; 0 by default) [N]: it adds
+  /// to the pressure force against friction, for breakaway, sliding and sticking alike. The events
+  /// still report the pressure force.
+  void set_external_force_n(double force_n) noexcept { external_n_ = force_n; }
+  [[nodiscard]] double external_force_n() const noexcept { return external_n_; }
+
   [[nodiscard]] const PlantState& state() const noexcept { return state_; }
   /// F = S_P p_P - S_N p_N - S_r p_E (Eq. 14) at the current state [N].
   [[nodiscard]] double pressure_force_n() const noexcept;
@@ -100,6 +107,8 @@ class Plant {
   [[nodiscard]] Vec derivative(const Vec& x, Motion motion, Drive u) const noexcept;
   [[nodiscard]] Vec rk4(const Vec& x, double h, Motion motion, Drive u) const noexcept;
   [[nodiscard]] double force_of(const Vec& x) const noexcept;
+  /// What friction opposes: the pressure force and the external one [N].
+  [[nodiscard]] double driving_force_of(const Vec& x) const noexcept { return force_of(x) + external_n_; }
   void advance(double h, Drive u) noexcept;
   void record(PlantEvent::Kind kind, int direction) noexcept;
   void settle_mode_at_rest() noexcept;
@@ -110,10 +119,31 @@ class Plant {
   double area_p_m2_, area_n_m2_, half_stroke_m_, k_r_t_, r_t_;
   double step_s_;
   PlantState state_;
+  double external_n_ = 0.0;
   std::array<PlantEvent, kMaxEventsPerStep> events_{};
   std::size_t event_count_ = 0;
   std::uint64_t events_dropped_ = 0;
   mutable std::uint64_t rhs_evaluations_ = 0;
 };
+
+/// The sum of the pushes acting at `t_s` (each from its t_s, for its duration) [N].
+[[nodiscard]] double push_force_n(std::span<const model::Push> pushes, double t_s) noexcept;
+/// The first time after `t_s` at which a push starts or ends; +infinity when none.
+[[nodiscard]] double next_push_change_s(std::span<const model::Push> pushes, double t_s) noexcept;
+
+/// Steps `plant` to `t_end_s` with the valves held (P at `u_p_v`, N at `u_n_v`), in pieces at each
+/// push's start and end, each piece under the pushes acting at its start (one piece without
+/// pushes: Plant::step itself). `on_events(plant.last_events())` after each piece. Real-time safe.
+template <typename OnEvents>
+void step_with_pushes(Plant& plant, double t_end_s, double u_p_v, double u_n_v, std::span<const model::Push> pushes,
+                      OnEvents&& on_events) noexcept {
+  for (double t = plant.state().t_s; t_end_s - t > 0.0; t = plant.state().t_s) {
+    const double until = std::min(t_end_s, next_push_change_s(pushes, t));
+    plant.set_external_force_n(push_force_n(pushes, t));
+    plant.step(until - t, u_p_v, u_n_v);
+    on_events(plant.last_events());
+    if (until == t_end_s) break;
+  }
+}
 
 }  // namespace pneu::plant

@@ -16,13 +16,14 @@ namespace pneu::hal {
 class SimBackend final : public Backend {
  public:
   /// The plant starts at rest at `initial_position_m` at complete equilibrium for `initial_u_v`.
+  /// `pushes` (hal.sim.pushes): external forces on the carriage, on the loop's time.
   SimBackend(const model::PlantParams& plant, const model::SensorParams& sensors,
-             double initial_position_m, double initial_u_v);
+             double initial_position_m, double initial_u_v, std::span<const model::Push> pushes = {});
 
   void open(double t0_s) override;
   void close() noexcept override {}
-  /// Integrates the plant from its current time to `t_s` with the held command, then samples the
-  /// sensors. Real-time safe.
+  /// Integrates the plant from its current time to `t_s` with the held command (and each push from
+  /// its own start to its own end), then samples the sensors. Real-time safe.
   [[nodiscard]] Status read(double t_s, SensorFrame& frame) noexcept override;
   [[nodiscard]] Status write(const ActuatorCommand& command) noexcept override;
 
@@ -43,6 +44,7 @@ class SimBackend final : public Backend {
   double initial_position_m_;
   double initial_u_v_;
   ActuatorCommand command_;
+  std::vector<model::Push> pushes_;
   std::vector<plant::PlantEvent> motion_events_;
   std::uint64_t motion_events_dropped_ = 0;
 };
