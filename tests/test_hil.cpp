@@ -449,6 +449,30 @@ TEST_F(Hil, MbpollReadsThePlantsRegisters) {
   EXPECT_EQ(plant.wait(), 0);
 }
 
+TEST_F(Hil, APushOfTheConfigurationMovesTheServedCarriageOnServesOwnTime) {
+  // hal.sim.pushes on pneu-plant serve: -300 N for 0.3 s from 1.5 s after it starts, the valves at
+  // their neutral voltages (no client writes them).
+  Child plant = serve(6.0, {"--set", "hal.sim.pushes=[{t_s: 1.5, force_n: -300, duration_s: 0.3}]"});
+  const auto position_m = [&]() -> double {
+    const int fd = connect_loopback(port_);
+    EXPECT_GE(fd, 0);
+    const auto request = read_request(1, 1);
+    EXPECT_EQ(send(fd, request.data(), request.size(), MSG_NOSIGNAL), static_cast<ssize_t>(request.size()));
+    const auto reply = receive(fd, 11, 3s);
+    close(fd);
+    if (reply.size() != 11u) return NAN;
+    const double word = reply[9] * 256.0 + reply[10];
+    return (word * 10.0 / 65535.0 - 5.0) / 20.0;  // hil.yaml: 20 V/m, 5 V at mid-stroke
+  };
+  const double before = position_m();
+  EXPECT_NEAR(before, 0.2195, 1e-4) << "at rest at the configured 219.5 mm before the push";
+  std::this_thread::sleep_for(3s);
+  const double after = position_m();
+  EXPECT_LT(after, before - 1e-3) << "pushed towards -: measured " << after;
+  kill(plant.pid, SIGINT);
+  EXPECT_EQ(plant.wait(), 0);
+}
+
 TEST_F(Hil, UnreachableHostWrongUnitAndBadMapFailAtStartUpWithClearErrors) {
   // Nobody listens.
   Child none = Child::spawn(pneud_args({"--duration", "1"}), dir_ / "a.out", dir_ / "a.err");
