@@ -370,6 +370,10 @@ struct MethodStats {
   // ... and of those restarts: the half-way forecast was none, not judged (its restart after the
   // run's end), missing; and among the timed ones above, in the wrong direction
   std::uint64_t halfway_none = 0, halfway_not_judged = 0, halfway_missing = 0, halfway_wrong_direction = 0;
+  // --online: the judged stops whose restart (or forecast restart) goes towards a side the bench
+  // had not yet been seen to restart towards, its stiction bound still the configured one
+  std::uint64_t unlearned_side = 0, unlearned_side_wrong = 0;
+  std::vector<double> unlearned_side_long_error_pct;
 };
 
 constexpr double kLongSticking_s = 0.5;
@@ -641,8 +645,11 @@ int run(int argc, char** argv) {
   std::uint64_t learning = 0;  // --online: stops before their bench's kOnlineLearningRestarts-th restart
   for (const auto& r : results) {
     int restarts_seen = 0;  // by the daemon, before this stop
+    int restarts_towards[2] = {0, 0};  // ... towards -, +
     for (std::size_t k = 0; k < r.stops.size(); ++k) {
       const auto& s = r.stops[k];
+      const int towards_before[2] = {restarts_towards[0], restarts_towards[1]};
+      if (s.restarted && s.direction != 0) ++restarts_towards[s.direction > 0 ? 1 : 0];
       ++stops;
       if (r.truth[k].unseen) ++unseen;
       if (!std::isnan(r.truth[k].start_dating_s)) start_dating_ms.push_back(1e3 * r.truth[k].start_dating_s);
@@ -691,6 +698,13 @@ int run(int argc, char** argv) {
           case Verdict::Kind::kNotJudged: ++st.not_judged; break;
         }
         if (!ok) ++st.misses;
+        const int side = s.restarted ? s.direction : (p.will_restart ? p.direction : 0);
+        if (online && v.kind != Verdict::Kind::kNotJudged && side != 0 && towards_before[side > 0 ? 1 : 0] == 0) {
+          ++st.unlearned_side;
+          if (v.kind == Verdict::Kind::kFalseNegative || v.kind == Verdict::Kind::kFalsePositive) ++st.unlearned_side_wrong;
+          if (v.kind == Verdict::Kind::kTruePositive && s.sticking_s() >= kLongSticking_s)
+            st.unlearned_side_long_error_pct.push_back(v.error_percent);
+        }
         const bool tp = v.kind == Verdict::Kind::kTruePositive;
         std::snprintf(buf, sizeof buf, ",%d,%.6f,%d,%s,%s,%s,%d", p.will_restart ? 1 : 0, p.t_restart_s,
                       p.direction, verdict_name(v.kind), tp ? std::to_string(v.error_s * 1e3).c_str() : "",
@@ -954,6 +968,16 @@ int run(int argc, char** argv) {
     }
     std::printf("    outside the acceptance criteria (%s %%, 10 ms): %llu\n", m == 0 ? "5" : "1",
                 static_cast<unsigned long long>(st.misses));
+    if (online) {
+      std::size_t within[3] = {0, 0, 0};
+      for (const double e : st.unlearned_side_long_error_pct)
+        for (int b = 0; b < 3; ++b) within[b] += e <= (b == 0 ? 2.0 : b == 1 ? 5.0 : 10.0) ? 1 : 0;
+      std::printf("    --online, judged stops towards a side their bench had not yet restarted towards (its stiction "
+                  "bound still the configured one): %llu, verdict wrong on %llu; sticking >= 0.5 s within 2 %%: %zu, "
+                  "5 %%: %zu, 10 %%: %zu of %zu\n",
+                  static_cast<unsigned long long>(st.unlearned_side), static_cast<unsigned long long>(st.unlearned_side_wrong),
+                  within[0], within[1], within[2], st.unlearned_side_long_error_pct.size());
+    }
     print_halfway(st);
   }
   if (halfway_enabled[2]) {
