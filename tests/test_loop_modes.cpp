@@ -7,6 +7,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <memory>
@@ -396,3 +397,98 @@ TEST_F(LoopModes, ASetPointCommandEndsTheConfiguredSchedule) {
 }
 
 }  // namespace
+
+// The in-position hold (controller.hold): at rest within the window of the set point, the loop
+// drives the pressure force, not Eq. 4; it hands back on a set-point change, a reading outside the
+// window, a fault or a disarm, each the tick it comes, saying why.
+class LoopHold : public LoopModes {
+ protected:
+  LoopHold() {
+    config_.controller.hold.enabled = true;
+    backend_.sample.y_m = config_.controller.initial_setpoint_m + 1e-4;  // 0.1 mm off: inside 0.5 mm
+  }
+  // Starts, holds from the first tick on (the detector starts at rest), drops the hold's start.
+  void start_holding() {
+    start();
+    run_ticks(1);
+    ASSERT_EQ(mode(), Mode::kHold);
+    const auto e = events();
+    ASSERT_EQ(e.size(), 1u);
+    ASSERT_EQ(e[0].kind, LoopEvent::Kind::kHoldStart);
+  }
+  // The hold's end among this tick's events (a jump beyond the window is also a start, which the
+  // stop detector reports first).
+  void expect_hold_end(controller::HoldEnd why) {
+    const auto e = events();
+    const auto end = std::find_if(e.begin(), e.end(), [](const LoopEvent& x) { return x.kind == LoopEvent::Kind::kHoldEnd; });
+    ASSERT_NE(end, e.end());
+    EXPECT_EQ(std::count_if(e.begin(), e.end(), [](const LoopEvent& x) { return x.kind == LoopEvent::Kind::kHoldEnd; }), 1);
+    EXPECT_EQ(end->hold_end, why) << controller::hold_end_name(end->hold_end);
+    EXPECT_DOUBLE_EQ(end->t_s, now_s());
+  }
+};
+
+TEST_F(LoopHold, IsOffUnlessEnabled) {
+  config_.controller.hold.enabled = false;
+  start();
+  run_ticks(100);
+  EXPECT_EQ(mode(), Mode::kArmed);
+  EXPECT_TRUE(events().empty());
+}
+
+TEST_F(LoopHold, NotWithinTheWindowTheLawKeepsDriving) {
+  backend_.sample.y_m = config_.controller.initial_setpoint_m + 1e-3;  // 1 mm off
+  start();
+  run_ticks(100);
+  EXPECT_EQ(mode(), Mode::kArmed);
+}
+
+TEST_F(LoopHold, DrivesTheMeasuredForceTowardsTheMiddleOfTheStictionBandWithPowerOn) {
+  start_holding();
+  // The sample's pressures hold F = 1.8 N, above the band's middle (45 - 50) / 2 = -2.5 N: the
+  // integral term lowers u tick after tick, the law's u* notwithstanding.
+  const double u_first = backend_.written.u_p_v;
+  run_ticks(200);
+  EXPECT_EQ(mode(), Mode::kHold);
+  EXPECT_TRUE(backend_.written.valve_power);
+  EXPECT_LT(backend_.written.u_p_v, u_first - 0.01);
+  EXPECT_EQ(backend_.written.u_n_v, -backend_.written.u_p_v);
+}
+
+TEST_F(LoopHold, ASetPointCommandEndsItTheTickItIsApplied) {
+  start_holding();
+  run_ticks(10);
+  command(LoopCommand::Kind::kSetPoint, 0.2);
+  EXPECT_EQ(mode(), Mode::kArmed);
+  expect_hold_end(controller::HoldEnd::kSetPoint);
+}
+
+TEST_F(LoopHold, AReadingOutsideTheWindowEndsItThatTick) {
+  start_holding();
+  run_ticks(10);
+  backend_.sample.y_m = config_.controller.initial_setpoint_m + 6e-4;  // pushed beyond 0.5 mm
+  run_ticks(1);
+  EXPECT_EQ(mode(), Mode::kArmed);
+  expect_hold_end(controller::HoldEnd::kLeftWindow);
+}
+
+TEST_F(LoopHold, AFaultEndsItBeforeTheFaultLatches) {
+  start_holding();
+  backend_.sample.estop = true;
+  run_ticks(1);
+  EXPECT_EQ(mode(), Mode::kFault);
+  const auto e = events();
+  ASSERT_EQ(e.size(), 2u);
+  EXPECT_EQ(e[0].kind, LoopEvent::Kind::kHoldEnd);
+  EXPECT_EQ(e[0].hold_end, controller::HoldEnd::kFault);
+  EXPECT_EQ(e[1].kind, LoopEvent::Kind::kFault);
+  EXPECT_FALSE(backend_.written.valve_power);
+}
+
+TEST_F(LoopHold, ADisarmEndsItAndDisarms) {
+  start_holding();
+  command(LoopCommand::Kind::kDisarm);
+  EXPECT_EQ(mode(), Mode::kDisarmed);
+  expect_hold_end(controller::HoldEnd::kDisarmed);
+  EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
+}

@@ -228,6 +228,29 @@ TEST(ControlLoop, AllocatesNothingWithGainsScheduledByPosition) {
   ASSERT_FALSE(run.runtime->stops().empty());
 }
 
+// The in-position hold (controller.hold) and a push that throws the carriage out of it: the ticks
+// that hold, hand back and hold again allocate nothing either.
+TEST(ControlLoop, AllocatesNothingWhileHoldingHandingBackAndHoldingAgain) {
+  DefaultRun d({"controller.hold.enabled=true", "hal.sim.pushes=[{t_s: 6, force_n: 150, duration_s: 0.1}]"});
+  auto& run = d.run;
+  run.loop->start(0.0);
+  reset_counters();
+  constexpr std::uint64_t kTicks = 12'000;
+  std::uint64_t holding = 0;
+  for (std::uint64_t k = 0; k < kTicks; ++k) {
+    {
+      CountedWindow window;
+      run.loop->tick(static_cast<double>(k) * d.period_s());
+    }
+    holding += run.loop->mode() == controller::Mode::kHold ? 1 : 0;
+    run.runtime->drain(*run.outputs);
+  }
+  EXPECT_EQ(g_allocations.load(), 0u);
+  EXPECT_EQ(g_deallocations.load(), 0u);
+  EXPECT_GT(holding, 5'000u);  // most of the run: held before the push and after it
+  EXPECT_EQ(run.outputs->events_dropped, 0u);
+}
+
 // The forecasts made again while stuck take u* of Eq. 11 from the same scheduled law as the loop:
 // the gains at y*, not controller.law's fixed ones.
 TEST(ControlLoop, TheForecastsTakeUStarFromTheLoopsScheduledGains) {

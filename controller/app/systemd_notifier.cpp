@@ -40,7 +40,11 @@ void SystemdNotifier::service() {
     last_mode_ = mode;
     last_cause_ = cause;
     using controller::Mode;
-    sd_notifyf(0, "STATUS=%s%s%s", mode == Mode::kDisarmed ? "disarmed" : mode == Mode::kArmed ? "armed" : "FAULT: ",
+    sd_notifyf(0, "STATUS=%s%s%s",
+               mode == Mode::kDisarmed ? "disarmed"
+               : mode == Mode::kArmed  ? "armed"
+               : mode == Mode::kHold   ? "armed, holding in position"
+                                       : "FAULT: ",
                mode == Mode::kFault ? controller::fault_name(cause) : "",
                mode == Mode::kDisarmed ? " (send ARM to drive)" : "");
   }

@@ -29,6 +29,16 @@ void EventsFile::on_event(const LoopEvent& e) {
       out_ << "{\"event\":\"" << (e.kind == LoopEvent::Kind::kFaultReset ? "fault_reset" : "fault_reset_refused")
            << "\",\"t\":" << num(e.t_s, 12) << ",\"cause\":\"" << fault_name(e.fault_cause) << "\"}\n";
       return;
+    case LoopEvent::Kind::kHoldStart:
+      out_ << "{\"event\":\"hold_start\",\"t\":" << num(e.t_s, 12) << ",\"stop\":" << e.stop_index
+           << ",\"y\":" << num(e.y_m, 12) << ",\"force\":" << num(e.force_n) << ",\"y_d\":" << num(e.y_d_m)
+           << "}\n";
+      return;
+    case LoopEvent::Kind::kHoldEnd:
+      out_ << "{\"event\":\"hold_end\",\"t\":" << num(e.t_s, 12) << ",\"stop\":" << e.stop_index
+           << ",\"why\":\"" << hold_end_name(e.hold_end) << "\",\"y\":" << num(e.y_m, 12)
+           << ",\"y_d\":" << num(e.y_d_m) << "}\n";
+      return;
   }
 }
 

@@ -1,6 +1,7 @@
 #include "pneu/controller/loop.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <utility>
 
 namespace pneu::controller {
@@ -9,6 +10,18 @@ namespace {
 // A carriage within this distance of an end stop is pressed against it [m].
 constexpr double kEndStopTolerance_m = 1.0e-4;
 }  // namespace
+
+const char* hold_end_name(HoldEnd why) noexcept {
+  switch (why) {
+    case HoldEnd::kNone: return "none";
+    case HoldEnd::kSetPoint: return "setpoint";
+    case HoldEnd::kLeftWindow: return "left_window";
+    case HoldEnd::kMoved: return "moved";
+    case HoldEnd::kFault: return "fault";
+    case HoldEnd::kDisarmed: return "disarmed";
+  }
+  return "?";
+}
 
 ControlLoop::ControlLoop(LoopParams params, hal::Backend& backend, LoopOutputs& outputs)
     : params_(std::move(params)),
@@ -84,6 +97,7 @@ void ControlLoop::apply_commands(double y_m) noexcept {
         }
         break;
       case LoopCommand::Kind::kDisarm:
+        if (mode_ == Mode::kHold) end_hold(HoldEnd::kDisarmed, t_s_, y_m, Mode::kDisarmed);
         if (mode_ == Mode::kArmed) mode_ = Mode::kDisarmed;
         break;
       case LoopCommand::Kind::kFaultReset:
@@ -114,6 +128,7 @@ void ControlLoop::apply_commands(double y_m) noexcept {
 
 void ControlLoop::latch_fault(FaultCause cause, double t_s, double y_m) noexcept {
   if (mode_ == Mode::kFault) return;
+  if (mode_ == Mode::kHold) end_hold(HoldEnd::kFault, t_s, y_m, Mode::kFault);
   mode_ = Mode::kFault;
   fault_cause_ = cause;
   ++faults_;
@@ -125,6 +140,50 @@ void ControlLoop::latch_fault(FaultCause cause, double t_s, double y_m) noexcept
   e.y_d_m = y_d_m_;
   e.fault_cause = cause;
   push(e);
+}
+
+void ControlLoop::start_hold(double t_s, double y_m, double force_n) noexcept {
+  mode_ = Mode::kHold;
+  hold_t0_s_ = t_s;
+  hold_force0_n_ = force_n;
+  hold_u0_v_ = law_.resting_control_v(y_d_m_, detector_.rest_position_m());  // the u* in force
+  hold_integral_v_ = 0.0;
+  hold_y_d_m_ = y_d_m_;
+  LoopEvent e;
+  e.kind = LoopEvent::Kind::kHoldStart;
+  e.stop_index = stops_;
+  e.t_s = t_s;
+  e.y_m = y_m;
+  e.force_n = force_n;
+  e.y_d_m = y_d_m_;
+  push(e);
+}
+
+void ControlLoop::end_hold(HoldEnd why, double t_s, double y_m, Mode next) noexcept {
+  mode_ = next;
+  LoopEvent e;
+  e.kind = LoopEvent::Kind::kHoldEnd;
+  e.stop_index = stops_;
+  e.t_s = t_s;
+  e.y_m = y_m;
+  e.y_d_m = y_d_m_;
+  e.hold_end = why;
+  push(e);
+}
+
+// The hold's control: the pressure force, measured, driven from its value at the hold's start to
+// the middle of the stiction band (ramped over hold.ramp_s), by a PI law on top of the u* that
+// held the carriage until then. The integral keeps u within its limits.
+double ControlLoop::hold_control_v(double t_s, double force_n, bool read_ok) noexcept {
+  const auto& h = params_.controller.hold;
+  const double u_max = params_.controller.law.max_voltage_v;
+  const double target = 0.5 * (params_.friction.static_positive_n + params_.friction.static_negative_n);
+  const double ramp = h.ramp_s > 0.0 ? std::min(1.0, (t_s - hold_t0_s_) / h.ramp_s) : 1.0;
+  const double reference = hold_force0_n_ + (target - hold_force0_n_) * ramp;
+  const double error = read_ok ? reference - force_n : 0.0;  // a bad sample: hold the output
+  hold_integral_v_ = std::clamp(hold_integral_v_ + h.integral_gain_v_per_n_s * error * params_.controller.period_s(),
+                                -u_max - hold_u0_v_, u_max - hold_u0_v_);
+  return std::clamp(hold_u0_v_ + h.force_gain_v_per_n * error + hold_integral_v_, -u_max, u_max);
 }
 
 void ControlLoop::tick(double t_s) noexcept {
@@ -151,7 +210,7 @@ void ControlLoop::tick(double t_s) noexcept {
     y_d_m_ = schedule[next_step_++].position_m;
   // ... then on the motion, with this tick's commands and set point in force: soft limits,
   // following error, settling, timing, the set-point stream.
-  st.armed = mode_ == Mode::kArmed;
+  st.armed = drives(mode_);
   st.y_d_m = y_d_m_;
   st.last_setpoint_t_s = last_setpoint_t_s_;
   st.at_rest = detector_.stopped();  // as of the last good sample: the detector runs below
@@ -181,7 +240,7 @@ void ControlLoop::tick(double t_s) noexcept {
       e.snapshot.p_p_pa = frame.p_p_pa;
       e.snapshot.p_n_pa = frame.p_n_pa;
       e.snapshot.u_v = law_.resting_control_v(y_d_m_, e.y_m);
-      e.controlled = mode_ == Mode::kArmed;
+      e.controlled = drives(mode_);
       e.snapshot.blocked_direction = e.y_m >= half_stroke_m_ - kEndStopTolerance_m    ? +1
                                      : e.y_m <= -half_stroke_m_ + kEndStopTolerance_m ? -1
                                                                                       : 0;
@@ -205,17 +264,33 @@ void ControlLoop::tick(double t_s) noexcept {
     case StopDetectorEvent::kNone: break;
   }
 
+  // The in-position hold: handed back on a set-point change, on a reading outside the window (the
+  // tick it comes), on any start; taken once at rest within the window, away from the end stops.
+  const auto& hold = params_.controller.hold;
+  if (mode_ == Mode::kHold) {
+    const HoldEnd why = y_d_m_ != hold_y_d_m_                                        ? HoldEnd::kSetPoint
+                        : read_ok && std::abs(frame.y_m - y_d_m_) > hold.window_m ? HoldEnd::kLeftWindow
+                        : !detector_.stopped()                                     ? HoldEnd::kMoved
+                                                                                   : HoldEnd::kNone;
+    if (why != HoldEnd::kNone) end_hold(why, t_s, frame.y_m, Mode::kArmed);
+  } else if (hold.enabled && mode_ == Mode::kArmed && read_ok && detector_.stopped() &&
+             std::abs(detector_.rest_position_m() - y_d_m_) <= hold.window_m &&
+             std::abs(detector_.rest_position_m()) < half_stroke_m_ - kEndStopTolerance_m) {
+    start_hold(t_s, frame.y_m, force);
+  }
+
   const double v_hat = differentiator_.velocity_m_per_s();
   const double a_hat = differentiator_.acceleration_m_per_s2();
   // Valve power follows the armed state. Disarmed, the outputs sit at the neutral voltage u_0
   // (F_e(u_0) = 0: the chambers hold); in fault, at the configured safe output.
-  const bool armed = mode_ == Mode::kArmed;
+  const bool armed = drives(mode_);
   // At rest the law holds u* (Eq. 11) at the rest position, exactly as the restart forecasts
   // assume: the carriage has no velocity or acceleration to damp, and neither the differentiator's
   // decaying residue nor the sensor's noise and steps reach the valves through the gains.
-  const double u = !armed                 ? params_.controller.law.offset_v
-                   : detector_.stopped() ? law_.resting_control_v(y_d_m_, detector_.rest_position_m())
-                                         : law_.control_v(y_d_m_, frame.y_m, v_hat, a_hat);
+  const double u = !armed                    ? params_.controller.law.offset_v
+                   : mode_ == Mode::kHold   ? hold_control_v(t_s, force, read_ok)
+                   : detector_.stopped()    ? law_.resting_control_v(y_d_m_, detector_.rest_position_m())
+                                            : law_.control_v(y_d_m_, frame.y_m, v_hat, a_hat);
   const hal::ActuatorCommand command =
       mode_ == Mode::kFault ? safe_command() : hal::ActuatorCommand::from_control(u, armed);
   if (backend_->write(command) != hal::Status::kOk) ++comms_errors_;

@@ -53,7 +53,8 @@ void Runtime::on_tick(const TickRecord& r) {
   ++ticks_seen_;
   t_end_s_ = r.t_s;
 
-  // A forecast holds while the carriage stays stuck under the u* it assumed: armed, same set point.
+  // A forecast holds while the carriage stays stuck under the u* it assumed: armed (not holding:
+  // the hold drives u), same set point.
   if (!stops_.empty() && !stops_.back().ended && std::isnan(stops_.back().forecast_void_at_s) &&
       (r.mode != Mode::kArmed || r.y_d_m != stops_.back().y_d_m))
     stops_.back().forecast_void_at_s = r.t_s;
@@ -175,7 +176,9 @@ void Runtime::on_event(const LoopEvent& e) {
     }
     return;
   }
-  if (e.kind == LoopEvent::Kind::kFaultReset || e.kind == LoopEvent::Kind::kResetRefused) return;
+  if (e.kind == LoopEvent::Kind::kFaultReset || e.kind == LoopEvent::Kind::kResetRefused ||
+      e.kind == LoopEvent::Kind::kHoldStart || e.kind == LoopEvent::Kind::kHoldEnd)
+    return;
   if (e.kind == LoopEvent::Kind::kFault) {
     following_.reset();  // the safe output replaces u*
     faults_.push_back(e);

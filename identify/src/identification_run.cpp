@@ -62,7 +62,7 @@ RunPlan plan_run(const config::Config& cfg, const controller::ControlLaw& law, c
 }
 
 Sample sample_of(const controller::TickRecord& r) noexcept {
-  return {r.t_s, r.y_m, r.p_p_pa, r.p_n_pa, r.u_v, r.mode == controller::Mode::kArmed};
+  return {r.t_s, r.y_m, r.p_p_pa, r.p_n_pa, r.u_v, controller::drives(r.mode)};
 }
 
 void Recorder::on_tick(const controller::TickRecord& tick, const controller::ExpectedAtTick&) {

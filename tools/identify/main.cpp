@@ -118,7 +118,7 @@ std::vector<identify::Sample> read_lcm_log(const std::string& path, const std::s
       continue;
     }
     if (!samples.empty() && !(m.t > samples.back().t_s)) continue;  // a repeat, or a restart of the daemon
-    samples.push_back({m.t, m.y, m.p_p, m.p_n, m.u, m.mode == pneu_lcm::state_t::MODE_ARMED});
+    samples.push_back({m.t, m.y, m.p_p, m.p_n, m.u, m.mode == pneu_lcm::state_t::MODE_ARMED || m.mode == pneu_lcm::state_t::MODE_HOLD});
   }
   if (undecodable > 0)
     std::fprintf(stderr, "pneu-identify: %ld messages on %s are not state_t: left out\n", undecodable, channel.c_str());

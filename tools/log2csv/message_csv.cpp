@@ -91,6 +91,10 @@ const char* event_kind_name(std::int8_t kind) {
       return "fault_reset";
     case E::KIND_FAULT_RESET_REFUSED:
       return "fault_reset_refused";
+    case E::KIND_HOLD_START:
+      return "hold_start";
+    case E::KIND_HOLD_END:
+      return "hold_end";
     default:
       return "unknown";
   }

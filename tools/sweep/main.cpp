@@ -192,6 +192,12 @@ struct Settling {
   bool at_rest_at_end = false;
   double last_second_swing_m = kNaN;      // peak-to-peak position over the run's last second
   double oscillation_rule_after_s = kNaN; // when the settling rules checked alongside would latch
+  // controller.hold.window_m: the first rest after the step within the window (the plant's truth
+  // confirming it), from the step; the first hold's start after the step, from the step; the
+  // plant's breakaways after it (the set point does not change after the step, nothing pushes)
+  double in_window_after_s = kNaN;
+  double hold_after_s = kNaN;
+  std::uint64_t restarts_after_hold = 0;
 };
 
 // The supervisor's settling rules alone (oscillation, settle time): every other check off.
@@ -217,8 +223,10 @@ controller::LoopParams settling_rules_only(controller::LoopParams params, const 
 class ScenarioWatch final : public controller::RunListener {
  public:
   /// `rules`: the supervisor checked alongside (none: the run has its own).
-  ScenarioWatch(std::optional<controller::LoopParams> rules, double step_time_s, double end_s, double half_stroke_m)
-      : step_time_s_(step_time_s), end_s_(end_s), half_stroke_m_(half_stroke_m) {
+  ScenarioWatch(std::optional<controller::LoopParams> rules, double step_time_s, double end_s, double half_stroke_m,
+                double window_m, double motion_band_m)
+      : step_time_s_(step_time_s), end_s_(end_s), half_stroke_m_(half_stroke_m), window_m_(window_m),
+        motion_band_m_(motion_band_m) {
     if (!rules) return;
     shadow_.emplace(*rules);
     shadow_->reset(0.0);
@@ -245,7 +253,7 @@ class ScenarioWatch final : public controller::RunListener {
     controller::SupervisedTick st;
     st.t_s = r.t_s;
     st.frame = &f;
-    st.armed = r.mode == controller::Mode::kArmed;
+    st.armed = controller::drives(r.mode);
     st.y_d_m = r.y_d_m;
     st.last_setpoint_t_s = r.t_s;
     st.at_rest = stuck_;  // as the loop hands it: the detector's state before this tick's sample
@@ -267,6 +275,9 @@ class ScenarioWatch final : public controller::RunListener {
       case Kind::kStart:
         if (e.restart) ++s_.restarts;
         break;
+      case Kind::kHoldStart:
+        if (e.t_s >= step_time_s_ && std::isnan(s_.hold_after_s)) s_.hold_after_s = e.t_s - step_time_s_;
+        break;
       case Kind::kFault:
         if (s_.fault == controller::FaultCause::kNone) {
           s_.fault = e.fault_cause;
@@ -280,13 +291,32 @@ class ScenarioWatch final : public controller::RunListener {
   // The account, once the run has ended, with the plant's motion events: the first rest is the
   // first stop after the step (before any fault) that the plant confirms (a noisy detector can
   // confirm a stop while the plant slides within its rest band, e.g. slowly through a turn).
-  [[nodiscard]] Settling settling(std::span<const plant::PlantEvent> plant_events) const {
+  [[nodiscard]] Settling settling(std::span<const plant::PlantEvent> plant_events, double plant_y_end_m) const {
     Settling s = s_;
     for (const RestCandidate& c : rest_candidates_)
       if (plant_at_rest(plant_events, c.confirmed_t_s)) {
         s.settle_time_s = c.t_s - step_time_s_;
         s.rest_y_m = c.y_m;
         break;
+      }
+    for (const RestCandidate& c : rest_candidates_)
+      if (std::abs(c.y_m - last_.y_d_m) <= window_m_ && plant_at_rest(plant_events, c.confirmed_t_s)) {
+        s.in_window_after_s = c.t_s - step_time_s_;
+        break;
+      }
+    // A restart after the hold began: a breakaway of the plant that takes the carriage beyond the
+    // stop detector's motion band before it sticks again (or by the end of the run).
+    if (!std::isnan(s.hold_after_s))
+      for (std::size_t i = 0; i < plant_events.size(); ++i) {
+        const plant::PlantEvent& e = plant_events[i];
+        if (e.kind != plant::PlantEvent::Kind::kBreakaway || e.t_s <= step_time_s_ + s.hold_after_s) continue;
+        double y_next = plant_y_end_m;
+        for (std::size_t j = i + 1; j < plant_events.size(); ++j)
+          if (plant_events[j].kind != plant::PlantEvent::Kind::kBreakaway) {
+            y_next = plant_events[j].y_m;
+            break;
+          }
+        if (std::abs(y_next - e.y_m) > motion_band_m_) ++s.restarts_after_hold;
       }
     s.final_error_m = std::abs(last_.y_d_m - last_.y_m);
     s.at_rest_at_end = last_.stuck;
@@ -311,7 +341,7 @@ class ScenarioWatch final : public controller::RunListener {
   static constexpr std::size_t kCandidates = 4096;
   std::vector<RestCandidate> rest_candidates_;  // the stops after the step, before any fault
   std::optional<controller::Supervisor> shadow_;
-  double step_time_s_, end_s_, half_stroke_m_;
+  double step_time_s_, end_s_, half_stroke_m_, window_m_, motion_band_m_;
   Settling s_;
   bool stuck_ = true;  // runs start at rest
   bool moved_ = false;  // the detector saw the carriage move after the step
@@ -571,7 +601,8 @@ int run(int argc, char** argv) {
         sim.runtime->set_keep_reforecasts(true);   // judged below against the plant's breakaways
         ScenarioWatch watch(supervised ? std::nullopt
                                        : std::optional(settling_rules_only(controller::LoopParams::from(cfg, law), settling_rules)),
-                            step_time, cfg.controller.duration_s, half);
+                            step_time, cfg.controller.duration_s, half, cfg.controller.hold.window_m,
+                            cfg.controller.stop_detector.motion_band_m);
         sim.runtime->add_sink(watch);
         std::optional<identify::OnlineIdentifier> learner;
         if (online) sim.runtime->add_sink(learner.emplace(cfg, *sim.runtime));
@@ -580,7 +611,7 @@ int run(int argc, char** argv) {
         controller::execute(sim, cfg, clock, never);
         // Stops from the tail are not judged: the tail only lets the carriage show what it did
         // after the stops of the judged window.
-        ScenarioResult r{s, bench_params, identified, "", {}, {}, sim.runtime->end_time_s(), watch.settling(bench.motion_events())};
+        ScenarioResult r{s, bench_params, identified, "", {}, {}, sim.runtime->end_time_s(), watch.settling(bench.motion_events(), bench.plant().state().y_m)};
         if (bench.motion_events_dropped() > 0)
           throw std::runtime_error("scenario " + std::to_string(s.index) + ": more plant events than recorded");
         for (auto stop : sim.runtime->stops()) {
@@ -739,6 +770,8 @@ int run(int argc, char** argv) {
   // One row per scenario, and the outcomes' account.
   std::uint64_t outcome_count[std::size(kOutcomes)] = {};
   std::vector<double> settle_times_s, final_errors_m;
+  std::vector<double> in_window_after_s;  // the first rest within controller.hold.window_m, from the step
+  std::uint64_t held = 0, restarts_after_hold = 0, restarted_after_hold = 0;
   std::vector<double> rule_after_s[std::size(kOutcomes)];  // when the settling rules would latch, per outcome
   std::vector<std::uint64_t> fault_count(controller::kFaultCauseCount, 0);
   double y0_range_m[std::size(kOutcomes)][2], y_d_range_m[std::size(kOutcomes)][2];
@@ -762,7 +795,7 @@ int run(int argc, char** argv) {
                                                  "identified_null_offset_v,identified_null_pressure_error_pa,"
                                                  "identification_failed"
                                                : "")
-                            << '\n';
+                            << ",in_window_after_s,hold_after_s,restarts_after_hold\n";
   // --identify: what was identified against each bench.
   std::vector<double> id_stiction_error_pct[2], id_null_error_pa;
   std::vector<std::string> id_failures;
@@ -789,6 +822,12 @@ int run(int argc, char** argv) {
       if (g.outcome == Outcome::kSettled) {
         settle_times_s.push_back(g.settle_time_s);
         final_errors_m.push_back(g.final_error_m);
+      }
+      if (!std::isnan(g.in_window_after_s)) in_window_after_s.push_back(g.in_window_after_s);
+      if (!std::isnan(g.hold_after_s)) {
+        ++held;
+        restarts_after_hold += g.restarts_after_hold;
+        if (g.restarts_after_hold > 0) ++restarted_after_hold;
       }
       if (g.fault != controller::FaultCause::kNone) ++fault_count[controller::fault_number(g.fault)];
       if (!std::isnan(g.oscillation_rule_after_s)) rule_after_s[k].push_back(g.oscillation_rule_after_s);
@@ -822,6 +861,8 @@ int run(int argc, char** argv) {
       std::replace(reason.begin(), reason.end(), '"', '\'');
       os_sc << row << ',' << (reason.empty() ? "" : "\"" + reason + "\"");
     }
+    if (ran) os_sc << ',' << cell(g.in_window_after_s) << ',' << cell(g.hold_after_s) << ',' << g.restarts_after_hold;
+    else os_sc << ",,,";
     os_sc << '\n';
   }
   if (scenarios_out) scenarios_out->commit();
@@ -877,6 +918,14 @@ int run(int argc, char** argv) {
   std::printf("    final |y_d - y| (%zu settled): p50 %.3f mm  p90 %.3f mm  p99 %.3f mm  max %.3f mm\n",
               final_errors_m.size(), percentile(final_errors_m, 0.5) * 1e3, percentile(final_errors_m, 0.9) * 1e3,
               percentile(final_errors_m, 0.99) * 1e3, percentile(final_errors_m, 1.0) * 1e3);
+  std::printf("    at rest within +-%.3f mm of the set point (controller.hold.window_m), from the step (%zu of %zu run): "
+              "p50 %.3f s  p90 %.3f s  max %.3f s\n",
+              base.controller.hold.window_m * 1e3, in_window_after_s.size(), results.size() - id_failures.size(),
+              percentile(in_window_after_s, 0.5), percentile(in_window_after_s, 0.9), percentile(in_window_after_s, 1.0));
+  std::printf("    the in-position hold (%s): began in %llu scenarios; restarts after it began (breakaways of the plant "
+              "beyond the motion band): %llu, in %llu scenarios\n",
+              base.controller.hold.enabled ? "on" : "off", static_cast<unsigned long long>(held),
+              static_cast<unsigned long long>(restarts_after_hold), static_cast<unsigned long long>(restarted_after_hold));
   if (!supervised && (settling_rules.oscillation_sign_changes > 0 || settling_rules.settle_time_s > 0.0)) {
     std::vector<double> all_after_s;
     for (const auto& v : rule_after_s) all_after_s.insert(all_after_s.end(), v.begin(), v.end());

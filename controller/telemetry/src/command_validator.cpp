@@ -16,7 +16,13 @@ std::string mm(double m) {
   return buf;
 }
 const char* mode_name(Mode m) {
-  return m == Mode::kArmed ? "armed" : (m == Mode::kDisarmed ? "disarmed" : "fault");
+  switch (m) {
+    case Mode::kArmed: return "armed";
+    case Mode::kDisarmed: return "disarmed";
+    case Mode::kFault: return "fault";
+    case Mode::kHold: return "holding";
+  }
+  return "?";
 }
 }  // namespace
 
@@ -131,7 +137,7 @@ Verdict CommandValidator::validate(const CommandFields& c, double now_s, std::in
       what = "arm";
       break;
     case kWireDisarm:
-      if (mode != Mode::kArmed) return reject(Rejection::kMode, std::string("disarm refused: ") + mode_name(mode));
+      if (!controller::drives(mode)) return reject(Rejection::kMode, std::string("disarm refused: ") + mode_name(mode));
       cmd.kind = LoopCommand::Kind::kDisarm;
       what = "disarm";
       break;

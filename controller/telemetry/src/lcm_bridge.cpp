@@ -128,6 +128,12 @@ void LcmBridge::on_event(const LoopEvent& e) {
     m.kind = pneu_lcm::event_t::KIND_FAULT_RESET_REFUSED;
     m.text = std::string("fault reset refused: the cause is still present (") + controller::fault_name(e.fault_cause) +
              "): " + controller::fault_text(e.fault_cause);
+  } else if (e.kind == LoopEvent::Kind::kHoldStart) {
+    m.kind = pneu_lcm::event_t::KIND_HOLD_START;
+    m.text = "hold: at rest within the window, the pressure force driven into the stiction band";
+  } else if (e.kind == LoopEvent::Kind::kHoldEnd) {
+    m.kind = pneu_lcm::event_t::KIND_HOLD_END;
+    m.text = std::string("hold ended: ") + controller::hold_end_name(e.hold_end);
   } else if (e.kind == LoopEvent::Kind::kFault) {
     m.kind = pneu_lcm::event_t::KIND_FAULT;
     m.text = std::string("fault (") + controller::fault_name(e.fault_cause) + "): " + controller::fault_text(e.fault_cause);

@@ -119,6 +119,20 @@ struct PredictorConfig {
   bool learn_online = false;
 };
 
+/// controller.hold: the in-position hold. Once the carriage is at rest within `window_m` of its
+/// set point, pneud stops driving Eq. 4 and drives the pressure force, measured, to the middle of
+/// the stiction band (plant.friction), so that the stuck carriage cannot break away; a set-point
+/// change, the carriage leaving the window or moving at all, a fault or a disarm hand back.
+struct HoldConfig {
+  bool enabled = false;
+  double window_m = 5.0e-4;                ///< at rest this close to the set point: hold [m]
+  /// u = u* + force_gain (F_ref - F) + integral_gain * integral of (F_ref - F) [V/N], [V/(N s)]
+  double force_gain_v_per_n = 0.01;
+  double integral_gain_v_per_n_s = 0.1;
+  /// F_ref goes from the force at the hold's start to the band's middle over this long [s]
+  double ramp_s = 0.3;
+};
+
 /// One step of the set-point schedule.
 struct SetpointStep {
   double t_s = 0.0;                 ///< from this time on [s], increasing
@@ -185,6 +199,7 @@ struct ControllerConfig {
   DifferentiatorParams differentiator;
   StopDetectorParams stop_detector;
   PredictorConfig predictor;
+  HoldConfig hold;                      ///< controller.hold.* (optional section: absent, off)
   double initial_setpoint_m = 0.2195;   ///< set point before the first schedule step [m]
   std::vector<SetpointStep> schedule;   ///< set-point steps, time increasing
   double soft_limit_min_m = -0.24;      ///< set points (and, later, positions) below are refused [m]

@@ -478,6 +478,16 @@ void describe(auto& a, Like<PredictorConfig> auto& p) {
           "identify the bench again at each stop after a breakaway and forecast on what was identified");
 }
 
+void describe(auto& a, Like<HoldConfig> auto& h) {
+  a.field(PNEU_NVP(h, enabled), "true: hold the carriage at rest within the window by its pressure force");
+  a.field(PNEU_NVP(h, window_m), Range::positive(), "at rest this close to the set point: hold [m]");
+  a.field(PNEU_NVP(h, force_gain_v_per_n), Range::non_negative(), "u = u* + this * (F_ref - F) + ... [V/N]");
+  a.field(PNEU_NVP(h, integral_gain_v_per_n_s), Range::non_negative(),
+          "... + this * integral of (F_ref - F) [V/(N s)]");
+  a.field(PNEU_NVP(h, ramp_s), Range::non_negative(),
+          "F_ref from the force at the hold's start to the stiction band's middle over this long [s]");
+}
+
 /// One step of controller.setpoints.schedule.
 void describe(auto& a, Like<SetpointStep> auto& s, double half_stroke_m) {
   a.field(PNEU_NVP(s, t_s), Range::non_negative(), "from this time on [s]");
@@ -548,6 +558,7 @@ void describe(auto& a, Like<ControllerConfig> auto& c, const model::PlantParams&
   a.section(PNEU_NVP(c, differentiator));
   a.section(PNEU_NVP(c, stop_detector));
   a.section(PNEU_NVP(c, predictor));
+  a.section(optional(PNEU_NVP(c, hold)));
   a.group("setpoints", [&](auto& s) {
     s.field(Field("initial_m", c.initial_setpoint_m), Range::any(), "set point before the first step [m]");
     s.check("initial_m", std::abs(c.initial_setpoint_m) <= half,

@@ -24,7 +24,23 @@ enum class Mode : std::uint8_t {
   kArmed = 1,     ///< valve power on, the control law drives the valves
   kFault = 2,     ///< latched by the supervisor: valve power off, the configured safe output,
                   ///< until a reset received once the cause is gone (then disarmed)
+  kHold = 3,      ///< armed, the carriage at rest within controller.hold.window_m of its set point:
+                  ///< the loop drives the pressure force into the stiction band instead of Eq. 4
 };
+
+/// Valve power on and the loop driving the valves: armed, or holding.
+[[nodiscard]] constexpr bool drives(Mode m) noexcept { return m == Mode::kArmed || m == Mode::kHold; }
+
+/// Why a hold ended (LoopEvent::Kind::kHoldEnd).
+enum class HoldEnd : std::uint8_t {
+  kNone = 0,
+  kSetPoint,    ///< the set point changed
+  kLeftWindow,  ///< the position read left the window (a push)
+  kMoved,       ///< the stop detector saw the carriage start inside the window
+  kFault,       ///< a fault latched
+  kDisarmed,    ///< a disarm command
+};
+[[nodiscard]] const char* hold_end_name(HoldEnd why) noexcept;
 
 /// Everything one tick computed: the per-tick telemetry record.
 struct TickRecord {
@@ -48,7 +64,8 @@ struct TickRecord {
 struct LoopEvent {
   /// kFaultReset: a reset cleared the fault (now disarmed); kResetRefused: a reset came while
   /// the cause was still present (fault_cause: which).
-  enum class Kind : std::uint8_t { kStop, kStart, kFault, kFaultReset, kResetRefused };
+  /// kHoldStart / kHoldEnd: the in-position hold took over from Eq. 4 / handed back (hold_end: why).
+  enum class Kind : std::uint8_t { kStop, kStart, kFault, kFaultReset, kResetRefused, kHoldStart, kHoldEnd };
   Kind kind = Kind::kStop;
   std::uint64_t stop_index = 0;  ///< stops are numbered from 1; a start refers to the last stop (0: none)
   double t_s = 0.0;              ///< backdated to the signals (see StopDetector) [s]
@@ -60,6 +77,7 @@ struct LoopEvent {
   StopSnapshot snapshot;         ///< stop: state at confirmation, u* of Eq. 11
   bool controlled = true;        ///< stop: the law was driving (armed), so u* applies and a forecast makes sense
   FaultCause fault_cause = FaultCause::kNone;  ///< fault, reset, reset refused: which cause
+  HoldEnd hold_end = HoldEnd::kNone;           ///< hold end: why
   std::uint64_t tick_seq = 0;    ///< the tick that raised it (its TickRecord::seq)
 };
 
@@ -137,6 +155,9 @@ class ControlLoop {
   void push(LoopEvent e) noexcept;
   void apply_commands(double y_m) noexcept;
   void latch_fault(FaultCause cause, double t_s, double y_m) noexcept;
+  void start_hold(double t_s, double y_m, double force_n) noexcept;
+  void end_hold(HoldEnd why, double t_s, double y_m, Mode next) noexcept;
+  [[nodiscard]] double hold_control_v(double t_s, double force_n, bool read_ok) noexcept;
 
   LoopParams params_;
   hal::Backend* backend_;  // pointers, not references: the loop can be moved
@@ -161,6 +182,9 @@ class ControlLoop {
   std::uint64_t comms_errors_ = 0;
   std::uint64_t ticks_since_sample_ = 0;  // ticks since the differentiator took a new sample
   double detector_last_y_ = 0.0;         // the last good position
+  // The hold in force (mode kHold): when and where it started, the force then, u* it started from,
+  // the integral term, the set point it holds.
+  double hold_t0_s_ = 0.0, hold_force0_n_ = 0.0, hold_u0_v_ = 0.0, hold_integral_v_ = 0.0, hold_y_d_m_ = 0.0;
 };
 
 }  // namespace pneu::controller

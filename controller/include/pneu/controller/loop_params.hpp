@@ -16,6 +16,7 @@ struct LoopParams {
   double setpoint_stream_timeout_s = 0.0;  ///< commands.setpoint_stream_timeout_s
   model::Geometry geometry;                ///< plant.geometry: the areas of Eq. 14 and the end stops
   double exhaust_pressure_pa = 0.0;        ///< plant.gas.exhaust_pressure_pa: p_E of Eq. 14
+  model::FrictionParams friction;          ///< plant.friction: the stiction band the hold aims into
   /// The law of Eq. 4 the loop runs, its gain table designed already when scheduled
   /// (make_control_law(), session.hpp).
   ControlLaw law{controller.law};
@@ -23,7 +24,7 @@ struct LoopParams {
   /// The loop's parameters in `config`, running `law`.
   [[nodiscard]] static LoopParams from(const config::Config& config, const ControlLaw& law) {
     return {config.controller, config.commands.setpoint_stream_timeout_s, config.plant.geometry,
-            config.plant.gas.exhaust_pressure_pa, law};
+            config.plant.gas.exhaust_pressure_pa, config.plant.friction, law};
   }
   /// ... with the fixed gains of controller.law; a scheduled law needs its table (the overload
   /// above): refused (std::invalid_argument).

@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# Issue 16: the in-position hold on 200-step sweeps (controller.hold.enabled=true). On each sweep:
+#   - no restart after the hold began: no breakaway of the plant that takes the carriage beyond
+#     the stop detector's motion band (the set point does not change after the step, nothing
+#     pushes), counted per scenario in the scenarios file's restarts_after_hold;
+#   - no fault;
+#   - the hold began in most scenarios (those at rest within its window).
+# What it does not hold (measured, in the README): the final error; the precision the issue asks
+# needs the controlled breakaway, not built.
+#   test_sweep_hold.sh BINARY_DIR default|hil|spread|identified SOURCE_DIR
+set -euo pipefail
+sweep=$1/bin/pneu-sweep
+kind=$2
+src=$3
+tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+args=(--steps 200 --quiet --set controller.hold.enabled=true --set "controller.predictor.methods=[nonlinear]"
+      --out "$tmp/stops.csv" --scenarios-out "$tmp/scenarios.csv")
+case "$kind" in
+  default) ;;
+  hil) args+=(--config "$src/config/hil.yaml" --set hal.backend=sim) ;;
+  spread) args+=(--friction-spread 0.3 --gain-spread 0.3) ;;
+  identified) args+=(--bench-spread 0.2 --identify) ;;
+  *) fail "unknown sweep $kind" ;;
+esac
+"$sweep" "${args[@]}" > "$tmp/summary.txt"
+cat "$tmp/summary.txt"
+
+# The scenarios file: restarts_after_hold, hold_after_s and fault_cause by their header's names.
+read -r rows held restarts faults < <(awk -F, '
+  NR == 1 { for (i = 1; i <= NF; ++i) col[$i] = i; next }
+  $col["outcome"] != "identification_failed" {
+    ++rows
+    if ($col["hold_after_s"] != "") ++held
+    restarts += $col["restarts_after_hold"]
+    if ($col["fault_cause"] != "") ++faults
+  }
+  END { print rows + 0, held + 0, restarts + 0, faults + 0 }' "$tmp/scenarios.csv")
+[ "$rows" -ge 196 ] || fail "scenarios run: $rows of 200"
+[ "$restarts" = 0 ] || fail "$restarts restarts after the hold began"
+[ "$faults" = 0 ] || fail "$faults faults"
+awk -v h="$held" -v n="$rows" 'BEGIN { exit !(h >= 0.7 * n) }' || fail "the hold began in $held of $rows scenarios only"
+grep -q "the in-position hold (on): began in $held scenarios; restarts after it began (breakaways of the plant beyond the motion band): 0, in 0 scenarios" "$tmp/summary.txt" \
+  || fail "the summary says what the scenarios file does"
+echo "ok: $kind: the hold began in $held of $rows scenarios, no restart after it began, no fault"
