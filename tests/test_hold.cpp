@@ -129,4 +129,22 @@ TEST(InPositionHold, APushBeyondTheWindowHandsBackByTheTickItLeavesAndTheCarriag
   EXPECT_TRUE(r.run.runtime->faults().empty());
 }
 
+TEST(InPositionHold, ReachingTheWindowBringsTheDefaultRunsStopWithinATenthOfAMillimetreAndHoldsIt) {
+  // The stop at 170.42 mm is 0.42 mm from the set point: outside a 0.1 mm window, within reach.
+  const HoldRun r({"controller.hold.enabled=true", "controller.hold.window_m=0.0001", "controller.hold.reach_m=0.005",
+                   "controller.hold.reach_rate_n_per_s=2000"});
+  const double y_d = r.config.controller.schedule.back().position_m;
+  const auto starts = r.events_of(LoopEvent::Kind::kHoldStart, 1.0);
+  const auto reaching = std::count_if(starts.begin(), starts.end(), [](const LoopEvent* e) { return e->direction != 0; });
+  EXPECT_GE(reaching, 1) << "it broke away towards the set point at least once";
+  ASSERT_FALSE(starts.empty());
+  const LoopEvent& held = *starts.back();
+  EXPECT_EQ(held.direction, 0) << "the last: holding within the window";
+  EXPECT_LE(std::abs(held.y_m - y_d), 1e-4);
+  EXPECT_LE(std::abs(r.bench->plant().state().y_m - y_d), 1e-4);
+  EXPECT_EQ(r.record.ticks.back().mode, Mode::kHold);
+  EXPECT_TRUE(r.breakaways(held.t_s).empty());
+  EXPECT_TRUE(r.run.runtime->faults().empty());
+}
+
 }  // namespace

@@ -492,3 +492,37 @@ TEST_F(LoopHold, ADisarmEndsItAndDisarms) {
   expect_hold_end(controller::HoldEnd::kDisarmed);
   EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
 }
+
+// Reaching the window (controller.hold.reach_m): stuck outside the window but within reach, the
+// loop ramps the measured force towards the set point until the carriage moves, then Eq. 4 again.
+TEST_F(LoopHold, StuckOutsideTheWindowButWithinReachItRampsTheForceTowardsTheSetPointUntilItMoves) {
+  config_.controller.hold.reach_m = 0.005;
+  backend_.sample.y_m = config_.controller.initial_setpoint_m + 2e-3;  // 2 mm beyond: reach towards -
+  start();
+  run_ticks(1);
+  ASSERT_EQ(mode(), Mode::kHold);
+  auto e = events();
+  ASSERT_EQ(e.size(), 1u);
+  EXPECT_EQ(e[0].kind, LoopEvent::Kind::kHoldStart);
+  EXPECT_EQ(e[0].direction, -1);
+  // The force read does not follow (a fake bench): the reference running away below it pulls u
+  // down, tick after tick.
+  const double u_first = backend_.written.u_p_v;
+  run_ticks(50);
+  EXPECT_LT(backend_.written.u_p_v, u_first - 0.05);
+  EXPECT_EQ(mode(), Mode::kHold);
+  // It moves (beyond the stop detector's motion band): Eq. 4 drives again.
+  backend_.sample.y_m -= 1e-4;
+  run_ticks(1);
+  EXPECT_EQ(mode(), Mode::kArmed);
+  expect_hold_end(controller::HoldEnd::kMoved);
+}
+
+TEST_F(LoopHold, BeyondReachTheLawKeepsDriving) {
+  config_.controller.hold.reach_m = 0.005;
+  backend_.sample.y_m = config_.controller.initial_setpoint_m + 6e-3;
+  start();
+  run_ticks(100);
+  EXPECT_EQ(mode(), Mode::kArmed);
+  EXPECT_TRUE(events().empty());
+}

@@ -7,7 +7,9 @@
 #   - the hold began in most scenarios (those at rest within its window).
 # What it does not hold (measured, in the README): the final error; the precision the issue asks
 # needs the controlled breakaway, not built.
-#   test_sweep_hold.sh BINARY_DIR default|hil|spread|identified SOURCE_DIR
+# reach: the default sweep reaching a 0.1 mm window (controller.hold.reach_m): besides, the final
+# error's p90 within 0.1 mm (measured 0.088 mm).
+#   test_sweep_hold.sh BINARY_DIR default|hil|spread|identified|reach SOURCE_DIR
 set -euo pipefail
 sweep=$1/bin/pneu-sweep
 kind=$2
@@ -21,6 +23,7 @@ case "$kind" in
   hil) args+=(--config "$src/config/hil.yaml" --set hal.backend=sim) ;;
   spread) args+=(--friction-spread 0.3 --gain-spread 0.3) ;;
   identified) args+=(--bench-spread 0.2 --identify) ;;
+  reach) args+=(--set controller.hold.window_m=0.0001 --set controller.hold.reach_m=0.005) ;;
   *) fail "unknown sweep $kind" ;;
 esac
 "$sweep" "${args[@]}" > "$tmp/summary.txt"
@@ -42,4 +45,10 @@ read -r rows held restarts faults < <(awk -F, '
 awk -v h="$held" -v n="$rows" 'BEGIN { exit !(h >= 0.7 * n) }' || fail "the hold began in $held of $rows scenarios only"
 grep -q "the in-position hold (on): began in $held scenarios; restarts after it began (breakaways of the plant beyond the motion band): 0, in 0 scenarios" "$tmp/summary.txt" \
   || fail "the summary says what the scenarios file does"
+if [ "$kind" = reach ]; then
+  p90=$(awk -F, 'NR == 1 { for (i = 1; i <= NF; ++i) col[$i] = i; next } { print $col["final_error_m"] * 1000 }' \
+        "$tmp/scenarios.csv" | sort -g | awk '{ v[NR] = $1 } END { pos = 0.9 * (NR - 1); i = int(pos); f = pos - i; print v[i + 1] * (1 - f) + v[i + 2] * f }')
+  awk -v p="$p90" 'BEGIN { exit !(p <= 0.1) }' || fail "final error p90 $p90 mm (need 0.1 mm)"
+  echo "final error p90 $p90 mm"
+fi
 echo "ok: $kind: the hold began in $held of $rows scenarios, no restart after it began, no fault"

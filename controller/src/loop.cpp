@@ -142,8 +142,9 @@ void ControlLoop::latch_fault(FaultCause cause, double t_s, double y_m) noexcept
   push(e);
 }
 
-void ControlLoop::start_hold(double t_s, double y_m, double force_n) noexcept {
+void ControlLoop::start_hold(double t_s, double y_m, double force_n, int reach_direction) noexcept {
   mode_ = Mode::kHold;
+  reach_direction_ = reach_direction;
   hold_t0_s_ = t_s;
   hold_force0_n_ = force_n;
   hold_u0_v_ = law_.resting_control_v(y_d_m_, detector_.rest_position_m());  // the u* in force
@@ -156,6 +157,7 @@ void ControlLoop::start_hold(double t_s, double y_m, double force_n) noexcept {
   e.y_m = y_m;
   e.force_n = force_n;
   e.y_d_m = y_d_m_;
+  e.direction = reach_direction;
   push(e);
 }
 
@@ -179,7 +181,10 @@ double ControlLoop::hold_control_v(double t_s, double force_n, bool read_ok) noe
   const double u_max = params_.controller.law.max_voltage_v;
   const double target = 0.5 * (params_.friction.static_positive_n + params_.friction.static_negative_n);
   const double ramp = h.ramp_s > 0.0 ? std::min(1.0, (t_s - hold_t0_s_) / h.ramp_s) : 1.0;
-  const double reference = hold_force0_n_ + (target - hold_force0_n_) * ramp;
+  // Reaching: the force ramped towards the set point until the carriage moves.
+  const double reference = reach_direction_ != 0
+                               ? hold_force0_n_ + reach_direction_ * h.reach_rate_n_per_s * (t_s - hold_t0_s_)
+                               : hold_force0_n_ + (target - hold_force0_n_) * ramp;
   const double error = read_ok ? reference - force_n : 0.0;  // a bad sample: hold the output
   hold_integral_v_ = std::clamp(hold_integral_v_ + h.integral_gain_v_per_n_s * error * params_.controller.period_s(),
                                 -u_max - hold_u0_v_, u_max - hold_u0_v_);
@@ -268,15 +273,17 @@ void ControlLoop::tick(double t_s) noexcept {
   // tick it comes), on any start; taken once at rest within the window, away from the end stops.
   const auto& hold = params_.controller.hold;
   if (mode_ == Mode::kHold) {
-    const HoldEnd why = y_d_m_ != hold_y_d_m_                                        ? HoldEnd::kSetPoint
-                        : read_ok && std::abs(frame.y_m - y_d_m_) > hold.window_m ? HoldEnd::kLeftWindow
-                        : !detector_.stopped()                                     ? HoldEnd::kMoved
-                                                                                   : HoldEnd::kNone;
+    const bool reaching = reach_direction_ != 0;
+    const HoldEnd why = y_d_m_ != hold_y_d_m_ ? HoldEnd::kSetPoint
+                        : !reaching && read_ok && std::abs(frame.y_m - y_d_m_) > hold.window_m ? HoldEnd::kLeftWindow
+                        : !detector_.stopped() ? HoldEnd::kMoved
+                                               : HoldEnd::kNone;
     if (why != HoldEnd::kNone) end_hold(why, t_s, frame.y_m, Mode::kArmed);
   } else if (hold.enabled && mode_ == Mode::kArmed && read_ok && detector_.stopped() &&
-             std::abs(detector_.rest_position_m() - y_d_m_) <= hold.window_m &&
              std::abs(detector_.rest_position_m()) < half_stroke_m_ - kEndStopTolerance_m) {
-    start_hold(t_s, frame.y_m, force);
+    const double error_m = y_d_m_ - detector_.rest_position_m();
+    if (std::abs(error_m) <= hold.window_m) start_hold(t_s, frame.y_m, force, 0);
+    else if (std::abs(error_m) <= hold.reach_m) start_hold(t_s, frame.y_m, force, error_m > 0.0 ? +1 : -1);
   }
 
   const double v_hat = differentiator_.velocity_m_per_s();

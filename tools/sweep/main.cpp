@@ -275,8 +275,8 @@ class ScenarioWatch final : public controller::RunListener {
       case Kind::kStart:
         if (e.restart) ++s_.restarts;
         break;
-      case Kind::kHoldStart:
-        if (e.t_s >= step_time_s_ && std::isnan(s_.hold_after_s)) s_.hold_after_s = e.t_s - step_time_s_;
+      case Kind::kHoldStart:  // within the window (not reaching for it)
+        if (e.direction == 0 && e.t_s >= step_time_s_ && std::isnan(s_.hold_after_s)) s_.hold_after_s = e.t_s - step_time_s_;
         break;
       case Kind::kFault:
         if (s_.fault == controller::FaultCause::kNone) {

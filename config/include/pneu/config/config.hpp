@@ -131,6 +131,11 @@ struct HoldConfig {
   double integral_gain_v_per_n_s = 0.1;
   /// F_ref goes from the force at the hold's start to the band's middle over this long [s]
   double ramp_s = 0.3;
+  /// Reaching the window: a carriage at rest outside the window but within this of its set point
+  /// is made to break away towards it, the force ramped (reach_rate_n_per_s) until it moves, then
+  /// Eq. 4 again; 0: off [m]
+  double reach_m = 0.0;
+  double reach_rate_n_per_s = 2000.0;  ///< [N/s]
 };
 
 /// One step of the set-point schedule.

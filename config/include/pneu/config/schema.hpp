@@ -486,6 +486,9 @@ void describe(auto& a, Like<HoldConfig> auto& h) {
           "... + this * integral of (F_ref - F) [V/(N s)]");
   a.field(PNEU_NVP(h, ramp_s), Range::non_negative(),
           "F_ref from the force at the hold's start to the stiction band's middle over this long [s]");
+  a.field(optional(PNEU_NVP(h, reach_m)), Range::non_negative(),
+          "at rest outside the window but this close: break away towards the set point [m]; 0 = off");
+  a.field(optional(PNEU_NVP(h, reach_rate_n_per_s)), Range::positive(), "... the force ramped this fast [N/s]");
 }
 
 /// One step of controller.setpoints.schedule.

@@ -73,7 +73,7 @@ struct LoopEvent {
   double force_n = 0.0;          ///< stop: F when the stop was confirmed [N]
   double y_d_m = 0.0;            ///< the set point at the event [m]
   bool restart = false;          ///< start: the set point did not change since the stop
-  int direction = 0;             ///< start: +1 / -1
+  int direction = 0;             ///< start: +1 / -1; hold start: the way it reaches for the window, 0 within it
   StopSnapshot snapshot;         ///< stop: state at confirmation, u* of Eq. 11
   bool controlled = true;        ///< stop: the law was driving (armed), so u* applies and a forecast makes sense
   FaultCause fault_cause = FaultCause::kNone;  ///< fault, reset, reset refused: which cause
@@ -155,7 +155,7 @@ class ControlLoop {
   void push(LoopEvent e) noexcept;
   void apply_commands(double y_m) noexcept;
   void latch_fault(FaultCause cause, double t_s, double y_m) noexcept;
-  void start_hold(double t_s, double y_m, double force_n) noexcept;
+  void start_hold(double t_s, double y_m, double force_n, int reach_direction) noexcept;
   void end_hold(HoldEnd why, double t_s, double y_m, Mode next) noexcept;
   [[nodiscard]] double hold_control_v(double t_s, double force_n, bool read_ok) noexcept;
 
@@ -185,6 +185,7 @@ class ControlLoop {
   // The hold in force (mode kHold): when and where it started, the force then, u* it started from,
   // the integral term, the set point it holds.
   double hold_t0_s_ = 0.0, hold_force0_n_ = 0.0, hold_u0_v_ = 0.0, hold_integral_v_ = 0.0, hold_y_d_m_ = 0.0;
+  int reach_direction_ = 0;  // reaching the window (+1 / -1), or holding in it (0)
 };
 
 }  // namespace pneu::controller
