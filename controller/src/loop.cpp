@@ -58,6 +58,9 @@ void ControlLoop::start(double t0_s) {
   last_setpoint_t_s_ = t0_s;
   t_s_ = t0_s;
   y_d_at_stop_m_ = y_d_m_;
+  reach_direction_ = last_reach_direction_ = 0;
+  reach_rate_scale_ = 1.0;
+  reach_y_d_m_ = y_d_m_;
 }
 
 void ControlLoop::push(LoopEvent e) noexcept {
@@ -183,7 +186,7 @@ double ControlLoop::hold_control_v(double t_s, double force_n, bool read_ok) noe
   const double ramp = h.ramp_s > 0.0 ? std::min(1.0, (t_s - hold_t0_s_) / h.ramp_s) : 1.0;
   // Reaching: the force ramped towards the set point until the carriage moves.
   const double reference = reach_direction_ != 0
-                               ? hold_force0_n_ + reach_direction_ * h.reach_rate_n_per_s * (t_s - hold_t0_s_)
+                               ? hold_force0_n_ + reach_direction_ * reach_rate_scale_ * h.reach_rate_n_per_s * (t_s - hold_t0_s_)
                                : hold_force0_n_ + (target - hold_force0_n_) * ramp;
   const double error = read_ok ? reference - force_n : 0.0;  // a bad sample: hold the output
   hold_integral_v_ = std::clamp(hold_integral_v_ + h.integral_gain_v_per_n_s * error * params_.controller.period_s(),
@@ -282,8 +285,21 @@ void ControlLoop::tick(double t_s) noexcept {
   } else if (hold.enabled && mode_ == Mode::kArmed && read_ok && detector_.stopped() &&
              std::abs(detector_.rest_position_m()) < half_stroke_m_ - kEndStopTolerance_m) {
     const double error_m = y_d_m_ - detector_.rest_position_m();
-    if (std::abs(error_m) <= hold.window_m) start_hold(t_s, frame.y_m, force, 0);
-    else if (std::abs(error_m) <= hold.reach_m) start_hold(t_s, frame.y_m, force, error_m > 0.0 ? +1 : -1);
+    if (std::abs(error_m) <= hold.window_m) {
+      start_hold(t_s, frame.y_m, force, 0);
+    } else if (std::abs(error_m) <= hold.reach_m) {
+      // A new set point starts afresh; a reach back the other way means the last one went past the
+      // set point: gentler from now on (each breakaway then carries the carriage less far).
+      const int direction = error_m > 0.0 ? +1 : -1;
+      if (y_d_m_ != reach_y_d_m_) {
+        reach_y_d_m_ = y_d_m_;
+        last_reach_direction_ = 0;
+        reach_rate_scale_ = 1.0;
+      }
+      if (last_reach_direction_ == -direction) reach_rate_scale_ = std::max(reach_rate_scale_ * 0.5, 1.0 / 64.0);
+      last_reach_direction_ = direction;
+      start_hold(t_s, frame.y_m, force, direction);
+    }
   }
 
   const double v_hat = differentiator_.velocity_m_per_s();

@@ -186,6 +186,11 @@ class ControlLoop {
   // the integral term, the set point it holds.
   double hold_t0_s_ = 0.0, hold_force0_n_ = 0.0, hold_u0_v_ = 0.0, hold_integral_v_ = 0.0, hold_y_d_m_ = 0.0;
   int reach_direction_ = 0;  // reaching the window (+1 / -1), or holding in it (0)
+  // Reaching: the direction of the last reach for this set point (0: none yet), and the share of
+  // reach_rate_n_per_s in force, halved each time a reach went past the set point.
+  int last_reach_direction_ = 0;
+  double reach_rate_scale_ = 1.0;
+  double reach_y_d_m_ = 0.0;  // the set point those hold for
 };
 
 }  // namespace pneu::controller
