@@ -63,6 +63,16 @@ void ControlLoop::start(double t0_s) {
   reach_y_d_m_ = y_d_m_;
 }
 
+LoopEvent ControlLoop::event(LoopEvent::Kind kind, double t_s, double y_m) const noexcept {
+  LoopEvent e;
+  e.kind = kind;
+  e.stop_index = stops_;
+  e.t_s = t_s;
+  e.y_m = y_m;
+  e.y_d_m = y_d_m_;
+  return e;
+}
+
 void ControlLoop::push(LoopEvent e) noexcept {
   e.tick_seq = seq_;  // the record of this tick, pushed at its end, carries seq_
   if (!out_->events.try_push(e)) ++out_->events_dropped;
@@ -108,11 +118,7 @@ void ControlLoop::apply_commands(double y_m) noexcept {
         // samples are still bad, keeps the fault. A reset disarms: arming again is a separate,
         // later command, and only what is measured from then on drives the valves.
         if (mode_ == Mode::kFault) {
-          LoopEvent e;
-          e.stop_index = stops_;
-          e.t_s = t_s_;
-          e.y_m = y_m;
-          e.y_d_m = y_d_m_;
+          LoopEvent e = event(LoopEvent::Kind::kFaultReset, t_s_, y_m);
           if (supervisor_.cause_present()) {
             e.kind = LoopEvent::Kind::kResetRefused;
             e.fault_cause = supervisor_.present_cause();
@@ -135,12 +141,7 @@ void ControlLoop::latch_fault(FaultCause cause, double t_s, double y_m) noexcept
   mode_ = Mode::kFault;
   fault_cause_ = cause;
   ++faults_;
-  LoopEvent e;
-  e.kind = LoopEvent::Kind::kFault;
-  e.stop_index = stops_;
-  e.t_s = t_s;
-  e.y_m = y_m;
-  e.y_d_m = y_d_m_;
+  LoopEvent e = event(LoopEvent::Kind::kFault, t_s, y_m);
   e.fault_cause = cause;
   push(e);
 }
@@ -153,25 +154,15 @@ void ControlLoop::start_hold(double t_s, double y_m, double force_n, int reach_d
   hold_u0_v_ = law_.resting_control_v(y_d_m_, detector_.rest_position_m());  // the u* in force
   hold_integral_v_ = 0.0;
   hold_y_d_m_ = y_d_m_;
-  LoopEvent e;
-  e.kind = LoopEvent::Kind::kHoldStart;
-  e.stop_index = stops_;
-  e.t_s = t_s;
-  e.y_m = y_m;
+  LoopEvent e = event(LoopEvent::Kind::kHoldStart, t_s, y_m);
   e.force_n = force_n;
-  e.y_d_m = y_d_m_;
   e.direction = reach_direction;
   push(e);
 }
 
 void ControlLoop::end_hold(HoldEnd why, double t_s, double y_m, Mode next) noexcept {
   mode_ = next;
-  LoopEvent e;
-  e.kind = LoopEvent::Kind::kHoldEnd;
-  e.stop_index = stops_;
-  e.t_s = t_s;
-  e.y_m = y_m;
-  e.y_d_m = y_d_m_;
+  LoopEvent e = event(LoopEvent::Kind::kHoldEnd, t_s, y_m);
   e.hold_end = why;
   push(e);
 }

@@ -153,6 +153,8 @@ class ControlLoop {
 
  private:
   void push(LoopEvent e) noexcept;
+  /// An event of `kind` at `t_s`, position `y_m`: the last stop's index and the set point filled.
+  [[nodiscard]] LoopEvent event(LoopEvent::Kind kind, double t_s, double y_m) const noexcept;
   void apply_commands(double y_m) noexcept;
   void latch_fault(FaultCause cause, double t_s, double y_m) noexcept;
   void start_hold(double t_s, double y_m, double force_n, int reach_direction) noexcept;
