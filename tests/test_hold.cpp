@@ -7,12 +7,14 @@
 #include <cmath>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "pneu/backends/factory.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/runtime.hpp"
 #include "pneu/controller/session.hpp"
+#include "support/child_process.hpp"
 
 namespace {
 
@@ -24,8 +26,12 @@ using controller::Mode;
 struct Recorder final : controller::RunListener {
   std::vector<controller::TickRecord> ticks;
   std::vector<LoopEvent> events;
+  std::vector<controller::ForecastRecord> held;  // the forecasts under the hold's commands
   void on_tick(const controller::TickRecord& r, const controller::ExpectedAtTick&) override { ticks.push_back(r); }
   void on_event(const LoopEvent& e) override { events.push_back(e); }
+  void on_forecast(const controller::ForecastRecord& f) override {
+    if (f.prediction.method == controller::PredictionMethod::kHeld) held.push_back(f);
+  }
 };
 
 // The default configuration (embedded sim.yaml: 12 s, the step to 170 mm at 1 s) with `overrides`.
@@ -36,8 +42,8 @@ struct HoldRun {
   const hal::SimBackend* bench = nullptr;
   Recorder record;
 
-  explicit HoldRun(const std::vector<std::string>& overrides)
-      : config(config::load_string(config::default_config_yaml(), overrides)),
+  explicit HoldRun(const std::vector<std::string>& overrides, std::string_view yaml = config::default_config_yaml())
+      : config(config::load_string(yaml, overrides)),
         valve(controller::make_valve_characteristic(config, {})) {
     controller::resolve_offset(config, *valve);
     auto sim = backends::make_sim_backend(config);
@@ -144,6 +150,75 @@ TEST(InPositionHold, ReachingTheWindowBringsTheDefaultRunsStopWithinATenthOfAMil
   EXPECT_LE(std::abs(r.bench->plant().state().y_m - y_d), 1e-4);
   EXPECT_EQ(r.record.ticks.back().mode, Mode::kHold);
   EXPECT_TRUE(r.breakaways(held.t_s).empty());
+  EXPECT_TRUE(r.run.runtime->faults().empty());
+}
+
+TEST(InPositionHold, WhileItHoldsTheForecastUnderItsCommandsSaysNoRestartEveryUpdatePeriod) {
+  // The default run's hold from 1.445 s: a forecast under the hold's commands as it begins, then
+  // every update period (0.1 s) to the end, each "no restart", the force settling on -2.5 N.
+  const HoldRun r({"controller.hold.enabled=true"});
+  EXPECT_TRUE(r.run.runtime->forecasts(controller::PredictionMethod::kHeld));
+  const auto holds = r.events_of(LoopEvent::Kind::kHoldStart, 1.0);
+  ASSERT_EQ(holds.size(), 1u);
+  const double t_hold = holds.front()->t_s;
+  ASSERT_FALSE(r.record.held.empty());
+  EXPECT_NEAR(r.record.held.front().t_s, t_hold, 1e-9) << "the first as the hold begins";
+  const double period = r.config.controller.predictor.update_period_s;
+  EXPECT_EQ(r.record.held.size(), static_cast<std::size_t>(std::floor((12.0 - t_hold) / period + 1e-6)) + 1);
+  for (const auto& f : r.record.held) {
+    EXPECT_EQ(f.stop, holds.front()->stop_index);
+    EXPECT_FALSE(f.prediction.will_restart) << f.t_s;
+    EXPECT_NEAR(f.prediction.equilibrium_force_n, -2.5, 1e-6);
+    // The way from the force measured then to -2.5 N: never nearer a bound than 10 N.
+    EXPECT_GT(f.prediction.min_margin_n, 10.0) << f.t_s;
+  }
+  // The stop's account.
+  const auto& stop = r.run.runtime->stops().back();
+  EXPECT_EQ(stop.held_forecasts, r.record.held.size());
+  EXPECT_EQ(stop.held_restart_forecasts, 0u);
+  // Without the hold, no such forecast.
+  const HoldRun without({});
+  EXPECT_FALSE(without.run.runtime->forecasts(controller::PredictionMethod::kHeld));
+  EXPECT_TRUE(without.record.held.empty());
+}
+
+TEST(InPositionHold, ReachingEachBreakawayIsForecastAsTheReachBeginsWithinATick) {
+  const HoldRun r({"controller.hold.enabled=true", "controller.hold.window_m=0.0001", "controller.hold.reach_m=0.005"});
+  int reaches = 0;
+  for (const LoopEvent* start : r.events_of(LoopEvent::Kind::kHoldStart, 1.0)) {
+    if (start->direction == 0) continue;
+    ++reaches;
+    // The forecast made as the reach began, and the start the stop detector dated.
+    const auto f = std::find_if(r.record.held.begin(), r.record.held.end(),
+                                [&](const controller::ForecastRecord& x) { return x.t_s == start->t_s; });
+    ASSERT_NE(f, r.record.held.end());
+    const auto moved = r.events_of(LoopEvent::Kind::kStart, start->t_s);
+    ASSERT_FALSE(moved.empty());
+    ASSERT_TRUE(f->prediction.will_restart);
+    EXPECT_EQ(f->prediction.direction, start->direction);
+    EXPECT_NEAR(f->prediction.t_restart_s, moved.front()->t_s, 1e-3) << "reach at " << start->t_s;
+  }
+  EXPECT_GE(reaches, 1);
+}
+
+TEST(InPositionHold, ThePapersScenarioReachesTheWindowAndOnceHeldWithinItNeverRestarts) {
+  // config/paper.yaml: the paper's gains stop the step 1.7 mm from the set point (then restart at
+  // 4.97 s); reaching from 5 mm brings it into the 0.5 mm window, where it is held to the end.
+  const std::string paper = pneu::test::slurp(std::string(PNEU_SOURCE_DIR) + "/config/paper.yaml");
+  const HoldRun without({}, paper);
+  EXPECT_FALSE(without.breakaways(2.0).empty()) << "without the hold, the paper's restart";
+  const HoldRun r({"controller.hold.enabled=true", "controller.hold.reach_m=0.005"}, paper);
+  const double y_d = r.config.controller.schedule.back().position_m;
+  const auto starts = r.events_of(LoopEvent::Kind::kHoldStart, 1.0);
+  const auto first_held = std::find_if(starts.begin(), starts.end(), [](const LoopEvent* e) { return e->direction == 0; });
+  ASSERT_NE(first_held, starts.end()) << "it settled within the window";
+  const double t_held = (*first_held)->t_s;
+  std::printf("first held within the window at %.3f s, %.3f mm from the set point\n", t_held,
+              ((*first_held)->y_m - y_d) * 1e3);
+  EXPECT_LE(std::abs((*first_held)->y_m - y_d), r.window_m());
+  EXPECT_TRUE(r.breakaways(t_held).empty()) << "no restart once held within the window";
+  EXPECT_TRUE(r.events_of(LoopEvent::Kind::kHoldEnd, t_held).empty());
+  EXPECT_EQ(r.record.ticks.back().mode, Mode::kHold);
   EXPECT_TRUE(r.run.runtime->faults().empty());
 }
 

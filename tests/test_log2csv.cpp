@@ -384,11 +384,18 @@ TEST_F(Log2Csv, PredictionWithoutRestartHasAnEmptyRestartTime) {
   relaxation.method = pneu_lcm::prediction_t::METHOD_RELAXATION;
   relaxation.horizon_reached = 0;
   relaxation.stop_forecast_force = kNaN;
-  const std::vector<pneu_lcm::prediction_t> msgs = {none, restart, relaxation};
+  pneu_lcm::prediction_t held = relaxation;  // under the in-position hold's commands
+  held.method = pneu_lcm::prediction_t::METHOD_HELD;
+  held.will_restart = 0;
+  held.direction = 0;
+  held.t_restart = kNaN;
+  held.equilibrium_force = -2.5;
+  const std::vector<pneu_lcm::prediction_t> msgs = {none, restart, relaxation, held};
 
   const auto r = convert(write_log({{"PNEU_PREDICTION", kLogStart, encode(none)},
                                     {"PNEU_PREDICTION", kLogStart + 1, encode(restart)},
-                                    {"PNEU_PREDICTION", kLogStart + 2, encode(relaxation)}}));
+                                    {"PNEU_PREDICTION", kLogStart + 2, encode(relaxation)},
+                                    {"PNEU_PREDICTION", kLogStart + 3, encode(held)}}));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const Csv csv = read_csv("PNEU_PREDICTION.csv");
   EXPECT_EQ(csv.header,
@@ -396,11 +403,12 @@ TEST_F(Log2Csv, PredictionWithoutRestartHasAnEmptyRestartTime) {
                 "log_utime,utime,t,stop,t_stop,update,method,method_name,will_restart,direction,t_restart,"
                 "u_star,equilibrium_force,p_p_equilibrium,p_n_equilibrium,tau_p,tau_n,min_margin,"
                 "horizon_reached,force,stop_forecast_force"));
-  ASSERT_EQ(csv.rows.size(), 3u);
+  ASSERT_EQ(csv.rows.size(), 4u);
   EXPECT_EQ(csv.at(0, "t_restart"), "");
   EXPECT_EQ(csv.at(0, "method_name"), "linearized");
   EXPECT_EQ(csv.at(1, "method_name"), "nonlinear");
   EXPECT_EQ(csv.at(2, "method_name"), "relaxation");
+  EXPECT_EQ(csv.at(3, "method_name"), "held");
   for (std::size_t i = 0; i < msgs.size(); ++i) {
     const auto& m = msgs[i];
     const std::string row = "prediction " + std::to_string(i) + " ";

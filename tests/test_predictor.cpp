@@ -16,6 +16,7 @@
 #include <numbers>
 #include <ostream>
 #include <string>
+#include <cstdio>
 
 #include "pneu/controller/predictor.hpp"
 #include "pneu/model/params.hpp"
@@ -781,6 +782,129 @@ TEST(PredictRelaxation, GivesNoForecastBeforeTheHistorySpansItsMinimum) {
   const Prediction none = predict(PredictionMethod::kRelaxation, PredictorModel{}, now);
   EXPECT_FALSE(none.will_restart);
   EXPECT_TRUE(none.horizon_reached);
+}
+
+// The in-position hold's forecast (predict_held) on the linear valve, against the loop written out
+// here tick by tick: under a constant command each pressure relaxes exactly as an exponential to
+// p_null(+-u), and the hold's law (hold_law.hpp) sets the next command from the force at each tick.
+struct HeldLoop {
+  HoldLaw law;
+  HoldState state;
+  // The first time F leaves the band, from `now` (its u_v sent at now.t_s), or NaN within horizon_s.
+  double first_breakaway_s(const StopSnapshot& now, double horizon_s) {
+    const double period = law.period_s();
+    double pp = now.p_p_pa, pn = now.p_n_pa, u = now.u_v;
+    for (double t = now.t_s; t < now.t_s + horizon_s; t += period) {
+      const double ep = LinearValve::null_pressure(u), en = LinearValve::null_pressure(-u);
+      const auto f_at = [&](double x) {
+        return force(ep + (pp - ep) * std::exp(-x / kTauP), en + (pn - en) * std::exp(-x / kTauN));
+      };
+      const double x = first_crossing_s([&](double xx) { return f_at(xx) < kForceSMinusN || f_at(xx) > kForceSPlusN; },
+                                        period / 100, period);
+      if (!std::isnan(x)) return t + x;
+      pp = ep + (pp - ep) * std::exp(-period / kTauP);
+      pn = en + (pn - en) * std::exp(-period / kTauN);
+      u = law.command_v(state, t + period, force(pp, pn), true);
+    }
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+};
+
+config::HoldConfig hold_config(double force_gain, double integral_gain) {
+  config::HoldConfig h;
+  h.enabled = true;
+  h.force_gain_v_per_n = force_gain;
+  h.integral_gain_v_per_n_s = integral_gain;
+  return h;
+}
+
+// The hold as it starts at `s` (u* = s.u_v), towards the band's middle.
+HoldState hold_from(const StopSnapshot& s, int reach_direction = 0, double reach_rate_n_per_s = 0.0) {
+  HoldState h;
+  h.t0_s = s.t_s;
+  h.force0_n = force(s.p_p_pa, s.p_n_pa);
+  h.u0_v = s.u_v;
+  h.target_n = 0.5 * (kForceSPlusN + kForceSMinusN);
+  h.reach_direction = reach_direction;
+  h.reach_rate_n_per_s = reach_rate_n_per_s;
+  return h;
+}
+
+PredictorModel linear_model(const LinearValve& valve) {
+  PredictorModel m;
+  m.valve = &valve;
+  return m;
+}
+
+TEST(PredictHeld, WithoutGainsTheHoldsCommandStaysUStarAndTheForecastIsTheNonlinearOne) {
+  const LinearValve valve;
+  const StopSnapshot s = stop_for(ExactForce{20.0, 2.0, -52.0});  // F from -30 N to -52 N: restarts
+  const HoldLaw law(hold_config(0.0, 0.0), 10.0, 1.0e-3);
+  const Prediction held = predict_held(linear_model(valve), law, hold_from(s), s);
+  const Prediction free = predict_nonlinear(linear_model(valve), s);
+  EXPECT_EQ(held.method, PredictionMethod::kHeld);
+  ASSERT_TRUE(held.will_restart);
+  EXPECT_EQ(held.direction, -1);
+  EXPECT_NEAR(held.t_restart_s, free.t_restart_s, kTimeToleranceS);
+}
+
+TEST(PredictHeld, WithinTheWindowTheForceSettlesOnTheBandsMiddleWhereThePressuresAloneWouldRestart) {
+  const LinearValve valve;
+  const StopSnapshot s = stop_for(ExactForce{20.0, 2.0, -52.0});
+  ASSERT_TRUE(predict_nonlinear(linear_model(valve), s).will_restart);
+  const HoldLaw law(hold_config(0.01, 0.1), 10.0, 1.0e-3);
+  const Prediction p = predict_held(linear_model(valve), law, hold_from(s), s);
+  EXPECT_FALSE(p.will_restart);
+  EXPECT_FALSE(p.horizon_reached);
+  EXPECT_NEAR(p.equilibrium_force_n, -2.5, 1e-9);
+  // The smallest margin on the way: no less than 0, no more than the start's (-30 N: 20 N).
+  EXPECT_GT(p.min_margin_n, 0.0);
+  EXPECT_LE(p.min_margin_n, margin(force(s.p_p_pa, s.p_n_pa)) + 1e-9);
+  // ... and the loop written out here agrees: no breakaway over 60 s.
+  HeldLoop loop{law, hold_from(s)};
+  EXPECT_TRUE(std::isnan(loop.first_breakaway_s(s, 60.0)));
+}
+
+TEST(PredictHeld, HeldFromLaterInTheHoldItContinuesFromTheIntegralItIsGiven) {
+  // Halfway through the ramp, with the integral the loop has by then: the same answer as the loop.
+  const LinearValve valve;
+  const StopSnapshot s = stop_for(ExactForce{20.0, 2.0, -52.0});
+  const HoldLaw law(hold_config(0.01, 0.1), 10.0, 1.0e-3);
+  HoldState state = hold_from(s);
+  // Run the loop 150 ticks, as written out above, to a later state.
+  double pp = s.p_p_pa, pn = s.p_n_pa, u = s.u_v, t = s.t_s;
+  for (int k = 0; k < 150; ++k) {
+    const double ep = LinearValve::null_pressure(u), en = LinearValve::null_pressure(-u);
+    pp = ep + (pp - ep) * std::exp(-1e-3 / kTauP);
+    pn = en + (pn - en) * std::exp(-1e-3 / kTauN);
+    t += 1e-3;
+    u = law.command_v(state, t, force(pp, pn), true);
+  }
+  StopSnapshot now = s;
+  now.t_s = t, now.p_p_pa = pp, now.p_n_pa = pn, now.u_v = u;
+  const Prediction p = predict_held(linear_model(valve), law, state, now);
+  EXPECT_FALSE(p.will_restart);
+  EXPECT_NEAR(p.equilibrium_force_n, -2.5, 1e-9);
+}
+
+TEST(PredictHeld, ReachingTheRampBreaksTheCarriageAwayWhenTheLoopWrittenOutHereDoes) {
+  // From -30 N, the reference ramped down at 2000 N/s (from the preload, 70 % of F_S-): the force
+  // follows it through the PI law and crosses F_S- tens of ms later.
+  const LinearValve valve;
+  const StopSnapshot s = stop_for(ExactForce{-10.0, 5.0, -25.0});  // F from -30 N to -25 N: would hold
+  ASSERT_FALSE(predict_nonlinear(linear_model(valve), s).will_restart);
+  const HoldLaw law(hold_config(0.01, 0.1), 10.0, 1.0e-3);
+  HoldState state = hold_from(s, -1, 2000.0);
+  state.force0_n = 0.7 * kForceSMinusN;
+  const Prediction p = predict_held(linear_model(valve), law, state, s);
+  ASSERT_TRUE(p.will_restart);
+  EXPECT_EQ(p.direction, -1);
+  HeldLoop loop{law, state};
+  const double t_loop = loop.first_breakaway_s(s, 10.0);
+  ASSERT_FALSE(std::isnan(t_loop));
+  EXPECT_NEAR(p.t_restart_s, t_loop, 1e-5);  // the loop's crossing to its sweep of 10 us
+  EXPECT_NEAR(p.equilibrium_force_n, kForceSMinusN, 1e-3);  // the force at the breakaway
+  std::printf("reach: breakaway forecast %.4f s after the hold began\n", p.t_restart_s - s.t_s);
 }
 
 }  // namespace

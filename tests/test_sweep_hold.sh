@@ -5,10 +5,13 @@
 #     pushes), counted per scenario in the scenarios file's restarts_after_hold;
 #   - no fault;
 #   - the hold began in most scenarios (those at rest within its window).
-# What it does not hold (measured, in the README): the final error; the precision the issue asks
-# needs the controlled breakaway, not built.
+# With the 0.5 mm window alone the final error is not the issue's (measured, in the README): that
+# takes reaching the window.
 # reach: the default sweep reaching a 0.1 mm window (controller.hold.reach_m): besides, the final
-# error's p90 within 0.1 mm (measured 0.088 mm).
+# error's p90 within 0.1 mm (measured 0.088 mm); the time to come to rest within the window, p90,
+# no more than 0.3 s over the same sweep's without the hold (measured 0.978 s against 0.943 s);
+# the forecasts under the hold's commands: none a restart while held within the window, and
+# every reach's breakaway forecast within 1 ms of the start seen (measured 0.5 ms at worst).
 #   test_sweep_hold.sh BINARY_DIR default|hil|spread|identified|reach SOURCE_DIR
 set -euo pipefail
 sweep=$1/bin/pneu-sweep
@@ -50,5 +53,16 @@ if [ "$kind" = reach ]; then
         "$tmp/scenarios.csv" | sort -g | awk '{ v[NR] = $1 } END { pos = 0.9 * (NR - 1); i = int(pos); f = pos - i; print v[i + 1] * (1 - f) + v[i + 2] * f }')
   awk -v p="$p90" 'BEGIN { exit !(p <= 0.1) }' || fail "final error p90 $p90 mm (need 0.1 mm)"
   echo "final error p90 $p90 mm"
+  into_p90() { grep -o 'at rest within +-0.100 mm of the set point.*p90 [0-9.]* s' "$1" | grep -o 'p90 [0-9.]*' | cut -d' ' -f2; }
+  "$sweep" "${args[@]}" --set controller.hold.enabled=false > "$tmp/baseline.txt"
+  with=$(into_p90 "$tmp/summary.txt"); without=$(into_p90 "$tmp/baseline.txt")
+  awk -v a="$with" -v b="$without" 'BEGIN { exit !(a != "" && b != "" && a <= b + 0.3) }' \
+    || fail "p90 into the window $with s with the hold, $without s without"
+  echo "into the window, p90: $with s with the hold, $without s without"
+  line=$(grep -o 'forecasts under the hold.*' "$tmp/summary.txt")
+  echo "$line" | grep -q 'made while held within the window, 0 of them a restart' || fail "$line"
+  reaches=$(echo "$line" | grep -o 'reaches that broke away: [0-9]*' | grep -o '[0-9]*$')
+  echo "$line" | grep -q "start seen: $reaches / " || fail "a reach's breakaway forecast more than 1 ms off: $line"
+  [ "$reaches" -gt 0 ] || fail "no reach"
 fi
 echo "ok: $kind: the hold began in $held of $rows scenarios, no restart after it began, no fault"

@@ -32,7 +32,7 @@ void EventsFile::on_event(const LoopEvent& e) {
     case LoopEvent::Kind::kHoldStart:
       out_ << "{\"event\":\"hold_start\",\"t\":" << num(e.t_s, 12) << ",\"stop\":" << e.stop_index
            << ",\"y\":" << num(e.y_m, 12) << ",\"force\":" << num(e.force_n) << ",\"y_d\":" << num(e.y_d_m)
-           << "}\n";
+           << ",\"reach\":" << e.direction << "}\n";
       return;
     case LoopEvent::Kind::kHoldEnd:
       out_ << "{\"event\":\"hold_end\",\"t\":" << num(e.t_s, 12) << ",\"stop\":" << e.stop_index

@@ -32,7 +32,8 @@ ControlLoop::ControlLoop(LoopParams params, hal::Backend& backend, LoopOutputs& 
       detector_(params_.controller.stop_detector, params_.controller.period_s()),
       half_stroke_m_(params_.geometry.half_stroke_m()),
       force_(params_.geometry, params_.exhaust_pressure_pa),
-      supervisor_(params_) {}
+      supervisor_(params_),
+      hold_law_(params_.controller.hold, params_.controller.law.max_voltage_v, params_.controller.period_s()) {}
 
 void ControlLoop::start(double t0_s) {
   backend_->open(t0_s);
@@ -58,7 +59,8 @@ void ControlLoop::start(double t0_s) {
   last_setpoint_t_s_ = t0_s;
   t_s_ = t0_s;
   y_d_at_stop_m_ = y_d_m_;
-  reach_direction_ = last_reach_direction_ = 0;
+  hold_ = HoldState{};
+  last_reach_direction_ = 0;
   reach_rate_scale_ = 1.0;
   reach_y_d_m_ = y_d_m_;
 }
@@ -148,15 +150,25 @@ void ControlLoop::latch_fault(FaultCause cause, double t_s, double y_m) noexcept
 
 void ControlLoop::start_hold(double t_s, double y_m, double force_n, int reach_direction) noexcept {
   mode_ = Mode::kHold;
-  reach_direction_ = reach_direction;
-  hold_t0_s_ = t_s;
-  hold_force0_n_ = force_n;
-  hold_u0_v_ = law_.resting_control_v(y_d_m_, detector_.rest_position_m());  // the u* in force
-  hold_integral_v_ = 0.0;
+  hold_ = HoldState{};
+  hold_.t0_s = t_s;
+  hold_.force0_n = force_n;
+  if (reach_direction != 0) {
+    // Reaching: the reference starts at hold.reach_preload of the bound it must cross (unless the
+    // force is past that already), so that the ramp's slow part is spent near the breakaway.
+    const double bound = reach_direction > 0 ? params_.friction.static_positive_n : params_.friction.static_negative_n;
+    const double preload = params_.controller.hold.reach_preload * bound;
+    hold_.force0_n = reach_direction > 0 ? std::max(force_n, preload) : std::min(force_n, preload);
+  }
+  hold_.u0_v = law_.resting_control_v(y_d_m_, detector_.rest_position_m());  // the u* in force
+  hold_.target_n = 0.5 * (params_.friction.static_positive_n + params_.friction.static_negative_n);
+  hold_.reach_direction = reach_direction;
+  hold_.reach_rate_n_per_s = reach_rate_scale_ * params_.controller.hold.reach_rate_n_per_s;
   hold_y_d_m_ = y_d_m_;
   LoopEvent e = event(LoopEvent::Kind::kHoldStart, t_s, y_m);
   e.force_n = force_n;
   e.direction = reach_direction;
+  e.hold = hold_;
   push(e);
 }
 
@@ -165,24 +177,6 @@ void ControlLoop::end_hold(HoldEnd why, double t_s, double y_m, Mode next) noexc
   LoopEvent e = event(LoopEvent::Kind::kHoldEnd, t_s, y_m);
   e.hold_end = why;
   push(e);
-}
-
-// The hold's control: the pressure force, measured, driven from its value at the hold's start to
-// the middle of the stiction band (ramped over hold.ramp_s), by a PI law on top of the u* that
-// held the carriage until then. The integral keeps u within its limits.
-double ControlLoop::hold_control_v(double t_s, double force_n, bool read_ok) noexcept {
-  const auto& h = params_.controller.hold;
-  const double u_max = params_.controller.law.max_voltage_v;
-  const double target = 0.5 * (params_.friction.static_positive_n + params_.friction.static_negative_n);
-  const double ramp = h.ramp_s > 0.0 ? std::min(1.0, (t_s - hold_t0_s_) / h.ramp_s) : 1.0;
-  // Reaching: the force ramped towards the set point until the carriage moves.
-  const double reference = reach_direction_ != 0
-                               ? hold_force0_n_ + reach_direction_ * reach_rate_scale_ * h.reach_rate_n_per_s * (t_s - hold_t0_s_)
-                               : hold_force0_n_ + (target - hold_force0_n_) * ramp;
-  const double error = read_ok ? reference - force_n : 0.0;  // a bad sample: hold the output
-  hold_integral_v_ = std::clamp(hold_integral_v_ + h.integral_gain_v_per_n_s * error * params_.controller.period_s(),
-                                -u_max - hold_u0_v_, u_max - hold_u0_v_);
-  return std::clamp(hold_u0_v_ + h.force_gain_v_per_n * error + hold_integral_v_, -u_max, u_max);
 }
 
 void ControlLoop::tick(double t_s) noexcept {
@@ -267,7 +261,7 @@ void ControlLoop::tick(double t_s) noexcept {
   // tick it comes), on any start; taken once at rest within the window, away from the end stops.
   const auto& hold = params_.controller.hold;
   if (mode_ == Mode::kHold) {
-    const bool reaching = reach_direction_ != 0;
+    const bool reaching = hold_.reach_direction != 0;
     const HoldEnd why = y_d_m_ != hold_y_d_m_ ? HoldEnd::kSetPoint
                         : !reaching && read_ok && std::abs(frame.y_m - y_d_m_) > hold.window_m ? HoldEnd::kLeftWindow
                         : !detector_.stopped() ? HoldEnd::kMoved
@@ -302,7 +296,7 @@ void ControlLoop::tick(double t_s) noexcept {
   // assume: the carriage has no velocity or acceleration to damp, and neither the differentiator's
   // decaying residue nor the sensor's noise and steps reach the valves through the gains.
   const double u = !armed                    ? params_.controller.law.offset_v
-                   : mode_ == Mode::kHold   ? hold_control_v(t_s, force, read_ok)
+                   : mode_ == Mode::kHold   ? hold_law_.command_v(hold_, t_s, force, read_ok)
                    : detector_.stopped()    ? law_.resting_control_v(y_d_m_, detector_.rest_position_m())
                                             : law_.control_v(y_d_m_, frame.y_m, v_hat, a_hat);
   const hal::ActuatorCommand command =
@@ -326,6 +320,7 @@ void ControlLoop::tick(double t_s) noexcept {
   r.stuck = detector_.stopped();
   r.mode = mode_;
   r.sensor_validity = frame.validity;
+  r.hold_integral_v = mode_ == Mode::kHold ? hold_.integral_v : 0.0;
   if (!out_->ticks.try_push(r)) ++out_->ticks_dropped;
   out_->heartbeat.store(seq_, std::memory_order_release);
 }

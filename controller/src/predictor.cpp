@@ -225,6 +225,7 @@ const char* to_string(PredictionMethod m) noexcept {
     case PredictionMethod::kLinearized: return "linearized";
     case PredictionMethod::kNonlinear: return "nonlinear";
     case PredictionMethod::kRelaxation: return "relaxation";
+    case PredictionMethod::kHeld: return "held";
   }
   return "?";
 }
@@ -288,13 +289,72 @@ Prediction predict_nonlinear(const PredictorModel& m, const StopSnapshot& s) noe
   return p;
 }
 
+Prediction predict_held(const PredictorModel& m, const HoldLaw& law, HoldState state, const StopSnapshot& now) noexcept {
+  // Settled: the force this close to its reference, the command moving less than this per tick.
+  constexpr double kSettledForce_n = 0.01;
+  constexpr double kSettledCommand_v = 1.0e-7;
+  const Common c = common_of(m, now);
+  Prediction p = base(PredictionMethod::kHeld, m, now, c);
+  const Bounds b = bounds_of(m, now);
+  const auto force = [&](const P2& x) { return c.force(x.pp, x.pn); };
+  const double period = law.period_s();
+  const double horizon = std::min(m.horizon_s, kHeldHorizon_s);
+
+  P2 x{now.p_p_pa, now.p_n_pa};
+  double f = force(x);
+  if (excess(b, f) > 0.0) {
+    mark_restart(p, now, 0.0, f, b);
+    return p;
+  }
+  double min_margin = margin(b, f);
+  double u = now.u_v;  // sent at now.t_s; the law's next command comes a period later
+  for (double t = 0.0; t < horizon;) {
+    // One period under u: RK4 in steps of at most the nonlinear method's.
+    const PressureOde ode{c, *m.valve, u};
+    for (double left = period; left > 0.0;) {
+      const double h = std::min(left, ode.step_s(x));
+      const P2 x1 = ode.rk4(x, h);
+      const double f1 = force(x1);
+      if (excess(b, f1) > 0.0) {
+        const auto g = [&](double th) { return excess(b, force(ode.rk4(x, th * h))); };
+        const double th = bracketed_root(g, 0.0, 1.0, excess(b, f), excess(b, f1), kTimeTolerance_s / h);
+        const double f_cross = force(ode.rk4(x, th * h));
+        mark_restart(p, now, t + th * h, f_cross, b);
+        p.equilibrium_force_n = f_cross;
+        return p;
+      }
+      min_margin = std::min(min_margin, margin(b, f1));
+      x = x1;
+      f = f1;
+      t += h;
+      left -= h;
+    }
+    const double t_abs = now.t_s + t;
+    const double u_next = law.command_v(state, t_abs, f, true);
+    const bool settled = law.ramp_done(state, t_abs) && std::abs(f - law.reference_n(state, t_abs)) < kSettledForce_n &&
+                         std::abs(u_next - u) < kSettledCommand_v;
+    u = u_next;
+    if (settled) {
+      p.min_margin_n = std::min(min_margin, margin(b, f));
+      p.equilibrium_force_n = law.reference_n(state, t_abs);
+      return p;
+    }
+  }
+  p.horizon_reached = true;
+  p.min_margin_n = min_margin;
+  p.equilibrium_force_n = f;
+  return p;
+}
+
 Prediction predict(PredictionMethod method, const PredictorModel& model, const StopSnapshot& stop) noexcept {
   switch (method) {
     case PredictionMethod::kLinearized: return predict_linearized(model, stop);
     case PredictionMethod::kNonlinear: return predict_nonlinear(model, stop);
-    case PredictionMethod::kRelaxation: break;
+    case PredictionMethod::kRelaxation:  // needs the phase's history
+    case PredictionMethod::kHeld:        // needs the hold's state
+      break;
   }
-  Prediction none;  // no history: no forecast
+  Prediction none;  // no forecast
   none.method = method;
   none.horizon_reached = true;
   return none;

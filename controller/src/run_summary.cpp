@@ -47,7 +47,9 @@ void print_stops(std::FILE* out, const Runtime& runtime) {
                "u*[V]", "F_e[N]", "what happened", "linearized", "nonlinear");
   for (const auto& s : runtime.stops()) {
     char happened[64];
-    if (!s.ended && !std::isnan(s.forecast_void_at_s))
+    if (!s.ended && s.held_first)
+      std::snprintf(happened, sizeof happened, "held from %.4f s to the end", s.held_first->t_s);
+    else if (!s.ended && !std::isnan(s.forecast_void_at_s))
       std::snprintf(happened, sizeof happened, "stuck; u* changed at %.4f s", s.forecast_void_at_s);
     else if (!s.ended)
       std::snprintf(happened, sizeof happened, "stuck to the end (%.3f s)", s.sticking_s());
@@ -93,6 +95,33 @@ void print_live(std::FILE* out, const Runtime& runtime) {
     std::fprintf(out, "  %3llu %11.3f %12.3f %12.3f %7u  %-24s %-24s%s%s\n", static_cast<ull>(s.index),
                  s.sticking_s(), s.largest_gap_linearized_n, s.largest_gap_nonlinear_n, s.updates, cells[0].c_str(),
                  cells[1].c_str(), relaxation ? " " : "", relaxation ? cells[2].c_str() : "");
+  }
+}
+
+// Under the in-position hold: the forecast under its commands made as each hold began, against what
+// happened, and how many of those made while it held said restart.
+void print_held(std::FILE* out, const Runtime& runtime) {
+  const auto& stops = runtime.stops();
+  const auto held = [](const StopOutcome& s) { return s.held_first.has_value(); };
+  if (std::none_of(stops.begin(), stops.end(), held)) return;
+  std::fprintf(out, "under the in-position hold: the forecast under its commands (method held) as the hold began,\n"
+                    "and of those made while it held (every update period), how many said restart:\n");
+  std::fprintf(out, "  %3s %11s  %-40s %9s %8s\n", "#", "hold[s]", "as it began", "forecasts", "restart");
+  for (const auto& s : stops) {
+    if (!held(s)) continue;
+    const Prediction& p = s.held_first->prediction;
+    const bool broke_away = s.ended && s.restarted;
+    char cell[96];
+    if (p.will_restart && broke_away)
+      std::snprintf(cell, sizeof cell, "%c %.4f s (%+.1f ms)", p.direction > 0 ? '+' : '-', p.t_restart_s,
+                    (p.t_restart_s - s.t_end_s) * 1e3);
+    else if (p.will_restart)
+      std::snprintf(cell, sizeof cell, "%c %.4f s (none came)", p.direction > 0 ? '+' : '-', p.t_restart_s);
+    else
+      std::snprintf(cell, sizeof cell, "none%s: F -> %.2f N, margin %.2f N%s", broke_away ? " (MISSED)" : "",
+                    p.equilibrium_force_n, p.min_margin_n, p.horizon_reached ? " (horizon)" : "");
+    std::fprintf(out, "  %3llu %11.4f  %-40s %9u %8u\n", static_cast<ull>(s.index), s.held_first->t_s, cell,
+                 s.held_forecasts, s.held_restart_forecasts);
   }
 }
 
@@ -146,6 +175,7 @@ void print_summary(std::FILE* out, const RunFigures& f, const Runtime& runtime) 
                t_end_s / f.wall_s);
   print_stops(out, runtime);
   print_live(out, runtime);
+  print_held(out, runtime);
   for (const auto& fault : runtime.faults())
     std::fprintf(out, "fault at %.4f s (y = %.3f mm): %s: %s\n", fault.t_s, fault.y_m * 1e3,
                  fault_name(fault.fault_cause), fault_text(fault.fault_cause));

@@ -86,6 +86,37 @@ void Runtime::on_tick(const TickRecord& r) {
   }
   for (RunListener* sink : sinks_) sink->on_tick(r, expected);
   if (reforecast_due) reforecast(stops_.back(), r, expected);
+  if (hold_ && r.mode == Mode::kHold && r.stuck && r.t_s >= next_held_s_ - 1e-9 && !stops_.empty() &&
+      !stops_.back().ended) {
+    held_forecast(stops_.back(), r);
+    next_held_s_ = update_period_s_ > 0.0
+                       ? hold_->t0_s + (std::floor((r.t_s - hold_->t0_s) / update_period_s_ + 1e-6) + 1.0) * update_period_s_
+                       : std::numeric_limits<double>::infinity();
+  }
+}
+
+// A forecast under the hold's commands from this tick's pressures, the command it sent and the
+// hold's integral term after it.
+void Runtime::held_forecast(StopOutcome& s, const TickRecord& r) {
+  StopSnapshot now = s.snapshot;
+  now.t_s = r.t_s;
+  now.p_p_pa = r.p_p_pa;
+  now.p_n_pa = r.p_n_pa;
+  now.u_v = r.u_v;
+  if (!snapshot_is_finite(now)) return;
+  HoldState state = *hold_;
+  state.integral_v = r.hold_integral_v;
+  Reforecast f;
+  f.update = ++s.updates;
+  f.t_s = r.t_s;
+  f.force_n = r.force_n;
+  f.u_star_v = r.u_v;
+  f.prediction = predict_held(model_, *hold_law_, state, now);
+  ++s.held_forecasts;
+  if (f.prediction.will_restart) ++s.held_restart_forecasts;
+  if (!s.held_first || s.held_first->t_s < hold_->t0_s) s.held_first = f;
+  const ForecastRecord record = forecast_record(s, f);
+  for (RunListener* sink : sinks_) sink->on_forecast(record);
 }
 
 void Runtime::reforecast(StopOutcome& s, const TickRecord& r, const ExpectedAtTick& expected) {
@@ -176,9 +207,16 @@ void Runtime::on_event(const LoopEvent& e) {
     }
     return;
   }
-  if (e.kind == LoopEvent::Kind::kFaultReset || e.kind == LoopEvent::Kind::kResetRefused ||
-      e.kind == LoopEvent::Kind::kHoldStart || e.kind == LoopEvent::Kind::kHoldEnd)
+  if (e.kind == LoopEvent::Kind::kHoldStart) {
+    if (hold_law_) hold_ = e.hold;
+    next_held_s_ = e.t_s;  // the first at the hold's own tick
     return;
+  }
+  if (e.kind == LoopEvent::Kind::kHoldEnd) {
+    hold_.reset();
+    return;
+  }
+  if (e.kind == LoopEvent::Kind::kFaultReset || e.kind == LoopEvent::Kind::kResetRefused) return;
   if (e.kind == LoopEvent::Kind::kFault) {
     following_.reset();  // the safe output replaces u*
     faults_.push_back(e);

@@ -71,6 +71,9 @@ Run make_run(const config::Config& config, const model::ValveCharacteristic& val
   run.runtime = std::make_unique<Runtime>(predictor_model(config, valve), p.linearized, p.nonlinear,
                                           p.update_period_s);
   run.runtime->set_relaxation_forecasts(p.relaxation);
+  if (config.controller.hold.enabled)
+    run.runtime->set_hold_law(HoldLaw(config.controller.hold, config.controller.law.max_voltage_v,
+                                      config.controller.period_s()));
   return run;
 }
 

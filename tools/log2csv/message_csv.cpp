@@ -127,6 +127,8 @@ const char* method_name(std::int8_t method) {
       return "nonlinear";
     case P::METHOD_RELAXATION:
       return "relaxation";
+    case P::METHOD_HELD:
+      return "held";
     default:
       return "unknown";
   }

@@ -161,6 +161,15 @@ bool plant_at_rest(std::span<const plant::PlantEvent> events, double t_s) {
   return at_rest;
 }
 
+// At rest at t_s, or coming to rest after it without breaking away first: a noisy detector can
+// confirm a stop a few ms before the plant's last slide within its rest band ends.
+bool plant_rests_from(std::span<const plant::PlantEvent> events, double t_s) {
+  if (plant_at_rest(events, t_s)) return true;
+  for (const auto& e : events)
+    if (e.t_s > t_s) return e.kind != plant::PlantEvent::Kind::kBreakaway;
+  return false;
+}
+
 // How a scenario ended up (see the help).
 enum class Outcome : std::uint8_t { kSettled, kNeverSettled, kEndStop, kFault };
 constexpr Outcome kOutcomes[] = {Outcome::kSettled, Outcome::kNeverSettled, Outcome::kEndStop, Outcome::kFault};
@@ -193,11 +202,17 @@ struct Settling {
   double last_second_swing_m = kNaN;      // peak-to-peak position over the run's last second
   double oscillation_rule_after_s = kNaN; // when the settling rules checked alongside would latch
   // controller.hold.window_m: the first rest after the step within the window (the plant's truth
-  // confirming it), from the step; the first hold's start after the step, from the step; the
+  // confirming it, at once or by sticking before any breakaway), from the step; the first hold's start after the step, from the step; the
   // plant's breakaways after it (the set point does not change after the step, nothing pushes)
   double in_window_after_s = kNaN;
   double hold_after_s = kNaN;
   std::uint64_t restarts_after_hold = 0;
+  // The forecasts under the hold's commands (method held, after the step): made while held within
+  // the window, and how many said restart; reaching: for each reach that broke away, the forecast
+  // made as it began against the start seen [ms], and the reaches it forecast no breakaway for.
+  std::uint64_t held_forecasts = 0, held_restart_forecasts = 0;
+  std::vector<double> reach_forecast_error_ms;
+  std::uint64_t reaches_forecast_none = 0;
 };
 
 // The supervisor's settling rules alone (oscillation, settle time): every other check off.
@@ -274,9 +289,22 @@ class ScenarioWatch final : public controller::RunListener {
         break;
       case Kind::kStart:
         if (e.restart) ++s_.restarts;
+        if (reach_forecast_) {  // the breakaway a reach forecast
+          if (reach_forecast_->will_restart)
+            s_.reach_forecast_error_ms.push_back((reach_forecast_->t_restart_s - e.t_s) * 1e3);
+          else
+            ++s_.reaches_forecast_none;
+          reach_forecast_.reset();
+        }
         break;
       case Kind::kHoldStart:  // within the window (not reaching for it)
         if (e.direction == 0 && e.t_s >= step_time_s_ && std::isnan(s_.hold_after_s)) s_.hold_after_s = e.t_s - step_time_s_;
+        hold_reach_direction_ = e.direction;
+        reach_forecast_.reset();
+        break;
+      case Kind::kHoldEnd:  // (a breakaway's start comes first, and has taken the reach's forecast)
+        hold_reach_direction_ = 0;
+        reach_forecast_.reset();
         break;
       case Kind::kFault:
         if (s_.fault == controller::FaultCause::kNone) {
@@ -286,6 +314,16 @@ class ScenarioWatch final : public controller::RunListener {
         break;
       default: break;
     }
+  }
+
+  void on_forecast(const controller::ForecastRecord& f) override {
+    if (f.prediction.method != controller::PredictionMethod::kHeld || f.t_s < step_time_s_) return;
+    if (hold_reach_direction_ != 0) {
+      if (!reach_forecast_) reach_forecast_ = f.prediction;  // the one made as the reach began
+      return;
+    }
+    ++s_.held_forecasts;
+    if (f.prediction.will_restart) ++s_.held_restart_forecasts;
   }
 
   // The account, once the run has ended, with the plant's motion events: the first rest is the
@@ -300,7 +338,7 @@ class ScenarioWatch final : public controller::RunListener {
         break;
       }
     for (const RestCandidate& c : rest_candidates_)
-      if (std::abs(c.y_m - last_.y_d_m) <= window_m_ && plant_at_rest(plant_events, c.confirmed_t_s)) {
+      if (std::abs(c.y_m - last_.y_d_m) <= window_m_ && plant_rests_from(plant_events, c.confirmed_t_s)) {
         s.in_window_after_s = c.t_s - step_time_s_;
         break;
       }
@@ -347,6 +385,8 @@ class ScenarioWatch final : public controller::RunListener {
   bool moved_ = false;  // the detector saw the carriage move after the step
   controller::TickRecord last_;
   double lowest_m_ = 1e300, highest_m_ = -1e300;
+  int hold_reach_direction_ = 0;                          // of the hold in force
+  std::optional<controller::Prediction> reach_forecast_;  // made as the reach in force began
 };
 
 struct ScenarioResult {
@@ -772,6 +812,9 @@ int run(int argc, char** argv) {
   std::vector<double> settle_times_s, final_errors_m;
   std::vector<double> in_window_after_s;  // the first rest within controller.hold.window_m, from the step
   std::uint64_t held = 0, restarts_after_hold = 0, restarted_after_hold = 0;
+  std::uint64_t held_forecasts = 0, held_restart_forecasts = 0, reaches_forecast_none = 0;
+  std::vector<double> reach_forecast_error_ms;
+  std::size_t never_in_window = 0;  // run, never at rest within the window
   std::vector<double> rule_after_s[std::size(kOutcomes)];  // when the settling rules would latch, per outcome
   std::vector<std::uint64_t> fault_count(controller::kFaultCauseCount, 0);
   double y0_range_m[std::size(kOutcomes)][2], y_d_range_m[std::size(kOutcomes)][2];
@@ -824,6 +867,12 @@ int run(int argc, char** argv) {
         final_errors_m.push_back(g.final_error_m);
       }
       if (!std::isnan(g.in_window_after_s)) in_window_after_s.push_back(g.in_window_after_s);
+      else ++never_in_window;
+      held_forecasts += g.held_forecasts;
+      held_restart_forecasts += g.held_restart_forecasts;
+      reaches_forecast_none += g.reaches_forecast_none;
+      reach_forecast_error_ms.insert(reach_forecast_error_ms.end(), g.reach_forecast_error_ms.begin(),
+                                     g.reach_forecast_error_ms.end());
       if (!std::isnan(g.hold_after_s)) {
         ++held;
         restarts_after_hold += g.restarts_after_hold;
@@ -922,10 +971,44 @@ int run(int argc, char** argv) {
               "p50 %.3f s  p90 %.3f s  max %.3f s\n",
               base.controller.hold.window_m * 1e3, in_window_after_s.size(), results.size() - id_failures.size(),
               percentile(in_window_after_s, 0.5), percentile(in_window_after_s, 0.9), percentile(in_window_after_s, 1.0));
+  {
+    // Over every scenario run, those never at rest within the window counted as never: beside the
+    // percentiles above, which count only those that came to rest there.
+    std::vector<double> all(in_window_after_s);
+    all.insert(all.end(), never_in_window, std::numeric_limits<double>::infinity());
+    std::sort(all.begin(), all.end());
+    const auto at = [&](double q) {  // percentile()'s interpolation; towards a never: never
+      if (all.empty()) return static_cast<double>(NAN);
+      const double pos = q * static_cast<double>(all.size() - 1);
+      const auto i = static_cast<std::size_t>(pos);
+      const double f = pos - static_cast<double>(i);
+      if (i + 1 < all.size() && f > 0.0) return std::isinf(all[i + 1]) ? all[i + 1] : all[i] * (1 - f) + all[i + 1] * f;
+      return all[i];
+    };
+    char p50[32], p90[32];
+    for (auto [text, q] : {std::pair{p50, 0.5}, std::pair{p90, 0.9}}) {
+      const double v = at(q);
+      if (std::isinf(v)) std::snprintf(text, sizeof p50, "never");
+      else std::snprintf(text, sizeof p50, "%.3f s", v);
+    }
+    std::printf("    ... over all %zu run, the %zu never at rest within it counted as never: p50 %s  p90 %s\n", all.size(),
+                never_in_window, p50, p90);
+  }
   std::printf("    the in-position hold (%s): began in %llu scenarios; restarts after it began (breakaways of the plant "
               "beyond the motion band): %llu, in %llu scenarios\n",
               base.controller.hold.enabled ? "on" : "off", static_cast<unsigned long long>(held),
               static_cast<unsigned long long>(restarts_after_hold), static_cast<unsigned long long>(restarted_after_hold));
+  if (base.controller.hold.enabled) {
+    std::vector<double> abs_ms;
+    for (double e : reach_forecast_error_ms) abs_ms.push_back(std::abs(e));
+    const auto within = [&](double ms) { return std::count_if(abs_ms.begin(), abs_ms.end(), [ms](double e) { return e <= ms; }); };
+    std::printf("    forecasts under the hold's commands (method held): %llu made while held within the window, %llu of "
+                "them a restart; reaches that broke away: %zu, forecast as each began within 1 / 2 / 5 ms of the start "
+                "seen: %td / %td / %td (|error| p50 %.2f ms, max %.2f ms), %llu forecast none\n",
+                static_cast<unsigned long long>(held_forecasts), static_cast<unsigned long long>(held_restart_forecasts),
+                abs_ms.size(), within(1.0), within(2.0), within(5.0), percentile(abs_ms, 0.5), percentile(abs_ms, 1.0),
+                static_cast<unsigned long long>(reaches_forecast_none));
+  }
   if (!supervised && (settling_rules.oscillation_sign_changes > 0 || settling_rules.settle_time_s > 0.0)) {
     std::vector<double> all_after_s;
     for (const auto& v : rule_after_s) all_after_s.insert(all_after_s.end(), v.begin(), v.end());

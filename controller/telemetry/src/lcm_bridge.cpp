@@ -159,6 +159,7 @@ void LcmBridge::on_forecast(const controller::ForecastRecord& f) {
     case controller::PredictionMethod::kLinearized: m.method = pneu_lcm::prediction_t::METHOD_LINEARIZED; break;
     case controller::PredictionMethod::kNonlinear: m.method = pneu_lcm::prediction_t::METHOD_NONLINEAR; break;
     case controller::PredictionMethod::kRelaxation: m.method = pneu_lcm::prediction_t::METHOD_RELAXATION; break;
+    case controller::PredictionMethod::kHeld: m.method = pneu_lcm::prediction_t::METHOD_HELD; break;
   }
   m.will_restart = p.will_restart;
   m.direction = static_cast<std::int8_t>(p.direction);

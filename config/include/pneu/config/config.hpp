@@ -136,6 +136,10 @@ struct HoldConfig {
   /// Eq. 4 again; 0: off [m]
   double reach_m = 0.0;
   double reach_rate_n_per_s = 2000.0;  ///< [N/s]
+  /// The reach's ramp starts at this share of the stiction bound it must cross (plant.friction),
+  /// or at the force if that is past it already: the band crossed at once, the ramp's slow part
+  /// spent near the breakaway [-]
+  double reach_preload = 0.7;
 };
 
 /// One step of the set-point schedule.

@@ -489,6 +489,8 @@ void describe(auto& a, Like<HoldConfig> auto& h) {
   a.field(optional(PNEU_NVP(h, reach_m)), Range::non_negative(),
           "at rest outside the window but this close: break away towards the set point [m]; 0 = off");
   a.field(optional(PNEU_NVP(h, reach_rate_n_per_s)), Range::positive(), "... the force ramped this fast [N/s]");
+  a.field(optional(PNEU_NVP(h, reach_preload)), Range::closed(0.0, 0.95),
+          "... from this share of the stiction bound it must cross (or the force, if past it) [-]");
 }
 
 /// One step of controller.setpoints.schedule.

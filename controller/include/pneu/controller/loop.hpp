@@ -8,6 +8,7 @@
 #include "pneu/config/config.hpp"
 #include "pneu/controller/control_law.hpp"
 #include "pneu/controller/differentiator.hpp"
+#include "pneu/controller/hold_law.hpp"
 #include "pneu/controller/loop_params.hpp"
 #include "pneu/controller/predictor.hpp"
 #include "pneu/controller/spsc_queue.hpp"
@@ -57,6 +58,7 @@ struct TickRecord {
   bool stuck = false;          ///< the stop detector holds the carriage at rest
   Mode mode = Mode::kArmed;
   std::uint32_t sensor_validity = 0;  ///< hal::SensorValidity flags of the sample
+  double hold_integral_v = 0.0;       ///< in hold: the hold law's integral term after this tick [V]
 };
 
 /// A start or stop of the carriage (with the snapshot the predictor needs at a stop), or a fault
@@ -78,6 +80,7 @@ struct LoopEvent {
   bool controlled = true;        ///< stop: the law was driving (armed), so u* applies and a forecast makes sense
   FaultCause fault_cause = FaultCause::kNone;  ///< fault, reset, reset refused: which cause
   HoldEnd hold_end = HoldEnd::kNone;           ///< hold end: why
+  HoldState hold;                              ///< hold start: the hold's law as it starts
   std::uint64_t tick_seq = 0;    ///< the tick that raised it (its TickRecord::seq)
 };
 
@@ -159,7 +162,6 @@ class ControlLoop {
   void latch_fault(FaultCause cause, double t_s, double y_m) noexcept;
   void start_hold(double t_s, double y_m, double force_n, int reach_direction) noexcept;
   void end_hold(HoldEnd why, double t_s, double y_m, Mode next) noexcept;
-  [[nodiscard]] double hold_control_v(double t_s, double force_n, bool read_ok) noexcept;
 
   LoopParams params_;
   hal::Backend* backend_;  // pointers, not references: the loop can be moved
@@ -184,10 +186,10 @@ class ControlLoop {
   std::uint64_t comms_errors_ = 0;
   std::uint64_t ticks_since_sample_ = 0;  // ticks since the differentiator took a new sample
   double detector_last_y_ = 0.0;         // the last good position
-  // The hold in force (mode kHold): when and where it started, the force then, u* it started from,
-  // the integral term, the set point it holds.
-  double hold_t0_s_ = 0.0, hold_force0_n_ = 0.0, hold_u0_v_ = 0.0, hold_integral_v_ = 0.0, hold_y_d_m_ = 0.0;
-  int reach_direction_ = 0;  // reaching the window (+1 / -1), or holding in it (0)
+  // The hold's law, and the hold in force (mode kHold) with the set point it holds.
+  HoldLaw hold_law_;
+  HoldState hold_;
+  double hold_y_d_m_ = 0.0;
   // Reaching: the direction of the last reach for this set point (0: none yet), and the share of
   // reach_rate_n_per_s in force, halved each time a reach went past the set point.
   int last_reach_direction_ = 0;

@@ -10,6 +10,7 @@
 #include <optional>
 
 #include "pneu/config/config.hpp"
+#include "pneu/controller/hold_law.hpp"
 #include "pneu/model/params.hpp"
 #include "pneu/model/valve.hpp"
 
@@ -22,6 +23,11 @@ enum class PredictionMethod : std::uint8_t {
   /// towards its own asymptote), without the valve model: the live predictor only, once the
   /// phase has some history (predict_relaxation).
   kRelaxation,
+  /// While the in-position hold drives the valves: the two pressure equations of Eq. 19
+  /// integrated under the hold's own commands (its PI law closed on the model's force, tick by
+  /// tick), from the pressures of the moment: will the hold keep the force in the band, or (reaching
+  /// for the window) when will its ramp break the carriage away (predict_held).
+  kHeld,
 };
 
 [[nodiscard]] const char* to_string(PredictionMethod m) noexcept;
@@ -127,6 +133,21 @@ inline constexpr double kRelaxationMaxTauSpans = 10.0;
 /// kRelaxationMinSamples.
 [[nodiscard]] std::optional<Prediction> predict_relaxation(const PredictorModel& model, const StopSnapshot& now,
                                                            const PhaseHistory& history) noexcept;
+/// The held forecast looks this far ahead at most (or the model's horizon, if shorter) [s].
+inline constexpr double kHeldHorizon_s = 60.0;
+
+/// The live predictor under the in-position hold: from the pressures of `now` (its u_v: the
+/// command the hold sent at now.t_s), the chambers' equations integrated one loop period at a
+/// time, each period under the command `law` gives from the model's force at its start (as the
+/// loop does from the measured one), with `state` the hold as it stands after now.t_s's tick.
+/// Within the window: no restart once the force has settled on its reference (min_margin: the
+/// smallest distance to a bound on the way), or a restart if the way crosses a bound; reaching:
+/// when the ramp breaks the carriage away, and which way. equilibrium_force_n: the reference
+/// it settles on (holding) or the force at the breakaway (reaching). Undecided after
+/// kHeldHorizon_s: no restart, horizon_reached.
+[[nodiscard]] Prediction predict_held(const PredictorModel& model, const HoldLaw& law, HoldState state,
+                                      const StopSnapshot& now) noexcept;
+
 /// The chamber pressures and the pressure force a forecast expects at one instant of the
 /// sticking phase.
 struct ForecastPoint {

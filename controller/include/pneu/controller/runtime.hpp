@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "pneu/controller/control_law.hpp"
+#include "pneu/controller/hold_law.hpp"
 #include "pneu/controller/loop.hpp"
 #include "pneu/controller/predictor.hpp"
 #include "pneu/controller/run_listener.hpp"
@@ -35,6 +36,9 @@ class Runtime {
   /// Whether the forecasts made again while stuck include the relaxation method's, fitted to the
   /// phase's own pressures (predict_relaxation; off by default). It needs update_period_s > 0.
   void set_relaxation_forecasts(bool on) noexcept { relaxation_ = on; }
+  /// The in-position hold's law (controller.hold): while the loop holds a stop, forecasts under
+  /// its commands (predict_held) at the hold's start and then every update period. Off unless set.
+  void set_hold_law(const HoldLaw& law) noexcept { hold_law_ = law; }
   /// Adds a sink: every record goes to each sink, in the order they were added. Not owned; it
   /// must outlive the runtime's last drain(), finish() or record_command().
   void add_sink(RunListener& sink) { sinks_.push_back(&sink); }
@@ -72,6 +76,7 @@ class Runtime {
       case PredictionMethod::kLinearized: return linearized_;
       case PredictionMethod::kNonlinear: return nonlinear_;
       case PredictionMethod::kRelaxation: return relaxation_ && update_period_s_ > 0.0;
+      case PredictionMethod::kHeld: return hold_law_.has_value();
     }
     return false;
   }
@@ -83,6 +88,7 @@ class Runtime {
   void emit_forecast(const StopOutcome& s, const Prediction& p);
   void reforecast(StopOutcome& s, const TickRecord& r, const ExpectedAtTick& expected);
   void settle(StopOutcome& s) const;
+  void held_forecast(StopOutcome& s, const TickRecord& r);
 
   // The forecasts of the open stop, followed while they hold.
   struct Following {
@@ -103,6 +109,9 @@ class Runtime {
   std::vector<RunListener*> sinks_;
   std::vector<StopOutcome> stops_;
   std::optional<Following> following_;
+  std::optional<HoldLaw> hold_law_;
+  std::optional<HoldState> hold_;   // the hold in force, as it started
+  double next_held_s_ = 0.0;        // the next forecast under it is due
   std::vector<LoopEvent> faults_;  // the faults latched, for the summary
   double t_end_s_ = 0.0;
   std::uint64_t ticks_seen_ = 0;

@@ -59,6 +59,12 @@ struct StopOutcome {
   /// kMaxReforecastsKept: a longer sticking phase keeps every 2nd, 4th, ... update.
   std::vector<Reforecast> reforecasts;
   static constexpr std::size_t kMaxReforecastsKept = 512;
+  /// Under the in-position hold (predict_held, when the runtime has the hold's law): the forecasts
+  /// made while it held this stop (at its start, then every update period), how many of them a
+  /// restart, and the first of the last hold (reaching: when its ramp breaks the carriage away).
+  std::uint32_t held_forecasts = 0;
+  std::uint32_t held_restart_forecasts = 0;
+  std::optional<Reforecast> held_first;
 
   [[nodiscard]] double sticking_s() const noexcept { return t_end_s - t_stop_s; }
 };
