@@ -472,6 +472,27 @@ TEST_F(LoopHold, AReadingOutsideTheWindowEndsItThatTick) {
   expect_hold_end(controller::HoldEnd::kLeftWindow);
 }
 
+TEST_F(LoopHold, AtTheWindowsEdgeReadingsWithinTheRestBandBeyondItDoNotEndIt) {
+  // hil.yaml's sensors: a rest band of 20 um spans the noise and the ADC's steps at rest. Held at
+  // 0.495 mm, readings flicker to 0.505 and 0.51 mm: the same rest, still held; a reading 0.525 mm
+  // off (beyond the band) has left the window.
+  config_.controller.stop_detector.rest_band_m = 2.0e-5;
+  config_.controller.stop_detector.motion_band_m = 4.0e-5;
+  const double y_d = config_.controller.initial_setpoint_m;
+  backend_.sample.y_m = y_d + 4.95e-4;
+  start_holding();
+  for (const double off : {5.05e-4, 4.95e-4, 5.1e-4, 4.95e-4, 5.05e-4}) {
+    backend_.sample.y_m = y_d + off;
+    run_ticks(1);
+    EXPECT_EQ(mode(), Mode::kHold) << off;
+    EXPECT_TRUE(events().empty()) << off;
+  }
+  backend_.sample.y_m = y_d + 5.25e-4;
+  run_ticks(1);
+  EXPECT_EQ(mode(), Mode::kArmed);
+  expect_hold_end(controller::HoldEnd::kLeftWindow);
+}
+
 TEST_F(LoopHold, AFaultEndsItBeforeTheFaultLatches) {
   start_holding();
   backend_.sample.estop = true;

@@ -189,5 +189,17 @@ cut -d, -f1-3 "$tmp/map.csv" > "$tmp/short_map.csv"
 rc=0; "$py" "$map_tool" --map "$tmp/short_map.csv" --out "$tmp/none" 2> "$tmp/map.err" || rc=$?
 [ "$rc" -eq 2 ] && grep -q "missing column(s)" "$tmp/map.err" || fail "a map without columns: exit $rc, $(cat "$tmp/map.err")"
 
+# 5. The in-position hold (issue 16): the default run held and reaching a 0.1 mm window; the plane
+# figure draws the held path, the hold's target line and where each hold and reach began.
+"$bin/pneud" --config "$tmp/config.yaml" --quiet --set controller.hold.enabled=true --set controller.hold.window_m=0.0001 \
+  --set controller.hold.reach_m=0.005 --events "$tmp/held.jsonl" --trajectory "$tmp/held.csv"
+grep -q '"event":"hold_start".*"reach":0' "$tmp/held.jsonl" || fail "the held run never held within the window"
+"$py" "$tool" --trajectory "$tmp/held.csv" --events "$tmp/held.jsonl" --config "$tmp/config.yaml" \
+  --null-flow "$tmp/null_flow.csv" --out-dir "$tmp/held" --name held > /dev/null || fail "pneu_plots.py failed on the held run"
+check_figure "$tmp/held" held_plane
+for text in "trajectory, held" "the hold's target: x - y = (F_S+ + F_S-) / 2 = -2.5 N" "hold began" "reach began"; do
+  grep -qF "$text" "$tmp/held/held_plane.svg" || fail "the held run's plane figure lacks '$text'"
+done
+
 echo "plots: $stops stops; paper_time, paper_plane and paper_forecast (PNG and SVG) from pneud's output," \
-     "the first two from LCM CSVs and from a trajectory without forecast columns; the stability map; bad input refused"
+     "the first two from LCM CSVs and from a trajectory without forecast columns; the stability map; a held run's plane; bad input refused"

@@ -9,7 +9,7 @@
 # takes reaching the window.
 # reach: the default sweep reaching a 0.1 mm window (controller.hold.reach_m): besides, the final
 # error's p90 within 0.1 mm (measured 0.088 mm); the time to come to rest within the window, p90,
-# no more than 0.3 s over the same sweep's without the hold (measured 0.978 s against 0.943 s);
+# no more than 0.3 s over the same sweep's without the hold (measured 0.978 s against 0.942 s);
 # the forecasts under the hold's commands: none a restart while held within the window, and
 # every reach's breakaway forecast within 1 ms of the start seen (measured 0.5 ms at worst).
 #   test_sweep_hold.sh BINARY_DIR default|hil|spread|identified|reach SOURCE_DIR

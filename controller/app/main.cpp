@@ -46,7 +46,8 @@ Usage:
   --duration S       run length in seconds; 0 runs until SIGINT/SIGTERM (real clock)
                      (same as --set controller.duration_s=S)
   --events FILE      one JSON object per line: start, stop, prediction, reforecast, fault,
-                     fault_reset, fault_reset_refused, command (each command's verdict), end
+                     fault_reset, fault_reset_refused, hold_start, hold_end, command (each
+                     command's verdict), end
   --trajectory FILE  one CSV row per tick: seq,t,y_d,y,v_hat,a_hat,p_P,p_N,F,u,stuck,mode,validity,
                      then, while stuck, the pressures and force each forecast made at the stop
                      expects (p_P_linearized,...,F_nonlinear; empty otherwise)

@@ -261,9 +261,13 @@ void ControlLoop::tick(double t_s) noexcept {
   // tick it comes), on any start; taken once at rest within the window, away from the end stops.
   const auto& hold = params_.controller.hold;
   if (mode_ == Mode::kHold) {
+    // A reading beyond the window by more than the stop detector's rest band: the band is what the
+    // sensor's noise and steps span at rest, so that a rest on the window's edge is not handed
+    // back and taken again tick after tick.
+    const double rest_band_m = params_.controller.stop_detector.rest_band_m;
     const bool reaching = hold_.reach_direction != 0;
     const HoldEnd why = y_d_m_ != hold_y_d_m_ ? HoldEnd::kSetPoint
-                        : !reaching && read_ok && std::abs(frame.y_m - y_d_m_) > hold.window_m ? HoldEnd::kLeftWindow
+                        : !reaching && read_ok && std::abs(frame.y_m - y_d_m_) > hold.window_m + rest_band_m ? HoldEnd::kLeftWindow
                         : !detector_.stopped() ? HoldEnd::kMoved
                                                : HoldEnd::kNone;
     if (why != HoldEnd::kNone) end_hold(why, t_s, frame.y_m, Mode::kArmed);

@@ -120,10 +120,15 @@ class Run:
         self.predictions = []  # dicts: stop, t, t_stop, method, will_restart, direction,
         #                               t_restart (None), u_star, p_p_e/p_n_e (None if unknown)
         self.reforecasts = []  # the same made again while stuck, plus update (1, 2, ...)
+        self.held = None       # per tick: the in-position hold drove the valves (mode hold); None
+        #                        when the input has no mode
+        self.holds = []        # dicts: t, reach (0: holding within the window, +-1: reaching)
         self.forecast = None   # {method: {"p_p", "p_n", "force": per-tick arrays, NaN where
         #                        no forecast is followed}}, None when the input has no such columns
         self.source = ""
 
+
+MODE_HOLD = 3  # the trajectory's and state_t's mode while the in-position hold drives the valves
 
 # The trajectory's forecast columns: what the forecast made at the stop expects at each tick.
 FORECAST_COLUMNS = {"linearized": ("p_P_linearized", "p_N_linearized", "F_linearized"),
@@ -145,11 +150,13 @@ def load_pneud_output(trajectory_path, events_path):
 
     forecast_cols = [c for cs in FORECAST_COLUMNS.values() for c in cs]
     cols = read_csv_columns(trajectory_path, ["t", "y_d", "y", "p_P", "p_N", "F", "u", "stuck"],
-                            what="--trajectory", optional=forecast_cols)
+                            what="--trajectory", optional=forecast_cols + ["mode"])
     run = Run()
     run.t, run.y_d, run.y = (np.array(cols[c]) for c in ("t", "y_d", "y"))
     run.p_p, run.p_n, run.force, run.u = (np.array(cols[c]) for c in ("p_P", "p_N", "F", "u"))
     run.stuck = np.array(cols["stuck"]) > 0.5
+    if "mode" in cols:
+        run.held = np.array(cols["mode"]) == MODE_HOLD
     missing = [c for c in forecast_cols if c not in cols]
     if len(missing) < len(forecast_cols):  # older pneud writes none of them
         if missing:
@@ -182,6 +189,9 @@ def load_pneud_output(trajectory_path, events_path):
                 run.starts.append({"index": ev.get("stop", 0), "t": ev["t"], "y": ev["y"],
                                    "restart": bool(ev["restart"]),
                                    "direction": ev.get("direction", 0)})
+            elif kind == "hold_start":
+                need("t")
+                run.holds.append({"t": ev["t"], "reach": ev.get("reach", 0)})
             elif kind == "prediction":  # the forecast made at the stop
                 need("t_stop", "method", "will_restart", "t_restart")
                 run.predictions.append(_prediction(ev))
@@ -199,7 +209,7 @@ def load_log_csv(directory, prefix):
         raise InputError(f"--log-csv: no such directory: {directory}")
     state = read_csv_columns(os.path.join(directory, prefix + "STATE.csv"),
                              ["t", "y_d", "y", "p_p", "p_n", "force", "u", "stuck"],
-                             what=f"--log-csv ({prefix}STATE.csv)")
+                             what=f"--log-csv ({prefix}STATE.csv)", optional=["mode"])
     events = read_csv_columns(os.path.join(directory, prefix + "EVENT.csv"),
                               ["t", "stop", "y", "force", "direction"], ["kind_name"],
                               what=f"--log-csv ({prefix}EVENT.csv)")
@@ -210,10 +220,14 @@ def load_log_csv(directory, prefix):
     run.p_p, run.p_n, run.force, run.u = (np.array(state[c])[order]
                                           for c in ("p_p", "p_n", "force", "u"))
     run.stuck = np.array(state["stuck"])[order] > 0.5
+    if "mode" in state:
+        run.held = np.array(state["mode"])[order] == MODE_HOLD
     for i, kind in enumerate(events["kind_name"]):
         if kind == "stop":
             run.stops.append({"index": int(events["stop"][i]), "t": events["t"][i],
                               "y": events["y"][i], "force": events["force"][i]})
+        elif kind == "hold_start":
+            run.holds.append({"t": events["t"][i], "reach": events["direction"][i]})
         elif kind in ("start", "restart"):
             run.starts.append({"index": int(events["stop"][i]), "t": events["t"][i],
                                "y": events["y"][i], "restart": kind == "restart",
@@ -256,6 +270,9 @@ def restrict_to_time_range(run, t0, t1):
     keep = (run.t >= t0) & (run.t <= t1)
     for name in ("t", "y_d", "y", "p_p", "p_n", "force", "u", "stuck"):
         setattr(run, name, getattr(run, name)[keep])
+    if run.held is not None:
+        run.held = run.held[keep]
+    run.holds = [h for h in run.holds if t0 <= h["t"] <= t1]
     if run.forecast:
         run.forecast = {m: {k: v[keep] for k, v in cols.items()}
                         for m, cols in run.forecast.items()}
@@ -356,7 +373,10 @@ def default_config():
 METHOD_STYLE = {  # forecast markers, one per method
     "linearized": {"marker": "v", "color": "#e66100", "label": "forecast restart, linearized (Eq. 17/25)"},
     "nonlinear": {"marker": "D", "color": "#1a9641", "label": "forecast restart, nonlinear (Eq. 19)"},
+    "held": {"marker": "P", "color": "#008080",
+             "label": "forecast breakaway under the hold's commands (a reach)"},
 }
+C_HELD = "#00897b"  # the trajectory while the in-position hold drives the valves
 OTHER_METHOD = {"marker": "s", "color": "#7b3294"}
 C_Y, C_YD = "#1f4e9c", "#555555"
 C_PP, C_PN = "#c0392b", "#2471a3"
@@ -660,6 +680,27 @@ def plane_figure(run, bench, curve, name, plt):
         ax.plot(x * moving, y * moving, color=C_Y, lw=1.3, zorder=3, label="trajectory, moving")
         ax.plot(x * stuck, y * stuck, color="#c0392b", lw=2.0, zorder=3.5,
                 label="trajectory, stuck (the pressures drift at rest)")
+        if run.held is not None and run.held.any():
+            held = run.held.copy()
+            held[1:] |= run.held[:-1]
+            held[:-1] |= run.held[1:]
+            held = np.where(held, 1.0, np.nan)
+            ax.plot(x * held, y * held, color=C_HELD, lw=3.0, zorder=3.7,
+                    label="trajectory, held (controller.hold: the pressure force driven, measured, "
+                          "to the stiction band's middle)")
+            target = 0.5 * (bench.fs_pos + bench.fs_neg)
+            xs = np.array([x_lo - pad, x_hi + pad])
+            ax.plot(xs, xs - target, color=C_HELD, lw=1.0, ls=(0, (6, 3)), zorder=1.6,
+                    label=f"the hold's target: x - y = (F_S+ + F_S-) / 2 = {target:g} N")
+            for h in run.holds:
+                reach = h["reach"] != 0
+                ax.plot(_interp(run, h["t"], x), _interp(run, h["t"], y), ">" if reach else "h",
+                        color=C_HELD, ms=7.5 if reach else 9, mfc="white" if reach else C_HELD,
+                        mec="0.15", mew=1.0, zorder=7.2,
+                        label=label("reach" if reach else "hold",
+                                    "reach began (at rest outside the window: the force ramped "
+                                    "towards the set point)" if reach else
+                                    "hold began (at rest within the window)"))
         ax.plot(x[0], y[0], "s", color="0.3", ms=6, mfc="white", mew=1.3, zorder=6,
                 label=f"start of the run (t = {run.t[0]:g} s)")
         for s in run.stops:
