@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -459,6 +460,14 @@ double percentile(std::vector<double> v, double q) {
   const auto i = static_cast<std::size_t>(pos);
   const double f = pos - static_cast<double>(i);
   return i + 1 < v.size() ? v[i] * (1 - f) + v[i + 1] * f : v[i];
+}
+
+// How many of the errors [%] are within 2, 5 and 10 %.
+std::array<std::size_t, 3> within_2_5_10(const std::vector<double>& errors_pct) {
+  std::array<std::size_t, 3> within{};
+  for (const double e : errors_pct)
+    for (std::size_t b = 0; b < within.size(); ++b) within[b] += e <= (b == 0 ? 2.0 : b == 1 ? 5.0 : 10.0) ? 1 : 0;
+  return within;
 }
 
 const char* verdict_name(Verdict::Kind k) {
@@ -1052,9 +1061,7 @@ int run(int argc, char** argv) {
                 st.halfway_error_pct.size(), percentile(st.halfway_error_pct, 0.5),
                 percentile(st.halfway_error_pct, 0.9), percentile(st.halfway_error_pct, 0.99),
                 percentile(st.halfway_error_pct, 1.0));
-    std::size_t within[3] = {0, 0, 0};
-    for (const double e : st.halfway_error_pct)
-      for (int b = 0; b < 3; ++b) within[b] += e <= (b == 0 ? 2.0 : b == 1 ? 5.0 : 10.0) ? 1 : 0;
+    const auto within = within_2_5_10(st.halfway_error_pct);
     const std::uint64_t restarts_seen =
         st.halfway_error_pct.size() + st.halfway_none + st.halfway_not_judged + st.halfway_missing;
     std::printf("      of %llu such restarts: within 2 %%: %zu, 5 %%: %zu, 10 %%: %zu (wrong direction: %llu); forecast "
@@ -1088,9 +1095,7 @@ int run(int argc, char** argv) {
                 st.short_error_ms.size(), percentile(st.short_error_ms, 0.5), percentile(st.short_error_ms, 0.9),
                 percentile(st.short_error_ms, 0.99), percentile(st.short_error_ms, 1.0));
     {
-      std::size_t within[3] = {0, 0, 0};
-      for (const double e : st.long_error_pct)
-        for (int b = 0; b < 3; ++b) within[b] += e <= (b == 0 ? 2.0 : b == 1 ? 5.0 : 10.0) ? 1 : 0;
+      const auto within = within_2_5_10(st.long_error_pct);
       const std::uint64_t judged_stops = st.tp + st.tn + st.fp + st.fn;
       std::printf("    sticking >= 0.5 s, within 2 %%: %zu, 5 %%: %zu, 10 %%: %zu of %zu; verdict wrong (restart or "
                   "none): %llu of %llu judged stops (%.2f %%)\n",
@@ -1101,9 +1106,7 @@ int run(int argc, char** argv) {
     std::printf("    outside the acceptance criteria (%s %%, 10 ms): %llu\n", m == 0 ? "5" : "1",
                 static_cast<unsigned long long>(st.misses));
     if (online) {
-      std::size_t within[3] = {0, 0, 0};
-      for (const double e : st.unlearned_side_long_error_pct)
-        for (int b = 0; b < 3; ++b) within[b] += e <= (b == 0 ? 2.0 : b == 1 ? 5.0 : 10.0) ? 1 : 0;
+      const auto within = within_2_5_10(st.unlearned_side_long_error_pct);
       std::printf("    --online, judged stops towards a side their bench had not yet restarted towards (its stiction "
                   "bound still the configured one): %llu, verdict wrong on %llu; sticking >= 0.5 s within 2 %%: %zu, "
                   "5 %%: %zu, 10 %%: %zu of %zu\n",
