@@ -92,7 +92,13 @@ over the whole run; last_second_swing_m: the peak-to-peak position over the run'
 oscillation_rule_after_s: when the settling rules checked alongside would have latched the
 oscillation or the not-settled fault, unless --supervised), then the simulated bench the scenario
 ran, bench_* (the model's friction, conductances, dead volumes and null offset unless
---bench-spread).
+--bench-spread), then in_window_after_s (the first rest within controller.hold.window_m of the
+set point that the plant confirms, at once or by sticking before any breakaway), hold_after_s (the
+in-position hold's first start within the window) and restarts_after_hold (the plant's breakaways
+after it beyond the detector's motion band). The summary gives the time into the window over
+those that came and over all (never counted as never), and with controller.hold on, the forecasts
+under the hold's commands: how many made while held said restart, and each reach's breakaway
+forecast against the start seen.
 
 Stops are those pneud's stop detector sees; what happened after each is the simulated truth: the
 plant's first breakaway after the forecast was made is the restart, timed exactly, even when it
@@ -203,8 +209,9 @@ struct Settling {
   double last_second_swing_m = kNaN;      // peak-to-peak position over the run's last second
   double oscillation_rule_after_s = kNaN; // when the settling rules checked alongside would latch
   // controller.hold.window_m: the first rest after the step within the window (the plant's truth
-  // confirming it, at once or by sticking before any breakaway), from the step; the first hold's start after the step, from the step; the
-  // plant's breakaways after it (the set point does not change after the step, nothing pushes)
+  // confirming it, at once or by sticking before any breakaway), from the step; the first hold's
+  // start after the step, from the step; the plant's breakaways after it (the set point does not
+  // change after the step, nothing pushes)
   double in_window_after_s = kNaN;
   double hold_after_s = kNaN;
   std::uint64_t restarts_after_hold = 0;
@@ -453,13 +460,15 @@ constexpr controller::PredictionMethod kMethods[3] = {controller::PredictionMeth
                                                       controller::PredictionMethod::kNonlinear,
                                                       controller::PredictionMethod::kRelaxation};
 
+// Linear interpolation between the order statistics; towards an infinity ("never"): infinity.
 double percentile(std::vector<double> v, double q) {
   if (v.empty()) return NAN;
   std::sort(v.begin(), v.end());
   const double pos = q * static_cast<double>(v.size() - 1);
   const auto i = static_cast<std::size_t>(pos);
   const double f = pos - static_cast<double>(i);
-  return i + 1 < v.size() ? v[i] * (1 - f) + v[i + 1] * f : v[i];
+  if (i + 1 < v.size() && f > 0.0) return std::isinf(v[i + 1]) ? v[i + 1] : v[i] * (1 - f) + v[i + 1] * f;
+  return v[i];
 }
 
 // How many of the errors [%] are within 2, 5 and 10 %.
@@ -985,18 +994,9 @@ int run(int argc, char** argv) {
     // percentiles above, which count only those that came to rest there.
     std::vector<double> all(in_window_after_s);
     all.insert(all.end(), never_in_window, std::numeric_limits<double>::infinity());
-    std::sort(all.begin(), all.end());
-    const auto at = [&](double q) {  // percentile()'s interpolation; towards a never: never
-      if (all.empty()) return static_cast<double>(NAN);
-      const double pos = q * static_cast<double>(all.size() - 1);
-      const auto i = static_cast<std::size_t>(pos);
-      const double f = pos - static_cast<double>(i);
-      if (i + 1 < all.size() && f > 0.0) return std::isinf(all[i + 1]) ? all[i + 1] : all[i] * (1 - f) + all[i + 1] * f;
-      return all[i];
-    };
     char p50[32], p90[32];
     for (auto [text, q] : {std::pair{p50, 0.5}, std::pair{p90, 0.9}}) {
-      const double v = at(q);
+      const double v = percentile(all, q);
       if (std::isinf(v)) std::snprintf(text, sizeof p50, "never");
       else std::snprintf(text, sizeof p50, "%.3f s", v);
     }
