@@ -23,6 +23,15 @@ ForecastRecord forecast_record(const StopOutcome& s, const Reforecast& f) {
   return r;
 }
 
+// The stop's snapshot with the time and pressures of a later tick (the live predictor's start).
+StopSnapshot snapshot_at(const StopOutcome& s, const TickRecord& r) {
+  StopSnapshot now = s.snapshot;
+  now.t_s = r.t_s;
+  now.p_p_pa = r.p_p_pa;
+  now.p_n_pa = r.p_n_pa;
+  return now;
+}
+
 }  // namespace
 
 Runtime::Runtime(const PredictorModel& model, bool linearized, bool nonlinear, double update_period_s)
@@ -98,11 +107,8 @@ void Runtime::on_tick(const TickRecord& r) {
 // A forecast under the hold's commands from this tick's pressures, the command it sent and the
 // hold's integral term after it.
 void Runtime::held_forecast(StopOutcome& s, const TickRecord& r) {
-  StopSnapshot now = s.snapshot;
-  now.t_s = r.t_s;
-  now.p_p_pa = r.p_p_pa;
-  now.p_n_pa = r.p_n_pa;
-  now.u_v = r.u_v;
+  StopSnapshot now = snapshot_at(s, r);
+  now.u_v = r.u_v;  // the hold's command, not u*
   if (!snapshot_is_finite(now)) return;
   HoldState state = *hold_;
   state.integral_v = r.hold_integral_v;
@@ -120,10 +126,7 @@ void Runtime::held_forecast(StopOutcome& s, const TickRecord& r) {
 }
 
 void Runtime::reforecast(StopOutcome& s, const TickRecord& r, const ExpectedAtTick& expected) {
-  StopSnapshot now = s.snapshot;
-  now.t_s = r.t_s;
-  now.p_p_pa = r.p_p_pa;
-  now.p_n_pa = r.p_n_pa;
+  const StopSnapshot now = snapshot_at(s, r);
   if (!snapshot_is_finite(now)) return;
   ++s.updates;
   // Bounded history: past the cap, every other update kept is let go, evenly over the phase.
