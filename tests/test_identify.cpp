@@ -9,6 +9,7 @@
 #include "pneu/backends/factory.hpp"
 #include "pneu/controller/session.hpp"
 #include "pneu/identify/identification_run.hpp"
+#include "pneu/identify/online.hpp"
 #include "pneu/model/valve.hpp"
 
 namespace {
@@ -133,6 +134,12 @@ TEST(IdentificationRun, IdentifiesABenchThatIsNotItsModelWithHilSensors) {
   const identify::Identification id = run_identification(b);
   print(id, b.bench);
   expect_close_to_bench(id, b.bench, 0.05);
+  // Eq. 19 is fitted only where the carriage stood still: within the rest band a stuck phase may
+  // begin while the carriage still slides in and end with a slow breakaway's onset, and a moving
+  // piston changes the chambers' volumes. What is left is the pressure sensors' own noise (20 Pa,
+  // and a 15 Pa ADC step): 24.0 Pa; 35.3 Pa when those ends were fitted too (p_null then 66 Pa off,
+  // now 23 Pa).
+  EXPECT_LT(id.evidence.pressure_rms_residual_pa, 27.0);
 }
 
 TEST(IdentificationRun, StaysWithinTheSoftLimitsAndTakesUnderAMinute) {
@@ -240,6 +247,63 @@ TEST(Identify, SaysWhatOnePositionCannotSeparate) {
   }
   EXPECT_GE(not_separable, 1);
   print(id, b.bench);
+}
+
+// Online refinement on one of `pneu-sweep --bench-spread 0.2`'s benches (seed 1, scenario 190) with
+// hil.yaml's sensors: a step from -130 mm to 208 mm, near the stroke's end, where the carriage
+// sticks for half a second at a time. The valve fit is not convex: started from the configured
+// model alone, the fit over these stuck phases settled on a null offset of 27 to 50 mV for this
+// bench's 92 mV (and dead volumes 40 % low) from 2.5 s to 4 s, and the long sticking phase at 3.35 s
+// was forecast 72 % off. Started from the running estimate too, it keeps what it had identified.
+TEST(OnlineIdentification, KeepsTheValvesItIdentifiedNearTheStrokesEndWithHilSensors) {
+  config::Config cfg = config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", {"hal.backend=sim"});
+  model::PlantParams bench = config::simulated_bench(cfg);
+  bench.friction.static_positive_n = 51.4346;
+  bench.friction.coulomb_positive_n = 41.5546;
+  bench.friction.static_negative_n = -48.7893;
+  bench.friction.coulomb_negative_n = -43.7132;
+  bench.friction.viscous_n_s_per_m = 50.3059;
+  bench.valve.max_conductance_m3_per_s_pa = 1.44733e-08;
+  bench.valve.leak_conductance_in_m3_per_s_pa = 8.79404e-10;
+  bench.valve.leak_conductance_out_m3_per_s_pa = 1.15749e-09;
+  bench.geometry.dead_volume_p_m3 = 9.81443e-06;
+  bench.geometry.dead_volume_n_m3 = 1.09907e-05;
+  bench.valve.null_offset_v = 0.0921853;
+  cfg.simulation.initial_position_m = -0.129596;
+  cfg.controller.initial_setpoint_m = -0.129596;
+  cfg.controller.schedule = {{1.0, 0.208150}};
+  cfg.controller.duration_s = 4.0;
+  cfg.controller.clock = config::ClockKind::kSimulated;
+  const auto valve = controller::make_valve_characteristic(cfg, {});
+  controller::resolve_offset(cfg, *valve);
+  const controller::ControlLaw law = controller::make_control_law(cfg, *valve);
+  controller::Run run = controller::make_run(cfg, *valve, backends::make_sim_backend(cfg, law, bench), law);
+  identify::OnlineIdentifier learner(cfg, *run.runtime);
+  struct Updates final : controller::RunListener {
+    std::vector<controller::IdentificationRecord> records;
+    void on_identification(const controller::IdentificationRecord& r) override { records.push_back(r); }
+  } updates;
+  run.runtime->add_sink(learner);
+  run.runtime->add_sink(updates);
+  controller::SimulatedClock clock;
+  const std::atomic<bool> never{false};
+  controller::execute(run, cfg, clock, never);
+
+  const auto index = [](const char* key) {
+    const auto& keys = controller::kIdentifiedParameterKeys;
+    return static_cast<std::size_t>(std::find_if(keys.begin(), keys.end(), [&](const char* k) { return std::string(k) == key; }) -
+                                    keys.begin());
+  };
+  const std::size_t offset = index("plant.valve.null_offset_v"), volume_p = index("plant.geometry.dead_volume_p_m3");
+  int identified = 0;
+  for (const auto& r : updates.records) {
+    if (!r.identified[offset]) continue;
+    ++identified;
+    EXPECT_NEAR(r.value[offset], bench.valve.null_offset_v, 0.005) << "the update at " << r.t_s << " s";
+    EXPECT_NEAR(r.value[volume_p], bench.geometry.dead_volume_p_m3, 0.1 * bench.geometry.dead_volume_p_m3)
+        << "the update at " << r.t_s << " s";
+  }
+  EXPECT_GE(identified, 5) << "of " << updates.records.size() << " updates";
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace pneu::identify::detail {
 
@@ -13,6 +14,15 @@ constexpr double kMinMotion_m = 1.0e-6;
 constexpr double kConfirmWithin_s = 0.2;
 // The still readings the reference is the median of.
 constexpr std::size_t kReferenceSamples = 15;
+
+// The median position of samples [first, last].
+double median_position(std::span<const Sample> s, std::size_t first, std::size_t last) {
+  std::vector<double> y;
+  y.reserve(last - first + 1);
+  for (std::size_t j = first; j <= last; ++j) y.push_back(s[j].y_m);
+  std::nth_element(y.begin(), y.begin() + static_cast<std::ptrdiff_t>(y.size() / 2), y.end());
+  return y[y.size() / 2];
+}
 
 // Whether the position, from sample `k` on, goes beyond the motion band around `anchor` within
 // kConfirmWithin_s without coming back into the rest band (noise at the band's edge comes back);
@@ -71,6 +81,35 @@ std::vector<StuckPhase> stuck_phases(std::span<const Sample> s, double half_stro
       p.driven = driven;
       p.breakaway = direction != 0;
       p.direction = direction;
+      p.still_first = i;
+      p.still_last = last;
+      if (o.rest_band_m > 0.0) {
+        // The reference follows the readings, so a phase may begin while the carriage still slides
+        // into the band and end with a slow breakaway's onset, or creep throughout: the still part
+        // is the longest run of samples whose running median (of kReferenceSamples) lies within
+        // half the band of the phase's median (noise stays within about one ADC step of it).
+        const double rest = median_position(s, i, last);
+        const std::size_t half = kReferenceSamples / 2;
+        std::size_t run_first = i, best_first = i, best_last = i;
+        bool in_run = false, any = false;
+        for (std::size_t j = i; j <= last; ++j) {
+          const std::size_t a = j >= i + half ? j - half : i, b = std::min(last, j + half);
+          const bool still = std::abs(median_position(s, a, b) - rest) <= 0.5 * o.rest_band_m;
+          if (still && !in_run) run_first = j;
+          in_run = still;
+          if (still && (!any || j - run_first > best_last - best_first)) {
+            best_first = run_first;
+            best_last = j;
+            any = true;
+          }
+        }
+        // Its ends: the first and the last reading within half the band (the readings of a
+        // carriage still sliding in, or already leaving, lie further out).
+        while (best_first < best_last && std::abs(s[best_first].y_m - rest) > 0.5 * o.rest_band_m) ++best_first;
+        while (best_last > best_first && std::abs(s[best_last].y_m - rest) > 0.5 * o.rest_band_m) --best_last;
+        p.still_first = best_first;
+        p.still_last = best_last;
+      }
       if (std::abs(p.y_m) <= half_stroke_m - o.end_stop_margin_m) phases.push_back(p);
     }
     i = last + 1;

@@ -23,6 +23,12 @@ struct StuckPhase {
   bool breakaway = false;
   int direction = 0;
   bool driven = true;      ///< every sample of the phase was driven as recorded
+  /// The part of the phase where the carriage stood at its rest position: all of it with ideal
+  /// sensors (any motion ends a phase). Within a rest band the phase may begin while the carriage
+  /// still slides into the band and end with a slow breakaway's onset (or creep throughout): its
+  /// chambers' volumes then change, so the valve fit uses only this part.
+  std::size_t still_first = 0;
+  std::size_t still_last = 0;
 };
 
 /// The stuck phases of `samples` at least options.min_stuck_s long, away from the end stops of a

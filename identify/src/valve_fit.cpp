@@ -138,6 +138,7 @@ struct Solution {
   Theta theta;
   Eigen::Matrix<double, kValveFitParams, kValveFitParams> covariance;
   double rms_pa = 0.0;
+  double cost = 0.0;  // the data's and the prior's, in their standard deviations (what is minimised)
 };
 
 // The prior's spread: how far the bench may be from the model before the data says otherwise
@@ -219,6 +220,7 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
   sol.covariance.setZero();
   const double data_cost = r.head(m).squaredNorm() * noise * noise;
   sol.rms_pa = m > 0 ? std::sqrt(data_cost / static_cast<double>(m)) : 0.0;
+  sol.cost = cost;
   if (nf > 0) {
     // Residuals noisier than the floor: the data's information is that much less.
     const double scale = std::max(1.0, (sol.rms_pa / noise) * (sol.rms_pa / noise));
@@ -240,10 +242,10 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
                     const Options& o) {
   std::vector<FitPhase> fit;
   for (const StuckPhase& p : phases) {
-    if (!p.driven || s[p.last].t_s - s[p.first].t_s < o.min_fit_phase_s) continue;
-    FitPhase f{p.first, p.last, p.y_m, {}};
-    double next_t = s[p.first].t_s + o.fit_sample_s;
-    for (std::size_t k = p.first + 1; k <= p.last; ++k)
+    if (!p.driven || s[p.still_last].t_s - s[p.still_first].t_s < o.min_fit_phase_s) continue;
+    FitPhase f{p.still_first, p.still_last, p.y_m, {}};
+    double next_t = s[p.still_first].t_s + o.fit_sample_s;
+    for (std::size_t k = p.still_first + 1; k <= p.still_last; ++k)
       if (s[k].t_s >= next_t - 1e-9) {
         f.observed.push_back(k);
         next_t = s[k].t_s + o.fit_sample_s;
@@ -266,6 +268,12 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
   std::optional<Problem> problem;
   problem.emplace(s, fit, prior, delay);
   Solution all = levenberg_marquardt(*problem, prior_theta, prior_theta, free);
+  // The fit is not convex: started from the prior it can settle in another minimum than from an
+  // earlier estimate (online, the running one). The lower of the two is kept.
+  if (o.valve_fit_start) {
+    const Solution from_start = levenberg_marquardt(*problem, theta_of(*o.valve_fit_start), prior_theta, free);
+    if (from_start.cost < all.cost) all = from_start;
+  }
   for (std::size_t d = 1; o.command_delay_samples < 0 && d <= kMaxCommandDelaySamples; ++d) {
     Problem later(s, fit, prior, d);
     Solution fitted = levenberg_marquardt(later, all.theta, prior_theta, free);
