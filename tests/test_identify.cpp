@@ -249,63 +249,6 @@ TEST(Identify, SaysWhatOnePositionCannotSeparate) {
   print(id, b.bench);
 }
 
-// Online refinement on one of `pneu-sweep --bench-spread 0.2`'s benches (seed 1, scenario 190) with
-// hil.yaml's sensors: a step from -130 mm to 208 mm, near the stroke's end, where the carriage
-// sticks for half a second at a time. The valve fit is not convex: started from the configured
-// model alone, the fit over these stuck phases settled on a null offset of 27 to 50 mV for this
-// bench's 92 mV (and dead volumes 40 % low) from 2.5 s to 4 s, and the long sticking phase at 3.35 s
-// was forecast 72 % off. Started from the running estimate too, it keeps what it had identified.
-TEST(OnlineIdentification, KeepsTheValvesItIdentifiedNearTheStrokesEndWithHilSensors) {
-  config::Config cfg = config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", {"hal.backend=sim"});
-  model::PlantParams bench = config::simulated_bench(cfg);
-  bench.friction.static_positive_n = 51.4346;
-  bench.friction.coulomb_positive_n = 41.5546;
-  bench.friction.static_negative_n = -48.7893;
-  bench.friction.coulomb_negative_n = -43.7132;
-  bench.friction.viscous_n_s_per_m = 50.3059;
-  bench.valve.max_conductance_m3_per_s_pa = 1.44733e-08;
-  bench.valve.leak_conductance_in_m3_per_s_pa = 8.79404e-10;
-  bench.valve.leak_conductance_out_m3_per_s_pa = 1.15749e-09;
-  bench.geometry.dead_volume_p_m3 = 9.81443e-06;
-  bench.geometry.dead_volume_n_m3 = 1.09907e-05;
-  bench.valve.null_offset_v = 0.0921853;
-  cfg.simulation.initial_position_m = -0.129596;
-  cfg.controller.initial_setpoint_m = -0.129596;
-  cfg.controller.schedule = {{1.0, 0.208150}};
-  cfg.controller.duration_s = 4.0;
-  cfg.controller.clock = config::ClockKind::kSimulated;
-  const auto valve = controller::make_valve_characteristic(cfg, {});
-  controller::resolve_offset(cfg, *valve);
-  const controller::ControlLaw law = controller::make_control_law(cfg, *valve);
-  controller::Run run = controller::make_run(cfg, *valve, backends::make_sim_backend(cfg, law, bench), law);
-  identify::OnlineIdentifier learner(cfg, *run.runtime);
-  struct Updates final : controller::RunListener {
-    std::vector<controller::IdentificationRecord> records;
-    void on_identification(const controller::IdentificationRecord& r) override { records.push_back(r); }
-  } updates;
-  run.runtime->add_sink(learner);
-  run.runtime->add_sink(updates);
-  controller::SimulatedClock clock;
-  const std::atomic<bool> never{false};
-  controller::execute(run, cfg, clock, never);
-
-  const auto index = [](const char* key) {
-    const auto& keys = controller::kIdentifiedParameterKeys;
-    return static_cast<std::size_t>(std::find_if(keys.begin(), keys.end(), [&](const char* k) { return std::string(k) == key; }) -
-                                    keys.begin());
-  };
-  const std::size_t offset = index("plant.valve.null_offset_v"), volume_p = index("plant.geometry.dead_volume_p_m3");
-  int identified = 0;
-  for (const auto& r : updates.records) {
-    if (!r.identified[offset]) continue;
-    ++identified;
-    EXPECT_NEAR(r.value[offset], bench.valve.null_offset_v, 0.005) << "the update at " << r.t_s << " s";
-    EXPECT_NEAR(r.value[volume_p], bench.geometry.dead_volume_p_m3, 0.1 * bench.geometry.dead_volume_p_m3)
-        << "the update at " << r.t_s << " s";
-  }
-  EXPECT_GE(identified, 5) << "of " << updates.records.size() << " updates";
-}
-
 }  // namespace
 
 namespace {
@@ -345,6 +288,8 @@ struct Judged {
   }
 };
 
+Judged judge(const controller::Run& run, const hal::SimBackend& plant, int after_restarts = 0);
+
 // The paper's step on `bench` with pneud holding `model`; every stop's nonlinear forecast against
 // the bench's breakaways.
 Judged paper_step(config::Config cfg, const model::PlantParams& model, const model::PlantParams& bench, double y_d_m) {
@@ -359,9 +304,20 @@ Judged paper_step(config::Config cfg, const model::PlantParams& model, const mod
   controller::SimulatedClock clock;
   const std::atomic<bool> never{false};
   controller::execute(run, cfg, clock, never);
+  return judge(run, plant);
+}
+
+// Every stop's nonlinear forecast against the bench's breakaways, from the stop after the
+// `after_restarts`-th restart on.
+Judged judge(const controller::Run& run, const hal::SimBackend& plant, int after_restarts) {
   using Kind = plant::PlantEvent::Kind;
   Judged j;
+  int restarts = 0;
   for (const auto& stop : run.runtime->stops()) {
+    if (restarts < after_restarts) {
+      restarts += stop.restarted ? 1 : 0;
+      continue;
+    }
     if (!stop.nonlinear || (stop.ended && !stop.restarted)) continue;
     // The plant at rest at the snapshot, and its next breakaway.
     const plant::PlantEvent* before = nullptr;
@@ -388,8 +344,7 @@ Judged paper_step(config::Config cfg, const model::PlantParams& model, const mod
 
 // Every long restart within `all_percent`; at least 95 % of them, over all the table's benches,
 // within `most_percent`.
-void check_table_benches(const std::string& sensors_from, double most_percent, double all_percent,
-                         bool most_is_held) {
+void check_table_benches(const std::string& sensors_from, double most_percent, double all_percent) {
   int long_restarts = 0, within_most = 0;
   for (const TableBench& tb : kTableBenches) {
     SCOPED_TRACE(tb.name);
@@ -419,21 +374,123 @@ void check_table_benches(const std::string& sensors_from, double most_percent, d
   }
   std::printf("over the table's benches: %d of %d long restarts within %.0f %%\n", within_most, long_restarts, most_percent);
   ASSERT_GE(long_restarts, 10) << "the benches show long sticking phases to judge";
-  if (most_is_held) {
-    EXPECT_GE(within_most, 0.95 * long_restarts);
-  }
+  EXPECT_GE(within_most, 0.95 * long_restarts);
 }
 
-// With ideal sensors one restart of the table's 13 misses 2 %: at the stop the force lies 0.3 mN
-// short of F_S- and relaxes to 14 mN beyond it, so the 0.4 mN by which the identified model's
-// equilibrium force differs moves the crossing by 27 ms of 715 (3.9 %). Counted and printed, not
-// held; the 200-step sweep holds the criterion (tests/test_sweep_identified.sh).
-TEST(TableBenches, IdentifiedEveryLongStickingPhaseIsForecastWithin10PercentWithIdealSensors) {
-  check_table_benches("", 2.0, 10.0, false);
+// With ideal sensors: 95 % within 2 % and all within 10 %, as the criteria ask (13 of 13 within
+// 2 %, at most 0.04 %). One used to miss 2 %: at the stop the force lay 0.3 mN short of F_S- and
+// relaxed to 14 mN beyond it, so the 0.4 mN by which the identified model's equilibrium force
+// differed moved the crossing by 27 ms of 715 (3.9 %); the valve fit then also took in the readings
+// of a carriage creeping at nm/s within a stuck phase (now only identical readings).
+TEST(TableBenches, IdentifiedLongStickingPhasesAreForecastWithin2PercentWithIdealSensors) {
+  check_table_benches("", 2.0, 10.0);
 }
 
 TEST(TableBenches, IdentifiedEveryLongStickingPhaseIsForecastWithin5PercentWithHilSensors) {
-  check_table_benches("hil.yaml", 5.0, 5.0, true);
+  check_table_benches("hil.yaml", 5.0, 5.0);
+}
+
+// Online refinement (identify::OnlineIdentifier) on benches of `pneu-sweep --bench-spread 0.2`
+// (seed 1; the bench_* columns of its scenarios file): the scenario's step, every update of the
+// running estimate, and the nonlinear forecast on it of every stop after the bench's 3rd restart
+// against the bench's breakaways.
+struct OnlineRun {
+  std::vector<controller::IdentificationRecord> updates;
+  Judged judged;
+};
+
+OnlineRun learn_online(config::Config cfg, const model::PlantParams& bench, double y0_m, double y_d_m, double duration_s) {
+  cfg.simulation.initial_position_m = y0_m;
+  cfg.controller.initial_setpoint_m = y0_m;
+  cfg.controller.schedule = {{1.0, y_d_m}};
+  cfg.controller.duration_s = duration_s;
+  cfg.controller.clock = config::ClockKind::kSimulated;
+  const auto valve = controller::make_valve_characteristic(cfg, {});
+  controller::resolve_offset(cfg, *valve);
+  const controller::ControlLaw law = controller::make_control_law(cfg, *valve);
+  auto backend = backends::make_sim_backend(cfg, law, bench);
+  const hal::SimBackend& plant = *backend;
+  controller::Run run = controller::make_run(cfg, *valve, std::move(backend), law);
+  identify::OnlineIdentifier learner(cfg, *run.runtime);
+  struct Updates final : controller::RunListener {
+    std::vector<controller::IdentificationRecord> records;
+    void on_identification(const controller::IdentificationRecord& r) override { records.push_back(r); }
+  } updates;
+  run.runtime->add_sink(learner);
+  run.runtime->add_sink(updates);
+  controller::SimulatedClock clock;
+  const std::atomic<bool> never{false};
+  controller::execute(run, cfg, clock, never);
+  return {updates.records, judge(run, plant, 3)};  // the sweep's --online: after the bench's 3rd restart
+}
+
+std::size_t key_index(const char* key) {
+  const auto& keys = controller::kIdentifiedParameterKeys;
+  return static_cast<std::size_t>(
+      std::find_if(keys.begin(), keys.end(), [&](const char* k) { return std::string(k) == key; }) - keys.begin());
+}
+
+// Scenario 190 with hil.yaml's sensors: a step from -130 mm to 208 mm, near the stroke's end, where
+// the carriage sticks for half a second at a time. The valve fit is not convex: started from the
+// configured model alone, the fit over these stuck phases settled on a null offset of 27 to 50 mV
+// for this bench's 92 mV (and dead volumes 40 % low) from 2.5 s to 4 s, and the long sticking phase
+// at 3.35 s was forecast 72 % off. Started from the running estimate too, it keeps what it had
+// identified.
+TEST(OnlineIdentification, KeepsTheValvesItIdentifiedNearTheStrokesEndWithHilSensors) {
+  const config::Config cfg = config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", {"hal.backend=sim"});
+  model::PlantParams bench = config::simulated_bench(cfg);
+  bench.friction = {51.4346, 41.5546, -48.7893, -43.7132, 50.3059, bench.friction.stribeck_velocity_m_per_s,
+                    bench.friction.stick_velocity_m_per_s};
+  bench.valve.max_conductance_m3_per_s_pa = 1.44733e-08;
+  bench.valve.leak_conductance_in_m3_per_s_pa = 8.79404e-10;
+  bench.valve.leak_conductance_out_m3_per_s_pa = 1.15749e-09;
+  bench.valve.null_offset_v = 0.0921853;
+  bench.geometry.dead_volume_p_m3 = 9.81443e-06;
+  bench.geometry.dead_volume_n_m3 = 1.09907e-05;
+  const OnlineRun r = learn_online(cfg, bench, -0.129596, 0.208150, 4.0);
+  const std::size_t offset = key_index("plant.valve.null_offset_v"), volume_p = key_index("plant.geometry.dead_volume_p_m3");
+  int identified = 0;
+  for (const auto& u : r.updates) {
+    if (!u.identified[offset]) continue;
+    ++identified;
+    EXPECT_NEAR(u.value[offset], bench.valve.null_offset_v, 0.005) << "the update at " << u.t_s << " s";
+    EXPECT_NEAR(u.value[volume_p], bench.geometry.dead_volume_p_m3, 0.1 * bench.geometry.dead_volume_p_m3)
+        << "the update at " << u.t_s << " s";
+  }
+  EXPECT_GE(identified, 5) << "of " << r.updates.size() << " updates";
+  EXPECT_LE(r.judged.worst_percent, 5.0) << r.judged.long_restarts << " long restarts";
+}
+
+// Scenario 58 with ideal sensors: the carriage comes to rest at -95 mm with the force a few
+// hundredths of a newton short of F_S-, and creeps onto the bound at nanometres per second between
+// its stops. An ideal sensor reads such a creep still within a stuck phase (it does not leave by a
+// micrometre), but it changes in every reading; its force, a sliding one 13 mN past F_S-, was
+// counted as held and put the bracket of F_S- 5 mN off (-49.139 for -49.134), and the sticking
+// phase of 0.81 s at 3.04 s was forecast 6.8 % off. Only identical readings hold a force now.
+TEST(OnlineIdentification, AForceReadWhileTheCarriageCreepsIsNotHeldWithIdealSensors) {
+  const config::Config cfg = config::load_string(config::default_config_yaml());
+  model::PlantParams bench = cfg.plant;
+  bench.friction = {36.919, 31.0087, -49.134, -39.3698, 52.7553, bench.friction.stribeck_velocity_m_per_s,
+                    bench.friction.stick_velocity_m_per_s};
+  bench.valve.max_conductance_m3_per_s_pa = 1.91754e-08;
+  bench.valve.leak_conductance_in_m3_per_s_pa = 7.80375e-10;
+  bench.valve.leak_conductance_out_m3_per_s_pa = 1.13927e-09;
+  bench.valve.null_offset_v = -0.08478;
+  bench.geometry.dead_volume_p_m3 = 9.76737e-06;
+  bench.geometry.dead_volume_n_m3 = 9.13148e-06;
+  const OnlineRun r = learn_online(cfg, bench, 0.036115, -0.095450, 4.0);
+  const std::size_t fs = key_index("plant.friction.static_negative_n");
+  int identified = 0;
+  for (const auto& u : r.updates) {
+    if (!u.identified[fs] || u.t_s < 2.5) continue;  // from the third breakaway towards -
+    ++identified;
+    EXPECT_NEAR(u.value[fs], bench.friction.static_negative_n, 0.001) << "the update at " << u.t_s << " s";
+    EXPECT_LE(std::abs(u.value[fs] - bench.friction.static_negative_n), 3 * u.sigma[fs] + 1e-4)
+        << "the uncertainty it states covers its error";
+  }
+  EXPECT_GE(identified, 3);
+  ASSERT_GE(r.judged.long_restarts, 1);
+  EXPECT_LE(r.judged.worst_percent, 2.0);
 }
 
 }  // namespace

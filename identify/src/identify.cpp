@@ -100,9 +100,10 @@ Stiction stiction_from(std::span<const Sample> s, std::span<const double> force,
     // (An ideal sensor too: the first picometre takes about a millisecond at 10 N/s.)
     const double onset = onset_s(mass_kg, o.rest_band_m + detail::kSamePosition_m, std::abs(rate), 0.2);
     const std::size_t held_last = p.breakaway ? index_before(s, p.first, p.last, onset) : p.last;
-    const bool long_enough = s[p.last].t_s - s[p.first].t_s >= o.min_fit_phase_s;
+    // Only where the carriage stood still: a creeping carriage's force is a sliding one.
+    const bool long_enough = s[p.still_last].t_s - s[p.still_first].t_s >= o.min_fit_phase_s;
     double held_max = -std::numeric_limits<double>::infinity(), held_min = std::numeric_limits<double>::infinity();
-    for (std::size_t k = p.first; long_enough && k <= held_last; ++k) {
+    for (std::size_t k = p.still_first; long_enough && k <= std::min(held_last, p.still_last); ++k) {
       if (s[k].t_s - s[p.first].t_s < kSettleIntoPhase_s) continue;
       held_max = std::max(held_max, force[k]);
       held_min = std::min(held_min, force[k]);

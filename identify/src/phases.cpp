@@ -109,6 +109,21 @@ std::vector<StuckPhase> stuck_phases(std::span<const Sample> s, double half_stro
         while (best_last > best_first && std::abs(s[best_last].y_m - rest) > 0.5 * o.rest_band_m) --best_last;
         p.still_first = best_first;
         p.still_last = best_last;
+      } else {
+        // An ideal sensor reads a stuck carriage bit for bit; a carriage creeping at nanometres per
+        // second (sliding to rest, or past a stiction bound, near v = 0) reads still within the
+        // phase (it does not leave by a micrometre) but changes in every reading: the still part is
+        // the longest run of identical readings.
+        std::size_t run_first = i, best_first = i, best_last = i;
+        for (std::size_t j = i + 1; j <= last; ++j) {
+          if (std::abs(s[j].y_m - s[j - 1].y_m) > kSamePosition_m) run_first = j;
+          if (j - run_first > best_last - best_first) {
+            best_first = run_first;
+            best_last = j;
+          }
+        }
+        p.still_first = best_first;
+        p.still_last = best_last;
       }
       if (std::abs(p.y_m) <= half_stroke_m - o.end_stop_margin_m) phases.push_back(p);
     }

@@ -23,10 +23,11 @@ struct StuckPhase {
   bool breakaway = false;
   int direction = 0;
   bool driven = true;      ///< every sample of the phase was driven as recorded
-  /// The part of the phase where the carriage stood at its rest position: all of it with ideal
-  /// sensors (any motion ends a phase). Within a rest band the phase may begin while the carriage
-  /// still slides into the band and end with a slow breakaway's onset (or creep throughout): its
-  /// chambers' volumes then change, so the valve fit uses only this part.
+  /// The part of the phase where the carriage stood at its rest position, which the valve fit and
+  /// the forces held use. With ideal sensors, the longest run of identical readings (a carriage
+  /// creeping at nm/s reads still within the phase but changes in every reading). Within a rest
+  /// band the phase may begin while the carriage still slides into the band and end with a slow
+  /// breakaway's onset (or creep throughout): the part whose running median stays at the phase's.
   std::size_t still_first = 0;
   std::size_t still_last = 0;
 };
