@@ -249,6 +249,10 @@ int run(int argc, char** argv) {
                 "thread (%d stops after a breakaway could not update%s%s)\n",
                 learner->updates(), learner->longest_update_s() * 1e3, learner->refused(),
                 learner->refused() > 0 ? ": " : "", learner->last_refusal().c_str());
+    if (learner->stops_forecast() > 0)
+      std::printf("  %d of %d stops were forecast on a stiction bound not identified yet (the configured one: no "
+                  "breakaway that way yet)\n",
+                  learner->stops_on_a_configured_bound(), learner->stops_forecast());
     if (learner->updates() > 0) identify::print_report(stdout, learner->estimate());
   }
   if (identify_path) {

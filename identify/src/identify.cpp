@@ -482,7 +482,8 @@ Identification identify(std::span<const Sample> s, const model::PlantParams& pri
 
   // Noisy sensors: the breakaways dated by the onset itself replace the brackets, whose reading
   // of the motion comes late. Each fit is weighted by how slowly the force crossed (how little it
-  // had moved on by the reading that showed the motion): a slow crossing is dated best.
+  // had moved on by the reading that showed the motion, its standard deviation): a slow crossing
+  // is dated best.
   if (o.rest_band_m > 0.0) {
     struct Fit {
       double value, weight;
@@ -508,7 +509,11 @@ Identification identify(std::span<const Sample> s, const model::PlantParams& pri
       double spread2 = 0;
       for (const Fit& x : fits[side]) spread2 += x.weight * (x.value - mean) * (x.value - mean);
       const double n_eff = sw * sw / sw2;
-      const double sd = std::sqrt(spread2 / sw) / std::sqrt(std::max(1.0, n_eff - 1.0)) + st.force_noise_n;
+      // The spread of the fits about their mean, but no less than what their dating allows: each
+      // fit is good to about how far the force moved on while the onset hid (a single fast
+      // crossing, a set-point step's, has no spread to show).
+      const double sd = std::max(std::sqrt(spread2 / sw) / std::sqrt(std::max(1.0, n_eff - 1.0)), 1.0 / std::sqrt(sw)) +
+                        st.force_noise_n;
       const bool ok = (side == 0 ? mean > 0 : mean < 0) && sd <= o.max_relative_std * std::abs(mean);
       if (!ok) continue;
       e.value = mean;

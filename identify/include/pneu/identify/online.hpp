@@ -2,6 +2,7 @@
 // every stop that follows a breakaway, and the restart forecasts made on what was identified.
 #pragma once
 
+#include <cstdint>
 #include <deque>
 #include <memory>
 #include <vector>
@@ -31,6 +32,7 @@ class OnlineIdentifier final : public controller::RunListener {
 
   void on_tick(const controller::TickRecord& tick, const controller::ExpectedAtTick&) override;
   void on_event(const controller::LoopEvent& event) override;
+  void on_forecast(const controller::ForecastRecord& forecast) override;
 
   /// The running estimate: the configuration's plant: until the first update.
   [[nodiscard]] const Identification& estimate() const noexcept { return estimate_; }
@@ -42,6 +44,13 @@ class OnlineIdentifier final : public controller::RunListener {
   [[nodiscard]] double longest_update_s() const noexcept { return longest_update_s_; }
   /// The restarts seen (starts with the set point unchanged since the stop).
   [[nodiscard]] int restarts() const noexcept { return restarts_; }
+  /// The stops forecast (at the stop) while learning, and those among them whose forecast turned
+  /// on a stiction bound the running estimate had not identified: the side it forecast a restart
+  /// towards, or for "no restart" the side the force relaxes towards. No record of a bench that
+  /// has only broken away one way tells the other bound: those forecasts are the configured
+  /// value's, however well the rest is known.
+  [[nodiscard]] int stops_forecast() const noexcept { return stops_forecast_; }
+  [[nodiscard]] int stops_on_a_configured_bound() const noexcept { return stops_on_configured_bound_; }
 
  private:
   void update(double t_s);
@@ -55,6 +64,8 @@ class OnlineIdentifier final : public controller::RunListener {
   std::vector<std::unique_ptr<model::ValveModel>> valves_;  // every model a forecast may still use
   int updates_ = 0, refused_ = 0, restarts_ = 0;
   int starts_since_update_ = 0;
+  int stops_forecast_ = 0, stops_on_configured_bound_ = 0;
+  std::uint64_t last_stop_forecast_ = 0;  // the stop whose forecasts were counted last
   bool new_long_phase_ = false;  // a stuck phase long enough for the valve fit ended since the last fit
   double stuck_since_s_ = -1.0;
   std::string last_refusal_;
