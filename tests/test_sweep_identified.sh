@@ -9,7 +9,7 @@
 #     within 5 kPa over |u| < 1 V.
 # The relaxation method (made again only, from each phase's own pressures and the identified
 # stiction, no valve model) runs alongside: half-way, within 5 % on at least 90 % of those restarts
-# (measured 53 of 54 ideal, 69 of 69 hil.yaml).
+# (measured 54 of 55 ideal, 69 of 69 hil.yaml).
 # Every scenario is counted: those whose identification failed, or whose gains could not be
 # designed on the identified model, are listed by the summary and must stay few (<= 2 %).
 #   test_sweep_identified.sh BINARY_DIR ideal|hil SOURCE_DIR

@@ -509,10 +509,10 @@ Identification identify(std::span<const Sample> s, const model::PlantParams& pri
       double spread2 = 0;
       for (const Fit& x : fits[side]) spread2 += x.weight * (x.value - mean) * (x.value - mean);
       const double n_eff = sw * sw / sw2;
-      // The spread of the fits about their mean, but no less than what their dating allows: each
-      // fit is good to about how far the force moved on while the onset hid (a single fast
-      // crossing, a set-point step's, has no spread to show).
-      const double sd = std::max(std::sqrt(spread2 / sw) / std::sqrt(std::max(1.0, n_eff - 1.0)), 1.0 / std::sqrt(sw)) +
+      // The spread of the fits about their mean. Fewer than two (effective) fits have no spread to
+      // show (a set-point step's fast breakaway, dated alone): each is then taken as good to how
+      // far the force moved on while the onset hid.
+      const double sd = (n_eff >= 2.0 ? std::sqrt(spread2 / sw) / std::sqrt(n_eff - 1.0) : 1.0 / std::sqrt(sw)) +
                         st.force_noise_n;
       const bool ok = (side == 0 ? mean > 0 : mean < 0) && sd <= o.max_relative_std * std::abs(mean);
       if (!ok) continue;
