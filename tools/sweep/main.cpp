@@ -1038,7 +1038,7 @@ int run(int argc, char** argv) {
     std::printf("\n");
   }
   if (online)
-    std::printf("  online identification: %llu stops before their bench's %d-th restart (while it learns) not judged\n",
+    std::printf("  online identification: %llu stops before their bench had restarted %d times (while it learns) not judged\n",
                 static_cast<unsigned long long>(learning), kOnlineLearningRestarts);
   if (identify_first) {
     std::printf("  identified first (pneud's identification run on each bench): %zu of %d, %zu failed\n",
