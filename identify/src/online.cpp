@@ -41,7 +41,11 @@ void OnlineIdentifier::on_forecast(const controller::ForecastRecord& f) {
   const int side = p.will_restart ? p.direction : (p.equilibrium_force_n > f.force_n ? +1 : -1);
   const char* key = side > 0 ? "plant.friction.static_positive_n" : "plant.friction.static_negative_n";
   const bool identified = !estimate_.estimates.empty() && estimate_.at(key).identified;
-  if (!identified) ++stops_on_configured_bound_;
+  if (!identified) stops_on_configured_bound_.push_back(f.stop);
+}
+
+bool OnlineIdentifier::forecast_on_a_configured_bound(std::uint64_t stop) const noexcept {
+  return std::binary_search(stops_on_configured_bound_.begin(), stops_on_configured_bound_.end(), stop);
 }
 
 void OnlineIdentifier::update(double t_s) {

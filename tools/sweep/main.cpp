@@ -57,7 +57,9 @@ motion band for tens of milliseconds). --jobs threads (default: the cores) share
 
 --online adds pneud's online identification to each scenario's run: the forecasts use what it has
 identified so far, from the configured model (with --identify, from the identified one); the
-stops before the scenario's 3rd restart (while it learns) are not judged, and counted.
+stops before the scenario's 3rd restart (while it learns) are not judged, and counted. The
+summary then splits the judged stops in two: those pneud forecast on a stiction bound it had not
+identified yet (the configured one: no breakaway that way yet), and the others.
 
 --identify first runs pneud's identification run (pneud --identify) on each scenario's bench, from
 the configured model, and runs the scenario on the model it identified: plant: then holds what
@@ -154,6 +156,9 @@ struct Scenario {
 
 struct Truth {
   bool unseen = false;       // a true restart the stop detector did not see
+  // --online: forecast on a stiction bound the running estimate had not identified (the side it
+  // forecast a restart towards, or the force relaxes towards): the configured one
+  bool on_configured_bound = false;
   bool not_at_rest = false;  // the plant was sliding when the stop was confirmed: not judged
   double start_dating_s = NAN;  // the detector's start time minus the plant's breakaway, when it saw one
 };
@@ -448,8 +453,8 @@ struct MethodStats {
   // ... and of those restarts: the half-way forecast was none, not judged (its restart after the
   // run's end), missing; and among the timed ones above, in the wrong direction
   std::uint64_t halfway_none = 0, halfway_not_judged = 0, halfway_missing = 0, halfway_wrong_direction = 0;
-  // --online: the judged stops whose restart (or forecast restart) goes towards a side the bench
-  // had not yet been seen to restart towards, its stiction bound still the configured one
+  // --online: the judged stops forecast on a stiction bound online learning had not identified
+  // (no breakaway that way yet): the configured one
   std::uint64_t unlearned_side = 0, unlearned_side_wrong = 0;
   std::vector<double> unlearned_side_long_error_pct;
 };
@@ -675,6 +680,7 @@ int run(int argc, char** argv) {
         for (auto stop : sim.runtime->stops()) {
           if (stop.t_stop_s > duration) continue;
           r.truth.push_back(apply_plant_truth(stop, bench.motion_events(), r.t_end_s));
+          r.truth.back().on_configured_bound = learner && learner->forecast_on_a_configured_bound(stop.index);
           r.stops.push_back(stop);
         }
         results[static_cast<std::size_t>(i)] = std::move(r);
@@ -734,11 +740,8 @@ int run(int argc, char** argv) {
   std::uint64_t learning = 0;  // --online: stops before their bench's kOnlineLearningRestarts-th restart
   for (const auto& r : results) {
     int restarts_seen = 0;  // by the daemon, before this stop
-    int restarts_towards[2] = {0, 0};  // ... towards -, +
     for (std::size_t k = 0; k < r.stops.size(); ++k) {
       const auto& s = r.stops[k];
-      const int towards_before[2] = {restarts_towards[0], restarts_towards[1]};
-      if (s.restarted && s.direction != 0) ++restarts_towards[s.direction > 0 ? 1 : 0];
       ++stops;
       if (r.truth[k].unseen) ++unseen;
       if (!std::isnan(r.truth[k].start_dating_s)) start_dating_ms.push_back(1e3 * r.truth[k].start_dating_s);
@@ -787,8 +790,7 @@ int run(int argc, char** argv) {
           case Verdict::Kind::kNotJudged: ++st.not_judged; break;
         }
         if (!ok) ++st.misses;
-        const int side = s.restarted ? s.direction : (p.will_restart ? p.direction : 0);
-        if (online && v.kind != Verdict::Kind::kNotJudged && side != 0 && towards_before[side > 0 ? 1 : 0] == 0) {
+        if (r.truth[k].on_configured_bound && v.kind != Verdict::Kind::kNotJudged) {
           ++st.unlearned_side;
           if (v.kind == Verdict::Kind::kFalseNegative || v.kind == Verdict::Kind::kFalsePositive) ++st.unlearned_side_wrong;
           if (v.kind == Verdict::Kind::kTruePositive && s.sticking_s() >= kLongSticking_s)
@@ -1107,11 +1109,20 @@ int run(int argc, char** argv) {
                 static_cast<unsigned long long>(st.misses));
     if (online) {
       const auto within = within_2_5_10(st.unlearned_side_long_error_pct);
-      std::printf("    --online, judged stops towards a side their bench had not yet restarted towards (its stiction "
-                  "bound still the configured one): %llu, verdict wrong on %llu; sticking >= 0.5 s within 2 %%: %zu, "
+      std::printf("    --online, judged stops forecast on a stiction bound not identified yet (the configured one: no "
+                  "breakaway that way yet): %llu, verdict wrong on %llu; sticking >= 0.5 s within 2 %%: %zu, "
                   "5 %%: %zu, 10 %%: %zu of %zu\n",
                   static_cast<unsigned long long>(st.unlearned_side), static_cast<unsigned long long>(st.unlearned_side_wrong),
                   within[0], within[1], within[2], st.unlearned_side_long_error_pct.size());
+      // The others, on bounds it had identified.
+      const auto all = within_2_5_10(st.long_error_pct);
+      const std::uint64_t judged_stops = st.tp + st.tn + st.fp + st.fn;
+      std::printf("    --online, the others, on identified bounds: %llu, verdict wrong on %llu; sticking >= 0.5 s within "
+                  "2 %%: %zu, 5 %%: %zu, 10 %%: %zu of %zu\n",
+                  static_cast<unsigned long long>(judged_stops - st.unlearned_side),
+                  static_cast<unsigned long long>(st.fp + st.fn - st.unlearned_side_wrong), all[0] - within[0],
+                  all[1] - within[1], all[2] - within[2],
+                  st.long_error_pct.size() - st.unlearned_side_long_error_pct.size());
     }
     print_halfway(st);
   }

@@ -50,7 +50,11 @@ class OnlineIdentifier final : public controller::RunListener {
   /// has only broken away one way tells the other bound: those forecasts are the configured
   /// value's, however well the rest is known.
   [[nodiscard]] int stops_forecast() const noexcept { return stops_forecast_; }
-  [[nodiscard]] int stops_on_a_configured_bound() const noexcept { return stops_on_configured_bound_; }
+  [[nodiscard]] int stops_on_a_configured_bound() const noexcept {
+    return static_cast<int>(stops_on_configured_bound_.size());
+  }
+  /// Whether the stop of this index (StopOutcome::index) was forecast on a configured bound.
+  [[nodiscard]] bool forecast_on_a_configured_bound(std::uint64_t stop) const noexcept;
 
  private:
   void update(double t_s);
@@ -64,7 +68,8 @@ class OnlineIdentifier final : public controller::RunListener {
   std::vector<std::unique_ptr<model::ValveModel>> valves_;  // every model a forecast may still use
   int updates_ = 0, refused_ = 0, restarts_ = 0;
   int starts_since_update_ = 0;
-  int stops_forecast_ = 0, stops_on_configured_bound_ = 0;
+  int stops_forecast_ = 0;
+  std::vector<std::uint64_t> stops_on_configured_bound_;  // their indices, increasing
   std::uint64_t last_stop_forecast_ = 0;  // the stop whose forecasts were counted last
   bool new_long_phase_ = false;  // a stuck phase long enough for the valve fit ended since the last fit
   double stuck_since_s_ = -1.0;
