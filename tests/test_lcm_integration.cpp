@@ -225,13 +225,16 @@ pneu_lcm::command_t command(int64_t seq, int8_t kind, double value) {
 // Issue 15, online: pneud learning online (controller.predictor.learn_online) on a bench whose
 // stiction is not the model's publishes its running estimate on PNEU_IDENTIFICATION, and
 // pneu-identify, offline from the LCM log of the same run, gives the same estimates within their
-// uncertainty.
+// uncertainty. F_S- is bounded from beyond by the first restart after a stuck phase: in 4 s of the
+// real clock that was the run's second and last update. On a machine loaded enough to skip
+// deadlines (a fresh-machine check beside a CI run) the test failed once with F_S- not identified,
+// most likely because that update had not come; 6 s leave room.
 TEST_F(LcmIntegration, OnlineIdentificationIsPublishedAndTheLogIdentifiesTheSameOffline) {
   const fs::path log = dir_ / "run.lcm";
   Child logger = start_logger(log, dir_);
   ASSERT_FALSE(::testing::Test::HasFailure());
   Child pneud = Child::spawn(
-      loop_timing_faults_off({bin("pneud"), "--clock", "real", "--duration", "4", "--require-telemetry", "--set",
+      loop_timing_faults_off({bin("pneud"), "--clock", "real", "--duration", "6", "--require-telemetry", "--set",
                               "controller.predictor.learn_online=true", "--set",
                               "hal.sim.plant.friction.static_negative_n=-53", "--trajectory", (dir_ / "traj.csv").string()}),
       dir_ / "pneud.out", dir_ / "pneud.err");
