@@ -291,21 +291,40 @@ struct Judged {
 
 Judged judge(const controller::Run& run, const hal::SimBackend& plant, int after_restarts = 0);
 
+// pneud's run of `config` (its offset resolved here) on the simulated `bench`, in simulated time.
+struct BenchRun {
+  BenchRun(const config::Config& c, const model::PlantParams& bench)
+      : cfg(c), valve(controller::make_valve_characteristic(cfg, {})), law(resolved_law(cfg, *valve)),
+        backend(backends::make_sim_backend(cfg, law, bench)), plant(*backend),
+        run(controller::make_run(cfg, *valve, std::move(backend), law)) {}
+  BenchRun(const BenchRun&) = delete;
+  BenchRun& operator=(const BenchRun&) = delete;
+  void execute() {
+    controller::SimulatedClock clock;
+    const std::atomic<bool> never{false};
+    controller::execute(run, cfg, clock, never);
+  }
+  static controller::ControlLaw resolved_law(config::Config& cfg, const model::ValveCharacteristic& valve) {
+    controller::resolve_offset(cfg, valve);
+    return controller::make_control_law(cfg, valve);
+  }
+  config::Config cfg;
+  std::unique_ptr<model::ValveCharacteristic> valve;
+  controller::ControlLaw law;
+  std::unique_ptr<hal::SimBackend> backend;
+  const hal::SimBackend& plant;
+  controller::Run run;
+};
+
+
 // The paper's step on `bench` with pneud holding `model`; every stop's nonlinear forecast against
 // the bench's breakaways.
 Judged paper_step(config::Config cfg, const model::PlantParams& model, const model::PlantParams& bench, double y_d_m) {
   cfg.plant = model;
   cfg.controller.schedule = {{1.0, y_d_m}};
-  const auto valve = controller::make_valve_characteristic(cfg, {});
-  controller::resolve_offset(cfg, *valve);
-  const controller::ControlLaw law = controller::make_control_law(cfg, *valve);
-  auto backend = backends::make_sim_backend(cfg, law, bench);
-  const hal::SimBackend& plant = *backend;
-  controller::Run run = controller::make_run(cfg, *valve, std::move(backend), law);
-  controller::SimulatedClock clock;
-  const std::atomic<bool> never{false};
-  controller::execute(run, cfg, clock, never);
-  return judge(run, plant);
+  BenchRun b(cfg, bench);
+  b.execute();
+  return judge(b.run, b.plant);
 }
 
 // Every stop's nonlinear forecast against the bench's breakaways, from the stop after the
@@ -407,24 +426,17 @@ OnlineRun learn_online(config::Config cfg, const model::PlantParams& bench, doub
   cfg.controller.schedule = {{1.0, y_d_m}};
   cfg.controller.duration_s = duration_s;
   cfg.controller.clock = config::ClockKind::kSimulated;
-  const auto valve = controller::make_valve_characteristic(cfg, {});
-  controller::resolve_offset(cfg, *valve);
-  const controller::ControlLaw law = controller::make_control_law(cfg, *valve);
-  auto backend = backends::make_sim_backend(cfg, law, bench);
-  const hal::SimBackend& plant = *backend;
-  controller::Run run = controller::make_run(cfg, *valve, std::move(backend), law);
-  identify::OnlineIdentifier learner(cfg, *run.runtime);
+  BenchRun b(cfg, bench);
+  identify::OnlineIdentifier learner(b.cfg, *b.run.runtime);
   struct Updates final : controller::RunListener {
     std::vector<controller::IdentificationRecord> records;
     void on_identification(const controller::IdentificationRecord& r) override { records.push_back(r); }
   } updates;
-  run.runtime->add_sink(learner);
-  run.runtime->add_sink(updates);
-  controller::SimulatedClock clock;
-  const std::atomic<bool> never{false};
-  controller::execute(run, cfg, clock, never);
+  b.run.runtime->add_sink(learner);
+  b.run.runtime->add_sink(updates);
+  b.execute();
   // The sweep's --online: judged after the bench's 3rd restart.
-  return {updates.records, judge(run, plant, 3), learner.stops_forecast(),
+  return {updates.records, judge(b.run, b.plant, 3), learner.stops_forecast(),
           learner.stops_on_a_configured_bound()};
 }
 
