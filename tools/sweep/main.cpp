@@ -94,7 +94,8 @@ over the whole run; last_second_swing_m: the peak-to-peak position over the run'
 oscillation_rule_after_s: when the settling rules checked alongside would have latched the
 oscillation or the not-settled fault, unless --supervised), then the simulated bench the scenario
 ran, bench_* (the model's friction, conductances, dead volumes and null offset unless
---bench-spread), then in_window_after_s (the first rest within controller.hold.window_m of the
+--bench-spread; y0_m, y_d_m and bench_* exactly, to all their digits: the scenario runs again in
+pneud with them), then in_window_after_s (the first rest within controller.hold.window_m of the
 set point that the plant confirms, at once or by sticking before any breakaway), hold_after_s (the
 in-position hold's first start within the window) and restarts_after_hold (the plant's breakaways
 after it beyond the detector's motion band). The summary gives the time into the window over
@@ -120,7 +121,9 @@ made again (every controller.predictor.update_period_s) from the last pressures 
 sticking time, in % of the whole sticking time; it is not judged. With "relaxation" among
 controller.predictor.methods, the relaxation method (each chamber's relaxation fitted to the
 phase's own pressures, no valve model) is reported the same way: it makes no forecast at the stop,
-only half-way ones (rx_halfway_error_percent).
+only half-way ones (rx_halfway_error_percent). With --online, forecast_on_unidentified_bound is 1
+for a stop forecast on a stiction bound online learning had not identified yet (the configured
+one: no breakaway that way yet), as pneud's summary counts them.
 )";
 
 // A simulated bench that is not its model (--bench-spread): factors on the model's values and a
@@ -727,7 +730,7 @@ int run(int argc, char** argv) {
   for (const char* m : {"lin", "nl"})
     os << ',' << m << "_will_restart," << m << "_t_restart_s," << m << "_direction," << m << "_verdict,"
        << m << "_error_ms," << m << "_error_percent," << m << "_within_criteria";
-  os << ",lin_halfway_error_percent,nl_halfway_error_percent,rx_halfway_error_percent\n";
+  os << ",lin_halfway_error_percent,nl_halfway_error_percent,rx_halfway_error_percent,forecast_on_unidentified_bound\n";
   MethodStats stats[3];
   // The methods that forecast half-way (every method made again, when update_period_s > 0).
   const auto& predictor = base.controller.predictor;
@@ -822,6 +825,10 @@ int run(int argc, char** argv) {
           os << ',';
         }
       }
+      // --online: 1 when the stop was forecast on a stiction bound online learning had not
+      // identified yet (pneud's summary counts these), 0 otherwise; empty without --online.
+      if (online) os << ',' << (r.truth[k].on_configured_bound ? 1 : 0);
+      else os << ',';
       os << '\n';
     }
   }
@@ -903,7 +910,12 @@ int run(int argc, char** argv) {
     }
     if (!scenarios_out) continue;
     auto& os_sc = scenarios_out->stream();
-    os_sc << r.scenario.index << ',' << cell(r.scenario.y0_m) << ',' << cell(r.scenario.y_d_m) << ','
+    // The positions and the bench exactly (they read back as the same doubles): a scenario can be
+    // run again with pneud.
+    char exact[2][32];
+    std::snprintf(exact[0], sizeof exact[0], "%.17g", r.scenario.y0_m);
+    std::snprintf(exact[1], sizeof exact[1], "%.17g", r.scenario.y_d_m);
+    os_sc << r.scenario.index << ',' << exact[0] << ',' << exact[1] << ','
           << cell(r.scenario.friction_scale, 4) << ',' << cell(r.scenario.gain_scale, 4) << ',';
     if (ran)
       os_sc << outcome_name(g.outcome) << ',' << cell(g.settle_time_s) << ',' << cell(g.final_error_m, 9) << ','
@@ -914,7 +926,7 @@ int run(int argc, char** argv) {
       os_sc << "identification_failed" << std::string(9, ',');  // the outcome's 9 figures: none
     const model::PlantParams& b = r.bench;
     char row[512];
-    std::snprintf(row, sizeof row, ",%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g", b.friction.static_positive_n,
+    std::snprintf(row, sizeof row, ",%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g", b.friction.static_positive_n,
                   b.friction.coulomb_positive_n, b.friction.static_negative_n, b.friction.coulomb_negative_n,
                   b.friction.viscous_n_s_per_m, b.valve.max_conductance_m3_per_s_pa,
                   b.valve.leak_conductance_in_m3_per_s_pa, b.valve.leak_conductance_out_m3_per_s_pa,
