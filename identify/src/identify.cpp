@@ -70,6 +70,7 @@ std::size_t index_before(std::span<const Sample> s, std::size_t first, std::size
 struct Stiction {
   Bracket positive, negative;
   double force_noise_n = 0.0;
+  double held_positive_n = 0.0, held_negative_n = 0.0;  // the forces held alone (Evidence)
 };
 
 Stiction stiction_from(std::span<const Sample> s, std::span<const double> force, std::span<const StuckPhase> phases,
@@ -88,18 +89,29 @@ Stiction stiction_from(std::span<const Sample> s, std::span<const double> force,
   }
   const double noise = 2.0 * st.force_noise_n;
   for (const StuckPhase& p : phases) {
-    // The force's rate before the end of the phase, over 200 ms ending 50 ms before it (the last
-    // samples may already move, and the moving chambers change the force).
-    const std::size_t rate_end = index_before(s, p.first, p.last, 0.05);
-    const std::size_t rate_begin = index_before(s, p.first, rate_end, 0.2);
-    const double dt = s[rate_end].t_s - s[rate_begin].t_s;
-    const double rate = dt > 0.0 ? (force[rate_end] - force[rate_begin]) / dt : 0.0;
+    // The force's rate before sample `end`, over 200 ms ending 50 ms before it (the last samples
+    // may already move, and the moving chambers change the force).
+    const auto rate_before = [&](std::size_t end) {
+      const std::size_t rate_end = index_before(s, p.first, end, 0.05);
+      const std::size_t rate_begin = index_before(s, p.first, rate_end, 0.2);
+      const double dt = s[rate_end].t_s - s[rate_begin].t_s;
+      return dt > 0.0 ? (force[rate_end] - force[rate_begin]) / dt : 0.0;
+    };
+    // How long a breakaway's onset may hide in the rest band at that rate.
+    // (An ideal sensor too: the first picometre takes about a millisecond at 10 N/s.)
+    const auto onset_at = [&](double r) {
+      return onset_s(mass_kg, o.rest_band_m + detail::kSamePosition_m, std::abs(r), 0.2);
+    };
+    const double rate = rate_before(p.last);
+    const double onset = onset_at(rate);
     // Held: every sample before the onset could have begun, once the carriage has settled into
     // the phase (a turning point can look still for a few ms within a rest band), in phases long
-    // enough to be stuck for sure.
-    // (An ideal sensor too: the first picometre takes about a millisecond at 10 N/s.)
-    const double onset = onset_s(mass_kg, o.rest_band_m + detail::kSamePosition_m, std::abs(rate), 0.2);
-    const std::size_t held_last = p.breakaway ? index_before(s, p.first, p.last, onset) : p.last;
+    // enough to be stuck for sure. The onset ends the phase at a breakaway, and also where the
+    // carriage left its still part within the phase: a carriage creeping off at a millimetre per
+    // second stays within the band of a reference that follows it, so the phase goes on.
+    std::size_t held_last = p.breakaway ? index_before(s, p.first, p.last, onset) : p.last;
+    if (p.still_last < p.last)
+      held_last = std::min(held_last, index_before(s, p.first, p.still_last, onset_at(rate_before(p.still_last))));
     // Only where the carriage stood still: a creeping carriage's force is a sliding one.
     const bool long_enough = s[p.still_last].t_s - s[p.still_first].t_s >= o.min_fit_phase_s;
     double held_max = -std::numeric_limits<double>::infinity(), held_min = std::numeric_limits<double>::infinity();
@@ -154,6 +166,8 @@ Stiction stiction_from(std::span<const Sample> s, std::span<const double> force,
       }
     }
   }
+  st.held_positive_n = st.positive.lower;
+  st.held_negative_n = st.negative.upper;
   for (Bracket* side : {&st.positive, &st.negative}) {
     // Dated breakaways narrow the bracket where they agree with it.
     const double lo = std::max(side->lower, side->dated_lower), hi = std::min(side->upper, side->dated_upper);
@@ -413,6 +427,8 @@ Identification identify(std::span<const Sample> s, const model::PlantParams& pri
   const Stiction st = stiction_from(s, force, phases, prior.mass_kg, o);
   ev.breakaways_positive = st.positive.breakaways;
   ev.breakaways_negative = st.negative.breakaways;
+  ev.held_positive_n = st.held_positive_n;
+  ev.held_negative_n = st.held_negative_n;
   if (st.positive.breakaways + st.negative.breakaways == 0)
     throw InsufficientData("no breakaway: the carriage never left a stuck phase under its own pressure force, so "
                            "neither stiction bound can be bounded from beyond");
@@ -514,14 +530,21 @@ Identification identify(std::span<const Sample> s, const model::PlantParams& pri
       // far the force moved on while the onset hid.
       const double sd = (n_eff >= 2.0 ? std::sqrt(spread2 / sw) / std::sqrt(n_eff - 1.0) : 1.0 / std::sqrt(sw)) +
                         st.force_noise_n;
-      const bool ok = (side == 0 ? mean > 0 : mean < 0) && sd <= o.max_relative_std * std::abs(mean);
+      // The forces held and the breakaways' readings still bound it: F_S lies within the bracket
+      // whatever the fits say (the fits of fast breakaways spread by newtons, and a mean inside a
+      // force the carriage held forecasts a restart at once). The uncertainty stays the fits': a
+      // wide bracket says little, and a narrow one that the fits miss says they spread.
+      const Bracket& b = side == 0 ? st.positive : st.negative;
+      const double value = b.lower <= b.upper ? std::clamp(mean, b.lower, b.upper) : mean;
+      const bool ok = (side == 0 ? value > 0 : value < 0) && sd <= o.max_relative_std * std::abs(value);
       if (!ok) continue;
-      e.value = mean;
+      e.value = value;
       e.std = sd;
       e.identified = true;
-      e.basis = format("%d breakaways dated by their onset (%d bracketed: held up to %.3f N, moved from %.3f N)",
+      e.basis = format("%d breakaways dated by their onset (%d bracketed: held up to %.3f N, moved from %.3f N%s)",
                        static_cast<int>(fits[side].size()), side == 0 ? st.positive.breakaways : st.negative.breakaways,
-                       side == 0 ? st.positive.lower : st.negative.upper, side == 0 ? st.positive.upper : st.negative.lower);
+                       side == 0 ? st.positive.lower : st.negative.upper, side == 0 ? st.positive.upper : st.negative.lower,
+                       value != mean ? format("; their mean %.3f N lies outside: the bracket's end", mean).c_str() : "");
     }
     f.static_positive_n = id.estimates[0].value;
     f.static_negative_n = id.estimates[1].value;

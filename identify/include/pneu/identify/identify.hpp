@@ -13,6 +13,7 @@
 #include <optional>
 #include <span>
 #include <stdexcept>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -78,6 +79,10 @@ struct Evidence {
   int fitted_phases = 0;           ///< long enough for the valve fit
   int breakaways_positive = 0;
   int breakaways_negative = 0;
+  /// What the forces held while stuck imply (less their noise): F_S+ >= held_positive_n,
+  /// F_S- <= held_negative_n; -inf and +inf when nothing was held that way.
+  double held_positive_n = -std::numeric_limits<double>::infinity();
+  double held_negative_n = std::numeric_limits<double>::infinity();
   double stuck_s = 0.0;            ///< time stuck, in all
   double sliding_s = 0.0;          ///< time sliding fast enough for Coulomb and viscous friction
   double stuck_position_span_m = 0.0;  ///< the stuck phases' positions, max - min
