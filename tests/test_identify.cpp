@@ -521,7 +521,8 @@ TEST(OnlineIdentification, AForceReadWhileTheCarriageCreepsIsNotHeldWithIdealSen
   EXPECT_LE(r.judged.worst_percent, 2.0);
 }
 
-// Scenario 785 of the 1000-step sweep with hil.yaml's sensors: stuck at 131.6 mm, the force rises
+// Scenario 785 of the 1000-step sweep with hil.yaml's sensors (its values to 6 digits, as the
+// scenarios file gave them then: it runs a little differently from the sweep's): stuck at 131.6 mm, the force rises
 // at 21 N/s through this bench's F_S- (-42.84 N, its Coulomb level too: no Stribeck drop) at
 // 1.56 s, and the carriage creeps off at about a millimetre per second. A stuck phase's reference is the running median of its readings, so it
 // follows such a creep and the phase goes on; its still part ended at 1.60 s, but the forces up to
