@@ -576,6 +576,11 @@ Identification identify(std::span<const Sample> s, const model::PlantParams& pri
                                   o.min_fit_phase_s));
   id.plant.valve = vf.plant.valve;
   id.plant.geometry = vf.plant.geometry;
+  if (vf.phases > 0) {
+    id.jointly_fitted = id.plant;
+    id.jointly_fitted->valve = vf.joint.valve;
+    id.jointly_fitted->geometry = vf.joint.geometry;
+  }
   const double priors[] = {prior.valve.max_conductance_m3_per_s_pa, prior.valve.leak_conductance_in_m3_per_s_pa,
                            prior.valve.leak_conductance_out_m3_per_s_pa, prior.valve.null_offset_v,
                            prior.geometry.dead_volume_p_m3, prior.geometry.dead_volume_n_m3};

@@ -102,11 +102,20 @@ void OnlineIdentifier::update(double t_s) {
   p.geometry.dead_volume_n_m3 = value("plant.geometry.dead_volume_n_m3");
   estimate_.plant = p;
   ++updates_;
-  // The forecasts from now on: the running estimate's stiction, valves and volumes.
+  // The forecasts from now on: the running estimate's stiction, and the last valve fit's valves
+  // and volumes with every parameter free (what predicts the pressures best; the estimate keeps
+  // the configured value of one it cannot tell apart, and fits the others around that).
+  if (id.jointly_fitted) {
+    forecast_valve_ = id.jointly_fitted->valve;
+    forecast_geometry_ = id.jointly_fitted->geometry;
+  } else if (!forecast_valve_) {
+    forecast_valve_ = p.valve;
+    forecast_geometry_ = p.geometry;
+  }
   controller::PredictorModel m = runtime_.model();
-  m.geometry = p.geometry;
+  m.geometry = *forecast_geometry_;
   m.friction = p.friction;
-  valves_.push_back(std::make_unique<model::ValveModel>(p.valve, p.gas));
+  valves_.push_back(std::make_unique<model::ValveModel>(*forecast_valve_, p.gas));
   m.valve = valves_.back().get();
   runtime_.set_model(m);
   controller::IdentificationRecord record;

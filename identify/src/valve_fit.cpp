@@ -254,6 +254,7 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
   }
   ValveFit out;
   out.plant = prior;
+  out.joint = prior;
   out.phases = static_cast<int>(fit.size());
   if (fit.empty()) {
     out.basis.fill("no stuck phase long enough to fit the pressure transients");
@@ -283,6 +284,7 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
     problem.emplace(std::move(later));
   }
   out.command_delay_samples = static_cast<int>(delay);
+  out.joint = applied(prior, all.theta);
   // The parameters the data cannot tell apart (their posterior standard deviation with all the
   // others free stays near the prior's) go back to their priors, and the rest is fitted again.
   // The rest keep the larger of their two standard deviations: fitted around a prior that may be

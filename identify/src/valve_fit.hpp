@@ -24,6 +24,9 @@ enum ValveFitParam : std::size_t {
 
 struct ValveFit {
   model::PlantParams plant;                         ///< the prior with the identified values
+  /// The fit with every parameter free (the posterior's mode): the pressures' best prediction,
+  /// also where single parameters cannot be told apart. The prior when no phase was fitted.
+  model::PlantParams joint;
   std::array<double, kValveFitParams> std{};        ///< 1-sigma, in the parameter's unit
   std::array<bool, kValveFitParams> identified{};
   std::array<std::string, kValveFitParams> basis;   ///< why not identified

@@ -95,6 +95,10 @@ struct Evidence {
 /// evidence.
 struct Identification {
   model::PlantParams plant;
+  /// When the valve fit ran: its mode with every valve and volume parameter free. It predicts the
+  /// pressures of the stuck phases best, also where a parameter cannot be told apart from the
+  /// others (and `plant` keeps the configured value); online learning forecasts on it.
+  std::optional<model::PlantParams> jointly_fitted;
   std::vector<Estimate> estimates;
   Evidence evidence;
 

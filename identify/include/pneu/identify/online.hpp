@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <deque>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "pneu/config/config.hpp"
@@ -65,6 +66,8 @@ class OnlineIdentifier final : public controller::RunListener {
   double window_s_;
   std::deque<Sample> window_;
   Identification estimate_;
+  std::optional<model::ValveParams> forecast_valve_;  // what the forecasts use: the last valve fit's joint mode
+  std::optional<model::Geometry> forecast_geometry_;
   std::vector<std::unique_ptr<model::ValveModel>> valves_;  // every model a forecast may still use
   int updates_ = 0, refused_ = 0, restarts_ = 0;
   int starts_since_update_ = 0;
