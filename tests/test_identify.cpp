@@ -522,13 +522,14 @@ TEST(OnlineIdentification, AForceReadWhileTheCarriageCreepsIsNotHeldWithIdealSen
 }
 
 // Scenario 785 of the 1000-step sweep with hil.yaml's sensors (its values to 6 digits, as the
-// scenarios file gave them then: it runs a little differently from the sweep's): stuck at 131.6 mm, the force rises
-// at 21 N/s through this bench's F_S- (-42.84 N, its Coulomb level too: no Stribeck drop) at
-// 1.56 s, and the carriage creeps off at about a millimetre per second. A stuck phase's reference is the running median of its readings, so it
-// follows such a creep and the phase goes on; its still part ended at 1.60 s, but the forces up to
-// there, 0.75 N past F_S-, counted as held: the forces held put F_S- below -43.55 N, beyond the
-// bench. The onset that may hide in the rest band now ends the held forces before the still
-// part's end too, as it does before a breakaway.
+// scenarios file gave them then: it runs a little differently from the sweep's): stuck at
+// 131.6 mm, the force rises at 21 N/s through this bench's F_S- (-42.84 N, its Coulomb level too:
+// no Stribeck drop) at 1.56 s, and the carriage creeps off at about a millimetre per second. A
+// stuck phase's reference is the running median of its readings, so it follows such a creep and
+// the phase goes on; its still part ended at 1.60 s, but the forces up to there, 0.75 N past
+// F_S-, counted as held: the forces held put F_S- below -43.55 N, beyond the bench. The onset that
+// may hide in the rest band now ends the held forces before the still part's end too, as it does
+// before a breakaway.
 TEST(OnlineIdentification, AForceReadAfterTheCarriageCreptOffIsNotHeldWithHilSensors) {
   config::Config cfg = config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", {"hal.backend=sim"});
   const model::PlantParams bench =

@@ -10,10 +10,10 @@
 //     different positions separate the volumes from the conductances.
 #pragma once
 
+#include <limits>
 #include <optional>
 #include <span>
 #include <stdexcept>
-#include <limits>
 #include <string>
 #include <vector>
 
