@@ -9,7 +9,8 @@
 namespace pneu::identify {
 
 OnlineIdentifier::OnlineIdentifier(const config::Config& config, controller::Runtime& runtime, double window_s)
-    : runtime_(runtime), prior_(config.plant), options_(options_for(config)), window_s_(window_s) {
+    : runtime_(runtime), prior_(config.plant), forecast_valves_(config.plant), options_(options_for(config)),
+      window_s_(window_s) {
   // The short stuck phases of ordinary stick-slip carry the valves too: fit every one.
   options_.min_fit_phase_s = options_.min_stuck_s;
   estimate_.plant = prior_;
@@ -105,17 +106,11 @@ void OnlineIdentifier::update(double t_s) {
   // The forecasts from now on: the running estimate's stiction, and the last valve fit's valves
   // and volumes with every parameter free (what predicts the pressures best; the estimate keeps
   // the configured value of one it cannot tell apart, and fits the others around that).
-  if (id.jointly_fitted) {
-    forecast_valve_ = id.jointly_fitted->valve;
-    forecast_geometry_ = id.jointly_fitted->geometry;
-  } else if (!forecast_valve_) {
-    forecast_valve_ = p.valve;
-    forecast_geometry_ = p.geometry;
-  }
+  if (id.jointly_fitted) forecast_valves_ = *id.jointly_fitted;
   controller::PredictorModel m = runtime_.model();
-  m.geometry = *forecast_geometry_;
+  m.geometry = forecast_valves_.geometry;
   m.friction = p.friction;
-  valves_.push_back(std::make_unique<model::ValveModel>(*forecast_valve_, p.gas));
+  valves_.push_back(std::make_unique<model::ValveModel>(forecast_valves_.valve, p.gas));
   m.valve = valves_.back().get();
   runtime_.set_model(m);
   controller::IdentificationRecord record;

@@ -5,7 +5,6 @@
 #include <cstdint>
 #include <deque>
 #include <memory>
-#include <optional>
 #include <vector>
 
 #include "pneu/config/config.hpp"
@@ -62,12 +61,13 @@ class OnlineIdentifier final : public controller::RunListener {
 
   controller::Runtime& runtime_;
   model::PlantParams prior_;
+  // The valves and volumes the forecasts use: the last valve fit's, every parameter free (the prior
+  // until the first fit; a parameter is identified only where a fit ran).
+  model::PlantParams forecast_valves_;
   Options options_;
   double window_s_;
   std::deque<Sample> window_;
   Identification estimate_;
-  std::optional<model::ValveParams> forecast_valve_;  // what the forecasts use: the last valve fit's joint mode
-  std::optional<model::Geometry> forecast_geometry_;
   std::vector<std::unique_ptr<model::ValveModel>> valves_;  // every model a forecast may still use
   int updates_ = 0, refused_ = 0, restarts_ = 0;
   int starts_since_update_ = 0;
