@@ -62,7 +62,7 @@ void OnlineIdentifier::update(double t_s) {
   const std::vector<Sample> samples(window_.begin(), window_.end());
   Options o = options_;
   o.fit_valves = new_long_phase_;
-  if (updates_ > 0) o.valve_fit_start = estimate_.plant;
+  if (updates_ > 0) o.valve_fit_starts = {estimate_.plant, forecast_valves_};
   Identification id;
   try {
     id = identify(samples, prior_, o);
@@ -83,8 +83,18 @@ void OnlineIdentifier::update(double t_s) {
     for (Estimate& x : estimate_.estimates)
       if (!x.identified) x.value = x.prior;
   } else {
-    for (std::size_t i = 0; i < id.estimates.size(); ++i)
-      if (id.estimates[i].identified) estimate_.estimates[i] = id.estimates[i];
+    for (std::size_t i = 0; i < id.estimates.size(); ++i) {
+      Estimate& running = estimate_.estimates[i];
+      const Estimate& latest = id.estimates[i];
+      // One still not identified says why in this window's words, where this window tried it.
+      const bool tried = o.fit_valves || !(latest.key.starts_with("plant.valve.") || latest.key.starts_with("plant.geometry."));
+      if (latest.identified) {
+        running = latest;
+      } else if (!running.identified && tried) {
+        running = latest;
+        running.value = running.prior;
+      }
+    }
     estimate_.evidence = id.evidence;
   }
   // The running plant: the prior with every estimate's value.

@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <optional>
 
 #include "pneu/model/valve.hpp"
@@ -194,7 +195,14 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
     for (int tries = 0; tries < 12 && !improved; ++tries) {
       Eigen::MatrixXd damped = a;
       for (Eigen::Index d = 0; d < nf; ++d) damped(d, d) += lambda * std::max(a(d, d), 1e-30);
-      const Eigen::VectorXd step = damped.ldlt().solve(-g);
+      Eigen::VectorXd step = damped.ldlt().solve(-g);
+      // A trust region: no parameter moves by more than its prior's spread in one step. A long
+      // Gauss-Newton step can take the dead volumes far below the swept volume at once, where the
+      // pressures no longer depend on them and the search stalls.
+      for (Eigen::Index c = 0; c < nf; ++c) {
+        const double limit = prior_spread(idx[static_cast<std::size_t>(c)]);
+        if (std::abs(step[c]) > limit) step *= limit / std::abs(step[c]);
+      }
       Theta trial = theta;
       for (Eigen::Index c = 0; c < nf; ++c) trial[static_cast<Eigen::Index>(idx[static_cast<std::size_t>(c)])] += step[c];
       trial[kNullOffset] = std::clamp(trial[kNullOffset], -5.0, 5.0);
@@ -270,9 +278,9 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
   problem.emplace(s, fit, prior, delay);
   Solution all = levenberg_marquardt(*problem, prior_theta, prior_theta, free);
   // The fit is not convex: started from the prior it can settle in another minimum than from an
-  // earlier estimate (online, the running one). The lower of the two is kept.
-  if (o.valve_fit_start) {
-    const Solution from_start = levenberg_marquardt(*problem, theta_of(*o.valve_fit_start), prior_theta, free);
+  // earlier estimate (online, the running one or the last free fit). The lowest is kept.
+  for (const model::PlantParams& start : o.valve_fit_starts) {
+    const Solution from_start = levenberg_marquardt(*problem, theta_of(start), prior_theta, free);
     if (from_start.cost < all.cost) all = from_start;
   }
   for (std::size_t d = 1; o.command_delay_samples < 0 && d <= kMaxCommandDelaySamples; ++d) {
@@ -299,16 +307,34 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
                      std::string(i == kNullOffset ? "over 10 mV" : "over the relative limit") + "): prior kept";
     }
   }
+  // A parameter refitted around those priors also moves by as much as holding them there shifts it
+  // from the mode: that shift is part of its uncertainty (the priors may be wrong by their whole
+  // spread). One it makes too uncertain joins the priors, and the rest is fitted again.
   Solution sol = all;
-  if (std::find(free.begin(), free.end(), false) != free.end()) {
+  while (std::find(free.begin(), free.end(), false) != free.end()) {
     Theta start = all.theta;
     for (std::size_t i = 0; i < kValveFitParams; ++i)
       if (!free[i]) start[static_cast<Eigen::Index>(i)] = prior_theta[static_cast<Eigen::Index>(i)];
     sol = levenberg_marquardt(*problem, start, prior_theta, free);
+    bool held_more = false;
     for (std::size_t i = 0; i < kValveFitParams; ++i) {
+      if (!free[i]) continue;
       const auto d = static_cast<Eigen::Index>(i);
-      sol.covariance(d, d) = std::max(sol.covariance(d, d), marginal[i] * marginal[i]);
+      const double shift = sol.theta[d] - all.theta[d];
+      sol.covariance(d, d) = std::max(sol.covariance(d, d), marginal[i] * marginal[i]) + shift * shift;
+      const double sd = std::sqrt(sol.covariance(d, d));
+      if (sd <= (i == kNullOffset ? kMaxNullOffsetStd_v : o.max_relative_std)) continue;
+      free[i] = false;
+      held_more = true;
+      char text[120];
+      if (i == kNullOffset)
+        std::snprintf(text, sizeof text, "%+.3g V", shift);
+      else
+        std::snprintf(text, sizeof text, "%+.0f %%", 100.0 * (std::exp(shift) - 1.0));
+      out.basis[i] = std::string("moves by ") + text +
+                     " when the parameters not separable keep their priors (1 sigma then over the limit): prior kept";
     }
+    if (!held_more) break;
   }
   out.plant = applied(prior, sol.theta);
   // Parameters not identified keep the prior exactly (a leak of 0 stays 0), and no spread.
