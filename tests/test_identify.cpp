@@ -469,8 +469,8 @@ std::size_t key_index(const char* key) {
 // the carriage sticks for half a second at a time. The valve fit is not convex: started from the
 // configured model alone, the fit over these stuck phases settled on a null offset of 27 to 50 mV
 // for this bench's 92 mV (and dead volumes 40 % low) from 2.5 s to 4 s, and the long sticking phase
-// at 3.35 s was forecast 72 % off. Started from the running estimate too, it keeps what it had
-// identified.
+// at 3.35 s was forecast 72 % off. Started from an earlier fit too (the running estimate first,
+// now the last fit with every parameter free), it keeps what it had identified.
 TEST(OnlineIdentification, KeepsTheValvesItIdentifiedNearTheStrokesEndWithHilSensors) {
   const config::Config cfg =
       config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", {"hal.backend=sim"});
@@ -626,8 +626,8 @@ TEST(OnlineIdentification, ForecastsOnTheValveFitWithEveryParameterFreeWithIdeal
 //   1.15e-5. A refitted parameter's sigma now counts the shift that holding the others causes.
 // - Later fits of 825, started from the configured model and from that running estimate, settled
 //   with the conductances 11x the bench's, and the null offset alone, refitted, came out -106 +-
-//   1.2 mV for a bench of +83 mV. The fit now also starts from the last fit with every parameter
-//   free, and finds the bench (0.0 Pa rms).
+//   1.2 mV for a bench of +83 mV. The fit now starts from the configured model and from the last
+//   fit with every parameter free, and finds the bench (0.0 Pa rms).
 TEST(OnlineIdentification, EveryValveParameterPublishedStatesAnUncertaintyThatCoversItsErrorWithIdealSensors) {
   const config::Config cfg = config::load_string(config::default_config_yaml());
   struct Scenario {

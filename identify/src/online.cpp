@@ -62,7 +62,7 @@ void OnlineIdentifier::update(double t_s) {
   const std::vector<Sample> samples(window_.begin(), window_.end());
   Options o = options_;
   o.fit_valves = new_long_phase_;
-  if (updates_ > 0) o.valve_fit_starts = {estimate_.plant, forecast_valves_};
+  if (updates_ > 0) o.valve_fit_starts = {forecast_valves_};
   Identification id;
   try {
     id = identify(samples, prior_, o);

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <optional>
+#include <vector>
 
 #include "pneu/model/valve.hpp"
 
@@ -278,9 +279,14 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
   problem.emplace(s, fit, prior, delay);
   Solution all = levenberg_marquardt(*problem, prior_theta, prior_theta, free);
   // The fit is not convex: started from the prior it can settle in another minimum than from an
-  // earlier estimate (online, the running one or the last free fit). The lowest is kept.
+  // earlier fit (online, the last one with every parameter free). The lowest is kept; a start
+  // already tried is not tried again.
+  std::vector<Theta> tried{prior_theta};
   for (const model::PlantParams& start : o.valve_fit_starts) {
-    const Solution from_start = levenberg_marquardt(*problem, theta_of(start), prior_theta, free);
+    const Theta theta = theta_of(start);
+    if (std::find(tried.begin(), tried.end(), theta) != tried.end()) continue;
+    tried.push_back(theta);
+    const Solution from_start = levenberg_marquardt(*problem, theta, prior_theta, free);
     if (from_start.cost < all.cost) all = from_start;
   }
   for (std::size_t d = 1; o.command_delay_samples < 0 && d <= kMaxCommandDelaySamples; ++d) {

@@ -55,9 +55,9 @@ struct Options {
   /// Fit the valves and dead volumes (the costly part); false keeps them at the prior, "not
   /// refitted" (online refinement between new long stuck phases).
   bool fit_valves = true;
-  /// Where the valve fit starts from besides the prior (online: the running estimate, and the last
-  /// fit with every parameter free): the fit is not convex, and the lowest of the minima is kept.
-  /// The prior still weighs as the prior.
+  /// Where the valve fit starts from besides the prior (online: the last fit with every parameter
+  /// free): the fit is not convex, and the lowest of the minima is kept. The prior still weighs as
+  /// the prior.
   std::vector<model::PlantParams> valve_fit_starts;
   /// A parameter whose relative standard deviation (1 sigma) exceeds this is not identified: the
   /// data cannot tell it apart from the others, and the prior is kept.
