@@ -617,10 +617,10 @@ TEST(OnlineIdentification, ForecastsOnTheValveFitWithEveryParameterFreeWithIdeal
 
 // Scenarios 457 and 825 of the 1000-step sweep with ideal sensors, a few short stops near one
 // position. Three faults made the valve estimate published on LCM wrong by many of its own sigmas:
-// - The fit's first Gauss-Newton step took the dead volumes from 1e-5 to 2e-8 m3, where the pressures
-//   no longer depend on them, and it then crawled for its 100 iterations: 244 Pa rms on 457 with
-//   the bench 17 % away (the bench itself fits to 0.0 Pa). A step now moves no parameter by more
-//   than its prior's spread.
+// - The fit's first Gauss-Newton step took the dead volumes from 1e-5 to 2e-8 m3, where the
+//   pressures no longer depend on them, and it then crawled for its 100 iterations: 244 Pa rms on
+//   457 with the bench 17 % away (the bench itself fits to 0.0 Pa). A step now moves no parameter
+//   by more than its prior's spread.
 // - On 825 the null offset, 81 +- 11 mV with everything free, was held at the configured 0 (1 sigma
 //   over 10 mV), and the rest refitted around it: V_N0 published at 6.2e-6 +- 10 % for a bench of
 //   1.15e-5. A refitted parameter's sigma now counts the shift that holding the others causes.
@@ -628,7 +628,8 @@ TEST(OnlineIdentification, ForecastsOnTheValveFitWithEveryParameterFreeWithIdeal
 //   with the conductances 11x the bench's, and the null offset alone, refitted, came out -106 +-
 //   1.2 mV for a bench of +83 mV. The fit now starts from the configured model and from the last
 //   fit with every parameter free, and finds the bench (0.0 Pa rms).
-TEST(OnlineIdentification, EveryValveParameterPublishedStatesAnUncertaintyThatCoversItsErrorWithIdealSensors) {
+TEST(OnlineIdentification,
+     EveryValveParameterPublishedStatesAnUncertaintyThatCoversItsErrorWithIdealSensors) {
   const config::Config cfg = config::load_string(config::default_config_yaml());
   struct Scenario {
     int number;
@@ -637,41 +638,42 @@ TEST(OnlineIdentification, EveryValveParameterPublishedStatesAnUncertaintyThatCo
   };
   const Scenario scenarios[] = {
       {457,
-       {36.505422679388424, 32.266749448259901, -40.687360565726529, -40.687360565726529, 53.663198731931139,
-        1.7320962094390984e-08, 9.3733174113380861e-10, 1.4460566453058506e-09, 9.6021793927894829e-06,
-        1.0003646727646311e-05, 0.011067546112794459},
+       {36.505422679388424, 32.266749448259901, -40.687360565726529, -40.687360565726529,
+        53.663198731931139, 1.7320962094390984e-08, 9.3733174113380861e-10, 1.4460566453058506e-09,
+        9.6021793927894829e-06, 1.0003646727646311e-05, 0.011067546112794459},
        -0.19499690683792847, -0.019549999999999984},
       {825,
-       {44.948024138161621, 37.425516977111258, -49.929382021311859, -35.000263044919947, 62.48567506036914,
-        1.4838972086052981e-08, 8.9102429096722629e-10, 1.082836927353698e-09, 8.6987713255625507e-06,
-        1.1451862293864732e-05, 0.082561709270679184},
+       {44.948024138161621, 37.425516977111258, -49.929382021311859, -35.000263044919947,
+        62.48567506036914, 1.4838972086052981e-08, 8.9102429096722629e-10, 1.082836927353698e-09,
+        8.6987713255625507e-06, 1.1451862293864732e-05, 0.082561709270679184},
        -0.059058664308763387, 0.14973}};
-  const std::size_t offset = key_index("plant.valve.null_offset_v");
   for (const Scenario& sc : scenarios) {
     const model::PlantParams bench = sweep_bench(cfg.plant, sc.bench);
+    const std::pair<const char*, double> valves[] = {
+        {"plant.valve.max_conductance_m3_per_s_pa", bench.valve.max_conductance_m3_per_s_pa},
+        {"plant.valve.leak_conductance_in_m3_per_s_pa", bench.valve.leak_conductance_in_m3_per_s_pa},
+        {"plant.valve.leak_conductance_out_m3_per_s_pa", bench.valve.leak_conductance_out_m3_per_s_pa},
+        {"plant.valve.null_offset_v", bench.valve.null_offset_v},
+        {"plant.geometry.dead_volume_p_m3", bench.geometry.dead_volume_p_m3},
+        {"plant.geometry.dead_volume_n_m3", bench.geometry.dead_volume_n_m3}};
     const OnlineRun r = learn_online(cfg, bench, sc.y0_m, sc.y_d_m, 6.0);
     int published = 0;
     for (const auto& u : r.updates)
-      for (std::size_t i = key_index("plant.valve.max_conductance_m3_per_s_pa"); i < u.value.size(); ++i) {
+      for (const auto& [key, truth] : valves) {
+        const std::size_t i = key_index(key);
         if (!u.identified[i]) continue;
         ++published;
-        const std::string key = controller::kIdentifiedParameterKeys[i];
-        const double truth = key == "plant.valve.max_conductance_m3_per_s_pa"        ? bench.valve.max_conductance_m3_per_s_pa
-                             : key == "plant.valve.leak_conductance_in_m3_per_s_pa"  ? bench.valve.leak_conductance_in_m3_per_s_pa
-                             : key == "plant.valve.leak_conductance_out_m3_per_s_pa" ? bench.valve.leak_conductance_out_m3_per_s_pa
-                             : key == "plant.valve.null_offset_v"                    ? bench.valve.null_offset_v
-                             : key == "plant.geometry.dead_volume_p_m3"              ? bench.geometry.dead_volume_p_m3
-                                                                                     : bench.geometry.dead_volume_n_m3;
         // The conductances and volumes are fitted as logarithms: their sigma is relative.
-        const double error_in_sigmas = i == offset ? std::abs(u.value[i] - truth) / u.sigma[i]
-                                                   : std::abs(std::log(u.value[i] / truth)) / (u.sigma[i] / u.value[i]);
-        EXPECT_LE(error_in_sigmas, 3.0) << "scenario " << sc.number << ", " << key
-                                        << " at " << u.t_s << " s: " << u.value[i] << " +- " << u.sigma[i]
-                                        << ", bench " << truth;
+        const bool offset = std::string(key) == "plant.valve.null_offset_v";
+        const double error_in_sigmas = offset ? std::abs(u.value[i] - truth) / u.sigma[i]
+                                              : std::abs(std::log(u.value[i] / truth)) / (u.sigma[i] / u.value[i]);
+        EXPECT_LE(error_in_sigmas, 3.0) << "scenario " << sc.number << ", " << key << " at " << u.t_s
+                                        << " s: " << u.value[i] << " +- " << u.sigma[i] << ", bench " << truth;
       }
     EXPECT_GE(published, 4) << "scenario " << sc.number;
     ASSERT_FALSE(r.updates.empty());
-    EXPECT_TRUE(r.updates.back().identified[offset]) << "scenario " << sc.number << ": the null offset";
+    EXPECT_TRUE(r.updates.back().identified[key_index("plant.valve.null_offset_v")])
+        << "scenario " << sc.number << ": the null offset";
     EXPECT_EQ(r.judged.wrong_verdicts, 0) << "scenario " << sc.number;
     // What is still not identified says why in the last valve fit's words, not the first update's
     // (which fitted no valve: "not refitted").
