@@ -303,10 +303,12 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
   // others free stays near the prior's) go back to their priors, and the rest is fitted again.
   // The rest keep the larger of their two standard deviations: fitted around a prior that may be
   // wrong, they are no surer than the data made them with everything free.
+  // The largest 1-sigma of an identified parameter: relative for a logarithm, 10 mV for the offset.
+  const auto max_std = [&](std::size_t i) { return i == kNullOffset ? kMaxNullOffsetStd_v : o.max_relative_std; };
   std::array<double, kValveFitParams> marginal{};
   for (std::size_t i = 0; i < kValveFitParams; ++i) {
     marginal[i] = std::sqrt(std::max(0.0, all.covariance(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(i))));
-    const double score = i == kNullOffset ? marginal[i] / kMaxNullOffsetStd_v : marginal[i] / o.max_relative_std;
+    const double score = marginal[i] / max_std(i);
     if (!(score <= 1.0)) {
       free[i] = false;
       out.basis[i] = "not separable from the others by these stuck phases (1 sigma " +
@@ -329,7 +331,7 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
       const double shift = sol.theta[d] - all.theta[d];
       sol.covariance(d, d) = std::max(sol.covariance(d, d), marginal[i] * marginal[i]) + shift * shift;
       const double sd = std::sqrt(sol.covariance(d, d));
-      if (sd <= (i == kNullOffset ? kMaxNullOffsetStd_v : o.max_relative_std)) continue;
+      if (sd <= max_std(i)) continue;
       free[i] = false;
       held_more = true;
       char text[120];
