@@ -106,4 +106,31 @@ awk -F, 'function off(v, m) { return m > 0 ? v < m * 0.8 - 1e-12 || v > m * 1.2 
   "$tmp/bench_sc.csv" || fail "the drawn benches"
 "$sweep" --steps 4 --quiet --bench-spread 1 --out "$tmp/x.csv" 2> "$tmp/err.txt" && fail "--bench-spread 1 accepted"
 grep -q -- "--bench-spread must be in \[0, 1)" "$tmp/err.txt" || fail "--bench-spread 1 refused saying why"
+
+echo "== --online: the stops on a side the bench had broken away to after 0.5 s or more stuck"
+"$sweep" --steps 40 --quiet --bench-spread 0.2 --online "${nonlinear[@]}" --out "$tmp/online.csv" > "$tmp/online.txt"
+cat "$tmp/online.txt"
+# side_broken_away_slowly is 1 exactly where the forecast's side (the restart's, or for "no restart"
+# the side the force relaxes towards) is that of an earlier stop of the scenario that ended, after
+# 0.5 s or more stuck, with the plant breaking away (a restart: its row's outcome, or while learning,
+# a later stop of the scenario follows it), in that direction; the plant's own truth, row by row.
+awk -F, 'NR == 1 { for (i = 1; i <= NF; ++i) c[$i] = i; next }
+  { sc = $c["scenario"]; outcome = $c["outcome"]; slow = $c["side_broken_away_slowly"]
+    if (slow != 0 && slow != 1) { print "not 0 or 1: " $0; bad = 1 }
+    # The previous row of the scenario, if it restarted after >= 0.5 s, opens its side.
+    if (sc == last_sc && last_slow_restart) open[sc, last_dir] = 1
+    side = $c["nl_will_restart"] == 1 ? $c["nl_direction"] : ($c["equilibrium_force_n"] > $c["force_n"] ? 1 : -1)
+    # (A force already at its equilibrium to the CSV digits relaxes towards neither side it shows.)
+    tie = $c["nl_will_restart"] != 1 && $c["equilibrium_force_n"] == $c["force_n"]
+    if (!tie && slow != ((sc, side) in open ? 1 : 0)) { print "wrong: " $0; bad = 1 }
+    ones += slow
+    last_sc = sc; last_dir = $c["direction"]
+    last_slow_restart = $c["sticking_s"] >= 0.5 && (outcome == "restart" || outcome == "before_learning") }
+  END { if (ones < 10) { print "too few stops on such a side: " ones; bad = 1 }; exit bad }' \
+  "$tmp/online.csv" || fail "side_broken_away_slowly, row by row"
+# The summary counts the judged ones among them.
+judged_slow=$(awk -F, 'NR == 1 { for (i = 1; i <= NF; ++i) c[$i] = i; next }
+  $c["side_broken_away_slowly"] == 1 && $c["nl_verdict"] != "not_judged" { n++ } END { print n + 0 }' "$tmp/online.csv")
+grep -q "judged stops on a side the bench had already broken away to after >= 0.5 s stuck (a slow breakaway): $judged_slow," \
+  "$tmp/online.txt" || fail "the summary counts the $judged_slow judged stops on a slowly broken-away side"
 echo "all well"

@@ -123,7 +123,12 @@ controller.predictor.methods, the relaxation method (each chamber's relaxation f
 phase's own pressures, no valve model) is reported the same way: it makes no forecast at the stop,
 only half-way ones (rx_halfway_error_percent). With --online, forecast_on_unidentified_bound is 1
 for a stop forecast on a stiction bound online learning had not identified yet (the configured
-one: no breakaway that way yet), as pneud's summary counts them.
+one: no breakaway that way yet), as pneud's summary counts them; and side_broken_away_slowly is 1
+for a stop whose forecast turns on a side (the side of the restart it forecast, or for "no
+restart" the side the force relaxes towards) that the bench had already broken away to after
+0.5 s or more stuck: a slow breakaway, the pressures' drift crossing that bound, which dates it
+far better than a set-point step's (the bench's own restarts, in the scenario before the stop).
+The summary gives the judged stops of that kind apart too.
 )";
 
 // A simulated bench that is not its model (--bench-spread): factors on the model's values and a
@@ -460,6 +465,10 @@ struct MethodStats {
   // (no breakaway that way yet): the configured one
   std::uint64_t unlearned_side = 0, unlearned_side_wrong = 0;
   std::vector<double> unlearned_side_long_error_pct;
+  // --online: the judged stops forecast on a side the bench had already broken away to after
+  // kLongSticking_s or more stuck (a slow breakaway)
+  std::uint64_t slow_side = 0, slow_side_wrong = 0;
+  std::vector<double> slow_side_long_error_pct;
 };
 
 constexpr double kLongSticking_s = 0.5;
@@ -730,7 +739,8 @@ int run(int argc, char** argv) {
   for (const char* m : {"lin", "nl"})
     os << ',' << m << "_will_restart," << m << "_t_restart_s," << m << "_direction," << m << "_verdict,"
        << m << "_error_ms," << m << "_error_percent," << m << "_within_criteria";
-  os << ",lin_halfway_error_percent,nl_halfway_error_percent,rx_halfway_error_percent,forecast_on_unidentified_bound\n";
+  os << ",lin_halfway_error_percent,nl_halfway_error_percent,rx_halfway_error_percent,forecast_on_unidentified_bound,"
+        "side_broken_away_slowly\n";
   MethodStats stats[3];
   // The methods that forecast half-way (every method made again, when update_period_s > 0).
   const auto& predictor = base.controller.predictor;
@@ -743,6 +753,9 @@ int run(int argc, char** argv) {
   std::uint64_t learning = 0;  // --online: stops before their bench's kOnlineLearningRestarts-th restart
   for (const auto& r : results) {
     int restarts_seen = 0;  // by the daemon, before this stop
+    // --online: the sides the bench broke away to after kLongSticking_s or more stuck, before this
+    // stop ([0] positive, [1] negative)
+    std::array<bool, 2> slow_breakaway_seen{};
     for (std::size_t k = 0; k < r.stops.size(); ++k) {
       const auto& s = r.stops[k];
       ++stops;
@@ -764,6 +777,12 @@ int run(int argc, char** argv) {
         if (s.sticking_s() >= 1.0) ++longest_restart_count_1s;
       }
       const controller::Prediction* any = s.nonlinear ? &*s.nonlinear : (s.linearized ? &*s.linearized : nullptr);
+      // The side the forecast turns on, as pneud counts it: the restart's, or the one the force
+      // relaxes towards.
+      const int side = !any ? 0 : any->will_restart ? any->direction : (any->equilibrium_force_n > s.force_n ? +1 : -1);
+      const bool on_slow_side = online && side != 0 && slow_breakaway_seen[side > 0 ? 0 : 1];
+      if (s.restarted && !r.truth[k].not_at_rest && s.sticking_s() >= kLongSticking_s && s.direction != 0)
+        slow_breakaway_seen[s.direction > 0 ? 0 : 1] = true;
       std::snprintf(buf, sizeof buf, "%d,%.6f,%.6f,%.4f,%.4f,%llu,%.6f,%.9f,%.4f,%.6f,%.4f,%s,%.6f,%.6f,%d",
                     r.scenario.index, r.scenario.y0_m, r.scenario.y_d_m, r.scenario.friction_scale,
                     r.scenario.gain_scale, static_cast<unsigned long long>(s.index), s.t_stop_s, s.y_stop_m,
@@ -799,6 +818,12 @@ int run(int argc, char** argv) {
           if (v.kind == Verdict::Kind::kTruePositive && s.sticking_s() >= kLongSticking_s)
             st.unlearned_side_long_error_pct.push_back(v.error_percent);
         }
+        if (on_slow_side && v.kind != Verdict::Kind::kNotJudged) {
+          ++st.slow_side;
+          if (v.kind == Verdict::Kind::kFalseNegative || v.kind == Verdict::Kind::kFalsePositive) ++st.slow_side_wrong;
+          if (v.kind == Verdict::Kind::kTruePositive && s.sticking_s() >= kLongSticking_s)
+            st.slow_side_long_error_pct.push_back(v.error_percent);
+        }
         const bool tp = v.kind == Verdict::Kind::kTruePositive;
         std::snprintf(buf, sizeof buf, ",%d,%.6f,%d,%s,%s,%s,%d", p.will_restart ? 1 : 0, p.t_restart_s,
                       p.direction, verdict_name(v.kind), tp ? std::to_string(v.error_s * 1e3).c_str() : "",
@@ -827,8 +852,8 @@ int run(int argc, char** argv) {
       }
       // --online: 1 when the stop was forecast on a stiction bound online learning had not
       // identified yet (pneud's summary counts these), 0 otherwise; empty without --online.
-      if (online) os << ',' << (r.truth[k].on_configured_bound ? 1 : 0);
-      else os << ',';
+      if (online) os << ',' << (r.truth[k].on_configured_bound ? 1 : 0) << ',' << (on_slow_side ? 1 : 0);
+      else os << ",,";
       os << '\n';
     }
   }
@@ -1135,6 +1160,14 @@ int run(int argc, char** argv) {
                   static_cast<unsigned long long>(st.fp + st.fn - st.unlearned_side_wrong), all[0] - within[0],
                   all[1] - within[1], all[2] - within[2],
                   st.long_error_pct.size() - st.unlearned_side_long_error_pct.size());
+      // Across both: the stops on a side the bench had broken away to slowly.
+      const auto slow = within_2_5_10(st.slow_side_long_error_pct);
+      std::printf("    --online, judged stops on a side the bench had already broken away to after >= %.1f s stuck (a slow "
+                  "breakaway): %llu, verdict wrong on %llu; sticking >= 0.5 s within 2 %%: %zu, 5 %%: %zu, 10 %%: %zu "
+                  "of %zu\n",
+                  kLongSticking_s, static_cast<unsigned long long>(st.slow_side),
+                  static_cast<unsigned long long>(st.slow_side_wrong), slow[0], slow[1], slow[2],
+                  st.slow_side_long_error_pct.size());
     }
     print_halfway(st);
   }
