@@ -1,6 +1,6 @@
 // Identification of the bench from its own signals (position, both chamber pressures, the voltage
 // u the loop sent): what a bench is, rather than what its datasheet says. Pure computation on a
-// recorded trajectory; no I/O, no threads. The estimators (docs/identification.md):
+// recorded trajectory; no I/O, no threads. The estimators (docs/model.md, section 10):
 //   - stiction F_S+ and F_S- from the breakaways (Eq. 15): the force just before the carriage
 //     moved, and every force it held while stuck (a lower bound on F_S+, an upper one on F_S-);
 //   - Coulomb friction and viscous coefficient from the sliding phases (Eq. 3, F_f = F - M a);
