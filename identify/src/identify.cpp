@@ -28,6 +28,8 @@ constexpr std::array<const char*, 13> kKeys = [] {
   k[12] = "plant.mass_kg";
   return k;
 }();
+// Where the valve fit's parameters lie in kKeys (and in Identification::estimates).
+constexpr std::size_t kFirstValveFitKey = 5;
 
 // A dated breakaway's weight is 1 / (how far the force had moved on + this)^2 [N].
 constexpr double kOnsetWeightFloor_n = 0.05;
@@ -382,6 +384,12 @@ Sliding sliding_from(std::span<const Sample> s, std::span<const double> force, s
 
 std::span<const char* const> identified_keys() noexcept { return kKeys; }
 
+bool from_the_valve_fit(std::string_view key) noexcept {
+  for (std::size_t i = kFirstValveFitKey; i < kFirstValveFitKey + detail::kValveFitParams; ++i)
+    if (key == kKeys[i]) return true;
+  return false;
+}
+
 double largest_null_pressure_difference_pa(const model::PlantParams& a, const model::PlantParams& b, double u_max_v) {
   const model::ValveModel va(a.valve, a.gas), vb(b.valve, b.gas);
   double worst = 0.0;
@@ -588,7 +596,7 @@ Identification identify(std::span<const Sample> s, const model::PlantParams& pri
                            vf.plant.valve.leak_conductance_out_m3_per_s_pa, vf.plant.valve.null_offset_v,
                            vf.plant.geometry.dead_volume_p_m3, vf.plant.geometry.dead_volume_n_m3};
   for (std::size_t i = 0; i < detail::kValveFitParams; ++i) {
-    Estimate e{kKeys[5 + i], priors[i], values[i], vf.std[i], vf.identified[i], vf.basis[i]};
+    Estimate e{kKeys[kFirstValveFitKey + i], priors[i], values[i], vf.std[i], vf.identified[i], vf.basis[i]};
     if (e.identified)
       e.basis = format("%d stuck phases over %.0f mm, u over %.3f V", vf.phases, ev.stuck_position_span_m * 1e3,
                        ev.voltage_span_v);

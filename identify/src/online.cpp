@@ -87,8 +87,7 @@ void OnlineIdentifier::update(double t_s) {
       Estimate& running = estimate_.estimates[i];
       const Estimate& latest = id.estimates[i];
       // One still not identified says why in this window's words, where this window tried it.
-      const bool valve_or_volume = latest.key.starts_with("plant.valve.") || latest.key.starts_with("plant.geometry.");
-      const bool tried = o.fit_valves || !valve_or_volume;
+      const bool tried = o.fit_valves || !from_the_valve_fit(latest.key);
       if (latest.identified) {
         running = latest;
       } else if (!running.identified && tried) {

@@ -15,6 +15,7 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "pneu/model/params.hpp"
@@ -127,5 +128,9 @@ class InsufficientData : public std::runtime_error {
 
 /// The keys of the parameters identify() estimates, in the order of Identification::estimates.
 [[nodiscard]] std::span<const char* const> identified_keys() noexcept;
+
+/// Whether the valve fit estimates `key` (the valves' conductances and null offset, the dead
+/// volumes): Options::fit_valves false leaves those at the prior, "not refitted".
+[[nodiscard]] bool from_the_valve_fit(std::string_view key) noexcept;
 
 }  // namespace pneu::identify
