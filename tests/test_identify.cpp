@@ -476,12 +476,40 @@ std::size_t key_index(const char* key) {
       keys.begin());
 }
 
+// Every valve and volume parameter that the updates of `r` published as identified lies within 3 of
+// its stated sigmas of the bench's; returns how many were published.
+int valve_parameters_within_3_sigma(const OnlineRun& r, const model::PlantParams& bench, int scenario) {
+  const std::pair<const char*, double> valves[] = {
+      {"plant.valve.max_conductance_m3_per_s_pa", bench.valve.max_conductance_m3_per_s_pa},
+      {"plant.valve.leak_conductance_in_m3_per_s_pa", bench.valve.leak_conductance_in_m3_per_s_pa},
+      {"plant.valve.leak_conductance_out_m3_per_s_pa", bench.valve.leak_conductance_out_m3_per_s_pa},
+      {"plant.valve.null_offset_v", bench.valve.null_offset_v},
+      {"plant.geometry.dead_volume_p_m3", bench.geometry.dead_volume_p_m3},
+      {"plant.geometry.dead_volume_n_m3", bench.geometry.dead_volume_n_m3}};
+  int published = 0;
+  for (const auto& u : r.updates)
+    for (const auto& [key, truth] : valves) {
+      const std::size_t i = key_index(key);
+      if (!u.identified[i]) continue;
+      ++published;
+      // The conductances and volumes are fitted as logarithms: their sigma is relative.
+      const bool offset = std::string(key) == "plant.valve.null_offset_v";
+      const double error_in_sigmas = offset ? std::abs(u.value[i] - truth) / u.sigma[i]
+                                            : std::abs(std::log(u.value[i] / truth)) / (u.sigma[i] / u.value[i]);
+      EXPECT_LE(error_in_sigmas, 3.0) << "scenario " << scenario << ", " << key << " at " << u.t_s
+                                      << " s: " << u.value[i] << " +- " << u.sigma[i] << ", bench " << truth;
+    }
+  return published;
+}
+
 // Scenario 190 with hil.yaml's sensors: a step from -130 mm to 208 mm, near the stroke's end, where
 // the carriage sticks for half a second at a time. The valve fit is not convex: started from the
 // configured model alone, the fit over these stuck phases settled on a null offset of 27 to 50 mV
 // for this bench's 92 mV (and dead volumes 40 % low) from 2.5 s to 4 s, and the long sticking phase
 // at 3.35 s was forecast 72 % off. Started from an earlier fit too (the running estimate first,
-// now the last fit with every parameter free), it keeps what it had identified.
+// now the last fit with every parameter free), it keeps what it had identified: the null offset
+// and V_P0, where identified, within 3 of their stated sigmas of the bench's (the offset's sigma
+// is 10 mV at most, or it is not identified).
 TEST(OnlineIdentification, KeepsTheValvesItIdentifiedNearTheStrokesEndWithHilSensors) {
   const config::Config cfg =
       config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", {"hal.backend=sim"});
@@ -496,11 +524,12 @@ TEST(OnlineIdentification, KeepsTheValvesItIdentifiedNearTheStrokesEndWithHilSen
   for (const auto& u : r.updates) {
     if (!u.identified[offset]) continue;
     ++identified;
-    EXPECT_NEAR(u.value[offset], bench.valve.null_offset_v, 0.005)
+    EXPECT_NEAR(u.value[offset], bench.valve.null_offset_v, 3.0 * u.sigma[offset])
         << "the update at " << u.t_s << " s";
-    EXPECT_NEAR(u.value[volume_p], bench.geometry.dead_volume_p_m3,
-                0.1 * bench.geometry.dead_volume_p_m3)
-        << "the update at " << u.t_s << " s";
+    if (u.identified[volume_p]) {
+      EXPECT_NEAR(u.value[volume_p], bench.geometry.dead_volume_p_m3, 3.0 * u.sigma[volume_p])
+          << "the update at " << u.t_s << " s";
+    }
   }
   EXPECT_GE(identified, 5) << "of " << r.updates.size() << " updates";
   EXPECT_LE(r.judged.worst_percent, 5.0) << r.judged.long_restarts << " long restarts";
@@ -660,28 +689,8 @@ TEST(OnlineIdentification,
        -0.059058664308763387, 0.14973}};
   for (const Scenario& sc : scenarios) {
     const model::PlantParams bench = sweep_bench(cfg.plant, sc.bench);
-    const std::pair<const char*, double> valves[] = {
-        {"plant.valve.max_conductance_m3_per_s_pa", bench.valve.max_conductance_m3_per_s_pa},
-        {"plant.valve.leak_conductance_in_m3_per_s_pa", bench.valve.leak_conductance_in_m3_per_s_pa},
-        {"plant.valve.leak_conductance_out_m3_per_s_pa", bench.valve.leak_conductance_out_m3_per_s_pa},
-        {"plant.valve.null_offset_v", bench.valve.null_offset_v},
-        {"plant.geometry.dead_volume_p_m3", bench.geometry.dead_volume_p_m3},
-        {"plant.geometry.dead_volume_n_m3", bench.geometry.dead_volume_n_m3}};
     const OnlineRun r = learn_online(cfg, bench, sc.y0_m, sc.y_d_m, 6.0);
-    int published = 0;
-    for (const auto& u : r.updates)
-      for (const auto& [key, truth] : valves) {
-        const std::size_t i = key_index(key);
-        if (!u.identified[i]) continue;
-        ++published;
-        // The conductances and volumes are fitted as logarithms: their sigma is relative.
-        const bool offset = std::string(key) == "plant.valve.null_offset_v";
-        const double error_in_sigmas = offset ? std::abs(u.value[i] - truth) / u.sigma[i]
-                                              : std::abs(std::log(u.value[i] / truth)) / (u.sigma[i] / u.value[i]);
-        EXPECT_LE(error_in_sigmas, 3.0) << "scenario " << sc.number << ", " << key << " at " << u.t_s
-                                        << " s: " << u.value[i] << " +- " << u.sigma[i] << ", bench " << truth;
-      }
-    EXPECT_GE(published, 4) << "scenario " << sc.number;
+    EXPECT_GE(valve_parameters_within_3_sigma(r, bench, sc.number), 4) << "scenario " << sc.number;
     ASSERT_FALSE(r.updates.empty());
     EXPECT_TRUE(r.updates.back().identified[key_index("plant.valve.null_offset_v")])
         << "scenario " << sc.number << ": the null offset";
@@ -693,6 +702,61 @@ TEST(OnlineIdentification,
       EXPECT_EQ(volume_p.basis.find("not refitted"), std::string::npos) << volume_p.basis;
     }
   }
+}
+
+// Scenarios 1, 32, 53, 55 and 61 of the 1000-step sweep with hil.yaml's sensors (few stuck phases,
+// near the stroke's ends). Each phase's integration starts from its first readings, whose noise
+// (20 Pa) stays in the phase for seconds: fitted with those starts taken as exact, the valves and
+// dead volumes absorbed it, and scenario 1 published C_max, both leaks and both dead volumes 6 to 8
+// sigma off the bench (V_N0 1.5e-5 +- 0.09e-5 for 0.95e-5); 53 and 61, the dead volumes and the
+// null offset 6 to 11 sigma off. The starts are now fitted too. And the last milliseconds of a
+// phase that a slow breakaway ends, where the carriage already moves within the rest band
+// (scenario 32, 36 mm from the stroke's end): taken for still, they put V_N0 120 sigma off; the
+// valve fit now stops where the breakaway's onset could begin.
+TEST(OnlineIdentification, EveryValveParameterPublishedStatesAnUncertaintyThatCoversItsErrorWithHilSensors) {
+  const config::Config cfg =
+      config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", {"hal.backend=sim"});
+  struct Scenario {
+    int number;
+    std::array<double, 11> bench;
+    double y0_m, y_d_m;
+  };
+  const Scenario scenarios[] = {
+      {1,
+       {38.752116412819461, 38.752116412819461, -41.704946085707007, -41.704946085707007, 66.696933592672522,
+        1.7672412535693666e-08, 7.7766762437047888e-10, 1.0612277370014462e-09, 1.1702829800241265e-05,
+        9.4737201434766173e-06, 0.087889106718404761},
+       -0.2203288549283056, -0.22931},
+      {53,
+       {39.685631453417649, 34.138159394842738, -43.42933592754526, -42.307994930347263, 51.272693982607848,
+        1.6111667532841367e-08, 9.1569783969897806e-10, 1.1973741732160277e-09, 8.9857325051106241e-06,
+        9.5152922484308569e-06, -0.095785610995236858},
+       -0.1869507477093554, -0.20539000000000002},
+      {61,
+       {48.442782837349938, 38.763723565685673, -53.372626193848504, -41.752564712203117, 62.018749183214567,
+        1.7437087755518966e-08, 7.3044077520368976e-10, 1.045120883911704e-09, 9.9370060787503858e-06,
+        9.240420922463371e-06, -0.028911167589706022},
+       -0.1331981639528442, -0.20171},
+      {32,
+       {45.195654629703427, 31.315625290937497, -59.980321542393014, -45.060189600871425, 58.779546004359098,
+        1.5799011317451837e-08, 8.6573247122896437e-10, 1.1554751008993601e-09, 9.1163520302343735e-06,
+        9.6786765405316142e-06, 0.040603675917871396},
+       0.18040025439248628, -0.21505000000000002},
+      {55,
+       {47.616345475019131, 34.366146219959205, -41.533342091385379, -35.557826908071917, 64.129705076225378,
+        1.863584650985745e-08, 6.5163243403772336e-10, 1.1660554438246244e-09, 1.0356000799871654e-05,
+        8.749679398242333e-06, 0.080390767879992664},
+       -0.21518234735090214, -0.20447}};
+  int published = 0;
+  for (const Scenario& sc : scenarios) {
+    const model::PlantParams bench = sweep_bench(config::simulated_bench(cfg), sc.bench);
+    const OnlineRun r = learn_online(cfg, bench, sc.y0_m, sc.y_d_m, 12.0);
+    published += valve_parameters_within_3_sigma(r, bench, sc.number);
+    // What the summary prints: the last valve fit's figures, also where the last window fitted none.
+    EXPECT_GT(r.estimate.evidence.fitted_phases, 0) << "scenario " << sc.number;
+    EXPECT_GT(r.estimate.evidence.pressure_rms_residual_pa, 15.0) << "scenario " << sc.number << ": 20 Pa of noise";
+  }
+  EXPECT_GE(published, 20);
 }
 
 // Scenario 175 with hil.yaml's sensors: the set-point step's breakaway, the force rising at 4000 N/s,

@@ -75,6 +75,31 @@ struct Stiction {
   double held_positive_n = 0.0, held_negative_n = 0.0;  // the forces held alone (Evidence)
 };
 
+// The last sample of a phase's still part that the valve fit takes: within a rest band, before
+// the onset of the breakaway that ends it could have begun. In the last milliseconds before a
+// slow breakaway shows, the carriage already moves within the band, and the chambers' volumes with
+// it (10 um near the stroke's end changes a pressure by tens of pascals, which a fit of the valves
+// takes for theirs). The onset hides for onset_s at the force's rate over the phase's last 50 ms
+// (least squares): the breakaway's own, slow after a drift, fast after a set-point step.
+std::size_t valve_fit_last(std::span<const Sample> s, std::span<const double> force, const StuckPhase& p,
+                           double mass_kg, const Options& o) {
+  if (o.rest_band_m <= 0.0 || !p.breakaway) return p.still_last;  // an ideal sensor's still part is still
+  const std::size_t from = index_before(s, p.first, p.last, 0.05);
+  double n = 0.0, st = 0.0, sf = 0.0, stt = 0.0, stf = 0.0;
+  for (std::size_t k = from; k <= p.last; ++k) {
+    const double t = s[k].t_s - s[p.last].t_s;
+    n += 1.0;
+    st += t;
+    sf += force[k];
+    stt += t * t;
+    stf += t * force[k];
+  }
+  const double den = n * stt - st * st;
+  const double rate = den > 0.0 ? (n * stf - st * sf) / den : 0.0;
+  const double onset = onset_s(mass_kg, o.rest_band_m, std::abs(rate), 0.2);
+  return std::min(p.still_last, index_before(s, p.first, p.last, onset));
+}
+
 Stiction stiction_from(std::span<const Sample> s, std::span<const double> force, std::span<const StuckPhase> phases,
                        double mass_kg, const Options& o) {
   Stiction st;
@@ -569,7 +594,9 @@ Identification identify(std::span<const Sample> s, const model::PlantParams& pri
   // The valves and the dead volumes from the stuck phases' pressure transients (Eq. 19).
   detail::ValveFit vf;
   if (o.fit_valves) {
-    vf = detail::fit_valves(s, phases, id.plant, o);
+    std::vector<StuckPhase> still(phases.begin(), phases.end());
+    for (StuckPhase& p : still) p.still_last = valve_fit_last(s, force, p, prior.mass_kg, o);
+    vf = detail::fit_valves(s, still, id.plant, o);
   } else {
     vf.plant = id.plant;
     vf.phases = -1;

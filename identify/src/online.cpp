@@ -95,7 +95,14 @@ void OnlineIdentifier::update(double t_s) {
         running.value = running.prior;
       }
     }
+    // The valve fit's own figures stay the last fit's where this window did not refit.
+    const Evidence last_fit = estimate_.evidence;
     estimate_.evidence = id.evidence;
+    if (!o.fit_valves) {
+      estimate_.evidence.fitted_phases = last_fit.fitted_phases;
+      estimate_.evidence.pressure_rms_residual_pa = last_fit.pressure_rms_residual_pa;
+      estimate_.evidence.command_delay_samples = last_fit.command_delay_samples;
+    }
   }
   // The running plant: the prior with every estimate's value.
   model::PlantParams p = prior_;

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <optional>
 #include <vector>
 
@@ -88,57 +89,98 @@ struct Chamber {
   }
 };
 
+// Each phase's integration starts from its first measured pressures, which carry the sensor's
+// noise: with a chamber's time constant of seconds, an error there stays in every later sample of
+// the phase, one error per phase and chamber that the valve parameters would otherwise absorb (with
+// hil.yaml's sensors, C_max and both dead volumes 7 to 8 sigma off the bench). The fit estimates
+// those starts too: z, one per phase and chamber (P, N), the start's correction in units of
+// kPressureNoiseFloor_pa, with a prior of 0 +- 1.
 class Problem {
  public:
   // `delay`: the samples between a command's record and the valves acting on it (a bus's).
   Problem(std::span<const Sample> s, std::vector<FitPhase> phases, const model::PlantParams& prior, std::size_t delay)
       : s_(s), phases_(std::move(phases)), prior_(prior), delay_(delay) {
-    for (const auto& p : phases_) size_ += 2 * static_cast<Eigen::Index>(p.observed.size());
+    for (const auto& p : phases_) {
+      rows_.push_back(size_);
+      size_ += 2 * static_cast<Eigen::Index>(p.observed.size());
+    }
+    rows_.push_back(size_);
   }
   [[nodiscard]] Eigen::Index size() const noexcept { return size_; }
+  /// The starts' corrections: two per phase (P, N).
+  [[nodiscard]] Eigen::Index starts() const noexcept { return 2 * static_cast<Eigen::Index>(phases_.size()); }
+  /// The start a row depends on: phase j's rows alternate P (2j) and N (2j + 1).
+  [[nodiscard]] Eigen::Index start_of_row(Eigen::Index row) const noexcept {
+    const auto j = std::upper_bound(rows_.begin(), rows_.end(), row) - rows_.begin() - 1;
+    return 2 * j + (row - rows_[static_cast<std::size_t>(j)]) % 2;
+  }
 
   // Measured minus Eq. 19's pressures at every observed sample, P then N [Pa].
-  [[nodiscard]] Eigen::VectorXd residuals(const Theta& th) const {
+  [[nodiscard]] Eigen::VectorXd residuals(const Theta& th, const Eigen::VectorXd& z) const {
     const model::PlantParams p = applied(prior_, th);
     const model::ValveModel valve(p.valve, p.gas);
-    const double c = p.gas.k_r_t();
     Eigen::VectorXd r(size_);
-    Eigen::Index row = 0;
-    for (const FitPhase& ph : phases_) {
-      const Chamber cp{&valve, c / p.geometry.volume_p_m3(ph.y_m)};
-      const Chamber cn{&valve, c / p.geometry.volume_n_m3(ph.y_m)};
-      double pp = s_[ph.first].p_p_pa, pn = s_[ph.first].p_n_pa;
-      std::size_t k = ph.first;
-      for (const std::size_t obs : ph.observed) {
-        // Each u holds from its sample to the next (the command of a tick until the next tick).
-        // The valves act on the command recorded `delay_` samples before (within the phase).
-        const auto u_at = [&](std::size_t i) { return s_[i >= ph.first + delay_ ? i - delay_ : ph.first].u_v; };
-        while (k < obs) {
-          std::size_t j = k + 1;
-          while (j < obs && u_at(j) == u_at(k)) ++j;
-          const double h = s_[j].t_s - s_[k].t_s;
-          pp = cp.advance(u_at(k), pp, h);
-          pn = cn.advance(-u_at(k), pn, h);
-          k = j;
-        }
-        r[row++] = s_[obs].p_p_pa - pp;
-        r[row++] = s_[obs].p_n_pa - pn;
-      }
-    }
+    for (std::size_t j = 0; j < phases_.size(); ++j) phase_residuals(p, valve, j, z, r);
     return r;
+  }
+  // d(residual)/d(z of its row's start), row by row: each row depends on one start alone.
+  [[nodiscard]] Eigen::VectorXd start_derivatives(const Theta& th, const Eigen::VectorXd& z) const {
+    const model::PlantParams p = applied(prior_, th);
+    const model::ValveModel valve(p.valve, p.gas);
+    constexpr double h = 0.5;  // [noise floors]: the start's effect is close to linear
+    Eigen::VectorXd up(size_), down(size_);
+    for (std::size_t j = 0; j < phases_.size(); ++j) {
+      Eigen::VectorXd zu = z, zd = z;
+      for (const Eigen::Index c : {2 * static_cast<Eigen::Index>(j), 2 * static_cast<Eigen::Index>(j) + 1}) {
+        zu[c] += h;
+        zd[c] -= h;
+      }
+      phase_residuals(p, valve, j, zu, up);
+      phase_residuals(p, valve, j, zd, down);
+    }
+    return (up - down) / (2.0 * h);
   }
 
  private:
+  void phase_residuals(const model::PlantParams& p, const model::ValveModel& valve, std::size_t j,
+                       const Eigen::VectorXd& z, Eigen::VectorXd& r) const {
+    const FitPhase& ph = phases_[j];
+    const double c = p.gas.k_r_t();
+    const Chamber cp{&valve, c / p.geometry.volume_p_m3(ph.y_m)};
+    const Chamber cn{&valve, c / p.geometry.volume_n_m3(ph.y_m)};
+    const auto zj = static_cast<Eigen::Index>(2 * j);
+    double pp = s_[ph.first].p_p_pa + z[zj] * kPressureNoiseFloor_pa;
+    double pn = s_[ph.first].p_n_pa + z[zj + 1] * kPressureNoiseFloor_pa;
+    std::size_t k = ph.first;
+    Eigen::Index row = rows_[j];
+    for (const std::size_t obs : ph.observed) {
+      // Each u holds from its sample to the next (the command of a tick until the next tick).
+      // The valves act on the command recorded `delay_` samples before (within the phase).
+      const auto u_at = [&](std::size_t i) { return s_[i >= ph.first + delay_ ? i - delay_ : ph.first].u_v; };
+      while (k < obs) {
+        std::size_t next = k + 1;
+        while (next < obs && u_at(next) == u_at(k)) ++next;
+        const double h = s_[next].t_s - s_[k].t_s;
+        pp = cp.advance(u_at(k), pp, h);
+        pn = cn.advance(-u_at(k), pn, h);
+        k = next;
+      }
+      r[row++] = s_[obs].p_p_pa - pp;
+      r[row++] = s_[obs].p_n_pa - pn;
+    }
+  }
+
   std::span<const Sample> s_;
   std::vector<FitPhase> phases_;
   model::PlantParams prior_;
   std::size_t delay_ = 0;
   Eigen::Index size_ = 0;
+  std::vector<Eigen::Index> rows_;  // each phase's first row, then size_
 };
 
 struct Solution {
   Theta theta;
-  Eigen::Matrix<double, kValveFitParams, kValveFitParams> covariance;
+  Eigen::Matrix<double, kValveFitParams, kValveFitParams> covariance;  // with the starts' uncertainty in it
   double rms_pa = 0.0;
   double cost = 0.0;  // the data's and the prior's, in their standard deviations (what is minimised)
 };
@@ -152,9 +194,11 @@ constexpr double kPriorSpreadNullOffset_v = 0.1;
 
 double prior_spread(std::size_t i) { return i == kNullOffset ? kPriorSpreadNullOffset_v : kPriorSpreadLog; }
 
-// Levenberg-Marquardt on the free parameters (numerical Jacobian by central differences) for the
-// measured pressures, at kPressureNoiseFloor_pa, and the prior; the posterior covariance, scaled
-// up when the residual is noisier than the floor.
+// Levenberg-Marquardt on the free parameters and the phases' starts (numerical Jacobian by central
+// differences) for the measured pressures, at kPressureNoiseFloor_pa, and the priors; the
+// posterior covariance of the parameters (the starts' uncertainty marginalised), scaled up when
+// the residual is noisier than the floor. Each row depends on one start alone, so the normal
+// equations are formed without the starts' columns in full.
 Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& prior,
                              const std::array<bool, kValveFitParams>& free) {
   std::vector<std::size_t> idx;
@@ -162,44 +206,81 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
     if (free[i]) idx.push_back(i);
   const auto nf = static_cast<Eigen::Index>(idx.size());
   const auto m = problem.size();
+  const auto nz = problem.starts();
+  const auto n = nf + nz;
   const double noise = kPressureNoiseFloor_pa;
-  // The residuals: the measurements' (weighted by the noise), then the prior's.
-  const auto residuals = [&](const Theta& th) {
-    Eigen::VectorXd r(m + nf);
-    r.head(m) = problem.residuals(th) / noise;
-    for (Eigen::Index c = 0; c < nf; ++c) {
-      const std::size_t i = idx[static_cast<std::size_t>(c)];
-      r[m + c] = (th[static_cast<Eigen::Index>(i)] - prior[static_cast<Eigen::Index>(i)]) / prior_spread(i);
-    }
-    return r;
+  std::vector<Eigen::Index> start_of(static_cast<std::size_t>(m));
+  for (Eigen::Index row = 0; row < m; ++row) start_of[static_cast<std::size_t>(row)] = problem.start_of_row(row);
+  Eigen::VectorXd z = Eigen::VectorXd::Zero(nz);
+  // The data's residuals, weighted by the noise.
+  const auto residuals = [&](const Theta& th, const Eigen::VectorXd& zz) {
+    return Eigen::VectorXd(problem.residuals(th, zz) / noise);
   };
-  const auto jacobian = [&](const Theta& th) {
-    Eigen::MatrixXd j(m + nf, nf);
+  const auto prior_cost = [&](const Theta& th, const Eigen::VectorXd& zz) {
+    double c = zz.squaredNorm();
+    for (const std::size_t i : idx) {
+      const auto d = static_cast<Eigen::Index>(i);
+      c += std::pow((th[d] - prior[d]) / prior_spread(i), 2);
+    }
+    return c;
+  };
+  // The normal equations' matrix (data only) and gradient at (th, zz), from the data's residuals r.
+  struct Normal {
+    Eigen::MatrixXd a;
+    Eigen::VectorXd g;
+  };
+  const auto normal = [&](const Theta& th, const Eigen::VectorXd& zz, const Eigen::VectorXd& r) {
+    Eigen::MatrixXd jt(m, nf);
     for (Eigen::Index c = 0; c < nf; ++c) {
-      const std::size_t i = idx[static_cast<std::size_t>(c)];
+      const auto i = static_cast<Eigen::Index>(idx[static_cast<std::size_t>(c)]);
       constexpr double h = 1.0e-5;
       Theta up = th, down = th;
-      up[static_cast<Eigen::Index>(i)] += h;
-      down[static_cast<Eigen::Index>(i)] -= h;
-      j.col(c) = (residuals(up) - residuals(down)) / (2.0 * h);
+      up[i] += h;
+      down[i] -= h;
+      jt.col(c) = (residuals(up, zz) - residuals(down, zz)) / (2.0 * h);
     }
-    return j;
+    const Eigen::VectorXd jz = problem.start_derivatives(th, zz) / noise;
+    Normal out{Eigen::MatrixXd::Zero(n, n), Eigen::VectorXd::Zero(n)};
+    out.a.topLeftCorner(nf, nf) = jt.transpose() * jt;
+    out.g.head(nf) = jt.transpose() * r;
+    for (Eigen::Index row = 0; row < m; ++row) {
+      const Eigen::Index c = nf + start_of[static_cast<std::size_t>(row)];
+      out.a(c, c) += jz[row] * jz[row];
+      out.g[c] += jz[row] * r[row];
+      for (Eigen::Index q = 0; q < nf; ++q) out.a(q, c) += jt(row, q) * jz[row];
+    }
+    out.a.bottomLeftCorner(nz, nf) = out.a.topRightCorner(nf, nz).transpose();
+    return out;
   };
-  Eigen::VectorXd r = residuals(theta);
-  double cost = r.squaredNorm();
+  // The priors' share of the normal equations.
+  const auto with_priors = [&](Normal nm, const Theta& th, const Eigen::VectorXd& zz) {
+    for (Eigen::Index c = 0; c < nf; ++c) {
+      const std::size_t i = idx[static_cast<std::size_t>(c)];
+      const double w = 1.0 / (prior_spread(i) * prior_spread(i));
+      nm.a(c, c) += w;
+      nm.g[c] += w * (th[static_cast<Eigen::Index>(i)] - prior[static_cast<Eigen::Index>(i)]);
+    }
+    for (Eigen::Index c = 0; c < nz; ++c) {
+      nm.a(nf + c, nf + c) += 1.0;
+      nm.g[nf + c] += zz[c];
+    }
+    return nm;
+  };
+  Eigen::VectorXd r = residuals(theta, z);
+  double cost = r.squaredNorm() + prior_cost(theta, z);
   double lambda = 1.0e-3;
-  Eigen::MatrixXd j = jacobian(theta);
-  for (int iteration = 0; iteration < 100 && nf > 0; ++iteration) {
-    const Eigen::MatrixXd a = j.transpose() * j;
-    const Eigen::VectorXd g = j.transpose() * r;
+  Normal nm = normal(theta, z, r);
+  for (int iteration = 0; iteration < 100 && n > 0; ++iteration) {
+    const Normal full = with_priors(nm, theta, z);
     bool improved = false;
     for (int tries = 0; tries < 12 && !improved; ++tries) {
-      Eigen::MatrixXd damped = a;
-      for (Eigen::Index d = 0; d < nf; ++d) damped(d, d) += lambda * std::max(a(d, d), 1e-30);
-      Eigen::VectorXd step = damped.ldlt().solve(-g);
+      Eigen::MatrixXd damped = full.a;
+      for (Eigen::Index d = 0; d < n; ++d) damped(d, d) += lambda * std::max(full.a(d, d), 1e-30);
+      Eigen::VectorXd step = damped.ldlt().solve(-full.g);
       // A trust region: no parameter moves by more than its prior's spread in one step. A long
       // Gauss-Newton step can take the dead volumes far below the swept volume at once, where the
-      // pressures no longer depend on them and the search stalls.
+      // pressures no longer depend on them and the search stalls. (Not the starts: they act almost
+      // linearly.)
       for (Eigen::Index c = 0; c < nf; ++c) {
         const double limit = prior_spread(idx[static_cast<std::size_t>(c)]);
         if (std::abs(step[c]) > limit) step *= limit / std::abs(step[c]);
@@ -207,16 +288,18 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
       Theta trial = theta;
       for (Eigen::Index c = 0; c < nf; ++c) trial[static_cast<Eigen::Index>(idx[static_cast<std::size_t>(c)])] += step[c];
       trial[kNullOffset] = std::clamp(trial[kNullOffset], -5.0, 5.0);
-      const Eigen::VectorXd rt = residuals(trial);
-      const double ct = rt.squaredNorm();
+      const Eigen::VectorXd trial_z = z + step.tail(nz);
+      const Eigen::VectorXd rt = residuals(trial, trial_z);
+      const double ct = rt.squaredNorm() + prior_cost(trial, trial_z);
       if (std::isfinite(ct) && ct < cost) {
         const double gain = (cost - ct) / cost;
         theta = trial;
+        z = trial_z;
         r = rt;
         cost = ct;
         lambda = std::max(lambda / 3.0, 1e-12);
         improved = true;
-        j = jacobian(theta);
+        nm = normal(theta, z, r);
         if (gain < 1e-12) iteration = 1000;  // converged
       } else {
         lambda *= 4.0;
@@ -227,16 +310,15 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
   Solution sol;
   sol.theta = theta;
   sol.covariance.setZero();
-  const double data_cost = r.head(m).squaredNorm() * noise * noise;
+  const double data_cost = r.squaredNorm() * noise * noise;
   sol.rms_pa = m > 0 ? std::sqrt(data_cost / static_cast<double>(m)) : 0.0;
   sol.cost = cost;
   if (nf > 0) {
     // Residuals noisier than the floor: the data's information is that much less.
     const double scale = std::max(1.0, (sol.rms_pa / noise) * (sol.rms_pa / noise));
-    Eigen::MatrixXd info = j.topRows(m).transpose() * j.topRows(m) / scale;
-    for (Eigen::Index c = 0; c < nf; ++c) info(c, c) += 1.0 / (prior_spread(idx[static_cast<std::size_t>(c)]) *
-                                                               prior_spread(idx[static_cast<std::size_t>(c)]));
-    const Eigen::MatrixXd cov = info.inverse();
+    Normal info{nm.a / scale, Eigen::VectorXd::Zero(n)};
+    info = with_priors(info, prior, Eigen::VectorXd::Zero(nz));  // (the gradient is not used)
+    const Eigen::MatrixXd cov = info.a.inverse();
     for (Eigen::Index a_ = 0; a_ < nf; ++a_)
       for (Eigen::Index b_ = 0; b_ < nf; ++b_)
         sol.covariance(static_cast<Eigen::Index>(idx[static_cast<std::size_t>(a_)]),

@@ -34,7 +34,9 @@ class OnlineIdentifier final : public controller::RunListener {
   void on_event(const controller::LoopEvent& event) override;
   void on_forecast(const controller::ForecastRecord& forecast) override;
 
-  /// The running estimate: the configuration's plant: until the first update.
+  /// The running estimate: the configuration's plant: until the first update. Its evidence is the
+  /// last window's, but for the valve fit's figures (phases fitted, residual, command delay): the
+  /// last window's that refitted the valves.
   [[nodiscard]] const Identification& estimate() const noexcept { return estimate_; }
   [[nodiscard]] int updates() const noexcept { return updates_; }
   /// Updates the window could not make (no breakaway, too little to fit), and the last reason.
