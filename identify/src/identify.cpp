@@ -76,14 +76,14 @@ struct Stiction {
 };
 
 // The last sample of a phase's still part that the valve fit takes: within a rest band, before
-// the onset of the breakaway that ends it could have begun. In the last milliseconds before a
+// the onset of the breakaway that ends it (or that the end of the record may hide) could have begun. In the last milliseconds before a
 // slow breakaway shows, the carriage already moves within the band, and the chambers' volumes with
 // it (10 um near the stroke's end changes a pressure by tens of pascals, which a fit of the valves
 // takes for theirs). The onset hides for onset_s at the force's rate over the phase's last 50 ms
 // (least squares): the breakaway's own, slow after a drift, fast after a set-point step.
 std::size_t valve_fit_last(std::span<const Sample> s, std::span<const double> force, const StuckPhase& p,
                            double mass_kg, const Options& o) {
-  if (o.rest_band_m <= 0.0 || !p.breakaway) return p.still_last;  // an ideal sensor's still part is still
+  if (o.rest_band_m <= 0.0) return p.still_last;  // an ideal sensor's still part is still
   const std::size_t from = index_before(s, p.first, p.last, 0.05);
   double n = 0.0, st = 0.0, sf = 0.0, stt = 0.0, stf = 0.0;
   for (std::size_t k = from; k <= p.last; ++k) {
@@ -133,10 +133,14 @@ Stiction stiction_from(std::span<const Sample> s, std::span<const double> force,
     const double onset = onset_at(rate);
     // Held: every sample before the onset could have begun, once the carriage has settled into
     // the phase (a turning point can look still for a few ms within a rest band), in phases long
-    // enough to be stuck for sure. The onset ends the phase at a breakaway, and also where the
+    // enough to be stuck for sure. The onset ends the phase at a breakaway; within a rest band, also
+    // at the end of the record (the carriage may have begun to move in its last milliseconds: a
+    // record that ended with the force rising at 24 N/s past F_S+ held 45.05 N for a bench's
+    // 44.50 N; an ideal sensor's still part ends at its first moved reading); and where the
     // carriage left its still part within the phase: a carriage creeping off at a millimetre per
     // second stays within the band of a reference that follows it, so the phase goes on.
-    std::size_t held_last = p.breakaway ? index_before(s, p.first, p.last, onset) : p.last;
+    const bool may_hide_onset = p.breakaway || o.rest_band_m > 0.0;
+    std::size_t held_last = may_hide_onset ? index_before(s, p.first, p.last, onset) : p.last;
     if (p.still_last < p.last)
       held_last = std::min(held_last, index_before(s, p.first, p.still_last, onset_at(rate_before(p.still_last))));
     // Only where the carriage stood still: a creeping carriage's force is a sliding one.
