@@ -94,12 +94,14 @@ struct Chamber {
 // the phase, one error per phase and chamber that the valve parameters would otherwise absorb (with
 // hil.yaml's sensors, C_max and both dead volumes 7 to 8 sigma off the bench). The fit estimates
 // those starts too: z, one per phase and chamber (P, N), the start's correction in units of
-// kPressureNoiseFloor_pa, with a prior of 0 +- 1.
+// kPressureNoiseFloor_pa, with a prior of 0 +- 1. Not for an ideal sensor's readings (no rest
+// band): they are the pressures.
 class Problem {
  public:
   // `delay`: the samples between a command's record and the valves acting on it (a bus's).
-  Problem(std::span<const Sample> s, std::vector<FitPhase> phases, const model::PlantParams& prior, std::size_t delay)
-      : s_(s), phases_(std::move(phases)), prior_(prior), delay_(delay) {
+  Problem(std::span<const Sample> s, std::vector<FitPhase> phases, const model::PlantParams& prior, std::size_t delay,
+          bool fit_starts)
+      : s_(s), phases_(std::move(phases)), prior_(prior), delay_(delay), fit_starts_(fit_starts) {
     for (const auto& p : phases_) {
       rows_.push_back(size_);
       size_ += 2 * static_cast<Eigen::Index>(p.observed.size());
@@ -108,7 +110,9 @@ class Problem {
   }
   [[nodiscard]] Eigen::Index size() const noexcept { return size_; }
   /// The starts' corrections: two per phase (P, N).
-  [[nodiscard]] Eigen::Index starts() const noexcept { return 2 * static_cast<Eigen::Index>(phases_.size()); }
+  [[nodiscard]] Eigen::Index starts() const noexcept {
+    return fit_starts_ ? 2 * static_cast<Eigen::Index>(phases_.size()) : 0;
+  }
   /// The start a row depends on: phase j's rows alternate P (2j) and N (2j + 1).
   [[nodiscard]] Eigen::Index start_of_row(Eigen::Index row) const noexcept {
     const auto j = std::upper_bound(rows_.begin(), rows_.end(), row) - rows_.begin() - 1;
@@ -149,8 +153,8 @@ class Problem {
     const Chamber cp{&valve, c / p.geometry.volume_p_m3(ph.y_m)};
     const Chamber cn{&valve, c / p.geometry.volume_n_m3(ph.y_m)};
     const auto zj = static_cast<Eigen::Index>(2 * j);
-    double pp = s_[ph.first].p_p_pa + z[zj] * kPressureNoiseFloor_pa;
-    double pn = s_[ph.first].p_n_pa + z[zj + 1] * kPressureNoiseFloor_pa;
+    double pp = s_[ph.first].p_p_pa + (fit_starts_ ? z[zj] * kPressureNoiseFloor_pa : 0.0);
+    double pn = s_[ph.first].p_n_pa + (fit_starts_ ? z[zj + 1] * kPressureNoiseFloor_pa : 0.0);
     std::size_t k = ph.first;
     Eigen::Index row = rows_[j];
     for (const std::size_t obs : ph.observed) {
@@ -174,6 +178,7 @@ class Problem {
   std::vector<FitPhase> phases_;
   model::PlantParams prior_;
   std::size_t delay_ = 0;
+  bool fit_starts_ = true;
   Eigen::Index size_ = 0;
   std::vector<Eigen::Index> rows_;  // each phase's first row, then size_
 };
@@ -209,8 +214,8 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
   const auto nz = problem.starts();
   const auto n = nf + nz;
   const double noise = kPressureNoiseFloor_pa;
-  std::vector<Eigen::Index> start_of(static_cast<std::size_t>(m));
-  for (Eigen::Index row = 0; row < m; ++row) start_of[static_cast<std::size_t>(row)] = problem.start_of_row(row);
+  std::vector<Eigen::Index> start_of(nz > 0 ? static_cast<std::size_t>(m) : 0);
+  for (Eigen::Index row = 0; nz > 0 && row < m; ++row) start_of[static_cast<std::size_t>(row)] = problem.start_of_row(row);
   Eigen::VectorXd z = Eigen::VectorXd::Zero(nz);
   // The data's residuals, weighted by the noise.
   const auto residuals = [&](const Theta& th, const Eigen::VectorXd& zz) {
@@ -239,10 +244,11 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
       down[i] -= h;
       jt.col(c) = (residuals(up, zz) - residuals(down, zz)) / (2.0 * h);
     }
-    const Eigen::VectorXd jz = problem.start_derivatives(th, zz) / noise;
     Normal out{Eigen::MatrixXd::Zero(n, n), Eigen::VectorXd::Zero(n)};
     out.a.topLeftCorner(nf, nf) = jt.transpose() * jt;
     out.g.head(nf) = jt.transpose() * r;
+    if (nz == 0) return out;
+    const Eigen::VectorXd jz = problem.start_derivatives(th, zz) / noise;
     for (Eigen::Index row = 0; row < m; ++row) {
       const Eigen::Index c = nf + start_of[static_cast<std::size_t>(row)];
       out.a(c, c) += jz[row] * jz[row];
@@ -358,7 +364,8 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
   free.fill(true);
   std::size_t delay = o.command_delay_samples >= 0 ? static_cast<std::size_t>(o.command_delay_samples) : 0;
   std::optional<Problem> problem;
-  problem.emplace(s, fit, prior, delay);
+  const bool fit_starts = o.rest_band_m > 0.0;
+  problem.emplace(s, fit, prior, delay, fit_starts);
   Solution all = levenberg_marquardt(*problem, prior_theta, prior_theta, free);
   // The fit is not convex: started from the prior it can settle in another minimum than from an
   // earlier fit (online, the last one with every parameter free). The lowest is kept; a start
@@ -372,7 +379,7 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
     if (from_start.cost < all.cost) all = from_start;
   }
   for (std::size_t d = 1; o.command_delay_samples < 0 && d <= kMaxCommandDelaySamples; ++d) {
-    Problem later(s, fit, prior, d);
+    Problem later(s, fit, prior, d, fit_starts);
     Solution fitted = levenberg_marquardt(later, all.theta, prior_theta, free);
     if (!(fitted.rms_pa < all.rms_pa)) break;
     all = fitted;
