@@ -75,12 +75,13 @@ struct Stiction {
   double held_positive_n = 0.0, held_negative_n = 0.0;  // the forces held alone (Evidence)
 };
 
-// The last sample of a phase's still part that the valve fit takes: within a rest band, before
-// the onset of the breakaway that ends it (or that the end of the record may hide) could have begun. In the last milliseconds before a
-// slow breakaway shows, the carriage already moves within the band, and the chambers' volumes with
-// it (10 um near the stroke's end changes a pressure by tens of pascals, which a fit of the valves
-// takes for theirs). The onset hides for onset_s at the force's rate over the phase's last 50 ms
-// (least squares): the breakaway's own, slow after a drift, fast after a set-point step.
+// The last sample of a phase's still part that the valve fit takes: within a rest band, before the
+// onset of the breakaway that ends it (or that the end of the record may hide) could have begun.
+// In the last milliseconds before a slow breakaway shows, the carriage already moves within the
+// band, and the chambers' volumes with it (10 um near the stroke's end changes a pressure by tens
+// of pascals, which a fit of the valves takes for theirs). The onset hides for onset_s at the
+// force's rate over the phase's last 50 ms (least squares): the breakaway's own, slow after a
+// drift, fast after a set-point step.
 std::size_t valve_fit_last(std::span<const Sample> s, std::span<const double> force, const StuckPhase& p,
                            double mass_kg, const Options& o) {
   if (o.rest_band_m <= 0.0) return p.still_last;  // an ideal sensor's still part is still

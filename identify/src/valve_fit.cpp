@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <optional>
 #include <vector>
 
@@ -215,7 +214,8 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
   const auto n = nf + nz;
   const double noise = kPressureNoiseFloor_pa;
   std::vector<Eigen::Index> start_of(nz > 0 ? static_cast<std::size_t>(m) : 0);
-  for (Eigen::Index row = 0; nz > 0 && row < m; ++row) start_of[static_cast<std::size_t>(row)] = problem.start_of_row(row);
+  for (Eigen::Index row = 0; nz > 0 && row < m; ++row)
+    start_of[static_cast<std::size_t>(row)] = problem.start_of_row(row);
   Eigen::VectorXd z = Eigen::VectorXd::Zero(nz);
   // The data's residuals, weighted by the noise.
   const auto residuals = [&](const Theta& th, const Eigen::VectorXd& zz) {
