@@ -498,6 +498,14 @@ TEST(IdentificationRun, TheRecordsLastMillisecondsMayHideAnOnsetAndHoldNoForceWi
   EXPECT_LE(id.evidence.held_positive_n, b.bench.friction.static_positive_n) << "no force beyond F_S+ held";
 }
 
+// A scenario of a `pneu-sweep --bench-spread 0.2` sweep: its number, its bench (the scenarios file's
+// bench_* columns, as sweep_bench takes them) and its step.
+struct Scenario {
+  int number;
+  std::array<double, 11> bench;
+  double y0_m, y_d_m;
+};
+
 // Every valve and volume parameter that the updates of `r` published as identified lies within 3 of
 // its stated sigmas of the bench's; returns how many were published.
 int valve_parameters_within_3_sigma(const OnlineRun& r, const model::PlantParams& bench, int scenario) {
@@ -693,11 +701,6 @@ TEST(OnlineIdentification, ForecastsOnTheValveFitWithEveryParameterFreeWithIdeal
 TEST(OnlineIdentification,
      EveryValveParameterPublishedStatesAnUncertaintyThatCoversItsErrorWithIdealSensors) {
   const config::Config cfg = config::load_string(config::default_config_yaml());
-  struct Scenario {
-    int number;
-    std::array<double, 11> bench;
-    double y0_m, y_d_m;
-  };
   const Scenario scenarios[] = {
       {457,
        {36.505422679388424, 32.266749448259901, -40.687360565726529, -40.687360565726529,
@@ -738,11 +741,6 @@ TEST(OnlineIdentification,
 TEST(OnlineIdentification, EveryValveParameterPublishedStatesAnUncertaintyThatCoversItsErrorWithHilSensors) {
   const config::Config cfg =
       config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", {"hal.backend=sim"});
-  struct Scenario {
-    int number;
-    std::array<double, 11> bench;
-    double y0_m, y_d_m;
-  };
   const Scenario scenarios[] = {
       {1,
        {38.752116412819461, 38.752116412819461, -41.704946085707007, -41.704946085707007, 66.696933592672522,
