@@ -38,9 +38,7 @@ void OnlineIdentifier::on_forecast(const controller::ForecastRecord& f) {
   if (f.update != 0 || f.stop == last_stop_forecast_) return;  // a stop's first forecast made at it
   last_stop_forecast_ = f.stop;
   ++stops_forecast_;
-  const controller::Prediction& p = f.prediction;
-  const int side = p.will_restart ? p.direction : (p.equilibrium_force_n > f.force_n ? +1 : -1);
-  const char* key = side > 0 ? "plant.friction.static_positive_n" : "plant.friction.static_negative_n";
+  const char* key = controller::side_turned_on(f.prediction, f.force_n) > 0 ? "plant.friction.static_positive_n" : "plant.friction.static_negative_n";
   const bool identified = !estimate_.estimates.empty() && estimate_.at(key).identified;
   if (!identified) stops_on_configured_bound_.push_back(f.stop);
 }

@@ -453,6 +453,22 @@ Truth apply_plant_truth(controller::StopOutcome& s, std::span<const plant::Plant
   return truth;
 }
 
+constexpr double kLongSticking_s = 0.5;
+
+// A subset of the judged stops: how many, the wrong verdicts among them, and the errors of their
+// restarts after kLongSticking_s or more [% of the sticking time].
+struct Split {
+  std::uint64_t stops = 0, wrong = 0;
+  std::vector<double> long_error_pct;
+  void add(const controller::StopOutcome& s, const Verdict& v) {
+    if (v.kind == Verdict::Kind::kNotJudged) return;
+    ++stops;
+    if (v.kind == Verdict::Kind::kFalseNegative || v.kind == Verdict::Kind::kFalsePositive) ++wrong;
+    if (v.kind == Verdict::Kind::kTruePositive && s.sticking_s() >= kLongSticking_s)
+      long_error_pct.push_back(v.error_percent);
+  }
+};
+
 struct MethodStats {
   std::uint64_t tp = 0, tn = 0, fp = 0, fn = 0, not_judged = 0, wrong_direction = 0, misses = 0;
   std::vector<double> long_error_pct;  // sticking >= 0.5 s
@@ -463,15 +479,12 @@ struct MethodStats {
   std::uint64_t halfway_none = 0, halfway_not_judged = 0, halfway_missing = 0, halfway_wrong_direction = 0;
   // --online: the judged stops forecast on a stiction bound online learning had not identified
   // (no breakaway that way yet): the configured one
-  std::uint64_t unlearned_side = 0, unlearned_side_wrong = 0;
-  std::vector<double> unlearned_side_long_error_pct;
+  Split unlearned_side;
   // --online: the judged stops forecast on a side the bench had already broken away to after
   // kLongSticking_s or more stuck (a slow breakaway)
-  std::uint64_t slow_side = 0, slow_side_wrong = 0;
-  std::vector<double> slow_side_long_error_pct;
+  Split slow_side;
 };
 
-constexpr double kLongSticking_s = 0.5;
 // The CSV's and the summary's order: lin, nl, rx (the relaxation method: half-way only).
 constexpr controller::PredictionMethod kMethods[3] = {controller::PredictionMethod::kLinearized,
                                                       controller::PredictionMethod::kNonlinear,
@@ -779,7 +792,7 @@ int run(int argc, char** argv) {
       const controller::Prediction* any = s.nonlinear ? &*s.nonlinear : (s.linearized ? &*s.linearized : nullptr);
       // The side the forecast turns on, as pneud counts it: the restart's, or the one the force
       // relaxes towards.
-      const int side = !any ? 0 : any->will_restart ? any->direction : (any->equilibrium_force_n > s.force_n ? +1 : -1);
+      const int side = any ? controller::side_turned_on(*any, s.force_n) : 0;
       const bool on_slow_side = online && side != 0 && slow_breakaway_seen[side > 0 ? 0 : 1];
       if (s.restarted && !r.truth[k].not_at_rest && s.sticking_s() >= kLongSticking_s && s.direction != 0)
         slow_breakaway_seen[s.direction > 0 ? 0 : 1] = true;
@@ -812,18 +825,8 @@ int run(int argc, char** argv) {
           case Verdict::Kind::kNotJudged: ++st.not_judged; break;
         }
         if (!ok) ++st.misses;
-        if (r.truth[k].on_configured_bound && v.kind != Verdict::Kind::kNotJudged) {
-          ++st.unlearned_side;
-          if (v.kind == Verdict::Kind::kFalseNegative || v.kind == Verdict::Kind::kFalsePositive) ++st.unlearned_side_wrong;
-          if (v.kind == Verdict::Kind::kTruePositive && s.sticking_s() >= kLongSticking_s)
-            st.unlearned_side_long_error_pct.push_back(v.error_percent);
-        }
-        if (on_slow_side && v.kind != Verdict::Kind::kNotJudged) {
-          ++st.slow_side;
-          if (v.kind == Verdict::Kind::kFalseNegative || v.kind == Verdict::Kind::kFalsePositive) ++st.slow_side_wrong;
-          if (v.kind == Verdict::Kind::kTruePositive && s.sticking_s() >= kLongSticking_s)
-            st.slow_side_long_error_pct.push_back(v.error_percent);
-        }
+        if (r.truth[k].on_configured_bound) st.unlearned_side.add(s, v);
+        if (on_slow_side) st.slow_side.add(s, v);
         const bool tp = v.kind == Verdict::Kind::kTruePositive;
         std::snprintf(buf, sizeof buf, ",%d,%.6f,%d,%s,%s,%s,%d", p.will_restart ? 1 : 0, p.t_restart_s,
                       p.direction, verdict_name(v.kind), tp ? std::to_string(v.error_s * 1e3).c_str() : "",
@@ -1145,29 +1148,29 @@ int run(int argc, char** argv) {
     std::printf("    outside the acceptance criteria (%s %%, 10 ms): %llu\n", m == 0 ? "5" : "1",
                 static_cast<unsigned long long>(st.misses));
     if (online) {
-      const auto within = within_2_5_10(st.unlearned_side_long_error_pct);
+      const auto within = within_2_5_10(st.unlearned_side.long_error_pct);
       std::printf("    --online, judged stops forecast on a stiction bound not identified yet (the configured one: no "
                   "breakaway that way yet): %llu, verdict wrong on %llu; sticking >= 0.5 s within 2 %%: %zu, "
                   "5 %%: %zu, 10 %%: %zu of %zu\n",
-                  static_cast<unsigned long long>(st.unlearned_side), static_cast<unsigned long long>(st.unlearned_side_wrong),
-                  within[0], within[1], within[2], st.unlearned_side_long_error_pct.size());
+                  static_cast<unsigned long long>(st.unlearned_side.stops), static_cast<unsigned long long>(st.unlearned_side.wrong),
+                  within[0], within[1], within[2], st.unlearned_side.long_error_pct.size());
       // The others, on bounds it had identified.
       const auto all = within_2_5_10(st.long_error_pct);
       const std::uint64_t judged_stops = st.tp + st.tn + st.fp + st.fn;
       std::printf("    --online, the others, on identified bounds: %llu, verdict wrong on %llu; sticking >= 0.5 s within "
                   "2 %%: %zu, 5 %%: %zu, 10 %%: %zu of %zu\n",
-                  static_cast<unsigned long long>(judged_stops - st.unlearned_side),
-                  static_cast<unsigned long long>(st.fp + st.fn - st.unlearned_side_wrong), all[0] - within[0],
+                  static_cast<unsigned long long>(judged_stops - st.unlearned_side.stops),
+                  static_cast<unsigned long long>(st.fp + st.fn - st.unlearned_side.wrong), all[0] - within[0],
                   all[1] - within[1], all[2] - within[2],
-                  st.long_error_pct.size() - st.unlearned_side_long_error_pct.size());
+                  st.long_error_pct.size() - st.unlearned_side.long_error_pct.size());
       // Across both: the stops on a side the bench had broken away to slowly.
-      const auto slow = within_2_5_10(st.slow_side_long_error_pct);
+      const auto slow = within_2_5_10(st.slow_side.long_error_pct);
       std::printf("    --online, judged stops on a side the bench had already broken away to after >= %.1f s stuck (a slow "
                   "breakaway): %llu, verdict wrong on %llu; sticking >= 0.5 s within 2 %%: %zu, 5 %%: %zu, 10 %%: %zu "
                   "of %zu\n",
-                  kLongSticking_s, static_cast<unsigned long long>(st.slow_side),
-                  static_cast<unsigned long long>(st.slow_side_wrong), slow[0], slow[1], slow[2],
-                  st.slow_side_long_error_pct.size());
+                  kLongSticking_s, static_cast<unsigned long long>(st.slow_side.stops),
+                  static_cast<unsigned long long>(st.slow_side.wrong), slow[0], slow[1], slow[2],
+                  st.slow_side.long_error_pct.size());
     }
     print_halfway(st);
   }

@@ -74,6 +74,12 @@ struct Prediction {
   bool horizon_reached = false;       ///< nonlinear: undecided at the horizon, reported as no restart
 };
 
+/// The stiction bound a forecast made at force `force_n` turns on: the side of the restart it
+/// forecasts, or for "no restart" the side the force relaxes towards (+1 F_S+, -1 F_S-).
+[[nodiscard]] constexpr int side_turned_on(const Prediction& p, double force_n) noexcept {
+  return p.will_restart ? p.direction : (p.equilibrium_force_n > force_n ? +1 : -1);
+}
+
 /// Eq. 16/17/25 with the time constants of Eq. 23 (slope: model.linearized_slope); the condition
 /// is checked exactly over all t >= t_stop (F(t) is monotone on both sides of its one possible
 /// extremum).
