@@ -1280,10 +1280,10 @@ TEST(Schema, MakesEveryMemberOfEveryConfigurationStructAKey) {
   counter.describe_struct("", c);
 
   EXPECT_THAT(counter.mismatches, ::testing::IsEmpty());
-  // Config; plant and its 4 sections; sensors and its 3 channels; simulation; controller, its 7
+  // Config; plant and its 5 sections; sensors and its 3 channels; simulation; controller, its 7
   // sections, the law's design and a schedule step; hal, modbus and its 5 channels, gpio, sim and
-  // its plant with that plant's 4 sections, and a push; telemetry; commands.
-  EXPECT_EQ(counter.structs, 38);
+  // its plant with that plant's 5 sections, and a push; telemetry; commands.
+  EXPECT_EQ(counter.structs, 40);
 }
 
 // The key paths of a YAML document, in order ("a.list[0].b" for the keys of a list's mappings).
@@ -1407,6 +1407,54 @@ TEST(SimulatedBenchSection, ItsKeysAreRefusedAtItsOwnPaths) {
   const auto hal_line_end = twice.find('\n', twice.find("\nhal:") + 1);
   twice.insert(hal_line_end + 1, "  sim:\n    plant:\n      mass_kg: 18.0\n      mass_kg: 19.0\n");
   EXPECT_THAT([&] { (void)load_string(twice); }, refuses("hal.sim.plant.mass_kg", "given twice"));
+}
+
+// --- plant.thermal and the spool lag: the physics a real cylinder adds (docs/model.md section 2) --
+
+TEST(ThermalSection, AbsentTheChambersArePolytropicAndNothingIsWritten) {
+  const Config c = with_bench({});
+  EXPECT_FALSE(c.plant.has_thermal);
+  EXPECT_EQ(c.plant.valve.spool_time_constant_s, 0.0);
+  EXPECT_EQ(to_yaml(c).find("thermal:"), std::string::npos);
+}
+
+TEST(ThermalSection, ItsPresenceTurnsTheEnergyBalanceOnWithTheDocumentedDefaults) {
+  const Config c = with_bench({"plant.thermal.heat_transfer_w_per_m2_k=25.9"});
+  ASSERT_TRUE(c.plant.has_thermal);
+  EXPECT_EQ(c.plant.thermal.heat_transfer_w_per_m2_k, 25.9);
+  EXPECT_EQ(c.plant.thermal.adiabatic_index, 1.4);
+  EXPECT_TRUE(c.plant.thermal.wall_temperature_auto);
+  EXPECT_EQ(c.plant.wall_temperature_k(), c.plant.gas.temperature_k);  // auto: the supply's
+  const Config warm = with_bench({"plant.thermal.heat_transfer_w_per_m2_k=25.9", "plant.thermal.wall_temperature_k=303",
+                                  "plant.gas.temperature_k=290"});
+  EXPECT_EQ(warm.plant.wall_temperature_k(), 303.0);
+  const Config again = load_string(to_yaml(warm), {}, "to_yaml");
+  ASSERT_TRUE(again.plant.has_thermal);
+  expect_same_values(again, warm);
+}
+
+TEST(ThermalSection, OnlyTheSimulatedBenchMayHaveIt) {
+  const Config c = with_bench({"hal.sim.plant.thermal.heat_transfer_w_per_m2_k=8.6",
+                               "hal.sim.plant.valve.spool_time_constant_s=0.003"});
+  EXPECT_FALSE(c.plant.has_thermal);  // the controller's model keeps the polytropic process
+  EXPECT_EQ(c.plant.valve.spool_time_constant_s, 0.0);
+  const model::PlantParams& bench = simulated_bench(c);
+  ASSERT_TRUE(bench.has_thermal);
+  EXPECT_EQ(bench.thermal.heat_transfer_w_per_m2_k, 8.6);
+  EXPECT_EQ(bench.valve.spool_time_constant_s, 0.003);
+}
+
+TEST(ThermalSection, BadValuesAreRefusedAtTheirKeys) {
+  EXPECT_THAT([] { (void)with_bench({"plant.thermal.adiabatic_index=1.4"}); },
+              refuses("plant.thermal.heat_transfer_w_per_m2_k", "missing"));
+  EXPECT_THAT([] { (void)with_bench({"plant.thermal.heat_transfer_w_per_m2_k=0"}); },
+              refuses("plant.thermal.heat_transfer_w_per_m2_k", "must be > 0"));
+  EXPECT_THAT([] { (void)with_bench({"plant.thermal.heat_transfer_w_per_m2_k=20", "plant.thermal.adiabatic_index=1"}); },
+              refuses("plant.thermal.adiabatic_index", "must be in (1, 1.67]"));
+  EXPECT_THAT([] { (void)with_bench({"plant.thermal.heat_transfer_w_per_m2_k=20", "plant.thermal.wall_temperature_k=-3"}); },
+              refuses("plant.thermal.wall_temperature_k", "must be > 0 or auto"));
+  EXPECT_THAT([] { (void)with_bench({"hal.sim.plant.valve.spool_time_constant_s=-0.001"}); },
+              refuses("hal.sim.plant.valve.spool_time_constant_s", "must be in [0, 1]"));
 }
 
 }  // namespace

@@ -29,7 +29,7 @@ grep -qE '^pneu-sweep: strict: [0-9]+ of 40 scenarios did not settle \([0-9]+ ne
   || fail "--strict says why"
 grep -q 'forecasts outside' "$tmp/err.txt" && fail "the nonlinear forecasts are all within their criteria"
 
-[ "$(head -1 "$tmp/scenarios.csv")" = "scenario,y0_m,y_d_m,friction_scale,gain_scale,outcome,settle_time_s,final_error_m,fault_cause,fault_after_s,stops,restarts,at_rest_at_end,last_second_swing_m,oscillation_rule_after_s,bench_static_positive_n,bench_coulomb_positive_n,bench_static_negative_n,bench_coulomb_negative_n,bench_viscous_n_s_per_m,bench_max_conductance_m3_per_s_pa,bench_leak_conductance_in_m3_per_s_pa,bench_leak_conductance_out_m3_per_s_pa,bench_dead_volume_p_m3,bench_dead_volume_n_m3,bench_null_offset_v,in_window_after_s,hold_after_s,restarts_after_hold" ] \
+[ "$(head -1 "$tmp/scenarios.csv")" = "scenario,y0_m,y_d_m,friction_scale,gain_scale,outcome,settle_time_s,final_error_m,fault_cause,fault_after_s,stops,restarts,at_rest_at_end,last_second_swing_m,oscillation_rule_after_s,bench_static_positive_n,bench_coulomb_positive_n,bench_static_negative_n,bench_coulomb_negative_n,bench_viscous_n_s_per_m,bench_max_conductance_m3_per_s_pa,bench_leak_conductance_in_m3_per_s_pa,bench_leak_conductance_out_m3_per_s_pa,bench_dead_volume_p_m3,bench_dead_volume_n_m3,bench_null_offset_v,bench_heat_transfer_w_per_m2_k,bench_thermal_time_constant_s,bench_spool_time_constant_s,in_window_after_s,hold_after_s,restarts_after_hold" ] \
   || fail "the scenarios file's header: $(head -1 "$tmp/scenarios.csv")"
 [ "$(column scenario "$tmp/scenarios.csv" | tr '\n' ' ')" = "$(seq 0 39 | tr '\n' ' ')" ] || fail "one row per scenario, in order"
 settled=$(summary_count settled "$tmp/summary.txt")

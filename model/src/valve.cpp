@@ -97,6 +97,19 @@ double ValveCharacteristic::null_pressure_pa(double w_v) const noexcept {
                          max_pressure_pa(), 1.0e-7);
 }
 
+ChamberInflow ValveCharacteristic::chamber_inflow(double w_v, double p_pa, double chamber_k,
+                                                  double supply_k) const noexcept {
+  const double q = mass_flow_kg_per_s(w_v, p_pa);
+  if (q >= 0.0) return {q, q * supply_k};
+  const double out = q * std::sqrt(supply_k / chamber_k);
+  return {out, out * chamber_k};
+}
+
+double ValveCharacteristic::null_pressure_pa(double w_v, double chamber_k, double supply_k) const noexcept {
+  return decreasing_root([&](double p) { return chamber_inflow(w_v, p, chamber_k, supply_k).mass_kg_per_s; },
+                         min_pressure_pa(), max_pressure_pa(), 1.0e-7);
+}
+
 ValveModel::ValveModel(const ValveParams& valve, const Gas& gas) noexcept
     : valve_(valve),
       p_supply_pa_(gas.supply_pressure_pa),
@@ -123,6 +136,27 @@ double ValveModel::mass_flow_kg_per_s(double w, double p) const noexcept {
 double ValveModel::dq_dp(double w, double p) const noexcept {
   return orifice_.d_mass_flow_d_pb(inlet_conductance_m3_per_s_pa(w), p_supply_pa_, p) -
          orifice_.d_mass_flow_d_pa(outlet_conductance_m3_per_s_pa(w), p, p_exhaust_pa_);
+}
+
+// ISO 6358 scales an orifice's flow by sqrt(T_0 / T_up); the orifice's own factor is the supply's.
+ChamberInflow ValveModel::chamber_inflow(double w, double p, double chamber_k, double supply_k) const noexcept {
+  const double to_chamber = std::sqrt(supply_k / chamber_k);  // an orifice fed by the chamber
+  double in = orifice_.mass_flow_kg_per_s(inlet_conductance_m3_per_s_pa(w), p_supply_pa_, p);
+  double out = orifice_.mass_flow_kg_per_s(outlet_conductance_m3_per_s_pa(w), p, p_exhaust_pa_);
+  double enthalpy = 0.0;
+  if (in >= 0.0) {
+    enthalpy += in * supply_k;
+  } else {
+    in *= to_chamber;
+    enthalpy += in * chamber_k;
+  }
+  if (out >= 0.0) {
+    out *= to_chamber;
+    enthalpy -= out * chamber_k;
+  } else {
+    enthalpy -= out * supply_k;  // drawn in from the exhaust side
+  }
+  return {in - out, enthalpy};
 }
 
 double equilibrium_force_n(const ValveCharacteristic& valve, const Geometry& g, double p_e,

@@ -4,6 +4,7 @@
 #include <cassert>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 namespace pneu::plant {
 
@@ -59,6 +60,8 @@ Plant::Plant(const model::PlantParams& params)
     : params_(params),
       valve_(params.valve, params.gas),
       force_(params.geometry, params.gas.exhaust_pressure_pa),
+      thermal_(params),
+      spool_{params.valve.spool_time_constant_s},
       area_p_m2_(force_.area_p_m2()),
       area_n_m2_(force_.area_n_m2()),
       half_stroke_m_(params.geometry.half_stroke_m()),
@@ -76,7 +79,18 @@ Plant::Plant(const model::PlantParams& params)
       k * (1.0 + std::abs(model::flow_function_slope(1.0, v.critical_pressure_ratio)));
   const double min_volume =
       std::min(params.geometry.dead_volume_p_m3, params.geometry.dead_volume_n_m3);
-  const double lambda_max = k_r_t_ * max_dq_dp / min_volume;
+  double lambda_max = k_r_t_ * max_dq_dp / min_volume;
+  if (params.has_thermal) {
+    // The energy balance: the adiabatic index in place of k, and the wall's heat, fastest in the
+    // least air per wall area: a chamber at its dead volume, at the exhaust pressure.
+    const double gamma = params.thermal.adiabatic_index;
+    lambda_max *= gamma / params.gas.polytropic_index;
+    const auto& g = params.geometry;
+    const double t_wall = params.wall_temperature_k();
+    for (const auto& [volume, wall] : {std::pair{g.dead_volume_p_m3, model::wall_area_p_m2(g, -half_stroke_m_)},
+                                       std::pair{g.dead_volume_n_m3, model::wall_area_n_m2(g, half_stroke_m_)}})
+      lambda_max = std::max(lambda_max, 1.0 / thermal_.time_constant_s(params.gas.exhaust_pressure_pa, t_wall, volume, wall));
+  }
   step_s_ = std::min(params.max_step_s, kStabilityMargin / lambda_max);
   reset_at_rest(0.0, 0.0);
 }
@@ -98,21 +112,39 @@ double Plant::force_of(const Vec& x) const noexcept {
   return force_.force_n(x[2], x[3]);
 }
 
-double Plant::pressure_force_n() const noexcept {
-  return force_of(Vec(state_.y_m, state_.v_m_per_s, state_.p_p_pa, state_.p_n_pa));
+double Plant::pressure_force_n() const noexcept { return force_.force_n(state_.p_p_pa, state_.p_n_pa); }
+
+Plant::Voltages Plant::voltages_at(const Drive& d, double dt_s) const noexcept {
+  return {spool_.after(d.from_p_v, d.u_p_v, dt_s), spool_.after(d.from_n_v, d.u_n_v, dt_s)};
 }
 
-// Eq. 2, each valve at its own voltage (Eq. 1 is u_P = u, u_N = -u).
-Plant::Vec Plant::derivative(const Vec& x, Motion motion, Drive u) const noexcept {
+// Eq. 2, each valve at its own voltage (Eq. 1 is u_P = u, u_N = -u); with plant.thermal, each
+// chamber's energy balance (model::ThermalChamber) in place of the polytropic process.
+Plant::Vec Plant::derivative(const Vec& x, Motion motion, Voltages w) const noexcept {
   ++rhs_evaluations_;
   const double y = x[0], v = x[1], p_p = x[2], p_n = x[3];
   const double v_p = params_.geometry.dead_volume_p_m3 + area_p_m2_ * (half_stroke_m_ + y);
   const double v_n = params_.geometry.dead_volume_n_m3 + area_n_m2_ * (half_stroke_m_ - y);
-  const double q_p = valve_.mass_flow_kg_per_s(u.u_p_v, p_p);
-  const double q_n = valve_.mass_flow_kg_per_s(u.u_n_v, p_n);
   Vec dx;
-  dx[2] = k_r_t_ / v_p * (q_p - area_p_m2_ * p_p * v / r_t_);
-  dx[3] = k_r_t_ / v_n * (q_n + area_n_m2_ * p_n * v / r_t_);
+  if (params_.has_thermal) {
+    const double t_p = x[4], t_n = x[5], t_supply = params_.gas.temperature_k;
+    const auto& g = params_.geometry;
+    const model::ChamberRates rp = thermal_.rates(valve_.chamber_inflow(w.w_p_v, p_p, t_p, t_supply), p_p, t_p, v_p,
+                                                  area_p_m2_ * v, model::wall_area_p_m2(g, y));
+    const model::ChamberRates rn = thermal_.rates(valve_.chamber_inflow(w.w_n_v, p_n, t_n, t_supply), p_n, t_n, v_n,
+                                                  -area_n_m2_ * v, model::wall_area_n_m2(g, y));
+    dx[2] = rp.dp_dt_pa_per_s;
+    dx[3] = rn.dp_dt_pa_per_s;
+    dx[4] = rp.dtemperature_dt_k_per_s;
+    dx[5] = rn.dtemperature_dt_k_per_s;
+  } else {
+    const double q_p = valve_.mass_flow_kg_per_s(w.w_p_v, p_p);
+    const double q_n = valve_.mass_flow_kg_per_s(w.w_n_v, p_n);
+    dx[2] = k_r_t_ / v_p * (q_p - area_p_m2_ * p_p * v / r_t_);
+    dx[3] = k_r_t_ / v_n * (q_n + area_n_m2_ * p_n * v / r_t_);
+    dx[4] = 0.0;
+    dx[5] = 0.0;
+  }
   if (motion == Motion::kStuck) {
     dx[0] = 0.0;
     dx[1] = 0.0;
@@ -123,11 +155,12 @@ Plant::Vec Plant::derivative(const Vec& x, Motion motion, Drive u) const noexcep
   return dx;
 }
 
-Plant::Vec Plant::rk4(const Vec& x, double h, Motion motion, Drive u) const noexcept {
-  const Vec k1 = derivative(x, motion, u);
-  const Vec k2 = derivative(x + 0.5 * h * k1, motion, u);
-  const Vec k3 = derivative(x + 0.5 * h * k2, motion, u);
-  const Vec k4 = derivative(x + h * k3, motion, u);
+Plant::Vec Plant::rk4(const Vec& x, double h, Motion motion, const Drive& u) const noexcept {
+  const Voltages start = voltages_at(u, 0.0), middle = voltages_at(u, 0.5 * h), end = voltages_at(u, h);
+  const Vec k1 = derivative(x, motion, start);
+  const Vec k2 = derivative(x + 0.5 * h * k1, motion, middle);
+  const Vec k3 = derivative(x + 0.5 * h * k2, motion, middle);
+  const Vec k4 = derivative(x + h * k3, motion, end);
   Vec out = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
   if (motion == Motion::kStuck) {  // no creep: y and v are not integrated at all while stuck
     out[0] = x[0];
@@ -161,15 +194,27 @@ void Plant::settle_mode_at_rest() noexcept {
 }
 
 void Plant::reset_at_rest(double y_m, double u_v, double t_s) noexcept {
-  state_ = PlantState{t_s, std::clamp(y_m, -half_stroke_m_, half_stroke_m_), 0.0,
-                      valve_.null_pressure_pa(u_v), valve_.null_pressure_pa(-u_v), Motion::kStuck};
-  settle_mode_at_rest();
-  event_count_ = 0;
+  PlantState s{t_s, y_m, 0.0, valve_.null_pressure_pa(u_v), valve_.null_pressure_pa(-u_v), Motion::kStuck};
+  if (params_.has_thermal) {  // at the wall's temperature, whose outflow is that of air at T_w
+    const double t_wall = params_.wall_temperature_k(), t_supply = params_.gas.temperature_k;
+    s.p_p_pa = valve_.null_pressure_pa(u_v, t_wall, t_supply);
+    s.p_n_pa = valve_.null_pressure_pa(-u_v, t_wall, t_supply);
+  }
+  const bool lag = spool_.time_constant_s > 0.0;
+  s.w_p_v = lag ? model::SpoolLag::target_v(params_.valve, u_v) : u_v;
+  s.w_n_v = lag ? model::SpoolLag::target_v(params_.valve, -u_v) : -u_v;
+  reset(s);
 }
 
 void Plant::reset(const PlantState& state) noexcept {
   state_ = state;
   state_.y_m = std::clamp(state_.y_m, -half_stroke_m_, half_stroke_m_);
+  // Without plant.thermal the chambers stay at gas.temperature_k.
+  const double t_rest = params_.has_thermal ? params_.wall_temperature_k() : params_.gas.temperature_k;
+  if (!params_.has_thermal || std::isnan(state_.t_p_k)) state_.t_p_k = t_rest;
+  if (!params_.has_thermal || std::isnan(state_.t_n_k)) state_.t_n_k = t_rest;
+  if (std::isnan(state_.w_p_v)) state_.w_p_v = 0.0;
+  if (std::isnan(state_.w_n_v)) state_.w_n_v = 0.0;
   settle_mode_at_rest();
   event_count_ = 0;
 }
@@ -180,20 +225,31 @@ void Plant::step(double dt_s, double u_p_v, double u_n_v) noexcept {
   const double t_end = state_.t_s + dt_s;
   const int n = static_cast<int>(std::ceil(dt_s / step_s_ - 1e-9));
   const double h = dt_s / std::max(n, 1);
-  const Drive u{u_p_v, u_n_v};
+  // With a spool lag the spools follow the commands within the valves' travel; without, the
+  // valves see the commands themselves.
+  const bool lag = spool_.time_constant_s > 0.0;
+  const Drive u{lag ? model::SpoolLag::target_v(params_.valve, u_p_v) : u_p_v,
+                lag ? model::SpoolLag::target_v(params_.valve, u_n_v) : u_n_v, 0.0, 0.0};
   for (int i = 0; i < std::max(n, 1); ++i) advance(h, u);
   state_.t_s = t_end;
 }
 
-void Plant::advance(double h, Drive u) noexcept {
+void Plant::advance(double h, Drive command) noexcept {
   const auto& f = params_.friction;
-  Vec x(state_.y_m, state_.v_m_per_s, state_.p_p_pa, state_.p_n_pa);
+  Vec x;
+  x << state_.y_m, state_.v_m_per_s, state_.p_p_pa, state_.p_n_pa, state_.t_p_k, state_.t_n_k;
   double remaining = h;
+  Drive u = command;  // with the spools where this pass starts
   const auto commit = [&](const Vec& xn, double dt) {
     state_.y_m = xn[0];
     state_.v_m_per_s = xn[1];
     state_.p_p_pa = xn[2];
     state_.p_n_pa = xn[3];
+    state_.t_p_k = xn[4];
+    state_.t_n_k = xn[5];
+    const Voltages w = voltages_at(u, dt);
+    state_.w_p_v = w.w_p_v;
+    state_.w_n_v = w.w_n_v;
     state_.t_s += dt;
     x = xn;
     remaining -= dt;
@@ -202,6 +258,8 @@ void Plant::advance(double h, Drive u) noexcept {
   // Each pass integrates the rest of the sub-step or stops at the first located mode change.
   for (int pass = 0; pass < 32 && remaining > 0.0; ++pass) {
     const Motion m = state_.motion;
+    u.from_p_v = state_.w_p_v;
+    u.from_n_v = state_.w_n_v;
     const Vec x0 = x;
     const Vec x1 = rk4(x0, remaining, m, u);
     const double theta_tolerance = kEventTimeTolerance_s / remaining;
@@ -243,7 +301,7 @@ void Plant::advance(double h, Drive u) noexcept {
       commit(x1, remaining);
       // Asymptotic approach to rest: inside the velocity band, decelerating, F inside the
       // stiction band -> stick.
-      if (std::abs(x[1]) < f.stick_velocity_m_per_s && s * derivative(x, m, u)[1] < 0.0 &&
+      if (std::abs(x[1]) < f.stick_velocity_m_per_s && s * derivative(x, m, {state_.w_p_v, state_.w_n_v})[1] < 0.0 &&
           driving_force_of(x) >= f.static_negative_n && driving_force_of(x) <= f.static_positive_n) {
         state_.v_m_per_s = 0.0;
         state_.motion = Motion::kStuck;
@@ -273,6 +331,8 @@ void Plant::advance(double h, Drive u) noexcept {
     }
   }
   if (remaining > 0.0) {  // more than 32 mode changes in one sub-step: finish without events
+    u.from_p_v = state_.w_p_v;
+    u.from_n_v = state_.w_n_v;
     commit(rk4(x, remaining, state_.motion, u), remaining);
     ++events_dropped_;
   }

@@ -16,6 +16,7 @@
 #include <span>
 #include <stdexcept>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include "pneu/backends/factory.hpp"
@@ -26,6 +27,7 @@
 #include "pneu/identify/online.hpp"
 #include "pneu/controller/supervisor.hpp"
 #include "pneu/controller/verdict.hpp"
+#include "pneu/model/chamber.hpp"
 
 namespace {
 
@@ -37,7 +39,8 @@ constexpr const char* kHelp = R"(pneu-sweep: the restart predictor against many 
 Usage:
   pneu-sweep [--config FILE] --out SWEEP.csv [--steps N] [--seed S] [--jobs J] [--duration S]
              [--step-time S] [--tail S] [--margin-m M] [--min-step-m D] [--friction-spread F] [--gain-spread G]
-             [--bench-spread B] [--scenarios-out SCENARIOS.csv] [--set KEY=VALUE ...] [--supervised] [--strict]
+             [--bench-spread B] [--bench-thermal-s LO[:HI]] [--bench-spool-lag-s LO[:HI]]
+             [--scenarios-out SCENARIOS.csv] [--set KEY=VALUE ...] [--supervised] [--strict]
              [--strict-forecasts] [--identify] [--online] [--quiet]
 
 Scenario i starts at rest at a random position y0 and steps the set point at --step-time
@@ -94,8 +97,9 @@ over the whole run; last_second_swing_m: the peak-to-peak position over the run'
 oscillation_rule_after_s: when the settling rules checked alongside would have latched the
 oscillation or the not-settled fault, unless --supervised), then the simulated bench the scenario
 ran, bench_* (the model's friction, conductances, dead volumes and null offset unless
---bench-spread; y0_m, y_d_m and bench_* exactly, to all their digits: the scenario runs again in
-pneud with them), then in_window_after_s (the first rest within controller.hold.window_m of the
+--bench-spread; its heat transfer and thermal time constant at mid-stroke, empty without the
+energy balance, and its spool lag; y0_m, y_d_m and bench_* exactly, to all their digits: the
+scenario runs again in pneud with them), then in_window_after_s (the first rest within controller.hold.window_m of the
 set point that the plant confirms, at once or by sticking before any breakaway), hold_after_s (the
 in-position hold's first start within the window) and restarts_after_hold (the plant's breakaways
 after it beyond the detector's motion band). The summary gives the time into the window over
@@ -137,6 +141,9 @@ struct BenchDraw {
   double static_positive = 1.0, coulomb_positive = 1.0, static_negative = 1.0, coulomb_negative = 1.0,
          viscous = 1.0, max_conductance = 1.0, leak_in = 1.0, leak_out = 1.0, dead_volume_p = 1.0,
          dead_volume_n = 1.0, null_offset_v = 0.0;
+  // --bench-thermal-s: the energy balance with this thermal time constant at mid-stroke [s];
+  // --bench-spool-lag-s: this spool lag [s]. NaN: the configured bench's.
+  double thermal_time_constant_s = NAN, spool_time_constant_s = NAN;
 
   // The bench: `model` with these applied. Each Coulomb level stays within its stiction bound.
   [[nodiscard]] model::PlantParams applied_to(model::PlantParams p) const {
@@ -152,9 +159,44 @@ struct BenchDraw {
     p.valve.null_offset_v += null_offset_v;
     p.geometry.dead_volume_p_m3 *= dead_volume_p;
     p.geometry.dead_volume_n_m3 *= dead_volume_n;
+    if (!std::isnan(thermal_time_constant_s)) {
+      p.has_thermal = true;
+      p.thermal.heat_transfer_w_per_m2_k = model::heat_transfer_for_time_constant(p, thermal_time_constant_s);
+    }
+    if (!std::isnan(spool_time_constant_s)) p.valve.spool_time_constant_s = spool_time_constant_s;
     return p;
   }
 };
+
+// "LO" or "LO:HI" of --bench-thermal-s and --bench-spool-lag-s: the range drawn from [s].
+struct DrawRange {
+  double lo = NAN, hi = NAN;
+  [[nodiscard]] bool given() const { return !std::isnan(lo); }
+};
+DrawRange draw_range(const cli::Args& args, const char* option, double min_s) {
+  const auto text = args.value(option);
+  if (!text) return {};
+  const auto colon = text->find(':');
+  const auto number = [&](const std::string& t) {
+    std::size_t used = 0;
+    double v = NAN;
+    try {
+      v = std::stod(t, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != t.size() || !std::isfinite(v))
+      throw cli::UsageError(std::string("--") + option + ": '" + *text + "' is not LO or LO:HI in seconds");
+    return v;
+  };
+  DrawRange r;
+  r.lo = number(text->substr(0, colon));
+  r.hi = colon == std::string::npos ? r.lo : number(text->substr(colon + 1));
+  if (!(r.lo >= min_s && r.hi >= r.lo))
+    throw cli::UsageError(std::string("--") + option + " must be LO:HI with " + (min_s > 0 ? "0 < " : "0 <= ") +
+                          "LO <= HI (got '" + *text + "')");
+  return r;
+}
 
 struct Scenario {
   int index = 0;
@@ -532,7 +574,8 @@ bool within_criteria(const controller::StopOutcome& s, const Verdict& v, bool no
 int run(int argc, char** argv) {
   const cli::Args args(argc, argv, 1,
                        {"config", "out", "steps", "seed", "jobs", "duration", "step-time", "margin-m",
-                        "min-step-m", "friction-spread", "gain-spread", "bench-spread", "tail", "scenarios-out"},
+                        "min-step-m", "friction-spread", "gain-spread", "bench-spread", "tail", "scenarios-out",
+                        "bench-thermal-s", "bench-spool-lag-s"},
                        {"strict", "strict-forecasts", "quiet", "help", "supervised", "identify", "online"}, {"set"});
   if (args.flag("help")) {
     std::cout << kHelp;
@@ -581,6 +624,8 @@ int run(int argc, char** argv) {
   if (!(gain_spread >= 0 && gain_spread < 1)) throw cli::UsageError("--gain-spread must be in [0, 1)");
   if (!(bench_spread >= 0 && bench_spread < 1)) throw cli::UsageError("--bench-spread must be in [0, 1)");
   if (!(tail >= 0)) throw cli::UsageError("--tail must be >= 0");
+  const DrawRange bench_thermal = draw_range(args, "bench-thermal-s", 1e-6);
+  const DrawRange bench_spool_lag = draw_range(args, "bench-spool-lag-s", 0.0);
   const auto n = static_cast<int>(steps_d);
   const auto jobs = static_cast<int>(std::min<double>(jobs_d, n));
 
@@ -610,6 +655,14 @@ int run(int argc, char** argv) {
         *x = factor();
       b.null_offset_v = 0.5 * bench_spread * unit(bench_rng);
     }
+  }
+  // The benches' physics, each from a generator of its own: the draws above stay those of the seed.
+  for (const auto& [range, member, salt] : {std::tuple{bench_thermal, &BenchDraw::thermal_time_constant_s, 0x243f6a8885a308d3ULL},
+                                            std::tuple{bench_spool_lag, &BenchDraw::spool_time_constant_s, 0x13198a2e03707344ULL}}) {
+    if (!range.given()) continue;
+    std::mt19937_64 physics_rng(static_cast<std::uint64_t>(seed_d) ^ salt);
+    std::uniform_real_distribution<double> in_range(0.0, 1.0);
+    for (Scenario& s : scenarios) s.bench.*member = range.lo + (range.hi - range.lo) * in_range(physics_rng);
   }
 
   cli::AtomicFile out(out_path);  // created before the run: an unwritable path fails fast
@@ -888,7 +941,8 @@ int run(int argc, char** argv) {
                                "bench_static_negative_n,bench_coulomb_negative_n,bench_viscous_n_s_per_m,"
                                "bench_max_conductance_m3_per_s_pa,bench_leak_conductance_in_m3_per_s_pa,"
                                "bench_leak_conductance_out_m3_per_s_pa,bench_dead_volume_p_m3,bench_dead_volume_n_m3,"
-                               "bench_null_offset_v"
+                               "bench_null_offset_v,bench_heat_transfer_w_per_m2_k,bench_thermal_time_constant_s,"
+                               "bench_spool_time_constant_s"
                             << (identify_first ? ",identified_static_positive_n,identified_static_negative_n,"
                                                  "identified_null_offset_v,identified_null_pressure_error_pa,"
                                                  "identification_failed"
@@ -959,6 +1013,13 @@ int run(int argc, char** argv) {
                   b.friction.viscous_n_s_per_m, b.valve.max_conductance_m3_per_s_pa,
                   b.valve.leak_conductance_in_m3_per_s_pa, b.valve.leak_conductance_out_m3_per_s_pa,
                   b.geometry.dead_volume_p_m3, b.geometry.dead_volume_n_m3, b.valve.null_offset_v);
+    os_sc << row;
+    if (b.has_thermal)
+      std::snprintf(row, sizeof row, ",%.17g,%.17g", b.thermal.heat_transfer_w_per_m2_k, model::thermal_time_constant_s(b));
+    else
+      std::snprintf(row, sizeof row, ",,");
+    os_sc << row;
+    std::snprintf(row, sizeof row, ",%.17g", b.valve.spool_time_constant_s);
     os_sc << row;
     if (identify_first) {
       if (r.identified)

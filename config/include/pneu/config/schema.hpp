@@ -363,6 +363,8 @@ void describe(auto& a, Like<model::ValveParams> auto& v) {
   a.field(optional(PNEU_NVP(v, reference_density_kg_per_m3)), Range::positive(),
           "rho_0 of ISO 6358 [kg/m^3]");
   a.field(optional(PNEU_NVP(v, reference_temperature_k)), Range::positive(), "T_0 of ISO 6358 [K]");
+  a.field(optional(PNEU_NVP(v, spool_time_constant_s)), Range::closed(0.0, 1.0),
+          "the spool follows its command with a first-order lag of this time constant [s]; 0 = none");
 }
 
 void describe(auto& a, Like<model::FrictionParams> auto& f) {
@@ -384,12 +386,22 @@ void describe(auto& a, Like<model::FrictionParams> auto& f) {
           "|v| below which a decelerating carriage sticks [m/s]");
 }
 
+void describe(auto& a, Like<model::ThermalParams> auto& t) {
+  a.field(PNEU_NVP(t, heat_transfer_w_per_m2_k), Range::positive(), "h: wall heat transfer coefficient [W/(m^2 K)]");
+  a.field(optional(PNEU_NVP(t, adiabatic_index)), Range::left_open(1.0, 1.67), "gamma = c_p / c_v of the air [-]");
+  a.number_or_auto(optional(PNEU_NVP(t, wall_temperature_k)), t.wall_temperature_auto,
+                   "T_w: the walls' temperature [K]; auto = the supply's, gas.temperature_k");
+  a.check("wall_temperature_k", t.wall_temperature_auto || t.wall_temperature_k > 0.0,
+          [&] { return "must be > 0 or auto (got " + fmt(t.wall_temperature_k) + ")"; });
+}
+
 void describe(auto& a, Like<model::PlantParams> auto& p) {
   a.field(PNEU_NVP(p, mass_kg), Range::positive(), "M: moving mass (piston, rod, carriage, load) [kg]");
   a.section(PNEU_NVP(p, geometry));
   a.section(PNEU_NVP(p, gas));
   a.section(PNEU_NVP(p, valve));
   a.section(PNEU_NVP(p, friction));
+  a.optional_section(optional(PNEU_NVP(p, thermal)), p.has_thermal);
   a.field(PNEU_NVP(p, max_step_s), Range::closed(1.0e-7, 1.0e-2), "largest RK4 step [s]");
 }
 

@@ -60,6 +60,21 @@ struct ValveParams {
   double null_offset_v = 0.0;
   double reference_density_kg_per_m3 = 1.185;     ///< rho_0 of ISO 6358 [kg/m^3]
   double reference_temperature_k = 293.15;        ///< T_0 of ISO 6358 [K]
+  /// The spool follows its command with a first-order lag of this time constant [s], >= 0; 0: it
+  /// opens the instant it is commanded (docs/model.md section 3).
+  double spool_time_constant_s = 0.0;
+};
+
+/// The chambers' energy balance with heat exchange through their walls (docs/model.md section 2,
+/// "With heat exchange"): in place of the polytropic process at constant temperature, each chamber
+/// has a temperature of its own; the air enters at its upstream temperature, leaves at the
+/// chamber's, and exchanges h A(y) (T_w - T) with the wall.
+struct ThermalParams {
+  double heat_transfer_w_per_m2_k = 25.9;  ///< h: wall heat transfer coefficient [W/(m^2 K)], > 0
+  double adiabatic_index = 1.4;            ///< gamma = c_p / c_v of the air [-], in (1, 1.67]
+  /// T_w: the walls' temperature [K], > 0, unless `wall_temperature_auto`: the supply's, gas.temperature_k.
+  double wall_temperature_k = 293.15;
+  bool wall_temperature_auto = true;
 };
 
 /// Karnopp friction with Stribeck effect, asymmetric (docs/model.md section 4).
@@ -82,9 +97,18 @@ struct PlantParams {
   Gas gas;
   ValveParams valve;
   FrictionParams friction;
+  /// With `has_thermal`, the chambers' process is `thermal`'s energy balance; without, polytropic at
+  /// gas.temperature_k with gas.polytropic_index (Eq. 2).
+  bool has_thermal = false;
+  ThermalParams thermal;
   /// Largest integration step [s]. The plant further limits it to keep explicit RK4 stable on the
   /// stiffest pressure mode (see Plant::step_size_s()).
   double max_step_s = 2.0e-4;
+
+  /// T_w [K]: thermal.wall_temperature_k, or the supply's (gas.temperature_k) when auto.
+  [[nodiscard]] double wall_temperature_k() const noexcept {
+    return thermal.wall_temperature_auto ? gas.temperature_k : thermal.wall_temperature_k;
+  }
 };
 
 /// An external force on the carriage, a step from `t_s` for `duration_s` (a push by hand, a

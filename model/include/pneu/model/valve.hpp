@@ -2,6 +2,7 @@
 // model (ISO 6358 orifices) or as a measured table, behind one interface the predictor uses.
 #pragma once
 
+#include "pneu/model/chamber.hpp"
 #include "pneu/model/params.hpp"
 
 namespace pneu::model {
@@ -53,6 +54,18 @@ class ValveCharacteristic {
   /// Null-flow pressure p_null(w): q(w, p_null) = 0, the pressure gain characteristic (Fig. 6).
   /// Clamped to [min_pressure_pa, max_pressure_pa] when no root lies inside. Monotone in w.
   [[nodiscard]] double null_pressure_pa(double w_v) const noexcept;
+
+  /// What the valve passes into a chamber at pressure p and temperature `chamber_k`, the supply and
+  /// the exhaust at `supply_k` (the characteristic's own temperature, gas.temperature_k), each
+  /// orifice's flow at its upstream temperature (docs/model.md section 2, with heat exchange). Here
+  /// from q(w, p) alone (a measured table does not tell the two orifices apart): a net inflow comes
+  /// from the supply; a net outflow leaves at the chamber's temperature, its mass flow scaled by
+  /// sqrt(supply_k / chamber_k) as ISO 6358 scales an orifice's. At chamber_k = supply_k: q itself.
+  [[nodiscard]] virtual ChamberInflow chamber_inflow(double w_v, double p_pa, double chamber_k,
+                                                     double supply_k) const noexcept;
+  /// p_null(w) of a chamber at `chamber_k`: the root of chamber_inflow's mass flow (the same as
+  /// null_pressure_pa(w) at chamber_k = supply_k).
+  [[nodiscard]] double null_pressure_pa(double w_v, double chamber_k, double supply_k) const noexcept;
 };
 
 /// The parametric model of docs/model.md section 3:
@@ -65,6 +78,10 @@ class ValveModel final : public ValveCharacteristic {
 
   [[nodiscard]] double mass_flow_kg_per_s(double w_v, double p_pa) const noexcept override;
   [[nodiscard]] double dq_dp(double w_v, double p_pa) const noexcept override;
+  /// Each orifice at its own upstream temperature: the supply -> chamber orifice at supply_k
+  /// (chamber_k when reversed), the chamber -> exhaust one at chamber_k (supply_k when reversed).
+  [[nodiscard]] ChamberInflow chamber_inflow(double w_v, double p_pa, double chamber_k,
+                                             double supply_k) const noexcept override;
   [[nodiscard]] double min_pressure_pa() const noexcept override { return p_exhaust_pa_; }
   [[nodiscard]] double max_pressure_pa() const noexcept override { return p_supply_pa_; }
   [[nodiscard]] double min_voltage_v() const noexcept override { return -valve_.max_voltage_v; }

@@ -5,8 +5,10 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <span>
 
+#include "pneu/model/chamber.hpp"
 #include "pneu/model/params.hpp"
 #include "pneu/model/pressure_force.hpp"
 #include "pneu/model/valve.hpp"
@@ -28,6 +30,15 @@ struct PlantState {
   double p_p_pa = 1.0e5;     ///< chamber P absolute pressure [Pa]
   double p_n_pa = 1.0e5;     ///< chamber N absolute pressure [Pa]
   Motion motion = Motion::kStuck;
+  /// Chamber temperatures [K]: with plant.thermal, integrated; without, gas.temperature_k throughout
+  /// (NaN given to reset(): the wall temperature).
+  double t_p_k = std::numeric_limits<double>::quiet_NaN();
+  double t_n_k = std::numeric_limits<double>::quiet_NaN();
+  /// Where each valve's spool is, as the voltage its opening corresponds to [V]: the last command
+  /// (within the valve's travel) without a spool lag (NaN given to reset(): at the voltages
+  /// reset_at_rest would put it, u and -u of its `u_v`; 0 with reset()).
+  double w_p_v = std::numeric_limits<double>::quiet_NaN();
+  double w_n_v = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// A mode change located inside an integration step.
@@ -54,10 +65,11 @@ class Plant {
   explicit Plant(const model::PlantParams& params);
 
   /// Puts the carriage at rest at `y_m` with both pressures at their null-flow values for the
-  /// valve voltages u_P = u, u_N = -u (complete equilibrium when F_e(u) is inside the stiction band).
+  /// valve voltages u_P = u, u_N = -u (complete equilibrium when F_e(u) is inside the stiction band),
+  /// the chambers at the wall temperature and the spools where those voltages put them.
   void reset_at_rest(double y_m, double u_v, double t_s = 0.0) noexcept;
   /// Sets an arbitrary state; the motion mode is made consistent with v (v = 0 -> stuck unless the
-  /// force already breaks away).
+  /// force already breaks away). Temperatures left NaN are the wall's, spools left NaN at 0 V.
   void reset(const PlantState& state) noexcept;
 
   /// Advances by `dt_s` with the valve voltages held (u_P = u, u_N = -u: Eq. 1), in equal
@@ -92,20 +104,30 @@ class Plant {
 
   [[nodiscard]] const model::PlantParams& params() const noexcept { return params_; }
   [[nodiscard]] const model::ValveModel& valve() const noexcept { return valve_; }
+  /// The chambers' energy balance (plant.thermal; used only with it).
+  [[nodiscard]] const model::ThermalChamber& thermal_chamber() const noexcept { return thermal_; }
   /// Friction force in the current sliding mode at velocity v [N] (docs/model.md section 4).
   [[nodiscard]] double sliding_friction_n(Motion motion, double v_m_per_s) const noexcept;
 
  private:
-  using Vec = Eigen::Vector4d;  // (y, v, p_P, p_N)
+  using Vec = Eigen::Matrix<double, 6, 1>;  // (y, v, p_P, p_N, T_P, T_N)
 
-  /// The two valve voltages held over a step [V].
+  /// The two valve voltages commanded over a step [V], and where the spools start from.
   struct Drive {
     double u_p_v;
     double u_n_v;
+    double from_p_v;
+    double from_n_v;
   };
+  /// The voltages the valves' openings correspond to `dt_s` into a step (the spools on their way).
+  struct Voltages {
+    double w_p_v;
+    double w_n_v;
+  };
+  [[nodiscard]] Voltages voltages_at(const Drive& d, double dt_s) const noexcept;
 
-  [[nodiscard]] Vec derivative(const Vec& x, Motion motion, Drive u) const noexcept;
-  [[nodiscard]] Vec rk4(const Vec& x, double h, Motion motion, Drive u) const noexcept;
+  [[nodiscard]] Vec derivative(const Vec& x, Motion motion, Voltages w) const noexcept;
+  [[nodiscard]] Vec rk4(const Vec& x, double h, Motion motion, const Drive& u) const noexcept;
   [[nodiscard]] double force_of(const Vec& x) const noexcept;
   /// What friction opposes: the pressure force and the external one [N].
   [[nodiscard]] double driving_force_of(const Vec& x) const noexcept { return force_of(x) + external_n_; }
@@ -116,6 +138,8 @@ class Plant {
   model::PlantParams params_;
   model::ValveModel valve_;
   model::PressureForce force_;
+  model::ThermalChamber thermal_;
+  model::SpoolLag spool_;
   double area_p_m2_, area_n_m2_, half_stroke_m_, k_r_t_, r_t_;
   double step_s_;
   PlantState state_;
