@@ -1,6 +1,9 @@
 #include "pneu/model/chamber.hpp"
 
+#include <algorithm>
 #include <numbers>
+
+#include "pneu/model/valve.hpp"
 
 namespace pneu::model {
 
@@ -30,6 +33,103 @@ double thermal_time_constant_s(const PlantParams& plant) noexcept {
 
 double heat_transfer_for_time_constant(const PlantParams& plant, double tau_s) noexcept {
   return heat_capacity_per_wall_area(plant) / tau_s;
+}
+
+ChamberProcess::ChamberProcess(const Geometry& geometry, const Gas& gas, const ThermalParams* thermal) noexcept
+    : geometry_(geometry),
+      thermal_(thermal != nullptr),
+      chamber_(gas, thermal != nullptr ? *thermal : ThermalParams{}),
+      area_p_m2_(geometry.area_p_m2()),
+      area_n_m2_(geometry.area_n_m2()),
+      half_stroke_m_(geometry.half_stroke_m()),
+      k_r_t_(gas.k_r_t()),
+      r_t_(gas.gas_constant_j_per_kg_k * gas.temperature_k),
+      supply_k_(gas.temperature_k),
+      gamma_r_((thermal != nullptr ? thermal->adiabatic_index : gas.polytropic_index) * gas.gas_constant_j_per_kg_k) {}
+
+// Eq. 2's pressure equation, or the energy balance (docs/model.md section 2). The polytropic form is
+// the plant's own, term for term (the simulated bench is bit for bit what it was).
+ChamberRates ChamberProcess::rates(const ValveCharacteristic& valve, Side side, double p, double t_k, double w,
+                                   double y, double v) const noexcept {
+  const double volume = volume_m3(side, y);
+  if (!thermal_) {
+    const double q = valve.mass_flow_kg_per_s(w, p);
+    return {side == Side::kP ? k_r_t_ / volume * (q - area_p_m2_ * p * v / r_t_)
+                             : k_r_t_ / volume * (q + area_n_m2_ * p * v / r_t_),
+            0.0};
+  }
+  const bool p_side = side == Side::kP;
+  return chamber_.rates(valve.chamber_inflow(w, p, t_k, supply_k_), p, t_k, volume,
+                        p_side ? area_p_m2_ * v : -area_n_m2_ * v,
+                        p_side ? wall_area_p_m2(geometry_, y) : wall_area_n_m2(geometry_, y));
+}
+
+double ChamberProcess::fastest_rate_1_per_s(const ValveCharacteristic& valve, Side side, double p, double t_k,
+                                            double w, double y) const noexcept {
+  const double volume = volume_m3(side, y);
+  if (!thermal_) return k_r_t_ / volume * -valve.dq_dp(w, p);
+  // The valve's: gamma r T / V (-dq/dp) (the flow's temperature factor aside); the wall's: 1 / (m c_v / (h A)).
+  const double wall = side == Side::kP ? wall_area_p_m2(geometry_, y) : wall_area_n_m2(geometry_, y);
+  return std::max(gamma_r_ * t_k / volume * -valve.dq_dp(w, p), 1.0 / chamber_.time_constant_s(p, t_k, volume, wall));
+}
+
+double ChamberProcess::null_pressure_pa(const ValveCharacteristic& valve, double w_v) const noexcept {
+  return thermal_ ? valve.null_pressure_pa(w_v, chamber_.wall_temperature_k(), supply_k_) : valve.null_pressure_pa(w_v);
+}
+
+void ChamberObserver::reset(double t_s, double y_m, double p_p_pa, double p_n_pa, double u_p_v, double u_n_v) noexcept {
+  t_s_ = t_s;
+  y_m_ = y_m;
+  state_.p_p_pa = p_p_pa;
+  state_.p_n_pa = p_n_pa;
+  state_.t_p_k = state_.t_n_k = process_.rest_temperature_k();
+  command(u_p_v, u_n_v);
+  const ValveCharacteristic& valve = *valve_;
+  state_.w_p_v = std::clamp(u_p_v, valve.min_voltage_v(), valve.max_voltage_v());
+  state_.w_n_v = std::clamp(u_n_v, valve.min_voltage_v(), valve.max_voltage_v());
+}
+
+// Each chamber's temperature equation, its pressure and volume taken from the measurements (linear
+// in between: the volume term integrates to -(gamma - 1) ln(V1 / V0) whatever the path), its valve
+// at the spool's position, in RK4 steps short against the chamber's fastest rate.
+void ChamberObserver::advance(double t_s, double y_m, double p_p_pa, double p_n_pa) noexcept {
+  const double h = t_s - t_s_;
+  const ValveCharacteristic& valve = *valve_;
+  const double target_p = std::clamp(u_p_v_, valve.min_voltage_v(), valve.max_voltage_v());
+  const double target_n = std::clamp(u_n_v_, valve.min_voltage_v(), valve.max_voltage_v());
+  if (h > 0.0 && process_.thermal()) {
+    const double v = (y_m - y_m_) / h;
+    const auto integrate = [&](Side side, double t_k, double p0, double p1, double w0, double target) {
+      const auto rate = [&](double tau, double temperature) {
+        return process_
+            .rates(valve, side, p0 + (p1 - p0) * tau / h, temperature, spool_.after(w0, target, tau), y_m_ + v * tau, v)
+            .dtemperature_dt_k_per_s;
+      };
+      // The temperature equation's own rate, T d(dT/dt)/dT, is of the order of the chamber's fastest.
+      const double fastest = process_.fastest_rate_1_per_s(valve, side, std::max(p0, p1), t_k, w0, y_m_);
+      const int steps = std::clamp(static_cast<int>(std::ceil(h * fastest / 0.5)), 1, 1000);
+      const double dt = h / steps;
+      for (int i = 0; i < steps; ++i) {
+        const double tau = i * dt;
+        const double k1 = rate(tau, t_k);
+        const double k2 = rate(tau + 0.5 * dt, t_k + 0.5 * dt * k1);
+        const double k3 = rate(tau + 0.5 * dt, t_k + 0.5 * dt * k2);
+        const double k4 = rate(tau + dt, t_k + dt * k3);
+        t_k += dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+      }
+      return t_k;
+    };
+    state_.t_p_k = integrate(Side::kP, state_.t_p_k, state_.p_p_pa, p_p_pa, state_.w_p_v, target_p);
+    state_.t_n_k = integrate(Side::kN, state_.t_n_k, state_.p_n_pa, p_n_pa, state_.w_n_v, target_n);
+  }
+  if (h > 0.0) {
+    state_.w_p_v = spool_.after(state_.w_p_v, target_p, h);
+    state_.w_n_v = spool_.after(state_.w_n_v, target_n, h);
+    t_s_ = t_s;
+  }
+  y_m_ = y_m;
+  state_.p_p_pa = p_p_pa;
+  state_.p_n_pa = p_n_pa;
 }
 
 }  // namespace pneu::model

@@ -60,13 +60,12 @@ Plant::Plant(const model::PlantParams& params)
     : params_(params),
       valve_(params.valve, params.gas),
       force_(params.geometry, params.gas.exhaust_pressure_pa),
-      thermal_(params),
+      process_(params),
       spool_{params.valve.spool_time_constant_s},
       area_p_m2_(force_.area_p_m2()),
       area_n_m2_(force_.area_n_m2()),
       half_stroke_m_(params.geometry.half_stroke_m()),
-      k_r_t_(params.gas.k_r_t()),
-      r_t_(params.gas.gas_constant_j_per_kg_k * params.gas.temperature_k) {
+      k_r_t_(params.gas.k_r_t()) {
   assert(params.mass_kg > 0.0 && params.max_step_s > 0.0 && area_n_m2_ > 0.0);
   // Fastest pressure mode: |dq/dp| is largest in the laminar region of a wide-open orifice,
   // |d m/d p| <= K (1 + |phi'|) per orifice; both orifices of one valve together open at most
@@ -89,7 +88,8 @@ Plant::Plant(const model::PlantParams& params)
     const double t_wall = params.wall_temperature_k();
     for (const auto& [volume, wall] : {std::pair{g.dead_volume_p_m3, model::wall_area_p_m2(g, -half_stroke_m_)},
                                        std::pair{g.dead_volume_n_m3, model::wall_area_n_m2(g, half_stroke_m_)}})
-      lambda_max = std::max(lambda_max, 1.0 / thermal_.time_constant_s(params.gas.exhaust_pressure_pa, t_wall, volume, wall));
+      lambda_max = std::max(lambda_max, 1.0 / process_.thermal_chamber().time_constant_s(params.gas.exhaust_pressure_pa,
+                                                                                           t_wall, volume, wall));
   }
   step_s_ = std::min(params.max_step_s, kStabilityMargin / lambda_max);
   reset_at_rest(0.0, 0.0);
@@ -119,32 +119,17 @@ Plant::Voltages Plant::voltages_at(const Drive& d, double dt_s) const noexcept {
 }
 
 // Eq. 2, each valve at its own voltage (Eq. 1 is u_P = u, u_N = -u); with plant.thermal, each
-// chamber's energy balance (model::ThermalChamber) in place of the polytropic process.
+// chamber's energy balance in place of the polytropic process (model::ChamberProcess).
 Plant::Vec Plant::derivative(const Vec& x, Motion motion, Voltages w) const noexcept {
   ++rhs_evaluations_;
-  const double y = x[0], v = x[1], p_p = x[2], p_n = x[3];
-  const double v_p = params_.geometry.dead_volume_p_m3 + area_p_m2_ * (half_stroke_m_ + y);
-  const double v_n = params_.geometry.dead_volume_n_m3 + area_n_m2_ * (half_stroke_m_ - y);
+  const double y = x[0], v = x[1];
+  const model::ChamberRates rp = process_.rates(valve_, model::Side::kP, x[2], x[4], w.w_p_v, y, v);
+  const model::ChamberRates rn = process_.rates(valve_, model::Side::kN, x[3], x[5], w.w_n_v, y, v);
   Vec dx;
-  if (params_.has_thermal) {
-    const double t_p = x[4], t_n = x[5], t_supply = params_.gas.temperature_k;
-    const auto& g = params_.geometry;
-    const model::ChamberRates rp = thermal_.rates(valve_.chamber_inflow(w.w_p_v, p_p, t_p, t_supply), p_p, t_p, v_p,
-                                                  area_p_m2_ * v, model::wall_area_p_m2(g, y));
-    const model::ChamberRates rn = thermal_.rates(valve_.chamber_inflow(w.w_n_v, p_n, t_n, t_supply), p_n, t_n, v_n,
-                                                  -area_n_m2_ * v, model::wall_area_n_m2(g, y));
-    dx[2] = rp.dp_dt_pa_per_s;
-    dx[3] = rn.dp_dt_pa_per_s;
-    dx[4] = rp.dtemperature_dt_k_per_s;
-    dx[5] = rn.dtemperature_dt_k_per_s;
-  } else {
-    const double q_p = valve_.mass_flow_kg_per_s(w.w_p_v, p_p);
-    const double q_n = valve_.mass_flow_kg_per_s(w.w_n_v, p_n);
-    dx[2] = k_r_t_ / v_p * (q_p - area_p_m2_ * p_p * v / r_t_);
-    dx[3] = k_r_t_ / v_n * (q_n + area_n_m2_ * p_n * v / r_t_);
-    dx[4] = 0.0;
-    dx[5] = 0.0;
-  }
+  dx[2] = rp.dp_dt_pa_per_s;
+  dx[3] = rn.dp_dt_pa_per_s;
+  dx[4] = rp.dtemperature_dt_k_per_s;
+  dx[5] = rn.dtemperature_dt_k_per_s;
   if (motion == Motion::kStuck) {
     dx[0] = 0.0;
     dx[1] = 0.0;

@@ -1,14 +1,18 @@
-// The air in a chamber with heat exchange through its walls, and the valve spool's lag (docs/model.md
-// section 2, "Heat exchange and the spool's lag"): the equations written once, for the simulated
-// bench, the controller's forecasts, its estimate of the chamber temperatures and the
-// identification. Pure functions and value types; real-time safe.
+// The air in the two chambers (docs/model.md section 2): the polytropic process of Eq. 2, or the
+// energy balance with heat exchange through the walls, and the valves' spools with their lag. The
+// equations are written here once, for the simulated bench, the controller's forecasts, its estimate
+// of the chamber temperatures and the identification. Value types and pure functions; real-time
+// safe.
 #pragma once
 
 #include <cmath>
+#include <cstdint>
 
 #include "pneu/model/params.hpp"
 
 namespace pneu::model {
+
+class ValveCharacteristic;
 
 /// What a valve passes into a chamber, each of its two orifices at its upstream temperature (ISO
 /// 6358: m = C rho_0 p_up sqrt(T_0 / T_up) phi): the supply's or the exhaust's (gas.temperature_k)
@@ -40,11 +44,12 @@ struct ChamberRates {
 /// and T V^(gamma - 1) stay constant in a closed chamber; h large: T stays at T_w, p V constant.
 class ThermalChamber {
  public:
-  explicit ThermalChamber(const PlantParams& plant) noexcept
-      : gamma_(plant.thermal.adiabatic_index),
-        r_(plant.gas.gas_constant_j_per_kg_k),
-        h_(plant.thermal.heat_transfer_w_per_m2_k),
-        wall_k_(plant.wall_temperature_k()) {}
+  ThermalChamber(const Gas& gas, const ThermalParams& thermal) noexcept
+      : gamma_(thermal.adiabatic_index),
+        r_(gas.gas_constant_j_per_kg_k),
+        h_(thermal.heat_transfer_w_per_m2_k),
+        wall_k_(thermal.wall_temperature_auto ? gas.temperature_k : thermal.wall_temperature_k) {}
+  explicit ThermalChamber(const PlantParams& plant) noexcept : ThermalChamber(plant.gas, plant.thermal) {}
 
   [[nodiscard]] ChamberRates rates(const ChamberInflow& in, double p_pa, double t_k, double volume_m3,
                                    double dvolume_dt_m3_per_s, double wall_m2) const noexcept {
@@ -77,17 +82,101 @@ class ThermalChamber {
 struct SpoolLag {
   double time_constant_s = 0.0;
 
+  [[nodiscard]] bool lags() const noexcept { return time_constant_s > 0.0; }
   /// What the spool follows when commanded `w_v`: the command within the valve's travel, from
   /// fully open one way to fully open the other (w_0 -+ u_max); beyond it the spool is at its stop.
   [[nodiscard]] static double target_v(const ValveParams& v, double w_v) noexcept {
     return std::fmin(std::fmax(w_v, v.null_offset_v - v.max_voltage_v), v.null_offset_v + v.max_voltage_v);
   }
-
   /// Where a spool at `from_v` is `dt_s` later, commanded `target_v` all along (exact).
   [[nodiscard]] double after(double from_v, double target_v, double dt_s) const noexcept {
-    if (!(time_constant_s > 0.0)) return target_v;
+    if (!lags()) return target_v;
     return target_v + (from_v - target_v) * std::exp(-dt_s / time_constant_s);
   }
+};
+
+/// Which chamber.
+enum class Side : std::uint8_t { kP, kN };
+
+/// Both chambers and the spools as a model sees them at an instant.
+struct ChamberState {
+  double p_p_pa = 0.0, p_n_pa = 0.0;  ///< pressures [Pa abs]
+  double t_p_k = 0.0, t_n_k = 0.0;    ///< temperatures [K]
+  double w_p_v = 0.0, w_n_v = 0.0;    ///< the spools, as the voltages their openings correspond to [V]
+};
+
+/// The gas process of a plant model's two chambers, each fed by its valve (`valve`, the model or a
+/// measured table): polytropic at the supply temperature (Eq. 2: dp/dt = k r T / V (q - p dV/dt /
+/// (r T))), or with plant.thermal the energy balance of ThermalChamber.
+class ChamberProcess {
+ public:
+  /// `thermal`: the energy balance's parameters, or null for the polytropic process.
+  ChamberProcess(const Geometry& geometry, const Gas& gas, const ThermalParams* thermal) noexcept;
+  explicit ChamberProcess(const PlantParams& plant) noexcept
+      : ChamberProcess(plant.geometry, plant.gas, plant.has_thermal ? &plant.thermal : nullptr) {}
+
+  /// dp/dt and dT/dt (0 for the polytropic process) of chamber `side` at pressure p and
+  /// temperature T, its valve at voltage w, the carriage at y moving at v.
+  [[nodiscard]] ChamberRates rates(const ValveCharacteristic& valve, Side side, double p_pa, double t_k, double w_v,
+                                   double y_m, double v_m_per_s) const noexcept;
+  /// The rate at which chamber `side` at rest at y forgets a disturbance of its state (the
+  /// largest of its local valve and thermal rates) [1/s]: for step sizes.
+  [[nodiscard]] double fastest_rate_1_per_s(const ValveCharacteristic& valve, Side side, double p_pa, double t_k,
+                                            double w_v, double y_m) const noexcept;
+
+  [[nodiscard]] bool thermal() const noexcept { return thermal_; }
+  [[nodiscard]] const ThermalChamber& thermal_chamber() const noexcept { return chamber_; }
+  /// The temperature a chamber settles at: the wall's (thermal), else the supply's [K].
+  [[nodiscard]] double rest_temperature_k() const noexcept { return thermal_ ? chamber_.wall_temperature_k() : supply_k_; }
+  [[nodiscard]] double supply_temperature_k() const noexcept { return supply_k_; }
+  /// p_null(w) of a chamber at its rest temperature [Pa].
+  [[nodiscard]] double null_pressure_pa(const ValveCharacteristic& valve, double w_v) const noexcept;
+  [[nodiscard]] const Geometry& geometry() const noexcept { return geometry_; }
+  [[nodiscard]] double volume_m3(Side side, double y_m) const noexcept {
+    return side == Side::kP ? geometry_.dead_volume_p_m3 + area_p_m2_ * (half_stroke_m_ + y_m)
+                            : geometry_.dead_volume_n_m3 + area_n_m2_ * (half_stroke_m_ - y_m);
+  }
+
+ private:
+  Geometry geometry_;
+  bool thermal_;
+  ThermalChamber chamber_;
+  double area_p_m2_, area_n_m2_, half_stroke_m_;
+  double k_r_t_, r_t_, supply_k_, gamma_r_;
+};
+
+/// The chambers' temperatures and the spools' positions, which no sensor gives, estimated from what
+/// is measured (the position, both pressures) and commanded (each valve's voltage): each chamber's
+/// temperature equation of the energy balance integrated along the measured pressures and volumes,
+/// the spools' lag along the commands (docs/model.md section 6, "The chambers' state at a stop").
+/// A value type; advance() and command() are real-time safe. Borrows `valve`, which must outlive it.
+class ChamberObserver {
+ public:
+  ChamberObserver(const ChamberProcess& process, const ValveCharacteristic& valve, SpoolLag spool) noexcept
+      : process_(process), valve_(&valve), spool_(spool) {}
+
+  /// At rest at `t_s`: the chambers at their rest temperature, the spools at the commands.
+  void reset(double t_s, double y_m, double p_p_pa, double p_n_pa, double u_p_v, double u_n_v) noexcept;
+  /// To `t_s` with the measurements then, the commands held since the last ones (from the last
+  /// measurements, linearly in between). An earlier or equal time only takes the measurements.
+  void advance(double t_s, double y_m, double p_p_pa, double p_n_pa) noexcept;
+  /// The commands from now on: valve P at u_p, valve N at u_n [V].
+  void command(double u_p_v, double u_n_v) noexcept {
+    u_p_v_ = u_p_v;
+    u_n_v_ = u_n_v;
+  }
+  /// The estimate at the last advance(), its pressures the measured ones.
+  [[nodiscard]] const ChamberState& state() const noexcept { return state_; }
+  [[nodiscard]] double t_s() const noexcept { return t_s_; }
+  [[nodiscard]] const ChamberProcess& process() const noexcept { return process_; }
+
+ private:
+  ChamberProcess process_;
+  const ValveCharacteristic* valve_;
+  SpoolLag spool_;
+  ChamberState state_{};
+  double t_s_ = 0.0, y_m_ = 0.0;
+  double u_p_v_ = 0.0, u_n_v_ = 0.0;
 };
 
 }  // namespace pneu::model

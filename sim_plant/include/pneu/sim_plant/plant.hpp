@@ -104,8 +104,8 @@ class Plant {
 
   [[nodiscard]] const model::PlantParams& params() const noexcept { return params_; }
   [[nodiscard]] const model::ValveModel& valve() const noexcept { return valve_; }
-  /// The chambers' energy balance (plant.thermal; used only with it).
-  [[nodiscard]] const model::ThermalChamber& thermal_chamber() const noexcept { return thermal_; }
+  /// The chambers' gas process: polytropic, or the energy balance with plant.thermal.
+  [[nodiscard]] const model::ChamberProcess& process() const noexcept { return process_; }
   /// Friction force in the current sliding mode at velocity v [N] (docs/model.md section 4).
   [[nodiscard]] double sliding_friction_n(Motion motion, double v_m_per_s) const noexcept;
 
@@ -138,9 +138,9 @@ class Plant {
   model::PlantParams params_;
   model::ValveModel valve_;
   model::PressureForce force_;
-  model::ThermalChamber thermal_;
+  model::ChamberProcess process_;
   model::SpoolLag spool_;
-  double area_p_m2_, area_n_m2_, half_stroke_m_, k_r_t_, r_t_;
+  double area_p_m2_, area_n_m2_, half_stroke_m_, k_r_t_;
   double step_s_;
   PlantState state_;
   double external_n_ = 0.0;
