@@ -321,6 +321,7 @@ void ControlLoop::tick(double t_s) noexcept {
   r.p_n_pa = frame.p_n_pa;
   r.force_n = force;
   r.u_v = command.u_p_v;
+  r.u_n_v = command.u_n_v;
   r.stuck = detector_.stopped();
   r.mode = mode_;
   r.sensor_validity = frame.validity;

@@ -1,5 +1,6 @@
 #include "pneu/controller/predictor.hpp"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 
@@ -38,13 +39,43 @@ double margin(const Bounds& b, double force) noexcept {
 struct Common {
   model::PressureForce pressure_force;  // Eq. 14
   double k_r_t, v_p, v_n;
+  model::ChamberProcess process;  // the chambers' process: polytropic, or the energy balance
+  double y_m;                     // y*
+  // Eq. 23's c in tau = V / (c C_p): k r T, or gamma r T_w with the energy balance (a chamber's
+  // pressure at its wall temperature responds to its flow as an adiabatic one does at first)
+  double c_tau;
+  bool plain;  // polytropic and no spool lag: Eq. 19 as it always was, the pressures alone
+  model::SpoolLag spool;
   double force(double p_p, double p_n) const noexcept { return pressure_force.force_n(p_p, p_n); }
 };
 
 Common common_of(const PredictorModel& m, const StopSnapshot& s) noexcept {
-  return {model::PressureForce(m.geometry, m.gas.exhaust_pressure_pa), m.gas.k_r_t(),
-          m.geometry.volume_p_m3(s.y_m), m.geometry.volume_n_m3(s.y_m)};
+  const double c_tau = m.has_thermal ? m.thermal.adiabatic_index * m.gas.gas_constant_j_per_kg_k *
+                                           (m.thermal.wall_temperature_auto ? m.gas.temperature_k
+                                                                            : m.thermal.wall_temperature_k)
+                                     : m.gas.k_r_t();
+  return {model::PressureForce(m.geometry, m.gas.exhaust_pressure_pa),
+          m.gas.k_r_t(),
+          m.geometry.volume_p_m3(s.y_m),
+          m.geometry.volume_n_m3(s.y_m),
+          m.process(),
+          s.y_m,
+          c_tau,
+          !m.has_hidden_state(),
+          model::SpoolLag{m.spool_time_constant_s}};
 }
+
+// The chambers' state at the snapshot: its pressures, and its temperatures and spools as estimated
+// (at rest where not given).
+struct X {
+  double pp, pn, tp, tn;
+};
+X start_of(const Common& c, const StopSnapshot& s) noexcept {
+  const double rest = c.process.rest_temperature_k();
+  return {s.p_p_pa, s.p_n_pa, std::isnan(s.t_p_k) ? rest : s.t_p_k, std::isnan(s.t_n_k) ? rest : s.t_n_k};
+}
+double spool_p_of(const StopSnapshot& s) noexcept { return std::isnan(s.w_p_v) ? s.u_v : s.w_p_v; }
+double spool_n_of(const StopSnapshot& s) noexcept { return std::isnan(s.w_n_v) ? -s.u_v : s.w_n_v; }
 
 // Root of a function on [a, b] with f(a) <= 0 < f(b) (Illinois); returns the right end of the
 // final bracket, where the event condition holds.
@@ -92,46 +123,91 @@ Prediction base(PredictionMethod method, const PredictorModel& m, const StopSnap
                 const Common& c) noexcept {
   Prediction p;
   p.method = method;
-  p.p_p_equilibrium_pa = m.valve->null_pressure_pa(s.u_v);
-  p.p_n_equilibrium_pa = m.valve->null_pressure_pa(-s.u_v);
+  p.p_p_equilibrium_pa = c.process.null_pressure_pa(*m.valve, s.u_v);
+  p.p_n_equilibrium_pa = c.process.null_pressure_pa(*m.valve, -s.u_v);
   p.equilibrium_force_n = c.force(p.p_p_equilibrium_pa, p.p_n_equilibrium_pa);
   const double c_pp = flow_slope(m, s.u_v, s.p_p_pa, p.p_p_equilibrium_pa);
   const double c_pn = flow_slope(m, -s.u_v, s.p_n_pa, p.p_n_equilibrium_pa);
-  p.tau_p_s = c_pp > 0.0 ? c.v_p / (c.k_r_t * c_pp) : std::numeric_limits<double>::infinity();
-  p.tau_n_s = c_pn > 0.0 ? c.v_n / (c.k_r_t * c_pn) : std::numeric_limits<double>::infinity();
+  p.tau_p_s = c_pp > 0.0 ? c.v_p / (c.c_tau * c_pp) : std::numeric_limits<double>::infinity();
+  p.tau_n_s = c_pn > 0.0 ? c.v_n / (c.c_tau * c_pn) : std::numeric_limits<double>::infinity();
   return p;
 }
 
-struct P2 {
-  double pp, pn;
-};
-
-// The two pressure equations of Eq. 19 (Eq. 2 with v = 0) under the held control u*: each
-// chamber relaxes on its own towards its null-flow pressure.
-struct PressureOde {
+// The two chambers at rest (Eq. 19: Eq. 2 with v = 0) under the held control u*: each relaxes on
+// its own towards its equilibrium; with the energy balance, its temperature towards the wall's, and
+// with a spool lag, its valve opening towards +-u* from where the spool was at the snapshot (t = 0).
+struct ChamberOde {
   const Common& c;
   const model::ValveCharacteristic& valve;
   double u;
+  double w_p0, w_n0;  // the spools at t = 0
 
-  P2 rhs(const P2& x) const noexcept {
-    return {c.k_r_t / c.v_p * valve.mass_flow_kg_per_s(u, x.pp), c.k_r_t / c.v_n * valve.mass_flow_kg_per_s(-u, x.pn)};
+  // A spool this many time constants after a change is where it was commanded (e^-8: 3e-4).
+  static constexpr double kSpoolSettled = 8.0;
+
+  double w_p(double t) const noexcept { return c.spool.after(w_p0, u, t); }
+  double w_n(double t) const noexcept { return c.spool.after(w_n0, -u, t); }
+  bool spools_settled(double t) const noexcept { return !c.spool.lags() || t >= kSpoolSettled * c.spool.time_constant_s; }
+
+  X rhs(const X& x, double t) const noexcept {
+    if (c.plain)
+      return {c.k_r_t / c.v_p * valve.mass_flow_kg_per_s(u, x.pp), c.k_r_t / c.v_n * valve.mass_flow_kg_per_s(-u, x.pn),
+              0.0, 0.0};
+    const model::ChamberRates rp = c.process.rates(valve, model::Side::kP, x.pp, x.tp, w_p(t), c.y_m, 0.0);
+    const model::ChamberRates rn = c.process.rates(valve, model::Side::kN, x.pn, x.tn, w_n(t), c.y_m, 0.0);
+    return {rp.dp_dt_pa_per_s, rn.dp_dt_pa_per_s, rp.dtemperature_dt_k_per_s, rn.dtemperature_dt_k_per_s};
   }
-  P2 rk4(const P2& x, double h) const noexcept {
-    const P2 k1 = rhs(x);
-    const P2 k2 = rhs({x.pp + 0.5 * h * k1.pp, x.pn + 0.5 * h * k1.pn});
-    const P2 k3 = rhs({x.pp + 0.5 * h * k2.pp, x.pn + 0.5 * h * k2.pn});
-    const P2 k4 = rhs({x.pp + h * k3.pp, x.pn + h * k3.pn});
+  X rk4(const X& x, double t, double h) const noexcept {
+    const X k1 = rhs(x, t);
+    const X k2 = rhs({x.pp + 0.5 * h * k1.pp, x.pn + 0.5 * h * k1.pn, x.tp + 0.5 * h * k1.tp, x.tn + 0.5 * h * k1.tn},
+                     t + 0.5 * h);
+    const X k3 = rhs({x.pp + 0.5 * h * k2.pp, x.pn + 0.5 * h * k2.pn, x.tp + 0.5 * h * k2.tp, x.tn + 0.5 * h * k2.tn},
+                     t + 0.5 * h);
+    const X k4 = rhs({x.pp + h * k3.pp, x.pn + h * k3.pn, x.tp + h * k3.tp, x.tn + h * k3.tn}, t + h);
     return {x.pp + h / 6.0 * (k1.pp + 2 * k2.pp + 2 * k3.pp + k4.pp),
-            x.pn + h / 6.0 * (k1.pn + 2 * k2.pn + 2 * k3.pn + k4.pn)};
+            x.pn + h / 6.0 * (k1.pn + 2 * k2.pn + 2 * k3.pn + k4.pn),
+            x.tp + h / 6.0 * (k1.tp + 2 * k2.tp + 2 * k3.tp + k4.tp),
+            x.tn + h / 6.0 * (k1.tn + 2 * k2.tn + 2 * k3.tn + k4.tn)};
   }
-  // A tenth of the faster chamber's local time constant (RK4 error << 1e-6 relative), <= 10 ms.
-  double step_s(const P2& x) const noexcept {
+  // A tenth of the faster chamber's local time constant (RK4 error << 1e-6 relative), <= 10 ms;
+  // while a spool still moves, a tenth of its lag.
+  double step_s(const X& x, double t) const noexcept {
     constexpr double kStepFraction = 0.1;
     constexpr double kMaxStep_s = 0.01;
-    const double slope = std::max(c.k_r_t / c.v_p * -valve.dq_dp(u, x.pp), c.k_r_t / c.v_n * -valve.dq_dp(-u, x.pn));
+    double slope;
+    if (c.plain) {
+      slope = std::max(c.k_r_t / c.v_p * -valve.dq_dp(u, x.pp), c.k_r_t / c.v_n * -valve.dq_dp(-u, x.pn));
+    } else {
+      slope = std::max(c.process.fastest_rate_1_per_s(valve, model::Side::kP, x.pp, x.tp, w_p(t), c.y_m),
+                       c.process.fastest_rate_1_per_s(valve, model::Side::kN, x.pn, x.tn, w_n(t), c.y_m));
+      if (!spools_settled(t)) slope = std::max(slope, 1.0 / c.spool.time_constant_s);
+    }
     return std::min(kMaxStep_s, slope > 0.0 ? kStepFraction / slope : kMaxStep_s);
   }
 };
+
+// The force range the chambers can still span from `x` on (each relaxing to its equilibrium p_e):
+// the box of the present and equilibrium pressures (a scalar autonomous ODE with q decreasing in p
+// moves monotonically). With the energy balance the present pressures are taken at the wall
+// temperature (the chamber's air cooled or warmed to it), and the box widened by twice the force
+// that the temperatures' distance from the wall's is worth. With a spool still moving, nothing.
+struct ForceRange {
+  double lo_n, hi_n;
+  bool known;
+};
+ForceRange reachable_forces(const Common& c, const ChamberOde& ode, const X& x, double t, double pe_p,
+                            double pe_n) noexcept {
+  if (!ode.spools_settled(t)) return {0.0, 0.0, false};
+  double pp = x.pp, pn = x.pn, slack = 0.0;
+  if (c.process.thermal()) {
+    const double wall = c.process.rest_temperature_k();
+    pp = x.pp * wall / x.tp;
+    pn = x.pn * wall / x.tn;
+    slack = 2.0 * (c.pressure_force.area_p_m2() * std::abs(x.pp - pp) + c.pressure_force.area_n_m2() * std::abs(x.pn - pn));
+  }
+  return {c.force(std::min(pp, pe_p), std::max(pn, pe_n)) - slack, c.force(std::max(pp, pe_p), std::min(pn, pe_n)) + slack,
+          true};
+}
 
 void mark_restart(Prediction& p, const StopSnapshot& s, double dt, double force,
                   const Bounds& b) noexcept {
@@ -218,6 +294,110 @@ LinearPart fit_linear_part(const PhaseHistory& h, int chamber, double mean_pa, d
   r.sse = std::max(0.0, spp - r.a * sp - r.b * sep);
   return r;
 }
+
+// One chamber's state (pressure, and temperature and spool where the model has them) linearised at
+// the point Eq. 23's slope names (the stop's state, the equilibrium, or the stop's with the flow's
+// chord), relaxing to its equilibrium (p_e, the wall temperature, the spool at `target`): the
+// pressure's share of each mode of the linear system (docs/model.md section 6).
+ChamberModes chamber_modes(const PredictorModel& m, const Common& c, model::Side side, double p0, double t0, double w0,
+                           double target, double p_e) noexcept {
+  const bool thermal = c.process.thermal(), lag = c.spool.lags();
+  const int n = 1 + (thermal ? 1 : 0) + (lag ? 1 : 0);
+  const int it = 1, iw = thermal ? 2 : 1;  // the temperature's and the spool's places
+  const double rest = c.process.rest_temperature_k();
+  using Vec = Eigen::VectorXd;
+  const auto rate = [&](const Vec& z) {
+    const double t = thermal ? z[it] : rest, w = lag ? z[iw] : target;
+    const model::ChamberRates r = c.process.rates(*m.valve, side, z[0], t, w, c.y_m, 0.0);
+    Vec dz(n);
+    dz[0] = r.dp_dt_pa_per_s;
+    if (thermal) dz[it] = r.dtemperature_dt_k_per_s;
+    if (lag) dz[iw] = (target - w) / c.spool.time_constant_s;
+    return dz;
+  };
+  Vec z0(n), ze(n);
+  z0[0] = p0;
+  ze[0] = p_e;
+  if (thermal) z0[it] = t0, ze[it] = rest;
+  if (lag) z0[iw] = w0, ze[iw] = target;
+  const Vec at = m.linearized_slope == LinearizedSlope::kEquilibriumTangent ? ze : z0;
+  Eigen::MatrixXd jacobian(n, n);
+  const double steps[3] = {10.0, 0.01, 1.0e-4};  // [Pa], [K], [V]: central differences
+  for (int j = 0; j < n; ++j) {
+    const double h = steps[j == 0 ? 0 : (thermal && j == it ? 1 : 2)];
+    Vec up = at, down = at;
+    up[j] += h;
+    down[j] -= h;
+    jacobian.col(j) = (rate(up) - rate(down)) / (2.0 * h);
+  }
+  // The chord: the pressure's own slope from the stop to the equilibrium, at the wall temperature
+  // with the spool at its target (the tangent when they are within 1 Pa).
+  if (m.linearized_slope == LinearizedSlope::kChord && std::abs(p0 - p_e) >= 1.0) {
+    Vec z = ze;
+    z[0] = p0;
+    jacobian(0, 0) = rate(z)[0] / (p0 - p_e);
+  }
+  ChamberModes modes;
+  modes.p_equilibrium_pa = p_e;
+  modes.count = n;
+  const Eigen::EigenSolver<Eigen::MatrixXd> solver(jacobian);
+  const Eigen::MatrixXcd vectors = solver.eigenvectors();
+  const Eigen::VectorXcd weights = vectors.fullPivLu().solve((z0 - ze).cast<std::complex<double>>());
+  for (int i = 0; i < n; ++i) {
+    std::complex<double> rate_i = solver.eigenvalues()[i];
+    // A mode that does not decay (no flow slope: C_p <= 0) stays where it is, as Eq. 23's infinite tau.
+    if (!(rate_i.real() < 0.0)) rate_i = {0.0, 0.0};
+    modes.amplitude_pa[static_cast<std::size_t>(i)] = vectors(0, i) * weights[i];
+    modes.rate_1_per_s[static_cast<std::size_t>(i)] = rate_i;
+  }
+  return modes;
+}
+
+// Eq. 16/25 for forces that are sums of modes: whether and when F(x) = force(p_P(x), p_N(x)) leaves
+// the band b, on a grid a fiftieth of the fastest mode's time constant at first, then a fiftieth
+// of the time elapsed, out to forty of the slowest (after which F has settled at the equilibrium
+// force, or stays where its non-decaying modes hold it), each crossing located by regula falsi.
+void modes_crossing(Prediction& p, const StopSnapshot& s, const Bounds& b, const Common& c, const ChamberModes& mp,
+                    const ChamberModes& mn, double horizon_s) noexcept {
+  const auto force = [&](double x) { return c.force(mp.pressure_pa(x), mn.pressure_pa(x)); };
+  double fastest = 0.0, slowest = std::numeric_limits<double>::infinity();
+  bool lasting = false;  // a mode that does not decay
+  for (const ChamberModes* modes : {&mp, &mn})
+    for (int i = 0; i < modes->count; ++i) {
+      const double r = -modes->rate_1_per_s[static_cast<std::size_t>(i)].real();
+      if (std::abs(modes->amplitude_pa[static_cast<std::size_t>(i)]) == 0.0) continue;
+      if (r > 0.0) {
+        fastest = std::max(fastest, r);
+        slowest = std::min(slowest, r);
+      } else {
+        lasting = true;
+      }
+    }
+  double f = force(0.0);
+  if (excess(b, f) > 0.0) {
+    mark_restart(p, s, 0.0, f, b);
+    return;
+  }
+  double min_margin = margin(b, f);
+  if (fastest > 0.0) {
+    const double end = std::min(horizon_s, 40.0 / slowest);
+    for (double x = 0.0; x < end;) {
+      const double h = std::min(end - x, 0.02 * std::max(1.0 / fastest, x));
+      const double f1 = force(x + h);
+      if (excess(b, f1) > 0.0) {
+        const auto g = [&](double xx) { return excess(b, force(xx)); };
+        const double at = bracketed_root(g, x, x + h, excess(b, f), excess(b, f1), kTimeTolerance_s);
+        mark_restart(p, s, at, force(at), b);
+        return;
+      }
+      min_margin = std::min(min_margin, margin(b, f1));
+      x += h;
+      f = f1;
+    }
+  }
+  if (!lasting) min_margin = std::min(min_margin, margin(b, p.equilibrium_force_n));
+  p.min_margin_n = min_margin;
+}
 }  // namespace
 
 const char* to_string(PredictionMethod m) noexcept {
@@ -230,12 +410,33 @@ const char* to_string(PredictionMethod m) noexcept {
   return "?";
 }
 
+double ChamberModes::main_time_constant_s() const noexcept {
+  double largest = 0.0, tau = std::numeric_limits<double>::infinity();
+  for (int i = 0; i < count; ++i) {
+    const double a = std::abs(amplitude_pa[static_cast<std::size_t>(i)]);
+    if (a <= largest) continue;
+    largest = a;
+    const double r = -rate_1_per_s[static_cast<std::size_t>(i)].real();
+    tau = r > 0.0 ? 1.0 / r : std::numeric_limits<double>::infinity();
+  }
+  return tau;
+}
+
 Prediction predict_linearized(const PredictorModel& m, const StopSnapshot& s) noexcept {
   const Common c = common_of(m, s);
   Prediction p = base(PredictionMethod::kLinearized, m, s, c);
-  // Eq. 17: each chamber relaxes from its stop pressure to p_null(+-u*) with its Eq. 23 tau.
-  two_exponential_crossing(p, s, bounds_of(m, s), c.pressure_force.area_p_m2() * (s.p_p_pa - p.p_p_equilibrium_pa),
-                           -c.pressure_force.area_n_m2() * (s.p_n_pa - p.p_n_equilibrium_pa), p.equilibrium_force_n);
+  if (c.plain) {
+    // Eq. 17: each chamber relaxes from its stop pressure to p_null(+-u*) with its Eq. 23 tau.
+    two_exponential_crossing(p, s, bounds_of(m, s), c.pressure_force.area_p_m2() * (s.p_p_pa - p.p_p_equilibrium_pa),
+                             -c.pressure_force.area_n_m2() * (s.p_n_pa - p.p_n_equilibrium_pa), p.equilibrium_force_n);
+    return p;
+  }
+  const X x0 = start_of(c, s);
+  const ChamberModes mp = chamber_modes(m, c, model::Side::kP, x0.pp, x0.tp, spool_p_of(s), s.u_v, p.p_p_equilibrium_pa);
+  const ChamberModes mn = chamber_modes(m, c, model::Side::kN, x0.pn, x0.tn, spool_n_of(s), -s.u_v, p.p_n_equilibrium_pa);
+  p.tau_p_s = mp.main_time_constant_s();
+  p.tau_n_s = mn.main_time_constant_s();
+  modes_crossing(p, s, bounds_of(m, s), c, mp, mn, m.horizon_s);
   return p;
 }
 
@@ -243,10 +444,10 @@ Prediction predict_nonlinear(const PredictorModel& m, const StopSnapshot& s) noe
   const Common c = common_of(m, s);
   Prediction p = base(PredictionMethod::kNonlinear, m, s, c);
   const Bounds b = bounds_of(m, s);
-  const PressureOde ode{c, *m.valve, s.u_v};
-  const auto force = [&](const P2& x) { return c.force(x.pp, x.pn); };
+  const ChamberOde ode{c, *m.valve, s.u_v, spool_p_of(s), spool_n_of(s)};
+  const auto force = [&](const X& x) { return c.force(x.pp, x.pn); };
 
-  P2 x{s.p_p_pa, s.p_n_pa};
+  X x = start_of(c, s);
   double f = force(x);
   if (excess(b, f) > 0.0) {
     mark_restart(p, s, 0.0, f, b);
@@ -259,24 +460,23 @@ Prediction predict_nonlinear(const PredictorModel& m, const StopSnapshot& s) noe
     // Each pressure relaxes monotonically towards its null-flow value (a scalar autonomous ODE
     // with q decreasing in p), so F stays inside the box spanned by the present and equilibrium
     // pressures: when that box lies inside the band, no restart can ever come.
-    const double f_lo = c.force(std::min(x.pp, pe_p), std::max(x.pn, pe_n));
-    const double f_hi = c.force(std::max(x.pp, pe_p), std::min(x.pn, pe_n));
     // Once no restart is possible, go on only while the box could still hold a smaller margin
     // than the one already met (after an overshoot the box corner lingers near a bound).
-    if (f_lo > b.lower_n && f_hi < b.upper_n) {
-      const double box_margin = std::min(margin(b, f_lo), margin(b, f_hi));
+    if (const ForceRange range = reachable_forces(c, ode, x, t, pe_p, pe_n);
+        range.known && range.lo_n > b.lower_n && range.hi_n < b.upper_n) {
+      const double box_margin = std::min(margin(b, range.lo_n), margin(b, range.hi_n));
       if (box_margin >= min_margin - kMarginTolerance_n) {
         p.min_margin_n = std::min(min_margin, box_margin);
         return p;
       }
     }
-    const double h = ode.step_s(x);
-    const P2 x1 = ode.rk4(x, h);
+    const double h = ode.step_s(x, t);
+    const X x1 = ode.rk4(x, t, h);
     const double f1 = force(x1);
     if (excess(b, f1) > 0.0) {
-      const auto g = [&](double th) { return excess(b, force(ode.rk4(x, th * h))); };
+      const auto g = [&](double th) { return excess(b, force(ode.rk4(x, t, th * h))); };
       const double th = bracketed_root(g, 0.0, 1.0, excess(b, f), excess(b, f1), kTimeTolerance_s / h);
-      mark_restart(p, s, t + th * h, force(ode.rk4(x, th * h)), b);
+      mark_restart(p, s, t + th * h, force(ode.rk4(x, t, th * h)), b);
       return p;
     }
     min_margin = std::min(min_margin, margin(b, f1));
@@ -296,11 +496,12 @@ Prediction predict_held(const PredictorModel& m, const HoldLaw& law, HoldState s
   const Common c = common_of(m, now);
   Prediction p = base(PredictionMethod::kHeld, m, now, c);
   const Bounds b = bounds_of(m, now);
-  const auto force = [&](const P2& x) { return c.force(x.pp, x.pn); };
+  const auto force = [&](const X& x) { return c.force(x.pp, x.pn); };
   const double period = law.period_s();
   const double horizon = std::min(m.horizon_s, kHeldHorizon_s);
 
-  P2 x{now.p_p_pa, now.p_n_pa};
+  X x = start_of(c, now);
+  double spool_p = spool_p_of(now), spool_n = spool_n_of(now);
   double f = force(x);
   if (excess(b, f) > 0.0) {
     mark_restart(p, now, 0.0, f, b);
@@ -309,16 +510,17 @@ Prediction predict_held(const PredictorModel& m, const HoldLaw& law, HoldState s
   double min_margin = margin(b, f);
   double u = now.u_v;  // sent at now.t_s; the law's next command comes a period later
   for (double t = 0.0; t < horizon;) {
-    // One period under u: RK4 in steps of at most the nonlinear method's.
-    const PressureOde ode{c, *m.valve, u};
-    for (double left = period; left > 0.0;) {
-      const double h = std::min(left, ode.step_s(x));
-      const P2 x1 = ode.rk4(x, h);
+    // One period under u: RK4 in steps of at most the nonlinear method's, the spools lagging
+    // towards it from where the last period left them.
+    const ChamberOde ode{c, *m.valve, u, spool_p, spool_n};
+    for (double left = period, in_period = 0.0; left > 0.0;) {
+      const double h = std::min(left, ode.step_s(x, in_period));
+      const X x1 = ode.rk4(x, in_period, h);
       const double f1 = force(x1);
       if (excess(b, f1) > 0.0) {
-        const auto g = [&](double th) { return excess(b, force(ode.rk4(x, th * h))); };
+        const auto g = [&](double th) { return excess(b, force(ode.rk4(x, in_period, th * h))); };
         const double th = bracketed_root(g, 0.0, 1.0, excess(b, f), excess(b, f1), kTimeTolerance_s / h);
-        const double f_cross = force(ode.rk4(x, th * h));
+        const double f_cross = force(ode.rk4(x, in_period, th * h));
         mark_restart(p, now, t + th * h, f_cross, b);
         p.equilibrium_force_n = f_cross;
         return p;
@@ -327,8 +529,11 @@ Prediction predict_held(const PredictorModel& m, const HoldLaw& law, HoldState s
       x = x1;
       f = f1;
       t += h;
+      in_period += h;
       left -= h;
     }
+    spool_p = ode.w_p(period);
+    spool_n = ode.w_n(period);
     const double t_abs = now.t_s + t;
     const double u_next = law.command_v(state, t_abs, f, true);
     const bool settled = law.ramp_done(state, t_abs) && std::abs(f - law.reference_n(state, t_abs)) < kSettledForce_n &&
@@ -470,14 +675,25 @@ ForecastTrack::ForecastTrack(PredictionMethod method, const PredictorModel& mode
   p_n_equilibrium_pa_ = p.p_n_equilibrium_pa;
   tau_p_s_ = p.tau_p_s;
   tau_n_s_ = p.tau_n_s;
+  const X x0 = start_of(c, stop);
+  end_temperature_ = {x0.tp, x0.tn};
+  if (method == PredictionMethod::kLinearized && !c.plain) {
+    modes_[0] = chamber_modes(model, c, model::Side::kP, x0.pp, x0.tp, spool_p_of(stop), stop.u_v, p_p_equilibrium_pa_);
+    modes_[1] = chamber_modes(model, c, model::Side::kN, x0.pn, x0.tn, spool_n_of(stop), -stop.u_v, p_n_equilibrium_pa_);
+  }
   if (method == PredictionMethod::kNonlinear) {
-    const P2 dx = PressureOde{c, *model.valve, stop.u_v}.rhs({stop.p_p_pa, stop.p_n_pa});
+    const X dx = ChamberOde{c, *model.valve, stop.u_v, spool_p_of(stop), spool_n_of(stop)}.rhs(x0, 0.0);
     start_slope_ = end_slope_ = {dx.pp, dx.pn};
   }
 }
 
 ForecastPoint ForecastTrack::at(double t_s) noexcept {
   const Common c = common_of(model_, stop_);
+  if (method_ == PredictionMethod::kLinearized && !c.plain) {
+    const double x = std::max(0.0, t_s - stop_.t_s);
+    const double pp = modes_[0].pressure_pa(x), pn = modes_[1].pressure_pa(x);
+    return {pp, pn, c.force(pp, pn)};
+  }
   if (method_ == PredictionMethod::kLinearized) {
     // Eq. 24: each pressure relaxes exponentially from its stop value to its equilibrium.
     const double x = std::max(0.0, t_s - stop_.t_s);
@@ -493,17 +709,20 @@ ForecastPoint ForecastTrack::at(double t_s) noexcept {
   // The steps of predict_nonlinear from the snapshot; between their ends, the cubic Hermite
   // interpolant (from the values and slopes there: as accurate as the RK4 step, far cheaper than
   // a step per tick).
-  const PressureOde ode{c, *model_.valve, stop_.u_v};
+  const ChamberOde ode{c, *model_.valve, stop_.u_v, spool_p_of(stop_), spool_n_of(stop_)};
   while (t_s > step_end_s_) {
     step_start_s_ = step_end_s_;
     start_ = end_;
     start_slope_ = end_slope_;
-    const double h = ode.step_s({start_[0], start_[1]});
-    const P2 x = ode.rk4({start_[0], start_[1]}, h);
-    const P2 dx = ode.rhs(x);
+    const X from{start_[0], start_[1], end_temperature_[0], end_temperature_[1]};
+    const double since_stop = step_start_s_ - stop_.t_s;
+    const double h = ode.step_s(from, since_stop);
+    const X x = ode.rk4(from, since_stop, h);
+    const X dx = ode.rhs(x, since_stop + h);
     step_end_s_ = step_start_s_ + h;
     end_ = {x.pp, x.pn};
     end_slope_ = {dx.pp, dx.pn};
+    end_temperature_ = {x.tp, x.tn};
   }
   const double h = step_end_s_ - step_start_s_;
   const double u = h > 0.0 ? (t_s - step_start_s_) / h : 1.0;

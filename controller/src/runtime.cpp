@@ -35,7 +35,30 @@ StopSnapshot snapshot_at(const StopOutcome& s, const TickRecord& r) {
 }  // namespace
 
 Runtime::Runtime(const PredictorModel& model, bool linearized, bool nonlinear, double update_period_s)
-    : model_(model), linearized_(linearized), nonlinear_(nonlinear), update_period_s_(update_period_s) {}
+    : model_(model), linearized_(linearized), nonlinear_(nonlinear), update_period_s_(update_period_s) {
+  set_model(model);
+}
+
+void Runtime::set_model(const PredictorModel& model) noexcept {
+  model_ = model;
+  if (!model.has_hidden_state() || model.valve == nullptr) {
+    observer_.reset();
+    return;
+  }
+  model::ChamberObserver next(model.process(), *model.valve, model::SpoolLag{model.spool_time_constant_s});
+  if (observer_) next.resume(*observer_);
+  observer_.emplace(next);
+}
+
+StopSnapshot Runtime::with_hidden_state(StopSnapshot s) const noexcept {
+  if (!observer_ || !observer_started_) return s;
+  const model::ChamberState& x = observer_->state();
+  s.t_p_k = x.t_p_k;
+  s.t_n_k = x.t_n_k;
+  s.w_p_v = x.w_p_v;
+  s.w_n_v = x.w_n_v;
+  return s;
+}
 
 void Runtime::drain(LoopOutputs& out) {
   // Ticks and events come on two queues. The loop pushes a tick's events before its record, so
@@ -61,6 +84,13 @@ void Runtime::on_tick(const TickRecord& r) {
   next_seq_ = r.seq + 1;
   ++ticks_seen_;
   t_end_s_ = r.t_s;
+  // The chambers' hidden state to this tick (a bad sample is skipped: the next good one takes over).
+  if (observer_ && std::isfinite(r.y_m) && std::isfinite(r.p_p_pa) && std::isfinite(r.p_n_pa)) {
+    if (!observer_started_) observer_->reset(r.t_s, r.y_m, r.p_p_pa, r.p_n_pa, r.u_v, r.u_n_v);
+    else observer_->advance(r.t_s, r.y_m, r.p_p_pa, r.p_n_pa);
+    observer_started_ = true;
+    observer_->command(r.u_v, r.u_n_v);
+  }
 
   // A forecast holds while the carriage stays stuck under the u* it assumed: armed (not holding:
   // the hold drives u), same set point.
@@ -107,7 +137,7 @@ void Runtime::on_tick(const TickRecord& r) {
 // A forecast under the hold's commands from this tick's pressures, the command it sent and the
 // hold's integral term after it.
 void Runtime::held_forecast(StopOutcome& s, const TickRecord& r) {
-  StopSnapshot now = snapshot_at(s, r);
+  StopSnapshot now = with_hidden_state(snapshot_at(s, r));
   now.u_v = r.u_v;  // the hold's command, not u*
   if (!snapshot_is_finite(now)) return;
   HoldState state = *hold_;
@@ -126,7 +156,7 @@ void Runtime::held_forecast(StopOutcome& s, const TickRecord& r) {
 }
 
 void Runtime::reforecast(StopOutcome& s, const TickRecord& r, const ExpectedAtTick& expected) {
-  const StopSnapshot now = snapshot_at(s, r);
+  const StopSnapshot now = with_hidden_state(snapshot_at(s, r));
   if (!snapshot_is_finite(now)) return;
   ++s.updates;
   // Bounded history: past the cap, every other update kept is let go, evenly over the phase.
@@ -189,6 +219,11 @@ void Runtime::on_event(const LoopEvent& e) {
     s.force_n = e.force_n;
     s.y_d_m = e.y_d_m;
     s.snapshot = e.snapshot;
+    // The snapshot's tick comes after its event: the chambers' hidden state taken to it.
+    if (observer_ && observer_started_ && snapshot_is_finite(s.snapshot)) {
+      observer_->advance(s.snapshot.t_s, s.snapshot.y_m, s.snapshot.p_p_pa, s.snapshot.p_n_pa);
+      s.snapshot = with_hidden_state(s.snapshot);
+    }
     // Forecasts assume the law holds u* (Eq. 11): not when disarmed or faulted.
     const bool forecastable = e.controlled && snapshot_is_finite(s.snapshot);
     if (linearized_ && forecastable) s.linearized = predict_linearized(model_, s.snapshot);

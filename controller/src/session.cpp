@@ -53,6 +53,9 @@ PredictorModel predictor_model(const config::Config& config, const model::ValveC
   m.valve = &valve;
   m.horizon_s = config.controller.predictor.horizon_s;
   m.linearized_slope = config.controller.predictor.linearized_slope;
+  m.has_thermal = config.plant.has_thermal;
+  m.thermal = config.plant.thermal;
+  m.spool_time_constant_s = config.plant.valve.spool_time_constant_s;
   return m;
 }
 

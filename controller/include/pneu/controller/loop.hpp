@@ -55,6 +55,7 @@ struct TickRecord {
   double p_n_pa = 0.0;         ///< measured chamber N pressure [Pa]
   double force_n = 0.0;        ///< pressure force of Eq. 14 from the measured pressures [N]
   double u_v = 0.0;            ///< control sent: u_P = u, u_N = -u [V]
+  double u_n_v = 0.0;          ///< the voltage valve N was sent: -u, but for the exhaust safe output [V]
   bool stuck = false;          ///< the stop detector holds the carriage at rest
   Mode mode = Mode::kArmed;
   std::uint32_t sensor_validity = 0;  ///< hal::SensorValidity flags of the sample

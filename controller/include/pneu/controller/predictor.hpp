@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <complex>
 #include <cstdint>
 #include <cstddef>
 #include <limits>
@@ -11,6 +12,7 @@
 
 #include "pneu/config/config.hpp"
 #include "pneu/controller/hold_law.hpp"
+#include "pneu/model/chamber.hpp"
 #include "pneu/model/params.hpp"
 #include "pneu/model/valve.hpp"
 
@@ -44,6 +46,20 @@ struct PredictorModel {
   double horizon_s = 600.0;  ///< the nonlinear method gives up (no restart) this long after the stop
   /// The time constants' slope (the linearized method's; both methods report the time constants).
   LinearizedSlope linearized_slope = LinearizedSlope::kStopTangent;
+  /// With has_thermal, the chambers' energy balance with wall heat exchange (plant.thermal) in
+  /// place of the polytropic process of gas.polytropic_index.
+  bool has_thermal = false;
+  model::ThermalParams thermal;
+  /// The spools' lag (plant.valve.spool_time_constant_s) [s]; 0: none.
+  double spool_time_constant_s = 0.0;
+
+  /// The chambers' process of this model (geometry, gas, the energy balance if any).
+  [[nodiscard]] model::ChamberProcess process() const noexcept {
+    return model::ChamberProcess(geometry, gas, has_thermal ? &thermal : nullptr);
+  }
+  /// Whether a forecast needs what no sensor gives: the chamber temperatures or the spools'
+  /// positions (StopSnapshot's, from a model::ChamberObserver).
+  [[nodiscard]] bool has_hidden_state() const noexcept { return has_thermal || spool_time_constant_s > 0.0; }
 };
 
 /// The snapshot taken when the stop is confirmed.
@@ -55,6 +71,13 @@ struct StopSnapshot {
   double u_v = 0.0;        ///< u*, the control held while stuck (Eq. 11) [V]
   /// +1: at the +L/2 end stop (a push towards + cannot move it), -1 at -L/2, 0 elsewhere.
   int blocked_direction = 0;
+  /// What no sensor gives, as estimated (model::ChamberObserver) for a model that has it: the
+  /// chamber temperatures [K] (NaN: at the wall's) and the spools' positions as voltages [V] (NaN:
+  /// at u* and -u*).
+  double t_p_k = std::numeric_limits<double>::quiet_NaN();
+  double t_n_k = std::numeric_limits<double>::quiet_NaN();
+  double w_p_v = std::numeric_limits<double>::quiet_NaN();
+  double w_n_v = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct Prediction {
@@ -82,10 +105,14 @@ struct Prediction {
 
 /// Eq. 16/17/25 with the time constants of Eq. 23 (slope: model.linearized_slope); the condition
 /// is checked exactly over all t >= t_stop (F(t) is monotone on both sides of its one possible
-/// extremum).
+/// extremum). With the energy balance or a spool lag, each chamber's state (pressure, temperature,
+/// spool) linearised in the same way relaxes as a sum of exponentials (one per state), and the
+/// force's crossings are searched on a grid fine against its time constants.
 [[nodiscard]] Prediction predict_linearized(const PredictorModel& model, const StopSnapshot& stop) noexcept;
 /// Integrates dp/dt = k r T / V(y*) q(+-u*, p) for both chambers (RK4, step a fraction of the
-/// local time constant) and locates the first crossing of a stiction bound inside the step.
+/// local time constant) and locates the first crossing of a stiction bound inside the step; with
+/// the energy balance, each chamber's pressure and temperature from the snapshot's (and the spools
+/// from theirs, lagging towards +-u*).
 [[nodiscard]] Prediction predict_nonlinear(const PredictorModel& model, const StopSnapshot& stop) noexcept;
 /// The model-based methods. kRelaxation needs the phase's history (predict_relaxation): here it
 /// gives no forecast (no restart, horizon_reached set).
@@ -162,6 +189,24 @@ struct ForecastPoint {
   double force_n = 0.0;  ///< Eq. 14 [N]
 };
 
+/// One chamber's pressure as the linearized method sees it with the energy balance or a spool lag:
+/// its state (pressure, temperature, spool) linearised as Eq. 23 linearises the flow, relaxing to
+/// its equilibrium (p_null(+-u*) at the wall temperature, u*) as p(x) = p_e + Re sum_i a_i e^(s_i x),
+/// x the time since the snapshot: one mode per state.
+struct ChamberModes {
+  double p_equilibrium_pa = 0.0;
+  int count = 0;
+  std::array<std::complex<double>, 3> amplitude_pa{}, rate_1_per_s{};
+
+  [[nodiscard]] double pressure_pa(double x_s) const noexcept {
+    double p = p_equilibrium_pa;
+    for (int i = 0; i < count; ++i) p += (amplitude_pa[i] * std::exp(rate_1_per_s[i] * x_s)).real();
+    return p;
+  }
+  /// The time constant of the mode carrying most of the pressure's way [s] (infinite when none).
+  [[nodiscard]] double main_time_constant_s() const noexcept;
+};
+
 /// Follows a forecast through the sticking phase, so that it can be held against the measured
 /// pressures and force as they come (the paper's Fig. 13): the linearized method's Eq. 24 and 17
 /// in closed form, the nonlinear method's pressure equations integrated forward with the steps
@@ -184,11 +229,13 @@ class ForecastTrack {
   StopSnapshot stop_;
   double p_p_equilibrium_pa_ = 0.0, p_n_equilibrium_pa_ = 0.0;
   double tau_p_s_ = 0.0, tau_n_s_ = 0.0;
+  ChamberModes modes_[2];  // linearized, with the energy balance or a spool lag: P, N
   // Nonlinear: the last point asked, and the integration step that holds it.
   double t_asked_s_ = 0.0;
   double p_p_pa_ = 0.0, p_n_pa_ = 0.0;
   double step_start_s_ = 0.0, step_end_s_ = 0.0;
   std::array<double, 2> start_{}, start_slope_{}, end_{}, end_slope_{};  // p_P, p_N and their rates
+  std::array<double, 2> end_temperature_{};  // T_P, T_N at the step's end
 };
 
 /// A forecast needs finite inputs: callers skip the predictors otherwise (a NaN pressure would

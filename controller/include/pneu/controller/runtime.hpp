@@ -69,8 +69,12 @@ class Runtime {
   [[nodiscard]] const PredictorModel& model() const noexcept { return model_; }
   /// The model the forecasts use from now on (online identification): the forecasts made again
   /// while stuck from the next one, each stop's from its own. A forecast already followed keeps the
-  /// model it was made with, so the old valve characteristic must stay alive.
-  void set_model(const PredictorModel& model) noexcept { model_ = model; }
+  /// model it was made with, so the old valve characteristic must stay alive. The estimate of the
+  /// chambers' temperatures and spools goes on from where it stands, on the new model.
+  void set_model(const PredictorModel& model) noexcept;
+  /// The chambers' temperatures and spools as estimated at the last tick drained, for a model that
+  /// has them (PredictorModel::has_hidden_state), else nothing.
+  [[nodiscard]] const std::optional<model::ChamberObserver>& chamber_estimate() const noexcept { return observer_; }
   [[nodiscard]] bool forecasts(PredictionMethod method) const noexcept {
     switch (method) {
       case PredictionMethod::kLinearized: return linearized_;
@@ -98,7 +102,12 @@ class Runtime {
     PhaseHistory history;      // the pressures since the snapshot, for the relaxation method
   };
 
+  // With each snapshot, what no sensor gives (StopSnapshot::t_p_k ...), as estimated now.
+  StopSnapshot with_hidden_state(StopSnapshot s) const noexcept;
+
   PredictorModel model_;
+  std::optional<model::ChamberObserver> observer_;  // with a model that has hidden state
+  bool observer_started_ = false;
   bool linearized_, nonlinear_;
   bool relaxation_ = false;
   double update_period_s_;

@@ -157,6 +157,14 @@ class ChamberObserver {
 
   /// At rest at `t_s`: the chambers at their rest temperature, the spools at the commands.
   void reset(double t_s, double y_m, double p_p_pa, double p_n_pa, double u_p_v, double u_n_v) noexcept;
+  /// Goes on from another estimate's state, time, position and commands (a model replaced).
+  void resume(const ChamberObserver& other) noexcept {
+    state_ = other.state_;
+    t_s_ = other.t_s_;
+    y_m_ = other.y_m_;
+    u_p_v_ = other.u_p_v_;
+    u_n_v_ = other.u_n_v_;
+  }
   /// To `t_s` with the measurements then, the commands held since the last ones (from the last
   /// measurements, linearly in between). An earlier or equal time only takes the measurements.
   void advance(double t_s, double y_m, double p_p_pa, double p_n_pa) noexcept;
