@@ -1281,9 +1281,9 @@ TEST(Schema, MakesEveryMemberOfEveryConfigurationStructAKey) {
 
   EXPECT_THAT(counter.mismatches, ::testing::IsEmpty());
   // Config; plant and its 5 sections; sensors and its 3 channels; simulation; controller, its 7
-  // sections, the law's design and a schedule step; hal, modbus and its 5 channels, gpio, sim and
-  // its plant with that plant's 5 sections, and a push; telemetry; commands.
-  EXPECT_EQ(counter.structs, 40);
+  // sections, the law's design, the predictor's model fit and a schedule step; hal, modbus and its
+  // 5 channels, gpio, sim and its plant with that plant's 5 sections, and a push; telemetry; commands.
+  EXPECT_EQ(counter.structs, 41);
 }
 
 // The key paths of a YAML document, in order ("a.list[0].b" for the keys of a list's mappings).
@@ -1442,6 +1442,28 @@ TEST(ThermalSection, OnlyTheSimulatedBenchMayHaveIt) {
   ASSERT_TRUE(bench.has_thermal);
   EXPECT_EQ(bench.thermal.heat_transfer_w_per_m2_k, 8.6);
   EXPECT_EQ(bench.valve.spool_time_constant_s, 0.003);
+}
+
+TEST(ModelFitSection, AbsentEveryForecastIsTakenAsOnAModelThatFits) {
+  const Config c = with_bench({});
+  EXPECT_FALSE(c.controller.predictor.has_model_fit);
+  EXPECT_EQ(to_yaml(c).find("model_fit:"), std::string::npos);
+}
+
+TEST(ModelFitSection, ItTellsAFitFromAMisfitByTwiceWhatTheNoiseExplains) {
+  const Config fits = with_bench({"controller.predictor.model_fit.pressure_residual_pa=19.9",
+                                  "controller.predictor.model_fit.pressure_explained_pa=10"});
+  ASSERT_TRUE(fits.controller.predictor.has_model_fit);
+  EXPECT_TRUE(fits.controller.predictor.model_fit.fits());
+  const Config misfit = with_bench({"controller.predictor.model_fit.pressure_residual_pa=867",
+                                    "controller.predictor.model_fit.pressure_explained_pa=10"});
+  EXPECT_FALSE(misfit.controller.predictor.model_fit.fits());
+  expect_same_values(load_string(to_yaml(misfit), {}, "to_yaml"), misfit);
+  EXPECT_THAT([] { (void)with_bench({"controller.predictor.model_fit.pressure_residual_pa=-1",
+                                      "controller.predictor.model_fit.pressure_explained_pa=10"}); },
+              refuses("controller.predictor.model_fit.pressure_residual_pa", "must be >= 0"));
+  EXPECT_THAT([] { (void)with_bench({"controller.predictor.model_fit.pressure_residual_pa=1"}); },
+              refuses("controller.predictor.model_fit.pressure_explained_pa", "missing"));
 }
 
 TEST(ThermalSection, BadValuesAreRefusedAtTheirKeys) {

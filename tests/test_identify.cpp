@@ -223,14 +223,15 @@ TEST(Identify, RefusesTooLittleExcitationNamingIt) {
   EXPECT_NE(refusal(s, prior).find("too little excitation"), std::string::npos) << refusal(s, prior);
 }
 
-TEST(Identify, TheValveFitEstimatesTheValvesAndTheDeadVolumesAlone) {
+TEST(Identify, TheValveFitEstimatesTheValvesTheDeadVolumesTheWallsHeatAndTheSpoolLagAlone) {
   std::vector<std::string> from_the_fit;
   for (const char* key : identify::identified_keys())
     if (identify::from_the_valve_fit(key)) from_the_fit.emplace_back(key);
   EXPECT_EQ(from_the_fit, (std::vector<std::string>{
                               "plant.valve.max_conductance_m3_per_s_pa", "plant.valve.leak_conductance_in_m3_per_s_pa",
                               "plant.valve.leak_conductance_out_m3_per_s_pa", "plant.valve.null_offset_v",
-                              "plant.geometry.dead_volume_p_m3", "plant.geometry.dead_volume_n_m3"}));
+                              "plant.geometry.dead_volume_p_m3", "plant.geometry.dead_volume_n_m3",
+                              "plant.thermal.heat_transfer_w_per_m2_k", "plant.valve.spool_time_constant_s"}));
   EXPECT_FALSE(identify::from_the_valve_fit("plant.valve.max_voltage_v"));  // a key it does not estimate
 }
 

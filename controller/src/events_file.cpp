@@ -51,7 +51,8 @@ void EventsFile::on_forecast(const ForecastRecord& f) {
          << ",\"t_restart\":" << num(p.t_restart_s, 12) << ",\"u_star\":" << num(f.u_star_v)
          << ",\"equilibrium_force\":" << num(p.equilibrium_force_n) << ",\"tau_p\":" << num(p.tau_p_s)
          << ",\"tau_n\":" << num(p.tau_n_s) << ",\"min_margin\":" << num(p.min_margin_n)
-         << ",\"horizon_reached\":" << (p.horizon_reached ? "true" : "false") << "}\n";
+         << ",\"horizon_reached\":" << (p.horizon_reached ? "true" : "false")
+         << (p.model_fits ? "" : ",\"model_fits\":false") << "}\n";
     return;
   }
   out_ << "{\"event\":\"reforecast\",\"t\":" << num(f.t_s, 12) << ",\"stop\":" << f.stop
@@ -60,7 +61,8 @@ void EventsFile::on_forecast(const ForecastRecord& f) {
        << ",\"direction\":" << p.direction << ",\"t_restart\":" << num(p.t_restart_s, 12)
        << ",\"u_star\":" << num(f.u_star_v) << ",\"force\":" << num(f.force_n)
        << ",\"stop_forecast_force\":" << num(f.stop_forecast_force_n) << ",\"min_margin\":" << num(p.min_margin_n)
-       << ",\"horizon_reached\":" << (p.horizon_reached ? "true" : "false") << "}\n";
+       << ",\"horizon_reached\":" << (p.horizon_reached ? "true" : "false")
+       << (p.model_fits ? "" : ",\"model_fits\":false") << "}\n";
 }
 
 void EventsFile::on_command(const CommandRecord& c) {

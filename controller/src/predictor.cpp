@@ -123,6 +123,7 @@ Prediction base(PredictionMethod method, const PredictorModel& m, const StopSnap
                 const Common& c) noexcept {
   Prediction p;
   p.method = method;
+  p.model_fits = m.fits;
   p.p_p_equilibrium_pa = c.process.null_pressure_pa(*m.valve, s.u_v);
   p.p_n_equilibrium_pa = c.process.null_pressure_pa(*m.valve, -s.u_v);
   p.equilibrium_force_n = c.force(p.p_p_equilibrium_pa, p.p_n_equilibrium_pa);
@@ -644,6 +645,7 @@ std::optional<Prediction> predict_relaxation(const PredictorModel& m, const Stop
   const Common c = common_of(m, now);
   Prediction p;
   p.method = PredictionMethod::kRelaxation;
+  p.model_fits = m.fits;
   p.p_p_equilibrium_pa = fp.p_inf_pa;
   p.p_n_equilibrium_pa = fn.p_inf_pa;
   p.equilibrium_force_n = c.force(fp.p_inf_pa, fn.p_inf_pa);

@@ -43,6 +43,11 @@ void print_stops(std::FILE* out, const Runtime& runtime) {
                  model.linearized_slope == LinearizedSlope::kChord ? "chord from the stop pressure to p_null(u*)"
                                                                     : "tangent at p_null(u*)",
                  to_string(model.linearized_slope));
+  if (!model.fits)
+    std::fprintf(out, "(UNCERTAIN: the model these forecasts are made on did not fit the bench when it was identified:\n"
+                      " its pressure residual was beyond twice what the sensors' noise explains (controller.predictor.\n"
+                      " model_fit, or online learning's last valve fit); a physics the model lacks? plant.thermal,\n"
+                      " plant.valve.spool_time_constant_s)\n");
   std::fprintf(out, "  %3s %9s %9s %8s %8s %8s  %-34s %-24s %-24s\n", "#", "t_stop[s]", "y*[mm]", "F[N]",
                "u*[V]", "F_e[N]", "what happened", "linearized", "nonlinear");
   for (const auto& s : runtime.stops()) {

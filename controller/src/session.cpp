@@ -56,6 +56,8 @@ PredictorModel predictor_model(const config::Config& config, const model::ValveC
   m.has_thermal = config.plant.has_thermal;
   m.thermal = config.plant.thermal;
   m.spool_time_constant_s = config.plant.valve.spool_time_constant_s;
+  const auto& predictor = config.controller.predictor;
+  m.fits = !predictor.has_model_fit || predictor.model_fit.fits();
   return m;
 }
 

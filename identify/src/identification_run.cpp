@@ -1,5 +1,6 @@
 #include "pneu/identify/identification_run.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -62,7 +63,7 @@ RunPlan plan_run(const config::Config& cfg, const controller::ControlLaw& law, c
 }
 
 Sample sample_of(const controller::TickRecord& r) noexcept {
-  return {r.t_s, r.y_m, r.p_p_pa, r.p_n_pa, r.u_v, controller::drives(r.mode)};
+  return {r.t_s, r.y_m, r.p_p_pa, r.p_n_pa, r.u_v, controller::drives(r.mode), r.u_n_v};
 }
 
 void Recorder::on_tick(const controller::TickRecord& tick, const controller::ExpectedAtTick&) {
@@ -115,12 +116,18 @@ Identification identify_by_run(const config::Config& config, const model::ValveC
 std::string identified_config_yaml(const config::Config& config, const Identification& id, const std::string& source) {
   config::Config out = config;
   out.plant = id.plant;
+  // How well the model fitted: forecasts made on a misfit say they are uncertain.
+  if (id.evidence.fitted_phases > 0) {
+    out.controller.predictor.has_model_fit = true;
+    out.controller.predictor.model_fit = {id.evidence.pressure_rms_residual_pa, id.evidence.pressure_explained_pa};
+  }
   // A simulated bench that was its model stays what it was: the run identified it, it did not change.
   if (config.hal.backend == config::BackendKind::kSim && !config.hal.sim.has_plant) {
     out.hal.has_sim = out.hal.sim.has_plant = true;
     out.hal.sim.plant = config.plant;
   }
-  std::string text = "# plant: identified by pneu " + source + "\n# identified (value +- 1 sigma, was):\n";
+  std::string text = "# plant: identified by pneu " + source + "\n# " + fit_verdict(id.evidence) +
+                     "\n# identified (value +- 1 sigma, was):\n";
   char line[256];
   for (const Estimate& e : id.estimates) {
     if (e.identified)
@@ -134,6 +141,33 @@ std::string identified_config_yaml(const config::Config& config, const Identific
   return text;
 }
 
+std::string fit_verdict(const Evidence& e) {
+  char line[256];
+  if (e.model_fits) {
+    std::snprintf(line, sizeof line,
+                  "the model fits the stuck phases' pressures: %.1f Pa rms, within twice what the sensors' noise explains "
+                  "(%.1f Pa)",
+                  e.pressure_rms_residual_pa, e.pressure_explained_pa);
+    return line;
+  }
+  std::snprintf(line, sizeof line,
+                "THE MODEL DOES NOT FIT the stuck phases' pressures: %.0f Pa rms, %.0f times what the sensors' noise "
+                "explains (%.1f Pa); %zu of %d phases beyond three times it",
+                e.pressure_rms_residual_pa, e.pressure_rms_residual_pa / e.pressure_explained_pa, e.pressure_explained_pa,
+                e.misfit.size(), e.misfit_phases_of);
+  std::string text = line;
+  std::vector<Evidence::PhaseMisfit> worst = e.misfit;
+  std::sort(worst.begin(), worst.end(), [](const auto& a, const auto& b) { return a.rms_pa > b.rms_pa; });
+  text += ", the worst:";
+  for (std::size_t i = 0; i < worst.size() && i < 5; ++i) {
+    std::snprintf(line, sizeof line, "%s t = %.2f s at %.0f mm, %.0f Pa", i > 0 ? ";" : "", worst[i].t_s,
+                  worst[i].y_m * 1e3, worst[i].rms_pa);
+    text += line;
+  }
+  return text + ". Its valve, volume and thermal parameters' sigmas carry the misfit (each phase counted as one "
+                "sample): a physics the model lacks? (plant.thermal, plant.valve.spool_time_constant_s)";
+}
+
 void print_report(std::FILE* out, const Identification& id) {
   const Evidence& e = id.evidence;
   std::fprintf(out,
@@ -143,6 +177,7 @@ void print_report(std::FILE* out, const Identification& id) {
                e.stuck_phases, e.fitted_phases, e.stuck_s, e.stuck_position_span_m * 1e3, e.voltage_span_v,
                e.breakaways_positive, e.breakaways_negative, e.sliding_s, e.pressure_rms_residual_pa,
                e.command_delay_samples);
+  if (e.fitted_phases > 0) std::fprintf(out, "fit: %s\n", fit_verdict(e).c_str());
   std::fprintf(out, "%-46s %12s %12s %10s  %s\n", "parameter", "before", "after", "+- 1 sigma", "from");
   for (const Estimate& x : id.estimates) {
     if (x.identified)

@@ -21,11 +21,12 @@ namespace {
 using detail::StuckPhase;
 
 // The keys: those online identification publishes (run_listener.hpp), then the two taken as known.
-constexpr std::array<const char*, 13> kKeys = [] {
-  std::array<const char*, 13> k{};
-  for (std::size_t i = 0; i < controller::kIdentifiedParameterKeys.size(); ++i) k[i] = controller::kIdentifiedParameterKeys[i];
-  k[11] = "plant.friction.stribeck_velocity_m_per_s";
-  k[12] = "plant.mass_kg";
+constexpr std::size_t kPublished = controller::kIdentifiedParameterKeys.size();
+constexpr std::array<const char*, kPublished + 2> kKeys = [] {
+  std::array<const char*, kPublished + 2> k{};
+  for (std::size_t i = 0; i < kPublished; ++i) k[i] = controller::kIdentifiedParameterKeys[i];
+  k[kPublished] = "plant.friction.stribeck_velocity_m_per_s";
+  k[kPublished + 1] = "plant.mass_kg";
   return k;
 }();
 // Where the valve fit's parameters lie in kKeys (and in Identification::estimates).
@@ -608,35 +609,49 @@ Identification identify(std::span<const Sample> s, const model::PlantParams& pri
     vf.basis.fill("not refitted: no new stuck phase long enough");
   }
   ev.fitted_phases = std::max(vf.phases, 0);
-  ev.pressure_rms_residual_pa = vf.rms_residual_pa;
+  ev.pressure_rms_residual_pa = vf.joint_rms_residual_pa;
   ev.command_delay_samples = vf.command_delay_samples;
+  ev.pressure_noise_pa = vf.noise_pa;
+  ev.pressure_explained_pa = vf.explained_pa;
+  ev.model_fits = vf.fits;
+  ev.misfit_phases_of = static_cast<int>(vf.phase_residuals.size());
+  for (const auto& r : vf.phase_residuals)
+    if (r.misfit) ev.misfit.push_back({s[r.first].t_s, r.y_m, r.rms_pa});
   if (vf.phases == 0)
     throw InsufficientData(format("too little excitation: no stuck phase of %.3g s or more driven by the loop, so the "
                                   "valves' pressure transients cannot be fitted",
                                   o.min_fit_phase_s));
   id.plant.valve = vf.plant.valve;
   id.plant.geometry = vf.plant.geometry;
+  id.plant.thermal = vf.plant.thermal;
   if (vf.phases > 0) {
     id.jointly_fitted = id.plant;
     id.jointly_fitted->valve = vf.joint.valve;
     id.jointly_fitted->geometry = vf.joint.geometry;
+    id.jointly_fitted->thermal = vf.joint.thermal;
   }
   const double priors[] = {prior.valve.max_conductance_m3_per_s_pa, prior.valve.leak_conductance_in_m3_per_s_pa,
                            prior.valve.leak_conductance_out_m3_per_s_pa, prior.valve.null_offset_v,
-                           prior.geometry.dead_volume_p_m3, prior.geometry.dead_volume_n_m3};
+                           prior.geometry.dead_volume_p_m3, prior.geometry.dead_volume_n_m3,
+                           prior.thermal.heat_transfer_w_per_m2_k, prior.valve.spool_time_constant_s};
   const double values[] = {vf.plant.valve.max_conductance_m3_per_s_pa, vf.plant.valve.leak_conductance_in_m3_per_s_pa,
                            vf.plant.valve.leak_conductance_out_m3_per_s_pa, vf.plant.valve.null_offset_v,
-                           vf.plant.geometry.dead_volume_p_m3, vf.plant.geometry.dead_volume_n_m3};
+                           vf.plant.geometry.dead_volume_p_m3, vf.plant.geometry.dead_volume_n_m3,
+                           vf.plant.thermal.heat_transfer_w_per_m2_k, vf.plant.valve.spool_time_constant_s};
   for (std::size_t i = 0; i < detail::kValveFitParams; ++i) {
     Estimate e{kKeys[kFirstValveFitKey + i], priors[i], values[i], vf.std[i], vf.identified[i], vf.basis[i]};
     if (e.identified)
       e.basis = format("%d stuck phases over %.0f mm, u over %.3f V", vf.phases, ev.stuck_position_span_m * 1e3,
                        ev.voltage_span_v);
+    // A model that does not fit: what the fit gives carries the misfit, and says so.
+    if (!vf.fits && vf.phases > 0 && detail::has_parameter(prior, i))
+      e.basis += format("; the model does not fit (%.0f Pa rms, %.0f times what the noise explains)",
+                        vf.joint_rms_residual_pa, vf.joint_rms_residual_pa / vf.explained_pa);
     id.estimates.push_back(e);
   }
-  id.estimates.push_back({kKeys[11], prior.friction.stribeck_velocity_m_per_s, prior.friction.stribeck_velocity_m_per_s,
-                          0.0, false, "not identified: taken from the configuration"});
-  id.estimates.push_back({kKeys[12], prior.mass_kg, prior.mass_kg, 0.0, false,
+  id.estimates.push_back({kKeys[kPublished], prior.friction.stribeck_velocity_m_per_s,
+                          prior.friction.stribeck_velocity_m_per_s, 0.0, false, "not identified: taken from the configuration"});
+  id.estimates.push_back({kKeys[kPublished + 1], prior.mass_kg, prior.mass_kg, 0.0, false,
                           "not identified: taken from the configuration (friction is F - M a with it)"});
   return id;
 }

@@ -13,12 +13,16 @@ OnlineIdentifier::OnlineIdentifier(const config::Config& config, controller::Run
       window_s_(window_s) {
   // The short stuck phases of ordinary stick-slip carry the valves too: fit every one.
   options_.min_fit_phase_s = options_.min_stuck_s;
+
   estimate_.plant = prior_;
 }
 
 void OnlineIdentifier::on_tick(const controller::TickRecord& tick, const controller::ExpectedAtTick&) {
   window_.push_back(sample_of(tick));
-  while (!window_.empty() && window_.front().t_s < tick.t_s - window_s_) window_.pop_front();
+  while (!window_.empty() && window_.front().t_s < tick.t_s - window_s_) {
+    window_.pop_front();
+    window_from_start_ = false;
+  }
 }
 
 void OnlineIdentifier::on_event(const controller::LoopEvent& e) {
@@ -60,6 +64,7 @@ void OnlineIdentifier::update(double t_s) {
   const std::vector<Sample> samples(window_.begin(), window_.end());
   Options o = options_;
   o.fit_valves = new_long_phase_;
+  o.at_rest_at_start = window_from_start_;  // the run's start is at rest; a later window's is not
   if (updates_ > 0) o.valve_fit_starts = {forecast_valves_};
   Identification id;
   try {
@@ -116,6 +121,8 @@ void OnlineIdentifier::update(double t_s) {
   p.valve.null_offset_v = value("plant.valve.null_offset_v");
   p.geometry.dead_volume_p_m3 = value("plant.geometry.dead_volume_p_m3");
   p.geometry.dead_volume_n_m3 = value("plant.geometry.dead_volume_n_m3");
+  p.thermal.heat_transfer_w_per_m2_k = value("plant.thermal.heat_transfer_w_per_m2_k");
+  p.valve.spool_time_constant_s = value("plant.valve.spool_time_constant_s");
   estimate_.plant = p;
   ++updates_;
   // The forecasts from now on: the running estimate's stiction, and the last valve fit's valves
@@ -125,6 +132,10 @@ void OnlineIdentifier::update(double t_s) {
   controller::PredictorModel m = runtime_.model();
   m.geometry = forecast_valves_.geometry;
   m.friction = p.friction;
+  m.thermal = forecast_valves_.thermal;
+  m.spool_time_constant_s = forecast_valves_.valve.spool_time_constant_s;
+  // The forecasts say they are uncertain while the last valve fit does not fit.
+  if (o.fit_valves && id.evidence.fitted_phases > 0) m.fits = id.evidence.model_fits;
   valves_.push_back(std::make_unique<model::ValveModel>(forecast_valves_.valve, p.gas));
   m.valve = valves_.back().get();
   runtime_.set_model(m);

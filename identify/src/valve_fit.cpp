@@ -7,6 +7,7 @@
 #include <optional>
 #include <vector>
 
+#include "pneu/model/chamber.hpp"
 #include "pneu/model/valve.hpp"
 
 namespace pneu::identify::detail {
@@ -26,12 +27,24 @@ constexpr double kMaxNullOffsetStd_v = 0.01;
 // The pressure noise the uncertainty assumes at least: a 16-bit reading of a 10 bar transmitter
 // steps by 15 Pa [Pa].
 constexpr double kPressureNoiseFloor_pa = 20.0;
+// What a model that fits leaves at least, even of an ideal sensor's readings (the integration, the
+// samples' timing) [Pa]: twice it is the largest residual of a fit with ideal sensors.
+constexpr double kResidualFloor_pa = 10.0;
+// A fit whose residual exceeds this many times what the noise explains does not fit; a phase whose
+// own residual exceeds kPhaseMisfit times it is named.
+constexpr double kMisfit = 2.0;
+constexpr double kPhaseMisfit = 3.0;
 // The command delays tried [samples].
 constexpr std::size_t kMaxCommandDelaySamples = 4;
 // Leaks in the prior at 0 start the fit from this fraction of C_max (a logarithm needs > 0).
 constexpr double kLeakFloorOfMax = 1.0e-3;
 
-// theta: ln C_max, ln C_leak_in, ln C_leak_out, w_0, ln V_P0, ln V_N0.
+// The spool lag is "not identified" beyond this standard deviation [s].
+constexpr double kMaxSpoolLagStd_s = 0.001;
+// The spool lags the fit tries stay within [0, this] [s].
+constexpr double kMaxSpoolLag_s = 0.05;
+
+// theta: ln C_max, ln C_leak_in, ln C_leak_out, w_0, ln V_P0, ln V_N0, ln h, tau_spool.
 using Theta = Eigen::Matrix<double, kValveFitParams, 1>;
 
 // The plant's value of fitted parameter i.
@@ -42,15 +55,19 @@ double& parameter(model::PlantParams& p, std::size_t i) {
     case kLeakOut: return p.valve.leak_conductance_out_m3_per_s_pa;
     case kNullOffset: return p.valve.null_offset_v;
     case kDeadVolumeP: return p.geometry.dead_volume_p_m3;
-    default: return p.geometry.dead_volume_n_m3;
+    case kDeadVolumeN: return p.geometry.dead_volume_n_m3;
+    case kHeatTransfer: return p.thermal.heat_transfer_w_per_m2_k;
+    default: return p.valve.spool_time_constant_s;
   }
 }
 
-// theta_i is the logarithm of the value, but for the null offset, an offset.
-bool logarithmic(std::size_t i) { return i != kNullOffset; }
+// theta_i is the logarithm of the value, but for the null offset, an offset, and the spool lag,
+// which may be 0.
+bool logarithmic(std::size_t i) { return i != kNullOffset && i != kSpoolLag; }
 
 model::PlantParams applied(model::PlantParams p, const Theta& th) {
   for (std::size_t i = 0; i < kValveFitParams; ++i) {
+    if (!has_parameter(p, i)) continue;
     const double t = th[static_cast<Eigen::Index>(i)];
     parameter(p, i) = logarithmic(i) ? std::exp(t) : t;
   }
@@ -88,6 +105,54 @@ struct Chamber {
   }
 };
 
+// The command acting on each valve over [t_k, t_k+1): the one recorded `delay` samples before
+// (within `from`), valve N's as recorded (the safe outputs drive it apart from -u).
+struct Commands {
+  std::span<const Sample> s;
+  std::size_t delay, from;
+  [[nodiscard]] std::size_t source(std::size_t i) const noexcept { return i >= from + delay ? i - delay : from; }
+  [[nodiscard]] double p(std::size_t i) const noexcept { return s[source(i)].u_v; }
+  [[nodiscard]] double n(std::size_t i) const noexcept {
+    const Sample& x = s[source(i)];
+    return std::isnan(x.u_n_v) ? -x.u_v : x.u_n_v;
+  }
+};
+
+// One chamber at rest with the energy balance and the spool's lag: its pressure, temperature and
+// spool advanced together (RK4 in steps short against the chamber's rates and, while the spool
+// moves, against its lag).
+struct RestingChamber {
+  const model::ChamberProcess* process;
+  const model::ValveModel* valve;
+  model::SpoolLag spool;
+  model::Side side;
+  double y_m;
+  void advance(double target, double h, double& p, double& t_k, double& w) const noexcept {
+    const double w0 = w;
+    const auto rates = [&](double tau, double pp, double tt) {
+      return process->rates(*valve, side, pp, tt, spool.after(w0, target, tau), y_m, 0.0);
+    };
+    double fastest = process->fastest_rate_1_per_s(*valve, side, p, t_k, w0, y_m);
+    int steps = std::max(1, static_cast<int>(std::ceil(h * fastest / 0.5)));
+    if (spool.lags() && std::abs(w0 - target) > 1e-9)
+      steps = std::max(steps, static_cast<int>(std::ceil(h / (0.25 * spool.time_constant_s))));
+    steps = std::min(steps, 10000);
+    const double dt = h / steps;
+    for (int i = 0; i < steps; ++i) {
+      const double tau = i * dt;
+      const model::ChamberRates k1 = rates(tau, p, t_k);
+      const model::ChamberRates k2 = rates(tau + 0.5 * dt, p + 0.5 * dt * k1.dp_dt_pa_per_s, t_k + 0.5 * dt * k1.dtemperature_dt_k_per_s);
+      const model::ChamberRates k3 = rates(tau + 0.5 * dt, p + 0.5 * dt * k2.dp_dt_pa_per_s, t_k + 0.5 * dt * k2.dtemperature_dt_k_per_s);
+      const model::ChamberRates k4 = rates(tau + dt, p + dt * k3.dp_dt_pa_per_s, t_k + dt * k3.dtemperature_dt_k_per_s);
+      p += dt / 6.0 * (k1.dp_dt_pa_per_s + 2.0 * k2.dp_dt_pa_per_s + 2.0 * k3.dp_dt_pa_per_s + k4.dp_dt_pa_per_s);
+      t_k += dt / 6.0 *
+             (k1.dtemperature_dt_k_per_s + 2.0 * k2.dtemperature_dt_k_per_s + 2.0 * k3.dtemperature_dt_k_per_s +
+              k4.dtemperature_dt_k_per_s);
+    }
+    w = spool.after(w0, target, h);
+  }
+};
+
 // Each phase's integration starts from its first measured pressures, which carry the sensor's
 // noise: with a chamber's time constant of seconds, an error there stays in every later sample of
 // the phase, one error per phase and chamber that the valve parameters would otherwise absorb (with
@@ -95,12 +160,16 @@ struct Chamber {
 // those starts too: z, one per phase and chamber (P, N), the start's correction in units of
 // kPressureNoiseFloor_pa, with a prior of 0 +- 1. Not for an ideal sensor's readings (no rest
 // band): they are the pressures.
+// With the energy balance or a spool lag, what no sensor gives at a phase's start, the chambers'
+// temperatures and the spools' positions, is the model's own estimate (model::ChamberObserver)
+// along the record up to it: from the measured pressures and positions and the commands.
 class Problem {
  public:
   // `delay`: the samples between a command's record and the valves acting on it (a bus's).
   Problem(std::span<const Sample> s, std::vector<FitPhase> phases, const model::PlantParams& prior, std::size_t delay,
-          bool fit_starts)
-      : s_(s), phases_(std::move(phases)), prior_(prior), delay_(delay), fit_starts_(fit_starts) {
+          double rest_band_m)
+      : s_(s), phases_(std::move(phases)), prior_(prior), delay_(delay), fit_starts_(rest_band_m > 0.0),
+        plain_(!prior.has_thermal && !(prior.valve.spool_time_constant_s > 0.0)), still_band_m_(rest_band_m + 1e-12) {
     for (const auto& p : phases_) {
       rows_.push_back(size_);
       size_ += 2 * static_cast<Eigen::Index>(p.observed.size());
@@ -117,19 +186,26 @@ class Problem {
     const auto j = std::upper_bound(rows_.begin(), rows_.end(), row) - rows_.begin() - 1;
     return 2 * j + (row - rows_[static_cast<std::size_t>(j)]) % 2;
   }
+  /// Polytropic and without a spool lag: the pressures are the model's whole state.
+  [[nodiscard]] bool plain() const noexcept { return plain_; }
+  /// Phase j's rows: [first, end).
+  [[nodiscard]] std::pair<Eigen::Index, Eigen::Index> rows_of(std::size_t j) const noexcept { return {rows_[j], rows_[j + 1]}; }
+  [[nodiscard]] const std::vector<FitPhase>& phases() const noexcept { return phases_; }
 
   // Measured minus Eq. 19's pressures at every observed sample, P then N [Pa].
   [[nodiscard]] Eigen::VectorXd residuals(const Theta& th, const Eigen::VectorXd& z) const {
     const model::PlantParams p = applied(prior_, th);
     const model::ValveModel valve(p.valve, p.gas);
+    const std::vector<model::ChamberState> at = hidden_states(p, valve);
     Eigen::VectorXd r(size_);
-    for (std::size_t j = 0; j < phases_.size(); ++j) phase_residuals(p, valve, j, z, r);
+    for (std::size_t j = 0; j < phases_.size(); ++j) phase_residuals(p, valve, at, j, z, r);
     return r;
   }
   // d(residual)/d(z of its row's start), row by row: each row depends on one start alone.
   [[nodiscard]] Eigen::VectorXd start_derivatives(const Theta& th, const Eigen::VectorXd& z) const {
     const model::PlantParams p = applied(prior_, th);
     const model::ValveModel valve(p.valve, p.gas);
+    const std::vector<model::ChamberState> at = hidden_states(p, valve);
     constexpr double h = 0.5;  // [noise floors]: the start's effect is close to linear
     Eigen::VectorXd up(size_), down(size_);
     for (std::size_t j = 0; j < phases_.size(); ++j) {
@@ -138,34 +214,84 @@ class Problem {
         zu[c] += h;
         zd[c] -= h;
       }
-      phase_residuals(p, valve, j, zu, up);
-      phase_residuals(p, valve, j, zd, down);
+      phase_residuals(p, valve, at, j, zu, up);
+      phase_residuals(p, valve, at, j, zd, down);
     }
     return (up - down) / (2.0 * h);
   }
 
  private:
-  void phase_residuals(const model::PlantParams& p, const model::ValveModel& valve, std::size_t j,
-                       const Eigen::VectorXd& z, Eigen::VectorXd& r) const {
+  // The chambers' temperatures and spools at each phase's first sample, as `p`'s model estimates
+  // them along the record (nothing for the plain model: the pressures are its whole state).
+  [[nodiscard]] std::vector<model::ChamberState> hidden_states(const model::PlantParams& p,
+                                                               const model::ValveModel& valve) const {
+    std::vector<model::ChamberState> at;
+    if (plain_ || phases_.empty()) return at;
+    const Commands u{s_, delay_, 0};
+    model::ChamberObserver observer(model::ChamberProcess(p), valve, model::SpoolLag{p.valve.spool_time_constant_s});
+    observer.reset(s_[0].t_s, s_[0].y_m, s_[0].p_p_pa, s_[0].p_n_pa, u.p(0), u.n(0));
+    // Where the carriage stands still under one command, up to kMaxStride samples are one step
+    // (the pressures linear in between: a few pascals off over 10 ms, nothing to a temperature).
+    constexpr std::size_t kMaxStride = 10;
+    std::size_t k = 0;
+    for (const FitPhase& ph : phases_) {
+      while (k < ph.first) {
+        std::size_t next = k + 1;
+        while (next < ph.first && next - k < kMaxStride && u.p(next) == u.p(k) && u.n(next) == u.n(k) &&
+               std::abs(s_[next + 1].y_m - s_[k].y_m) <= still_band_m_)
+          ++next;
+        observer.advance(s_[next].t_s, s_[next].y_m, s_[next].p_p_pa, s_[next].p_n_pa);
+        observer.command(u.p(next), u.n(next));
+        k = next;
+      }
+      at.push_back(observer.state());
+    }
+    return at;
+  }
+
+  void phase_residuals(const model::PlantParams& p, const model::ValveModel& valve,
+                       const std::vector<model::ChamberState>& at, std::size_t j, const Eigen::VectorXd& z,
+                       Eigen::VectorXd& r) const {
     const FitPhase& ph = phases_[j];
-    const double c = p.gas.k_r_t();
-    const Chamber cp{&valve, c / p.geometry.volume_p_m3(ph.y_m)};
-    const Chamber cn{&valve, c / p.geometry.volume_n_m3(ph.y_m)};
     const auto zj = static_cast<Eigen::Index>(2 * j);
     double pp = s_[ph.first].p_p_pa + (fit_starts_ ? z[zj] * kPressureNoiseFloor_pa : 0.0);
     double pn = s_[ph.first].p_n_pa + (fit_starts_ ? z[zj + 1] * kPressureNoiseFloor_pa : 0.0);
     std::size_t k = ph.first;
     Eigen::Index row = rows_[j];
+    // Each u holds from its sample to the next (the command of a tick until the next tick).
+    // The valves act on the command recorded `delay_` samples before (within the phase).
+    const auto u_at = [&](std::size_t i) { return s_[i >= ph.first + delay_ ? i - delay_ : ph.first].u_v; };
+    if (plain_) {
+      const double c = p.gas.k_r_t();
+      const Chamber cp{&valve, c / p.geometry.volume_p_m3(ph.y_m)};
+      const Chamber cn{&valve, c / p.geometry.volume_n_m3(ph.y_m)};
+      for (const std::size_t obs : ph.observed) {
+        while (k < obs) {
+          std::size_t next = k + 1;
+          while (next < obs && u_at(next) == u_at(k)) ++next;
+          const double h = s_[next].t_s - s_[k].t_s;
+          pp = cp.advance(u_at(k), pp, h);
+          pn = cn.advance(-u_at(k), pn, h);
+          k = next;
+        }
+        r[row++] = s_[obs].p_p_pa - pp;
+        r[row++] = s_[obs].p_n_pa - pn;
+      }
+      return;
+    }
+    const model::ChamberProcess process(p);
+    const model::SpoolLag spool{p.valve.spool_time_constant_s};
+    const RestingChamber cp{&process, &valve, spool, model::Side::kP, ph.y_m};
+    const RestingChamber cn{&process, &valve, spool, model::Side::kN, ph.y_m};
+    double tp = at[j].t_p_k, tn = at[j].t_n_k, wp = at[j].w_p_v, wn = at[j].w_n_v;
+    const Commands u{s_, delay_, ph.first};
     for (const std::size_t obs : ph.observed) {
-      // Each u holds from its sample to the next (the command of a tick until the next tick).
-      // The valves act on the command recorded `delay_` samples before (within the phase).
-      const auto u_at = [&](std::size_t i) { return s_[i >= ph.first + delay_ ? i - delay_ : ph.first].u_v; };
       while (k < obs) {
         std::size_t next = k + 1;
-        while (next < obs && u_at(next) == u_at(k)) ++next;
+        while (next < obs && u.p(next) == u.p(k) && u.n(next) == u.n(k)) ++next;
         const double h = s_[next].t_s - s_[k].t_s;
-        pp = cp.advance(u_at(k), pp, h);
-        pn = cn.advance(-u_at(k), pn, h);
+        cp.advance(u.p(k), h, pp, tp, wp);
+        cn.advance(u.n(k), h, pn, tn, wn);
         k = next;
       }
       r[row++] = s_[obs].p_p_pa - pp;
@@ -178,11 +304,14 @@ class Problem {
   model::PlantParams prior_;
   std::size_t delay_ = 0;
   bool fit_starts_ = true;
+  bool plain_ = true;  // polytropic, no spool lag: the pressures are the whole state
+  double still_band_m_;  // readings this close are a carriage standing still
   Eigen::Index size_ = 0;
   std::vector<Eigen::Index> rows_;  // each phase's first row, then size_
 };
 
 struct Solution {
+  Eigen::VectorXd residual_pa;  // the data's, at the solution
   Theta theta;
   Eigen::Matrix<double, kValveFitParams, kValveFitParams> covariance;  // with the starts' uncertainty in it
   double rms_pa = 0.0;
@@ -195,8 +324,19 @@ struct Solution {
 // the data, one it does not see stays near the model's value.
 constexpr double kPriorSpreadLog = 0.5;
 constexpr double kPriorSpreadNullOffset_v = 0.1;
+// The wall's heat transfer is known to a factor of e either way (benches' thermal time constants
+// run from tenths of a second to seconds), the spool lag to 5 ms.
+constexpr double kPriorSpreadHeatTransferLog = 1.0;
+constexpr double kPriorSpreadSpoolLag_s = 0.005;
 
-double prior_spread(std::size_t i) { return i == kNullOffset ? kPriorSpreadNullOffset_v : kPriorSpreadLog; }
+double prior_spread(std::size_t i) {
+  switch (i) {
+    case kNullOffset: return kPriorSpreadNullOffset_v;
+    case kHeatTransfer: return kPriorSpreadHeatTransferLog;
+    case kSpoolLag: return kPriorSpreadSpoolLag_s;
+    default: return kPriorSpreadLog;
+  }
+}
 
 // Levenberg-Marquardt on the free parameters and the phases' starts (numerical Jacobian by central
 // differences) for the measured pressures, at kPressureNoiseFloor_pa, and the priors; the
@@ -242,7 +382,10 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
       Theta up = th, down = th;
       up[i] += h;
       down[i] -= h;
-      jt.col(c) = (residuals(up, zz) - residuals(down, zz)) / (2.0 * h);
+      // Central differences; forward ones where each evaluation follows the whole record (the
+      // model's hidden state: half the cost, and the Jacobian only steers the search).
+      jt.col(c) = problem.plain() ? Eigen::VectorXd((residuals(up, zz) - residuals(down, zz)) / (2.0 * h))
+                                  : Eigen::VectorXd((residuals(up, zz) - r) / h);
     }
     Normal out{Eigen::MatrixXd::Zero(n, n), Eigen::VectorXd::Zero(n)};
     out.a.topLeftCorner(nf, nf) = jt.transpose() * jt;
@@ -294,6 +437,7 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
       Theta trial = theta;
       for (Eigen::Index c = 0; c < nf; ++c) trial[static_cast<Eigen::Index>(idx[static_cast<std::size_t>(c)])] += step[c];
       trial[kNullOffset] = std::clamp(trial[kNullOffset], -5.0, 5.0);
+      trial[kSpoolLag] = std::clamp(trial[kSpoolLag], 0.0, kMaxSpoolLag_s);
       const Eigen::VectorXd trial_z = z + step.tail(nz);
       const Eigen::VectorXd rt = residuals(trial, trial_z);
       const double ct = rt.squaredNorm() + prior_cost(trial, trial_z);
@@ -314,6 +458,7 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
     if (!improved) break;
   }
   Solution sol;
+  sol.residual_pa = r * noise;
   sol.theta = theta;
   sol.covariance.setZero();
   const double data_cost = r.squaredNorm() * noise * noise;
@@ -333,13 +478,41 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
   return sol;
 }
 
+// The pressure sensors' noise, both chambers, from the fitted phases' readings: their second
+// differences (a smooth drift's are nothing at a millisecond), robustly (the median absolute value;
+// white noise of deviation s gives second differences of deviation s sqrt(6)) [Pa].
+double pressure_noise_pa(std::span<const Sample> s, const std::vector<FitPhase>& phases) {
+  std::vector<double> d;
+  for (const FitPhase& ph : phases)
+    for (std::size_t k = ph.first + 1; k < ph.last; ++k) {
+      d.push_back(std::abs(s[k + 1].p_p_pa - 2.0 * s[k].p_p_pa + s[k - 1].p_p_pa));
+      d.push_back(std::abs(s[k + 1].p_n_pa - 2.0 * s[k].p_n_pa + s[k - 1].p_n_pa));
+    }
+  if (d.empty()) return 0.0;
+  std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
+  return d[d.size() / 2] / (0.6745 * std::sqrt(6.0));
+}
+
 }  // namespace
+
+bool has_parameter(const model::PlantParams& prior, std::size_t i) noexcept {
+  if (i == kHeatTransfer) return prior.has_thermal;
+  if (i == kSpoolLag) return prior.valve.spool_time_constant_s > 0.0;
+  return i < kValveFitParams;
+}
 
 ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phases, const model::PlantParams& prior,
                     const Options& o) {
+  // A window of a running record: the estimate of the hidden state starts from a guess (at rest),
+  // and is trusted once it has forgotten it.
+  double warm_up_s = 0.0;
+  if (!o.at_rest_at_start && prior.has_thermal) warm_up_s = 5.0 * model::thermal_time_constant_s(prior);
+  if (!o.at_rest_at_start && prior.valve.spool_time_constant_s > 0.0)
+    warm_up_s = std::max(warm_up_s, 10.0 * prior.valve.spool_time_constant_s);
   std::vector<FitPhase> fit;
   for (const StuckPhase& p : phases) {
     if (!p.driven || s[p.still_last].t_s - s[p.still_first].t_s < o.min_fit_phase_s) continue;
+    if (s[p.still_first].t_s - s.front().t_s < warm_up_s) continue;
     FitPhase f{p.still_first, p.still_last, p.y_m, {}};
     double next_t = s[p.still_first].t_s + o.fit_sample_s;
     for (std::size_t k = p.still_first + 1; k <= p.still_last; ++k)
@@ -360,12 +533,21 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
   // The command delay: the whole samples that fit best (0 in process; a Modbus link adds one),
   // tried from 0 up while the fit improves, unless given.
   const Theta prior_theta = theta_of(prior);
-  std::array<bool, kValveFitParams> free{};
-  free.fill(true);
+  // The model's parameters (the heat transfer and the spool lag only where it has them).
+  std::array<bool, kValveFitParams> present{}, free{};
+  for (std::size_t i = 0; i < kValveFitParams; ++i) {
+    present[i] = free[i] = has_parameter(prior, i);
+    if (!present[i])
+      out.basis[i] = i == kHeatTransfer ? "the model has no heat exchange (plant.thermal)" : "the model has no spool lag";
+  }
+  const auto held_back = [&] {  // a parameter of the model held at its prior
+    for (std::size_t i = 0; i < kValveFitParams; ++i)
+      if (present[i] && !free[i]) return true;
+    return false;
+  };
   std::size_t delay = o.command_delay_samples >= 0 ? static_cast<std::size_t>(o.command_delay_samples) : 0;
   std::optional<Problem> problem;
-  const bool fit_starts = o.rest_band_m > 0.0;
-  problem.emplace(s, fit, prior, delay, fit_starts);
+  problem.emplace(s, fit, prior, delay, o.rest_band_m);
   Solution all = levenberg_marquardt(*problem, prior_theta, prior_theta, free);
   // The fit is not convex: started from the prior it can settle in another minimum than from an
   // earlier fit (online, the last one with every parameter free). The lowest is kept; a start
@@ -379,7 +561,7 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
     if (from_start.cost < all.cost) all = from_start;
   }
   for (std::size_t d = 1; o.command_delay_samples < 0 && d <= kMaxCommandDelaySamples; ++d) {
-    Problem later(s, fit, prior, d, fit_starts);
+    Problem later(s, fit, prior, d, o.rest_band_m);
     Solution fitted = levenberg_marquardt(later, all.theta, prior_theta, free);
     if (!(fitted.rms_pa < all.rms_pa)) break;
     all = fitted;
@@ -387,32 +569,47 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
     problem.emplace(std::move(later));
   }
   out.command_delay_samples = static_cast<int>(delay);
+  // Does the model fit? Its residual against what the sensors' noise explains. One that does not
+  // (a bench with physics the model lacks: heat exchange, a spool lag) leaves residuals that run
+  // through each phase, not white noise: each phase's then counts as one sample, and the
+  // parameters' covariance grows by the rows per phase (on top of the residual's own scale).
+  out.noise_pa = pressure_noise_pa(s, fit);
+  out.explained_pa = std::max(out.noise_pa, kResidualFloor_pa);
+  out.fits = all.rms_pa <= kMisfit * out.explained_pa;
+  const double inflation = out.fits ? 1.0 : static_cast<double>(problem->size()) / static_cast<double>(fit.size());
+  all.covariance *= inflation;
   out.joint = applied(prior, all.theta);
   // The parameters the data cannot tell apart (their posterior standard deviation with all the
   // others free stays near the prior's) go back to their priors, and the rest is fitted again.
   // The rest keep the larger of their two standard deviations: fitted around a prior that may be
   // wrong, they are no surer than the data made them with everything free.
-  // The largest 1-sigma of an identified parameter: relative for a logarithm, 10 mV for the offset.
-  const auto max_std = [&](std::size_t i) { return i == kNullOffset ? kMaxNullOffsetStd_v : o.max_relative_std; };
+  // The largest 1-sigma of an identified parameter: relative for a logarithm, 10 mV for the offset,
+  // 1 ms for the spool lag.
+  const auto max_std = [&](std::size_t i) {
+    return i == kNullOffset ? kMaxNullOffsetStd_v : i == kSpoolLag ? kMaxSpoolLagStd_s : o.max_relative_std;
+  };
   std::array<double, kValveFitParams> marginal{};
   for (std::size_t i = 0; i < kValveFitParams; ++i) {
+    if (!present[i]) continue;
     marginal[i] = std::sqrt(std::max(0.0, all.covariance(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(i))));
     const double score = marginal[i] / max_std(i);
     if (!(score <= 1.0)) {
       free[i] = false;
       out.basis[i] = "not separable from the others by these stuck phases (1 sigma " +
-                     std::string(i == kNullOffset ? "over 10 mV" : "over the relative limit") + "): prior kept";
+                     std::string(i == kNullOffset ? "over 10 mV" : i == kSpoolLag ? "over 1 ms" : "over the relative limit") +
+                     "): prior kept";
     }
   }
   // A parameter refitted around those priors also moves by as much as holding them there shifts it
   // from the mode: that shift is part of its uncertainty (the priors may be wrong by their whole
   // spread). One it makes too uncertain joins the priors, and the rest is fitted again.
   Solution sol = all;
-  while (std::find(free.begin(), free.end(), false) != free.end()) {
+  while (held_back()) {
     Theta start = all.theta;
     for (std::size_t i = 0; i < kValveFitParams; ++i)
       if (!free[i]) start[static_cast<Eigen::Index>(i)] = prior_theta[static_cast<Eigen::Index>(i)];
     sol = levenberg_marquardt(*problem, start, prior_theta, free);
+    sol.covariance *= inflation;
     bool held_more = false;
     for (std::size_t i = 0; i < kValveFitParams; ++i) {
       if (!free[i]) continue;
@@ -426,6 +623,8 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
       char text[120];
       if (i == kNullOffset)
         std::snprintf(text, sizeof text, "%+.3g V", shift);
+      else if (i == kSpoolLag)
+        std::snprintf(text, sizeof text, "%+.3g ms", 1e3 * shift);
       else
         std::snprintf(text, sizeof text, "%+.0f %%", 100.0 * (std::exp(shift) - 1.0));
       out.basis[i] = std::string("moves by ") + text +
@@ -444,6 +643,15 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
     out.std[i] = !free[i] ? 0.0 : logarithmic(i) ? sd * parameter(out.plant, i) : sd;
   }
   out.rms_residual_pa = sol.rms_pa;
+  // Each phase's residual at the fit with every parameter free: where the model fails, by name.
+  for (std::size_t j = 0; j < problem->phases().size(); ++j) {
+    const auto [from, to] = problem->rows_of(j);
+    const double sse = all.residual_pa.segment(from, to - from).squaredNorm();
+    const double rms = to > from ? std::sqrt(sse / static_cast<double>(to - from)) : 0.0;
+    out.phase_residuals.push_back({problem->phases()[j].first, problem->phases()[j].y_m, rms,
+                                   rms > kPhaseMisfit * out.explained_pa});
+  }
+  out.joint_rms_residual_pa = all.rms_pa;
   return out;
 }
 

@@ -11,7 +11,9 @@
 
 namespace pneu::identify::detail {
 
-/// The fitted parameters, in this order.
+/// The fitted parameters, in this order. The wall's heat transfer is fitted when the prior has the
+/// chambers' energy balance (plant.thermal), the spool lag when the prior has one (> 0); else they
+/// are not the model's, and not estimated.
 enum ValveFitParam : std::size_t {
   kMaxConductance,
   kLeakIn,
@@ -19,8 +21,13 @@ enum ValveFitParam : std::size_t {
   kNullOffset,
   kDeadVolumeP,
   kDeadVolumeN,
+  kHeatTransfer,
+  kSpoolLag,
   kValveFitParams
 };
+
+/// Whether `prior`'s model has parameter i (the heat transfer and the spool lag only some).
+[[nodiscard]] bool has_parameter(const model::PlantParams& prior, std::size_t i) noexcept;
 
 struct ValveFit {
   model::PlantParams plant;                         ///< the prior with the identified values
@@ -33,6 +40,25 @@ struct ValveFit {
   int phases = 0;
   double rms_residual_pa = 0.0;
   int command_delay_samples = 0;   ///< the delay the fit found (or was given)
+  /// The residual of the fit with every parameter free (the one the goodness is judged by) [Pa].
+  double joint_rms_residual_pa = 0.0;
+  /// The pressure sensors' noise as the fitted phases' readings show it [Pa].
+  double noise_pa = 0.0;
+  /// What the noise explains of a residual: the noise, but no less than what an exact model
+  /// leaves of ideal readings (10 Pa) [Pa].
+  double explained_pa = 0.0;
+  /// The model fits: its residual is within twice what the noise explains. Else the parameters'
+  /// sigmas carry the misfit (each phase's residuals counted as one sample).
+  bool fits = true;
+  /// Each fitted phase's residual at the joint fit, both chambers, rms [Pa], with its first sample
+  /// and position, and whether it is beyond three times what the noise explains.
+  struct PhaseResidual {
+    std::size_t first = 0;
+    double y_m = 0.0;
+    double rms_pa = 0.0;
+    bool misfit = false;
+  };
+  std::vector<PhaseResidual> phase_residuals;
 };
 
 /// Fits the conductances, the null offset and the dead volumes so that Eq. 19, integrated over each

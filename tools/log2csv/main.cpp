@@ -58,7 +58,7 @@ the Unix epoch]; then the message's fields in the order and units of lcmtypes/*.
   event_t       log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,seq,text
   prediction_t  log_utime,utime,t,stop,t_stop,update,method,method_name,will_restart,direction,
                 t_restart,u_star,equilibrium_force,p_p_equilibrium,p_n_equilibrium,tau_p,tau_n,
-                min_margin,horizon_reached,force,stop_forecast_force
+                min_margin,horizon_reached,force,stop_forecast_force,model_fits
   health_t      log_utime,utime,t,mode,ticks,overruns,wake_latency_us_{min,median,p99,max},
                 compute_us_{min,median,p99,max},comms_errors,telemetry_dropped,
                 commands_received,commands_accepted,commands_rejected,rejected_malformed,
@@ -67,7 +67,7 @@ the Unix epoch]; then the message's fields in the order and units of lcmtypes/*.
   command_t     log_utime,utime,seq,kind,kind_name,value
   identification_t  log_utime,utime,t,updates, then for each parameter of lcmtypes/identification_t.lcm
                 in its order: NAME,NAME_sigma,NAME_identified (NAME its config key's last part:
-                static_positive_n ... dead_volume_n_m3)
+                static_positive_n ... spool_time_constant_s)
   unknown       log_utime,bytes,fingerprint_hex: a message of another type, or one that does not
                 decode as the type its fingerprint names (too short, or bytes left over); bytes
                 is its size, fingerprint_hex its first 8 bytes. Counted on stderr.

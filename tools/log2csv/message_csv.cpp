@@ -196,7 +196,7 @@ std::string_view csv_header(MessageType type) {
     case MessageType::kPrediction:
       return "log_utime,utime,t,stop,t_stop,update,method,method_name,will_restart,direction,t_restart,"
              "u_star,equilibrium_force,p_p_equilibrium,p_n_equilibrium,tau_p,tau_n,min_margin,"
-             "horizon_reached,force,stop_forecast_force";
+             "horizon_reached,force,stop_forecast_force,model_fits";
     case MessageType::kHealth:
       return "log_utime,utime,t,mode,ticks,overruns,wake_latency_us_min,wake_latency_us_median,"
              "wake_latency_us_p99,wake_latency_us_max,compute_us_min,compute_us_median,"
@@ -220,7 +220,9 @@ std::string_view csv_header(MessageType type) {
              "leak_conductance_out_m3_per_s_pa_identified,"
              "null_offset_v,null_offset_v_sigma,null_offset_v_identified,"
              "dead_volume_p_m3,dead_volume_p_m3_sigma,dead_volume_p_m3_identified,"
-             "dead_volume_n_m3,dead_volume_n_m3_sigma,dead_volume_n_m3_identified";
+             "dead_volume_n_m3,dead_volume_n_m3_sigma,dead_volume_n_m3_identified,"
+             "heat_transfer_w_per_m2_k,heat_transfer_w_per_m2_k_sigma,heat_transfer_w_per_m2_k_identified,"
+             "spool_time_constant_s,spool_time_constant_s_sigma,spool_time_constant_s_identified";
     case MessageType::kUnknown:
       return "log_utime,bytes,fingerprint_hex";
   }
@@ -318,6 +320,7 @@ RowInfo format_csv_row(std::int64_t log_utime, const void* data, std::int32_t si
           .boolean(m.horizon_reached)
           .number(m.force)
           .number(m.stop_forecast_force)
+          .boolean(m.model_fits)
           .end();
       return {MessageType::kPrediction, 0};
     }
@@ -365,7 +368,7 @@ RowInfo format_csv_row(std::int64_t log_utime, const void* data, std::int32_t si
     if (decode_whole(data, size, &m)) {
       Row row(line, log_utime);
       row.integer(m.utime).number(m.t).integer(m.updates);
-      for (int i = 0; i < 11; ++i) row.number(m.value[i]).number(m.sigma[i]).integer(m.identified[i]);
+      for (int i = 0; i < 13; ++i) row.number(m.value[i]).number(m.sigma[i]).integer(m.identified[i]);
       row.end();
       return {MessageType::kIdentification, 0};
     }

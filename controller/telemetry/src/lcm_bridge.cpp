@@ -174,6 +174,7 @@ void LcmBridge::on_forecast(const controller::ForecastRecord& f) {
   m.horizon_reached = p.horizon_reached;
   m.force = f.force_n;
   m.stop_forecast_force = f.stop_forecast_force_n;
+  m.model_fits = p.model_fits;
   publish(prediction_channel_, m);
 }
 

@@ -117,6 +117,16 @@ struct PredictorConfig {
   /// last minute of the run's own signals, and the forecasts made on the running estimate
   /// (stiction, the valves' conductances and null offset, the dead volumes).
   bool learn_online = false;
+  /// controller.predictor.model_fit (optional section, written by pneud --identify): how well
+  /// plant: fitted the bench's stuck-phase pressures when it was identified. A residual beyond
+  /// twice what the sensors' noise explains marks every forecast made on it uncertain.
+  bool has_model_fit = false;
+  struct ModelFit {
+    double pressure_residual_pa = 0.0;   ///< the fit's residual, both chambers, rms [Pa]
+    double pressure_explained_pa = 10.0; ///< what the sensors' noise explains of it [Pa]
+    /// The residual is within twice what the noise explains.
+    [[nodiscard]] bool fits() const noexcept { return pressure_residual_pa <= 2.0 * pressure_explained_pa; }
+  } model_fit;
 };
 
 /// controller.hold: the in-position hold. Once the carriage is at rest within `window_m` of its

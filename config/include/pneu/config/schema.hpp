@@ -476,6 +476,12 @@ void describe(auto& a, Like<StopDetectorParams> auto& d) {
   a.field(PNEU_NVP(d, hold_s), Range::positive(), "a stop is confirmed after this long at rest [s]");
 }
 
+void describe(auto& a, Like<PredictorConfig::ModelFit> auto& f) {
+  a.field(PNEU_NVP(f, pressure_residual_pa), Range::non_negative(),
+          "the identification's pressure residual, both chambers, rms [Pa]");
+  a.field(PNEU_NVP(f, pressure_explained_pa), Range::positive(), "what the sensors' noise explains of it [Pa]");
+}
+
 void describe(auto& a, Like<PredictorConfig> auto& p) {
   a.flags("methods", p, any_of(kPredictorMethods, "method"), "the restart predictors run at each stop");
   a.field(optional(PNEU_NVP(p, valve_table)), "valve table from pneu-plant characterize-valve; empty: the model");
@@ -488,6 +494,7 @@ void describe(auto& a, Like<PredictorConfig> auto& p) {
           "must be > 0 with the relaxation method, which forecasts only while stuck");
   a.field(optional(PNEU_NVP(p, learn_online)),
           "identify the bench again at each stop after a breakaway and forecast on what was identified");
+  a.optional_section(optional(PNEU_NVP(p, model_fit)), p.has_model_fit);
 }
 
 void describe(auto& a, Like<HoldConfig> auto& h) {

@@ -52,6 +52,9 @@ struct PredictorModel {
   model::ThermalParams thermal;
   /// The spools' lag (plant.valve.spool_time_constant_s) [s]; 0: none.
   double spool_time_constant_s = 0.0;
+  /// The model fitted the bench when it was identified (controller.predictor.model_fit, online
+  /// learning's last valve fit): else every forecast made on it says it is uncertain.
+  bool fits = true;
 
   /// The chambers' process of this model (geometry, gas, the energy balance if any).
   [[nodiscard]] model::ChamberProcess process() const noexcept {
@@ -95,6 +98,9 @@ struct Prediction {
   /// one) from the snapshot up to the restart, or forever when none [N]; 0 at a restart.
   double min_margin_n = 0.0;
   bool horizon_reached = false;       ///< nonlinear: undecided at the horizon, reported as no restart
+  /// Made on a model that fitted the bench when identified (PredictorModel::fits): false, the
+  /// forecast is uncertain, whatever it says.
+  bool model_fits = true;
 };
 
 /// The stiction bound a forecast made at force `force_n` turns on: the side of the restart it

@@ -55,13 +55,16 @@ struct CommandRecord {
 
 /// The parameters online identification estimates, in the order of IdentificationRecord's
 /// arrays (and of <prefix>IDENTIFICATION's): their config keys.
-inline constexpr std::array<const char*, 11> kIdentifiedParameterKeys = {
+/// The wall's heat transfer and the spool lag are the model's only when it has them (plant.thermal,
+/// a spool lag > 0): else never identified.
+inline constexpr std::array<const char*, 13> kIdentifiedParameterKeys = {
     "plant.friction.static_positive_n",           "plant.friction.static_negative_n",
     "plant.friction.coulomb_positive_n",          "plant.friction.coulomb_negative_n",
     "plant.friction.viscous_n_s_per_m",           "plant.valve.max_conductance_m3_per_s_pa",
     "plant.valve.leak_conductance_in_m3_per_s_pa", "plant.valve.leak_conductance_out_m3_per_s_pa",
     "plant.valve.null_offset_v",                  "plant.geometry.dead_volume_p_m3",
-    "plant.geometry.dead_volume_n_m3"};
+    "plant.geometry.dead_volume_n_m3",            "plant.thermal.heat_transfer_w_per_m2_k",
+    "plant.valve.spool_time_constant_s"};
 
 /// The running estimate of online identification, after an update.
 struct IdentificationRecord {

@@ -112,6 +112,9 @@ struct RecordedRun {
 
 /// Each parameter before and after, with its uncertainty and what it came from, and the evidence.
 void print_report(std::FILE* out, const Identification& id);
+/// Whether the model fits the stuck phases' pressures, in a sentence: the residual against what the
+/// noise explains, and when it does not fit, the phases that fail worst.
+[[nodiscard]] std::string fit_verdict(const Evidence& evidence);
 
 /// identify()'s options for a run of `config` (the stop detector's rest band).
 [[nodiscard]] Options options_for(const config::Config& config);

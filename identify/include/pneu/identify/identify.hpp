@@ -33,6 +33,8 @@ struct Sample {
   /// drive as recorded (disarmed, fault: the outputs were neutral or the safe output) are left
   /// out of the valve fit.
   bool driven = true;
+  /// The voltage valve N was sent [V]: -u_v (NaN: -u_v), but for the exhaust safe output.
+  double u_n_v = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// How the trajectory is read.
@@ -63,6 +65,11 @@ struct Options {
   /// A parameter whose relative standard deviation (1 sigma) exceeds this is not identified: the
   /// data cannot tell it apart from the others, and the prior is kept.
   double max_relative_std = 0.2;
+  /// The record starts at rest, the chambers at the wall temperature (an identification run); else
+  /// (a window of a running record, online) the model's estimate of what no sensor gives (the
+  /// temperatures, the spools) is taken to have forgotten its start only after five thermal time
+  /// constants (ten spool lags), and the valve fit leaves out the phases before.
+  bool at_rest_at_start = true;
 };
 
 /// One parameter before and after.
@@ -89,8 +96,24 @@ struct Evidence {
   double sliding_s = 0.0;          ///< time sliding fast enough for Coulomb and viscous friction
   double stuck_position_span_m = 0.0;  ///< the stuck phases' positions, max - min
   double voltage_span_v = 0.0;     ///< the stuck phases' u, max - min
-  double pressure_rms_residual_pa = 0.0;  ///< the valve fit's residual, both chambers
+  /// The valve fit's residual, both chambers, with every parameter free: how well the model fits [Pa]
+  double pressure_rms_residual_pa = 0.0;
   int command_delay_samples = 0;         ///< the valve fit's command delay [samples]
+  /// The pressure sensors' noise as the fitted phases show it, and what the noise explains of a
+  /// residual: the noise, or what an exact model leaves of ideal readings (10 Pa) if more [Pa].
+  double pressure_noise_pa = 0.0;
+  double pressure_explained_pa = 0.0;
+  /// The model fits the stuck phases: the residual (every parameter free) within twice what the
+  /// noise explains. When it does not, the valve fit's parameters carry the misfit in their
+  /// sigmas, and `misfit` names the phases beyond three times it.
+  bool model_fits = true;
+  struct PhaseMisfit {
+    double t_s = 0.0;     ///< the phase's first fitted sample [s]
+    double y_m = 0.0;     ///< where [m]
+    double rms_pa = 0.0;  ///< its residual, both chambers [Pa]
+  };
+  std::vector<PhaseMisfit> misfit;
+  int misfit_phases_of = 0;  ///< ... of this many fitted
 };
 
 /// The result: the bench's parameters (the prior where not identified), each estimate, and the

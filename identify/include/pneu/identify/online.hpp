@@ -77,6 +77,7 @@ class OnlineIdentifier final : public controller::RunListener {
   std::vector<std::uint64_t> stops_on_configured_bound_;  // their indices, increasing
   std::uint64_t last_stop_forecast_ = 0;  // the stop whose forecasts were counted last
   bool new_long_phase_ = false;  // a stuck phase long enough for the valve fit ended since the last fit
+  bool window_from_start_ = true;  // the window still holds the run's first tick
   double stuck_since_s_ = -1.0;
   std::string last_refusal_;
   double longest_update_s_ = 0.0;
