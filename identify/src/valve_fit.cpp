@@ -127,16 +127,30 @@ struct RestingChamber {
   model::SpoolLag spool;
   model::Side side;
   double y_m;
+
+  // A spool this many lags after a change is where it was commanded (e^-8: 3e-4 of the change); until
+  // then, steps of a quarter of the lag.
+  static constexpr double kSpoolSettled = 8.0;
+
   void advance(double target, double h, double& p, double& t_k, double& w) const noexcept {
+    double done = 0.0;
+    if (spool.lags() && std::abs(w - target) > 1e-9) {
+      const double moving = std::min(h, kSpoolSettled * spool.time_constant_s);
+      integrate(target, moving, static_cast<int>(std::ceil(moving / (0.25 * spool.time_constant_s))), p, t_k, w);
+      done = moving;
+    }
+    if (h - done > 0.0) integrate(target, h - done, 0, p, t_k, w);
+  }
+
+ private:
+  // `steps` RK4 steps over h, at least as many as the chamber's fastest rate asks.
+  void integrate(double target, double h, int steps, double& p, double& t_k, double& w) const noexcept {
     const double w0 = w;
     const auto rates = [&](double tau, double pp, double tt) {
       return process->rates(*valve, side, pp, tt, spool.after(w0, target, tau), y_m, 0.0);
     };
-    double fastest = process->fastest_rate_1_per_s(*valve, side, p, t_k, w0, y_m);
-    int steps = std::max(1, static_cast<int>(std::ceil(h * fastest / 0.5)));
-    if (spool.lags() && std::abs(w0 - target) > 1e-9)
-      steps = std::max(steps, static_cast<int>(std::ceil(h / (0.25 * spool.time_constant_s))));
-    steps = std::min(steps, 10000);
+    const double fastest = process->fastest_rate_1_per_s(*valve, side, p, t_k, w0, y_m);
+    steps = std::clamp(std::max(steps, static_cast<int>(std::ceil(h * fastest / 0.5))), 1, 10000);
     const double dt = h / steps;
     for (int i = 0; i < steps; ++i) {
       const double tau = i * dt;

@@ -91,7 +91,11 @@ void ChamberObserver::reset(double t_s, double y_m, double p_p_pa, double p_n_pa
 
 // Each chamber's temperature equation, its pressure and volume taken from the measurements (linear
 // in between: the volume term integrates to -(gamma - 1) ln(V1 / V0) whatever the path), its valve
-// at the spool's position, in RK4 steps short against the chamber's fastest rate.
+// at the spool's position, in RK4 steps short against the chamber's fastest rate. A spool lagging
+// by less than a step moves a long way within it: each stage takes the spool's exact mean over the
+// part of the step its RK4 weight stands for ([0, 1/6], [1/6, 5/6], [5/6, 1] of it), which the
+// flow, linear in the opening, integrates exactly where the stage's own value would not (a 0.2 ms
+// lag sampled at the stages of a 1 ms step misses a fifth of each command change's transient).
 void ChamberObserver::advance(double t_s, double y_m, double p_p_pa, double p_n_pa) noexcept {
   const double h = t_s - t_s_;
   const ValveCharacteristic& valve = *valve_;
@@ -100,9 +104,14 @@ void ChamberObserver::advance(double t_s, double y_m, double p_p_pa, double p_n_
   if (h > 0.0 && process_.thermal()) {
     const double v = (y_m - y_m_) / h;
     const auto integrate = [&](Side side, double t_k, double p0, double p1, double w0, double target) {
-      const auto rate = [&](double tau, double temperature) {
-        return process_
-            .rates(valve, side, p0 + (p1 - p0) * tau / h, temperature, spool_.after(w0, target, tau), y_m_ + v * tau, v)
+      // The spool's mean over [a, b] of the interval.
+      const auto spool_mean = [&](double a, double b) {
+        if (!spool_.lags()) return target;
+        const double tau = spool_.time_constant_s;
+        return target + (w0 - target) * tau * (std::exp(-a / tau) - std::exp(-b / tau)) / (b - a);
+      };
+      const auto rate = [&](double tau, double w, double temperature) {
+        return process_.rates(valve, side, p0 + (p1 - p0) * tau / h, temperature, w, y_m_ + v * tau, v)
             .dtemperature_dt_k_per_s;
       };
       // The temperature equation's own rate, T d(dT/dt)/dT, is of the order of the chamber's fastest.
@@ -111,10 +120,12 @@ void ChamberObserver::advance(double t_s, double y_m, double p_p_pa, double p_n_
       const double dt = h / steps;
       for (int i = 0; i < steps; ++i) {
         const double tau = i * dt;
-        const double k1 = rate(tau, t_k);
-        const double k2 = rate(tau + 0.5 * dt, t_k + 0.5 * dt * k1);
-        const double k3 = rate(tau + 0.5 * dt, t_k + 0.5 * dt * k2);
-        const double k4 = rate(tau + dt, t_k + dt * k3);
+        const double w_start = spool_mean(tau, tau + dt / 6.0), w_middle = spool_mean(tau + dt / 6.0, tau + 5.0 * dt / 6.0),
+                     w_end = spool_mean(tau + 5.0 * dt / 6.0, tau + dt);
+        const double k1 = rate(tau, w_start, t_k);
+        const double k2 = rate(tau + 0.5 * dt, w_middle, t_k + 0.5 * dt * k1);
+        const double k3 = rate(tau + 0.5 * dt, w_middle, t_k + 0.5 * dt * k2);
+        const double k4 = rate(tau + dt, w_end, t_k + dt * k3);
         t_k += dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
       }
       return t_k;

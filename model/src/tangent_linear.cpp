@@ -6,6 +6,8 @@
 #include <cmath>
 #include <cstdio>
 
+#include "pneu/model/chamber.hpp"
+
 namespace pneu::model {
 
 namespace {
@@ -16,24 +18,26 @@ std::string num(double v) {
   return buf;
 }
 
-Eigen::Matrix4d a_matrix(const TangentLinearModel& m) {
-  Eigen::Matrix4d a;
-  for (int i = 0; i < 4; ++i)
-    for (int j = 0; j < 4; ++j) a(i, j) = m.a[static_cast<std::size_t>(i)][static_cast<std::size_t>(j)];
+Eigen::MatrixXd a_matrix(const TangentLinearModel& m) {
+  const auto n = static_cast<Eigen::Index>(m.states());
+  Eigen::MatrixXd a(n, n);
+  for (Eigen::Index i = 0; i < n; ++i)
+    for (Eigen::Index j = 0; j < n; ++j) a(i, j) = m.a[static_cast<std::size_t>(i)][static_cast<std::size_t>(j)];
   return a;
 }
 
-Eigen::Vector4d b_vector(const TangentLinearModel& m) {
-  return {m.b[0], m.b[1], m.b[2], m.b[3]};
+Eigen::VectorXd b_vector(const TangentLinearModel& m) {
+  return Eigen::Map<const Eigen::VectorXd>(m.b.data(), static_cast<Eigen::Index>(m.states()));
 }
 
 // The state feedback of Eq. 4 with exact v and a: du = -k x.
-Eigen::RowVector4d feedback_row(const TangentLinearModel& m, const LawGains& g) {
-  Eigen::RowVector4d k = Eigen::RowVector4d::Zero();
+Eigen::RowVectorXd feedback_row(const TangentLinearModel& m, const LawGains& g) {
+  const auto n = static_cast<Eigen::Index>(m.states());
+  Eigen::RowVectorXd k = Eigen::RowVectorXd::Zero(n);
   k(0) = g.position_gain_v_per_m;
   k(1) = g.velocity_gain_v_s_per_m;
   const auto& acc = m.acceleration_row();
-  for (int j = 0; j < 4; ++j) k(j) += g.acceleration_gain_v_s2_per_m * acc[static_cast<std::size_t>(j)];
+  for (Eigen::Index j = 0; j < n; ++j) k(j) += g.acceleration_gain_v_s2_per_m * acc[static_cast<std::size_t>(j)];
   return k;
 }
 
@@ -79,14 +83,83 @@ std::vector<std::complex<double>> eigenvalues(const Eigen::MatrixXd& m) {
 
 }  // namespace
 
+namespace {
+
+// With the energy balance or a spool lag: every entry of A and B by central differences of the
+// chambers' own equations (ChamberProcess) and the mechanics (sliding, dry friction left out), at
+// the equilibrium with the chambers at the wall temperature. State (y, v, p_P, p_N[, T_P, T_N][,
+// w_P, w_N]).
+void linearise_with_hidden_state(const PlantParams& plant, const ValveCharacteristic& valve, TangentLinearModel& m) {
+  const ChamberProcess process(plant);
+  const bool thermal = plant.has_thermal;
+  const double lag = plant.valve.spool_time_constant_s;
+  const std::size_t n = 4 + (thermal ? 2 : 0) + (lag > 0.0 ? 2 : 0);
+  const std::size_t it = 4, iw = thermal ? 6 : 4;
+  const double s_p = plant.geometry.area_p_m2(), s_n = plant.geometry.area_n_m2();
+  const double mass = plant.mass_kg, sigma = plant.friction.viscous_n_s_per_m;
+  const double wall = process.rest_temperature_k();
+  // d/dt of the state x under control u.
+  const auto rate = [&](const std::vector<double>& x, double u) {
+    std::vector<double> dx(n, 0.0);
+    const double y = x[0], v = x[1];
+    const double t_p = thermal ? x[it] : wall, t_n = thermal ? x[it + 1] : wall;
+    const double w_p = lag > 0.0 ? x[iw] : u, w_n = lag > 0.0 ? x[iw + 1] : -u;
+    const ChamberRates rp = process.rates(valve, Side::kP, x[2], t_p, w_p, y, v);
+    const ChamberRates rn = process.rates(valve, Side::kN, x[3], t_n, w_n, y, v);
+    dx[0] = v;
+    dx[1] = (s_p * x[2] - s_n * x[3] - plant.geometry.area_rod_m2() * plant.gas.exhaust_pressure_pa - sigma * v) / mass;
+    dx[2] = rp.dp_dt_pa_per_s;
+    dx[3] = rn.dp_dt_pa_per_s;
+    if (thermal) dx[it] = rp.dtemperature_dt_k_per_s, dx[it + 1] = rn.dtemperature_dt_k_per_s;
+    if (lag > 0.0) dx[iw] = (u - x[iw]) / lag, dx[iw + 1] = (-u - x[iw + 1]) / lag;
+    return dx;
+  };
+  std::vector<double> x0(n, 0.0);
+  x0[0] = m.position_m;
+  x0[2] = m.pressure_p_pa;
+  x0[3] = m.pressure_n_pa;
+  if (thermal) x0[it] = x0[it + 1] = wall;
+  if (lag > 0.0) x0[iw] = m.voltage_v, x0[iw + 1] = -m.voltage_v;
+  // Steps: a micrometre, a micrometre per second, a pascal, a millikelvin, the valves' voltage step.
+  const auto step = [&](std::size_t j) {
+    return j == 0 ? 1e-6 : j == 1 ? 1e-6 : j < 4 ? 1.0 : (thermal && j < 6) ? 1e-3 : kValveVoltageStep_v;
+  };
+  m.a.assign(n, std::vector<double>(n, 0.0));
+  for (std::size_t j = 0; j < n; ++j) {
+    std::vector<double> up = x0, down = x0;
+    up[j] += step(j);
+    down[j] -= step(j);
+    const std::vector<double> fu = rate(up, m.voltage_v), fd = rate(down, m.voltage_v);
+    for (std::size_t i = 0; i < n; ++i) m.a[i][j] = (fu[i] - fd[i]) / (2.0 * step(j));
+  }
+  const double du = kValveVoltageStep_v;
+  const std::vector<double> bu = rate(x0, m.voltage_v + du), bd = rate(x0, m.voltage_v - du);
+  m.b.assign(n, 0.0);
+  for (std::size_t i = 0; i < n; ++i) m.b[i] = (bu[i] - bd[i]) / (2.0 * du);
+  // The third-order model: the force's rate F' = S_P p_P' - S_N p_N' against u (the spools
+  // settled: w = +-u) and against v.
+  const auto force_rate = [&](double u, double v) {
+    std::vector<double> x = x0;
+    x[1] = v;
+    if (lag > 0.0) x[iw] = u, x[iw + 1] = -u;
+    const std::vector<double> dx = rate(x, u);
+    return s_p * dx[2] - s_n * dx[3];
+  };
+  m.third_order.force_gain_n_per_v_s = (force_rate(m.voltage_v + du, 0.0) - force_rate(m.voltage_v - du, 0.0)) / (2.0 * du);
+  m.third_order.stiffness_n_per_m = -(force_rate(m.voltage_v, 1e-6) - force_rate(m.voltage_v, -1e-6)) / 2e-6;
+}
+
+}  // namespace
+
 TangentLinearModel tangent_linear_model(const PlantParams& plant, const ValveCharacteristic& valve,
                                         double position_m, double voltage_v) {
   const Geometry& g = plant.geometry;
   TangentLinearModel m;
   m.position_m = position_m;
   m.voltage_v = voltage_v;
-  m.pressure_p_pa = valve.null_pressure_pa(voltage_v);
-  m.pressure_n_pa = valve.null_pressure_pa(-voltage_v);
+  const ChamberProcess process(plant);
+  m.pressure_p_pa = process.null_pressure_pa(valve, voltage_v);
+  m.pressure_n_pa = process.null_pressure_pa(valve, -voltage_v);
   m.volume_p_m3 = g.volume_p_m3(position_m);
   m.volume_n_m3 = g.volume_n_m3(position_m);
   const double h = kValveVoltageStep_v;
@@ -98,23 +171,25 @@ TangentLinearModel tangent_linear_model(const PlantParams& plant, const ValveCha
   m.dq_dp_p = valve.dq_dp(voltage_v, m.pressure_p_pa);
   m.dq_dp_n = valve.dq_dp(-voltage_v, m.pressure_n_pa);
 
-  // Eq. 2 linearised (docs/model.md): valve N sees w = -u, so its flow changes by -q_w,N du.
-  const double c = plant.gas.k_r_t();
-  const double k = plant.gas.polytropic_index;
-  const double s_p = g.area_p_m2(), s_n = g.area_n_m2();
   const double mass = plant.mass_kg, sigma = plant.friction.viscous_n_s_per_m;
-  const double v_p = m.volume_p_m3, v_n = m.volume_n_m3;
-  m.a = {{{0.0, 1.0, 0.0, 0.0},
-          {0.0, -sigma / mass, s_p / mass, -s_n / mass},
-          {0.0, -k * m.pressure_p_pa * s_p / v_p, c / v_p * m.dq_dp_p, 0.0},
-          {0.0, k * m.pressure_n_pa * s_n / v_n, 0.0, c / v_n * m.dq_dp_n}}};
-  m.b = {0.0, 0.0, c / v_p * m.dq_dw_p, -c / v_n * m.dq_dw_n};
-
   m.third_order.mass_kg = mass;
   m.third_order.viscous_n_s_per_m = sigma;
-  m.third_order.force_gain_n_per_v_s = c * (s_p * m.dq_dw_p / v_p + s_n * m.dq_dw_n / v_n);
-  m.third_order.stiffness_n_per_m =
-      k * (s_p * s_p * m.pressure_p_pa / v_p + s_n * s_n * m.pressure_n_pa / v_n);
+  if (plant.has_thermal || plant.valve.spool_time_constant_s > 0.0) {
+    linearise_with_hidden_state(plant, valve, m);
+  } else {
+    // Eq. 2 linearised (docs/model.md): valve N sees w = -u, so its flow changes by -q_w,N du.
+    const double c = plant.gas.k_r_t();
+    const double k = plant.gas.polytropic_index;
+    const double s_p = g.area_p_m2(), s_n = g.area_n_m2();
+    const double v_p = m.volume_p_m3, v_n = m.volume_n_m3;
+    m.a = {{0.0, 1.0, 0.0, 0.0},
+           {0.0, -sigma / mass, s_p / mass, -s_n / mass},
+           {0.0, -k * m.pressure_p_pa * s_p / v_p, c / v_p * m.dq_dp_p, 0.0},
+           {0.0, k * m.pressure_n_pa * s_n / v_n, 0.0, c / v_n * m.dq_dp_n}};
+    m.b = {0.0, 0.0, c / v_p * m.dq_dw_p, -c / v_n * m.dq_dw_n};
+    m.third_order.force_gain_n_per_v_s = c * (s_p * m.dq_dw_p / v_p + s_n * m.dq_dw_n / v_n);
+    m.third_order.stiffness_n_per_m = k * (s_p * s_p * m.pressure_p_pa / v_p + s_n * s_n * m.pressure_n_pa / v_n);
+  }
   if (!(m.third_order.force_gain_n_per_v_s > 0.0))
     throw GainDesignError("at y = " + num(position_m) + " m the valves have no force gain b (" +
                           num(m.third_order.force_gain_n_per_v_s) + " N/(V s)) around u_0 = " + num(voltage_v) +
@@ -159,26 +234,27 @@ LawGains place_poles(const ThirdOrderModel& m, const RequestedDynamics& p, const
 }
 
 std::vector<std::complex<double>> continuous_poles(const TangentLinearModel& m, const LawGains& g) {
-  const Eigen::Matrix4d closed = a_matrix(m) - b_vector(m) * feedback_row(m, g);
+  const Eigen::MatrixXd closed = a_matrix(m) - b_vector(m) * feedback_row(m, g);
   return eigenvalues(closed);
 }
 
 std::vector<std::complex<double>> sampled_poles(const TangentLinearModel& m, const LawGains& g,
                                                 const SampledLoop& loop) {
   const double t = loop.period_s, alpha = loop.smoothing;
+  const auto np = static_cast<int>(m.states());
   // Zero-order hold: exp([[A, B], [0, 0]] T) = [[Ad, Bd], [0, 1]].
-  Eigen::Matrix<double, 5, 5> aug = Eigen::Matrix<double, 5, 5>::Zero();
-  aug.topLeftCorner<4, 4>() = a_matrix(m) * t;
-  aug.topRightCorner<4, 1>() = b_vector(m) * t;
-  const Eigen::Matrix<double, 5, 5> e = aug.exp();
-  const Eigen::Matrix4d ad = e.topLeftCorner<4, 4>();
-  const Eigen::Vector4d bd = e.topRightCorner<4, 1>();
+  Eigen::MatrixXd aug = Eigen::MatrixXd::Zero(np + 1, np + 1);
+  aug.topLeftCorner(np, np) = a_matrix(m) * t;
+  aug.topRightCorner(np, 1) = b_vector(m) * t;
+  const Eigen::MatrixXd e = aug.exp();
+  const Eigen::MatrixXd ad = e.topLeftCorner(np, np);
+  const Eigen::VectorXd bd = e.topRightCorner(np, 1);
 
-  // State at tick k, before its update: plant x_k (4), the differentiator's y_k-1, v_k-1, a_k-1,
+  // State at tick k, before its update: plant x_k (np), the differentiator's y_k-1, v_k-1, a_k-1,
   // then the controls still to be applied u_k-d .. u_k-1 (oldest first).
   const int d = std::max(0, loop.delay_samples);
-  const int n = 7 + d;
-  const int iy = 4, iv = 5, ia = 6;
+  const int n = np + 3 + d;
+  const int iy = np, iv = np + 1, ia = np + 2, iu = np + 3;
   // This tick's outputs as rows over the state: y_k, v_k, a_k, u_k.
   Eigen::RowVectorXd y_k = Eigen::RowVectorXd::Zero(n);
   y_k(0) = 1.0;
@@ -194,14 +270,14 @@ std::vector<std::complex<double>> sampled_poles(const TangentLinearModel& m, con
       -(g.position_gain_v_per_m * y_k + g.velocity_gain_v_s_per_m * v_k + g.acceleration_gain_v_s2_per_m * a_k);
 
   Eigen::MatrixXd phi = Eigen::MatrixXd::Zero(n, n);
-  phi.topLeftCorner(4, 4) = ad;
+  phi.topLeftCorner(np, np) = ad;
   // The control held over [t_k, t_k+1): u_k itself, or the oldest one waiting.
   if (d == 0) {
-    phi.topRows(4) += bd * u_k;
+    phi.topRows(np) += bd * u_k;
   } else {
-    phi.block(0, 7, 4, 1) += bd;
-    for (int i = 0; i + 1 < d; ++i) phi(7 + i, 7 + i + 1) = 1.0;
-    phi.row(7 + d - 1) = u_k;
+    phi.block(0, iu, np, 1) += bd;
+    for (int i = 0; i + 1 < d; ++i) phi(iu + i, iu + i + 1) = 1.0;
+    phi.row(iu + d - 1) = u_k;
   }
   phi.row(iy) = y_k;
   phi.row(iv) = v_k;

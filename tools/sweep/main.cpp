@@ -452,6 +452,60 @@ class ScenarioWatch final : public controller::RunListener {
   std::optional<controller::Prediction> reach_forecast_;  // made as the reach in force began
 };
 
+// --identify: how the identification went against the scenario's bench.
+struct IdentifiedCheck {
+  double residual_pa = NAN, explained_pa = NAN;  // the valve fit's residual, and what the noise explains
+  bool fits = true;
+  // The parameters it published (identified) that the bench has too, and those within 3 of their
+  // stated sigmas of the bench's value; the others named with their error in sigmas.
+  int published = 0, within_3_sigma = 0;
+  std::string outside;
+};
+
+// The bench's value of an identified parameter's key; NaN when the bench has no such parameter
+// (the heat transfer of a bench without the energy balance).
+double bench_value(const model::PlantParams& b, std::string_view key) {
+  const std::pair<const char*, double> values[] = {
+      {"plant.friction.static_positive_n", b.friction.static_positive_n},
+      {"plant.friction.static_negative_n", b.friction.static_negative_n},
+      {"plant.friction.coulomb_positive_n", b.friction.coulomb_positive_n},
+      {"plant.friction.coulomb_negative_n", b.friction.coulomb_negative_n},
+      {"plant.friction.viscous_n_s_per_m", b.friction.viscous_n_s_per_m},
+      {"plant.valve.max_conductance_m3_per_s_pa", b.valve.max_conductance_m3_per_s_pa},
+      {"plant.valve.leak_conductance_in_m3_per_s_pa", b.valve.leak_conductance_in_m3_per_s_pa},
+      {"plant.valve.leak_conductance_out_m3_per_s_pa", b.valve.leak_conductance_out_m3_per_s_pa},
+      {"plant.valve.null_offset_v", b.valve.null_offset_v},
+      {"plant.geometry.dead_volume_p_m3", b.geometry.dead_volume_p_m3},
+      {"plant.geometry.dead_volume_n_m3", b.geometry.dead_volume_n_m3},
+      {"plant.thermal.heat_transfer_w_per_m2_k", b.has_thermal ? b.thermal.heat_transfer_w_per_m2_k : NAN},
+      {"plant.valve.spool_time_constant_s", b.valve.spool_time_constant_s}};
+  for (const auto& [k, v] : values)
+    if (key == k) return v;
+  return NAN;
+}
+
+IdentifiedCheck check_identified(const identify::Identification& id, const model::PlantParams& bench) {
+  IdentifiedCheck c;
+  c.residual_pa = id.evidence.pressure_rms_residual_pa;
+  c.explained_pa = id.evidence.pressure_explained_pa;
+  c.fits = id.evidence.model_fits;
+  for (const identify::Estimate& e : id.estimates) {
+    const double truth = bench_value(bench, e.key);
+    if (!e.identified || std::isnan(truth)) continue;
+    ++c.published;
+    const double sigmas = std::abs(e.value - truth) / e.std;
+    if (sigmas <= 3.0) {
+      ++c.within_3_sigma;
+      continue;
+    }
+    char text[160];
+    std::snprintf(text, sizeof text, "%s%s %.1f sigma", c.outside.empty() ? "" : "; ",
+                  e.key.substr(e.key.rfind('.') + 1).c_str(), sigmas);
+    c.outside += text;
+  }
+  return c;
+}
+
 struct ScenarioResult {
   Scenario scenario;
   model::PlantParams bench;  // the simulated bench it ran (the model's plant: unless --bench-spread)
@@ -462,6 +516,7 @@ struct ScenarioResult {
   std::vector<Truth> truth;  // per stop
   double t_end_s = 0.0;
   Settling settling;
+  IdentifiedCheck check;  // --identify
 };
 
 // What happened, by the simulated truth: the plant's first breakaway after the forecast was made
@@ -702,6 +757,7 @@ int run(int argc, char** argv) {
             config_path.empty() ? std::filesystem::path() : std::filesystem::path(config_path).parent_path();
         const model::PlantParams bench_params = s.bench.applied_to(config::simulated_bench(cfg));
         std::optional<model::PlantParams> identified;
+        IdentifiedCheck check;
         if (identify_first) {
           // pneud --identify on the scenario's bench, from the configured model; the scenario then
           // runs on what it identified.
@@ -710,11 +766,18 @@ int run(int argc, char** argv) {
           controller::resolve_offset(id_cfg, *prior_valve);
           const controller::ControlLaw prior_law = identify::identification_law(id_cfg, *prior_valve);
           try {
-            identified = identify::identify_by_run(id_cfg, *prior_valve, prior_law,
-                                                   backends::make_sim_backend(id_cfg, prior_law, bench_params), s.y0_m)
-                             .plant;
+            const identify::Identification id = identify::identify_by_run(
+                id_cfg, *prior_valve, prior_law, backends::make_sim_backend(id_cfg, prior_law, bench_params), s.y0_m);
+            identified = id.plant;
+            check = check_identified(id, bench_params);
+            // As pneud --identify writes it: the forecasts on a model that did not fit say so.
+            if (id.evidence.fitted_phases > 0) {
+              cfg.controller.predictor.has_model_fit = true;
+              cfg.controller.predictor.model_fit = {id.evidence.pressure_rms_residual_pa,
+                                                    id.evidence.pressure_explained_pa};
+            }
           } catch (const std::exception& e) {
-            give_up(ScenarioResult{s, bench_params, std::nullopt, e.what(), {}, {}, 0.0, {}});
+            give_up(ScenarioResult{s, bench_params, std::nullopt, e.what(), {}, {}, 0.0, {}, {}});
             continue;
           }
           cfg.plant = *identified;
@@ -731,7 +794,7 @@ int run(int argc, char** argv) {
           if (!identified) throw;
           give_up(ScenarioResult{s, bench_params, identified,
                                  std::string("the gain design on the identified model is refused: ") + e.what(), {}, {},
-                                 0.0, {}});
+                                 0.0, {}, check});
           continue;
         }
         const controller::ControlLaw& law = *designed;
@@ -752,7 +815,8 @@ int run(int argc, char** argv) {
         controller::execute(sim, cfg, clock, never);
         // Stops from the tail are not judged: the tail only lets the carriage show what it did
         // after the stops of the judged window.
-        ScenarioResult r{s, bench_params, identified, "", {}, {}, sim.runtime->end_time_s(), watch.settling(bench.motion_events(), bench.plant().state().y_m)};
+        ScenarioResult r{s,  bench_params, identified, "", {}, {}, sim.runtime->end_time_s(),
+                         watch.settling(bench.motion_events(), bench.plant().state().y_m), check};
         if (bench.motion_events_dropped() > 0)
           throw std::runtime_error("scenario " + std::to_string(s.index) + ": more plant events than recorded");
         for (auto stop : sim.runtime->stops()) {
@@ -945,13 +1009,36 @@ int run(int argc, char** argv) {
                                "bench_spool_time_constant_s"
                             << (identify_first ? ",identified_static_positive_n,identified_static_negative_n,"
                                                  "identified_null_offset_v,identified_null_pressure_error_pa,"
-                                                 "identification_failed"
+                                                 "identified_pressure_residual_pa,identified_pressure_explained_pa,"
+                                                 "identified_model_fits,identified_heat_transfer_w_per_m2_k,"
+                                                 "identified_spool_time_constant_s,identified_published,"
+                                                 "identified_within_3_sigma,identification_failed"
                                                : "")
                             << ",in_window_after_s,hold_after_s,restarts_after_hold\n";
   // --identify: what was identified against each bench.
   std::vector<double> id_stiction_error_pct[2], id_null_error_pa;
   std::vector<std::string> id_failures;
+  // ... how well its model fitted (the residual in what the noise explains), the parameters
+  // published that the bench has too and those within 3 sigma of it, the heat transfer's and the
+  // spool lag's errors where both have them
+  std::vector<double> id_residual_ratio, id_heat_error_pct, id_spool_error_ms;
+  int id_fits = 0, id_published = 0, id_within = 0;
+  std::vector<std::string> id_outside;
   for (const auto& r : results) {
+    if (r.identified) {
+      const IdentifiedCheck& c = r.check;
+      id_residual_ratio.push_back(c.residual_pa / c.explained_pa);
+      id_fits += c.fits ? 1 : 0;
+      id_published += c.published;
+      id_within += c.within_3_sigma;
+      if (!c.outside.empty()) id_outside.push_back("scenario " + std::to_string(r.scenario.index) + ": " + c.outside);
+      if (r.bench.has_thermal && r.identified->has_thermal)
+        id_heat_error_pct.push_back(
+            100 * std::abs(r.identified->thermal.heat_transfer_w_per_m2_k / r.bench.thermal.heat_transfer_w_per_m2_k - 1));
+      if (r.identified->valve.spool_time_constant_s > 0.0)
+        id_spool_error_ms.push_back(
+            1e3 * std::abs(r.identified->valve.spool_time_constant_s - r.bench.valve.spool_time_constant_s));
+    }
     // A scenario whose identification failed, or whose identified model could not be designed
     // for, did not run: its row has no outcome's figures, and says why.
     const bool ran = r.identification_failed.empty();
@@ -1023,10 +1110,13 @@ int run(int argc, char** argv) {
     os_sc << row;
     if (identify_first) {
       if (r.identified)
-        std::snprintf(row, sizeof row, ",%.6g,%.6g,%.6g,%.1f", r.identified->friction.static_positive_n,
-                      r.identified->friction.static_negative_n, r.identified->valve.null_offset_v, id_null_error);
+        std::snprintf(row, sizeof row, ",%.6g,%.6g,%.6g,%.1f,%.3f,%.3f,%d,%s,%.6g,%d,%d", r.identified->friction.static_positive_n,
+                      r.identified->friction.static_negative_n, r.identified->valve.null_offset_v, id_null_error,
+                      r.check.residual_pa, r.check.explained_pa, r.check.fits ? 1 : 0,
+                      r.identified->has_thermal ? cell(r.identified->thermal.heat_transfer_w_per_m2_k, 4).c_str() : "",
+                      r.identified->valve.spool_time_constant_s, r.check.published, r.check.within_3_sigma);
       else
-        std::snprintf(row, sizeof row, ",,,,");
+        std::snprintf(row, sizeof row, ",,,,,,,,,,");
       std::string reason = r.identification_failed;  // one quoted cell
       std::replace(reason.begin(), reason.end(), '"', '\'');
       os_sc << row << ',' << (reason.empty() ? "" : "\"" + reason + "\"");
@@ -1154,6 +1244,25 @@ int run(int argc, char** argv) {
                     percentile(id_stiction_error_pct[side], 0.9), percentile(id_stiction_error_pct[side], 1.0));
       std::printf("    p_null(u) over |u| < 1 V, largest error against the bench: p50 %.0f Pa  p90 %.0f Pa  max %.0f Pa\n",
                   percentile(id_null_error_pa, 0.5), percentile(id_null_error_pa, 0.9), percentile(id_null_error_pa, 1.0));
+    }
+    if (!id_residual_ratio.empty()) {
+      std::printf("    the model fits (pressure residual within twice what the sensors' noise explains) on %d of %zu; "
+                  "residual in what the noise explains: p50 %.2f  p90 %.2f  max %.2f\n",
+                  id_fits, id_residual_ratio.size(), percentile(id_residual_ratio, 0.5),
+                  percentile(id_residual_ratio, 0.9), percentile(id_residual_ratio, 1.0));
+      std::printf("    parameters published that the bench has too, within 3 of their stated sigmas of it: %d of %d "
+                  "(%.1f %%)\n",
+                  id_within, id_published, id_published > 0 ? 100.0 * id_within / id_published : 0.0);
+      for (std::size_t i = 0; i < id_outside.size() && i < 10; ++i) std::printf("      outside: %s\n", id_outside[i].c_str());
+      if (id_outside.size() > 10) std::printf("      ... %zu scenarios with one outside in all\n", id_outside.size());
+      if (!id_heat_error_pct.empty())
+        std::printf("    heat transfer error against the bench: p50 %.3f %%  p90 %.3f %%  max %.3f %%\n",
+                    percentile(id_heat_error_pct, 0.5), percentile(id_heat_error_pct, 0.9),
+                    percentile(id_heat_error_pct, 1.0));
+      if (!id_spool_error_ms.empty())
+        std::printf("    spool lag error against the bench: p50 %.4f ms  p90 %.4f ms  max %.4f ms\n",
+                    percentile(id_spool_error_ms, 0.5), percentile(id_spool_error_ms, 0.9),
+                    percentile(id_spool_error_ms, 1.0));
     }
   }
   std::printf("  %.2f s wall on %d threads: %.1f scenarios/s\n", wall_s, jobs, n / wall_s);

@@ -57,8 +57,9 @@ struct ThirdOrderModel {
   double stiffness_n_per_m = 0.0;       ///< k_s: air-spring stiffness [N/m]
 };
 
-/// The 4th-order linearisation of Eq. 2 at a complete equilibrium at position y_e:
-/// state x = (dy, dv, dp_P, dp_N), dx/dt = A x + B du.
+/// The linearisation of Eq. 2 at a complete equilibrium at position y_e: state x = (dy, dv, dp_P,
+/// dp_N), dx/dt = A x + B du (4th order); with the energy balance (plant.thermal) the chambers'
+/// temperatures follow (dT_P, dT_N), with a spool lag the spools (dw_P, dw_N): 6th or 8th order.
 struct TangentLinearModel {
   double position_m = 0.0;        ///< y_e [m]
   double voltage_v = 0.0;         ///< u_e = u_0 [V]
@@ -70,12 +71,13 @@ struct TangentLinearModel {
   double dq_dw_n = 0.0;           ///< q_w,N = dq/dw at (-u_e, p_N^e) [kg/(s V)]
   double dq_dp_p = 0.0;           ///< q_p,P = dq/dp at (u_e, p_P^e) [kg/(s Pa)]
   double dq_dp_n = 0.0;           ///< q_p,N = dq/dp at (-u_e, p_N^e) [kg/(s Pa)]
-  std::array<std::array<double, 4>, 4> a{};  ///< A, row-major
-  std::array<double, 4> b{};                 ///< B
-  ThirdOrderModel third_order;               ///< with the q_p terms dropped
+  std::vector<std::vector<double>> a;  ///< A, row-major, states() x states()
+  std::vector<double> b;               ///< B
+  ThirdOrderModel third_order;         ///< with the q_p terms dropped (the spools settled)
 
+  [[nodiscard]] std::size_t states() const noexcept { return b.size(); }
   /// The exact acceleration dv/dt as a row over the state (it does not depend on du).
-  [[nodiscard]] const std::array<double, 4>& acceleration_row() const noexcept { return a[1]; }
+  [[nodiscard]] const std::vector<double>& acceleration_row() const noexcept { return a[1]; }
 };
 
 /// Step of the central difference that gives q_w = dq/dw from the valve characteristic [V].
@@ -83,7 +85,11 @@ inline constexpr double kValveVoltageStep_v = 1.0e-3;
 
 /// The tangent-linear model at `position_m` around u_e = `voltage_v` (docs/model.md): p_null(+-u_e)
 /// from the valve characteristic, q_p from its dq_dp(), q_w by a central difference of step
-/// kValveVoltageStep_v. Throws GainDesignError when the valve has no force gain there (b <= 0).
+/// kValveVoltageStep_v. With the energy balance or a spool lag, every entry of A and B by central
+/// differences of the chambers' equations (model::ChamberProcess) at the equilibrium (the chambers
+/// at the wall temperature), and the third-order model's b = dF'/du and k_s = -dF'/dv from them,
+/// F' the pressure force's rate with the spools settled. Throws GainDesignError when the valve
+/// has no force gain there (b <= 0).
 [[nodiscard]] TangentLinearModel tangent_linear_model(const PlantParams& plant, const ValveCharacteristic& valve,
                                                       double position_m, double voltage_v);
 
@@ -97,8 +103,8 @@ inline constexpr double kValveVoltageStep_v = 1.0e-3;
 [[nodiscard]] LawGains place_poles(const ThirdOrderModel& model, const RequestedDynamics& poles,
                                    const GainLimits& limits);
 
-/// The closed-loop poles of the continuous 4th-order model under Eq. 4 with exact v and a
-/// (du = -K_y dy - K_v dv - K_a dv/dt) [1/s], four of them.
+/// The closed-loop poles of the continuous model under Eq. 4 with exact v and a (du = -K_y dy - K_v
+/// dv - K_a dv/dt) [1/s], one per state.
 [[nodiscard]] std::vector<std::complex<double>> continuous_poles(const TangentLinearModel& model,
                                                                  const LawGains& gains);
 
@@ -112,10 +118,11 @@ struct SampledLoop {
   int delay_samples = 0;
 };
 
-/// The closed-loop poles of the sampled loop [z]: the 4th-order plant held over each period
-/// (zero-order hold, exact discretisation), pneud's differentiator as coded (controller/
-/// differentiator.hpp: v_k = (1 - alpha) v_k-1 + alpha (y_k - y_k-1) / T, a_k = (1 - alpha) a_k-1 +
-/// alpha (v_k - v_k-1) / T) and `delay_samples` periods of delay. 7 + delay_samples poles.
+/// The closed-loop poles of the sampled loop [z]: the plant (its states() states, the spools' lag
+/// among them) held over each period (zero-order hold, exact discretisation), pneud's
+/// differentiator as coded (controller/differentiator.hpp: v_k = (1 - alpha) v_k-1 + alpha (y_k -
+/// y_k-1) / T, a_k = (1 - alpha) a_k-1 + alpha (v_k - v_k-1) / T) and `delay_samples` periods of
+/// delay. states() + 3 + delay_samples poles.
 [[nodiscard]] std::vector<std::complex<double>> sampled_poles(const TangentLinearModel& model, const LawGains& gains,
                                                               const SampledLoop& loop);
 
