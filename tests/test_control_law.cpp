@@ -5,6 +5,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "pneu/config/config.hpp"
 #include "pneu/controller/control_law.hpp"
 #include "pneu/controller/loop_params.hpp"
@@ -164,9 +166,10 @@ TEST(ScheduledControlLaw, IsDesignedFromTheConfigurationAtEveryNode) {
   EXPECT_EQ(LoopParams::from(c, law).law.gains_at(0.123).position_gain_v_per_m, law.gains_at(0.123).position_gain_v_per_m);
 }
 
-TEST(ScheduledControlLaw, ADesignThatNeedsANegativeGainIsRefusedBeforeTheLoopWithTheReason) {
+TEST(ScheduledControlLaw, RefusingADesignThatNeedsANegativeGainStopsItBeforeTheLoopWithTheReason) {
   // omega 20 rad/s is below sqrt(k_s / M) at the stroke's ends: K_v would be negative there.
-  config::Config c = scheduled_config({"controller.law.design.natural_frequency_rad_per_s=20"});
+  config::Config c = scheduled_config(
+      {"controller.law.design.natural_frequency_rad_per_s=20", "controller.law.design.infeasible=refuse"});
   const model::ValveModel valve(c.plant.valve, c.plant.gas);
   resolve_offset(c, valve);
   EXPECT_THAT([&] { (void)make_control_law(c, valve); },
@@ -175,8 +178,9 @@ TEST(ScheduledControlLaw, ADesignThatNeedsANegativeGainIsRefusedBeforeTheLoopWit
                                                             ::testing::HasSubstr("K_v would be negative")))));
 }
 
-TEST(ScheduledControlLaw, ADesignBeyondAGainLimitIsRefusedNamingTheGain) {
-  config::Config c = scheduled_config({"controller.law.design.max_position_gain_v_per_m=100"});
+TEST(ScheduledControlLaw, RefusingADesignBeyondAGainLimitNamesTheGain) {
+  config::Config c = scheduled_config(
+      {"controller.law.design.max_position_gain_v_per_m=100", "controller.law.design.infeasible=refuse"});
   const model::ValveModel valve(c.plant.valve, c.plant.gas);
   resolve_offset(c, valve);
   EXPECT_THAT([&] { (void)make_control_law(c, valve); },
@@ -185,16 +189,68 @@ TEST(ScheduledControlLaw, ADesignBeyondAGainLimitIsRefusedNamingTheGain) {
                                                             ::testing::HasSubstr("beyond its limit 100 V/m")))));
 }
 
-TEST(ScheduledControlLaw, ADesignTheSampledLoopCannotFollowIsRefusedNamingTheLoop) {
+TEST(ScheduledControlLaw, RefusingADesignTheSampledLoopCannotFollowNamesTheLoop) {
   // Stable on the continuous model everywhere, but at 300 Hz the sampled loop is not (pneu-plant
   // tune: max |z| 1.0089 near mid-stroke); at the default 1 kHz it is.
-  config::Config c = scheduled_config({"controller.rate_hz=300"});
+  config::Config c = scheduled_config({"controller.rate_hz=300", "controller.law.design.infeasible=refuse"});
   const model::ValveModel valve(c.plant.valve, c.plant.gas);
   resolve_offset(c, valve);
   EXPECT_THAT([&] { (void)make_control_law(c, valve); },
               ::testing::Throws<config::ConfigError>(test::IsConfigError(
                   "controller.law.design", ::testing::AllOf(::testing::HasSubstr("the sampled loop is unstable"),
                                                             ::testing::HasSubstr("higher loop rate")))));
+}
+
+// Where the requested dynamics cannot be had, the gains fall back node by node (the default): each
+// fallback named, its gains feasible and the sampled loop stable with them there, every other node
+// the requested design's.
+void expect_falls_back_only_where(const std::vector<std::string>& overrides, const char* reason, double lo_m,
+                                  double hi_m) {
+  config::Config c = scheduled_config(overrides);
+  const model::ValveModel valve(c.plant.valve, c.plant.gas);
+  resolve_offset(c, valve);
+  std::vector<model::DesignFallback> fallbacks;
+  const ControlLaw law = make_control_law(c, valve, {true, std::nullopt, &fallbacks});
+  ASSERT_FALSE(fallbacks.empty());
+  const double u_e = model::equilibrium_voltage_v(valve, c.plant.geometry, c.plant.gas.exhaust_pressure_pa);
+  const model::SampledLoop loop = sampled_loop(c);
+  for (const model::DesignFallback& f : fallbacks) {
+    SCOPED_TRACE(f.position_m);
+    EXPECT_THAT(f.reason, ::testing::HasSubstr(reason));
+    EXPECT_GE(f.position_m, lo_m - 1e-9);
+    EXPECT_LE(f.position_m, hi_m + 1e-9);
+    std::size_t node = 0;
+    while (std::abs(law.schedule().position_m(node) - f.position_m) > 1e-9) ++node;
+    const model::LawGains g = law.schedule().node(node);
+    EXPECT_EQ(g.velocity_gain_v_s_per_m, f.gains.velocity_gain_v_s_per_m);
+    EXPECT_GE(g.velocity_gain_v_s_per_m, 0.0);
+    EXPECT_GE(g.acceleration_gain_v_s2_per_m, 0.0);
+    const auto m = model::tangent_linear_model(c.plant, valve, f.position_m, u_e);
+    EXPECT_LT(model::max_magnitude(model::sampled_poles(m, g, loop)), 1.0);
+  }
+  // Everywhere else: the requested design, as the strict one places it.
+  const auto& d = c.controller.law.design;
+  for (std::size_t i = 0; i < law.schedule().size(); ++i) {
+    const double y = law.schedule().position_m(i);
+    if (std::any_of(fallbacks.begin(), fallbacks.end(), [&](const auto& f) { return std::abs(f.position_m - y) < 1e-9; }))
+      continue;
+    const auto t = model::tangent_linear_model(c.plant, valve, y, u_e).third_order;
+    const model::LawGains placed = model::place_poles(
+        t, {d.real_pole_1_per_s, d.natural_frequency_rad_per_s, d.damping},
+        {d.max_position_gain_v_per_m, d.max_velocity_gain_v_s_per_m, d.max_acceleration_gain_v_s2_per_m});
+    // (The node's position as the table keeps it: the last bits of the gains may differ.)
+    EXPECT_NEAR(law.schedule().node(i).position_gain_v_per_m / placed.position_gain_v_per_m, 1.0, 1e-9) << y;
+  }
+}
+
+TEST(ScheduledControlLaw, ADesignThatNeedsANegativeGainAtTheStrokesEndFallsBackThereAlone) {
+  // omega 20 rad/s: K_v < 0 near the ends, where the air spring is stiffest.
+  expect_falls_back_only_where({"controller.law.design.natural_frequency_rad_per_s=20"}, "K_v would be negative", -0.25,
+                               0.25);
+}
+
+TEST(ScheduledControlLaw, ALoopTooSlowForTheRequestedPolesFallsBackToSlowerOnesWhereItFails) {
+  expect_falls_back_only_where({"controller.rate_hz=300"}, "the sampled loop is unstable", -0.25, 0.25);
 }
 
 TEST(ScheduledControlLaw, TheLoopsParametersRefuseAScheduledLawWithoutItsTable) {

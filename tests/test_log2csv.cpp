@@ -371,6 +371,7 @@ TEST_F(Log2Csv, PredictionWithoutRestartHasAnEmptyRestartTime) {
   none.horizon_reached = 0;
   none.force = -12.5;
   none.stop_forecast_force = -12.5;
+  none.model_fits = 1;
   pneu_lcm::prediction_t restart = none;
   restart.update = 7;
   restart.force = -49.875;
@@ -380,6 +381,7 @@ TEST_F(Log2Csv, PredictionWithoutRestartHasAnEmptyRestartTime) {
   restart.direction = -1;
   restart.t_restart = 3.1415926535897931;
   restart.horizon_reached = 1;
+  restart.model_fits = 0;  // made on a model that did not fit the bench when identified
   pneu_lcm::prediction_t relaxation = restart;  // fitted to the phase's pressures: none at the stop
   relaxation.method = pneu_lcm::prediction_t::METHOD_RELAXATION;
   relaxation.horizon_reached = 0;
@@ -402,7 +404,7 @@ TEST_F(Log2Csv, PredictionWithoutRestartHasAnEmptyRestartTime) {
             split_header(
                 "log_utime,utime,t,stop,t_stop,update,method,method_name,will_restart,direction,t_restart,"
                 "u_star,equilibrium_force,p_p_equilibrium,p_n_equilibrium,tau_p,tau_n,min_margin,"
-                "horizon_reached,force,stop_forecast_force"));
+                "horizon_reached,force,stop_forecast_force,model_fits"));
   ASSERT_EQ(csv.rows.size(), 4u);
   EXPECT_EQ(csv.at(0, "t_restart"), "");
   EXPECT_EQ(csv.at(0, "method_name"), "linearized");
@@ -432,6 +434,7 @@ TEST_F(Log2Csv, PredictionWithoutRestartHasAnEmptyRestartTime) {
     expect_int(csv.at(i, "horizon_reached"), m.horizon_reached, row + "horizon_reached");
     expect_double(csv.at(i, "force"), m.force, row + "force");
     expect_double(csv.at(i, "stop_forecast_force"), m.stop_forecast_force, row + "stop_forecast_force");
+    expect_int(csv.at(i, "model_fits"), m.model_fits, row + "model_fits");
   }
 }
 

@@ -287,12 +287,19 @@ TEST_F(PneuPlantCli, TuneSaysWhereThePapersGainsAreUnstableAndTheDesignedSchedul
   EXPECT_THAT(designed.out, HasSubstr("Stability map: the configured law, gains scheduled by position"));
   EXPECT_THAT(designed.out, ::testing::Not(HasSubstr("fixed gains K_y")));
   EXPECT_THAT(designed.out, HasSubstr("unstable, continuous: nowhere; sampled: nowhere"));
-  // At 300 Hz the same schedule is stable on the continuous model, not on the sampled loop: mapped,
-  // with a note that pneud refuses it.
-  const Outcome slow = run("tune --step-mm 50 --set controller.rate_hz=300");
+  // At 300 Hz the same schedule is stable on the continuous model, not on the sampled loop: refusing
+  // (controller.law.design.infeasible refuse), mapped, with a note that pneud refuses it ...
+  const Outcome slow = run("tune --step-mm 50 --set controller.rate_hz=300 --set controller.law.design.infeasible=refuse");
   ASSERT_EQ(slow.exit_code, 0) << slow.err;
   EXPECT_THAT(slow.out, HasSubstr("unstable, continuous: nowhere; sampled: [-200, 200] mm"));
   EXPECT_THAT(slow.out, HasSubstr("note: the designed schedule is unstable on the sampled loop: pneud refuses it"));
+  // ... falling back (the default), the nodes where it fails get slower poles: said, and stable.
+  const Outcome fallen_back = run("tune --step-mm 50 --set controller.rate_hz=300");
+  ASSERT_EQ(fallen_back.exit_code, 0) << fallen_back.err;
+  EXPECT_THAT(fallen_back.out, HasSubstr("the requested dynamics cannot be had everywhere: the gains fall back"));
+  EXPECT_THAT(fallen_back.out, HasSubstr("the sampled loop is unstable (max |z| = 1.00"));
+  EXPECT_THAT(fallen_back.out, HasSubstr("unstable, continuous: nowhere; sampled: nowhere"));
+  EXPECT_THAT(fallen_back.out, ::testing::Not(HasSubstr("note:")));
 }
 
 TEST_F(PneuPlantCli, TuneWritesTheMapAsCsvOneRowPerLawAndPosition) {
@@ -335,12 +342,14 @@ TEST_F(PneuPlantCli, TuneRefusesBadArgumentsAndImpossibleDesignsWithExitTwoSayin
   EXPECT_EQ(run("tune --step-mm 0").exit_code, 2);
   EXPECT_EQ(run("tune --delay-samples 1.5").exit_code, 2);
   EXPECT_THAT(run("tune --frobnicate").err, HasSubstr("unknown option --frobnicate"));
-  const Outcome negative = run("tune --set controller.law.design.natural_frequency_rad_per_s=20");
+  const Outcome negative =
+      run("tune --set controller.law.design.natural_frequency_rad_per_s=20 --set controller.law.design.infeasible=refuse");
   EXPECT_EQ(negative.exit_code, 2);
   EXPECT_THAT(negative.err, HasSubstr("controller.law.design"));
   EXPECT_THAT(negative.err, HasSubstr("K_v would be negative"));
   EXPECT_EQ(negative.out, "");  // refused before printing anything
-  const Outcome beyond = run("tune --set controller.law.design.max_acceleration_gain_v_s2_per_m=0.5");
+  const Outcome beyond =
+      run("tune --set controller.law.design.max_acceleration_gain_v_s2_per_m=0.5 --set controller.law.design.infeasible=refuse");
   EXPECT_EQ(beyond.exit_code, 2);
   EXPECT_THAT(beyond.err, HasSubstr("beyond its limit 0.5 V/(m/s^2)"));
   EXPECT_EQ(run("tune --set controller.law.design.damping=0").exit_code, 2);  // the schema: > 0

@@ -291,17 +291,30 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"ZeroDurationOnTheSimulatedClock", "--duration 0", "controller.duration_s",
                  "needs the real clock"},
         BadInput{"ScheduledGainsThatNeedANegativeGain",
-                 "--set controller.law.gains=scheduled --set controller.law.design.natural_frequency_rad_per_s=30",
+                 "--set controller.law.gains=scheduled --set controller.law.design.natural_frequency_rad_per_s=30 "
+                 "--set controller.law.design.infeasible=refuse",
                  "controller.law.design", "at y = -0.25 m: K_v would be negative"},
         BadInput{"ScheduledGainsBeyondTheirLimit",
-                 "--set controller.law.gains=scheduled --set controller.law.design.max_position_gain_v_per_m=300",
+                 "--set controller.law.gains=scheduled --set controller.law.design.max_position_gain_v_per_m=300 "
+                 "--set controller.law.design.infeasible=refuse",
                  "controller.law.design", "K_y = 324.085 V/m is beyond its limit 300 V/m"},
         BadInput{"ScheduledGainsTheSampledLoopCannotFollow",
-                 "--set controller.law.gains=scheduled --set controller.rate_hz=300", "controller.law.design",
+                 "--set controller.law.gains=scheduled --set controller.rate_hz=300 "
+                 "--set controller.law.design.infeasible=refuse",
+                 "controller.law.design",
                  "the sampled loop is unstable"},
         BadInput{"UnknownGainsKind", "--set controller.law.gains=adaptive", "controller.law.gains",
                  "must be 'fixed' or 'scheduled'"}),
     [](const ::testing::TestParamInfo<BadInput>& p) { return p.param.name; });
+
+TEST_F(PneudCli, ADesignInfeasibleSomewhereRunsOnGainsThatFallBackThereAndSaysWhereOnStderr) {
+  const Outcome o = pneud("--quiet --set controller.law.design.natural_frequency_rad_per_s=30");
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_THAT(o.err, HasSubstr("controller.law.design: the requested dynamics cannot be had everywhere"));
+  EXPECT_THAT(o.err, HasSubstr("at y = -0.25 m"));
+  EXPECT_THAT(o.err, HasSubstr("K_v would be negative"));
+  EXPECT_THAT(o.err, HasSubstr("the sampled loop there: max |z| 0.9"));
+}
 
 TEST_F(PneudCli, ShortRunOnTheRealClockCompletesAndReportsLoopTiming) {
   const Outcome o = pneud("--clock real --duration 0.3 --summary-json " + quoted(file("summary.json")));

@@ -147,8 +147,15 @@ int run(int argc, char** argv) {
     throw cli::UsageError("--require-rt needs the real clock (the simulated clock runs as fast as it can)");
   const std::unique_ptr<model::ValveCharacteristic> valve = load_valve(cfg, config_path);  // outlives the run
   controller::resolve_offset(cfg, *valve);
-  // Designed once, here: a scheduled law's design refused before any output.
-  const controller::ControlLaw law = controller::make_control_law(cfg, *valve);
+  // Designed once, here: a scheduled law's design refused before any output; where it fell back
+  // (the requested dynamics infeasible at some node), said at once, on stderr (the journal).
+  std::vector<model::DesignFallback> fallbacks;
+  const controller::ControlLaw law = controller::make_control_law(cfg, *valve, {true, std::nullopt, &fallbacks});
+  if (!fallbacks.empty())
+    std::fprintf(stderr,
+                 "pneud: warning: controller.law.design: the requested dynamics cannot be had everywhere on the "
+                 "stroke; the gains fall back there:\n%s\n",
+                 model::describe_fallbacks(fallbacks).c_str());
   // An identification run: its own set points and length, on the configured backend.
   const std::optional<std::string> identify_path = args.value("identify");
   std::optional<controller::ControlLaw> run_law;  // the identification run's, when not the configured one

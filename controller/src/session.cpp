@@ -22,23 +22,32 @@ void resolve_offset(config::Config& config, const model::ValveCharacteristic& va
         model::equilibrium_voltage_v(valve, config.plant.geometry, config.plant.gas.exhaust_pressure_pa);
 }
 
-ControlLaw make_control_law(const config::Config& config, const model::ValveCharacteristic& valve,
-                            bool check_sampled) {
+model::SampledLoop sampled_loop(const config::Config& config) {
+  return {config.controller.period_s(), config.controller.differentiator.smoothing,
+          config.hal.backend == config::BackendKind::kModbus ? 1 : 0};
+}
+
+ControlLaw make_control_law(const config::Config& config, const model::ValveCharacteristic& valve, const LawDesign& how) {
   const config::ControlLawParams& law = config.controller.law;
   if (law.gains == config::GainsKind::kFixed) return ControlLaw(law);
   const config::GainDesignParams& d = law.design;
   const double u_e = model::equilibrium_voltage_v(valve, config.plant.geometry, config.plant.gas.exhaust_pressure_pa);
+  const model::RequestedDynamics poles{d.real_pole_1_per_s, d.natural_frequency_rad_per_s, d.damping};
+  const model::GainLimits limits{d.max_position_gain_v_per_m, d.max_velocity_gain_v_s_per_m,
+                                 d.max_acceleration_gain_v_s2_per_m};
+  model::SampledLoop loop = sampled_loop(config);
+  if (how.delay_samples) loop.delay_samples = *how.delay_samples;
   try {
+    if (d.infeasible == config::InfeasibleDesign::kFallBack) {
+      model::ScheduleDesign design = model::design_schedule_falling_back(config.plant, valve, u_e, poles, limits,
+                                                                         d.node_spacing_m, how.check_sampled ? &loop : nullptr);
+      if (how.fallbacks != nullptr) *how.fallbacks = std::move(design.fallbacks);
+      return ControlLaw(law, design.schedule);
+    }
     const model::GainSchedule schedule =
-        model::design_schedule(config.plant, valve, u_e, {d.real_pole_1_per_s, d.natural_frequency_rad_per_s, d.damping},
-                               {d.max_position_gain_v_per_m, d.max_velocity_gain_v_s_per_m,
-                                d.max_acceleration_gain_v_s2_per_m},
-                               d.node_spacing_m);
-    // Placed on the continuous model: the loop as it samples must follow (no delay beyond the hold,
-    // as on the sim backend; a bus adds some: pneu-plant tune --delay-samples shows how much).
-    if (check_sampled)
-      model::require_sampled_stable(config.plant, valve, u_e, schedule,
-                                    {config.controller.period_s(), config.controller.differentiator.smoothing, 0});
+        model::design_schedule(config.plant, valve, u_e, poles, limits, d.node_spacing_m);
+    // Placed on the continuous model: the loop as it samples must follow.
+    if (how.check_sampled) model::require_sampled_stable(config.plant, valve, u_e, schedule, loop);
     return ControlLaw(law, schedule);
   } catch (const model::GainDesignError& e) {
     throw config::ConfigError("controller.law.design", std::string("the scheduled gains cannot be designed: ") + e.what());

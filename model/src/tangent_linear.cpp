@@ -4,6 +4,7 @@
 #include <unsupported/Eigen/MatrixFunctions>
 #include <algorithm>
 #include <cmath>
+#include <string>
 #include <cstdio>
 
 #include "pneu/model/chamber.hpp"
@@ -349,6 +350,115 @@ GainSchedule design_schedule(const PlantParams& plant, const ValveCharacteristic
   }
   const double spacing = nodes.size() > 1 ? nodes[1] - nodes[0] : 0.0;
   return GainSchedule(nodes.front(), spacing, gains);
+}
+
+ScheduleDesign design_schedule_falling_back(const PlantParams& plant, const ValveCharacteristic& valve,
+                                           double voltage_v, const RequestedDynamics& poles, const GainLimits& limits,
+                                           double spacing_m, const SampledLoop* loop) {
+  const std::vector<double> nodes = stroke_nodes_m(plant.geometry, spacing_m);
+  std::vector<TangentLinearModel> models;
+  for (const double y : nodes) models.push_back(tangent_linear_model(plant, valve, y, voltage_v));
+  const auto stable = [&](const TangentLinearModel& m, const LawGains& g, double& z) {
+    z = loop != nullptr ? max_magnitude(sampled_poles(m, g, *loop)) : 0.0;
+    return z < 1.0;
+  };
+  std::vector<LawGains> gains(nodes.size());
+  std::vector<bool> designed(nodes.size(), false);
+  ScheduleDesign out;
+  std::vector<std::size_t> pending;  // nodes without the requested dynamics
+  std::vector<std::string> reasons(nodes.size());
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    double z = 0.0;
+    try {
+      gains[i] = place_poles(models[i].third_order, poles, limits);
+      if (stable(models[i], gains[i], z)) {
+        designed[i] = true;
+        continue;
+      }
+      reasons[i] = "the sampled loop is unstable (max |z| = " + num(z) + ")";
+    } catch (const GainDesignError& e) {
+      // (Its advice to ask for other poles is what the fallback does.)
+      const std::string what = e.what();
+      reasons[i] = what.substr(0, what.find("; ask for"));
+    }
+    pending.push_back(i);
+  }
+  for (const std::size_t i : pending) {
+    const ThirdOrderModel& t = models[i].third_order;
+    // The least omega and alpha the placement allows: K_v >= 0 and K_a >= 0 (a hair above).
+    const double za = poles.damping * poles.real_pole_1_per_s;
+    const double omega_min = 1.001 * (-za + std::sqrt(za * za + std::max(0.0, t.stiffness_n_per_m) / t.mass_kg));
+    RequestedDynamics base = poles;
+    base.natural_frequency_rad_per_s = std::max(base.natural_frequency_rad_per_s, omega_min);
+    const double alpha_min = 1.001 * (t.viscous_n_s_per_m / t.mass_kg - 2.0 * poles.damping * base.natural_frequency_rad_per_s);
+    base.real_pole_1_per_s = std::max(base.real_pole_1_per_s, alpha_min);
+    bool found = false;
+    // Scaled together: down first (the gain limits, the sampled loop), then up.
+    for (int k = 0; k <= 60 && !found; ++k) {
+      const double scale = k <= 30 ? std::pow(0.93, k) : std::pow(1.07, k - 30);
+      RequestedDynamics d = base;
+      d.real_pole_1_per_s = std::max(base.real_pole_1_per_s * scale, alpha_min);
+      d.natural_frequency_rad_per_s = std::max(base.natural_frequency_rad_per_s * scale, omega_min);
+      LawGains g;
+      try {
+        g = place_poles(t, d, limits);
+      } catch (const GainDesignError&) {
+        continue;
+      }
+      double z = 0.0;
+      if (!stable(models[i], g, z)) continue;
+      gains[i] = g;
+      out.fallbacks.push_back({nodes[i], reasons[i], d, g, z});
+      found = true;
+    }
+    // The nearest designed node's gains, if the loop is stable with them here.
+    for (std::size_t step = 1; step < nodes.size() && !found; ++step)
+      for (const std::size_t j : {i >= step ? i - step : nodes.size(), i + step}) {
+        double z = 0.0;
+        if (j >= nodes.size() || !designed[j] || !stable(models[i], gains[j], z)) continue;
+        gains[i] = gains[j];
+        out.fallbacks.push_back({nodes[i], reasons[i] + "; no dynamics placed there is stable: the gains of y = " +
+                                               num(nodes[j]) + " m",
+                                 poles, gains[j], z});
+        found = true;
+        break;
+      }
+    if (!found)
+      throw GainDesignError("at y = " + num(nodes[i]) + " m: " + reasons[i] +
+                            ", and no feasible dynamics nor a neighbour's gains give a stable sampled loop there");
+  }
+  std::sort(out.fallbacks.begin(), out.fallbacks.end(),
+            [](const DesignFallback& a, const DesignFallback& b) { return a.position_m < b.position_m; });
+  const double spacing = nodes.size() > 1 ? nodes[1] - nodes[0] : 0.0;
+  out.schedule = GainSchedule(nodes.front(), spacing, gains);
+  return out;
+}
+
+std::string describe_fallbacks(const std::vector<DesignFallback>& fallbacks) {
+  std::string text;
+  for (std::size_t i = 0; i < fallbacks.size();) {
+    std::size_t j = i;  // the range of nodes with the same reason, next to each other
+    const auto reason_kind = [](const std::string& r) { return r.substr(0, r.find('(')); };
+    while (j + 1 < fallbacks.size() && reason_kind(fallbacks[j + 1].reason) == reason_kind(fallbacks[i].reason) &&
+           fallbacks[j + 1].position_m - fallbacks[j].position_m < 1.5 * (j > i ? fallbacks[j].position_m - fallbacks[j - 1].position_m : 1.0))
+      ++j;
+    double z = 0.0;
+    for (std::size_t k = i; k <= j; ++k) z = std::max(z, fallbacks[k].max_abs_z);
+    const auto range = [&](double first, double last, const char* unit) {
+      return num(first) + (num(last) != num(first) ? " to " + num(last) : std::string()) + unit;
+    };
+    char z_text[32] = "not checked";
+    if (z > 0.0) std::snprintf(z_text, sizeof z_text, "%.5f", z);
+    text += (text.empty() ? "" : "\n") + std::string("at y = ") +
+            range(fallbacks[i].position_m, fallbacks[j].position_m, " m") + " (" + std::to_string(j - i + 1) + " node" +
+            (j > i ? "s" : "") + "): " + fallbacks[i].reason + "; placed instead alpha " +
+            range(fallbacks[i].placed.real_pole_1_per_s, fallbacks[j].placed.real_pole_1_per_s, " 1/s") + ", omega " +
+            range(fallbacks[i].placed.natural_frequency_rad_per_s, fallbacks[j].placed.natural_frequency_rad_per_s,
+                  " rad/s") +
+            ", zeta " + num(fallbacks[i].placed.damping) + " (the sampled loop there: max |z| " + z_text + ")";
+    i = j + 1;
+  }
+  return text;
 }
 
 void require_sampled_stable(const PlantParams& plant, const ValveCharacteristic& valve, double voltage_v,

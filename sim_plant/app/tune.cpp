@@ -239,14 +239,18 @@ int tune(int argc, char** argv) {
   const auto& law = cfg.controller.law;
   const bool fixed = law.gains == config::GainsKind::kFixed;
 
-  // Every design first: a refusal prints nothing else. A schedule the sampled loop cannot follow
-  // is not refused here (pneud refuses it): the map shows where.
-  const controller::ControlLaw configured = controller::make_control_law(cfg, *valve, false);
+  // Every design first: a refusal prints nothing else. Falling back (controller.law.design.infeasible
+  // fall_back), the design is pneud's, the sampled loop with --delay-samples checked; refusing, a
+  // schedule the sampled loop cannot follow is not refused here (pneud refuses it): the map shows where.
+  const bool falls_back = cfg.controller.law.design.infeasible == config::InfeasibleDesign::kFallBack;
+  std::vector<model::DesignFallback> fallbacks;
+  const controller::LawDesign how{falls_back, static_cast<int>(delay), &fallbacks};
+  const controller::ControlLaw configured = controller::make_control_law(cfg, *valve, how);
   std::optional<controller::ControlLaw> designed;
   if (!map_only) {
     config::Config scheduled = cfg;
     scheduled.controller.law.gains = config::GainsKind::kScheduled;
-    designed = controller::make_control_law(scheduled, *valve, false);
+    designed = controller::make_control_law(scheduled, *valve, how);
   }
 
   std::printf("pneu-plant tune: %s\n", config_path.empty() ? "embedded sim.yaml" : config_path.c_str());
@@ -263,12 +267,14 @@ int tune(int argc, char** argv) {
     std::printf("  %7s %12s %10s | %9s %9s %9s\n", "y [mm]", "b [N/(V s)]", "k_s [N/m]", "K_y", "K_v", "K_a");
     for (const double y : ys) {
       const auto t = model::tangent_linear_model(cfg.plant, *valve, y, u_e).third_order;
-      const auto g = model::place_poles(t, {d.real_pole_1_per_s, d.natural_frequency_rad_per_s, d.damping},
-                                        {d.max_position_gain_v_per_m, d.max_velocity_gain_v_s_per_m,
-                                         d.max_acceleration_gain_v_s2_per_m});
+      const model::LawGains g = designed->gains_at(y);
       std::printf("  %7.1f %12.5g %10.5g | %9.5g %9.5g %9.5g\n", y * 1e3, t.force_gain_n_per_v_s, t.stiffness_n_per_m,
                   g.position_gain_v_per_m, g.velocity_gain_v_s_per_m, g.acceleration_gain_v_s2_per_m);
     }
+    if (!fallbacks.empty())
+      std::printf("  the requested dynamics cannot be had everywhere: the gains fall back (controller.law.design."
+                  "infeasible: fall_back)\n  %s\n",
+                  model::describe_fallbacks(fallbacks).c_str());
   }
 
   const std::vector<MapRow> configured_map = stability_map(cfg, *valve, u_e, configured, ys, loop);

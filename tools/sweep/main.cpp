@@ -460,6 +460,8 @@ struct IdentifiedCheck {
   // stated sigmas of the bench's value; the others named with their error in sigmas.
   int published = 0, within_3_sigma = 0;
   std::string outside;
+  // Per key: published, within 3 sigma.
+  std::vector<std::tuple<std::string, int, int>> by_key;
 };
 
 // The bench's value of an identified parameter's key; NaN when the bench has no such parameter
@@ -494,6 +496,7 @@ IdentifiedCheck check_identified(const identify::Identification& id, const model
     if (!e.identified || std::isnan(truth)) continue;
     ++c.published;
     const double sigmas = std::abs(e.value - truth) / e.std;
+    c.by_key.emplace_back(e.key, 1, sigmas <= 3.0 ? 1 : 0);
     if (sigmas <= 3.0) {
       ++c.within_3_sigma;
       continue;
@@ -1024,6 +1027,7 @@ int run(int argc, char** argv) {
   std::vector<double> id_residual_ratio, id_heat_error_pct, id_spool_error_ms;
   int id_fits = 0, id_published = 0, id_within = 0;
   std::vector<std::string> id_outside;
+  std::vector<std::tuple<std::string, int, int>> id_by_key;  // in the order first met
   for (const auto& r : results) {
     if (r.identified) {
       const IdentifiedCheck& c = r.check;
@@ -1032,6 +1036,12 @@ int run(int argc, char** argv) {
       id_published += c.published;
       id_within += c.within_3_sigma;
       if (!c.outside.empty()) id_outside.push_back("scenario " + std::to_string(r.scenario.index) + ": " + c.outside);
+      for (const auto& [key, published, within] : c.by_key) {
+        auto it = std::find_if(id_by_key.begin(), id_by_key.end(), [&](const auto& k) { return std::get<0>(k) == key; });
+        if (it == id_by_key.end()) it = id_by_key.insert(id_by_key.end(), {key, 0, 0});
+        std::get<1>(*it) += published;
+        std::get<2>(*it) += within;
+      }
       if (r.bench.has_thermal && r.identified->has_thermal)
         id_heat_error_pct.push_back(
             100 * std::abs(r.identified->thermal.heat_transfer_w_per_m2_k / r.bench.thermal.heat_transfer_w_per_m2_k - 1));
@@ -1253,6 +1263,10 @@ int run(int argc, char** argv) {
       std::printf("    parameters published that the bench has too, within 3 of their stated sigmas of it: %d of %d "
                   "(%.1f %%)\n",
                   id_within, id_published, id_published > 0 ? 100.0 * id_within / id_published : 0.0);
+      std::printf("     ");
+      for (const auto& [key, published, within] : id_by_key)
+        std::printf(" %s %d of %d;", key.substr(key.rfind('.') + 1).c_str(), within, published);
+      std::printf("\n");
       for (std::size_t i = 0; i < id_outside.size() && i < 10; ++i) std::printf("      outside: %s\n", id_outside[i].c_str());
       if (id_outside.size() > 10) std::printf("      ... %zu scenarios with one outside in all\n", id_outside.size());
       if (!id_heat_error_pct.empty())

@@ -48,6 +48,12 @@ enum class GainsKind : std::uint8_t {
                ///< the tangent-linear model, controller.law.design) and interpolated in position
 };
 
+/// What a design does where the requested dynamics cannot be had (controller.law.design.infeasible).
+enum class InfeasibleDesign : std::uint8_t {
+  kFallBack,  ///< "fall_back": node by node, the nearest feasible dynamics the sampled loop is stable with, reported
+  kRefuse,    ///< "refuse": the whole design refused, pneud does not start
+};
+
 /// The design of scheduled gains (controller.law.design; pneu-plant tune designs with it too):
 /// the requested closed-loop dynamics, the table's node spacing and the largest gains accepted.
 struct GainDesignParams {
@@ -58,6 +64,7 @@ struct GainDesignParams {
   double max_position_gain_v_per_m = 1000.0;          ///< a design beyond this K_y is refused [V/m]
   double max_velocity_gain_v_s_per_m = 200.0;         ///< ... K_v [V/(m/s)]
   double max_acceleration_gain_v_s2_per_m = 5.0;      ///< ... K_a [V/(m/s^2)]
+  InfeasibleDesign infeasible = InfeasibleDesign::kFallBack;  ///< where the requested dynamics cannot be had
 };
 
 struct ControlLawParams {

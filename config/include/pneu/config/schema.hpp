@@ -301,6 +301,8 @@ inline constexpr Flag<PredictorConfig> kPredictorMethods[] = {{"linearized", &Pr
                                                               {"nonlinear", &PredictorConfig::nonlinear},
                                                               {"relaxation", &PredictorConfig::relaxation}};
 inline constexpr Choice<GainsKind> kGainsKinds[] = {{"fixed", GainsKind::kFixed}, {"scheduled", GainsKind::kScheduled}};
+inline constexpr Choice<InfeasibleDesign> kInfeasibleDesigns[] = {{"fall_back", InfeasibleDesign::kFallBack},
+                                                                  {"refuse", InfeasibleDesign::kRefuse}};
 inline constexpr Choice<SafeOutput> kSafeOutputs[] = {{"neutral", SafeOutput::kNeutral},
                                                       {"exhaust", SafeOutput::kExhaust}};
 inline constexpr Choice<BackendKind> kBackends[] = {{"sim", BackendKind::kSim}, {"modbus", BackendKind::kModbus}};
@@ -452,6 +454,8 @@ void describe(auto& a, Like<GainDesignParams> auto& d, const model::Geometry& ge
   a.field(PNEU_NVP(d, max_position_gain_v_per_m), Range::positive(), "a design beyond this K_y is refused [V/m]");
   a.field(PNEU_NVP(d, max_velocity_gain_v_s_per_m), Range::positive(), "... K_v [V/(m/s)]");
   a.field(PNEU_NVP(d, max_acceleration_gain_v_s2_per_m), Range::positive(), "... K_a [V/(m/s^2)]");
+  a.field(optional(PNEU_NVP(d, infeasible)), one_of(kInfeasibleDesigns),
+          "where the requested dynamics cannot be had: fall_back | refuse");
 }
 
 void describe(auto& a, Like<ControlLawParams> auto& law, Like<bool> auto& offset_auto, const model::Geometry& geometry) {

@@ -5,11 +5,14 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
+#include <vector>
 
 #include "pneu/config/config.hpp"
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/runtime.hpp"
 #include "pneu/hal/backend.hpp"
+#include "pneu/model/tangent_linear.hpp"
 #include "pneu/model/valve_table.hpp"
 
 namespace pneu::controller {
@@ -23,15 +26,32 @@ namespace pneu::controller {
 /// Fills controller.law.offset_v with u_e of Eq. 7 when it is "auto".
 void resolve_offset(config::Config& config, const model::ValveCharacteristic& valve);
 
+/// The sampled loop pneud runs for `config`: the loop's period and differentiator, and the I/O
+/// delay of its backend (a module on a bus: the command written at a tick acts after the next
+/// read, one sample; in process, none).
+[[nodiscard]] model::SampledLoop sampled_loop(const config::Config& config);
+
+/// How make_control_law() designs: whether it checks the sampled loop (and with which delay), and
+/// where it reports the nodes it fell back at.
+struct LawDesign {
+  bool check_sampled = true;
+  /// The sampled loop's delay beyond the hold [samples]; unset: the backend's (sampled_loop()).
+  std::optional<int> delay_samples;
+  std::vector<model::DesignFallback>* fallbacks = nullptr;  ///< filled when given
+};
+
 /// The law of Eq. 4 for `config` (offset already resolved): the fixed gains of controller.law, or
 /// with controller.law.gains scheduled, the table designed by pole placement at nodes over the
 /// stroke (controller.law.design) on the tangent-linear model of plant: with `valve`, around u_e of
-/// Eq. 7. Start-up code: a design refused (a gain negative or beyond its limit somewhere on the
-/// stroke, or a table the sampled loop at controller.rate_hz cannot follow stably) throws
-/// config::ConfigError at controller.law.design, with the position, the gain and the reason.
-/// `check_sampled` false leaves out the sampled loop's check (pneu-plant tune, which maps it).
+/// Eq. 7. Where the requested dynamics cannot be had (a gain negative or beyond its limit, the
+/// sampled loop at controller.rate_hz with the backend's delay unstable), node by node the nearest
+/// feasible ones the sampled loop is stable with (model::design_schedule_falling_back), each one
+/// reported; with controller.law.design.infeasible refuse, or when nothing is stable there, a
+/// design refused: config::ConfigError at controller.law.design, with the position, the gain and
+/// the reason. Without the sampled loop's check (pneu-plant tune maps it), only a placement's own
+/// refusals fall back or refuse.
 [[nodiscard]] ControlLaw make_control_law(const config::Config& config, const model::ValveCharacteristic& valve,
-                                          bool check_sampled = true);
+                                          const LawDesign& how = {});
 
 /// The predictors' view of the bench.
 [[nodiscard]] PredictorModel predictor_model(const config::Config& config,

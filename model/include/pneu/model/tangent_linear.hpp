@@ -178,6 +178,39 @@ class GainSchedule {
                                            double voltage_v, const RequestedDynamics& poles,
                                            const GainLimits& limits, double spacing_m);
 
+/// Where a node's requested dynamics could not be had, what was placed instead.
+struct DesignFallback {
+  double position_m = 0.0;
+  std::string reason;         ///< why not the requested dynamics there (a gain negative or beyond its
+                              ///< limit, the sampled loop unstable)
+  RequestedDynamics placed;   ///< the dynamics placed instead (on the third-order model)
+  LawGains gains;             ///< their gains
+  double max_abs_z = 0.0;     ///< the sampled loop's largest pole there, with them (< 1)
+};
+
+/// A table designed node by node, and where it fell back.
+struct ScheduleDesign {
+  GainSchedule schedule;
+  std::vector<DesignFallback> fallbacks;
+};
+
+/// The gains of design_schedule() where the requested poles can be placed and the sampled loop
+/// `loop` (the spool lag among the plant's states, its delay) is stable with them; elsewhere, node
+/// by node, the nearest feasible dynamics: omega raised until K_v >= 0 (the air spring stiffer than
+/// M omega^2 asks), alpha until K_a >= 0, then alpha and omega scaled together (down first: within
+/// the gain limits, and slower for the sampled loop; then up) until the gains are within their
+/// limits and the sampled loop is stable there; as a last resort the nearest designed node's gains
+/// if the sampled loop is stable with them. Each fallback is reported. Throws GainDesignError
+/// naming the node where nothing is stable. Without `loop`, no sampled loop is checked (the
+/// placement's own refusals only).
+[[nodiscard]] ScheduleDesign design_schedule_falling_back(const PlantParams& plant, const ValveCharacteristic& valve,
+                                                          double voltage_v, const RequestedDynamics& poles,
+                                                          const GainLimits& limits, double spacing_m,
+                                                          const SampledLoop* loop);
+
+/// The fallbacks of a design in a few lines for people: contiguous nodes as one range.
+[[nodiscard]] std::string describe_fallbacks(const std::vector<DesignFallback>& fallbacks);
+
 /// Refuses (GainDesignError, naming the first position, its max |z| and the loop) a table whose
 /// sampled loop (sampled_poles at each node, around u_0 = `voltage_v`) is not stable: poles placed
 /// on the continuous model that the loop's period or differentiator cannot follow.
