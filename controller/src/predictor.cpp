@@ -146,8 +146,8 @@ struct ChamberOde {
   // A spool this many time constants after a change is where it was commanded (e^-8: 3e-4).
   static constexpr double kSpoolSettled = 8.0;
 
-  double w_p(double t) const noexcept { return c.spool.after(w_p0, u, t); }
-  double w_n(double t) const noexcept { return c.spool.after(w_n0, -u, t); }
+  double w_p(double t) const noexcept { return c.spool.after(w_p0, model::SpoolLag::target_v(valve, u), t); }
+  double w_n(double t) const noexcept { return c.spool.after(w_n0, model::SpoolLag::target_v(valve, -u), t); }
   bool spools_settled(double t) const noexcept { return !c.spool.lags() || t >= kSpoolSettled * c.spool.time_constant_s; }
 
   X rhs(const X& x, double t) const noexcept {

@@ -323,17 +323,18 @@ Motion motion_of(std::span<const Sample> s, double half_s) {
     while (s[k].t_s - s[lo].t_s > half_s) ++lo;
     while (hi + 1 < s.size() && s[hi + 1].t_s - s[k].t_s <= half_s) ++hi;
     if (s[k].t_s - s[lo].t_s < 0.9 * half_s || s[hi].t_s - s[k].t_s < 0.9 * half_s) continue;
-    Eigen::Matrix3d a = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    Eigen::Matrix<double, 5, 5> a = Eigen::Matrix<double, 5, 5>::Zero();
+    Eigen::Matrix<double, 5, 1> b = Eigen::Matrix<double, 5, 1>::Zero();
     for (std::size_t j = lo; j <= hi; ++j) {
-      const double t = s[j].t_s - s[k].t_s;
-      const Eigen::Vector3d phi(1.0, t, t * t);
+      const double t = (s[j].t_s - s[k].t_s) / half_s;
+      Eigen::Matrix<double, 5, 1> phi;
+      phi << 1.0, t, t * t, t * t * t, t * t * t * t;
       a += phi * phi.transpose();
       b += phi * (s[j].y_m - s[k].y_m);
     }
-    const Eigen::Vector3d c = a.ldlt().solve(b);
-    m.v[k] = c[1];
-    m.a[k] = 2.0 * c[2];
+    const Eigen::Matrix<double, 5, 1> c = a.ldlt().solve(b);
+    m.v[k] = c[1] / half_s;
+    m.a[k] = 2.0 * c[2] / (half_s * half_s);
     m.valid[k] = true;
   }
   return m;
@@ -366,6 +367,7 @@ Sliding sliding_from(std::span<const Sample> s, std::span<const double> force, s
   const double v_s = p.friction.stribeck_velocity_m_per_s;
   std::vector<Eigen::Vector3d> rows;
   std::vector<double> rhs;
+  std::vector<std::size_t> sample_of_row;
   double v_min = std::numeric_limits<double>::infinity(), v_max = 0.0;
   for (std::size_t k = 0; k < s.size(); ++k) {
     if (!use[k] || !m.valid[k] || std::abs(s[k].y_m) > half) continue;
@@ -385,6 +387,7 @@ Sliding sliding_from(std::span<const Sample> s, std::span<const double> force, s
     }
     v_min = std::min(v_min, std::abs(v));
     v_max = std::max(v_max, std::abs(v));
+    sample_of_row.push_back(k);
     if (k > 0) out.seconds += s[k].t_s - s[k - 1].t_s;
   }
   out.speed_span = rows.empty() ? 0.0 : v_max - v_min;
@@ -398,8 +401,21 @@ Sliding sliding_from(std::span<const Sample> s, std::span<const double> force, s
   const Eigen::Matrix3d ata = a.transpose() * a;
   const Eigen::Vector3d x = ata.ldlt().solve(a.transpose() * b);
   const double dof = static_cast<double>(rows.size()) - 3.0;
-  const double s2 = (a * x - b).squaredNorm() / dof;
-  const Eigen::Matrix3d cov = s2 * ata.inverse();
+  const Eigen::VectorXd residual = a * x - b;
+  const double s2 = residual.squaredNorm() / dof;
+  // The residuals are not independent: each acceleration comes from a polynomial over the +-window,
+  // which its neighbours share, and what the model misses runs through a motion. Their variance
+  // grows by the autocorrelation over a window's samples (Bartlett weights, Newey and West 1987),
+  // counted between samples of the same stretch of motion.
+  const std::size_t lags = static_cast<std::size_t>(std::lround(2.0 * kWindow_s / std::max(1e-6, s[1].t_s - s[0].t_s)));
+  double inflation = 1.0;
+  for (std::size_t lag = 1; lag <= lags; ++lag) {
+    double sum = 0.0;
+    for (std::size_t i = 0; i + lag < sample_of_row.size(); ++i)
+      if (sample_of_row[i + lag] == sample_of_row[i] + lag) sum += residual[static_cast<Eigen::Index>(i)] * residual[static_cast<Eigen::Index>(i + lag)];
+    inflation += 2.0 * (1.0 - static_cast<double>(lag) / static_cast<double>(lags + 1)) * sum / (s2 * dof);
+  }
+  const Eigen::Matrix3d cov = std::max(1.0, inflation) * s2 * ata.inverse();
   out.coulomb_positive = x[0];
   out.coulomb_negative = x[1];
   out.viscous = x[2];
@@ -518,7 +534,7 @@ Identification identify(std::span<const Sample> s, const model::PlantParams& pri
                        sl.samples_negative);
       return e;
     }
-    e.basis = format("%d sliding samples, speeds over %.3g m/s", sl.samples_positive + sl.samples_negative,
+    e.basis = format("%d sliding samples, their speeds spanning %.3g m/s", sl.samples_positive + sl.samples_negative,
                      sl.speed_span);
     if (!sign_ok || sd > o.max_relative_std * std::abs(value)) {
       e.basis += format(": %.4g +- %.2g not separable, prior kept", value, sd);

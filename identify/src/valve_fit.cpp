@@ -132,7 +132,8 @@ struct RestingChamber {
   // then, steps of a quarter of the lag.
   static constexpr double kSpoolSettled = 8.0;
 
-  void advance(double target, double h, double& p, double& t_k, double& w) const noexcept {
+  void advance(double command, double h, double& p, double& t_k, double& w) const noexcept {
+    const double target = model::SpoolLag::target_v(*valve, command);
     double done = 0.0;
     if (spool.lags() && std::abs(w - target) > 1e-9) {
       const double moving = std::min(h, kSpoolSettled * spool.time_constant_s);
@@ -388,8 +389,13 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
     Eigen::MatrixXd a;
     Eigen::VectorXd g;
   };
-  const auto normal = [&](const Theta& th, const Eigen::VectorXd& zz, const Eigen::VectorXd& r) {
-    Eigen::MatrixXd jt(m, nf);
+  // The data's residuals' derivatives: by the free parameters (m x nf), and each row's by its start.
+  struct Jacobian {
+    Eigen::MatrixXd jt;
+    Eigen::VectorXd jz;
+  };
+  const auto jacobian = [&](const Theta& th, const Eigen::VectorXd& zz, const Eigen::VectorXd& r) {
+    Jacobian j{Eigen::MatrixXd(m, nf), Eigen::VectorXd()};
     for (Eigen::Index c = 0; c < nf; ++c) {
       const auto i = static_cast<Eigen::Index>(idx[static_cast<std::size_t>(c)]);
       constexpr double h = 1.0e-5;
@@ -398,14 +404,20 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
       down[i] -= h;
       // Central differences; forward ones where each evaluation follows the whole record (the
       // model's hidden state: half the cost, and the Jacobian only steers the search).
-      jt.col(c) = problem.plain() ? Eigen::VectorXd((residuals(up, zz) - residuals(down, zz)) / (2.0 * h))
-                                  : Eigen::VectorXd((residuals(up, zz) - r) / h);
+      j.jt.col(c) = problem.plain() ? Eigen::VectorXd((residuals(up, zz) - residuals(down, zz)) / (2.0 * h))
+                                    : Eigen::VectorXd((residuals(up, zz) - r) / h);
     }
+    if (nz > 0) j.jz = problem.start_derivatives(th, zz) / noise;
+    return j;
+  };
+  const auto normal = [&](const Theta& th, const Eigen::VectorXd& zz, const Eigen::VectorXd& r) {
+    const Jacobian j = jacobian(th, zz, r);
+    const Eigen::MatrixXd& jt = j.jt;
     Normal out{Eigen::MatrixXd::Zero(n, n), Eigen::VectorXd::Zero(n)};
     out.a.topLeftCorner(nf, nf) = jt.transpose() * jt;
     out.g.head(nf) = jt.transpose() * r;
     if (nz == 0) return out;
-    const Eigen::VectorXd jz = problem.start_derivatives(th, zz) / noise;
+    const Eigen::VectorXd& jz = j.jz;
     for (Eigen::Index row = 0; row < m; ++row) {
       const Eigen::Index c = nf + start_of[static_cast<std::size_t>(row)];
       out.a(c, c) += jz[row] * jz[row];
@@ -483,7 +495,32 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
     const double scale = std::max(1.0, (sol.rms_pa / noise) * (sol.rms_pa / noise));
     Normal info{nm.a / scale, Eigen::VectorXd::Zero(n)};
     info = with_priors(info, prior, Eigen::VectorXd::Zero(nz));  // (the gradient is not used)
-    const Eigen::MatrixXd cov = info.a.inverse();
+    Eigen::MatrixXd cov = info.a.inverse();
+    // What the residuals actually do, phase by phase (a sandwich clustered on the phases): a
+    // residual that runs through each phase (small misfits of the model: its estimate of the hidden
+    // state, the integration) moves the parameters by more than independent noise at the floor
+    // would. Each parameter keeps the larger of the two variances.
+    const Normal data_and_prior = with_priors(nm, prior, Eigen::VectorXd::Zero(nz));
+    const Eigen::MatrixXd a_inverse = data_and_prior.a.inverse();
+    const Jacobian j = jacobian(theta, z, r);
+    Eigen::MatrixXd meat = Eigen::MatrixXd::Zero(n, n);
+    for (std::size_t ph = 0; ph < problem.phases().size(); ++ph) {
+      const auto [from, to] = problem.rows_of(ph);
+      Eigen::VectorXd score = Eigen::VectorXd::Zero(n);
+      score.head(nf) = j.jt.middleRows(from, to - from).transpose() * r.segment(from, to - from);
+      for (Eigen::Index row = from; nz > 0 && row < to; ++row)
+        score[nf + start_of[static_cast<std::size_t>(row)]] += j.jz[row] * r[row];
+      meat += score * score.transpose();
+    }
+    const Eigen::MatrixXd sandwich = a_inverse * meat * a_inverse;
+    for (Eigen::Index d = 0; d < nf; ++d) {
+      const double larger = std::max(cov(d, d), sandwich(d, d));
+      if (cov(d, d) > 0.0) {  // the row and column scaled, so that the correlations stay
+        const double f = std::sqrt(larger / cov(d, d));
+        cov.row(d) *= f;
+        cov.col(d) *= f;
+      }
+    }
     for (Eigen::Index a_ = 0; a_ < nf; ++a_)
       for (Eigen::Index b_ = 0; b_ < nf; ++b_)
         sol.covariance(static_cast<Eigen::Index>(idx[static_cast<std::size_t>(a_)]),

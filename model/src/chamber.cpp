@@ -35,6 +35,10 @@ double heat_transfer_for_time_constant(const PlantParams& plant, double tau_s) n
   return heat_capacity_per_wall_area(plant) / tau_s;
 }
 
+double SpoolLag::target_v(const ValveCharacteristic& valve, double w_v) noexcept {
+  return std::fmin(std::fmax(w_v, valve.spool_min_v()), valve.spool_max_v());
+}
+
 ChamberProcess::ChamberProcess(const Geometry& geometry, const Gas& gas, const ThermalParams* thermal) noexcept
     : geometry_(geometry),
       thermal_(thermal != nullptr),
@@ -84,9 +88,8 @@ void ChamberObserver::reset(double t_s, double y_m, double p_p_pa, double p_n_pa
   state_.p_n_pa = p_n_pa;
   state_.t_p_k = state_.t_n_k = process_.rest_temperature_k();
   command(u_p_v, u_n_v);
-  const ValveCharacteristic& valve = *valve_;
-  state_.w_p_v = std::clamp(u_p_v, valve.min_voltage_v(), valve.max_voltage_v());
-  state_.w_n_v = std::clamp(u_n_v, valve.min_voltage_v(), valve.max_voltage_v());
+  state_.w_p_v = SpoolLag::target_v(*valve_, u_p_v);
+  state_.w_n_v = SpoolLag::target_v(*valve_, u_n_v);
 }
 
 // Each chamber's temperature equation, its pressure and volume taken from the measurements (linear
@@ -99,8 +102,8 @@ void ChamberObserver::reset(double t_s, double y_m, double p_p_pa, double p_n_pa
 void ChamberObserver::advance(double t_s, double y_m, double p_p_pa, double p_n_pa) noexcept {
   const double h = t_s - t_s_;
   const ValveCharacteristic& valve = *valve_;
-  const double target_p = std::clamp(u_p_v_, valve.min_voltage_v(), valve.max_voltage_v());
-  const double target_n = std::clamp(u_n_v_, valve.min_voltage_v(), valve.max_voltage_v());
+  const double target_p = SpoolLag::target_v(valve, u_p_v_);
+  const double target_n = SpoolLag::target_v(valve, u_n_v_);
   if (h > 0.0 && process_.thermal()) {
     const double v = (y_m - y_m_) / h;
     const auto integrate = [&](Side side, double t_k, double p0, double p1, double w0, double target) {

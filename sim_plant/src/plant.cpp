@@ -186,8 +186,8 @@ void Plant::reset_at_rest(double y_m, double u_v, double t_s) noexcept {
     s.p_n_pa = valve_.null_pressure_pa(-u_v, t_wall, t_supply);
   }
   const bool lag = spool_.time_constant_s > 0.0;
-  s.w_p_v = lag ? model::SpoolLag::target_v(params_.valve, u_v) : u_v;
-  s.w_n_v = lag ? model::SpoolLag::target_v(params_.valve, -u_v) : -u_v;
+  s.w_p_v = lag ? model::SpoolLag::target_v(valve_, u_v) : u_v;
+  s.w_n_v = lag ? model::SpoolLag::target_v(valve_, -u_v) : -u_v;
   reset(s);
 }
 
@@ -213,8 +213,8 @@ void Plant::step(double dt_s, double u_p_v, double u_n_v) noexcept {
   // With a spool lag the spools follow the commands within the valves' travel; without, the
   // valves see the commands themselves.
   const bool lag = spool_.time_constant_s > 0.0;
-  const Drive u{lag ? model::SpoolLag::target_v(params_.valve, u_p_v) : u_p_v,
-                lag ? model::SpoolLag::target_v(params_.valve, u_n_v) : u_n_v, 0.0, 0.0};
+  const Drive u{lag ? model::SpoolLag::target_v(valve_, u_p_v) : u_p_v,
+                lag ? model::SpoolLag::target_v(valve_, u_n_v) : u_n_v, 0.0, 0.0};
   for (int i = 0; i < std::max(n, 1); ++i) advance(h, u);
   state_.t_s = t_end;
 }

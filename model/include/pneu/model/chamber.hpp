@@ -84,10 +84,9 @@ struct SpoolLag {
 
   [[nodiscard]] bool lags() const noexcept { return time_constant_s > 0.0; }
   /// What the spool follows when commanded `w_v`: the command within the valve's travel, from
-  /// fully open one way to fully open the other (w_0 -+ u_max); beyond it the spool is at its stop.
-  [[nodiscard]] static double target_v(const ValveParams& v, double w_v) noexcept {
-    return std::fmin(std::fmax(w_v, v.null_offset_v - v.max_voltage_v), v.null_offset_v + v.max_voltage_v);
-  }
+  /// fully open one way to fully open the other (ValveCharacteristic::spool_min_v, spool_max_v);
+  /// beyond it the spool is at its stop.
+  [[nodiscard]] static double target_v(const ValveCharacteristic& valve, double w_v) noexcept;
   /// Where a spool at `from_v` is `dt_s` later, commanded `target_v` all along (exact).
   [[nodiscard]] double after(double from_v, double target_v, double dt_s) const noexcept {
     if (!lags()) return target_v;

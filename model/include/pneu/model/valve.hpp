@@ -50,6 +50,11 @@ class ValveCharacteristic {
   /// Voltage range [V].
   [[nodiscard]] virtual double min_voltage_v() const noexcept = 0;
   [[nodiscard]] virtual double max_voltage_v() const noexcept = 0;
+  /// The voltages the spool's travel spans, fully open one way to fully open the other [V] (a
+  /// command beyond them finds the spool at its stop): the voltage range, but for the model's null
+  /// offset.
+  [[nodiscard]] virtual double spool_min_v() const noexcept { return min_voltage_v(); }
+  [[nodiscard]] virtual double spool_max_v() const noexcept { return max_voltage_v(); }
 
   /// Null-flow pressure p_null(w): q(w, p_null) = 0, the pressure gain characteristic (Fig. 6).
   /// Clamped to [min_pressure_pa, max_pressure_pa] when no root lies inside. Monotone in w.
@@ -86,6 +91,9 @@ class ValveModel final : public ValveCharacteristic {
   [[nodiscard]] double max_pressure_pa() const noexcept override { return p_supply_pa_; }
   [[nodiscard]] double min_voltage_v() const noexcept override { return -valve_.max_voltage_v; }
   [[nodiscard]] double max_voltage_v() const noexcept override { return valve_.max_voltage_v; }
+  /// w_0 -+ u_max.
+  [[nodiscard]] double spool_min_v() const noexcept override { return valve_.null_offset_v - valve_.max_voltage_v; }
+  [[nodiscard]] double spool_max_v() const noexcept override { return valve_.null_offset_v + valve_.max_voltage_v; }
 
   [[nodiscard]] double inlet_conductance_m3_per_s_pa(double w_v) const noexcept;
   [[nodiscard]] double outlet_conductance_m3_per_s_pa(double w_v) const noexcept;
