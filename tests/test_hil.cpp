@@ -9,6 +9,7 @@
 #include <sys/socket.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -302,6 +303,95 @@ TEST_F(Hil, IdentifiedOverModbusThePaperStepsLongStickingPhaseIsForecastWithin5P
       std::printf("run %d, stop %d: stuck %.3f s, forecast %.2f %% off\n", runs, idx, sticking,
                   100 * std::abs(s[1] - s[2]) / sticking);
       EXPECT_LE(std::abs(s[1] - s[2]), 0.05 * sticking) << "run " << runs << ", stop " << idx;
+    }
+  }
+  EXPECT_GE(long_restarts, 1) << "a sticking phase of 0.5 s or more ending in a restart, in " << runs << " runs";
+}
+
+// Issue 28 over Modbus: pneu-plant serve plays a bench with the physics every real cylinder has,
+// wall heat exchange (a thermal time constant of 1 s at mid-stroke) and a 3 ms spool lag, on top of
+// stiction and a valve unlike the model's; pneud's model has both terms, at other values (2 s, 1
+// ms). pneud --identify --armed identifies it over the link, and the paper's step on the identified
+// configuration forecasts its long sticking phases within 5 % of the breakaway that serve's own
+// record (--events) dates, on serve's clock.
+TEST_F(Hil, AThermalBenchWithASpoolLagIdentifiedOverModbusForecastsTheLongStickingPhaseWithin5PercentOfServesRecord) {
+  const std::vector<std::string> bench{"--set", "hal.sim.plant.thermal.heat_transfer_w_per_m2_k=25.72",
+                                       "--set", "hal.sim.plant.valve.spool_time_constant_s=0.003",
+                                       "--set", "hal.sim.plant.friction.static_positive_n=50",
+                                       "--set", "hal.sim.plant.valve.null_offset_v=0.03"};
+  const std::vector<std::string> model{"--set", "plant.thermal.heat_transfer_w_per_m2_k=12.86",
+                                       "--set", "plant.valve.spool_time_constant_s=0.001"};
+  const fs::path identified = dir_ / "identified.yaml";
+  {
+    Child plant = serve(90.0, bench);
+    std::vector<std::string> args = pneud_args({"--identify", identified.string(), "--armed"});
+    args.insert(args.end(), model.begin(), model.end());
+    Child pneud = Child::spawn(args, dir_ / "identify.out", dir_ / "identify.err");
+    ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "identify.err") << slurp(dir_ / "identify.out");
+    kill(plant.pid, SIGINT);
+    ASSERT_EQ(plant.wait(), 0) << slurp(dir_ / "serve.err");
+  }
+  const std::string report = slurp(dir_ / "identify.out");
+  std::printf("%s", report.substr(report.find("identified from")).c_str());
+  const pneu::config::Config id = pneu::config::load_file(identified);
+  ASSERT_TRUE(id.plant.has_thermal);
+  EXPECT_THAT(report, HasSubstr("the model fits the stuck phases' pressures"));
+
+  // The paper's step (its gains) on the identified configuration, judged against serve's record.
+  int long_restarts = 0, runs = 0;
+  for (; runs < 3 && long_restarts == 0; ++runs) {
+    const std::string events = "paper" + std::to_string(runs) + ".jsonl";
+    const fs::path plant_events = dir_ / ("plant" + std::to_string(runs) + ".jsonl");
+    std::vector<std::string> served = bench;
+    served.insert(served.end(), {"--events", plant_events.string()});
+    Child plant = serve(15.0, served);
+    std::vector<std::string> args = pneud_args({"--events", (dir_ / events).string(), "--summary-json", summary_json(),
+                                                "--set", "controller.law.gains=fixed"});
+    args[2] = identified.string();  // --config
+    Child pneud = Child::spawn(args, dir_ / "paper.out", dir_ / "paper.err");
+    ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "paper.err");
+    kill(plant.pid, SIGINT);
+    ASSERT_EQ(plant.wait(), 0) << slurp(dir_ / "serve.err");
+    const double epoch = pneu::test::PneudSummary::read(summary_json()).epoch_monotonic_s;
+    ASSERT_TRUE(std::isfinite(epoch));
+    // The plant's own record of its motion, on pneud's loop time.
+    std::vector<std::pair<double, bool>> motion;  // t, stuck from then on
+    std::istringstream plant_lines(slurp(plant_events));
+    for (std::string line; std::getline(plant_lines, line);) {
+      const bool breakaway = line.find("\"event\":\"breakaway\"") != std::string::npos;
+      if (breakaway || line.find("\"event\":\"stick\"") != std::string::npos)
+        motion.emplace_back(field(line, "monotonic_s") - epoch, !breakaway);
+    }
+    ASSERT_FALSE(motion.empty()) << slurp(plant_events);
+    std::map<int, std::array<double, 3>> stops;  // t, nonlinear forecast, pneud's restart
+    std::istringstream lines(slurp(dir_ / events));
+    for (std::string line; std::getline(lines, line);) {
+      const int idx = static_cast<int>(field(line, "stop"));
+      auto& st = stops.try_emplace(idx, std::array<double, 3>{NAN, NAN, NAN}).first->second;
+      if (line.find("\"event\":\"stop\"") != std::string::npos) st[0] = field(line, "t");
+      if (line.find("\"event\":\"prediction\"") != std::string::npos && line.find("\"method\":\"nonlinear\"") != std::string::npos)
+        st[1] = field(line, "t_restart");
+      if (line.find("\"event\":\"start\"") != std::string::npos && line.find("\"restart\":true") != std::string::npos)
+        st[2] = field(line, "t");
+    }
+    for (const auto& [idx, st] : stops) {
+      if (std::isnan(st[2])) continue;
+      // Judged where the plant had stuck by 50 ms after pneud called the stop (pneud calls it
+      // over the last micrometres of the motion; a slow slide along the stiction bound can read as
+      // a stop for a few ticks): the plant's first breakaway after.
+      const auto after = std::find_if(motion.begin(), motion.end(), [&](const auto& m) { return m.first > st[0] + 0.05; });
+      if (after == motion.begin() || !std::prev(after)->second) {
+        std::printf("run %d, stop %d at %.3f s: the plant was sliding, not judged\n", runs, idx, st[0]);
+        continue;
+      }
+      ASSERT_NE(after, motion.end()) << "stop " << idx << ": pneud saw a restart the plant's record does not hold";
+      const double breakaway = after->first;
+      const double sticking = breakaway - st[0];
+      if (sticking < 0.5) continue;
+      ++long_restarts;
+      std::printf("run %d, stop %d: stuck %.3f s by serve's record (pneud dated the start %+.1f ms from it), forecast %.2f %% off\n",
+                  runs, idx, sticking, 1e3 * (st[2] - breakaway), 100 * std::abs(st[1] - breakaway) / sticking);
+      EXPECT_LE(std::abs(st[1] - breakaway), 0.05 * sticking) << "run " << runs << ", stop " << idx;
     }
   }
   EXPECT_GE(long_restarts, 1) << "a sticking phase of 0.5 s or more ending in a restart, in " << runs << " runs";

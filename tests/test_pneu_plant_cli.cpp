@@ -439,9 +439,11 @@ TEST_F(PneuPlantServe, TakesNanAndFloatRawValuesOnAFloat32Channel) {
   EXPECT_THAT(big.err, HasSubstr("does not fit the channel's float32 register"));
 }
 
-TEST_F(PneuPlantServe, RefusesAnOutputsFileItCannotOpenBeforeServing) {
-  const Outcome r = run(serve_hil() + "--outputs " + (dir_ / "no/such/dir/outputs.csv").string());
-  EXPECT_EQ(r.exit_code, 2);
-  EXPECT_THAT(r.err, HasSubstr("--outputs " + (dir_ / "no/such/dir/outputs.csv").string() + ": cannot open for writing"));
-  EXPECT_THAT(r.out, ::testing::Not(HasSubstr("listening")));
+TEST_F(PneuPlantServe, RefusesAnOutputsOrEventsFileItCannotOpenBeforeServing) {
+  for (const std::string option : {"--outputs", "--events"}) {
+    const Outcome r = run(serve_hil() + option + " " + (dir_ / "no/such/dir/file").string());
+    EXPECT_EQ(r.exit_code, 2) << option;
+    EXPECT_THAT(r.err, HasSubstr(option + " " + (dir_ / "no/such/dir/file").string() + ": cannot open for writing"));
+    EXPECT_THAT(r.out, ::testing::Not(HasSubstr("listening")));
+  }
 }

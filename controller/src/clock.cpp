@@ -83,6 +83,7 @@ void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t de
   clock.prepare_loop_thread();
   if (after_start) after_start();
   const double epoch = clock.now_s();
+  timing.epoch_monotonic_s = clock.monotonic_s_at(epoch);
   std::uint64_t k = 0;  // deadline index: deadline k is at k * period (no accumulated rounding)
   while ((deadlines == 0 || k < deadlines) &&
          !stop_requested.load(std::memory_order_relaxed)) {

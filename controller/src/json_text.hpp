@@ -62,7 +62,7 @@ class Writer {
   void end_object() { end('}'); }
   void begin_array(std::string_view key = {}) { begin('[', key); }
   void end_array() { end(']'); }
-  void number(std::string_view key, double v) { item(key) << num(v); }
+  void number(std::string_view key, double v, int precision = 9) { item(key) << num(v, precision); }
   void count(std::string_view key, std::uint64_t v) { item(key) << v; }
   void flag(std::string_view key, bool v) { item(key) << (v ? "true" : "false"); }
   void text(std::string_view key, std::string_view v) { item(key) << Str{v}; }

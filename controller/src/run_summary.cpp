@@ -225,6 +225,7 @@ void write_summary_json(std::ostream& out, const RunFigures& f, const Runtime& r
   write_durations_us(w, "compute_us", f.timing.compute);
   w.count("tick_records_dropped", f.ticks_dropped);
   w.count("events_dropped", f.events_dropped);
+  w.number("epoch_monotonic_s", f.timing.epoch_monotonic_s, 16);  // to the microsecond
   w.end_object();
 
   w.begin_object("runtime");

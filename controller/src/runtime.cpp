@@ -86,10 +86,19 @@ void Runtime::on_tick(const TickRecord& r) {
   t_end_s_ = r.t_s;
   // The chambers' hidden state to this tick (a bad sample is skipped: the next good one takes over).
   if (observer_ && std::isfinite(r.y_m) && std::isfinite(r.p_p_pa) && std::isfinite(r.p_n_pa)) {
-    if (!observer_started_) observer_->reset(r.t_s, r.y_m, r.p_p_pa, r.p_n_pa, r.u_v, r.u_n_v);
-    else observer_->advance(r.t_s, r.y_m, r.p_p_pa, r.p_n_pa);
+    if (!observer_started_) {
+      observer_->reset(r.t_s, r.y_m, r.p_p_pa, r.p_n_pa, r.u_v, r.u_n_v);
+      recent_commands_.fill({r.u_v, r.u_n_v});
+    } else {
+      observer_->advance(r.t_s, r.y_m, r.p_p_pa, r.p_n_pa);
+    }
     observer_started_ = true;
-    observer_->command(r.u_v, r.u_n_v);
+    // The valves act on the command recorded the link's delay before (a module on a bus: one tick).
+    std::copy_backward(recent_commands_.begin(), recent_commands_.end() - 1, recent_commands_.end());
+    recent_commands_[0] = {r.u_v, r.u_n_v};
+    const auto& acting =
+        recent_commands_[static_cast<std::size_t>(std::clamp(model_.command_delay_samples, 0, 3))];
+    observer_->command(acting[0], acting[1]);
   }
 
   // A forecast holds while the carriage stays stuck under the u* it assumed: armed (not holding:

@@ -65,6 +65,7 @@ PredictorModel predictor_model(const config::Config& config, const model::ValveC
   m.has_thermal = config.plant.has_thermal;
   m.thermal = config.plant.thermal;
   m.spool_time_constant_s = config.plant.valve.spool_time_constant_s;
+  m.command_delay_samples = sampled_loop(config).delay_samples;
   const auto& predictor = config.controller.predictor;
   m.fits = !predictor.has_model_fit || predictor.model_fit.fits();
   return m;

@@ -20,6 +20,7 @@
 #include <cstring>
 #include <iostream>
 #include <optional>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -249,6 +250,14 @@ const char* const kServeHelpText = R"(pneu-plant serve: the simulated bench behi
                        one each time either received voltage changes (not per request); t_s in
                        seconds since start-up, 6 decimals. Each line is flushed at once, so the
                        file holds the last outputs received even after a SIGKILL.
+  --events FILE        the plant's own record of what it did, one JSON object per line, flushed
+                       at once: {"event":"start"} with "monotonic_s" (CLOCK_MONOTONIC at start-up:
+                       serve's t = 0), then each change between rest and motion as the plant
+                       locates it inside its integration step: "breakaway" (stuck -> sliding: the
+                       pressure force left the stiction band; direction +1 / -1), "stick" (sliding
+                       -> stuck) and "end_stop", each with "t" (serve's seconds since start-up),
+                       "monotonic_s", "y" [m] and "force" [N, Eq. 14]. The truth a test judges
+                       pneud's forecasts and dates against.
   --fault SPEC         fault injection (repeatable): SPEC is CHANNEL:MODE@T, acting from T seconds
                        after start-up on. Sensor channels position, pressure_p, pressure_n:
                          rail-low | rail-high  the register reads the channel's raw_min | raw_max
@@ -291,7 +300,8 @@ the valve writes refused, and the last valve voltages it was sent. Bad --fault s
 )";
 
 int serve(int argc, char** argv) {
-  const cli::Args args(argc, argv, 2, {"config", "duration", "reply-delay-s", "delay-after-s", "outputs", "max-clients"},
+  const cli::Args args(argc, argv, 2,
+                       {"config", "duration", "reply-delay-s", "delay-after-s", "outputs", "events", "max-clients"},
                        {"help", "quiet"}, {"set", "fault"});
   if (args.flag("help")) {
     std::cout << kServeHelpText;
@@ -325,6 +335,12 @@ int serve(int argc, char** argv) {
   if (const auto path = args.value("outputs")) {
     outputs = std::fopen(path->c_str(), "w");
     if (!outputs) throw cli::UsageError("--outputs " + *path + ": cannot open for writing: " + std::strerror(errno));
+  }
+  std::FILE* events = nullptr;
+  Closer close_events{events};
+  if (const auto path = args.value("events")) {
+    events = std::fopen(path->c_str(), "w");
+    if (!events) throw cli::UsageError("--events " + *path + ": cannot open for writing: " + std::strerror(errno));
   }
 
   const model::PlantParams& bench = config::simulated_bench(cfg);  // hal.sim.plant over plant:
@@ -399,6 +415,24 @@ int serve(int argc, char** argv) {
   }
 
   const double t0 = monotonic_s();
+  if (events) {
+    std::fprintf(events, "{\"event\":\"start\",\"t\":0,\"monotonic_s\":%.9f}\n", t0);
+    std::fflush(events);
+  }
+  // The plant's motion events (its time is serve's: both start at 0).
+  const auto record_events = [&](std::span<const plant::PlantEvent> happened) {
+    if (!events) return;
+    for (const plant::PlantEvent& e : happened) {
+      const char* kind = e.kind == plant::PlantEvent::Kind::kBreakaway ? "breakaway"
+                         : e.kind == plant::PlantEvent::Kind::kStick   ? "stick"
+                         : e.kind == plant::PlantEvent::Kind::kEndStop ? "end_stop"
+                                                                        : nullptr;
+      if (kind == nullptr) continue;  // a reversal slides on
+      std::fprintf(events, "{\"event\":\"%s\",\"t\":%.9f,\"monotonic_s\":%.9f,\"direction\":%d,\"y\":%.9f,\"force\":%.6f}\n",
+                   kind, e.t_s, t0 + e.t_s, e.direction, e.y_m, e.force_n);
+    }
+    if (!happened.empty()) std::fflush(events);
+  };
   const auto record_outputs = [&](double t) {
     if (!outputs) return;
     std::fprintf(outputs, "%.6f,%.6f,%.6f\n", t, mb.valve_p.to_volts(word_p), mb.valve_n.to_volts(word_n));
@@ -416,7 +450,7 @@ int serve(int argc, char** argv) {
   const auto drive_n = [&] { return stuck_n.value_or(u_n); };
   // The plant to `t`, each push of hal.sim.pushes (on serve's time) from its start to its end.
   const auto step_to = [&](double t) {
-    plant::step_with_pushes(plant, t, drive_p(), drive_n(), cfg.hal.sim.pushes, [](auto) {});
+    plant::step_with_pushes(plant, t, drive_p(), drive_n(), cfg.hal.sim.pushes, record_events);
   };
   const auto advance_to = [&](double t) {
     for (; next_fault < faults.size() && faults[next_fault].t_s <= t; ++next_fault) {

@@ -209,6 +209,8 @@ struct PneudSummary {
   unsigned long long ticks = 0, overruns = 0, skipped = 0;
   unsigned long long transactions = 0, errors = 0, reconnects = 0, out_of_range = 0, stale = 0;
   double rate_per_s = 0.0, oldest_ms = 0.0;
+  /// CLOCK_MONOTONIC at the loop's time 0 [s] (real clock): loop time t is monotonic t + this.
+  double epoch_monotonic_s = 0.0;
   bool safe_output_delivered = false;
   unsigned long long safe_output_attempts = 0;
 
@@ -222,6 +224,7 @@ struct PneudSummary {
     s.ticks = loop["ticks"].count();
     s.overruns = loop["overruns"].count();
     s.skipped = loop["deadlines_skipped"].count();
+    s.epoch_monotonic_s = loop["epoch_monotonic_s"].is_null() ? NAN : loop["epoch_monotonic_s"].number();
     const Json& mb = j["modbus"];
     if (mb.is_null()) return s;
     s.has_modbus = true;

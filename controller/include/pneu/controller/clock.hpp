@@ -4,6 +4,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 
 #include "pneu/controller/loop.hpp"
@@ -19,6 +20,9 @@ class Clock {
   /// Returns at or after `t_s`. Real-time safe.
   virtual void sleep_until(double t_s) noexcept = 0;
   [[nodiscard]] virtual bool simulated() const noexcept = 0;
+  /// The CLOCK_MONOTONIC reading [s] at this clock's `t_s`, so that other processes' records line
+  /// up with the loop's times; NaN for a clock that is not the real one.
+  [[nodiscard]] virtual double monotonic_s_at(double /*t_s*/) const noexcept { return std::numeric_limits<double>::quiet_NaN(); }
   /// Prepares the calling thread for sleep_until; run_loop calls it once on the loop thread, after
   /// the loop has started and before time starts. Does nothing unless a clock needs it.
   virtual void prepare_loop_thread() noexcept {}
@@ -31,6 +35,7 @@ class RealClock final : public Clock {
   [[nodiscard]] double now_s() noexcept override;
   void sleep_until(double t_s) noexcept override;
   [[nodiscard]] bool simulated() const noexcept override { return false; }
+  [[nodiscard]] double monotonic_s_at(double t_s) const noexcept override { return epoch_s_ + t_s; }
   /// Sets the calling thread's timer slack to 1 ns (prctl PR_SET_TIMERSLACK). A thread under
   /// normal scheduling has 50 us, by which the kernel may defer its wake-ups to group them: the
   /// loop's would sit about that much late. Real-time (SCHED_FIFO) threads have none; there the
@@ -66,6 +71,9 @@ struct LoopTiming {
   std::uint64_t overruns = 0; ///< ticks that ended after the next deadline (those deadlines are skipped)
   std::uint64_t deadlines_skipped = 0;  ///< deadlines passed without a tick after overruns
   double period_s = 0.0;
+  /// CLOCK_MONOTONIC at loop time 0 [s] (the real clock; NaN on the simulated one): loop time t is
+  /// monotonic t + this, the time base of other processes' records (pneu-plant serve --events).
+  double epoch_monotonic_s = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// Runs `loop` at a fixed period from loop time 0 over the deadlines 0 .. `deadlines` - 1 (0 = no

@@ -52,6 +52,9 @@ struct PredictorModel {
   model::ThermalParams thermal;
   /// The spools' lag (plant.valve.spool_time_constant_s) [s]; 0: none.
   double spool_time_constant_s = 0.0;
+  /// Ticks between a command's record and the valves acting on it (a module on a bus: 1), for the
+  /// estimate of the chambers' hidden state.
+  int command_delay_samples = 0;
   /// The model fitted the bench when it was identified (controller.predictor.model_fit, online
   /// learning's last valve fit): else every forecast made on it says it is uncertain.
   bool fits = true;

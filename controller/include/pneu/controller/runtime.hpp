@@ -6,6 +6,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <optional>
@@ -108,6 +109,8 @@ class Runtime {
   PredictorModel model_;
   std::optional<model::ChamberObserver> observer_;  // with a model that has hidden state
   bool observer_started_ = false;
+  // The last commands (u_P, u_N), newest first: the valves act on the one model_.command_delay_samples back.
+  std::array<std::array<double, 2>, 4> recent_commands_{};
   bool linearized_, nonlinear_;
   bool relaxation_ = false;
   double update_period_s_;
