@@ -4,10 +4,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <utility>
 #include <vector>
 
+#include "pneu/model/chamber.hpp"
 #include "pneu/model/params.hpp"
 #include "pneu/model/valve.hpp"
 #include "pneu/sim_plant/plant.hpp"
@@ -631,7 +633,83 @@ TEST(ThermalPlant, AtRestAtTheWallTemperatureTheNullFlowPressuresHold) {
   EXPECT_EQ(plant.state().y_m, 0.1);
 }
 
+TEST(ThermalPlant, WithWallsWarmerThanTheSupplyTheChambersRestBetweenTheTwoAndEquation7TakesThem) {
+  PlantParams params;
+  params.has_thermal = true;
+  params.thermal.wall_temperature_auto = false;
+  params.thermal.wall_temperature_k = 313.15;  // 20 K above the supply
+  Plant plant(params);
+  const model::ChamberProcess process(params);
+  const double y = 0.1;
+  const double u_0 = equilibrium_voltage_v(plant.valve(), process, y);
+  plant.reset_at_rest(y, u_0);
+  const PlantState start = plant.state();
+  // The valve's through-flow brings supply air in at 293.15 K, the wall warms it: each chamber
+  // settles in between, where the two balance.
+  EXPECT_GT(start.t_p_k, 293.15 + 1.0);
+  EXPECT_LT(start.t_p_k, 313.15 - 1.0);
+  EXPECT_NEAR(plant.pressure_force_n(), 0.0, 1e-6) << "Eq. 7 at those temperatures";
+  for (int i = 0; i < 2000; ++i) plant.step(kSampleS, u_0);
+  std::printf("at rest: T_P %.3f K, T_N %.3f K; u_0 %.5f V (%.5f V with the supply's temperature)\n", start.t_p_k,
+              start.t_n_k, u_0, equilibrium_voltage(plant));
+  EXPECT_NEAR(plant.state().t_p_k, start.t_p_k, 1e-6) << "a complete equilibrium stays one";
+  EXPECT_NEAR(plant.state().t_n_k, start.t_n_k, 1e-6);
+  EXPECT_NEAR(plant.pressure_force_n(), 0.0, 1e-4);
+  // The chambers taken at the supply's temperature would be 1 N and more off.
+  Plant other(params);
+  PlantState at_supply = start;
+  at_supply.t_p_k = at_supply.t_n_k = 293.15;
+  at_supply.p_p_pa = plant.valve().null_pressure_pa(u_0);
+  at_supply.p_n_pa = plant.valve().null_pressure_pa(-u_0);
+  other.reset(at_supply);
+  for (int i = 0; i < 2000; ++i) other.step(kSampleS, u_0);
+  EXPECT_GT(std::abs(other.pressure_force_n()), 1.0);
+}
+
 }  // namespace thermal
+
+// What no sensor gives, estimated from what is measured: the model's ChamberObserver, fed the
+// bench's position and pressures every millisecond and the commands, against the bench's own
+// temperatures and spools, on the open-loop sequence (slide, stick, slide back, stop).
+TEST(ChamberObserver, FollowsTheBenchsTemperaturesAndSpoolsFromTheMeasuredPressuresAndTheCommands) {
+  PlantParams params;
+  params.has_thermal = true;
+  params.thermal.heat_transfer_w_per_m2_k = 25.72;  // 1 s at mid-stroke
+  params.valve.spool_time_constant_s = 0.003;
+  Plant plant(params);
+  const model::ValveModel valve(params.valve, params.gas);
+  model::ChamberObserver observer(model::ChamberProcess(params), valve, model::SpoolLag{0.003});
+  const double u_e = equilibrium_voltage(plant);
+  plant.reset_at_rest(0.0, u_e);
+  observer.reset(0.0, 0.0, plant.state().p_p_pa, plant.state().p_n_pa, u_e, -u_e);
+  double worst_moving_k = 0.0, worst_still_k = 0.0, worst_spool_v = 0.0, swing_k = 0.0;
+  const std::vector<std::pair<double, double>> profile{{u_e, 0.5}, {u_e + 0.6, 1.0}, {u_e - 0.8, 1.0}, {u_e + 0.3, 1.0}};
+  for (const auto& [u, duration] : profile) {
+    observer.command(u, -u);
+    for (int i = 0; i < static_cast<int>(std::lround(duration / kSampleS)); ++i) {
+      plant.step(kSampleS, u);
+      const PlantState& s = plant.state();
+      observer.advance(s.t_s, s.y_m, s.p_p_pa, s.p_n_pa);
+      const model::ChamberState& e = observer.state();
+      const double error_k = std::max(std::abs(e.t_p_k - s.t_p_k), std::abs(e.t_n_k - s.t_n_k));
+      double& worst_k = s.v_m_per_s == 0.0 ? worst_still_k : worst_moving_k;
+      worst_k = std::max(worst_k, error_k);
+      worst_spool_v = std::max({worst_spool_v, std::abs(e.w_p_v - s.w_p_v), std::abs(e.w_n_v - s.w_n_v)});
+      swing_k = std::max({swing_k, std::abs(s.t_p_k - thermal::kWallK), std::abs(s.t_n_k - thermal::kWallK)});
+    }
+  }
+  std::printf("temperatures swing up to %.2f K; the estimate's error: %.2g K while still, %.2g K while sliding; spools %.2g V\n",
+              swing_k, worst_still_k, worst_moving_k, worst_spool_v);
+  EXPECT_GT(swing_k, 5.0) << "the sequence moves the chambers' temperatures";
+  // The spools are the commands through the same exact exponential.
+  EXPECT_LT(worst_spool_v, 1e-9);
+  // Between samples the estimate takes the position and pressures linearly, the bench does not: a
+  // slide costs a fraction of a millikelvin (0.3 mK here; 7 mK after a saturated move across the
+  // stroke), which the wall then forgets (0.1 mK here once stuck).
+  EXPECT_LT(worst_moving_k, 3e-3);
+  EXPECT_LT(worst_still_k, 3e-3);
+}
+
 
 TEST(SpoolLag, TheSpoolFollowsItsCommandWithAFirstOrderLag) {
   PlantParams lagged;

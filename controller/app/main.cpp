@@ -155,7 +155,7 @@ int run(int argc, char** argv) {
     std::fprintf(stderr,
                  "pneud: warning: controller.law.design: the requested dynamics cannot be had everywhere on the "
                  "stroke; the gains fall back there:\n%s\n",
-                 model::describe_fallbacks(fallbacks).c_str());
+                 model::describe_fallbacks(fallbacks, cfg.controller.law.design.node_spacing_m).c_str());
   // An identification run: its own set points and length, on the configured backend.
   const std::optional<std::string> identify_path = args.value("identify");
   std::optional<controller::ControlLaw> run_law;  // the identification run's, when not the configured one

@@ -46,6 +46,7 @@ struct Common {
   double c_tau;
   bool plain;  // polytropic and no spool lag: Eq. 19 as it always was, the pressures alone
   model::SpoolLag spool;
+  model::ChamberRest rest_p, rest_n;  // where each chamber settles under u* and -u*
   double force(double p_p, double p_n) const noexcept { return pressure_force.force_n(p_p, p_n); }
 };
 
@@ -54,15 +55,18 @@ Common common_of(const PredictorModel& m, const StopSnapshot& s) noexcept {
                                            (m.thermal.wall_temperature_auto ? m.gas.temperature_k
                                                                             : m.thermal.wall_temperature_k)
                                      : m.gas.k_r_t();
+  const model::ChamberProcess process = m.process();
   return {model::PressureForce(m.geometry, m.gas.exhaust_pressure_pa),
           m.gas.k_r_t(),
           m.geometry.volume_p_m3(s.y_m),
           m.geometry.volume_n_m3(s.y_m),
-          m.process(),
+          process,
           s.y_m,
           c_tau,
           !m.has_hidden_state(),
-          model::SpoolLag{m.spool_time_constant_s}};
+          model::SpoolLag{m.spool_time_constant_s},
+          process.rest(*m.valve, model::Side::kP, s.u_v, s.y_m),
+          process.rest(*m.valve, model::Side::kN, -s.u_v, s.y_m)};
 }
 
 // The chambers' state at the snapshot: its pressures, and its temperatures and spools as estimated
@@ -71,8 +75,7 @@ struct X {
   double pp, pn, tp, tn;
 };
 X start_of(const Common& c, const StopSnapshot& s) noexcept {
-  const double rest = c.process.rest_temperature_k();
-  return {s.p_p_pa, s.p_n_pa, std::isnan(s.t_p_k) ? rest : s.t_p_k, std::isnan(s.t_n_k) ? rest : s.t_n_k};
+  return {s.p_p_pa, s.p_n_pa, std::isnan(s.t_p_k) ? c.rest_p.t_k : s.t_p_k, std::isnan(s.t_n_k) ? c.rest_n.t_k : s.t_n_k};
 }
 double spool_p_of(const StopSnapshot& s) noexcept { return std::isnan(s.w_p_v) ? s.u_v : s.w_p_v; }
 double spool_n_of(const StopSnapshot& s) noexcept { return std::isnan(s.w_n_v) ? -s.u_v : s.w_n_v; }
@@ -124,8 +127,8 @@ Prediction base(PredictionMethod method, const PredictorModel& m, const StopSnap
   Prediction p;
   p.method = method;
   p.model_fits = m.fits;
-  p.p_p_equilibrium_pa = c.process.null_pressure_pa(*m.valve, s.u_v);
-  p.p_n_equilibrium_pa = c.process.null_pressure_pa(*m.valve, -s.u_v);
+  p.p_p_equilibrium_pa = c.rest_p.p_pa;
+  p.p_n_equilibrium_pa = c.rest_n.p_pa;
   p.equilibrium_force_n = c.force(p.p_p_equilibrium_pa, p.p_n_equilibrium_pa);
   const double c_pp = flow_slope(m, s.u_v, s.p_p_pa, p.p_p_equilibrium_pa);
   const double c_pn = flow_slope(m, -s.u_v, s.p_n_pa, p.p_n_equilibrium_pa);
@@ -189,9 +192,10 @@ struct ChamberOde {
 
 // The force range the chambers can still span from `x` on (each relaxing to its equilibrium p_e):
 // the box of the present and equilibrium pressures (a scalar autonomous ODE with q decreasing in p
-// moves monotonically). With the energy balance the present pressures are taken at the wall
-// temperature (the chamber's air cooled or warmed to it), and the box widened by twice the force
-// that the temperatures' distance from the wall's is worth. With a spool still moving, nothing.
+// moves monotonically). With the energy balance the present pressures are taken at the
+// temperature each chamber settles at (its air cooled or warmed to it), and the box widened by
+// twice the force that the temperatures' distance from it is worth. With a spool still moving,
+// nothing.
 struct ForceRange {
   double lo_n, hi_n;
   bool known;
@@ -201,9 +205,8 @@ ForceRange reachable_forces(const Common& c, const ChamberOde& ode, const X& x, 
   if (!ode.spools_settled(t)) return {0.0, 0.0, false};
   double pp = x.pp, pn = x.pn, slack = 0.0;
   if (c.process.thermal()) {
-    const double wall = c.process.rest_temperature_k();
-    pp = x.pp * wall / x.tp;
-    pn = x.pn * wall / x.tn;
+    pp = x.pp * c.rest_p.t_k / x.tp;
+    pn = x.pn * c.rest_n.t_k / x.tn;
     slack = 2.0 * (c.pressure_force.area_p_m2() * std::abs(x.pp - pp) + c.pressure_force.area_n_m2() * std::abs(x.pn - pn));
   }
   return {c.force(std::min(pp, pe_p), std::max(pn, pe_n)) - slack, c.force(std::max(pp, pe_p), std::min(pn, pe_n)) + slack,
@@ -305,7 +308,7 @@ ChamberModes chamber_modes(const PredictorModel& m, const Common& c, model::Side
   const bool thermal = c.process.thermal(), lag = c.spool.lags();
   const int n = 1 + (thermal ? 1 : 0) + (lag ? 1 : 0);
   const int it = 1, iw = thermal ? 2 : 1;  // the temperature's and the spool's places
-  const double rest = c.process.rest_temperature_k();
+  const double rest = (side == model::Side::kP ? c.rest_p : c.rest_n).t_k;
   using Vec = Eigen::VectorXd;
   const auto rate = [&](const Vec& z) {
     const double t = thermal ? z[it] : rest, w = lag ? z[iw] : target;
@@ -321,7 +324,11 @@ ChamberModes chamber_modes(const PredictorModel& m, const Common& c, model::Side
   ze[0] = p_e;
   if (thermal) z0[it] = t0, ze[it] = rest;
   if (lag) z0[iw] = w0, ze[iw] = target;
-  const Vec at = m.linearized_slope == LinearizedSlope::kEquilibriumTangent ? ze : z0;
+  // The spool reaches its target within milliseconds, the pressure takes its time over seconds:
+  // the slopes are taken with the spool at its target (at the stop's, a spool 0.4 V short of u* put
+  // a 1 s restart 27 % early).
+  Vec at = m.linearized_slope == LinearizedSlope::kEquilibriumTangent ? ze : z0;
+  if (lag) at[iw] = target;
   Eigen::MatrixXd jacobian(n, n);
   const double steps[3] = {10.0, 0.01, 1.0e-4};  // [Pa], [K], [V]: central differences
   for (int j = 0; j < n; ++j) {

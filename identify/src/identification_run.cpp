@@ -29,9 +29,10 @@ RunPlan plan_run(const config::Config& cfg, const controller::ControlLaw& law, c
   const double band_n = p.friction.static_positive_n - p.friction.static_negative_n;
   const double u0 = c.law.offset_v;
   constexpr double kDu = 0.02;
-  const double slope_n_per_v = (model::equilibrium_force_n(valve, p.geometry, p.gas.exhaust_pressure_pa, u0 + kDu) -
-                                model::equilibrium_force_n(valve, p.geometry, p.gas.exhaust_pressure_pa, u0 - kDu)) /
-                               (2 * kDu);
+  const model::ChamberProcess process(p);
+  const double slope_n_per_v =
+      (model::equilibrium_force_n(valve, process, u0 + kDu, 0.0) - model::equilibrium_force_n(valve, process, u0 - kDu, 0.0)) /
+      (2 * kDu);
   if (!(slope_n_per_v > 0)) throw std::invalid_argument("the valve model's equilibrium force does not grow with u");
   const double reach_v = o.force_reach * band_n / slope_n_per_v;
 

@@ -4,6 +4,7 @@
 #include <numbers>
 
 #include "pneu/model/valve.hpp"
+#include "roots.hpp"
 
 namespace pneu::model {
 
@@ -49,6 +50,7 @@ ChamberProcess::ChamberProcess(const Geometry& geometry, const Gas& gas, const T
       k_r_t_(gas.k_r_t()),
       r_t_(gas.gas_constant_j_per_kg_k * gas.temperature_k),
       supply_k_(gas.temperature_k),
+      exhaust_pa_(gas.exhaust_pressure_pa),
       gamma_r_((thermal != nullptr ? thermal->adiabatic_index : gas.polytropic_index) * gas.gas_constant_j_per_kg_k) {}
 
 // Eq. 2's pressure equation, or the energy balance (docs/model.md section 2). The polytropic form is
@@ -77,8 +79,23 @@ double ChamberProcess::fastest_rate_1_per_s(const ValveCharacteristic& valve, Si
   return std::max(gamma_r_ * t_k / volume * -valve.dq_dp(w, p), 1.0 / chamber_.time_constant_s(p, t_k, volume, wall));
 }
 
-double ChamberProcess::null_pressure_pa(const ValveCharacteristic& valve, double w_v) const noexcept {
-  return thermal_ ? valve.null_pressure_pa(w_v, chamber_.wall_temperature_k(), supply_k_) : valve.null_pressure_pa(w_v);
+ChamberRest ChamberProcess::rest(const ValveCharacteristic& valve, Side side, double w_v, double y_m) const noexcept {
+  if (!thermal_) return {valve.null_pressure_pa(w_v), supply_k_};
+  const double wall_k = chamber_.wall_temperature_k();
+  if (wall_k == supply_k_) return {valve.null_pressure_pa(w_v, wall_k, supply_k_), wall_k};
+  // With no net flow, dp/dt = 0 and dT/dt = 0 both ask gamma r H + (gamma - 1) h A (T_w - T) = 0,
+  // H = m_in (T_s - T): decreasing in T, of one sign at T_s and of the other at T_w.
+  const double wall_m2 = side == Side::kP ? wall_area_p_m2(geometry_, y_m) : wall_area_n_m2(geometry_, y_m);
+  const double gamma = chamber_.adiabatic_index(), r = gamma_r_ / gamma;
+  const double h = chamber_.heat_transfer_w_per_m2_k();
+  const auto balance = [&](double t_k) {
+    const double p = valve.null_pressure_pa(w_v, t_k, supply_k_);
+    return gamma * r * valve.chamber_inflow(w_v, p, t_k, supply_k_).enthalpy_k_kg_per_s +
+           (gamma - 1.0) * h * wall_m2 * (wall_k - t_k);
+  };
+  const double lo = std::min(wall_k, supply_k_), hi = std::max(wall_k, supply_k_);
+  const double t_k = decreasing_root(balance, lo, hi, 1e-9);
+  return {valve.null_pressure_pa(w_v, t_k, supply_k_), t_k};
 }
 
 void ChamberObserver::reset(double t_s, double y_m, double p_p_pa, double p_n_pa, double u_p_v, double u_n_v) noexcept {
@@ -86,7 +103,8 @@ void ChamberObserver::reset(double t_s, double y_m, double p_p_pa, double p_n_pa
   y_m_ = y_m;
   state_.p_p_pa = p_p_pa;
   state_.p_n_pa = p_n_pa;
-  state_.t_p_k = state_.t_n_k = process_.rest_temperature_k();
+  state_.t_p_k = process_.rest(*valve_, Side::kP, u_p_v, y_m).t_k;
+  state_.t_n_k = process_.rest(*valve_, Side::kN, u_n_v, y_m).t_k;
   command(u_p_v, u_n_v);
   state_.w_p_v = SpoolLag::target_v(*valve_, u_p_v);
   state_.w_n_v = SpoolLag::target_v(*valve_, u_n_v);

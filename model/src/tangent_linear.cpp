@@ -88,8 +88,8 @@ namespace {
 
 // With the energy balance or a spool lag: every entry of A and B by central differences of the
 // chambers' own equations (ChamberProcess) and the mechanics (sliding, dry friction left out), at
-// the equilibrium with the chambers at the wall temperature. State (y, v, p_P, p_N[, T_P, T_N][,
-// w_P, w_N]).
+// the equilibrium with the chambers where they settle (ChamberProcess::rest). State (y, v, p_P,
+// p_N[, T_P, T_N][, w_P, w_N]).
 void linearise_with_hidden_state(const PlantParams& plant, const ValveCharacteristic& valve, TangentLinearModel& m) {
   const ChamberProcess process(plant);
   const bool thermal = plant.has_thermal;
@@ -98,12 +98,13 @@ void linearise_with_hidden_state(const PlantParams& plant, const ValveCharacteri
   const std::size_t it = 4, iw = thermal ? 6 : 4;
   const double s_p = plant.geometry.area_p_m2(), s_n = plant.geometry.area_n_m2();
   const double mass = plant.mass_kg, sigma = plant.friction.viscous_n_s_per_m;
-  const double wall = process.rest_temperature_k();
+  const double rest_p_k = process.rest(valve, Side::kP, m.voltage_v, m.position_m).t_k;
+  const double rest_n_k = process.rest(valve, Side::kN, -m.voltage_v, m.position_m).t_k;
   // d/dt of the state x under control u.
   const auto rate = [&](const std::vector<double>& x, double u) {
     std::vector<double> dx(n, 0.0);
     const double y = x[0], v = x[1];
-    const double t_p = thermal ? x[it] : wall, t_n = thermal ? x[it + 1] : wall;
+    const double t_p = thermal ? x[it] : rest_p_k, t_n = thermal ? x[it + 1] : rest_n_k;
     const double w_p = lag > 0.0 ? x[iw] : u, w_n = lag > 0.0 ? x[iw + 1] : -u;
     const ChamberRates rp = process.rates(valve, Side::kP, x[2], t_p, w_p, y, v);
     const ChamberRates rn = process.rates(valve, Side::kN, x[3], t_n, w_n, y, v);
@@ -119,7 +120,7 @@ void linearise_with_hidden_state(const PlantParams& plant, const ValveCharacteri
   x0[0] = m.position_m;
   x0[2] = m.pressure_p_pa;
   x0[3] = m.pressure_n_pa;
-  if (thermal) x0[it] = x0[it + 1] = wall;
+  if (thermal) x0[it] = rest_p_k, x0[it + 1] = rest_n_k;
   if (lag > 0.0) x0[iw] = m.voltage_v, x0[iw + 1] = -m.voltage_v;
   // Steps: a micrometre, a micrometre per second, a pascal, a millikelvin, the valves' voltage step.
   const auto step = [&](std::size_t j) {
@@ -159,8 +160,8 @@ TangentLinearModel tangent_linear_model(const PlantParams& plant, const ValveCha
   m.position_m = position_m;
   m.voltage_v = voltage_v;
   const ChamberProcess process(plant);
-  m.pressure_p_pa = process.null_pressure_pa(valve, voltage_v);
-  m.pressure_n_pa = process.null_pressure_pa(valve, -voltage_v);
+  m.pressure_p_pa = process.rest(valve, Side::kP, voltage_v, position_m).p_pa;
+  m.pressure_n_pa = process.rest(valve, Side::kN, -voltage_v, position_m).p_pa;
   m.volume_p_m3 = g.volume_p_m3(position_m);
   m.volume_n_m3 = g.volume_n_m3(position_m);
   const double h = kValveVoltageStep_v;
@@ -434,13 +435,13 @@ ScheduleDesign design_schedule_falling_back(const PlantParams& plant, const Valv
   return out;
 }
 
-std::string describe_fallbacks(const std::vector<DesignFallback>& fallbacks) {
+std::string describe_fallbacks(const std::vector<DesignFallback>& fallbacks, double spacing_m) {
   std::string text;
   for (std::size_t i = 0; i < fallbacks.size();) {
     std::size_t j = i;  // the range of nodes with the same reason, next to each other
     const auto reason_kind = [](const std::string& r) { return r.substr(0, r.find('(')); };
     while (j + 1 < fallbacks.size() && reason_kind(fallbacks[j + 1].reason) == reason_kind(fallbacks[i].reason) &&
-           fallbacks[j + 1].position_m - fallbacks[j].position_m < 1.5 * (j > i ? fallbacks[j].position_m - fallbacks[j - 1].position_m : 1.0))
+           fallbacks[j + 1].position_m - fallbacks[j].position_m < 1.5 * spacing_m)
       ++j;
     double z = 0.0;
     for (std::size_t k = i; k <= j; ++k) z = std::max(z, fallbacks[k].max_abs_z);

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "pneu/model/pressure_force.hpp"
+#include "roots.hpp"
 
 namespace pneu::model {
 
@@ -13,36 +14,6 @@ double raw_flow_function(double x, double b) noexcept {
   if (x <= b) return 1.0;
   const double s = (x - b) / (1.0 - b);
   return std::sqrt(std::max(0.0, 1.0 - s * s));
-}
-
-// Finds the root of a decreasing function on [lo, hi] by bisection refined with regula falsi
-// (Illinois). Returns the clamped end when there is no sign change.
-template <typename F>
-double decreasing_root(F&& f, double lo, double hi, double x_tolerance) noexcept {
-  double f_lo = f(lo);
-  double f_hi = f(hi);
-  if (f_lo <= 0.0) return lo;
-  if (f_hi >= 0.0) return hi;
-  int side = 0;
-  for (int i = 0; i < 200 && hi - lo > x_tolerance; ++i) {
-    double x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
-    // Guard against regula falsi stagnation: fall back to bisection near the ends.
-    if (!(x > lo && x < hi)) x = 0.5 * (lo + hi);
-    const double fx = f(x);
-    if (fx == 0.0) return x;
-    if (fx > 0.0) {
-      lo = x;
-      f_lo = fx;
-      if (side == -1) f_hi *= 0.5;
-      side = -1;
-    } else {
-      hi = x;
-      f_hi = fx;
-      if (side == +1) f_lo *= 0.5;
-      side = +1;
-    }
-  }
-  return 0.5 * (lo + hi);
 }
 
 }  // namespace
@@ -170,6 +141,16 @@ double equilibrium_voltage_v(const ValveCharacteristic& valve, const Geometry& g
   const double u_lim = std::min(valve.max_voltage_v(), -valve.min_voltage_v());
   return decreasing_root([&](double u) { return -equilibrium_force_n(valve, g, p_e, u); }, -u_lim,
                          u_lim, 1.0e-12);
+}
+
+double equilibrium_force_n(const ValveCharacteristic& valve, const ChamberProcess& process, double u, double y) noexcept {
+  return PressureForce(process.geometry(), process.exhaust_pressure_pa())
+      .force_n(process.rest(valve, Side::kP, u, y).p_pa, process.rest(valve, Side::kN, -u, y).p_pa);
+}
+
+double equilibrium_voltage_v(const ValveCharacteristic& valve, const ChamberProcess& process, double y) noexcept {
+  const double u_lim = std::min(valve.max_voltage_v(), -valve.min_voltage_v());
+  return decreasing_root([&](double u) { return -equilibrium_force_n(valve, process, u, y); }, -u_lim, u_lim, 1.0e-12);
 }
 
 }  // namespace pneu::model

@@ -346,7 +346,8 @@ int serve(int argc, char** argv) {
   const model::PlantParams& bench = config::simulated_bench(cfg);  // hal.sim.plant over plant:
   plant::Plant plant(bench);
   plant::SensorSuite sensors(cfg.sensors);
-  const double u_e = model::equilibrium_voltage_v(plant.valve(), bench.geometry, bench.gas.exhaust_pressure_pa);
+  const double u_e =
+      model::equilibrium_voltage_v(plant.valve(), model::ChamberProcess(bench), cfg.simulation.initial_position_m);
   plant.reset_at_rest(cfg.simulation.initial_position_m, u_e);
   double u_p = u_e, u_n = -u_e;  // what the client wrote (at first: the neutral voltages)
   std::optional<double> stuck_p, stuck_n;  // a stuck spool drives its valve instead

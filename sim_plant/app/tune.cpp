@@ -232,7 +232,7 @@ int tune(int argc, char** argv) {
     throw config::ConfigError("controller.predictor.valve_table", e.what());
   }
   controller::resolve_offset(cfg, *valve);
-  const double u_e = model::equilibrium_voltage_v(*valve, cfg.plant.geometry, cfg.plant.gas.exhaust_pressure_pa);
+  const double u_e = model::equilibrium_voltage_v(*valve, model::ChamberProcess(cfg.plant), 0.0);  // Eq. 7 at mid-stroke
   const model::SampledLoop loop{cfg.controller.period_s(), cfg.controller.differentiator.smoothing,
                                 static_cast<int>(delay)};
   const std::vector<double> ys = positions(cfg.plant.geometry, step_mm * 1e-3);
@@ -274,7 +274,7 @@ int tune(int argc, char** argv) {
     if (!fallbacks.empty())
       std::printf("  the requested dynamics cannot be had everywhere: the gains fall back (controller.law.design."
                   "infeasible: fall_back)\n  %s\n",
-                  model::describe_fallbacks(fallbacks).c_str());
+                  model::describe_fallbacks(fallbacks, cfg.controller.law.design.node_spacing_m).c_str());
   }
 
   const std::vector<MapRow> configured_map = stability_map(cfg, *valve, u_e, configured, ys, loop);

@@ -179,12 +179,10 @@ void Plant::settle_mode_at_rest() noexcept {
 }
 
 void Plant::reset_at_rest(double y_m, double u_v, double t_s) noexcept {
-  PlantState s{t_s, y_m, 0.0, valve_.null_pressure_pa(u_v), valve_.null_pressure_pa(-u_v), Motion::kStuck};
-  if (params_.has_thermal) {  // at the wall's temperature, whose outflow is that of air at T_w
-    const double t_wall = params_.wall_temperature_k(), t_supply = params_.gas.temperature_k;
-    s.p_p_pa = valve_.null_pressure_pa(u_v, t_wall, t_supply);
-    s.p_n_pa = valve_.null_pressure_pa(-u_v, t_wall, t_supply);
-  }
+  const double y = std::clamp(y_m, -half_stroke_m_, half_stroke_m_);
+  const model::ChamberRest rest_p = process_.rest(valve_, model::Side::kP, u_v, y);
+  const model::ChamberRest rest_n = process_.rest(valve_, model::Side::kN, -u_v, y);
+  PlantState s{t_s, y_m, 0.0, rest_p.p_pa, rest_n.p_pa, Motion::kStuck, rest_p.t_k, rest_n.t_k};
   const bool lag = spool_.time_constant_s > 0.0;
   s.w_p_v = lag ? model::SpoolLag::target_v(valve_, u_v) : u_v;
   s.w_n_v = lag ? model::SpoolLag::target_v(valve_, -u_v) : -u_v;

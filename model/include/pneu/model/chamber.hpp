@@ -24,6 +24,12 @@ struct ChamberInflow {
   double enthalpy_k_kg_per_s = 0.0;
 };
 
+/// Where a chamber at rest settles, its valve held.
+struct ChamberRest {
+  double p_pa = 0.0;  ///< the null-flow pressure (Fig. 6) [Pa]
+  double t_k = 0.0;   ///< the temperature [K]
+};
+
 /// d/dt of a chamber's pressure and temperature.
 struct ChamberRates {
   double dp_dt_pa_per_s = 0.0;
@@ -65,6 +71,7 @@ class ThermalChamber {
   }
   [[nodiscard]] double wall_temperature_k() const noexcept { return wall_k_; }
   [[nodiscard]] double adiabatic_index() const noexcept { return gamma_; }
+  [[nodiscard]] double heat_transfer_w_per_m2_k() const noexcept { return h_; }
 
  private:
   double gamma_, r_, h_, wall_k_;
@@ -125,11 +132,14 @@ class ChamberProcess {
 
   [[nodiscard]] bool thermal() const noexcept { return thermal_; }
   [[nodiscard]] const ThermalChamber& thermal_chamber() const noexcept { return chamber_; }
-  /// The temperature a chamber settles at: the wall's (thermal), else the supply's [K].
-  [[nodiscard]] double rest_temperature_k() const noexcept { return thermal_ ? chamber_.wall_temperature_k() : supply_k_; }
   [[nodiscard]] double supply_temperature_k() const noexcept { return supply_k_; }
-  /// p_null(w) of a chamber at its rest temperature [Pa].
-  [[nodiscard]] double null_pressure_pa(const ValveCharacteristic& valve, double w_v) const noexcept;
+  [[nodiscard]] double exhaust_pressure_pa() const noexcept { return exhaust_pa_; }
+  /// Where chamber `side` at rest at y settles, its valve held at w: the pressure at which the
+  /// valve passes no net flow and, with the energy balance, the temperature at which the wall's
+  /// heat balances what the valve's through-flow (the supply's air in, the chamber's out) carries:
+  /// the wall's when the supply is at the wall's temperature, between the two otherwise (then
+  /// depending a little on y, the wall's area). Polytropic: p_null(w) at the supply's temperature.
+  [[nodiscard]] ChamberRest rest(const ValveCharacteristic& valve, Side side, double w_v, double y_m) const noexcept;
   [[nodiscard]] const Geometry& geometry() const noexcept { return geometry_; }
   [[nodiscard]] double volume_m3(Side side, double y_m) const noexcept {
     return side == Side::kP ? geometry_.dead_volume_p_m3 + area_p_m2_ * (half_stroke_m_ + y_m)
@@ -141,7 +151,7 @@ class ChamberProcess {
   bool thermal_;
   ThermalChamber chamber_;
   double area_p_m2_, area_n_m2_, half_stroke_m_;
-  double k_r_t_, r_t_, supply_k_, gamma_r_;
+  double k_r_t_, r_t_, supply_k_, exhaust_pa_, gamma_r_;
 };
 
 /// The chambers' temperatures and the spools' positions, which no sensor gives, estimated from what

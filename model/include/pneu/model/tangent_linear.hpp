@@ -208,8 +208,9 @@ struct ScheduleDesign {
                                                           const GainLimits& limits, double spacing_m,
                                                           const SampledLoop* loop);
 
-/// The fallbacks of a design in a few lines for people: contiguous nodes as one range.
-[[nodiscard]] std::string describe_fallbacks(const std::vector<DesignFallback>& fallbacks);
+/// The fallbacks of a design in a few lines for people: neighbouring nodes (`spacing_m` apart) that
+/// fell back for the same reason as one range.
+[[nodiscard]] std::string describe_fallbacks(const std::vector<DesignFallback>& fallbacks, double spacing_m);
 
 /// Refuses (GainDesignError, naming the first position, its max |z| and the loop) a table whose
 /// sampled loop (sampled_poles at each node, around u_0 = `voltage_v`) is not stable: poles placed

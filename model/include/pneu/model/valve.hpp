@@ -116,4 +116,12 @@ class ValveModel final : public ValveCharacteristic {
 [[nodiscard]] double equilibrium_voltage_v(const ValveCharacteristic& valve, const Geometry& geometry,
                                            double exhaust_pressure_pa) noexcept;
 
+/// The same two for a model's chambers (ChamberProcess) at rest at y, each where it settles
+/// (ChamberProcess::rest): the two above but for walls at another temperature than the supply's,
+/// where the rest temperatures, and so these, depend a little on y.
+[[nodiscard]] double equilibrium_force_n(const ValveCharacteristic& valve, const ChamberProcess& process, double u_v,
+                                         double y_m) noexcept;
+[[nodiscard]] double equilibrium_voltage_v(const ValveCharacteristic& valve, const ChamberProcess& process,
+                                           double y_m) noexcept;
+
 }  // namespace pneu::model
