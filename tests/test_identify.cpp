@@ -1,5 +1,6 @@
 // Identification of the bench from its own signals (pneu/identify): the identification run on a
 // simulated bench that is not its model, and what identify() makes of it.
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <array>
@@ -16,6 +17,7 @@
 namespace {
 
 using namespace pneu;
+using ::testing::HasSubstr;
 
 struct Bench {
   config::Config cfg;
@@ -55,6 +57,8 @@ double truth(const model::PlantParams& p, const std::string& key) {
   if (key == "plant.geometry.dead_volume_n_m3") return p.geometry.dead_volume_n_m3;
   if (key == "plant.friction.stribeck_velocity_m_per_s") return p.friction.stribeck_velocity_m_per_s;
   if (key == "plant.mass_kg") return p.mass_kg;
+  if (key == "plant.thermal.heat_transfer_w_per_m2_k") return p.thermal.heat_transfer_w_per_m2_k;
+  if (key == "plant.valve.spool_time_constant_s") return p.valve.spool_time_constant_s;
   return NAN;
 }
 
@@ -184,6 +188,94 @@ TEST(IdentificationRun, AFaultEndsTheRunAndNothingIsIdentified) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("faulted"), std::string::npos) << e.what();
   }
+}
+
+// The mismatched bench with the physics every real cylinder has: wall heat exchange (a thermal
+// time constant of 1 s at mid-stroke: h = 25.72 W/m^2/K) and a 3 ms spool lag.
+Bench thermal(const std::string& shipped = "") {
+  Bench b = mismatched(shipped);
+  b.bench.has_thermal = true;
+  b.bench.thermal.heat_transfer_w_per_m2_k = 25.72;
+  b.bench.valve.spool_time_constant_s = 0.003;
+  return b;
+}
+
+// The model has both terms, at other values (a thermal time constant of 2 s, a 1 ms lag).
+Bench thermal_with_a_thermal_model(const std::string& shipped = "") {
+  Bench b = thermal(shipped);
+  b.cfg.plant.has_thermal = true;
+  b.cfg.plant.thermal.heat_transfer_w_per_m2_k = 12.86;
+  b.cfg.plant.valve.spool_time_constant_s = 0.001;
+  return b;
+}
+
+void expect_heat_and_spool_identified(const identify::Identification& id, const model::PlantParams& bench,
+                                      double max_relative_std) {
+  EXPECT_TRUE(id.plant.has_thermal);
+  for (const char* key : {"plant.thermal.heat_transfer_w_per_m2_k", "plant.valve.spool_time_constant_s"}) {
+    const auto& e = id.at(key);
+    ASSERT_TRUE(e.identified) << key << ": " << e.basis;
+    EXPECT_LE(std::abs(e.value - truth(bench, key)), 3 * e.std) << key;
+    EXPECT_LT(e.std, max_relative_std * truth(bench, key)) << key << ": and that sigma is tight";
+  }
+}
+
+TEST(IdentificationRun, IdentifiesAThermalBenchsHeatTransferAndSpoolLagWhereTheModelHasThemWithIdealSensors) {
+  const Bench b = thermal_with_a_thermal_model();
+  const identify::Identification id = run_identification(b);
+  print(id, b.bench);
+  EXPECT_TRUE(id.evidence.model_fits);
+  EXPECT_LT(id.evidence.pressure_rms_residual_pa, 20.0) << "what an exact model leaves of ideal readings";
+  EXPECT_TRUE(id.evidence.misfit.empty());
+  expect_close_to_bench(id, b.bench, 0.02);
+  expect_heat_and_spool_identified(id, b.bench, 0.02);
+}
+
+TEST(IdentificationRun, IdentifiesAThermalBenchsHeatTransferAndSpoolLagWhereTheModelHasThemWithHilSensors) {
+  const Bench b = thermal_with_a_thermal_model("hil.yaml");
+  const identify::Identification id = run_identification(b);
+  print(id, b.bench);
+  EXPECT_TRUE(id.evidence.model_fits) << identify::fit_verdict(id.evidence);
+  EXPECT_LE(id.evidence.pressure_rms_residual_pa, 2 * id.evidence.pressure_explained_pa);
+  EXPECT_GT(id.evidence.pressure_noise_pa, 15.0) << "hil.yaml's 20 Pa, as the phases show it";
+  expect_close_to_bench(id, b.bench, 0.05);
+  expect_heat_and_spool_identified(id, b.bench, 0.1);
+}
+
+TEST(IdentificationRun, SaysByNameThatAModelWithoutTheWallsHeatDoesNotFitAThermalBenchAndWidensItsSigmas) {
+  const Bench b = thermal();  // the model is polytropic, no spool lag
+  const identify::Identification id = run_identification(b);
+  print(id, b.bench);
+  const auto& e = id.evidence;
+  EXPECT_FALSE(e.model_fits);
+  EXPECT_GT(e.pressure_rms_residual_pa, 2 * e.pressure_explained_pa);
+  // The phases that fail worst, by time and position, of the phases fitted.
+  ASSERT_FALSE(e.misfit.empty());
+  EXPECT_LE(static_cast<int>(e.misfit.size()), e.misfit_phases_of);
+  for (const auto& m : e.misfit) {
+    EXPECT_GT(m.rms_pa, 3 * e.pressure_explained_pa);
+    EXPECT_GE(m.y_m, b.cfg.controller.soft_limit_min_m);
+    EXPECT_LE(m.y_m, b.cfg.controller.soft_limit_max_m);
+  }
+  const std::string verdict = identify::fit_verdict(e);
+  std::printf("%s\n", verdict.c_str());
+  EXPECT_THAT(verdict, HasSubstr("THE MODEL DOES NOT FIT"));
+  EXPECT_THAT(verdict, HasSubstr("the worst: t = "));
+  EXPECT_THAT(verdict, HasSubstr("plant.thermal"));
+  // No tight sigma on a fit that does not fit: each phase counts as one sample, and every valve
+  // parameter is either published with an uncertainty that covers its error against the bench or
+  // kept at the configured value, saying why.
+  for (const char* key : {"plant.valve.max_conductance_m3_per_s_pa", "plant.valve.leak_conductance_in_m3_per_s_pa",
+                          "plant.valve.leak_conductance_out_m3_per_s_pa", "plant.valve.null_offset_v",
+                          "plant.geometry.dead_volume_p_m3", "plant.geometry.dead_volume_n_m3"}) {
+    const auto& x = id.at(key);
+    if (x.identified)
+      EXPECT_LE(std::abs(x.value - truth(b.bench, key)), 3 * x.std) << key << ": " << x.value << " +- " << x.std;
+    else
+      EXPECT_THAT(x.basis, HasSubstr("the model does not fit")) << key;
+  }
+  EXPECT_THAT(id.at("plant.thermal.heat_transfer_w_per_m2_k").basis, HasSubstr("the model has no heat exchange"));
+  EXPECT_THAT(id.at("plant.valve.spool_time_constant_s").basis, HasSubstr("the model has no spool lag"));
 }
 
 std::string refusal(std::span<const identify::Sample> samples, const model::PlantParams& prior) {

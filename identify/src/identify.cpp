@@ -121,13 +121,20 @@ Stiction stiction_from(std::span<const Sample> s, std::span<const double> force,
   }
   const double noise = 2.0 * st.force_noise_n;
   for (const StuckPhase& p : phases) {
-    // The force's rate before sample `end`, over 200 ms ending 50 ms before it (the last samples
-    // may already move, and the moving chambers change the force).
+    // The force's rate before sample `end`, ending 50 ms before it (the last samples may already
+    // move, and the moving chambers change the force): the slower of its rates over 200 ms and
+    // over the last 60 ms of those, as a slowing drift (a relaxation towards an asymptote just
+    // past the bound) crosses the bound slower than it came (over 200 ms alone, 42.55 N was held
+    // for a thermal bench's F_S+ of 42.13 N, the carriage already creeping within the band).
     const auto rate_before = [&](std::size_t end) {
       const std::size_t rate_end = index_before(s, p.first, end, 0.05);
-      const std::size_t rate_begin = index_before(s, p.first, rate_end, 0.2);
-      const double dt = s[rate_end].t_s - s[rate_begin].t_s;
-      return dt > 0.0 ? (force[rate_end] - force[rate_begin]) / dt : 0.0;
+      const auto rate_over = [&](double span_s) {
+        const std::size_t rate_begin = index_before(s, p.first, rate_end, span_s);
+        const double dt = s[rate_end].t_s - s[rate_begin].t_s;
+        return dt > 0.0 ? (force[rate_end] - force[rate_begin]) / dt : 0.0;
+      };
+      const double long_rate = rate_over(0.2), recent = rate_over(0.06);
+      return std::abs(recent) < std::abs(long_rate) ? recent : long_rate;
     };
     // How long a breakaway's onset may hide in the rest band at that rate.
     // (An ideal sensor too: the first picometre takes about a millisecond at 10 N/s.)
@@ -310,7 +317,8 @@ double fit_onset(std::span<const Sample> s, std::span<const double> force, const
   return 0.5 * (x0 + x1);
 }
 
-// Savitzky-Golay: velocity and acceleration at each sample from a quadratic fitted over +-half_s.
+// Savitzky-Golay: velocity and acceleration at each sample from a quartic fitted over +-half_s (a
+// quadratic lags behind the motion's curvature: F_C+ 1.4 N low on the exact bench).
 struct Motion {
   std::vector<double> v, a;
   std::vector<bool> valid;
