@@ -10,29 +10,72 @@
 # The relaxation method (made again only, from each phase's own pressures and the identified
 # stiction, no valve model) runs alongside: half-way, within 5 % on at least 90 % of those restarts
 # (measured 54 of 55 ideal, 69 of 69 hil.yaml).
+# Issue 28 (ideal-thermal, hil-thermal): the same on benches with the physics every real cylinder
+# has, each drawn a thermal time constant of 0.5 to 3 s at mid-stroke and a spool lag of 0 to 5
+# ms besides, identified from a model that has both terms (at 1 s and 2 ms), on 60 steps (the
+# README gives the 200-step figures and their command: 17 minutes of 2 cores each); also: the
+# model fits every bench (its residual within twice what the sensors' noise explains) and at
+# least 95 % of the parameters published that the bench has too lie within 3 of their sigmas of
+# it. unmodelled-thermal: the same benches identified from a model without either term are
+# reported as not fitting, every one (20 steps).
 # Every scenario is counted: those whose identification failed, or whose gains could not be
 # designed on the identified model, are listed by the summary and must stay few (<= 2 %).
-#   test_sweep_identified.sh BINARY_DIR ideal|hil SOURCE_DIR
+#   test_sweep_identified.sh BINARY_DIR ideal|hil|ideal-thermal|hil-thermal|unmodelled-thermal SOURCE_DIR
 set -euo pipefail
 sweep=$1/bin/pneu-sweep
 kind=$2
 src=$3
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
 fail() { echo "FAIL: $*"; exit 1; }
-args=(--steps 200 --bench-spread 0.2 --identify --quiet --set "controller.predictor.methods=[nonlinear, relaxation]"
+steps=200; methods="nonlinear, relaxation"; thermal=0
+case "$kind" in
+  *-thermal) steps=60; methods="nonlinear"; thermal=1
+             bench_physics=(--bench-thermal-s 0.5:3 --bench-spool-lag-s 0:0.005) ;;
+esac
+[ "$kind" = unmodelled-thermal ] && steps=20
+args=(--steps "$steps" --bench-spread 0.2 --identify --quiet --set "controller.predictor.methods=[$methods]"
       --out "$tmp/stops.csv" --scenarios-out "$tmp/scenarios.csv")
+[ "$thermal" = 1 ] && args+=("${bench_physics[@]}")
+case "$kind" in
+  ideal-thermal|hil-thermal)
+    args+=(--set plant.thermal.heat_transfer_w_per_m2_k=25.72 --set plant.valve.spool_time_constant_s=0.002) ;;
+esac
 most=2; stiction=2
-if [ "$kind" = hil ]; then
+if [ "$kind" = hil ] || [ "$kind" = hil-thermal ]; then
   args+=(--config "$src/config/hil.yaml" --set hal.backend=sim)
   most=5; stiction=5
 fi
 "$sweep" "${args[@]}" > "$tmp/summary.txt"
 cat "$tmp/summary.txt"
 
-# identified first ...: K of 200, F failed
-read -r identified failed < <(grep -E '^  identified first' "$tmp/summary.txt" | sed -E 's/.*: ([0-9]+) of 200, ([0-9]+) failed.*/\1 \2/')
-[ $((identified + failed)) = 200 ] || fail "every scenario is counted ($identified identified, $failed failed)"
-[ "$failed" -le 4 ] || fail "$failed scenarios failed identification or design"
+# identified first ...: K of N, F failed
+read -r identified failed < <(grep -E '^  identified first' "$tmp/summary.txt" | sed -E "s/.*: ([0-9]+) of $steps, ([0-9]+) failed.*/\1 \2/")
+[ $((identified + failed)) = "$steps" ] || fail "every scenario is counted ($identified identified, $failed failed)"
+
+# the model fits ... on K of N; ...
+fits=$(grep -F '    the model fits (pressure residual' "$tmp/summary.txt" | sed -E 's/.* on ([0-9]+) of ([0-9]+);.*/\1/')
+if [ "$kind" = unmodelled-thermal ]; then
+  [ "$identified" -gt 0 ] || fail "no bench was identified"
+  [ "$fits" = 0 ] || fail "a model without the benches' heat exchange is reported as fitting $fits of $identified"
+  # ... and so is each bench's row: identified_model_fits 0.
+  not_fitting=$(awk -F, 'NR == 1 { for (i = 1; i <= NF; ++i) if ($i == "identified_model_fits") c = i; next }
+                         $c == "0" { ++n } END { print n + 0 }' "$tmp/scenarios.csv")
+  [ "$not_fitting" = "$identified" ] || fail "$not_fitting of $identified rows say the model does not fit"
+  echo "ok: $kind: the model fits none of the $identified benches identified"
+  exit 0
+fi
+[ "$failed" -le $((steps / 50)) ] || fail "$failed scenarios failed identification or design"
+if [ "$thermal" = 1 ]; then
+  [ "$fits" = "$identified" ] || fail "the model fits $fits of $identified benches"
+  read -r inside published < <(grep -F '    parameters published that the bench has too' "$tmp/summary.txt" | sed -E 's/.*: ([0-9]+) of ([0-9]+) .*/\1 \2/')
+  awk -v i="$inside" -v p="$published" 'BEGIN { exit !(p > 0 && i >= 0.95 * p) }' ||
+    fail "$inside of $published parameters published within 3 sigma of the bench (need 95 %)"
+  grep -qF '    heat transfer error against the bench' "$tmp/summary.txt" || fail "the heat transfer's error is reported"
+  grep -qF '    spool lag error against the bench' "$tmp/summary.txt" || fail "the spool lag's error is reported"
+  # Every scenario settles, no fault.
+  grep -qE "^  outcomes \(the first rest after the step\): $steps settled, 0 never settled, 0 at rest against an end stop, 0 faults" \
+    "$tmp/summary.txt" || fail "every scenario settles with no fault"
+fi
 [ "$(grep -c '^    failed: scenario ' "$tmp/summary.txt")" = "$failed" ] || fail "each failure is listed with its reason"
 [ "$(tail -n +2 "$tmp/scenarios.csv" | grep -c ',identification_failed,')" = "$failed" ] || fail "each failure has its row"
 
@@ -52,6 +95,10 @@ within=$w2; [ "$most" = 5 ] && within=$w5
 awk -v w="$within" -v n="$n" 'BEGIN { exit !(w >= 0.95 * n) }' || fail "$within of $n long restarts within $most % (need 95 %)"
 [ "$w10" = "$n" ] || fail "$w10 of $n long restarts within 10 % (need all)"
 awk -v w="$wrong" -v s="$judged" 'BEGIN { exit !(w < 0.01 * s) }' || fail "verdict wrong on $wrong of $judged stops (need under 1 %)"
+if [ "$thermal" = 1 ]; then
+  echo "ok: $kind: $within of $n within $most %, $w10 within 10 %, verdict wrong $wrong of $judged; the model fits $fits of $identified; $inside of $published published within 3 sigma; $failed of $steps not run"
+  exit 0
+fi
 # relaxation ... made again half-way ... then "of N such restarts: within 2 %: A, 5 %: B, 10 %: C ..."
 rx=$(grep -A2 -F '  relaxation (made again only' "$tmp/summary.txt" | grep -F 'such restarts')
 read -r rn r5 < <(echo "$rx" | sed -E 's/.*of ([0-9]+) such restarts: within 2 %: [0-9]+, 5 %: ([0-9]+),.*/\1 \2/')

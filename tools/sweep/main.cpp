@@ -82,8 +82,10 @@ tells when it would have latched the oscillation or the not-settled fault (the r
 every check is on as in pneud, and a fault ends the scenario's control (outcome fault).
 
 Each scenario gets an outcome, from the first time the carriage comes to rest after the step:
-the stop detector's first stop after it, before any fault, at which the plant was at rest (noisy
-sensors can make the detector confirm a stop while the plant turns slowly). settled: at rest
+the stop detector's first stop after it, before any fault, at which the plant was at rest, or came
+to rest without breaking away first (noisy sensors can make the detector confirm a stop while the
+plant turns slowly, or creeps onto a stiction bound its Coulomb level nearly meets; the rest then
+dates from the plant's stick). settled: at rest
 inside the stroke; end-stop: at rest against an end stop (it may come off it later:
 final_error_m tells); never-settled: no rest to the end of the run, tail included; fault: a fault
 latched (--supervised). A carriage that the step does not move has settled at once. The summary
@@ -218,17 +220,19 @@ bool plant_at_rest(std::span<const plant::PlantEvent> events, double t_s) {
   bool at_rest = true;  // runs start at rest
   for (const auto& e : events) {
     if (e.t_s > t_s) break;
+    if (e.kind == plant::PlantEvent::Kind::kReversal) continue;  // sliding before and after
     at_rest = e.kind != plant::PlantEvent::Kind::kBreakaway;
   }
   return at_rest;
 }
 
-// At rest at t_s, or coming to rest after it without breaking away first: a noisy detector can
-// confirm a stop a few ms before the plant's last slide within its rest band ends.
+// At rest at t_s, or coming to rest after it (a stick, or an end stop; a reversal slides on)
+// without breaking away first: a noisy detector can confirm a stop a few ms before the plant's last
+// slide within its rest band ends.
 bool plant_rests_from(std::span<const plant::PlantEvent> events, double t_s) {
   if (plant_at_rest(events, t_s)) return true;
   for (const auto& e : events)
-    if (e.t_s > t_s) return e.kind != plant::PlantEvent::Kind::kBreakaway;
+    if (e.t_s > t_s && e.kind != plant::PlantEvent::Kind::kReversal) return e.kind != plant::PlantEvent::Kind::kBreakaway;
   return false;
 }
 
@@ -390,13 +394,23 @@ class ScenarioWatch final : public controller::RunListener {
   }
 
   // The account, once the run has ended, with the plant's motion events: the first rest is the
-  // first stop after the step (before any fault) that the plant confirms (a noisy detector can
-  // confirm a stop while the plant slides within its rest band, e.g. slowly through a turn).
+  // first stop after the step (before any fault) that the plant confirms, at once or by sticking
+  // before it breaks away again (a noisy detector can confirm a stop while the plant slides within
+  // its rest band, slowly through a turn or creeping onto a stiction bound that its Coulomb level
+  // nearly meets: a carriage at rest 0.18 mm from its set point by the end was counted as never
+  // settled); the rest then dates from the plant's stick.
   [[nodiscard]] Settling settling(std::span<const plant::PlantEvent> plant_events, double plant_y_end_m) const {
     Settling s = s_;
     for (const RestCandidate& c : rest_candidates_)
-      if (plant_at_rest(plant_events, c.confirmed_t_s)) {
-        s.settle_time_s = c.t_s - step_time_s_;
+      if (plant_rests_from(plant_events, c.confirmed_t_s)) {
+        double rest_t = c.t_s;
+        if (!plant_at_rest(plant_events, c.confirmed_t_s))
+          for (const auto& e : plant_events)
+            if (e.t_s > c.confirmed_t_s && e.kind != plant::PlantEvent::Kind::kReversal) {
+              rest_t = std::max(rest_t, e.t_s);
+              break;
+            }
+        s.settle_time_s = rest_t - step_time_s_;
         s.rest_y_m = c.y_m;
         break;
       }
