@@ -50,6 +50,14 @@ struct Common {
   double force(double p_p, double p_n) const noexcept { return pressure_force.force_n(p_p, p_n); }
 };
 
+// Where chamber `side` settles under w; without a valve model (the relaxation fit, which finds
+// the asymptotes itself) only the temperature is known: the supply's.
+model::ChamberRest rest_of(const PredictorModel& m, const model::ChamberProcess& process, model::Side side, double w_v,
+                           double y_m) noexcept {
+  if (m.valve == nullptr) return {std::numeric_limits<double>::quiet_NaN(), m.gas.temperature_k};
+  return process.rest(*m.valve, side, w_v, y_m);
+}
+
 Common common_of(const PredictorModel& m, const StopSnapshot& s) noexcept {
   const double c_tau = m.has_thermal ? m.thermal.adiabatic_index * m.gas.gas_constant_j_per_kg_k *
                                            (m.thermal.wall_temperature_auto ? m.gas.temperature_k
@@ -65,8 +73,8 @@ Common common_of(const PredictorModel& m, const StopSnapshot& s) noexcept {
           c_tau,
           !m.has_hidden_state(),
           model::SpoolLag{m.spool_time_constant_s},
-          process.rest(*m.valve, model::Side::kP, s.u_v, s.y_m),
-          process.rest(*m.valve, model::Side::kN, -s.u_v, s.y_m)};
+          rest_of(m, process, model::Side::kP, s.u_v, s.y_m),
+          rest_of(m, process, model::Side::kN, -s.u_v, s.y_m)};
 }
 
 // The chambers' state at the snapshot: its pressures, and its temperatures and spools as estimated
