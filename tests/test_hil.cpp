@@ -121,6 +121,23 @@ double field(const std::string& line, const std::string& key) {
   return std::stod(rest);
 }
 
+// pneud's events file, by stop: when it was called, the nonlinear forecast made at it, and the
+// restart start pneud dated after it (NaN where there is none).
+using StopRecord = std::array<double, 3>;
+std::map<int, StopRecord> stops_of(const std::string& events) {
+  std::map<int, StopRecord> stops;
+  std::istringstream lines(events);
+  for (std::string line; std::getline(lines, line);) {
+    auto& s = stops.try_emplace(static_cast<int>(field(line, "stop")), StopRecord{NAN, NAN, NAN}).first->second;
+    if (line.find("\"event\":\"stop\"") != std::string::npos) s[0] = field(line, "t");
+    if (line.find("\"event\":\"prediction\"") != std::string::npos && line.find("\"method\":\"nonlinear\"") != std::string::npos)
+      s[1] = field(line, "t_restart");
+    if (line.find("\"event\":\"start\"") != std::string::npos && line.find("\"restart\":true") != std::string::npos)
+      s[2] = field(line, "t");
+  }
+  return stops;
+}
+
 class Hil : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -285,17 +302,7 @@ TEST_F(Hil, IdentifiedOverModbusThePaperStepsLongStickingPhaseIsForecastWithin5P
     ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "paper.err");
     kill(plant.pid, SIGINT);
     ASSERT_EQ(plant.wait(), 0) << slurp(dir_ / "serve.err");
-    std::map<int, std::array<double, 3>> stops;  // t, nonlinear forecast, restart
-    std::istringstream lines(slurp(dir_ / events));
-    for (std::string line; std::getline(lines, line);) {
-      const int idx = static_cast<int>(field(line, "stop"));
-      auto& s = stops.try_emplace(idx, std::array<double, 3>{NAN, NAN, NAN}).first->second;
-      if (line.find("\"event\":\"stop\"") != std::string::npos) s[0] = field(line, "t");
-      if (line.find("\"event\":\"prediction\"") != std::string::npos && line.find("\"method\":\"nonlinear\"") != std::string::npos)
-        s[1] = field(line, "t_restart");
-      if (line.find("\"event\":\"start\"") != std::string::npos && line.find("\"restart\":true") != std::string::npos)
-        s[2] = field(line, "t");
-    }
+    const std::map<int, StopRecord> stops = stops_of(slurp(dir_ / events));
     for (const auto& [idx, s] : stops) {
       if (std::isnan(s[2]) || s[2] - s[0] < 0.5) continue;
       ++long_restarts;
@@ -335,7 +342,18 @@ TEST_F(Hil, AThermalBenchWithASpoolLagIdentifiedOverModbusForecastsTheLongSticki
   std::printf("%s", report.substr(report.find("identified from")).c_str());
   const pneu::config::Config id = pneu::config::load_file(identified);
   ASSERT_TRUE(id.plant.has_thermal);
-  EXPECT_THAT(report, HasSubstr("the model fits the stuck phases' pressures"));
+  // Over the link the model fits within twice the noise when the loop keeps its deadlines (25.9 Pa
+  // for 18.5 explained on an idle machine, 35.7 Pa with one of its two cores busy); with both busy
+  // the loop skips deadlines within the stuck phases, each shifting when a command reached the
+  // valves, and the fit reached 57 Pa: then it must say so, name the timing as a suspect, and every
+  // forecast made on what it identified must say it is uncertain.
+  const bool fits = report.find("the model fits the stuck phases' pressures") != std::string::npos;
+  if (!fits) {
+    EXPECT_THAT(report, HasSubstr("THE MODEL DOES NOT FIT"));
+    EXPECT_THAT(report, HasSubstr("Or the commands' timing: the loop skipped"))
+        << "a misfit while the loop kept every deadline is the model's";
+    std::printf("the model does not fit over this link (the loop skipped deadlines): forecasts judged, flagged uncertain\n");
+  }
 
   // The paper's step (its gains) on the identified configuration, judged against serve's record.
   int long_restarts = 0, runs = 0;
@@ -363,17 +381,10 @@ TEST_F(Hil, AThermalBenchWithASpoolLagIdentifiedOverModbusForecastsTheLongSticki
         motion.emplace_back(field(line, "monotonic_s") - epoch, !breakaway);
     }
     ASSERT_FALSE(motion.empty()) << slurp(plant_events);
-    std::map<int, std::array<double, 3>> stops;  // t, nonlinear forecast, pneud's restart
-    std::istringstream lines(slurp(dir_ / events));
-    for (std::string line; std::getline(lines, line);) {
-      const int idx = static_cast<int>(field(line, "stop"));
-      auto& st = stops.try_emplace(idx, std::array<double, 3>{NAN, NAN, NAN}).first->second;
-      if (line.find("\"event\":\"stop\"") != std::string::npos) st[0] = field(line, "t");
-      if (line.find("\"event\":\"prediction\"") != std::string::npos && line.find("\"method\":\"nonlinear\"") != std::string::npos)
-        st[1] = field(line, "t_restart");
-      if (line.find("\"event\":\"start\"") != std::string::npos && line.find("\"restart\":true") != std::string::npos)
-        st[2] = field(line, "t");
-    }
+    const std::string events_text = slurp(dir_ / events);
+    EXPECT_EQ(events_text.find("\"model_fits\":false") == std::string::npos, fits)
+        << "the forecasts carry the identification's verdict";
+    const std::map<int, StopRecord> stops = stops_of(events_text);
     for (const auto& [idx, st] : stops) {
       if (std::isnan(st[2])) continue;
       // Judged where the plant had stuck by 50 ms after pneud called the stop (pneud calls it

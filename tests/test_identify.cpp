@@ -18,6 +18,7 @@ namespace {
 
 using namespace pneu;
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 struct Bench {
   config::Config cfg;
@@ -276,6 +277,35 @@ TEST(IdentificationRun, SaysByNameThatAModelWithoutTheWallsHeatDoesNotFitATherma
   }
   EXPECT_THAT(id.at("plant.thermal.heat_transfer_w_per_m2_k").basis, HasSubstr("the model has no heat exchange"));
   EXPECT_THAT(id.at("plant.valve.spool_time_constant_s").basis, HasSubstr("the model has no spool lag"));
+}
+
+// A loop that skips deadlines leaves gaps in its record; over a bus each shifts when a command
+// reached the valves, which the fit's whole-sample delay does not have. The evidence counts the
+// ticks missing within the fitted phases, and a misfit's verdict names them as a suspect.
+TEST(Identify, CountsTheDeadlinesTheLoopSkippedWithinTheFittedPhasesAndNamesThemInAMisfit) {
+  const Bench b = mismatched();
+  const identify::RecordedRun run = record_run(b);
+  const identify::Options o = identify::options_for(b.cfg);
+  const identify::Identification whole = identify::identify(run.samples, b.cfg.plant, o);
+  EXPECT_EQ(whole.evidence.fitted_deadlines_skipped, 0);
+  EXPECT_GT(whole.evidence.fitted_samples, 0);
+  // Every 100th tick missing, as from a loop that overran there.
+  std::vector<identify::Sample> gappy;
+  for (std::size_t k = 0; k < run.samples.size(); ++k)
+    if (k % 100 != 50) gappy.push_back(run.samples[k]);
+  const identify::Evidence e = identify::identify(gappy, b.cfg.plant, o).evidence;
+  std::printf("%d deadlines skipped within %d fitted samples of %d phases\n", e.fitted_deadlines_skipped,
+              e.fitted_samples, e.fitted_phases);
+  EXPECT_NEAR(e.fitted_deadlines_skipped, e.fitted_samples / 99.0, e.fitted_phases + 1.0);
+  identify::Evidence misfit = e;
+  misfit.model_fits = false;
+  misfit.pressure_rms_residual_pa = 60.0;
+  misfit.pressure_explained_pa = 18.5;
+  EXPECT_THAT(identify::fit_verdict(misfit),
+              HasSubstr("Or the commands' timing: the loop skipped " + std::to_string(e.fitted_deadlines_skipped) +
+                        " deadlines within these phases"));
+  misfit.fitted_deadlines_skipped = 0;
+  EXPECT_THAT(identify::fit_verdict(misfit), Not(HasSubstr("the commands' timing")));
 }
 
 std::string refusal(std::span<const identify::Sample> samples, const model::PlantParams& prior) {

@@ -165,8 +165,16 @@ std::string fit_verdict(const Evidence& e) {
                   worst[i].y_m * 1e3, worst[i].rms_pa);
     text += line;
   }
-  return text + ". Its valve, volume and thermal parameters' sigmas carry the misfit (each phase counted as one "
-                "sample): a physics the model lacks? (plant.thermal, plant.valve.spool_time_constant_s)";
+  text += ". Its valve, volume and thermal parameters' sigmas carry the misfit (each phase counted as one "
+          "sample): a physics the model lacks? (plant.thermal, plant.valve.spool_time_constant_s)";
+  if (e.fitted_deadlines_skipped > 0) {
+    std::snprintf(line, sizeof line,
+                  " Or the commands' timing: the loop skipped %d deadlines within these phases (of %d samples), each "
+                  "shifting when a command reached the valves (controller.realtime, a real-time kernel)",
+                  e.fitted_deadlines_skipped, e.fitted_samples);
+    text += line;
+  }
+  return text;
 }
 
 void print_report(std::FILE* out, const Identification& id) {
@@ -178,6 +186,9 @@ void print_report(std::FILE* out, const Identification& id) {
                e.stuck_phases, e.fitted_phases, e.stuck_s, e.stuck_position_span_m * 1e3, e.voltage_span_v,
                e.breakaways_positive, e.breakaways_negative, e.sliding_s, e.pressure_rms_residual_pa,
                e.command_delay_samples);
+  if (e.fitted_deadlines_skipped > 0)
+    std::fprintf(out, "timing: the loop skipped %d deadlines within the fitted phases (of %d samples)\n",
+                 e.fitted_deadlines_skipped, e.fitted_samples);
   if (e.fitted_phases > 0) std::fprintf(out, "fit: %s\n", fit_verdict(e).c_str());
   std::fprintf(out, "%-46s %12s %12s %10s  %s\n", "parameter", "before", "after", "+- 1 sigma", "from");
   for (const Estimate& x : id.estimates) {

@@ -443,6 +443,15 @@ Sliding sliding_from(std::span<const Sample> s, std::span<const double> force, s
   return buf;
 }
 
+// The record's sample spacing, its median: the loop's period where it kept its deadlines [s].
+double median_spacing_s(std::span<const Sample> s) {
+  if (s.size() < 2) return 0.0;
+  std::vector<double> dt(s.size() - 1);
+  for (std::size_t k = 1; k < s.size(); ++k) dt[k - 1] = s[k].t_s - s[k - 1].t_s;
+  std::nth_element(dt.begin(), dt.begin() + static_cast<std::ptrdiff_t>(dt.size() / 2), dt.end());
+  return dt[dt.size() / 2];
+}
+
 }  // namespace
 
 std::span<const char* const> identified_keys() noexcept { return kKeys; }
@@ -649,6 +658,14 @@ Identification identify(std::span<const Sample> s, const model::PlantParams& pri
   ev.misfit_phases_of = static_cast<int>(vf.phase_residuals.size());
   for (const auto& r : vf.phase_residuals)
     if (r.misfit) ev.misfit.push_back({s[r.first].t_s, r.y_m, r.rms_pa});
+  const double period = median_spacing_s(s);
+  for (const auto& r : vf.phase_residuals) {
+    ev.fitted_samples += static_cast<int>(r.last - r.first + 1);
+    for (std::size_t k = r.first + 1; k <= r.last && period > 0.0; ++k) {
+      const double ticks = (s[k].t_s - s[k - 1].t_s) / period;
+      if (ticks > 1.5) ev.fitted_deadlines_skipped += static_cast<int>(std::lround(ticks)) - 1;
+    }
+  }
   if (vf.phases == 0)
     throw InsufficientData(format("too little excitation: no stuck phase of %.3g s or more driven by the loop, so the "
                                   "valves' pressure transients cannot be fitted",

@@ -699,8 +699,8 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
     const auto [from, to] = problem->rows_of(j);
     const double sse = all.residual_pa.segment(from, to - from).squaredNorm();
     const double rms = to > from ? std::sqrt(sse / static_cast<double>(to - from)) : 0.0;
-    out.phase_residuals.push_back({problem->phases()[j].first, problem->phases()[j].y_m, rms,
-                                   rms > kPhaseMisfit * out.explained_pa});
+    const FitPhase& ph = problem->phases()[j];
+    out.phase_residuals.push_back({ph.first, ph.last, ph.y_m, rms, rms > kPhaseMisfit * out.explained_pa});
   }
   out.joint_rms_residual_pa = all.rms_pa;
   return out;

@@ -53,7 +53,7 @@ struct ValveFit {
   /// Each fitted phase's residual at the joint fit, both chambers, rms [Pa], with its first sample
   /// and position, and whether it is beyond three times what the noise explains.
   struct PhaseResidual {
-    std::size_t first = 0;
+    std::size_t first = 0, last = 0;  ///< its first and last fitted samples
     double y_m = 0.0;
     double rms_pa = 0.0;
     bool misfit = false;

@@ -114,6 +114,11 @@ struct Evidence {
   };
   std::vector<PhaseMisfit> misfit;
   int misfit_phases_of = 0;  ///< ... of this many fitted
+  /// The loop's deadlines missing from the fitted phases' samples (a gap over 1.5 times the
+  /// record's median spacing counts the ticks it lacks), of `fitted_samples`: over a bus, each one
+  /// shifts when the commands reached the valves, which the fit's whole-sample delay does not have.
+  int fitted_deadlines_skipped = 0;
+  int fitted_samples = 0;
 };
 
 /// The result: the bench's parameters (the prior where not identified), each estimate, and the
