@@ -16,9 +16,12 @@ std::unique_ptr<model::ValveCharacteristic> make_valve_characteristic(
   return std::make_unique<model::ValveTable>(model::ValveTable::load(path));
 }
 
+double equilibrium_voltage_v(const config::Config& config, const model::ValveCharacteristic& valve) {
+  return model::equilibrium_voltage_v(valve, model::ChamberProcess(config.plant), 0.0);
+}
+
 void resolve_offset(config::Config& config, const model::ValveCharacteristic& valve) {
-  if (config.controller.offset_auto)
-    config.controller.law.offset_v = model::equilibrium_voltage_v(valve, model::ChamberProcess(config.plant), 0.0);
+  if (config.controller.offset_auto) config.controller.law.offset_v = equilibrium_voltage_v(config, valve);
 }
 
 model::SampledLoop sampled_loop(const config::Config& config) {
@@ -30,7 +33,7 @@ ControlLaw make_control_law(const config::Config& config, const model::ValveChar
   const config::ControlLawParams& law = config.controller.law;
   if (law.gains == config::GainsKind::kFixed) return ControlLaw(law);
   const config::GainDesignParams& d = law.design;
-  const double u_e = model::equilibrium_voltage_v(valve, model::ChamberProcess(config.plant), 0.0);
+  const double u_e = equilibrium_voltage_v(config, valve);
   const model::RequestedDynamics poles{d.real_pole_1_per_s, d.natural_frequency_rad_per_s, d.damping};
   const model::GainLimits limits{d.max_position_gain_v_per_m, d.max_velocity_gain_v_s_per_m,
                                  d.max_acceleration_gain_v_s2_per_m};

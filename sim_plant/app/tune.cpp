@@ -232,7 +232,7 @@ int tune(int argc, char** argv) {
     throw config::ConfigError("controller.predictor.valve_table", e.what());
   }
   controller::resolve_offset(cfg, *valve);
-  const double u_e = model::equilibrium_voltage_v(*valve, model::ChamberProcess(cfg.plant), 0.0);  // Eq. 7 at mid-stroke
+  const double u_e = controller::equilibrium_voltage_v(cfg, *valve);
   const model::SampledLoop loop{cfg.controller.period_s(), cfg.controller.differentiator.smoothing,
                                 static_cast<int>(delay)};
   const std::vector<double> ys = positions(cfg.plant.geometry, step_mm * 1e-3);

@@ -23,6 +23,10 @@ namespace pneu::controller {
 [[nodiscard]] std::unique_ptr<model::ValveCharacteristic> make_valve_characteristic(
     const config::Config& config, const std::filesystem::path& config_dir);
 
+/// u_e of Eq. 7 for `config`'s model: the voltage at which its chambers at rest at mid-stroke, each
+/// where it settles, balance the force [V].
+[[nodiscard]] double equilibrium_voltage_v(const config::Config& config, const model::ValveCharacteristic& valve);
+
 /// Fills controller.law.offset_v with u_e of Eq. 7 when it is "auto".
 void resolve_offset(config::Config& config, const model::ValveCharacteristic& valve);
 
