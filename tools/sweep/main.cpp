@@ -226,14 +226,20 @@ bool plant_at_rest(std::span<const plant::PlantEvent> events, double t_s) {
   return at_rest;
 }
 
-// At rest at t_s, or coming to rest after it (a stick, or an end stop; a reversal slides on)
-// without breaking away first: a noisy detector can confirm a stop a few ms before the plant's last
-// slide within its rest band ends.
+// The plant's first change between sliding and rest after t_s (a reversal slides on), or none.
+const plant::PlantEvent* next_motion_change(std::span<const plant::PlantEvent> events, double t_s) {
+  for (const auto& e : events)
+    if (e.t_s > t_s && e.kind != plant::PlantEvent::Kind::kReversal) return &e;
+  return nullptr;
+}
+
+// At rest at t_s, or coming to rest after it (a stick, or an end stop) without breaking away
+// first: a noisy detector can confirm a stop a few ms before the plant's last slide within its rest
+// band ends.
 bool plant_rests_from(std::span<const plant::PlantEvent> events, double t_s) {
   if (plant_at_rest(events, t_s)) return true;
-  for (const auto& e : events)
-    if (e.t_s > t_s && e.kind != plant::PlantEvent::Kind::kReversal) return e.kind != plant::PlantEvent::Kind::kBreakaway;
-  return false;
+  const plant::PlantEvent* next = next_motion_change(events, t_s);
+  return next != nullptr && next->kind != plant::PlantEvent::Kind::kBreakaway;
 }
 
 // How a scenario ended up (see the help).
@@ -405,11 +411,7 @@ class ScenarioWatch final : public controller::RunListener {
       if (plant_rests_from(plant_events, c.confirmed_t_s)) {
         double rest_t = c.t_s;
         if (!plant_at_rest(plant_events, c.confirmed_t_s))
-          for (const auto& e : plant_events)
-            if (e.t_s > c.confirmed_t_s && e.kind != plant::PlantEvent::Kind::kReversal) {
-              rest_t = std::max(rest_t, e.t_s);
-              break;
-            }
+          rest_t = std::max(rest_t, next_motion_change(plant_events, c.confirmed_t_s)->t_s);
         s.settle_time_s = rest_t - step_time_s_;
         s.rest_y_m = c.y_m;
         break;
