@@ -7,6 +7,7 @@
 #include <cmath>
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 
 #include "pneu/backends/factory.hpp"
 #include "pneu/controller/session.hpp"
@@ -110,6 +111,14 @@ void expect_close_to_bench(const identify::Identification& id, const model::Plan
     // The uncertainty it states covers its error.
     EXPECT_LE(std::abs(e.value - truth(bench, key)), 3 * e.std) << key;
   }
+  // So do the sliding friction's (the fit's residuals are correlated along a motion: Newey-West).
+  for (const char* key : {"plant.friction.coulomb_positive_n", "plant.friction.coulomb_negative_n",
+                          "plant.friction.viscous_n_s_per_m"}) {
+    const auto& e = id.at(key);
+    if (e.identified) {
+      EXPECT_LE(std::abs(e.value - truth(bench, key)), 3 * e.std) << key << ": " << e.basis;
+    }
+  }
   EXPECT_LT(null_pressure_error_pa(id.plant, bench), 5e3) << "p_null(u) within 5 kPa over |u| < 1 V";
   for (const auto& e : id.estimates) {
     if (!e.identified) continue;
@@ -177,6 +186,9 @@ TEST(IdentificationRun, AFaultEndsTheRunAndNothingIsIdentified) {
                                                                 "controller.supervisor.following_error_s=0.05"});
   const identify::RecordedRun r = record_run(b);
   EXPECT_NE(r.fault.find("following"), std::string::npos) << r.fault;
+  // It names the key that decided, and what relaxing it costs.
+  EXPECT_NE(r.fault.find("decided by controller.supervisor.following_error_s: relaxing it: "), std::string::npos)
+      << r.fault;
   EXPECT_LT(r.samples.back().t_s, r.plan.duration_s - 10.0) << "ended at the fault";
   config::Config cfg = b.cfg;
   const auto valve = controller::make_valve_characteristic(cfg, {});
@@ -189,6 +201,37 @@ TEST(IdentificationRun, AFaultEndsTheRunAndNothingIsIdentified) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("faulted"), std::string::npos) << e.what();
   }
+}
+
+// On the real clock the run lasts about a minute: it says, on the way, the share done and the phase.
+TEST(IdentificationRun, SaysHowItGoesAtEachPhaseAndEveryTenthOfTheRun) {
+  const Bench b = mismatched();
+  const identify::RecordedRun r = record_run(b);
+  ASSERT_EQ(r.plan.phases.size(), 2 * r.plan.positions_m.size());
+  char* text = nullptr;
+  std::size_t size = 0;
+  std::FILE* out = open_memstream(&text, &size);
+  ASSERT_NE(out, nullptr);
+  {
+    identify::Progress progress(r.plan, out);
+    controller::TickRecord tick;
+    for (const auto& sample : r.samples) {
+      tick.t_s = sample.t_s;
+      progress.on_tick(tick, {});
+    }
+  }
+  std::fclose(out);
+  const std::string said(text, size);
+  std::free(text);
+  int lines = 0;
+  for (const char c : said) lines += c == '\n';
+  // Six phases, and the tenths between them that no phase starts.
+  EXPECT_GE(lines, 6 + 4) << said;
+  EXPECT_LE(lines, 6 + 10) << said;
+  EXPECT_NE(said.find("(position 1 of 3)"), std::string::npos) << said;
+  EXPECT_NE(said.find("ramping the set point about"), std::string::npos) << said;
+  EXPECT_NE(said.find("(position 3 of 3)"), std::string::npos) << said;
+  EXPECT_NE(said.find(" 90 %"), std::string::npos) << said;
 }
 
 // The mismatched bench with the physics every real cylinder has: wall heat exchange (a thermal

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <limits>
+#include <string>
 
 #include "pneu/config/config.hpp"
 #include "pneu/controller/supervisor.hpp"
@@ -271,12 +272,39 @@ TEST_F(SupervisorChecks, OverrunsInARowAndOneLongTickIntervalAreFaults) {
   EXPECT_EQ(tick(s, 0.0, good(0.0)), c::FaultCause::kNone);
   s.note_overrun(true);
   EXPECT_EQ(tick(s, kPeriod, good(kPeriod)), c::FaultCause::kOverrun);
+  EXPECT_STREQ(s.decided_by(), "controller.supervisor.overruns_in_a_row");
 
   Supervisor t = make();
   EXPECT_EQ(tick(t, 0.0, good(0.0)), c::FaultCause::kNone);
   EXPECT_EQ(tick(t, 0.5 * v.max_tick_interval_s, good(0.5 * v.max_tick_interval_s)), c::FaultCause::kNone);
   const double late = 0.5 * v.max_tick_interval_s + 1.1 * v.max_tick_interval_s;
   EXPECT_EQ(tick(t, late, good(late)), c::FaultCause::kOverrun);
+  EXPECT_STREQ(t.decided_by(), "controller.supervisor.max_tick_interval_s");
+}
+
+// A fault names the key that decided it, and what raising that key would cost: the operator of a
+// PC without a real-time kernel learns which timing key to relax for a supervised run.
+TEST_F(SupervisorChecks, EachFaultNamesTheConfigKeyThatDecidedItAndWhatRelaxingItCosts) {
+  Supervisor s = make();
+  EXPECT_EQ(tick(s, 0.0, good(0.0)), c::FaultCause::kNone);
+  EXPECT_EQ(s.decided_by(), nullptr) << "no fault, no key";
+  hal::SensorFrame high = good(kPeriod);
+  high.p_p_pa = config_.controller.supervisor.pressure_max_pa + 1.0;
+  EXPECT_EQ(tick(s, kPeriod, high), c::FaultCause::kSensorRange);
+  EXPECT_STREQ(s.decided_by(), "controller.supervisor.pressure_min_pa/pressure_max_pa")
+      << "a sample's fault keeps its key although the motion checks ran after it";
+  Supervisor u = make();
+  hal::SensorFrame nan = good(0.0);
+  nan.y_m = std::nan("");
+  EXPECT_EQ(tick(u, 0.0, nan), c::FaultCause::kSensorNonFinite);
+  EXPECT_EQ(u.decided_by(), nullptr) << "no key relaxes a reading that is not a number";
+
+  const std::string interval = c::relaxing_costs("controller.supervisor.max_tick_interval_s");
+  const std::string in_a_row = c::relaxing_costs("controller.supervisor.overruns_in_a_row");
+  EXPECT_NE(interval, in_a_row);
+  EXPECT_NE(interval.find("keep their last command"), std::string::npos) << interval;
+  EXPECT_NE(in_a_row.find("real-time kernel"), std::string::npos) << in_a_row;
+  EXPECT_NE(std::string(c::relaxing_costs(nullptr)).find("no key"), std::string::npos);
 }
 
 TEST_F(SupervisorChecks, ASilentSetPointStreamIsAFaultWhenOneIsConfigured) {

@@ -161,6 +161,7 @@ int run(int argc, char** argv) {
   std::optional<controller::ControlLaw> run_law;  // the identification run's, when not the configured one
   const config::Config as_configured = cfg;
   std::optional<cli::AtomicFile> identified;
+  identify::RunPlan plan;
   if (identify_path) {
     if (args.flag("check-config")) throw cli::UsageError("--identify and --check-config do not go together");
     if (args.value("duration")) throw cli::UsageError("--identify makes its own run: no --duration");
@@ -170,7 +171,6 @@ int run(int argc, char** argv) {
     // The simulated bench starts at rest at simulation.initial_position_m; a real one goes to the
     // configured first set point.
     if (cfg.hal.backend == config::BackendKind::kSim) cfg.controller.initial_setpoint_m = cfg.simulation.initial_position_m;
-    identify::RunPlan plan;
     run_law = identify::identification_law(cfg, *valve);
     try {
       plan = identify::plan_run(cfg, *run_law, *valve, cfg.controller.initial_setpoint_m);
@@ -201,6 +201,9 @@ int run(int argc, char** argv) {
   std::atomic<bool> fault_stop{false};
   identify::Recorder recorder(fault_stop);
   if (identify_path) run.runtime->add_sink(recorder);
+  // On the real clock the run lasts about a minute: how it goes, on stderr.
+  identify::Progress progress(plan, stderr);
+  if (identify_path && real_clock) run.runtime->add_sink(progress);
   // Online identification (controller.predictor.learn_online): the forecasts on what it learns.
   std::optional<identify::OnlineIdentifier> learner;
   if (cfg.controller.predictor.learn_online && !identify_path) run.runtime->add_sink(learner.emplace(as_configured, *run.runtime));

@@ -22,7 +22,9 @@ void EventsFile::on_event(const LoopEvent& e) {
       return;
     case LoopEvent::Kind::kFault:
       out_ << "{\"event\":\"fault\",\"t\":" << num(e.t_s, 12) << ",\"y\":" << num(e.y_m, 12) << ",\"cause\":\""
-           << fault_name(e.fault_cause) << "\",\"text\":\"" << fault_text(e.fault_cause) << "\"}\n";
+           << fault_name(e.fault_cause) << "\",\"text\":\"" << fault_text(e.fault_cause) << '"';
+      if (e.fault_key != nullptr) out_ << ",\"key\":\"" << e.fault_key << '"';
+      out_ << "}\n";
       return;
     case LoopEvent::Kind::kFaultReset:
     case LoopEvent::Kind::kResetRefused:

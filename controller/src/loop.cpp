@@ -137,7 +137,7 @@ void ControlLoop::apply_commands(double y_m) noexcept {
   }
 }
 
-void ControlLoop::latch_fault(FaultCause cause, double t_s, double y_m) noexcept {
+void ControlLoop::latch_fault(FaultCause cause, double t_s, double y_m, const char* key) noexcept {
   if (mode_ == Mode::kFault) return;
   if (mode_ == Mode::kHold) end_hold(HoldEnd::kFault, t_s, y_m, Mode::kFault);
   mode_ = Mode::kFault;
@@ -145,6 +145,7 @@ void ControlLoop::latch_fault(FaultCause cause, double t_s, double y_m) noexcept
   ++faults_;
   LoopEvent e = event(LoopEvent::Kind::kFault, t_s, y_m);
   e.fault_cause = cause;
+  e.fault_key = key;
   push(e);
 }
 
@@ -191,7 +192,8 @@ void ControlLoop::tick(double t_s) noexcept {
   st.t_s = t_s;
   st.status = status;
   st.frame = &frame;
-  if (const FaultCause cause = supervisor_.check_sample(st); cause != FaultCause::kNone) latch_fault(cause, t_s, frame.y_m);
+  if (const FaultCause cause = supervisor_.check_sample(st); cause != FaultCause::kNone)
+    latch_fault(cause, t_s, frame.y_m, supervisor_.decided_by());
   const bool read_ok = supervisor_.sample_good();
   const double y_measured_m = frame.y_m;
   // Without a good sample, keep the last position: a stale or invalid value must not reach the
@@ -207,7 +209,8 @@ void ControlLoop::tick(double t_s) noexcept {
   st.y_d_m = y_d_m_;
   st.last_setpoint_t_s = last_setpoint_t_s_;
   st.at_rest = detector_.stopped();  // as of the last good sample: the detector runs below
-  if (const FaultCause cause = supervisor_.check_motion(st); cause != FaultCause::kNone) latch_fault(cause, t_s, y_measured_m);
+  if (const FaultCause cause = supervisor_.check_motion(st); cause != FaultCause::kNone)
+    latch_fault(cause, t_s, y_measured_m, supervisor_.decided_by());
 
   // Differentiate new samples only (a slow link repeats them), over the ticks since the last new
   // one: the loop's period keeps the arrival jitter of the samples out of the derivatives.

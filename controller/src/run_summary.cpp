@@ -182,8 +182,9 @@ void print_summary(std::FILE* out, const RunFigures& f, const Runtime& runtime) 
   print_live(out, runtime);
   print_held(out, runtime);
   for (const auto& fault : runtime.faults())
-    std::fprintf(out, "fault at %.4f s (y = %.3f mm): %s: %s\n", fault.t_s, fault.y_m * 1e3,
-                 fault_name(fault.fault_cause), fault_text(fault.fault_cause));
+    std::fprintf(out, "fault at %.4f s (y = %.3f mm): %s: %s%s%s\n", fault.t_s, fault.y_m * 1e3,
+                 fault_name(fault.fault_cause), fault_text(fault.fault_cause),
+                 fault.fault_key != nullptr ? "; decided by " : "", fault.fault_key != nullptr ? fault.fault_key : "");
   print_loop(out, f.timing);
   if (f.telemetry) print_telemetry(out, *f.telemetry);
   if (f.modbus) print_modbus(out, *f.modbus, t_end_s);
@@ -241,6 +242,7 @@ void write_summary_json(std::ostream& out, const RunFigures& f, const Runtime& r
     w.number("t_s", fault.t_s);
     w.number("y_m", fault.y_m);
     w.text("cause", fault_name(fault.fault_cause));
+    if (fault.fault_key != nullptr) w.text("key", fault.fault_key);
     w.end_object();
   }
   w.end_array();

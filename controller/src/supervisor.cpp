@@ -2,15 +2,34 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string_view>
 
 namespace pneu::controller {
 
 namespace {
 // Keeps the first cause a check reports in a tick: the order of the checks is their priority.
+// With it, the config key of the rule that found it.
 struct FirstCause {
   FaultCause cause = FaultCause::kNone;
-  void operator()(FaultCause c) noexcept {
-    if (cause == FaultCause::kNone) cause = c;
+  const char* key = nullptr;
+  void operator()(FaultCause c, const char* rule_key = nullptr) noexcept {
+    if (cause != FaultCause::kNone || c == FaultCause::kNone) return;
+    cause = c;
+    key = rule_key != nullptr ? rule_key : default_key(c);
+  }
+  // The key of a cause one rule decides.
+  static const char* default_key(FaultCause c) noexcept {
+    switch (c) {
+      case FaultCause::kComms: return "controller.comms_fault_after_s";
+      case FaultCause::kSensorFrozen: return "controller.supervisor.frozen_after_s";
+      case FaultCause::kSensorJump: return "controller.supervisor.max_speed_m_per_s";
+      case FaultCause::kSoftLimit: return "controller.supervisor.overtravel_m";
+      case FaultCause::kFollowingError: return "controller.supervisor.following_error_s";
+      case FaultCause::kCommandTimeout: return "commands.setpoint_stream_timeout_s";
+      case FaultCause::kOscillation: return "controller.supervisor.oscillation_sign_changes";
+      case FaultCause::kNotSettled: return "controller.supervisor.settle_time_s";
+      default: return nullptr;
+    }
   }
 };
 }  // namespace
@@ -50,6 +69,36 @@ const char* fault_text(FaultCause cause) noexcept {
     case FaultCause::kNotSettled: return "the loop does not settle: no rest within controller.supervisor.settle_time_s of a set-point change (the carriage still moving: unstable or creeping gains?)";
     default: return "fault";
   }
+}
+
+const char* relaxing_costs(const char* key) noexcept {
+  if (key == nullptr) return "no key relaxes it: find and remove the cause";
+  const std::string_view k = key;
+  if (k == "controller.supervisor.max_tick_interval_s")
+    return "a longer gap between two ticks is let pass: for that long the valves keep their last command and nothing is "
+           "checked. On a PC without a real-time kernel a supervised run (an identification) may raise it to about "
+           "0.2 s; a bench left running should not";
+  if (k == "controller.supervisor.overruns_in_a_row")
+    return "the loop may run late for that many ticks in a row: each late tick acts on an older sample. On a PC without "
+           "a real-time kernel raising it (or 0, off) costs only the record's timing, which identification counts and "
+           "reports (timing:); max_tick_interval_s still bounds any one gap";
+  if (k == "controller.comms_fault_after_s")
+    return "stale or lost samples are let pass that long: the loop acts on the last good sample meanwhile";
+  if (k == "controller.supervisor.frozen_after_s")
+    return "a frozen pressure sensor goes unnoticed that long (0: for ever): the forecasts and the hold act on a stuck "
+           "reading";
+  if (k == "controller.supervisor.max_speed_m_per_s")
+    return "a faster jump of the position reading is taken for motion: a failing potentiometer drives the valves";
+  if (k == "controller.supervisor.following_error_s" || k == "controller.supervisor.following_error_m")
+    return "the carriage may lag the set point further or longer before the safe output: a blocked carriage pushes "
+           "harder meanwhile";
+  if (k == "controller.supervisor.settle_time_s" || k == "controller.supervisor.oscillation_sign_changes")
+    return "a loop that does not settle drives on that much longer: look at the gains first";
+  if (k == "controller.supervisor.overtravel_m")
+    return "the carriage may pass the soft limits further before the safe output: it nears the end stops";
+  if (k == "commands.setpoint_stream_timeout_s")
+    return "the set points may fall silent longer before the safe output: the carriage holds the last one meanwhile";
+  return "the check it decides is made later or not at all: see docs/configuration.md";
 }
 
 Supervisor::Supervisor(const LoopParams& params)
@@ -137,18 +186,31 @@ void Supervisor::note_overrun(bool overran) noexcept {
 
 FaultCause Supervisor::check_reading(const hal::SensorFrame& f) noexcept {
   using namespace hal;
+  reading_key_ = nullptr;
   if (!std::isfinite(f.y_m) || !std::isfinite(f.p_p_pa) || !std::isfinite(f.p_n_pa)) return FaultCause::kSensorNonFinite;
-  if ((f.validity & (kPositionInvalid | kPressurePInvalid | kPressureNInvalid)) != 0) return FaultCause::kSensorRange;
-  if (f.y_m < cfg_.position_min_m || f.y_m > cfg_.position_max_m) return FaultCause::kSensorRange;
+  if ((f.validity & (kPositionInvalid | kPressurePInvalid | kPressureNInvalid)) != 0) {
+    reading_key_ = "hal.sensors (a converter's raw range)";
+    return FaultCause::kSensorRange;
+  }
+  if (f.y_m < cfg_.position_min_m || f.y_m > cfg_.position_max_m) {
+    reading_key_ = "controller.supervisor.position_min_m/position_max_m";
+    return FaultCause::kSensorRange;
+  }
   for (const double p : {f.p_p_pa, f.p_n_pa})
-    if (p < cfg_.pressure_min_pa || p > cfg_.pressure_max_pa) return FaultCause::kSensorRange;
+    if (p < cfg_.pressure_min_pa || p > cfg_.pressure_max_pa) {
+      reading_key_ = "controller.supervisor.pressure_min_pa/pressure_max_pa";
+      return FaultCause::kSensorRange;
+    }
   return FaultCause::kNone;
 }
 
 FaultCause Supervisor::check(const SupervisedTick& tick) noexcept {
   const FaultCause sample = check_sample(tick);
+  const char* sample_key = decided_by_;
   const FaultCause motion = check_motion(tick);
-  return sample != FaultCause::kNone ? sample : motion;
+  if (sample == FaultCause::kNone) return motion;
+  decided_by_ = sample_key;
+  return sample;
 }
 
 FaultCause Supervisor::check_sample(const SupervisedTick& tick) noexcept {
@@ -171,7 +233,7 @@ FaultCause Supervisor::check_sample(const SupervisedTick& tick) noexcept {
   } else {
     bad_since_s_ = -1.0;
   }
-  first(reading);
+  first(reading, reading_key_);
   if (!delivered && bad_since_s_ >= 0.0 && t - bad_since_s_ >= comms_fault_after_s_ - 1e-9) first(FaultCause::kComms);
 
   if (sample_good_ && f.fresh) {
@@ -204,6 +266,7 @@ FaultCause Supervisor::check_sample(const SupervisedTick& tick) noexcept {
     if (frozen_) first(FaultCause::kSensorFrozen);
   }
 
+  decided_by_ = first.key;
   return first.cause;
 }
 
@@ -229,15 +292,16 @@ FaultCause Supervisor::check_motion(const SupervisedTick& tick) noexcept {
 
   // Timing: the interval since the last tick (real clock: wake-up times) and overruns in a row.
   if (cfg_.max_tick_interval_s > 0.0 && last_tick_t_s_ >= 0.0 && t - last_tick_t_s_ > cfg_.max_tick_interval_s)
-    first(FaultCause::kOverrun);
+    first(FaultCause::kOverrun, "controller.supervisor.max_tick_interval_s");
   last_tick_t_s_ = t;
   if (overrun_fault_) {
     overrun_fault_ = false;
-    first(FaultCause::kOverrun);
+    first(FaultCause::kOverrun, "controller.supervisor.overruns_in_a_row");
   }
 
   if (tick.armed && stream_timeout_s_ > 0.0 && t - tick.last_setpoint_t_s > stream_timeout_s_)
     first(FaultCause::kCommandTimeout);
+  decided_by_ = first.key;
   return first.cause;
 }
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 #include "pneu/controller/clock.hpp"
@@ -41,8 +42,10 @@ RunPlan plan_run(const config::Config& cfg, const controller::ControlLaw& law, c
   plan.positions_m = {lo + 0.1 * (hi - lo), hi - 0.1 * (hi - lo), lo + 0.5 * (hi - lo)};
   double t = 0.2;
   for (const double y : plan.positions_m) {
+    plan.phases.push_back({t, y, false});
     plan.schedule.push_back({t, y});
     t += o.settle_s;
+    plan.phases.push_back({t, y, true});
     const double k_y = law.gains_at(y).position_gain_v_per_m;
     if (!(k_y > 0)) throw std::invalid_argument("the law has no position gain at " + std::to_string(y) + " m");
     const double reach_m = reach_v / k_y;
@@ -71,9 +74,27 @@ void Recorder::on_tick(const controller::TickRecord& tick, const controller::Exp
   samples_.push_back(sample_of(tick));
 }
 
+void Progress::on_tick(const controller::TickRecord& tick, const controller::ExpectedAtTick&) {
+  // At each phase's start, and every tenth of the run in between.
+  const bool phase_starts = next_ < plan_.phases.size() && tick.t_s + 1e-9 >= plan_.phases[next_].t_s;
+  if (!phase_starts && tick.t_s < next_tenth_ * 0.1 * plan_.duration_s) return;
+  if (phase_starts) ++next_;
+  next_tenth_ = std::floor(10.0 * tick.t_s / plan_.duration_s) + 1.0;
+  if (next_ == 0) return;
+  const RunPlan::Phase& p = plan_.phases[next_ - 1];
+  const std::size_t n = plan_.positions_m.size();
+  std::fprintf(out_, "pneud: identification: %3.0f %% (%.1f of %.1f s): %s %.1f mm (position %zu of %zu)\n",
+               100.0 * tick.t_s / plan_.duration_s, tick.t_s, plan_.duration_s,
+               p.ramp ? "ramping the set point about" : "moving to and settling at", p.position_m * 1e3,
+               (next_ + 1) / 2, n);
+  std::fflush(out_);
+}
+
 void Recorder::on_event(const controller::LoopEvent& e) {
   if (e.kind != controller::LoopEvent::Kind::kFault || !fault_.empty()) return;
   fault_ = std::string(controller::fault_name(e.fault_cause)) + " (" + controller::fault_text(e.fault_cause) + ")";
+  if (e.fault_key != nullptr)
+    fault_ += std::string("; decided by ") + e.fault_key + ": relaxing it: " + controller::relaxing_costs(e.fault_key);
   fault_t_s_ = e.t_s;
   stop_.store(true);
 }

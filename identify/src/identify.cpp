@@ -355,7 +355,7 @@ struct Sliding {
   double std_positive = 0, std_negative = 0, std_viscous = 0;
   int samples_positive = 0, samples_negative = 0;
   double seconds = 0.0;
-  double speed_span = 0.0;
+  double speed_min = 0.0, speed_max = 0.0;  ///< of the samples fitted, either way [m/s]
   bool solved = false;
 };
 
@@ -398,7 +398,10 @@ Sliding sliding_from(std::span<const Sample> s, std::span<const double> force, s
     sample_of_row.push_back(k);
     if (k > 0) out.seconds += s[k].t_s - s[k - 1].t_s;
   }
-  out.speed_span = rows.empty() ? 0.0 : v_max - v_min;
+  if (!rows.empty()) {
+    out.speed_min = v_min;
+    out.speed_max = v_max;
+  }
   if (out.samples_positive < 20 || out.samples_negative < 20) return out;
   Eigen::MatrixXd a(static_cast<Eigen::Index>(rows.size()), 3);
   Eigen::VectorXd b(static_cast<Eigen::Index>(rows.size()));
@@ -551,8 +554,8 @@ Identification identify(std::span<const Sample> s, const model::PlantParams& pri
                        sl.samples_negative);
       return e;
     }
-    e.basis = format("%d sliding samples, their speeds spanning %.3g m/s", sl.samples_positive + sl.samples_negative,
-                     sl.speed_span);
+    e.basis = format("%d sliding samples at %.2g to %.2g m/s", sl.samples_positive + sl.samples_negative,
+                     sl.speed_min, sl.speed_max);
     if (!sign_ok || sd > o.max_relative_std * std::abs(value)) {
       e.basis += format(": %.4g +- %.2g not separable, prior kept", value, sd);
       return e;

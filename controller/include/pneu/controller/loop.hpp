@@ -80,6 +80,9 @@ struct LoopEvent {
   StopSnapshot snapshot;         ///< stop: state at confirmation, u* of Eq. 11
   bool controlled = true;        ///< stop: the law was driving (armed), so u* applies and a forecast makes sense
   FaultCause fault_cause = FaultCause::kNone;  ///< fault, reset, reset refused: which cause
+  /// fault: the config key of the rule that latched it (Supervisor::decided_by; a static string),
+  /// or nullptr
+  const char* fault_key = nullptr;
   HoldEnd hold_end = HoldEnd::kNone;           ///< hold end: why
   HoldState hold;                              ///< hold start: the hold's law as it starts
   std::uint64_t tick_seq = 0;    ///< the tick that raised it (its TickRecord::seq)
@@ -160,7 +163,7 @@ class ControlLoop {
   /// An event of `kind` at `t_s`, position `y_m`: the last stop's index and the set point filled.
   [[nodiscard]] LoopEvent event(LoopEvent::Kind kind, double t_s, double y_m) const noexcept;
   void apply_commands(double y_m) noexcept;
-  void latch_fault(FaultCause cause, double t_s, double y_m) noexcept;
+  void latch_fault(FaultCause cause, double t_s, double y_m, const char* key = nullptr) noexcept;
   void start_hold(double t_s, double y_m, double force_n, int reach_direction) noexcept;
   void end_hold(HoldEnd why, double t_s, double y_m, Mode next) noexcept;
 

@@ -41,6 +41,9 @@ inline constexpr std::size_t kFaultCauseCount = 13;
 /// that is no cause).
 [[nodiscard]] const char* fault_name(FaultCause cause) noexcept;
 [[nodiscard]] const char* fault_text(FaultCause cause) noexcept;
+/// What raising (or turning off) the supervisor key `key` would cost, for a message that names the
+/// key that latched a fault (static strings; a generic sentence for a key it does not know).
+[[nodiscard]] const char* relaxing_costs(const char* key) noexcept;
 
 /// What one tick hands the supervisor.
 struct SupervisedTick {
@@ -75,6 +78,10 @@ class Supervisor {
   /// limits, following error, settling (oscillation, settle time), timing, the set-point stream.
   [[nodiscard]] FaultCause check_motion(const SupervisedTick& tick) noexcept;
 
+  /// The config key of the rule that found the cause the last check_sample() or check_motion()
+  /// returned (a static string), or nullptr when none did or no key decides it (the e-stop, a
+  /// reading that is not a number).
+  [[nodiscard]] const char* decided_by() const noexcept { return decided_by_; }
   /// Whether this tick's sample was good (read ok, every reading valid, finite and plausible):
   /// only good samples may reach the differentiator and the stop detector.
   [[nodiscard]] bool sample_good() const noexcept { return sample_good_; }
@@ -102,6 +109,8 @@ class Supervisor {
   bool estop_ = false;
   bool frozen_ = false;                   // a pressure reading is frozen now
   bool sample_good_ = true;
+  const char* decided_by_ = nullptr;
+  const char* reading_key_ = nullptr;     // the rule check_reading() found a reading out by
   FaultCause sample_cause_ = FaultCause::kNone;  // why the last sample was not good
   double bad_since_s_ = -1.0;           // first tick of the current run of bad reads
   bool have_last_y_ = false;

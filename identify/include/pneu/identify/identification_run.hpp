@@ -30,6 +30,13 @@ struct RunPlan {
   std::vector<config::SetpointStep> schedule;
   double duration_s = 0.0;
   std::vector<double> positions_m;  ///< where it ramps
+  /// Its phases, in order: the move to each position (and the settling there), then the ramp.
+  struct Phase {
+    double t_s = 0.0;       ///< when it starts [s]
+    double position_m = 0.0;
+    bool ramp = false;      ///< false: moving there and settling
+  };
+  std::vector<Phase> phases;
 };
 
 /// What the plan is made of.
@@ -74,6 +81,20 @@ class Recorder final : public controller::RunListener {
   std::vector<Sample> samples_;
   std::string fault_;
   double fault_t_s_ = 0.0;
+};
+
+/// A sink that says how the run goes, one line at each phase's start: the share done, the phase
+/// and the position (pneud --identify on the real clock, whose run lasts about a minute).
+class Progress final : public controller::RunListener {
+ public:
+  Progress(const RunPlan& plan, std::FILE* out) : plan_(plan), out_(out) {}
+  void on_tick(const controller::TickRecord& tick, const controller::ExpectedAtTick&) override;
+
+ private:
+  const RunPlan& plan_;
+  std::FILE* out_;
+  std::size_t next_ = 0;     // the next phase to start
+  double next_tenth_ = 1.0;  // the next tenth of the run to say
 };
 
 /// The sample a tick gives.
