@@ -213,18 +213,28 @@ TEST_F(ServeWatchdog, TheRecordWritesTheHeldOutputsAtMostOnceEvery10MsCountingTh
   EXPECT_LT(lines.size(), 300u) << "not one line per write: the writes came faster than 10 ms apart";
 }
 
-TEST_F(ServeWatchdog, PneudRefusesAnExpectedWatchdogThatOneLostReplyWouldTrip) {
-  Child p = Child::spawn({bin("pneud"), "--config", hil_yaml(), "--check-config", "--set",
-                          "hal.modbus.module_watchdog_s=0.03"},
+TEST_F(ServeWatchdog, PneudRefusesAStatedWatchdogThatOneLostReplyWouldTripAndWarnsWhenNoneIsStated) {
+  // hil.yaml: 20 ms response timeout, 1 ms exchange period: one lost reply and its retry is 41 ms.
+  Child p = Child::spawn({bin("pneud"), "--config", hil_yaml(), "--set", "hal.modbus.port=" + std::to_string(port_),
+                          "--set", "telemetry.enabled=false", "--duration", "1", "--set", "hal.modbus.module_watchdog_s=0.04"},
                          dir_ / "pneud.out", dir_ / "pneud.err");
-  EXPECT_EQ(p.wait(), 2);
+  EXPECT_EQ(p.wait(), 2) << "refused as a configuration error, before connecting";
   EXPECT_THAT(slurp(dir_ / "pneud.err"), HasSubstr("hal.modbus.module_watchdog_s"));
   EXPECT_THAT(slurp(dir_ / "pneud.err"), HasSubstr("one lost reply would trip the module's watchdog"));
-  Child ok = Child::spawn({bin("pneud"), "--config", hil_yaml(), "--check-config", "--set",
-                           "hal.modbus.module_watchdog_s=0.1"},
+  EXPECT_THAT(slurp(dir_ / "pneud.err"), ::testing::Not(HasSubstr("cannot connect")));
+  // 0.1 s is accepted: it gets as far as connecting (no module listens here).
+  Child ok = Child::spawn({bin("pneud"), "--config", hil_yaml(), "--set", "hal.modbus.port=" + std::to_string(port_),
+                           "--set", "telemetry.enabled=false", "--duration", "1", "--set", "hal.modbus.module_watchdog_s=0.1"},
                           dir_ / "ok.out", dir_ / "ok.err");
-  EXPECT_EQ(ok.wait(), 0) << slurp(dir_ / "ok.err");
-  EXPECT_THAT(slurp(dir_ / "ok.out"), HasSubstr("module_watchdog_s: 0.1"));
+  EXPECT_EQ(ok.wait(), 1);
+  EXPECT_THAT(slurp(dir_ / "ok.err"), HasSubstr("cannot connect"));
+  EXPECT_THAT(slurp(dir_ / "ok.err"), ::testing::Not(HasSubstr("no module watchdog stated")));
+  // None stated (hil.yaml's 0): said at start-up, on stderr (the journal).
+  Child none = Child::spawn({bin("pneud"), "--config", hil_yaml(), "--set", "hal.modbus.port=" + std::to_string(port_),
+                             "--set", "telemetry.enabled=false", "--duration", "1"},
+                            dir_ / "none.out", dir_ / "none.err");
+  EXPECT_EQ(none.wait(), 1);
+  EXPECT_THAT(slurp(dir_ / "none.err"), HasSubstr("warning: hal.modbus.module_watchdog_s is 0: no module watchdog stated"));
 }
 
 }  // namespace

@@ -34,6 +34,17 @@ ModbusBackend::ModbusBackend(const config::ModbusConfig& modbus, const model::Se
   if (read_count_ > MODBUS_MAX_WR_READ_REGISTERS)
     throw std::runtime_error("hal.modbus.channels: the sensor registers span " + std::to_string(read_count_) +
                              " registers, more than one read transaction carries");
+  // The module's watchdog must outlast one lost reply and its retry on a new connection, or a
+  // single lost frame sets the outputs to the module's safe values while pneud drives on.
+  const double one_loss_s = 2.0 * cfg_.response_timeout_s + cfg_.min_exchange_period_s;
+  if (cfg_.module_watchdog_s != 0.0 && !(cfg_.module_watchdog_s > one_loss_s)) {
+    char text[240];
+    std::snprintf(text, sizeof text,
+                  "must be 0 (none) or exceed a lost reply and its retry, 2 x response_timeout_s + "
+                  "min_exchange_period_s = %g s (got %g): one lost reply would trip the module's watchdog",
+                  one_loss_s, cfg_.module_watchdog_s);
+    throw config::ConfigError("hal.modbus.module_watchdog_s", text);
+  }
   if (cfg_.read_write_multiple && write_count_ != 2)
     throw std::runtime_error("hal.modbus.channels: function 23 writes one block: valve_p and valve_n must be adjacent registers");
 }
