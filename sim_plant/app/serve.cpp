@@ -301,8 +301,9 @@ const char* const kServeHelpText = R"(pneu-plant serve: the simulated bench behi
                        "direction" +1 / -1), "stick" (sliding -> stuck) and "end_stop", located
                        inside the integration step, with "y" [m] and "force" [N, Eq. 14]; the
                        valve outputs it holds, "outputs" ("u_p", "u_n" [V], "client", "cause"
-                       write | watchdog | start; at most one line per 10 ms, "skipped": the
-                       changes held shorter, never the last); "connect", "disconnect", "refused",
+                       write | watchdog; at most one line written per 10 ms, "skipped": the
+                       changes superseded before their line was due; never the last);
+                       "connect", "disconnect", "refused",
                        "owner" and "released" (the valve registers' writer); "watchdog" (a trip:
                        "client", "last_request_t", "last_request_monotonic_s", the outputs set);
                        "fault" (a --fault becoming active); "stop". The truth a test judges
@@ -481,9 +482,9 @@ int serve(int argc, char** argv) {
 
   const double t0 = monotonic_s();
   // One line of the record: its kind, its time and the rest of its fields (",\"key\":value...").
-  const auto record = [&](const char* kind, double t, const std::string& fields) {
+  const auto record = [&](const char* kind, double t, const std::string& rest) {
     if (!events) return;
-    std::fprintf(events, "{\"event\":\"%s\",\"t\":%.9f,\"monotonic_s\":%.9f%s}\n", kind, t, t0 + t, fields.c_str());
+    std::fprintf(events, "{\"event\":\"%s\",\"t\":%.9f,\"monotonic_s\":%.9f%s}\n", kind, t, t0 + t, rest.c_str());
     std::fflush(events);
   };
   if (events) {
