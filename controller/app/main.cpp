@@ -191,6 +191,9 @@ int run(int argc, char** argv) {
   // What this build left out is refused before any output file is created.
   backends::require_built(cfg);
   Telemetry::require_built(args.flag("require-telemetry"));
+  if (cfg.hal.backend == config::BackendKind::kModbus && cfg.hal.modbus.module_watchdog_s == 0.0)  // docs/serve.md
+    std::fprintf(stderr, "pneud: warning: hal.modbus.module_watchdog_s is 0: no module watchdog stated; should pneud "
+                         "die, the module holds its last command until a watchdog of its own trips\n");
   RunFiles files(args);
   if (identify_path) identified.emplace(*identify_path);  // an unwritable path fails before the run
   std::signal(SIGINT, on_signal);

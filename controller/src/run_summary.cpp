@@ -163,9 +163,18 @@ void print_modbus(std::FILE* out, const hal::LinkReport& m, double t_end_s) {
                static_cast<ull>(m.errors), static_cast<ull>(m.reconnects), static_cast<ull>(m.out_of_range),
                static_cast<ull>(m.stale_reads), m.oldest_sample_s * 1e3, m.errors ? "; last error: " : "",
                m.errors ? m.last_error.c_str() : "");
+  const bool read_back = !std::isnan(m.safe_output_read_back_u_p_v);
   if (m.safe_output_delivered)
-    std::fprintf(out, "  safe output on closing: delivered to the module on attempt %d of %d\n", m.safe_output_attempts,
-                 m.safe_output_max_attempts);
+    std::fprintf(out,
+                 "  safe output on closing: delivered to the module on attempt %d of %d: its valve registers read back "
+                 "u_P = %+.4f V, u_N = %+.4f V\n",
+                 m.safe_output_attempts, m.safe_output_max_attempts, m.safe_output_read_back_u_p_v,
+                 m.safe_output_read_back_u_n_v);
+  else if (read_back)
+    std::fprintf(out,
+                 "  safe output on closing: NOT confirmed by the module after %d attempts: its valve registers last "
+                 "read back u_P = %+.4f V, u_N = %+.4f V\n",
+                 m.safe_output_attempts, m.safe_output_read_back_u_p_v, m.safe_output_read_back_u_n_v);
   else
     std::fprintf(out, "  safe output on closing: NOT confirmed by the module after %d attempts\n",
                  m.safe_output_attempts);
@@ -287,6 +296,13 @@ void write_summary_json(std::ostream& out, const RunFigures& f, const Runtime& r
     w.flag("delivered", m->safe_output_delivered);
     w.count("attempts", static_cast<std::uint64_t>(m->safe_output_attempts));
     w.count("max_attempts", static_cast<std::uint64_t>(m->safe_output_max_attempts));
+    if (std::isnan(m->safe_output_read_back_u_p_v)) {
+      w.null("read_back_u_p_v");
+      w.null("read_back_u_n_v");
+    } else {
+      w.number("read_back_u_p_v", m->safe_output_read_back_u_p_v);
+      w.number("read_back_u_n_v", m->safe_output_read_back_u_n_v);
+    }
     w.end_object();
     w.end_object();
   } else {

@@ -14,6 +14,7 @@
 #include <atomic>
 #include <cerrno>
 #include <cmath>
+#include <cstdarg>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -23,6 +24,7 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "pneu/config/cli.hpp"
@@ -203,6 +205,7 @@ struct Connection {
   std::uint64_t number = 0;      ///< 1, 2, ... in the order they were accepted
   std::string peer;              ///< address:port
   int low_water_bytes = 1;       ///< the socket's SO_RCVLOWAT: the bytes of the frame awaited
+  double last_request_s = 0.0;   ///< when its last request for this unit was read, since start-up
   bool told_busy = false;        ///< its first refused valve write was reported on stderr
   bool reply_pending = false;    ///< --reply-delay-s holds the reply back (the socket is not read meanwhile)
   double reply_at_s = 0.0;       ///< when it falls due, since start-up
@@ -210,6 +213,47 @@ struct Connection {
   std::array<std::uint8_t, std::max(MODBUS_RTU_MAX_ADU_LENGTH, MODBUS_TCP_MAX_ADU_LENGTH)> query{};
   std::array<std::uint16_t, 6> sensor_words{};  ///< the sensor registers when the held request came
 };
+
+/// `text` as a JSON string, quotes included (a device path or a --fault spec may hold any byte).
+std::string json_string(const std::string& text) {
+  std::string out = "\"";
+  for (const char ch : text) {
+    const auto u = static_cast<unsigned char>(ch);
+    if (ch == '"' || ch == '\\') out += '\\', out += ch;
+    else if (u < 0x20) {
+      char esc[8];
+      std::snprintf(esc, sizeof esc, "\\u%04x", u);
+      out += esc;
+    } else out += ch;
+  }
+  return out + "\"";
+}
+
+/// printf into a std::string: the fields of an --events line.
+__attribute__((format(printf, 1, 2))) std::string fields(const char* format, ...) {
+  char text[256];
+  va_list args;
+  va_start(args, format);
+  std::vsnprintf(text, sizeof text, format, args);
+  va_end(args);
+  return text;
+}
+
+/// The valve outputs a module's watchdog sets (--watchdog-outputs): neutral, exhaust or U_P,U_N.
+struct WatchdogOutputs {
+  double u_p_v = 0.0, u_n_v = 0.0;
+};
+
+WatchdogOutputs parse_watchdog_outputs(const std::string& text, double u_e_v, double u_max_v) {
+  if (text == "neutral") return {u_e_v, -u_e_v};
+  if (text == "exhaust") return {-u_max_v, -u_max_v};
+  const auto comma = text.find(',');
+  const auto p = comma == std::string::npos ? std::nullopt : parse_number(text.substr(0, comma));
+  const auto n = comma == std::string::npos ? std::nullopt : parse_number(text.substr(comma + 1));
+  if (!p || !n || !std::isfinite(*p) || !std::isfinite(*n))
+    throw cli::UsageError("--watchdog-outputs '" + text + "': expected neutral, exhaust or U_P,U_N in volts (e.g. -10,-10)");
+  return {*p, *n};
+}
 
 enum class Frame { kWhole, kPartial, kClosed, kTooLong };
 
@@ -250,14 +294,20 @@ const char* const kServeHelpText = R"(pneu-plant serve: the simulated bench behi
                        one each time either received voltage changes (not per request); t_s in
                        seconds since start-up, 6 decimals. Each line is flushed at once, so the
                        file holds the last outputs received even after a SIGKILL.
-  --events FILE        the plant's own record of what it did, one JSON object per line, flushed
-                       at once: {"event":"start"} with "monotonic_s" (CLOCK_MONOTONIC at start-up:
-                       serve's t = 0), then each change between rest and motion as the plant
-                       locates it inside its integration step: "breakaway" (stuck -> sliding: the
-                       pressure force left the stiction band; direction +1 / -1), "stick" (sliding
-                       -> stuck) and "end_stop", each with "t" (serve's seconds since start-up),
-                       "monotonic_s", "y" [m] and "force" [N, Eq. 14]. The truth a test judges
-                       pneud's forecasts and dates against.
+  --events FILE        the plant's and the module's own record of what they did, one JSON object
+                       per line, flushed at once, each with "event", "t" (serve's seconds since
+                       start-up) and "monotonic_s" (CLOCK_MONOTONIC: another process's record on
+                       that clock lines up): "start"; the plant's "breakaway" (stuck -> sliding;
+                       "direction" +1 / -1), "stick" (sliding -> stuck) and "end_stop", located
+                       inside the integration step, with "y" [m] and "force" [N, Eq. 14]; the
+                       valve outputs it holds, "outputs" ("u_p", "u_n" [V], "client", "cause"
+                       write | watchdog; at most one line written per 10 ms, "skipped": the
+                       changes superseded before their line was due; never the last);
+                       "connect", "disconnect", "refused",
+                       "owner" and "released" (the valve registers' writer); "watchdog" (a trip:
+                       "client", "last_request_t", "last_request_monotonic_s", the outputs set);
+                       "fault" (a --fault becoming active); "stop". The truth a test judges
+                       pneud's forecasts, dates and safe outputs against (format: docs/serve.md).
   --fault SPEC         fault injection (repeatable): SPEC is CHANNEL:MODE@T, acting from T seconds
                        after start-up on. Sensor channels position, pressure_p, pressure_n:
                          rail-low | rail-high  the register reads the channel's raw_min | raw_max
@@ -276,6 +326,13 @@ const char* const kServeHelpText = R"(pneu-plant serve: the simulated bench behi
                        its time (each client's own: a held reply holds up no other client) ...
   --delay-after-s T    ... from T seconds after start-up on (default 0)
   --max-clients N      TCP: serve up to N clients at once, 1 to 64 (default 4)
+  --watchdog-s S       the module's fieldbus watchdog, as an I/O coupler's: when the owner of the
+                       valve registers has sent no request for S seconds, the valve outputs go to
+                       --watchdog-outputs and the registers are free for the next writer
+                       (default: hal.modbus.module_watchdog_s; 0: none)
+  --watchdog-outputs W what the watchdog sets: neutral (the voltages serve starts with, u_e of
+                       the initial position: the carriage held), exhaust (both valves at
+                       -controller.law.max_voltage_v) or U_P,U_N in volts (default neutral)
   --quiet              no start-up line
 
 The plant of plant.* runs in real time from rest at simulation.initial_position_m. Each request
@@ -291,7 +348,8 @@ dropped. Reading is free for all. The valve registers have one writer: the first
 sends a write to valve_p or valve_n (functions 6, 16, 22, 23) owns them until it disconnects; a
 write by another client that touches them is answered with exception 06 (server device busy) and
 changes nothing (reported on stderr once per client), and the owner's leaving frees them for the
-next writer (stdout says who owns them, and when they are free).
+next writer (stdout says who owns them, and when they are free). With a watchdog, an owner that
+falls silent loses them too (stdout says so), and the outputs go to the watchdog's.
 RTU serves hal.modbus.device as unit hal.modbus.unit_id, one line, one client.
 
 On exit it prints the requests served, the clients (at most how many at once, how many refused),
@@ -301,7 +359,8 @@ the valve writes refused, and the last valve voltages it was sent. Bad --fault s
 
 int serve(int argc, char** argv) {
   const cli::Args args(argc, argv, 2,
-                       {"config", "duration", "reply-delay-s", "delay-after-s", "outputs", "events", "max-clients"},
+                       {"config", "duration", "reply-delay-s", "delay-after-s", "outputs", "events", "max-clients",
+                        "watchdog-s", "watchdog-outputs"},
                        {"help", "quiet"}, {"set", "fault"});
   if (args.flag("help")) {
     std::cout << kServeHelpText;
@@ -319,6 +378,8 @@ int serve(int argc, char** argv) {
     throw cli::UsageError("--max-clients must be a whole number from 1 to " + std::to_string(kMaxClientsLimit));
   const int max_clients = static_cast<int>(max_clients_d);
   const auto& mb = cfg.hal.modbus;
+  const double watchdog_s = args.number("watchdog-s", mb.module_watchdog_s);
+  if (!(watchdog_s >= 0.0 && std::isfinite(watchdog_s))) throw cli::UsageError("--watchdog-s must be >= 0 (0: none)");
 
   // Faults in the order they become active (ties: command-line order).
   std::vector<Fault> faults;
@@ -350,6 +411,10 @@ int serve(int argc, char** argv) {
       model::equilibrium_voltage_v(plant.valve(), model::ChamberProcess(bench), cfg.simulation.initial_position_m);
   plant.reset_at_rest(cfg.simulation.initial_position_m, u_e);
   double u_p = u_e, u_n = -u_e;  // what the client wrote (at first: the neutral voltages)
+  const WatchdogOutputs watchdog_outputs =
+      parse_watchdog_outputs(args.value("watchdog-outputs").value_or("neutral"), u_e, cfg.controller.law.max_voltage_v);
+  const std::uint16_t watchdog_word_p = mb.valve_p.to_word(watchdog_outputs.u_p_v);
+  const std::uint16_t watchdog_word_n = mb.valve_n.to_word(watchdog_outputs.u_n_v);
   std::optional<double> stuck_p, stuck_n;  // a stuck spool drives its valve instead
 
   ModbusContext m;
@@ -416,9 +481,17 @@ int serve(int argc, char** argv) {
   }
 
   const double t0 = monotonic_s();
-  if (events) {
-    std::fprintf(events, "{\"event\":\"start\",\"t\":0,\"monotonic_s\":%.9f}\n", t0);
+  // One line of the record: its kind, its time and the rest of its fields (",\"key\":value...").
+  const auto record = [&](const char* kind, double t, const std::string& rest) {
+    if (!events) return;
+    std::fprintf(events, "{\"event\":\"%s\",\"t\":%.9f,\"monotonic_s\":%.9f%s}\n", kind, t, t0 + t, rest.c_str());
     std::fflush(events);
+  };
+  if (events) {
+    std::string what = fields(",\"watchdog_s\":%.6f,\"watchdog_u_p\":%.6f,\"watchdog_u_n\":%.6f", watchdog_s,
+                              mb.valve_p.to_volts(watchdog_word_p), mb.valve_n.to_volts(watchdog_word_n));
+    if (watchdog_s == 0.0) what = ",\"watchdog_s\":0";
+    record("start", 0.0, what + fields(",\"u_p\":%.6f,\"u_n\":%.6f", mb.valve_p.to_volts(word_p), mb.valve_n.to_volts(word_n)));
   }
   // The plant's motion events (its time is serve's: both start at 0).
   const auto record_events = [&](std::span<const plant::PlantEvent> happened) {
@@ -430,7 +503,7 @@ int serve(int argc, char** argv) {
                                                                         : nullptr;
       if (kind == nullptr) continue;  // a reversal slides on
       std::fprintf(events, "{\"event\":\"%s\",\"t\":%.9f,\"monotonic_s\":%.9f,\"direction\":%d,\"y\":%.9f,\"force\":%.6f}\n",
-                   kind, e.t_s, t0 + e.t_s, e.direction, e.y_m, e.force_n);
+                   kind, e.t_s, t0 + e.t_s, e.direction, e.y_m, e.force_n);  // the plant's own time
     }
     if (!happened.empty()) std::fflush(events);
   };
@@ -443,6 +516,39 @@ int serve(int argc, char** argv) {
     std::fputs("t_s,u_p_v,u_n_v\n", outputs);
     record_outputs(0.0);
   }
+  // The outputs the module holds, in --events: each change with its time, at most one line
+  // written per kOutputsRecordGapS; a change superseded before its line was due is counted
+  // ("skipped") in the next line, and the last change waits at most that long (pending, written
+  // by the loop).
+  constexpr double kOutputsRecordGapS = 0.01;
+  struct OutputsLine {
+    double t = 0.0;
+    std::uint64_t client = 0;
+    const char* cause = "write";
+  };
+  std::optional<OutputsLine> pending_outputs;
+  double last_outputs_line_t = -1.0;  // serve's time when the last line was written
+  std::uint64_t outputs_skipped = 0;
+  const auto write_outputs_line = [&](const OutputsLine& o) {
+    record("outputs", o.t,
+           fields(",\"u_p\":%.6f,\"u_n\":%.6f,\"client\":%llu,\"cause\":\"%s\",\"skipped\":%llu",
+                  mb.valve_p.to_volts(word_p), mb.valve_n.to_volts(word_n), static_cast<unsigned long long>(o.client),
+                  o.cause, static_cast<unsigned long long>(outputs_skipped)));
+    last_outputs_line_t = std::max(o.t, monotonic_s() - t0);  // when written: a pending line comes late
+    outputs_skipped = 0;
+    pending_outputs.reset();
+  };
+  // Called once word_p, word_n hold the new outputs; `now`: serve's time. A watchdog's line
+  // is written at once.
+  const auto outputs_changed = [&](const OutputsLine& o) {
+    if (!events) return;
+    if (pending_outputs) ++outputs_skipped;
+    if (o.t - last_outputs_line_t >= kOutputsRecordGapS || std::string_view(o.cause) != "write") write_outputs_line(o);
+    else pending_outputs = o;
+  };
+  const auto flush_pending_outputs = [&](double now) {
+    if (pending_outputs && now - last_outputs_line_t >= kOutputsRecordGapS) write_outputs_line(*pending_outputs);
+  };
 
   // Real time: the plant catches up with the wall clock, the valves held since the last write;
   // each fault takes effect at its own time inside the catch-up.
@@ -469,6 +575,7 @@ int serve(int argc, char** argv) {
       }
       std::printf("pneu-plant serve: fault %s active at t = %.6f s\n", f.spec.c_str(), monotonic_s() - t0);
       std::fflush(stdout);
+      record("fault", f.t_s, ",\"spec\":" + json_string(f.spec));
     }
     step_to(t);
   };
@@ -483,17 +590,26 @@ int serve(int argc, char** argv) {
     }
   };
 
-  std::uint64_t requests = 0, refused = 0, clients = tcp ? 0 : 1, foreign = 0, busy = 0, owner = 0;
+  std::uint64_t requests = 0, refused = 0, clients = tcp ? 0 : 1, foreign = 0, busy = 0, owner = 0, trips = 0;
   int connected = 0, most_connected = tcp ? 0 : 1;
+  if (!tcp) record("connect", 0.0, ",\"client\":1,\"peer\":" + json_string(mb.device));
+  // The watchdog watches the client that took the valve registers last (the owner, or the owner
+  // that left without another taking them): its requests feed it. 0: disarmed.
+  std::uint64_t watched = 0;
+  double watched_last_request_s = 0.0;
   const auto drop = [&](Connection& c, const char* why) {
     if (why) std::fprintf(stderr, "pneu-plant serve: client %llu (%s) %s: closed\n",
                           static_cast<unsigned long long>(c.number), c.peer.c_str(), why);
     ::close(c.fd);
+    const double t = monotonic_s() - t0;
+    record("disconnect", t, fields(",\"client\":%llu", static_cast<unsigned long long>(c.number)) +
+                                ",\"why\":" + json_string(why ? why : "left"));
     if (c.number == owner) {
       owner = 0;
       std::printf("pneu-plant serve: client %llu left: the valve registers are free\n",
                   static_cast<unsigned long long>(c.number));
       std::fflush(stdout);
+      record("released", t, fields(",\"client\":%llu,\"cause\":\"disconnect\"", static_cast<unsigned long long>(c.number)));
     }
     c = Connection{};
     --connected;
@@ -530,9 +646,13 @@ int serve(int argc, char** argv) {
       }
       if (owner == 0) {
         owner = c.number;
-        std::printf("pneu-plant serve: client %llu (%s) writes the valve registers: they are its until it disconnects\n",
-                    static_cast<unsigned long long>(c.number), c.peer.c_str());
+        watched = c.number;
+        watched_last_request_s = c.last_request_s;
+        std::printf("pneu-plant serve: client %llu (%s) writes the valve registers: they are its until it disconnects%s\n",
+                    static_cast<unsigned long long>(c.number), c.peer.c_str(),
+                    watchdog_s > 0.0 ? " or falls silent past the watchdog" : "");
         std::fflush(stdout);
+        record("owner", monotonic_s() - t0, fields(",\"client\":%llu", static_cast<unsigned long long>(c.number)));
       }
     }
     // A client that stops taking its replies fills its socket: the send fails at once (the socket
@@ -545,7 +665,9 @@ int serve(int argc, char** argv) {
       word_n = wn;
       u_p = mb.valve_p.to_volts(wp);
       u_n = mb.valve_n.to_volts(wn);
-      record_outputs(monotonic_s() - t0);
+      const double t = monotonic_s() - t0;
+      record_outputs(t);
+      outputs_changed({t, c.number, "write"});
     }
     if (sent == -1 && tcp) drop(c, "does not take its replies");
   };
@@ -566,6 +688,8 @@ int serve(int argc, char** argv) {
     ++requests;
     c.query_length = rc;
     const double t = monotonic_s() - t0;
+    c.last_request_s = t;
+    if (c.number == watched) watched_last_request_s = t;
     advance_to(t);
     update_sensor_registers();
     if (!tcp) {
@@ -600,6 +724,7 @@ int serve(int argc, char** argv) {
     if (slot == connections.end()) {
       ::close(fd);
       ++refused;
+      record("refused", monotonic_s() - t0, ",\"peer\":" + json_string(peer));
       std::fprintf(stderr, "pneu-plant serve: refused a client from %s: already serving %d (--max-clients %d)\n",
                    peer.c_str(), max_clients, max_clients);
       return;
@@ -607,7 +732,37 @@ int serve(int argc, char** argv) {
     slot->fd = fd;
     slot->number = ++clients;
     slot->peer = peer;
+    record("connect", monotonic_s() - t0,
+           fields(",\"client\":%llu", static_cast<unsigned long long>(slot->number)) + ",\"peer\":" + json_string(peer));
     most_connected = std::max(most_connected, ++connected);
+  };
+
+  // The watchdog's trip at serve's time `now`: the plant runs to it under the outputs held, then
+  // under the watchdog's; the owner loses the valve registers.
+  const auto trip = [&](double now) {
+    advance_to(now);
+    ++trips;
+    const std::uint64_t client = watched;
+    watched = 0;
+    if (events && pending_outputs) write_outputs_line(*pending_outputs);
+    m.map->tab_registers[mb.valve_p.address] = word_p = watchdog_word_p;
+    m.map->tab_registers[mb.valve_n.address] = word_n = watchdog_word_n;
+    u_p = mb.valve_p.to_volts(word_p);
+    u_n = mb.valve_n.to_volts(word_n);
+    record_outputs(now);
+    record("watchdog", now,
+           fields(",\"client\":%llu,\"last_request_t\":%.9f,\"last_request_monotonic_s\":%.9f,\"u_p\":%.6f,\"u_n\":%.6f",
+                  static_cast<unsigned long long>(client), watched_last_request_s, t0 + watched_last_request_s, u_p, u_n));
+    outputs_changed({now, client, "watchdog"});
+    std::printf("pneu-plant serve: watchdog: no request from client %llu for %.3f s: valve outputs u_P = %+.4f V, "
+                "u_N = %+.4f V%s\n",
+                static_cast<unsigned long long>(client), now - watched_last_request_s, u_p, u_n,
+                owner == client ? "; the valve registers are free" : "");
+    std::fflush(stdout);
+    if (owner == client) {
+      owner = 0;
+      record("released", now, fields(",\"client\":%llu,\"cause\":\"watchdog\"", static_cast<unsigned long long>(client)));
+    }
   };
 
   while (!g_stop.load()) {
@@ -627,7 +782,7 @@ int serve(int argc, char** argv) {
     fd_set fds;
     FD_ZERO(&fds);
     int max_fd = -1;
-    double wait_s = 0.0005;  // the plant advances at least every 0.5 ms while idle
+    double wait_s = 0.0005;  // the plant advances, and the watchdog looks, at least every 0.5 ms while idle
     if (listen_fd >= 0) FD_SET(listen_fd, &fds), max_fd = std::max(max_fd, listen_fd);
     for (const Connection& c : connections) {
       if (c.fd < 0) continue;
@@ -660,13 +815,22 @@ int serve(int argc, char** argv) {
       }
     }
     if (listen_fd >= 0 && FD_ISSET(listen_fd, &fds)) accept_client();
+    // After the requests that were waiting: a stall of serve's own is no silence of the client's.
+    now = monotonic_s() - t0;
+    if (watchdog_s > 0.0 && watched != 0 && now - watched_last_request_s >= watchdog_s) trip(now);
+    flush_pending_outputs(now);
   }
+  if (events && pending_outputs) write_outputs_line(*pending_outputs);
+  const double t_end = monotonic_s() - t0;
+  record("stop", t_end,
+         fields(",\"requests\":%llu,\"watchdog_trips\":%llu,\"u_p\":%.6f,\"u_n\":%.6f",
+                static_cast<unsigned long long>(requests), static_cast<unsigned long long>(trips), u_p, u_n));
   std::printf("pneu-plant serve: stopped after %.3f s; %llu requests from %llu clients (at most %d at once, %llu "
               "refused beyond --max-clients), %llu valve writes refused as another client's, %llu for other units "
-              "ignored; last valve voltages: u_P = %+.4f V, u_N = %+.4f V\n",
-              monotonic_s() - t0, static_cast<unsigned long long>(requests), static_cast<unsigned long long>(clients),
+              "ignored, %llu watchdog trips; last valve voltages: u_P = %+.4f V, u_N = %+.4f V\n",
+              t_end, static_cast<unsigned long long>(requests), static_cast<unsigned long long>(clients),
               most_connected, static_cast<unsigned long long>(refused), static_cast<unsigned long long>(busy),
-              static_cast<unsigned long long>(foreign), u_p, u_n);
+              static_cast<unsigned long long>(foreign), static_cast<unsigned long long>(trips), u_p, u_n);
   if (tcp) {
     for (Connection& c : connections)
       if (c.fd >= 0) ::close(c.fd);

@@ -30,9 +30,21 @@ ModbusBackend::ModbusBackend(const config::ModbusConfig& modbus, const model::Se
   read_count_ = r1 - r0 + 1;
   write_start_ = std::min(cfg_.valve_p.address, cfg_.valve_n.address);
   write_count_ = std::abs(cfg_.valve_p.address - cfg_.valve_n.address) + 1;
+  at_p_ = cfg_.valve_p.address == write_start_ ? 0 : 1;
   if (read_count_ > MODBUS_MAX_WR_READ_REGISTERS)
     throw std::runtime_error("hal.modbus.channels: the sensor registers span " + std::to_string(read_count_) +
                              " registers, more than one read transaction carries");
+  // The module's watchdog must outlast one lost reply and its retry on a new connection, or a
+  // single lost frame sets the outputs to the module's safe values while pneud drives on.
+  const double one_loss_s = 2.0 * cfg_.response_timeout_s + cfg_.min_exchange_period_s;
+  if (cfg_.module_watchdog_s != 0.0 && !(cfg_.module_watchdog_s > one_loss_s)) {
+    char text[240];
+    std::snprintf(text, sizeof text,
+                  "must be 0 (none) or exceed a lost reply and its retry, 2 x response_timeout_s + "
+                  "min_exchange_period_s = %g s (got %g): one lost reply would trip the module's watchdog",
+                  one_loss_s, cfg_.module_watchdog_s);
+    throw config::ConfigError("hal.modbus.module_watchdog_s", text);
+  }
   if (cfg_.read_write_multiple && write_count_ != 2)
     throw std::runtime_error("hal.modbus.channels: function 23 writes one block: valve_p and valve_n must be adjacent registers");
 }
@@ -56,6 +68,10 @@ std::optional<LinkReport> ModbusBackend::link_report() const {
   r.safe_output_attempts = safe_output_.attempts;
   r.safe_output_max_attempts = kSafeOutputAttempts;
   r.safe_output_delivered = safe_output_.delivered;
+  if (safe_output_.read_back) {
+    r.safe_output_read_back_u_p_v = safe_output_.read_back_u_p_v;
+    r.safe_output_read_back_u_n_v = safe_output_.read_back_u_n_v;
+  }
   return r;
 }
 
@@ -88,6 +104,10 @@ bool ModbusBackend::connect_once(std::string* why) noexcept {
     modbus_free(ctx);
     return false;
   }
+  // RTU frames carry no transaction id: a reply that arrived after its request timed out would be
+  // taken for the reply to the next request. Whatever the line holds now belongs to no request of
+  // this connection. (TCP: a new connection carries nothing of the old one.)
+  if (cfg_.transport == config::ModbusTransport::kRtu) (void)modbus_flush(ctx);
   ctx_ = ctx;
   return true;
 }
@@ -100,17 +120,45 @@ void ModbusBackend::disconnect() noexcept {
   }
 }
 
-bool ModbusBackend::exchange(std::string* why) noexcept {
-  uint16_t out[2] = {};
+void ModbusBackend::output_words(std::uint16_t out[2]) const noexcept {
   // The analog outputs carry the commanded voltages whatever the valve power: in fault and
   // disarmed the loop commands its safe voltages, and they must reach the module (the power-enable
   // line, where there is one, is the GPIO decorator's).
-  const double u_p = io_command_.u_p_v;
-  const double u_n = io_command_.u_n_v;
-  const int at_p = cfg_.valve_p.address == write_start_ ? 0 : 1;  // index in the written block
-  const int at_n = 1 - at_p;
-  out[at_p] = cfg_.valve_p.to_word(u_p);
-  out[at_n] = cfg_.valve_n.to_word(u_n);
+  out[at_p_] = cfg_.valve_p.to_word(io_command_.u_p_v);
+  out[1 - at_p_] = cfg_.valve_n.to_word(io_command_.u_n_v);
+}
+
+bool ModbusBackend::read_back_outputs(std::string* why) noexcept {
+  std::uint16_t want[2] = {}, got[2] = {};
+  output_words(want);
+  const int at_p = at_p_;
+  modbus_t* ctx = as_ctx(ctx_);
+  // Function 3 on the valve registers: adjacent, one transaction; else one each.
+  const bool read = write_count_ == 2 ? modbus_read_registers(ctx, write_start_, 2, got) == 2
+                                      : modbus_read_registers(ctx, cfg_.valve_p.address, 1, &got[at_p]) == 1 &&
+                                            modbus_read_registers(ctx, cfg_.valve_n.address, 1, &got[1 - at_p]) == 1;
+  if (!read) {
+    *why = std::string("reading the valve registers back: ") + modbus_strerror(errno);
+    counters_.last_errno.store(errno, std::memory_order_relaxed);
+    return false;
+  }
+  safe_output_.read_back = true;
+  safe_output_.read_back_u_p_v = cfg_.valve_p.to_volts(got[at_p]);
+  safe_output_.read_back_u_n_v = cfg_.valve_n.to_volts(got[1 - at_p]);
+  if (got[0] == want[0] && got[1] == want[1]) return true;
+  char text[200];
+  std::snprintf(text, sizeof text,
+                "the valve registers read back u_P = %+.4f V, u_N = %+.4f V, not the safe output's %+.4f V, %+.4f V",
+                safe_output_.read_back_u_p_v, safe_output_.read_back_u_n_v, cfg_.valve_p.to_volts(want[at_p]),
+                cfg_.valve_n.to_volts(want[1 - at_p]));
+  *why = text;
+  return false;
+}
+
+bool ModbusBackend::exchange(std::string* why) noexcept {
+  uint16_t out[2] = {};
+  output_words(out);
+  const int at_p = at_p_, at_n = 1 - at_p_;
   uint16_t in[MODBUS_MAX_WR_READ_REGISTERS] = {};
   modbus_t* ctx = as_ctx(ctx_);
   int rc = 0;
@@ -175,10 +223,14 @@ void ModbusBackend::close() noexcept {
   // after we are gone. A request or reply can be lost (a CRC error on the line, a module busy past
   // the response timeout), and the link may be down at this moment: each failed attempt is made
   // again on a fresh connection, as the I/O thread does (libmodbus issue #255), up to
-  // kSafeOutputAttempts, each bounded by the response timeout.
+  // kSafeOutputAttempts, each bounded by the response timeout (twice: the write, the read back).
+  // A reply is no proof: over RTU a late reply to an earlier request looks like the write's, and
+  // a module may answer a write it never applies. Delivered means the valve registers, read back
+  // after the write, hold the safe output's words.
   if (was_running) {
     (void)command_.load(io_command_);
-    SafeOutputDelivery d;
+    safe_output_ = SafeOutputDelivery{};
+    SafeOutputDelivery& d = safe_output_;
     std::string why;
     while (!d.delivered && d.attempts < kSafeOutputAttempts) {
       ++d.attempts;
@@ -187,7 +239,7 @@ void ModbusBackend::close() noexcept {
         continue;
       }
       link_up_.store(true);
-      d.delivered = exchange(&why);
+      d.delivered = exchange(&why) && read_back_outputs(&why);
       if (!d.delivered) {
         counters_.errors.fetch_add(1, std::memory_order_relaxed);
         disconnect();
@@ -195,7 +247,6 @@ void ModbusBackend::close() noexcept {
       }
     }
     if (!d.delivered) set_error(why);
-    safe_output_ = d;
   }
   disconnect();
   link_up_.store(false);

@@ -145,6 +145,10 @@ struct ModbusConfig {
   SensorTable sensor_table = SensorTable::kHolding;  ///< FC3/FC23 (holding) or FC4 (input)
   double reconnect_min_s = 0.05;         ///< back-off after a failure, doubling up to ...
   double reconnect_max_s = 2.0;          ///< ... this
+  /// The module's fieldbus watchdog that the controller expects [s]: the bench's coupler must set
+  /// its outputs to their safe values when no request came for this long (pneu-plant serve's
+  /// default --watchdog-s). 0: none stated.
+  double module_watchdog_s = 0.0;
   RegisterChannel position, pressure_p, pressure_n;  ///< sensors
   RegisterChannel valve_p, valve_n;                  ///< outputs (holding registers, FC16/FC23)
 };

@@ -683,6 +683,8 @@ void describe(auto& a, Like<ModbusConfig> auto& m) {
   a.check("reconnect_max_s", m.reconnect_max_s >= m.reconnect_min_s && m.reconnect_max_s <= 600.0, [&] {
     return "must be in [" + fmt(m.reconnect_min_s) + ", 600] (got " + fmt(m.reconnect_max_s) + ")";
   });
+  a.field(optional(PNEU_NVP(m, module_watchdog_s)), Range::closed(0.0, 600.0),
+          "the module's fieldbus watchdog the bench's coupler is set to [s]; 0: none");
   a.group("channels", [&](auto& ch) {
     ch.section(flow(PNEU_NVP(m, position)), true);
     ch.section(flow(PNEU_NVP(m, pressure_p)), true);

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 
@@ -20,11 +21,15 @@ struct LinkReport {
   std::uint64_t stale_reads = 0;    ///< loop reads that found the sample too old
   double oldest_sample_s = 0.0;     ///< the oldest sample the loop took [s]
   std::string last_error;           ///< the last failure's text (empty: none)
-  /// The safe output written on closing: exchanges tried, of at most safe_output_max_attempts,
-  /// and whether one was answered (attempts 0: the backend never ran).
+  /// The safe output written on closing: attempts made, of at most safe_output_max_attempts, and
+  /// whether it was delivered: written, then read back from the device's output registers
+  /// (attempts 0: the backend never ran). A reply to the write alone is no proof of delivery.
   int safe_output_attempts = 0;
   int safe_output_max_attempts = 0;
   bool safe_output_delivered = false;
+  /// The output voltages last read back from the device on closing (NaN: none read back).
+  double safe_output_read_back_u_p_v = std::numeric_limits<double>::quiet_NaN();
+  double safe_output_read_back_u_n_v = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// A bench backend. open()/close() run outside the loop and may throw std::runtime_error with a

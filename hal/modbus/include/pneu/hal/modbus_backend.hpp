@@ -2,7 +2,9 @@
 // on its own I/O thread (a real module answers in milliseconds; RTU at 115200 baud needs about
 // 4 ms per transaction): the loop takes the newest sample with its age and leaves its newest
 // command, never waiting. Failures close the connection and reconnect with back-off on the I/O
-// thread (libmodbus 3.1.6 stays desynchronised after a late reply, upstream issue #255).
+// thread (libmodbus 3.1.6 stays desynchronised after a late reply, upstream issue #255); an RTU
+// line is flushed on each connection. The safe output on closing counts as delivered only once the
+// valve registers, read back, hold it.
 #pragma once
 
 #include <atomic>
@@ -31,8 +33,10 @@ struct ModbusCounters {
 
 /// How the safe output written just before close() reached the module.
 struct SafeOutputDelivery {
-  int attempts = 0;        ///< exchanges tried (0: the backend never ran)
-  bool delivered = false;  ///< one of them was answered
+  int attempts = 0;        ///< attempts made (0: the backend never ran): a write, then a read back
+  bool delivered = false;  ///< the valve registers, read back after a write, held the safe output
+  bool read_back = false;  ///< the valve registers were read back at least once; the last reading:
+  double read_back_u_p_v = 0.0, read_back_u_n_v = 0.0;
 };
 
 class ModbusBackend final : public Backend {
@@ -49,7 +53,7 @@ class ModbusBackend final : public Backend {
   /// I/O thread after a first successful exchange (so a wrong unit id or register map fails here).
   void open(double t0_s) override;
   /// Stops the I/O thread, then delivers the last command written (the caller's safe output) to
-  /// the module: see link_report().
+  /// the module and reads the valve registers back: see link_report().
   void close() noexcept override;
   /// The newest sample and its age; kStale (and kSampleStale) when older than max_sample_age_s,
   /// kCommsError while the link is down. Real-time safe.
@@ -72,6 +76,12 @@ class ModbusBackend final : public Backend {
   void io_thread() noexcept;
   bool connect_once(std::string* why) noexcept;
   bool exchange(std::string* why) noexcept;
+  /// io_command_'s voltages as the block of valve registers written (valve_p first if its address
+  /// is the lower).
+  void output_words(std::uint16_t out[2]) const noexcept;
+  /// Reads the valve registers back (function 3): whether they hold io_command_'s words; the
+  /// reading is kept in safe_output_.
+  bool read_back_outputs(std::string* why) noexcept;
   void disconnect() noexcept;
 
   config::ModbusConfig cfg_;
@@ -86,6 +96,7 @@ class ModbusBackend final : public Backend {
   ModbusCounters counters_;
   SafeOutputDelivery safe_output_{};  // written by close(), after the I/O thread has stopped
   int read_start_ = 0, read_count_ = 0, write_start_ = 0, write_count_ = 0;
+  int at_p_ = 0;  // valve_p's index in the block of valve registers (valve_n's: 1 - at_p_)
   void set_error(const std::string& why);
   mutable std::mutex error_mutex_;  // taken by the I/O thread and by readers of last_error()
   std::string last_error_;
