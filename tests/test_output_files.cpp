@@ -4,6 +4,7 @@
 // never renamed over nor removed; two outputs on one file refused.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <fcntl.h>
 #include <sys/stat.h>
 #include <sys/sysmacros.h>
 #include <sys/wait.h>
@@ -161,10 +162,13 @@ TEST_F(OutputFiles, AFifoIsWrittenDirectlyToItsReader) {
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   std::string received;
   std::thread reader([&] { received = slurp(fifo); });  // opens it, reads to the end
-  {
+  try {
     OutputFile out(fifo, "--events");
     out.stream() << "{\"event\":\"start\"}\n";
     out.commit();
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << e.what();
+    if (const int fd = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK); fd >= 0) ::close(fd);  // the reader: EOF
   }
   reader.join();
   EXPECT_EQ(received, "{\"event\":\"start\"}\n");

@@ -78,8 +78,9 @@ void print_stops(std::FILE* out, const Runtime& runtime) {
   }
   if (runtime.stops().empty()) std::fprintf(out, "  (none)\n");
   if (unforecast)
-    std::fprintf(out, "  (F_e n/a: no forecast at that stop: the law did not hold u* then (a fault's safe output, disarmed\n"
-                      "   or held: u* is the output applied), or a reading was not finite)\n");
+    std::fprintf(out, "  (F_e n/a: no forecast at that stop: the law did not drive the valves then (a fault's safe output,\n"
+                      "   disarmed or held; u* is the law's resting output, not what the valves got), or a reading was\n"
+                      "   not finite)\n");
   if (runtime.stops_forgotten() > 0)
     std::fprintf(out, "  (and %llu earlier stops, not kept)\n", static_cast<ull>(runtime.stops_forgotten()));
 }
