@@ -132,10 +132,12 @@ class PneudStall : public PneudDaemon {
     args.insert(args.end(), {"--events", (dir_ / "events.jsonl").string(), "--trajectory", (dir_ / "traj.csv").string(),
                              "--summary-json", (dir_ / "summary.json").string()});
     Child p = Child::spawn(args, dir_ / "pneud.out", dir_ / "pneud.err");
+    // While the run lasts the trajectory grows beside its path (put in place when the run ends).
+    const fs::path growing = dir_ / ("traj.csv.partial-" + std::to_string(p.pid));
     // The loop ticks (its trajectory grows past the header) before the stall, up to 10 s.
     EXPECT_TRUE(pneu::test::eventually(
         [&] {
-          const std::string traj = slurp(dir_ / "traj.csv");
+          const std::string traj = slurp(growing);
           return traj.find('\n') != traj.rfind('\n');
         },
         10s))
@@ -143,7 +145,7 @@ class PneudStall : public PneudDaemon {
     kill(p.pid, SIGSTOP);
     std::this_thread::sleep_for(300ms);  // the stall
     kill(p.pid, SIGCONT);
-    EXPECT_TRUE(pneu::test::eventually([&] { return ticked_after_a_stall(dir_ / "traj.csv", 0.25); }, 10s))
+    EXPECT_TRUE(pneu::test::eventually([&] { return ticked_after_a_stall(growing, 0.25); }, 10s))
         << "the loop did not tick again after the stall";
     kill(p.pid, SIGTERM);
     EXPECT_EQ(p.wait(), 0) << slurp(dir_ / "pneud.err");

@@ -76,10 +76,11 @@ Usage:
                      serve): the run moves the carriage over the stroke on its own
 
 Output files (--events, --trajectory, --summary-json, --identify): a regular file, or a new one,
-is written beside its path and renamed over it when complete, keeping its mode and owner (events
-and trajectory: when the run ends, however it ends once started; nothing when it never started);
-a symbolic link is followed; a device, a FIFO or /dev/stdout is written directly. Two outputs
-naming the same file are refused.
+is written to FILE.partial-PID beside it and renamed over it when complete, keeping its mode and
+owner; --events and --trajectory grow there while the run lasts (tail -F it) and are renamed when
+the run ends, however it ends once started (nothing when it never started). A symbolic link is
+followed; a device, a FIFO or /dev/stdout is written directly. Two outputs naming the same file
+are refused.
 
 Faults (controller.supervisor, the e-stop, comms) latch the safe output until a FAULT_RESET
 command once the cause is gone; the daemon then waits disarmed for an ARM command.
