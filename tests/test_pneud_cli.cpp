@@ -590,6 +590,14 @@ TEST_F(PneudCli, ASummaryJsonOnAFullDeviceFailsWithExitOneAndLeavesItADevice) {
   EXPECT_TRUE(is_char_device(full));
 }
 
+TEST_F(PneudCli, IdentifyOnAFullDeviceFailsWithExitOneAndLeavesItADevice) {
+  const fs::path full = char_device(file(""), "full", 7);
+  const Outcome o = pneud("--quiet --identify " + quoted(full));
+  EXPECT_EQ(o.exit_code, 1) << o.err;
+  EXPECT_THAT(o.err, HasSubstr("--identify " + full.string() + ": write failed: No space left on device"));
+  EXPECT_TRUE(is_char_device(full));
+}
+
 TEST_F(PneudCli, ASummaryJsonThroughASymbolicLinkIsWrittenToItsTargetAndTheLinkStays) {
   std::ofstream(file("tgt.json")) << "an earlier run's summary\n";
   fs::create_symlink("tgt.json", file("lnk"));
