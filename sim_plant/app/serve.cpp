@@ -306,8 +306,9 @@ next writer (stdout says who owns them, and when they are free).
 RTU serves hal.modbus.device as unit hal.modbus.unit_id, one line, one client.
 
 On exit it prints the requests served, the clients (at most how many at once, how many refused),
-the valve writes refused, and the last valve voltages it was sent. Bad --fault specs and an
---outputs file that cannot be opened are refused before serving, with exit code 2.
+the valve writes refused, and the last valve voltages it was sent. Bad --fault specs, an
+--outputs or --events file that cannot be opened, and both naming one file are refused before
+serving, with exit code 2.
 )";
 
 int serve(int argc, char** argv) {
