@@ -8,9 +8,11 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <fstream>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -221,14 +223,19 @@ TEST_F(PneudDaemon, ARunThatCannotStartLeavesNoOutputFilesBehind) {
   GTEST_SKIP() << "pneud was built without the modbus backend (PNEU_WITH_MODBUS=OFF)";
 #endif
   const int port = pneu::test::free_port();  // nobody listens there
+  std::ofstream(dir_ / "summary.json") << "{\"from\": \"an earlier run\"}\n";  // not to be taken for this one's
+  std::ofstream(dir_ / "events.jsonl") << "{\"event\":\"start\",\"t\":0}\n";
   Child p = Child::spawn({bin("pneud"), "--config", std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", "--set",
                           "hal.modbus.port=" + std::to_string(port), "--set", "telemetry.enabled=false", "--events",
-                          (dir_ / "events.jsonl").string(), "--trajectory", (dir_ / "traj.csv").string()},
+                          (dir_ / "events.jsonl").string(), "--trajectory", (dir_ / "traj.csv").string(),
+                          "--summary-json", (dir_ / "summary.json").string()},
                          dir_ / "pneud.out", dir_ / "pneud.err");
   EXPECT_EQ(p.wait(), 1);
   EXPECT_THAT(slurp(dir_ / "pneud.err"), HasSubstr("cannot connect"));
-  EXPECT_FALSE(fs::exists(dir_ / "events.jsonl"));
-  EXPECT_FALSE(fs::exists(dir_ / "traj.csv"));
+  std::vector<std::string> left;
+  for (const auto& e : fs::directory_iterator(dir_)) left.push_back(e.path().filename().string());
+  std::sort(left.begin(), left.end());
+  EXPECT_EQ(left, (std::vector<std::string>{"pneud.err", "pneud.out"})) << "no output, no temporary file";
 }
 
 }  // namespace

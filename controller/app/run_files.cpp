@@ -32,8 +32,11 @@ void RunFiles::add_sinks(controller::Runtime& runtime) {
 }
 
 void RunFiles::discard() noexcept {
-  for (std::optional<cli::OutputFile>* file : {&events_, &trajectory_, &summary_json_, &identified_})
-    if (*file) (*file)->discard();
+  // No record of an earlier run is left to be taken for this one's (an earlier identified
+  // configuration is kept: it is no record of a run).
+  for (std::optional<cli::OutputFile>* file : {&events_, &trajectory_, &summary_json_})
+    if (*file) (*file)->discard_removing_target();
+  if (identified_) identified_->discard();
 }
 
 void RunFiles::commit() {

@@ -30,7 +30,8 @@ class RunFiles {
 
   /// Adds the events and trajectory sinks, those asked for, to `runtime`.
   void add_sinks(controller::Runtime& runtime);
-  /// After a run that failed before its first tick: leaves no file behind (nor changes one).
+  /// After a run that failed before its first tick: leaves no events, trajectory or summary at
+  /// their paths (not an earlier run's either); an earlier --identify file is left as it was.
   void discard() noexcept;
   /// Puts the events and trajectory files into place. Throws std::runtime_error when writing them
   /// failed.
