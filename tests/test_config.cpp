@@ -465,10 +465,27 @@ TEST(ConfigRefusal, InitialPositionOutsideTheStrokeIsOutOfRange) {
 }
 
 TEST(ConfigRefusal, InitialPositionExactlyAtTheEndStopIsAccepted) {
-  const std::string yaml = shipped_yaml_edited(
-      [](YAML::Node& root) { root["simulation"]["initial_position_m"] = -0.25; });
+  // (The soft limit there too: the simulated carriage starts within the soft limits.)
+  const std::string yaml = shipped_yaml_edited([](YAML::Node& root) {
+    root["simulation"]["initial_position_m"] = -0.25;
+    root["controller"]["soft_limit_min_m"] = -0.25;
+  });
 
   EXPECT_EQ(load_string(yaml).simulation.initial_position_m, -0.25);
+}
+
+// Issue 29: a simulated carriage outside the soft limits would fault at t = 0.
+TEST(ConfigRefusal, ASimulatedStartOutsideTheSoftLimitsIsRefusedNamingTheLimits) {
+  const std::string yaml = shipped_yaml_edited(
+      [](YAML::Node& root) { root["simulation"]["initial_position_m"] = 0.249; });
+
+  EXPECT_THAT(loading(yaml), refuses("simulation.initial_position_m",
+                                     "outside the soft limits (controller.soft_limit_min_m, soft_limit_max_m: "
+                                     "[-0.24, 0.24] m, got 0.249 m)"));
+  // A bench over Modbus starts where the carriage is: the key only places pneu-plant serve's.
+  EXPECT_EQ(load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", {"simulation.initial_position_m=0.249"})
+                .simulation.initial_position_m,
+            0.249);
 }
 
 TEST(ConfigRefusal, PositiveNegativeDirectionStictionIsOutOfRange) {

@@ -3,6 +3,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -379,7 +381,8 @@ TEST_F(PneuPlantServe, HelpDocumentsFaultsAndTheOutputsRecord) {
                            "raw=N", "volts=V", "freeze", "nan", "stuck=V", "valve_p -> u_P, valve_n -> u_N",
                            "--max-clients N", "(default 4)", "owns them until it disconnects", "exception 06"})
     EXPECT_THAT(h.out, HasSubstr(text));
-  EXPECT_THAT(run("--help").out, HasSubstr("[--outputs FILE] [--fault CHANNEL:MODE@T ...]"));
+  EXPECT_THAT(run("--help").out, HasSubstr("[--outputs FILE] [--events FILE]"));
+  EXPECT_THAT(run("--help").out, HasSubstr("[--fault CHANNEL:MODE@T ...]"));
   EXPECT_THAT(run("--help").out, HasSubstr("[--max-clients N]"));
 }
 
@@ -416,6 +419,9 @@ TEST_F(PneuPlantServe, RefusesBadFaultSpecsNamingTheSpecAndTheReason) {
       {"position:volts=abc@1", "volts=abc: not a finite number of volts"},
       {"position:freeze=1@1", "freeze takes no value"},
       {"valve_p:stuck=@1", "stuck needs a value"},
+      // hil.yaml's valve takes +-10 V: a spool stuck at 20 V is no fault the bench can have.
+      {"valve_p:stuck=20@1", "stuck=20 is outside the valve's range [-10, 10] V (plant.valve.max_voltage_v"},
+      {"valve_n:stuck=-10.5@1", "stuck=-10.5 is outside the valve's range [-10, 10] V"},
   };
   for (const auto& [spec, reason] : cases) {
     const Outcome r = run(serve_hil() + "--fault '" + spec + "'");
@@ -444,6 +450,94 @@ TEST_F(PneuPlantServe, RefusesAnOutputsOrEventsFileItCannotOpenBeforeServing) {
     const Outcome r = run(serve_hil() + option + " " + (dir_ / "no/such/dir/file").string());
     EXPECT_EQ(r.exit_code, 2) << option;
     EXPECT_THAT(r.err, HasSubstr(option + " " + (dir_ / "no/such/dir/file").string() + ": cannot open for writing"));
+    EXPECT_THAT(r.out, ::testing::Not(HasSubstr("listening")));
+  }
+}
+
+// Issue 29, item 12: every option a command accepts is in its help, and serve's in the usage
+// pneu-plant --help prints. The accepted options are read from the command's cli::Args in the
+// source, so an option added there and not to the help fails here.
+namespace {
+
+// The quoted names of each `cli::Args args(argc, argv, 2, {...}, {...}[, {...}])` in `source`, in order.
+std::vector<std::vector<std::string>> accepted_options(const fs::path& source) {
+  const std::string text = slurp(source);
+  std::vector<std::vector<std::string>> found;
+  for (std::size_t at = text.find("cli::Args args("); at != std::string::npos; at = text.find("cli::Args args(", at + 1)) {
+    const std::size_t end = text.find(");", at);
+    const std::string call = text.substr(at, end - at);
+    std::vector<std::string> names;
+    for (std::size_t q = call.find('"'); q != std::string::npos; q = call.find('"', q + 1)) {
+      const std::size_t close = call.find('"', q + 1);
+      names.push_back(call.substr(q + 1, close - q - 1));
+      q = close;
+    }
+    found.push_back(names);
+  }
+  return found;
+}
+
+}  // namespace
+
+TEST_F(PneuPlantCli, EveryOptionACommandAcceptsIsInItsHelpAndServesInTheUsage) {
+  const fs::path app = fs::path(PNEU_SOURCE_DIR) / "sim_plant" / "app";
+  const auto in_main = accepted_options(app / "main.cpp");
+  ASSERT_EQ(in_main.size(), 3u) << "simulate, characterize-valve, null-flow";
+  const std::vector<std::pair<std::string, std::vector<std::string>>> commands{
+      {"simulate", in_main[0]}, {"characterize-valve", in_main[1]}, {"null-flow", in_main[2]},
+      {"tune", accepted_options(app / "tune.cpp").at(0)}, {"serve", accepted_options(app / "serve.cpp").at(0)}};
+  const std::string usage = run("--help").out;
+  for (const auto& [command, options] : commands) {
+    ASSERT_FALSE(options.empty()) << command;
+    const Outcome h = run(command + " --help");
+    EXPECT_EQ(h.exit_code, 0) << command;
+    EXPECT_EQ(run(command + " -h").out, h.out) << command << ": -h is --help";
+    for (const std::string& option : options) {
+      if (option == "help") continue;
+      EXPECT_THAT(h.out, HasSubstr("--" + option)) << command << " --help";
+      if (command == "serve") {
+        EXPECT_THAT(usage, HasSubstr("--" + option)) << "pneu-plant --help, serve's line";
+      }
+    }
+  }
+  EXPECT_THAT(usage, HasSubstr("--reply-delay-s")) << "not vacuous";
+}
+
+TEST_F(PneuPlantCli, AnUnknownOptionPointsToTheCommandsHelp) {
+  const Outcome r = run("simulate --frobnicate");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.err, HasSubstr("unknown option --frobnicate (see pneu-plant simulate --help)"));
+}
+
+// Issue 29, item 1: pneu-plant's outputs opened as every program's (cli::OutputFile).
+TEST_F(PneuPlantCli, NullFlowOnACharacterDeviceWritesToItAndLeavesItADevice) {
+  fs::path null = "/dev/null";
+  if (::geteuid() == 0) {  // a device of the test's own: code that replaces it harms nothing else
+    null = dir_ / "null";
+    ASSERT_EQ(::mknod(null.c_str(), S_IFCHR | 0666, makedev(1, 3)), 0);
+  }
+  const Outcome r = run("null-flow --out " + null.string());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  struct stat st {};
+  ASSERT_EQ(::lstat(null.c_str(), &st), 0);
+  EXPECT_TRUE(S_ISCHR(st.st_mode));
+}
+
+TEST_F(PneuPlantCli, NullFlowThroughASymbolicLinkWritesItsTargetAndTheLinkStays) {
+  fs::create_symlink("curve_target.csv", dir_ / "curve.csv");
+  const Outcome r = run("null-flow --out " + (dir_ / "curve.csv").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(fs::is_symlink(dir_ / "curve.csv"));
+  EXPECT_THAT(slurp(dir_ / "curve_target.csv"), ::testing::StartsWith("u_v,p_null_p_pa"));
+}
+
+TEST_F(PneuPlantServe, RefusesOutputsAndEventsOnTheSameFileBeforeServing) {
+  const fs::path same = dir_ / "same";
+  fs::create_symlink("same", dir_ / "lnk");
+  for (const fs::path& events : {same, dir_ / "lnk"}) {
+    const Outcome r = run(serve_hil() + "--outputs " + same.string() + " --events " + events.string());
+    EXPECT_EQ(r.exit_code, 2) << events;
+    EXPECT_THAT(r.err, HasSubstr("--outputs " + same.string() + " and --events " + events.string() + " name the same file"));
     EXPECT_THAT(r.out, ::testing::Not(HasSubstr("listening")));
   }
 }

@@ -3,6 +3,9 @@
 // key and the reason), and a short run on the real clock.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -15,6 +18,7 @@
 #include <regex>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "pneu/config/config.hpp"
@@ -476,13 +480,14 @@ TEST_F(PneudCli, SummaryJsonIsNotLeftBehindWhenTheRunFailsNorFromAnEarlierRun) {
                           " --summary-json " + quoted(file("summary.json")));
   EXPECT_EQ(o.exit_code, 1) << o.out;
   EXPECT_FALSE(fs::exists(file("summary.json")));
-  EXPECT_FALSE(fs::exists(file("summary.json.partial")));
+  for (const auto& e : fs::directory_iterator(file("")))  // nor the file it was being written to
+    EXPECT_FALSE(e.path().filename().string().starts_with("summary.json")) << e.path();
 }
 
 TEST_F(PneudCli, ASummaryJsonPathThatCannotBeWrittenFailsBeforeTheRun) {
   const Outcome o = pneud("--summary-json " + quoted(file("no-such-directory/summary.json")));
   EXPECT_EQ(o.exit_code, 1);
-  EXPECT_THAT(o.err, HasSubstr("cannot create the summary file"));
+  EXPECT_THAT(o.err, HasSubstr("--summary-json " + file("no-such-directory/summary.json").string() + ": cannot open for writing"));
   EXPECT_EQ(o.out, "") << "nothing ran";
 }
 
@@ -547,6 +552,162 @@ TEST_F(PneudCli, IdentifyRefusesADurationAndArmedGoesOnlyWithIt) {
   EXPECT_EQ(o.exit_code, 2);
   EXPECT_THAT(o.err, ::testing::HasSubstr("--armed goes with --identify"));
   EXPECT_FALSE(fs::exists(out));
+}
+
+}  // namespace
+
+namespace {
+
+// Issue 29: every output of pneud opened the same way (cli::OutputFile).
+
+bool is_char_device(const fs::path& p) {
+  struct stat st {};
+  return ::lstat(p.c_str(), &st) == 0 && S_ISCHR(st.st_mode);
+}
+
+// A character device like /dev/null (minor 3) or /dev/full (7): as root made in the test's
+// directory (code that replaces a device then harms nothing of the machine's), as a normal user the
+// system's own.
+fs::path char_device(const fs::path& dir, const char* name, unsigned minor) {
+  if (::geteuid() != 0) return fs::path("/dev") / name;
+  const fs::path p = dir / name;
+  EXPECT_EQ(::mknod(p.c_str(), S_IFCHR | 0666, makedev(1, minor)), 0);
+  return p;
+}
+
+TEST_F(PneudCli, OutputsOnACharacterDeviceAreWrittenToItAndLeaveItADevice) {
+  const fs::path null = char_device(file(""), "null", 3);
+  const Outcome o = pneud("--quiet --duration 1 --summary-json " + quoted(null) + " --events " + quoted(null) +
+                          " --trajectory " + quoted(null));
+  EXPECT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_TRUE(is_char_device(null));
+}
+
+TEST_F(PneudCli, ASummaryJsonOnAFullDeviceFailsWithExitOneAndLeavesItADevice) {
+  const fs::path full = char_device(file(""), "full", 7);
+  const Outcome o = pneud("--quiet --duration 1 --summary-json " + quoted(full));
+  EXPECT_EQ(o.exit_code, 1) << o.err;
+  EXPECT_THAT(o.err, HasSubstr("--summary-json " + full.string() + ": write failed: No space left on device"));
+  EXPECT_TRUE(is_char_device(full));
+}
+
+TEST_F(PneudCli, IdentifyOnAFullDeviceFailsWithExitOneAndLeavesItADevice) {
+  const fs::path full = char_device(file(""), "full", 7);
+  const Outcome o = pneud("--quiet --identify " + quoted(full));
+  EXPECT_EQ(o.exit_code, 1) << o.err;
+  EXPECT_THAT(o.err, HasSubstr("--identify " + full.string() + ": write failed: No space left on device"));
+  EXPECT_TRUE(is_char_device(full));
+}
+
+TEST_F(PneudCli, ASummaryJsonThroughASymbolicLinkIsWrittenToItsTargetAndTheLinkStays) {
+  std::ofstream(file("tgt.json")) << "an earlier run's summary\n";
+  fs::create_symlink("tgt.json", file("lnk"));
+  const Outcome o = pneud("--quiet --duration 1 --summary-json " + quoted(file("lnk")));
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_TRUE(fs::is_symlink(file("lnk")));
+  EXPECT_TRUE(Json::parse(slurp(file("tgt.json")))["t_end_s"].number() == 1.0) << slurp(file("tgt.json"));
+}
+
+TEST_F(PneudCli, OutputsReplacingAFileKeepItsMode) {
+  for (const char* option : {"--summary-json", "--events", "--trajectory"}) {
+    const fs::path p = file(std::string(option + 2) + ".out");
+    std::ofstream(p) << "earlier\n";
+    fs::permissions(p, fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read);  // 640
+    const Outcome o = pneud(std::string("--quiet --duration 1 ") + option + " " + quoted(p));
+    ASSERT_EQ(o.exit_code, 0) << o.err;
+    EXPECT_NE(slurp(p), "earlier\n") << option;
+    EXPECT_EQ(fs::status(p).permissions(), fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read)
+        << option;
+  }
+}
+
+TEST_F(PneudCli, ASummaryJsonIntoAFifoReachesItsReaderAndTheFifoStays) {
+  const fs::path fifo = file("summary.fifo");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  std::string received;
+  std::thread reader([&] { received = slurp(fifo); });  // as `jq < summary.fifo` would
+  const Outcome o = pneud("--quiet --duration 1 --summary-json " + quoted(fifo));
+  if (const int fd = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK); fd >= 0) ::close(fd);  // a reader still waiting: EOF
+  reader.join();
+  EXPECT_EQ(o.exit_code, 0) << o.err;
+  ASSERT_FALSE(received.empty());
+  EXPECT_EQ(Json::parse(received)["t_end_s"].number(), 1.0) << received;
+  struct stat st {};
+  ASSERT_EQ(::lstat(fifo.c_str(), &st), 0);
+  EXPECT_TRUE(S_ISFIFO(st.st_mode)) << "still a FIFO";
+}
+
+TEST_F(PneudCli, TwoOutputsNamingTheSameFileAreRefusedBeforeAnythingRuns) {
+  const fs::path same = file("same.csv");
+  Outcome o = pneud("--trajectory " + quoted(same) + " --events " + quoted(same));
+  EXPECT_EQ(o.exit_code, 2);
+  EXPECT_THAT(o.err, HasSubstr("--events " + same.string() + " and --trajectory " + same.string() + " name the same file"));
+  EXPECT_EQ(o.out, "") << "nothing ran";
+  EXPECT_FALSE(fs::exists(same));
+  // Through a symbolic link, the file existing or not.
+  fs::create_symlink("same.csv", file("lnk"));
+  o = pneud("--trajectory " + quoted(same) + " --summary-json " + quoted(file("lnk")));
+  EXPECT_EQ(o.exit_code, 2);
+  EXPECT_THAT(o.err, HasSubstr("--trajectory " + same.string() + " and --summary-json " + file("lnk").string()));
+  std::ofstream(same) << "kept\n";
+  o = pneud("--events " + quoted(file("lnk")) + " --trajectory " + quoted(same));
+  EXPECT_EQ(o.exit_code, 2);
+  EXPECT_EQ(slurp(same), "kept\n");
+}
+
+TEST_F(PneudCli, ASummaryJsonOnDevStdoutGoesToStandardOutputFileOrPipe) {
+  // Standard output a file (the fixture's redirection) ...
+  Outcome o = pneud("--quiet --duration 1 --summary-json /dev/stdout");
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_EQ(Json::parse(o.out)["t_end_s"].number(), 1.0) << o.out;
+  // ... and a pipe, as `pneud --summary-json /dev/stdout | jq`.
+  const std::string command = std::string("{ '") + PNEU_BINARY_DIR + "/bin/pneud' --quiet --duration 1 " +
+                              "--set telemetry.enabled=false --summary-json /dev/stdout 2>" + quoted(file("err")) +
+                              "; echo $? > " + quoted(file("rc")) + "; } | cat > " + quoted(file("piped.json"));
+  ASSERT_EQ(std::system(command.c_str()), 0);
+  EXPECT_EQ(slurp(file("rc")), "0\n") << slurp(file("err"));
+  EXPECT_EQ(Json::parse(slurp(file("piped.json")))["t_end_s"].number(), 1.0) << slurp(file("piped.json"));
+  EXPECT_TRUE(fs::is_symlink("/dev/stdout")) << "/dev/stdout untouched";
+}
+
+// Item 12 of issue 29: the small things a new user meets first.
+TEST_F(PneudCli, DashHIsHelpAndAnUnknownOptionPointsToIt) {
+  const Outcome h = pneud("-h");
+  EXPECT_EQ(h.exit_code, 0) << h.err;
+  EXPECT_EQ(h.out, pneud("--help").out);
+  const Outcome u = pneud("--foo");
+  EXPECT_EQ(u.exit_code, 2);
+  EXPECT_THAT(u.err, HasSubstr("unknown option --foo (see pneud --help)"));
+}
+
+TEST_F(PneudCli, AConfigThatIsADirectoryIsSaidToBeOne) {
+  const Outcome o = pneud("--config " + quoted(file("")));
+  EXPECT_EQ(o.exit_code, 2);
+  EXPECT_THAT(o.err, HasSubstr("is a directory"));
+  EXPECT_THAT(o.err, Not(HasSubstr("no such file")));
+}
+
+// Item 5: a simulated start outside the soft limits would fault at t = 0.
+TEST_F(PneudCli, ASimulatedStartOutsideTheSoftLimitsIsRefusedNamingTheKeyAndTheLimits) {
+  const Outcome o = pneud("--set simulation.initial_position_m=0.249");
+  EXPECT_EQ(o.exit_code, 2);
+  EXPECT_THAT(o.err, HasSubstr("simulation.initial_position_m"));
+  EXPECT_THAT(o.err, HasSubstr("soft limits (controller.soft_limit_min_m, soft_limit_max_m: [-0.24, 0.24] m, got 0.249 m)"));
+  EXPECT_EQ(o.out, "");
+  EXPECT_EQ(pneud("--quiet --duration 1 --set simulation.initial_position_m=0.24").exit_code, 0) << "at the limit";
+}
+
+// Item 5: a stop in the safe output has no forecast, so no F_e: the summary says n/a and why, not nan.
+TEST_F(PneudCli, AStopWithoutAForecastShowsNoEquilibriumForceAndSaysWhyNeverNan) {
+  // A following error of 10 mm for 10 ms latches at the step; the carriage then stops under the safe output.
+  const Outcome o = pneud("--duration 3 --set controller.supervisor.following_error_m=0.01"
+                          " --set controller.supervisor.following_error_s=0.01");
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_THAT(o.out, HasSubstr("fault at 1.0100 s"));
+  EXPECT_THAT(o.out, ::testing::ContainsRegex("stuck; u\\* changed at"));
+  EXPECT_THAT(o.out, ::testing::ContainsRegex(" n/a  stuck"));
+  EXPECT_THAT(o.out, HasSubstr("(F_e n/a: no forecast at that stop"));
+  EXPECT_THAT(o.out, Not(HasSubstr("nan")));
 }
 
 }  // namespace

@@ -8,9 +8,11 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <fstream>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -132,10 +134,12 @@ class PneudStall : public PneudDaemon {
     args.insert(args.end(), {"--events", (dir_ / "events.jsonl").string(), "--trajectory", (dir_ / "traj.csv").string(),
                              "--summary-json", (dir_ / "summary.json").string()});
     Child p = Child::spawn(args, dir_ / "pneud.out", dir_ / "pneud.err");
+    // While the run lasts the trajectory grows beside its path (put in place when the run ends).
+    const fs::path growing = dir_ / ("traj.csv.partial-" + std::to_string(p.pid));
     // The loop ticks (its trajectory grows past the header) before the stall, up to 10 s.
     EXPECT_TRUE(pneu::test::eventually(
         [&] {
-          const std::string traj = slurp(dir_ / "traj.csv");
+          const std::string traj = slurp(growing);
           return traj.find('\n') != traj.rfind('\n');
         },
         10s))
@@ -143,7 +147,7 @@ class PneudStall : public PneudDaemon {
     kill(p.pid, SIGSTOP);
     std::this_thread::sleep_for(300ms);  // the stall
     kill(p.pid, SIGCONT);
-    EXPECT_TRUE(pneu::test::eventually([&] { return ticked_after_a_stall(dir_ / "traj.csv", 0.25); }, 10s))
+    EXPECT_TRUE(pneu::test::eventually([&] { return ticked_after_a_stall(growing, 0.25); }, 10s))
         << "the loop did not tick again after the stall";
     kill(p.pid, SIGTERM);
     EXPECT_EQ(p.wait(), 0) << slurp(dir_ / "pneud.err");
@@ -219,14 +223,19 @@ TEST_F(PneudDaemon, ARunThatCannotStartLeavesNoOutputFilesBehind) {
   GTEST_SKIP() << "pneud was built without the modbus backend (PNEU_WITH_MODBUS=OFF)";
 #endif
   const int port = pneu::test::free_port();  // nobody listens there
+  std::ofstream(dir_ / "summary.json") << "{\"from\": \"an earlier run\"}\n";  // not to be taken for this one's
+  std::ofstream(dir_ / "events.jsonl") << "{\"event\":\"start\",\"t\":0}\n";
   Child p = Child::spawn({bin("pneud"), "--config", std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", "--set",
                           "hal.modbus.port=" + std::to_string(port), "--set", "telemetry.enabled=false", "--events",
-                          (dir_ / "events.jsonl").string(), "--trajectory", (dir_ / "traj.csv").string()},
+                          (dir_ / "events.jsonl").string(), "--trajectory", (dir_ / "traj.csv").string(),
+                          "--summary-json", (dir_ / "summary.json").string()},
                          dir_ / "pneud.out", dir_ / "pneud.err");
   EXPECT_EQ(p.wait(), 1);
   EXPECT_THAT(slurp(dir_ / "pneud.err"), HasSubstr("cannot connect"));
-  EXPECT_FALSE(fs::exists(dir_ / "events.jsonl"));
-  EXPECT_FALSE(fs::exists(dir_ / "traj.csv"));
+  std::vector<std::string> left;
+  for (const auto& e : fs::directory_iterator(dir_)) left.push_back(e.path().filename().string());
+  std::sort(left.begin(), left.end());
+  EXPECT_EQ(left, (std::vector<std::string>{"pneud.err", "pneud.out"})) << "no output, no temporary file";
 }
 
 }  // namespace

@@ -14,7 +14,7 @@
 set -u
 
 # Figures measured with systemd 252 (Debian 12); a newer systemd may score differently.
-readonly MAX_EXPOSURE_PNEUD=1.6
+readonly MAX_EXPOSURE_PNEUD=1.5
 readonly MAX_EXPOSURE_PLANT=0.9
 
 if [ $# -ne 2 ]; then
@@ -83,6 +83,13 @@ if [ -z "$host" ]; then
   fail "config/bench.yaml: no hal.modbus.host address found"
 elif ! grep -E '^IPAddressAllow=' "$units/pneud.service" | grep -qw -- "$host"; then
   fail "pneud.service: IPAddressAllow= does not let in the I/O module of config/bench.yaml ($host)"
+fi
+
+# 3b. The unit has no supplementary group (exposure): the example bench's module must then be on
+#     Modbus TCP; a serial one (rtu) needs `SupplementaryGroups=dialout` for its port.
+transport=$(sed -n 's/^ *transport: *\([a-z]*\).*/\1/p' "$src/config/bench.yaml" | head -1)
+if [ "$transport" = rtu ] && ! grep -q '^SupplementaryGroups=.*dialout' "$units/pneud.service"; then
+  fail "config/bench.yaml speaks Modbus RTU but pneud.service has no SupplementaryGroups=dialout for the serial port"
 fi
 
 # 4. Exposure, from the "Overall exposure level for X: N.N ..." line.

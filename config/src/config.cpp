@@ -440,7 +440,12 @@ Config load_string(std::string_view yaml, const std::vector<std::string>& overri
 
 Config load_file(const std::filesystem::path& path, const std::vector<std::string>& overrides) {
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) throw ConfigError(path.string(), "cannot open the file (no such file)");
+  const auto status = std::filesystem::status(path, ec);
+  if (std::filesystem::is_directory(status))
+    throw ConfigError(path.string(), "is a directory: --config takes a YAML file (e.g. config/sim.yaml)");
+  if (!std::filesystem::exists(status))
+    throw ConfigError(path.string(), "cannot open the file (no such file)");
+  if (!std::filesystem::is_regular_file(status)) throw ConfigError(path.string(), "cannot open the file (not a regular file)");
   if (const auto size = std::filesystem::file_size(path, ec); !ec && size > kMaxDocumentBytes)
     throw ConfigError(path.string(), "too large: " + std::to_string(size) + " bytes, at most " +
                                          std::to_string(kMaxDocumentBytes) + " (1 MiB)");

@@ -36,7 +36,7 @@ Usage:
         [--trajectory FILE] [--summary-json FILE] [--set KEY=VALUE ...] [--check-config]
         [--require-telemetry] [--require-rt] [--quiet]
   pneud --identify OUT.yaml [--armed] [--config FILE] [--clock real|simulated] [--set KEY=VALUE ...] ...
-  pneud --help | --version
+  pneud -h | --help | --version
 
   --config FILE      YAML configuration (default: the embedded config/sim.yaml, the simulated bench
                      running the paper's set-point step)
@@ -74,6 +74,13 @@ Usage:
                      run that showed too little to identify, naming what is missing
   --armed            required with --identify on hal.backend modbus (a real bench, or pneu-plant
                      serve): the run moves the carriage over the stroke on its own
+
+Output files (--events, --trajectory, --summary-json, --identify): a regular file, or a new one,
+is written to FILE.partial-PID beside it and renamed over it when complete, keeping its mode and
+owner; --events and --trajectory grow there while the run lasts (tail -F it) and are renamed when
+the run ends, however it ends once started (nothing when it never started). A symbolic link is
+followed; a device, a FIFO or /dev/stdout is written directly. Two outputs naming the same file
+are refused.
 
 Faults (controller.supervisor, the e-stop, comms) latch the safe output until a FAULT_RESET
 command once the cause is gone; the daemon then waits disarmed for an ARM command.
@@ -160,7 +167,6 @@ int run(int argc, char** argv) {
   const std::optional<std::string> identify_path = args.value("identify");
   std::optional<controller::ControlLaw> run_law;  // the identification run's, when not the configured one
   const config::Config as_configured = cfg;
-  std::optional<cli::AtomicFile> identified;
   identify::RunPlan plan;
   if (identify_path) {
     if (args.flag("check-config")) throw cli::UsageError("--identify and --check-config do not go together");
@@ -194,8 +200,7 @@ int run(int argc, char** argv) {
   if (cfg.hal.backend == config::BackendKind::kModbus && cfg.hal.modbus.module_watchdog_s == 0.0)  // docs/serve.md
     std::fprintf(stderr, "pneud: warning: hal.modbus.module_watchdog_s is 0: no module watchdog stated; should pneud "
                          "die, the module holds its last command until a watchdog of its own trips\n");
-  RunFiles files(args);
-  if (identify_path) identified.emplace(*identify_path);  // an unwritable path fails before the run
+  RunFiles files(args);  // before the run: a path that cannot be written, or two outputs on one file, fail here
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   const controller::ControlLaw& driving = run_law ? *run_law : law;
@@ -242,7 +247,15 @@ int run(int argc, char** argv) {
     controller::execute(run, cfg, *clock, identify_path && real_clock ? stop_either : identify_path ? fault_stop : g_stop,
                         wait, on_loop_thread);
   } catch (...) {
-    if (run.outputs->heartbeat.load() == 0) files.discard();  // nothing ran: no empty output left
+    if (run.outputs->heartbeat.load() == 0) {
+      files.discard();  // nothing ran: no empty output left
+    } else {
+      try {
+        files.commit();  // what happened until the error is kept
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "pneud: %s\n", e.what());
+      }
+    }
     throw;
   }
   if (g_stop.load()) notifier.stopping();
@@ -253,7 +266,7 @@ int run(int argc, char** argv) {
                  "pneud: warning: the module did not confirm the safe output on closing (%d attempts, last error: %s): "
                  "it may still hold the last command\n",
                  figures.modbus->safe_output_attempts, figures.modbus->last_error.c_str());
-  files.flush();
+  files.commit();
   if (telemetry) figures.telemetry = telemetry->figures();
   files.write_summary_json(figures, *run.runtime);
   if (!args.flag("quiet")) controller::print_summary(stdout, figures, *run.runtime);
@@ -283,9 +296,10 @@ int run(int argc, char** argv) {
       std::printf("identified from the run's own signals (%zu ticks):\n", recorder.samples().size());
       identify::print_report(stdout, id);
     }
-    identified->stream() << identify::identified_config_yaml(as_configured, id, "pneud --identify");
-    identified->commit();
-    std::printf("written: %s\n", identified->path().c_str());
+    cli::OutputFile& identified = *files.identified();
+    identified.stream() << identify::identified_config_yaml(as_configured, id, "pneud --identify");
+    identified.commit();
+    std::printf("written: %s\n", identified.path().c_str());
   }
   return cli::kExitOk;
 }

@@ -1,10 +1,12 @@
-// The files pneud writes for a run: --events and --trajectory, sinks of the runtime created before
-// the run starts (a path that cannot be written fails then) and removed when nothing ran; and
-// --summary-json, written whole at the end (beside its path, then renamed): none is there meanwhile,
-// nor when the run fails.
+// The files pneud writes for a run, each opened by cli::OutputFile (links followed; a device, a
+// FIFO or /dev/stdout written directly): --events and --trajectory, sinks of the runtime opened
+// before the run starts (a path that cannot be written fails then) and written beside their path,
+// then renamed into place when the run ends, however it ends once it started (nothing is left when
+// it never started); --summary-json, written whole at the end (when the run fails, none is
+// left: not an earlier run's either); and --identify's YAML. Two of them
+// naming the same file are refused before anything is opened.
 #pragma once
 
-#include <fstream>
 #include <optional>
 #include <string>
 
@@ -18,29 +20,31 @@ namespace pneu::pneud {
 
 class RunFiles {
  public:
-  /// Creates the files `args` asks for. Throws std::runtime_error naming one it cannot create.
+  /// Opens the files `args` asks for. Throws cli::UsageError when two name the same file,
+  /// std::runtime_error naming one it cannot create.
   explicit RunFiles(const cli::Args& args);
   RunFiles(const RunFiles&) = delete;
   RunFiles& operator=(const RunFiles&) = delete;
+  /// A summary not written (the run failed) leaves no earlier run's summary at its path.
+  ~RunFiles();
 
   /// Adds the events and trajectory sinks, those asked for, to `runtime`.
   void add_sinks(controller::Runtime& runtime);
-  /// After a run that failed before its first tick: leaves no empty file behind.
+  /// After a run that failed before its first tick: leaves no events, trajectory or summary at
+  /// their paths (not an earlier run's either); an earlier --identify file is left as it was.
   void discard() noexcept;
-  /// Flushes the sinks' files. Throws std::runtime_error when writing them failed.
-  void flush();
+  /// Puts the events and trajectory files into place. Throws std::runtime_error when writing them
+  /// failed.
+  void commit();
   /// --summary-json, when asked for. Throws std::runtime_error when writing it failed.
-  void write_summary_json(const controller::RunFigures& figures, const controller::Runtime& runtime) const;
+  void write_summary_json(const controller::RunFigures& figures, const controller::Runtime& runtime);
+  /// --identify's file, when asked for.
+  [[nodiscard]] cli::OutputFile* identified() { return identified_ ? &*identified_ : nullptr; }
 
  private:
-  struct File {
-    std::string path;
-    std::ofstream stream;
-  };
-  std::optional<File> events_, trajectory_;
+  std::optional<cli::OutputFile> events_, trajectory_, summary_json_, identified_;
   std::optional<controller::EventsFile> events_sink_;
   std::optional<controller::TrajectoryFile> trajectory_sink_;
-  std::optional<std::string> summary_json_;
 };
 
 }  // namespace pneu::pneud

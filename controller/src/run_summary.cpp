@@ -50,6 +50,7 @@ void print_stops(std::FILE* out, const Runtime& runtime) {
                       " plant.valve.spool_time_constant_s)\n");
   std::fprintf(out, "  %3s %9s %9s %8s %8s %8s  %-34s %-24s %-24s\n", "#", "t_stop[s]", "y*[mm]", "F[N]",
                "u*[V]", "F_e[N]", "what happened", "linearized", "nonlinear");
+  bool unforecast = false;
   for (const auto& s : runtime.stops()) {
     char happened[64];
     if (!s.ended && s.held_first)
@@ -66,12 +67,20 @@ void print_stops(std::FILE* out, const Runtime& runtime) {
     std::string cells[2];
     const std::optional<Prediction>* ps[2] = {&s.linearized, &s.nonlinear};
     for (int i = 0; i < 2; ++i) cells[i] = *ps[i] ? forecast_cell(s, **ps[i], runtime.end_time_s()) : "-";
+    // F_e is a forecast's: a stop without one (not controlled then, or a reading not finite) has none.
     const Prediction* any = s.nonlinear ? &*s.nonlinear : (s.linearized ? &*s.linearized : nullptr);
-    std::fprintf(out, "  %3llu %9.4f %9.3f %8.2f %8.4f %8.2f  %-34s %-24s %-24s\n", static_cast<ull>(s.index),
-                 s.t_stop_s, s.y_stop_m * 1e3, s.force_n, s.snapshot.u_v, any ? any->equilibrium_force_n : NAN,
-                 happened, cells[0].c_str(), cells[1].c_str());
+    char f_e[16] = "n/a";
+    if (any && std::isfinite(any->equilibrium_force_n)) std::snprintf(f_e, sizeof f_e, "%.2f", any->equilibrium_force_n);
+    else unforecast = true;
+    std::fprintf(out, "  %3llu %9.4f %9.3f %8.2f %8.4f %8s  %-34s %-24s %-24s\n", static_cast<ull>(s.index),
+                 s.t_stop_s, s.y_stop_m * 1e3, s.force_n, s.snapshot.u_v, f_e, happened, cells[0].c_str(),
+                 cells[1].c_str());
   }
   if (runtime.stops().empty()) std::fprintf(out, "  (none)\n");
+  if (unforecast)
+    std::fprintf(out, "  (F_e n/a: no forecast at that stop: the law did not drive the valves then (a fault's safe output,\n"
+                      "   disarmed or held; u* is the law's resting output, not what the valves got), or a reading was\n"
+                      "   not finite)\n");
   if (runtime.stops_forgotten() > 0)
     std::fprintf(out, "  (and %llu earlier stops, not kept)\n", static_cast<ull>(runtime.stops_forgotten()));
 }

@@ -30,10 +30,10 @@ Usage:
   pneu-plant null-flow [--config FILE] --out CURVE.csv [--voltage-step-v V]
   pneu-plant tune [--config FILE] [--set KEY=VALUE ...] [--step-mm N] [--map-only] [--delay-samples N]
                   [--csv MAP.csv]
-  pneu-plant serve --config FILE [--set KEY=VALUE ...] [--duration S] [--outputs FILE] [--fault CHANNEL:MODE@T ...]
-                   [--max-clients N]
-  pneu-plant COMMAND --help
-  pneu-plant --version
+  pneu-plant serve --config FILE [--set KEY=VALUE ...] [--duration S] [--outputs FILE] [--events FILE]
+                   [--fault CHANNEL:MODE@T ...] [--reply-delay-s D [--delay-after-s T]] [--max-clients N] [--quiet]
+  pneu-plant COMMAND -h | --help
+  pneu-plant -h | --help | --version
 
 Without --config the embedded default bench (config/sim.yaml) is used.
 Exit codes: 0 success, 1 run failure, 2 bad command line, config or input (nothing written).
@@ -111,7 +111,7 @@ int simulate(int argc, char** argv) {
   plant::SensorSuite sensors(cfg.sensors);
   plant.reset_at_rest(cfg.simulation.initial_position_m, input.u_v.front(), input.t_s.front());
 
-  cli::AtomicFile out(out_path);
+  cli::OutputFile out(out_path, "--out");
   auto& os = out.stream();
   os << "t,y,v,p_P,p_N,F,stuck,u" << (with_sensors ? ",y_meas,p_P_meas,p_N_meas" : "") << '\n';
   os << std::setprecision(10);
@@ -248,7 +248,7 @@ int characterize(int argc, char** argv) {
   const model::ValveModel model(cfg.plant.valve, cfg.plant.gas);
   const model::PlantParams& bench = config::simulated_bench(cfg);
   const auto table = model::ValveTable::sample(model::ValveModel(bench.valve, bench.gas), voltages, grid(p_e, p_s, dp, false));
-  cli::AtomicFile out(out_path);
+  cli::OutputFile out(out_path, "--out");
   table.write(out.stream());
   out.commit();
 
@@ -273,7 +273,7 @@ int null_flow(int argc, char** argv) {
   const std::vector<double> voltages = voltage_grid(args, cfg, 0.01);
   const model::ValveModel valve(cfg.plant.valve, cfg.plant.gas);
   const model::PressureForce force(cfg.plant.geometry, cfg.plant.gas.exhaust_pressure_pa);
-  cli::AtomicFile out(out_path);
+  cli::OutputFile out(out_path, "--out");
   auto& os = out.stream();
   os << "u_v,p_null_p_pa,p_null_n_pa,x_n,y_n,equilibrium_force_n\n" << std::setprecision(10);
   for (double w : voltages) {

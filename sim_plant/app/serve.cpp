@@ -25,6 +25,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "pneu/config/cli.hpp"
@@ -92,7 +93,8 @@ std::optional<double> parse_number(const std::string& text) {
   return v;
 }
 
-Fault parse_fault(const std::string& spec, const config::ModbusConfig& mb) {
+/// `u_max_v`: the simulated valve's largest voltage (plant.valve.max_voltage_v), the bound of stuck=V.
+Fault parse_fault(const std::string& spec, const config::ModbusConfig& mb, double u_max_v) {
   const auto bad = [&](const std::string& why) { return cli::UsageError("--fault '" + spec + "': " + why); };
   const auto colon = spec.find(':');
   if (colon == std::string::npos) throw bad("expected CHANNEL:MODE@T, e.g. pressure_p:rail-high@2.5");
@@ -166,6 +168,12 @@ Fault parse_fault(const std::string& spec, const config::ModbusConfig& mb) {
     case FaultMode::kStuck: {
       const auto v = parse_number(*arg);
       if (!v || !std::isfinite(*v)) throw bad("stuck=" + *arg + ": not a finite number of volts");
+      if (std::abs(*v) > u_max_v) {
+        char range[64];
+        std::snprintf(range, sizeof range, "[%g, %g] V", -u_max_v, u_max_v);
+        throw bad("stuck=" + *arg + " is outside the valve's range " + range +
+                  " (plant.valve.max_voltage_v of the simulated bench)");
+      }
       f.stuck_v = *v;
       break;
     }
@@ -293,7 +301,9 @@ const char* const kServeHelpText = R"(pneu-plant serve: the simulated bench behi
                        t_s,u_p_v,u_n_v, one line at start-up (the registers' initial values) and
                        one each time either received voltage changes (not per request); t_s in
                        seconds since start-up, 6 decimals. Each line is flushed at once, so the
-                       file holds the last outputs received even after a SIGKILL.
+                       file holds the last outputs received even after a SIGKILL. (Like
+                       --events, a live record: written into the file itself, not beside it;
+                       a symbolic link is followed, a device or FIFO written directly.)
   --events FILE        the plant's and the module's own record of what they did, one JSON object
                        per line, flushed at once, each with "event", "t" (serve's seconds since
                        start-up) and "monotonic_s" (CLOCK_MONOTONIC: another process's record on
@@ -319,7 +329,8 @@ const char* const kServeHelpText = R"(pneu-plant serve: the simulated bench behi
                          nan                   the register reads NaN (float32 channels only)
                        valve channels valve_p, valve_n:
                          stuck=V               the plant's valve is driven at V volts whatever the
-                                               client writes (--outputs still records the writes)
+                                               client writes (--outputs still records the writes);
+                                               |V| at most the valve's plant.valve.max_voltage_v
                        A later fault on the same channel replaces an earlier one. Each prints one
                        line when it becomes active.
   --reply-delay-s D    fault injection: answer every request D seconds late, with the readings of
@@ -353,8 +364,9 @@ falls silent loses them too (stdout says so), and the outputs go to the watchdog
 RTU serves hal.modbus.device as unit hal.modbus.unit_id, one line, one client.
 
 On exit it prints the requests served, the clients (at most how many at once, how many refused),
-the valve writes refused, and the last valve voltages it was sent. Bad --fault specs and an
---outputs file that cannot be opened are refused before serving, with exit code 2.
+the valve writes refused, and the last valve voltages it was sent. Bad --fault specs, an
+--outputs or --events file that cannot be opened, and both naming one file are refused before
+serving, with exit code 2.
 )";
 
 int serve(int argc, char** argv) {
@@ -383,26 +395,28 @@ int serve(int argc, char** argv) {
 
   // Faults in the order they become active (ties: command-line order).
   std::vector<Fault> faults;
-  for (const auto& spec : args.all("fault")) faults.push_back(parse_fault(spec, mb));
+  for (const auto& spec : args.all("fault"))
+    faults.push_back(parse_fault(spec, mb, config::simulated_bench(cfg).valve.max_voltage_v));
   std::stable_sort(faults.begin(), faults.end(), [](const Fault& a, const Fault& b) { return a.t_s < b.t_s; });
 
-  std::FILE* outputs = nullptr;
-  struct Closer {
-    std::FILE*& f;
-    ~Closer() {
-      if (f) std::fclose(f);
+  // Live records (flushed line by line, read while serve runs, kept after a SIGKILL), opened as
+  // every output is (cli::OutputFile): links followed, a device or FIFO written directly.
+  std::vector<std::pair<std::string, std::string>> given;
+  for (const char* option : {"outputs", "events"})
+    if (const auto path = args.value(option)) given.emplace_back(std::string("--") + option, *path);
+  cli::refuse_same_file(given);
+  std::optional<cli::OutputFile> outputs_file, events_file;
+  const auto open_record = [&](std::optional<cli::OutputFile>& file, const char* option) -> std::FILE* {
+    const auto path = args.value(option);
+    if (!path) return nullptr;
+    try {
+      return file.emplace(*path, std::string("--") + option, cli::OutputKind::kLive).c_file();
+    } catch (const std::runtime_error& e) {
+      throw cli::UsageError(e.what());
     }
-  } close_outputs{outputs};
-  if (const auto path = args.value("outputs")) {
-    outputs = std::fopen(path->c_str(), "w");
-    if (!outputs) throw cli::UsageError("--outputs " + *path + ": cannot open for writing: " + std::strerror(errno));
-  }
-  std::FILE* events = nullptr;
-  Closer close_events{events};
-  if (const auto path = args.value("events")) {
-    events = std::fopen(path->c_str(), "w");
-    if (!events) throw cli::UsageError("--events " + *path + ": cannot open for writing: " + std::strerror(errno));
-  }
+  };
+  std::FILE* const outputs = open_record(outputs_file, "outputs");
+  std::FILE* const events = open_record(events_file, "events");
 
   const model::PlantParams& bench = config::simulated_bench(cfg);  // hal.sim.plant over plant:
   plant::Plant plant(bench);
@@ -837,6 +851,8 @@ int serve(int argc, char** argv) {
     modbus_set_socket(m.ctx, -1);  // closed above: not for modbus_close to close again
     ::close(listen_fd);
   }
+  if (outputs_file) outputs_file->commit();  // a record that could not be written fails the run
+  if (events_file) events_file->commit();
   return cli::kExitOk;
 }
 

@@ -295,7 +295,7 @@ int tune(int argc, char** argv) {
                 "poles, or a higher controller.rate_hz)\n");
 
   if (const auto csv = args.value("csv")) {
-    cli::AtomicFile out(*csv);
+    cli::OutputFile out(*csv, "--csv");
     auto& os = out.stream();
     os << "law,y_m,position_gain_v_per_m,velocity_gain_v_s_per_m,acceleration_gain_v_s2_per_m,force_gain_n_per_v_s,"
           "stiffness_n_per_m,max_real_part_1_per_s,max_abs_z,gain_margin,stable_continuous,stable_sampled,continuous_poles,"

@@ -129,6 +129,8 @@ int run(int argc, char** argv) {
       wait = false;
       continue;
     }
+    if (a != "--lcm-url" && a != "--prefix" && a != "--seq" && a != "--timeout-s")
+      throw cli::UsageError("unknown option " + a + " (see pneu-command --help)");
     if (i + 1 >= argc) throw cli::UsageError(a + " needs a value");
     const std::string v = argv[++i];
     if (a == "--lcm-url") {
@@ -141,8 +143,6 @@ int run(int argc, char** argv) {
       timeout_s = finite_number(v, "--timeout-s");
       if (timeout_s <= 0.0) throw cli::UsageError("--timeout-s must be positive (--no-wait does not wait)");
       timeout_given = true;
-    } else {
-      throw cli::UsageError("unknown option " + a);
     }
   }
   if (timeout_given && !wait) throw cli::UsageError("--timeout-s and --no-wait exclude each other");

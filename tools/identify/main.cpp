@@ -143,8 +143,8 @@ int run(int argc, char** argv) {
   const auto trajectory = args.value("trajectory");
   const auto lcm_log = args.value("lcm-log");
   if (trajectory.has_value() == lcm_log.has_value()) throw cli::UsageError("give one of --trajectory and --lcm-log");
-  std::optional<cli::AtomicFile> out;
-  if (const auto p = args.value("out")) out.emplace(*p);  // an unwritable path fails first
+  std::optional<cli::OutputFile> out;
+  if (const auto p = args.value("out")) out.emplace(*p, "--out");  // an unwritable path fails first
   std::vector<identify::Sample> samples;
   std::string source;
   if (trajectory) {

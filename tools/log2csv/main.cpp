@@ -293,14 +293,14 @@ int convert(const fs::path& log_path, const fs::path& out_dir, const ChannelPatt
   // Pass 2: the rows, into files that appear only once all are complete. Reads no further than
   // pass 1 did, should the log be growing.
   fs::create_directories(out_dir);
-  std::vector<std::unique_ptr<cli::AtomicFile>> files;
-  std::unordered_map<std::string, std::array<cli::AtomicFile*, kMessageTypeCount>> file_of;
+  std::vector<std::unique_ptr<cli::OutputFile>> files;
+  std::unordered_map<std::string, std::array<cli::OutputFile*, kMessageTypeCount>> file_of;
   for (auto& [channel, stats] : channels) {
     auto& slots = file_of[channel];
     slots.fill(nullptr);
     for (const MessageType type : log2csv::kAllMessageTypes) {
       if (stats.file[index(type)].empty()) continue;
-      files.push_back(std::make_unique<cli::AtomicFile>(out_dir / stats.file[index(type)]));
+      files.push_back(std::make_unique<cli::OutputFile>(out_dir / stats.file[index(type)]));
       files.back()->stream() << log2csv::csv_header(type) << '\n';
       slots[index(type)] = files.back().get();
     }
@@ -311,7 +311,7 @@ int convert(const fs::path& log_path, const fs::path& out_dir, const ChannelPatt
     const auto slots = file_of.find(e.channel);
     if (slots == file_of.end()) return;  // not selected
     const auto row = log2csv::format_csv_row(e.timestamp, e.data, e.datalen, line);
-    cli::AtomicFile* file = slots->second[index(row.type)];
+    cli::OutputFile* file = slots->second[index(row.type)];
     if (file == nullptr)
       throw std::runtime_error(quoted(log_path) + " changed while it was being read");
     file->stream() << line;

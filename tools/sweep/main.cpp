@@ -739,9 +739,11 @@ int run(int argc, char** argv) {
     for (Scenario& s : scenarios) s.bench.*member = range.lo + (range.hi - range.lo) * in_range(physics_rng);
   }
 
-  cli::AtomicFile out(out_path);  // created before the run: an unwritable path fails fast
-  std::optional<cli::AtomicFile> scenarios_out;
-  if (const auto path = args.value("scenarios-out")) scenarios_out.emplace(*path);
+  // Created before the run: an unwritable path, or both outputs on one file, fail fast.
+  if (const auto path = args.value("scenarios-out")) cli::refuse_same_file({{"--out", out_path}, {"--scenarios-out", *path}});
+  cli::OutputFile out(out_path, "--out");
+  std::optional<cli::OutputFile> scenarios_out;
+  if (const auto path = args.value("scenarios-out")) scenarios_out.emplace(*path, "--scenarios-out");
 
   std::vector<ScenarioResult> results(scenarios.size());
   std::atomic<int> next{0}, done{0};

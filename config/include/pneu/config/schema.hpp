@@ -805,6 +805,17 @@ void describe(auto& a, Like<Config> auto& c) {
           "the modbus backend runs on the real clock (--clock real)");
   a.check("hal.gpio.enabled", !c.hal.gpio.enabled || real_clock,
           "real lines (e-stop, valve power) need the real clock (--clock real)");
+  // The simulated carriage starts where the supervisor lets it be: outside the soft limits it would
+  // fault at t = 0 and the safe output would take the carriage wherever the plant goes.
+  const ControllerConfig& ctl = c.controller;
+  a.check("simulation.initial_position_m",
+          c.hal.backend != BackendKind::kSim || (c.simulation.initial_position_m >= ctl.soft_limit_min_m &&
+                                                 c.simulation.initial_position_m <= ctl.soft_limit_max_m),
+          [&] {
+            return "the simulated carriage would start outside the soft limits (controller.soft_limit_min_m, "
+                   "soft_limit_max_m: [" + fmt(ctl.soft_limit_min_m) + ", " + fmt(ctl.soft_limit_max_m) + "] m, got " +
+                   fmt(c.simulation.initial_position_m) + " m): the supervisor would fault at t = 0";
+          });
 }
 
 // ---------------------------------------------------------------------------------------------
