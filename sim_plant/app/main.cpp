@@ -31,7 +31,8 @@ Usage:
   pneu-plant tune [--config FILE] [--set KEY=VALUE ...] [--step-mm N] [--map-only] [--delay-samples N]
                   [--csv MAP.csv]
   pneu-plant serve --config FILE [--set KEY=VALUE ...] [--duration S] [--outputs FILE] [--events FILE]
-                   [--fault CHANNEL:MODE@T ...] [--reply-delay-s D [--delay-after-s T]] [--max-clients N] [--quiet]
+                   [--fault CHANNEL:MODE@T ...] [--reply-delay-s D [--delay-after-s T]] [--max-clients N]
+                   [--watchdog-s S [--watchdog-outputs neutral|exhaust|U_P,U_N]] [--quiet]
   pneu-plant COMMAND -h | --help
   pneu-plant -h | --help | --version
 
