@@ -166,6 +166,70 @@ class Hil : public ::testing::Test {
   int port_ = 0;
 };
 
+// The movement test before closed loop (controller.movement_test) over Modbus: pneu-plant serve
+// plays a miswired bench (--fault tubes:swapped, pressure_sensors:swapped, a dead transmitter that
+// reads its chamber's pressure at start-up with its noise, which the supervisor's frozen check cannot
+// tell), and pneud refuses to start closed loop, naming the finding on stderr, before any tick (no
+// events file is left); on the bench as it should be it says that the test passed, then runs.
+class HilMovementTest : public Hil {
+ protected:
+  struct Start {
+    int exit_code = -1;
+    std::string err;
+    bool ticked = false;  // the run's events file is there: the loop ran
+  };
+  Start start(const std::vector<std::string>& serve_faults, const std::vector<std::string>& pneud_extra = {}) {
+    Child plant = serve(30.0, serve_faults);
+    std::vector<std::string> extra{"--duration", "2", "--events", (dir_ / "events.jsonl").string()};
+    extra.insert(extra.end(), pneud_extra.begin(), pneud_extra.end());
+    Child pneud = Child::spawn(pneud_args(extra), dir_ / "pneud.out", dir_ / "pneud.err");
+    Start s;
+    s.exit_code = pneud.wait();
+    s.err = slurp(dir_ / "pneud.err");
+    s.ticked = fs::exists(dir_ / "events.jsonl");
+    kill(plant.pid, SIGINT);
+    EXPECT_EQ(plant.wait(), 0) << slurp(dir_ / "serve.err");
+    return s;
+  }
+};
+
+TEST_F(HilMovementTest, SwappedTubesStopTheStartBeforeClosedLoopNamingThem) {
+  const Start s = start({"--fault", "tubes:swapped@0"});
+  EXPECT_NE(s.exit_code, 0) << s.err;
+  EXPECT_THAT(s.err, HasSubstr("movement test before closed loop: tubes swapped"));
+  EXPECT_THAT(s.err, HasSubstr("closed loop not started"));
+  EXPECT_FALSE(s.ticked) << "no tick of closed loop ran";
+}
+
+TEST_F(HilMovementTest, ADeadPressureSensorStopsTheStartBeforeClosedLoopNamingIt) {
+  const Start s = start({"--fault", "pressure_p:dead@0"});
+  EXPECT_NE(s.exit_code, 0) << s.err;
+  EXPECT_THAT(s.err, HasSubstr("movement test before closed loop: p_P sensor dead"));
+  EXPECT_FALSE(s.ticked) << "no tick of closed loop ran";
+}
+
+TEST_F(HilMovementTest, SwappedPressureChannelsStopTheStartNamingThem) {
+  const Start s = start({"--fault", "pressure_sensors:swapped@0"});
+  EXPECT_NE(s.exit_code, 0) << s.err;
+  EXPECT_THAT(s.err, HasSubstr("movement test before closed loop: pressure sensors swapped"));
+  EXPECT_FALSE(s.ticked);
+}
+
+TEST_F(HilMovementTest, ACorrectBenchPassesAndTheStartUpLineSaysSoThenClosedLoopRuns) {
+  const Start s = start({});
+  EXPECT_EQ(s.exit_code, 0) << s.err;
+  EXPECT_THAT(s.err, HasSubstr("pneud: movement test passed in "));
+  EXPECT_TRUE(s.ticked);
+}
+
+TEST_F(HilMovementTest, SkippedOnlyByItsKeyWhichTheStartUpLineReports) {
+  const Start s = start({}, {"--set", "controller.movement_test.enabled=false"});
+  EXPECT_EQ(s.exit_code, 0) << s.err;
+  EXPECT_THAT(s.err, HasSubstr("pneud: movement test: skipped (controller.movement_test.enabled: false)"));
+  EXPECT_THAT(s.err, ::testing::Not(HasSubstr("movement test passed")));
+  EXPECT_TRUE(s.ticked);
+}
+
 TEST_F(Hil, PaperScenarioOverModbusSticksRestartsAndTheNonlinearForecastHoldsWithin2Percent) {
   // Over Modbus the stop lands a little elsewhere each run (I/O timing, noise, the machine's
   // stalls), and how long the pressures take to break stiction depends steeply on where: 0.7 to

@@ -376,7 +376,8 @@ TEST_F(PneuPlantServe, HelpDocumentsFaultsAndTheOutputsRecord) {
   const Outcome h = run("serve --help");
   EXPECT_EQ(h.exit_code, 0);
   for (const char* text : {"--outputs FILE", "t_s,u_p_v,u_n_v", "--fault SPEC", "CHANNEL:MODE@T", "rail-low", "rail-high",
-                           "raw=N", "volts=V", "freeze", "nan", "stuck=V", "valve_p -> u_P, valve_n -> u_N",
+                           "raw=N", "volts=V", "freeze", "nan", "dead", "stuck=V", "tubes:swapped", "pressure_sensors:swapped",
+                           "valve_p -> u_P, valve_n -> u_N",
                            "--max-clients N", "(default 4)", "owns them until it disconnects", "exception 06"})
     EXPECT_THAT(h.out, HasSubstr(text));
   EXPECT_THAT(run("--help").out, HasSubstr("[--outputs FILE] [--fault CHANNEL:MODE@T ...]"));
@@ -416,6 +417,10 @@ TEST_F(PneuPlantServe, RefusesBadFaultSpecsNamingTheSpecAndTheReason) {
       {"position:volts=abc@1", "volts=abc: not a finite number of volts"},
       {"position:freeze=1@1", "freeze takes no value"},
       {"valve_p:stuck=@1", "stuck needs a value"},
+      {"tubes:freeze@0", "tubes takes swapped only"},
+      {"pressure_sensors:dead@0", "pressure_sensors takes swapped only"},
+      {"pressure_p:swapped@0", "swapped is for tubes and pressure_sensors only"},
+      {"valve_p:dead@0", "dead is a sensor mode: a valve channel takes stuck=V only"},
   };
   for (const auto& [spec, reason] : cases) {
     const Outcome r = run(serve_hil() + "--fault '" + spec + "'");
