@@ -160,6 +160,14 @@ class Hil : public ::testing::Test {
     args.insert(args.end(), extra.begin(), extra.end());
     return pneu::test::loop_timing_faults_off(std::move(args));
   }
+  // The paper's step from the plant as serve starts it, at rest at 219.5 mm in complete equilibrium,
+  // and the runs that time a fault from serve's start-up: without the movement test, whose pulses
+  // (HilMovementTest) leave the carriage millimetres away with other pressures and take a second.
+  static std::vector<std::string> no_movement_test() { return {"--set", "controller.movement_test.enabled=false"}; }
+  static std::vector<std::string> with(std::vector<std::string> a, const std::vector<std::string>& b) {
+    a.insert(a.end(), b.begin(), b.end());
+    return a;
+  }
   // pneud's figures (--summary-json), read once it has ended.
   [[nodiscard]] std::string summary_json() const { return (dir_ / "summary.json").string(); }
   pneu::test::TestDir dir_{"pneu_hil_"};
@@ -244,8 +252,9 @@ TEST_F(Hil, PaperScenarioOverModbusSticksRestartsAndTheNonlinearForecastHoldsWit
   for (; runs < 3 && long_restarts == 0; ++runs) {
     const std::string events = "events" + std::to_string(runs) + ".jsonl";
     Child plant = serve(15.0);
-    Child pneud = Child::spawn(pneud_args({"--events", (dir_ / events).string(), "--summary-json", summary_json(),
-                                           "--set", "controller.law.gains=fixed"}),
+    Child pneud = Child::spawn(pneud_args(with({"--events", (dir_ / events).string(), "--summary-json", summary_json(),
+                                                "--set", "controller.law.gains=fixed"},
+                                               no_movement_test())),
                                dir_ / "pneud.out", dir_ / "pneud.err");
     ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
     kill(plant.pid, SIGINT);
@@ -291,8 +300,9 @@ TEST_F(Hil, PaperScenarioOverModbusSticksRestartsAndTheNonlinearForecastHoldsWit
 // motion band is what counts as a restart); the forecasts under the hold's commands say no restart.
 TEST_F(Hil, PaperScenarioWithTheHoldOverModbusNeverRestartsOnceHeldWithinTheWindow) {
   Child plant = serve(15.0);
-  Child pneud = Child::spawn(pneud_args({"--events", (dir_ / "events.jsonl").string(), "--set", "controller.law.gains=fixed",
-                                         "--set", "controller.hold.enabled=true", "--set", "controller.hold.reach_m=0.005"}),
+  Child pneud = Child::spawn(pneud_args(with({"--events", (dir_ / "events.jsonl").string(), "--set", "controller.law.gains=fixed",
+                                              "--set", "controller.hold.enabled=true", "--set", "controller.hold.reach_m=0.005"},
+                                             no_movement_test())),
                              dir_ / "pneud.out", dir_ / "pneud.err");
   ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
   kill(plant.pid, SIGINT);
@@ -360,7 +370,8 @@ TEST_F(Hil, IdentifiedOverModbusThePaperStepsLongStickingPhaseIsForecastWithin5P
   for (; runs < 3 && long_restarts == 0; ++runs) {
     const std::string events = "paper" + std::to_string(runs) + ".jsonl";
     Child plant = serve(15.0, bench);
-    std::vector<std::string> args = pneud_args({"--events", (dir_ / events).string(), "--set", "controller.law.gains=fixed"});
+    std::vector<std::string> args =
+        pneud_args(with({"--events", (dir_ / events).string(), "--set", "controller.law.gains=fixed"}, no_movement_test()));
     args[2] = identified.string();  // --config
     Child pneud = Child::spawn(args, dir_ / "paper.out", dir_ / "paper.err");
     ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "paper.err");
@@ -427,8 +438,9 @@ TEST_F(Hil, AThermalBenchWithASpoolLagIdentifiedOverModbusForecastsTheLongSticki
     std::vector<std::string> served = bench;
     served.insert(served.end(), {"--events", plant_events.string()});
     Child plant = serve(15.0, served);
-    std::vector<std::string> args = pneud_args({"--events", (dir_ / events).string(), "--summary-json", summary_json(),
-                                                "--set", "controller.law.gains=fixed"});
+    std::vector<std::string> args = pneud_args(with({"--events", (dir_ / events).string(), "--summary-json", summary_json(),
+                                                     "--set", "controller.law.gains=fixed"},
+                                                    no_movement_test()));
     args[2] = identified.string();  // --config
     Child pneud = Child::spawn(args, dir_ / "paper.out", dir_ / "paper.err");
     ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "paper.err");
@@ -708,7 +720,8 @@ TEST_F(Hil, UnreachableHostWrongUnitAndBadMapFailAtStartUpWithClearErrors) {
 TEST_F(Hil, AModuleThatAnswersLateIsACountedCommsFaultAndTheLoopNeverWaits) {
   // From 1 s on every reply comes 50 ms late, beyond the 20 ms response timeout.
   Child plant = serve(6.0, {"--reply-delay-s", "0.05", "--delay-after-s", "1"});
-  Child pneud = Child::spawn(pneud_args({"--duration", "3", "--summary-json", summary_json()}, /*bench_link=*/true),
+  Child pneud = Child::spawn(pneud_args(with({"--duration", "3", "--summary-json", summary_json()}, no_movement_test()),
+                                        /*bench_link=*/true),
                              dir_ / "pneud.out", dir_ / "pneud.err");
   ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
   kill(plant.pid, SIGINT);

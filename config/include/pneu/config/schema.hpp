@@ -517,7 +517,7 @@ void describe(auto& a, Like<HoldConfig> auto& h) {
 }
 
 void describe(auto& a, Like<MovementTestConfig> auto& m) {
-  a.field(PNEU_NVP(m, enabled), "true: the movement test before closed loop on hal.backend modbus");
+  a.field(optional(PNEU_NVP(m, enabled)), "true: the movement test before closed loop on hal.backend modbus");
   a.field(optional(PNEU_NVP(m, pulse_v)), Range::positive(), "each pulse drives u = u_0 +- this [V]");
   a.field(optional(PNEU_NVP(m, travel_m)), Range::positive(), "a pulse ends once the carriage moved this far [m]");
   a.field(optional(PNEU_NVP(m, pulse_s)), Range::positive(), "... or after this long [s]");
