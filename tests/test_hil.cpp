@@ -160,11 +160,83 @@ class Hil : public ::testing::Test {
     args.insert(args.end(), extra.begin(), extra.end());
     return pneu::test::loop_timing_faults_off(std::move(args));
   }
+  // The paper's step from the plant as serve starts it, at rest at 219.5 mm in complete equilibrium,
+  // and the runs that time a fault from serve's start-up: without the movement test, whose pulses
+  // (HilMovementTest) leave the carriage millimetres away with other pressures and take a second.
+  static std::vector<std::string> no_movement_test() { return {"--set", "controller.movement_test.enabled=false"}; }
+  static std::vector<std::string> with(std::vector<std::string> a, const std::vector<std::string>& b) {
+    a.insert(a.end(), b.begin(), b.end());
+    return a;
+  }
   // pneud's figures (--summary-json), read once it has ended.
   [[nodiscard]] std::string summary_json() const { return (dir_ / "summary.json").string(); }
   pneu::test::TestDir dir_{"pneu_hil_"};
   int port_ = 0;
 };
+
+// The movement test before closed loop (controller.movement_test) over Modbus: pneu-plant serve
+// plays a miswired bench (--fault tubes:swapped, pressure_sensors:swapped, a dead transmitter that
+// reads its chamber's pressure at start-up with its noise, which the supervisor's frozen check cannot
+// tell), and pneud refuses to start closed loop, naming the finding on stderr, before any tick (no
+// events file is left); on the bench as it should be it says that the test passed, then runs.
+class HilMovementTest : public Hil {
+ protected:
+  struct Start {
+    int exit_code = -1;
+    std::string err;
+    bool ticked = false;  // the run's events file is there: the loop ran
+  };
+  Start start(const std::vector<std::string>& serve_faults, const std::vector<std::string>& pneud_extra = {}) {
+    Child plant = serve(30.0, serve_faults);
+    std::vector<std::string> extra{"--duration", "2", "--events", (dir_ / "events.jsonl").string()};
+    extra.insert(extra.end(), pneud_extra.begin(), pneud_extra.end());
+    Child pneud = Child::spawn(pneud_args(extra), dir_ / "pneud.out", dir_ / "pneud.err");
+    Start s;
+    s.exit_code = pneud.wait();
+    s.err = slurp(dir_ / "pneud.err");
+    s.ticked = fs::exists(dir_ / "events.jsonl");
+    kill(plant.pid, SIGINT);
+    EXPECT_EQ(plant.wait(), 0) << slurp(dir_ / "serve.err");
+    return s;
+  }
+};
+
+TEST_F(HilMovementTest, SwappedTubesStopTheStartBeforeClosedLoopNamingThem) {
+  const Start s = start({"--fault", "tubes:swapped@0"});
+  EXPECT_NE(s.exit_code, 0) << s.err;
+  EXPECT_THAT(s.err, HasSubstr("movement test before closed loop: tubes swapped"));
+  EXPECT_THAT(s.err, HasSubstr("closed loop not started"));
+  EXPECT_FALSE(s.ticked) << "no tick of closed loop ran";
+}
+
+TEST_F(HilMovementTest, ADeadPressureSensorStopsTheStartBeforeClosedLoopNamingIt) {
+  const Start s = start({"--fault", "pressure_p:dead@0"});
+  EXPECT_NE(s.exit_code, 0) << s.err;
+  EXPECT_THAT(s.err, HasSubstr("movement test before closed loop: p_P sensor dead"));
+  EXPECT_FALSE(s.ticked) << "no tick of closed loop ran";
+}
+
+TEST_F(HilMovementTest, SwappedPressureChannelsStopTheStartNamingThem) {
+  const Start s = start({"--fault", "pressure_sensors:swapped@0"});
+  EXPECT_NE(s.exit_code, 0) << s.err;
+  EXPECT_THAT(s.err, HasSubstr("movement test before closed loop: pressure sensors swapped"));
+  EXPECT_FALSE(s.ticked);
+}
+
+TEST_F(HilMovementTest, ACorrectBenchPassesAndTheStartUpLineSaysSoThenClosedLoopRuns) {
+  const Start s = start({});
+  EXPECT_EQ(s.exit_code, 0) << s.err;
+  EXPECT_THAT(s.err, HasSubstr("pneud: movement test passed in "));
+  EXPECT_TRUE(s.ticked);
+}
+
+TEST_F(HilMovementTest, SkippedOnlyByItsKeyWhichTheStartUpLineReports) {
+  const Start s = start({}, {"--set", "controller.movement_test.enabled=false"});
+  EXPECT_EQ(s.exit_code, 0) << s.err;
+  EXPECT_THAT(s.err, HasSubstr("pneud: movement test: skipped (controller.movement_test.enabled: false)"));
+  EXPECT_THAT(s.err, ::testing::Not(HasSubstr("movement test passed")));
+  EXPECT_TRUE(s.ticked);
+}
 
 TEST_F(Hil, PaperScenarioOverModbusSticksRestartsAndTheNonlinearForecastHoldsWithin2Percent) {
   // Over Modbus the stop lands a little elsewhere each run (I/O timing, noise, the machine's
@@ -180,8 +252,9 @@ TEST_F(Hil, PaperScenarioOverModbusSticksRestartsAndTheNonlinearForecastHoldsWit
   for (; runs < 3 && long_restarts == 0; ++runs) {
     const std::string events = "events" + std::to_string(runs) + ".jsonl";
     Child plant = serve(15.0);
-    Child pneud = Child::spawn(pneud_args({"--events", (dir_ / events).string(), "--summary-json", summary_json(),
-                                           "--set", "controller.law.gains=fixed"}),
+    Child pneud = Child::spawn(pneud_args(with({"--events", (dir_ / events).string(), "--summary-json", summary_json(),
+                                                "--set", "controller.law.gains=fixed"},
+                                               no_movement_test())),
                                dir_ / "pneud.out", dir_ / "pneud.err");
     ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
     kill(plant.pid, SIGINT);
@@ -229,9 +302,10 @@ TEST_F(Hil, PaperScenarioOverModbusSticksRestartsAndTheNonlinearForecastHoldsWit
 TEST_F(Hil, PaperScenarioWithTheHoldOverModbusNeverRestartsOnceHeldWithinTheWindow) {
   const fs::path plant_events = dir_ / "plant.jsonl";
   Child plant = serve(15.0, {"--events", plant_events.string()});
-  Child pneud = Child::spawn(pneud_args({"--events", (dir_ / "events.jsonl").string(), "--summary-json", summary_json(),
-                                         "--set", "controller.law.gains=fixed", "--set", "controller.hold.enabled=true",
-                                         "--set", "controller.hold.reach_m=0.005"}),
+  Child pneud = Child::spawn(pneud_args(with({"--events", (dir_ / "events.jsonl").string(), "--summary-json", summary_json(),
+                                              "--set", "controller.law.gains=fixed", "--set", "controller.hold.enabled=true",
+                                              "--set", "controller.hold.reach_m=0.005"},
+                                             no_movement_test())),
                              dir_ / "pneud.out", dir_ / "pneud.err");
   ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
   kill(plant.pid, SIGINT);
@@ -312,7 +386,8 @@ TEST_F(Hil, IdentifiedOverModbusThePaperStepsLongStickingPhaseIsForecastWithin5P
   for (; runs < 3 && long_restarts == 0; ++runs) {
     const std::string events = "paper" + std::to_string(runs) + ".jsonl";
     Child plant = serve(15.0, bench);
-    std::vector<std::string> args = pneud_args({"--events", (dir_ / events).string(), "--set", "controller.law.gains=fixed"});
+    std::vector<std::string> args =
+        pneud_args(with({"--events", (dir_ / events).string(), "--set", "controller.law.gains=fixed"}, no_movement_test()));
     args[2] = identified.string();  // --config
     Child pneud = Child::spawn(args, dir_ / "paper.out", dir_ / "paper.err");
     ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "paper.err");
@@ -379,8 +454,9 @@ TEST_F(Hil, AThermalBenchWithASpoolLagIdentifiedOverModbusForecastsTheLongSticki
     std::vector<std::string> served = bench;
     served.insert(served.end(), {"--events", plant_events.string()});
     Child plant = serve(15.0, served);
-    std::vector<std::string> args = pneud_args({"--events", (dir_ / events).string(), "--summary-json", summary_json(),
-                                                "--set", "controller.law.gains=fixed"});
+    std::vector<std::string> args = pneud_args(with({"--events", (dir_ / events).string(), "--summary-json", summary_json(),
+                                                     "--set", "controller.law.gains=fixed"},
+                                                    no_movement_test()));
     args[2] = identified.string();  // --config
     Child pneud = Child::spawn(args, dir_ / "paper.out", dir_ / "paper.err");
     ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "paper.err");
@@ -660,7 +736,8 @@ TEST_F(Hil, UnreachableHostWrongUnitAndBadMapFailAtStartUpWithClearErrors) {
 TEST_F(Hil, AModuleThatAnswersLateIsACountedCommsFaultAndTheLoopNeverWaits) {
   // From 1 s on every reply comes 50 ms late, beyond the 20 ms response timeout.
   Child plant = serve(6.0, {"--reply-delay-s", "0.05", "--delay-after-s", "1"});
-  Child pneud = Child::spawn(pneud_args({"--duration", "3", "--summary-json", summary_json()}, /*bench_link=*/true),
+  Child pneud = Child::spawn(pneud_args(with({"--duration", "3", "--summary-json", summary_json()}, no_movement_test()),
+                                        /*bench_link=*/true),
                              dir_ / "pneud.out", dir_ / "pneud.err");
   ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
   kill(plant.pid, SIGINT);

@@ -209,8 +209,11 @@ class HilFaults : public ::testing::Test {
   }
   // pneud until SIGTERM, exhausting both chambers in fault, health every 0.1 s. The link's timing
   // is hil.yaml's for the comms faults' tests only (`bench_link`); see link_stalls_tolerated.
+  // Without the movement test: these faults act at a time after serve's start-up, chosen for the
+  // closed loop; the test's pulses before it (test_hil.cpp, MovementTest*) would meet them instead.
   Child pneud(const std::vector<std::string>& extra = {}, bool bench_link = false) {
     std::vector<std::string> args{bin("pneud"), "--config", hil_yaml(), "--set", "hal.modbus.port=" + std::to_string(port_),
+                                  "--set", "controller.movement_test.enabled=false",
                                   "--duration", "0", "--require-telemetry", "--set",
                                   "controller.supervisor.safe_output=exhaust", "--set", "telemetry.health_period_s=0.1",
                                   "--set", "controller.setpoints.initial_m=0", "--set",

@@ -378,7 +378,8 @@ TEST_F(PneuPlantServe, HelpDocumentsFaultsAndTheOutputsRecord) {
   const Outcome h = run("serve --help");
   EXPECT_EQ(h.exit_code, 0);
   for (const char* text : {"--outputs FILE", "t_s,u_p_v,u_n_v", "--fault SPEC", "CHANNEL:MODE@T", "rail-low", "rail-high",
-                           "raw=N", "volts=V", "freeze", "nan", "stuck=V", "valve_p -> u_P, valve_n -> u_N",
+                           "raw=N", "volts=V", "freeze", "nan", "dead", "stuck=V", "tubes:swapped", "pressure_sensors:swapped",
+                           "valve_p -> u_P, valve_n -> u_N",
                            "--max-clients N", "(default 4)", "owns them until it disconnects", "exception 06"})
     EXPECT_THAT(h.out, HasSubstr(text));
   EXPECT_THAT(run("--help").out, HasSubstr("[--outputs FILE] [--events FILE]"));
@@ -422,6 +423,10 @@ TEST_F(PneuPlantServe, RefusesBadFaultSpecsNamingTheSpecAndTheReason) {
       // hil.yaml's valve takes +-10 V: a spool stuck at 20 V is no fault the bench can have.
       {"valve_p:stuck=20@1", "stuck=20 is outside the valve's range [-10, 10] V (plant.valve.max_voltage_v"},
       {"valve_n:stuck=-10.5@1", "stuck=-10.5 is outside the valve's range [-10, 10] V"},
+      {"tubes:freeze@0", "tubes takes swapped only"},
+      {"pressure_sensors:dead@0", "pressure_sensors takes swapped only"},
+      {"pressure_p:swapped@0", "swapped is for tubes and pressure_sensors only"},
+      {"valve_p:dead@0", "dead is a sensor mode: a valve channel takes stuck=V only"},
   };
   for (const auto& [spec, reason] : cases) {
     const Outcome r = run(serve_hil() + "--fault '" + spec + "'");

@@ -141,6 +141,8 @@ class PymodbusInterop : public ::testing::Test {
                                   "controller.setpoints.schedule=[]",
                                   "--set",
                                   "controller.setpoints.initial_m=0.1",
+                                  "--set",  // a module serving fixed readings: nothing would move
+                                  "controller.movement_test.enabled=false",
                                   "--duration",
                                   "2",
                                   "--trajectory",

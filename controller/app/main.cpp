@@ -230,6 +230,15 @@ int run(int argc, char** argv) {
       for (const auto& w : report.warnings) std::fprintf(stderr, "pneud: warning: real time: %s\n", w.c_str());
     };
   }
+  // The start-up line of a real bench: the movement test's verdict, or that the key skipped it.
+  if (cfg.hal.backend == config::BackendKind::kModbus && !controller::movement_test_runs(cfg))
+    std::fprintf(stderr, "pneud: movement test: skipped (%s): the wiring is not checked before closed loop\n",
+                 !cfg.controller.movement_test.enabled ? "controller.movement_test.enabled: false"
+                                                       : "controller.start_armed: false: it runs only when pneud starts armed");
+  const auto said_movement_test = [](const controller::MovementTestResult& r) {
+    if (r.passed() || r.finding == controller::MovementFinding::kInterrupted)  // a finding: the error line says it
+      std::fprintf(stderr, "pneud: movement test %s\n", controller::describe(r).c_str());
+  };
   const auto clock = controller::make_clock(cfg.controller.clock);
   const auto wall0 = std::chrono::steady_clock::now();
   try {
@@ -245,7 +254,7 @@ int run(int argc, char** argv) {
       };
     }
     controller::execute(run, cfg, *clock, identify_path && real_clock ? stop_either : identify_path ? fault_stop : g_stop,
-                        wait, on_loop_thread);
+                        wait, on_loop_thread, said_movement_test);
   } catch (...) {
     if (run.outputs->heartbeat.load() == 0) {
       files.discard();  // nothing ran: no empty output left

@@ -71,7 +71,8 @@ void push_health(const ControlLoop& loop, const LoopTiming& timing, double t_s, 
 void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t deadlines,
               const std::atomic<bool>& stop_requested, LoopTiming& timing,
               const std::function<void()>& between_ticks, double health_period_s,
-              LoopOutputs* health, const std::function<void()>& after_start) {
+              LoopOutputs* health, const std::function<void()>& after_start,
+              const std::function<void()>& before_time) {
   timing.period_s = period_s;
   window_wake.reset();
   window_compute.reset();
@@ -79,9 +80,11 @@ void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t de
                                 ? std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::llround(health_period_s / period_s)))
                                 : 0;
   std::uint64_t next_health = health_every;
-  loop.start(0.0);  // opens the backend (a connect, a first exchange) before time starts
+  loop.open(0.0);  // opens the backend (a connect, a first exchange) before time starts
   clock.prepare_loop_thread();
   if (after_start) after_start();
+  if (before_time) before_time();
+  loop.begin(0.0);
   const double epoch = clock.now_s();
   timing.epoch_monotonic_s = clock.monotonic_s_at(epoch);
   std::uint64_t k = 0;  // deadline index: deadline k is at k * period (no accumulated rounding)

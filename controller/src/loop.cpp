@@ -36,7 +36,11 @@ ControlLoop::ControlLoop(LoopParams params, hal::Backend& backend, LoopOutputs& 
       hold_law_(params_.controller.hold, params_.controller.law.max_voltage_v, params_.controller.period_s()) {}
 
 void ControlLoop::start(double t0_s) {
-  backend_->open(t0_s);
+  open(t0_s);
+  begin(t0_s);
+}
+
+void ControlLoop::begin(double t0_s) {
   seq_ = 0;
   comms_errors_ = 0;
   next_step_ = 0;

@@ -1,7 +1,10 @@
 #include "pneu/controller/session.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <stdexcept>
+#include <string>
 #include <thread>
 
 namespace pneu::controller {
@@ -94,17 +97,38 @@ Run make_run(const config::Config& config, const model::ValveCharacteristic& val
   return run;
 }
 
+bool movement_test_runs(const config::Config& config) noexcept {
+  return config.hal.backend == config::BackendKind::kModbus && config.controller.movement_test.enabled &&
+         config.controller.start_armed;
+}
+
 void execute(Run& run, const config::Config& config, Clock& clock,
              const std::atomic<bool>& stop_requested,
              const std::function<void(int timeout_ms)>& wait_for_input,
-             const std::function<void()>& on_loop_thread) {
+             const std::function<void()>& on_loop_thread,
+             const std::function<void(const MovementTestResult&)>& on_movement_test) {
   const double period = config.controller.period_s();
+  // The movement test: on the loop thread, its backend open, before time starts.
+  std::function<void()> before_time;
+  if (movement_test_runs(config)) {
+    before_time = [&] {
+      MovementTest test(config.controller.movement_test, MovementTestBench::of(config));
+      const MovementTestResult& r = run.movement_test.emplace(
+          run_movement_test(*run.backend, clock, period, test, stop_requested));
+      if (on_movement_test) on_movement_test(r);
+      if (!r.passed() && r.finding != MovementFinding::kInterrupted)
+        throw std::runtime_error(
+            std::string("movement test before closed loop: ") + movement_finding_text(r.finding) + " [" +
+            describe(r) + "]; outputs at u_0, valve power off; closed loop not started "
+            "(controller.movement_test, docs/configuration.md)");
+    };
+  }
   const auto ticks = static_cast<std::uint64_t>(std::llround(config.controller.duration_s / period)) +
                      (config.controller.duration_s > 0.0 ? 1 : 0);  // both ends: t = 0 and t = duration
   const double health_s = config.telemetry.health_period_s;
   if (clock.simulated()) {
     run_loop(*run.loop, clock, period, ticks, stop_requested, run.timing,
-             [&] { run.runtime->drain(*run.outputs); }, health_s, run.outputs.get());
+             [&] { run.runtime->drain(*run.outputs); }, health_s, run.outputs.get(), {}, before_time);
   } else {
     std::atomic<bool> done{false};
     std::thread service([&] {
@@ -116,7 +140,7 @@ void execute(Run& run, const config::Config& config, Clock& clock,
     });
     try {
       run_loop(*run.loop, clock, period, ticks, stop_requested, run.timing, {}, health_s, run.outputs.get(),
-               on_loop_thread);
+               on_loop_thread, before_time);
     } catch (...) {  // the backend failed to open, or the real-time set-up was refused: the safe
                      // output, the backend closed, the service thread stopped, then report
       run.loop->stop();

@@ -57,8 +57,8 @@ struct ModbusContext {
 
 // --- Fault injection (--fault CHANNEL:MODE@T) ---------------------------------------------------
 
-enum class FaultChannel { kPosition, kPressureP, kPressureN, kValveP, kValveN };
-enum class FaultMode { kRailLow, kRailHigh, kRaw, kVolts, kFreeze, kNan, kStuck };
+enum class FaultChannel { kPosition, kPressureP, kPressureN, kValveP, kValveN, kTubes, kPressureSensors };
+enum class FaultMode { kRailLow, kRailHigh, kRaw, kVolts, kFreeze, kNan, kStuck, kDead, kSwapped };
 
 /// One --fault, parsed and validated against the register map before serving.
 struct Fault {
@@ -71,6 +71,8 @@ struct Fault {
 };
 
 bool is_valve(FaultChannel c) { return c == FaultChannel::kValveP || c == FaultChannel::kValveN; }
+/// A miswiring of the bench (the tubes, the pressure transmitters' channels) rather than one channel.
+bool is_wiring(FaultChannel c) { return c == FaultChannel::kTubes || c == FaultChannel::kPressureSensors; }
 
 const config::RegisterChannel& channel_of(const config::ModbusConfig& mb, FaultChannel c) {
   switch (c) {
@@ -79,6 +81,8 @@ const config::RegisterChannel& channel_of(const config::ModbusConfig& mb, FaultC
     case FaultChannel::kPressureN: return mb.pressure_n;
     case FaultChannel::kValveP: return mb.valve_p;
     case FaultChannel::kValveN: return mb.valve_n;
+    case FaultChannel::kTubes:
+    case FaultChannel::kPressureSensors: break;  // no one register: a miswiring
   }
   return mb.position;
 }
@@ -112,7 +116,9 @@ Fault parse_fault(const std::string& spec, const config::ModbusConfig& mb, doubl
   else if (channel == "pressure_n") f.channel = FaultChannel::kPressureN;
   else if (channel == "valve_p") f.channel = FaultChannel::kValveP;
   else if (channel == "valve_n") f.channel = FaultChannel::kValveN;
-  else throw bad("unknown channel '" + channel + "' (position, pressure_p, pressure_n, valve_p, valve_n)");
+  else if (channel == "tubes") f.channel = FaultChannel::kTubes;
+  else if (channel == "pressure_sensors") f.channel = FaultChannel::kPressureSensors;
+  else throw bad("unknown channel '" + channel + "' (position, pressure_p, pressure_n, valve_p, valve_n, tubes, pressure_sensors)");
 
   const auto t = parse_number(t_text);
   if (!t || !std::isfinite(*t)) throw bad("T must be a number of seconds (got '" + t_text + "')");
@@ -130,14 +136,20 @@ Fault parse_fault(const std::string& spec, const config::ModbusConfig& mb, doubl
   else if (mode == "freeze") f.mode = FaultMode::kFreeze;
   else if (mode == "nan") f.mode = FaultMode::kNan;
   else if (mode == "stuck") f.mode = FaultMode::kStuck;
-  else throw bad("unknown mode '" + mode + "' (sensors: rail-low, rail-high, raw=N, volts=V, freeze, nan; valves: stuck=V)");
+  else if (mode == "dead") f.mode = FaultMode::kDead;
+  else if (mode == "swapped") f.mode = FaultMode::kSwapped;
+  else throw bad("unknown mode '" + mode + "' (sensors: rail-low, rail-high, raw=N, volts=V, freeze, nan, dead; valves: "
+                 "stuck=V; tubes, pressure_sensors: swapped)");
   const bool takes_value = f.mode == FaultMode::kRaw || f.mode == FaultMode::kVolts || f.mode == FaultMode::kStuck;
   if (takes_value && (!arg || arg->empty())) throw bad(mode + " needs a value: " + mode + (f.mode == FaultMode::kRaw ? "=N" : "=V"));
   if (!takes_value && arg) throw bad(mode + " takes no value");
+  if (is_wiring(f.channel) != (f.mode == FaultMode::kSwapped))
+    throw bad(is_wiring(f.channel) ? channel + " takes swapped only" : "swapped is for tubes and pressure_sensors only");
   if (is_valve(f.channel) && f.mode != FaultMode::kStuck)
     throw bad(mode + " is a sensor mode: a valve channel takes stuck=V only");
   if (!is_valve(f.channel) && f.mode == FaultMode::kStuck)
-    throw bad("stuck=V is a valve mode: a sensor channel takes rail-low, rail-high, raw=N, volts=V, freeze or nan");
+    throw bad("stuck=V is a valve mode: a sensor channel takes rail-low, rail-high, raw=N, volts=V, freeze, nan or dead");
+  if (is_wiring(f.channel)) return f;
 
   const config::RegisterChannel& c = channel_of(mb, f.channel);
   const bool is_float = c.format == config::RegisterFormat::kFloat32;
@@ -177,7 +189,9 @@ Fault parse_fault(const std::string& spec, const config::ModbusConfig& mb, doubl
       f.stuck_v = *v;
       break;
     }
-    case FaultMode::kFreeze: break;
+    case FaultMode::kFreeze:
+    case FaultMode::kDead:
+    case FaultMode::kSwapped: break;
   }
   return f;
 }
@@ -327,10 +341,18 @@ const char* const kServeHelpText = R"(pneu-plant serve: the simulated bench behi
                                                scaling, clamped only by the register type
                          freeze                the register keeps the value it had at T
                          nan                   the register reads NaN (float32 channels only)
+                         dead                  the sensor reads the value its quantity had at T,
+                                               with its noise: a dead transmitter (not frozen bit
+                                               for bit, so only a movement test tells)
                        valve channels valve_p, valve_n:
                          stuck=V               the plant's valve is driven at V volts whatever the
                                                client writes (--outputs still records the writes);
                                                |V| at most the valve's plant.valve.max_voltage_v
+                       miswirings:
+                         tubes:swapped         valve P's tube feeds chamber N and valve N's
+                                               chamber P
+                         pressure_sensors:swapped  the pressure_p register reads chamber N, the
+                                               pressure_n register chamber P
                        A later fault on the same channel replaces an earlier one. Each prints one
                        line when it becomes active.
   --reply-delay-s D    fault injection: answer every request D seconds late, with the readings of
@@ -449,9 +471,18 @@ int serve(int argc, char** argv) {
   // The sensor registers: from the sensor models, or what an active fault makes them read.
   const Fault* sensor_fault[3] = {nullptr, nullptr, nullptr};  // position, pressure_p, pressure_n
   const config::RegisterChannel* sensor_channel[3] = {&mb.position, &mb.pressure_p, &mb.pressure_n};
-  const auto update_sensor_registers = [&] {
+  // Miswirings and dead sensors (--fault tubes:swapped, pressure_sensors:swapped, CHANNEL:dead).
+  bool tubes_swapped = false, pressure_sensors_swapped = false;
+  std::optional<double> dead_value[3];  // what a dead sensor reads (before its noise)
+  // What each sensor measures: its quantity, through the wiring.
+  const auto measured = [&](int i) {
     const auto& s = plant.state();
-    const auto v = sensors.read_volts(s.y_m, s.p_p_pa, s.p_n_pa);
+    return i == 0 ? s.y_m : (i == 1) != pressure_sensors_swapped ? s.p_p_pa : s.p_n_pa;
+  };
+  const auto update_sensor_registers = [&] {
+    double q[3];
+    for (int i = 0; i < 3; ++i) q[i] = dead_value[i].value_or(measured(i));
+    const auto v = sensors.read_volts(q[0], q[1], q[2]);
     const double volts[3] = {v.y_m, v.p_p_pa, v.p_n_pa};
     for (int i = 0; i < 3; ++i) {
       const config::RegisterChannel& c = *sensor_channel[i];
@@ -571,7 +602,8 @@ int serve(int argc, char** argv) {
   const auto drive_n = [&] { return stuck_n.value_or(u_n); };
   // The plant to `t`, each push of hal.sim.pushes (on serve's time) from its start to its end.
   const auto step_to = [&](double t) {
-    plant::step_with_pushes(plant, t, drive_p(), drive_n(), cfg.hal.sim.pushes, record_events);
+    plant::step_with_pushes(plant, t, tubes_swapped ? drive_n() : drive_p(), tubes_swapped ? drive_p() : drive_n(),
+                            cfg.hal.sim.pushes, record_events);
   };
   const auto advance_to = [&](double t) {
     for (; next_fault < faults.size() && faults[next_fault].t_s <= t; ++next_fault) {
@@ -580,8 +612,16 @@ int serve(int argc, char** argv) {
       switch (f.channel) {
         case FaultChannel::kValveP: stuck_p = f.stuck_v; break;
         case FaultChannel::kValveN: stuck_n = f.stuck_v; break;
+        case FaultChannel::kTubes: tubes_swapped = true; break;
+        case FaultChannel::kPressureSensors: pressure_sensors_swapped = true; break;
         default: {
           const int i = static_cast<int>(f.channel);
+          dead_value[i].reset();
+          if (f.mode == FaultMode::kDead) {
+            dead_value[i] = measured(i);
+            sensor_fault[i] = nullptr;
+            break;
+          }
           if (f.mode == FaultMode::kFreeze)
             std::copy_n(&sensor_regs[sensor_channel[i]->address], sensor_channel[i]->register_count(), f.words.begin());
           sensor_fault[i] = &f;

@@ -159,6 +159,19 @@ struct HoldConfig {
   double reach_preload = 0.7;
 };
 
+/// controller.movement_test: before closed loop on a real backend (hal.backend modbus), small
+/// open-loop pulses around u_0 check that +u moves the carriage towards +y and raises p_P (and
+/// lowers p_N), and that each sensor responds; swapped tubes, swapped pressure channels, a reversed
+/// or dead position sensor or a dead pressure sensor stop the start with the finding.
+struct MovementTestConfig {
+  bool enabled = true;                 ///< run it before closed loop on hal.backend modbus
+  double pulse_v = 1.5;                ///< each pulse drives u = u_0 +- this [V]
+  double travel_m = 0.002;             ///< a pulse ends once the carriage moved this far [m]
+  double pulse_s = 0.2;                ///< ... or after this long [s]
+  double rest_s = 0.3;                 ///< u_0 after each pulse, the carriage coming to rest [s]
+  double min_pressure_change_pa = 5000.0;  ///< a chamber's reading must change this much in a pulse [Pa]
+};
+
 /// One step of the set-point schedule.
 struct SetpointStep {
   double t_s = 0.0;                 ///< from this time on [s], increasing
@@ -226,6 +239,7 @@ struct ControllerConfig {
   StopDetectorParams stop_detector;
   PredictorConfig predictor;
   HoldConfig hold;                      ///< controller.hold.* (optional section: absent, off)
+  MovementTestConfig movement_test;     ///< controller.movement_test.* (optional section: absent, on)
   double initial_setpoint_m = 0.2195;   ///< set point before the first schedule step [m]
   std::vector<SetpointStep> schedule;   ///< set-point steps, time increasing
   double soft_limit_min_m = -0.24;      ///< set points (and, later, positions) below are refused [m]

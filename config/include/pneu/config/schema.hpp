@@ -516,6 +516,16 @@ void describe(auto& a, Like<HoldConfig> auto& h) {
           "... from this share of the stiction bound it must cross (or the force, if past it) [-]");
 }
 
+void describe(auto& a, Like<MovementTestConfig> auto& m) {
+  a.field(optional(PNEU_NVP(m, enabled)), "true: the movement test before closed loop on hal.backend modbus");
+  a.field(optional(PNEU_NVP(m, pulse_v)), Range::positive(), "each pulse drives u = u_0 +- this [V]");
+  a.field(optional(PNEU_NVP(m, travel_m)), Range::positive(), "a pulse ends once the carriage moved this far [m]");
+  a.field(optional(PNEU_NVP(m, pulse_s)), Range::positive(), "... or after this long [s]");
+  a.field(optional(PNEU_NVP(m, rest_s)), Range::non_negative(), "u_0 after each pulse [s]");
+  a.field(optional(PNEU_NVP(m, min_pressure_change_pa)), Range::positive(),
+          "a chamber's reading must change this much in a pulse [Pa]");
+}
+
 /// One step of controller.setpoints.schedule.
 void describe(auto& a, Like<SetpointStep> auto& s, double half_stroke_m) {
   a.field(PNEU_NVP(s, t_s), Range::non_negative(), "from this time on [s]");
@@ -587,6 +597,7 @@ void describe(auto& a, Like<ControllerConfig> auto& c, const model::PlantParams&
   a.section(PNEU_NVP(c, stop_detector));
   a.section(PNEU_NVP(c, predictor));
   a.section(optional(PNEU_NVP(c, hold)));
+  a.section(optional(PNEU_NVP(c, movement_test)));
   a.group("setpoints", [&](auto& s) {
     s.field(Field("initial_m", c.initial_setpoint_m), Range::any(), "set point before the first step [m]");
     s.check("initial_m", std::abs(c.initial_setpoint_m) <= half,
@@ -614,6 +625,10 @@ void describe(auto& a, Like<ControllerConfig> auto& c, const model::PlantParams&
               return "must lie within the soft limits [" + fmt(c.soft_limit_min_m) + ", " +
                      fmt(c.soft_limit_max_m) + "] m";
             });
+  a.check("movement_test.pulse_v", c.movement_test.pulse_v < c.law.max_voltage_v,
+          "must lie below controller.law.max_voltage_v");
+  a.check("movement_test.travel_m", c.movement_test.travel_m < 0.5 * (c.soft_limit_max_m - c.soft_limit_min_m),
+          "must lie well within the soft limits (below half their span)");
   a.field(PNEU_NVP(c, start_armed), "armed at start-up");
   a.field(PNEU_NVP(c, comms_fault_after_s), Range::closed(0.0, 10.0),
           "reads not ok this long in a row are a fault [s]");

@@ -84,10 +84,13 @@ struct LoopTiming {
 /// `after_start`, when set, runs once the loop has started (its backend open, with any thread of
 /// its own already created) and before time starts: the place for the loop thread's real-time
 /// set-up, which threads created later would otherwise inherit. `clock.prepare_loop_thread()` runs
-/// just before it.
+/// just before it. `before_time`, when set, runs on the loop thread after `after_start`, the backend
+/// open and the loop not begun yet (its first reading is taken after it): the movement test's
+/// place; what it throws ends the run before any tick.
 void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t deadlines,
               const std::atomic<bool>& stop_requested, LoopTiming& timing,
               const std::function<void()>& between_ticks = {}, double health_period_s = 0.0,
-              LoopOutputs* health = nullptr, const std::function<void()>& after_start = {});
+              LoopOutputs* health = nullptr, const std::function<void()>& after_start = {},
+              const std::function<void()>& before_time = {});
 
 }  // namespace pneu::controller

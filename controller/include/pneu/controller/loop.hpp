@@ -137,8 +137,14 @@ class ControlLoop {
   /// its parameters; it refers to `backend` and `outputs`, which must outlive it.
   ControlLoop(LoopParams params, hal::Backend& backend, LoopOutputs& outputs);
 
-  /// Opens the backend at loop time `t0_s` and arms the detector at rest at the first reading.
+  /// Opens the backend at loop time `t0_s` and arms the detector at rest at the first reading:
+  /// open() then begin().
   void start(double t0_s);
+  /// Opens the backend at loop time `t0_s` (before time starts: a movement test may drive it
+  /// between open() and begin()).
+  void open(double t0_s) { backend_->open(t0_s); }
+  /// The loop's state from the first reading at loop time `t0_s`, the backend open.
+  void begin(double t0_s);
   /// One tick at loop time `t_s`. Real-time safe.
   void tick(double t_s) noexcept;
   /// After each tick on the real clock: whether it overran its deadline (the supervisor counts

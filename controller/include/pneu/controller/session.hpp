@@ -10,6 +10,7 @@
 
 #include "pneu/config/config.hpp"
 #include "pneu/controller/clock.hpp"
+#include "pneu/controller/movement_test.hpp"
 #include "pneu/controller/runtime.hpp"
 #include "pneu/hal/backend.hpp"
 #include "pneu/model/tangent_linear.hpp"
@@ -70,6 +71,7 @@ struct Run {
   std::unique_ptr<ControlLoop> loop;
   std::unique_ptr<Runtime> runtime;
   LoopTiming timing;
+  std::optional<MovementTestResult> movement_test;  ///< the movement test's, when it ran
 };
 
 /// Builds the run for `config` (offset already resolved) on `backend` (opened when the run starts,
@@ -89,9 +91,21 @@ struct Run {
 /// `on_loop_thread`, when set, runs on the loop thread once the backend is open, just before time
 /// starts (real clock: its real-time set-up, so that the backend's own I/O thread, created
 /// earlier, keeps the ordinary scheduling; what it throws ends the run, the backend closed).
+/// On hal.backend modbus with controller.movement_test.enabled, the movement test then runs on the
+/// loop thread before time starts (movement_test_runs()); its result goes to `on_movement_test`
+/// (when set, on the loop thread, before any tick) and into `run.movement_test`. A finding other
+/// than a pass or an interruption ends the run before closed loop: std::runtime_error naming it,
+/// the safe output written and the backend closed.
 void execute(Run& run, const config::Config& config, Clock& clock,
              const std::atomic<bool>& stop_requested,
              const std::function<void(int timeout_ms)>& wait_for_input = {},
-             const std::function<void()>& on_loop_thread = {});
+             const std::function<void()>& on_loop_thread = {},
+             const std::function<void(const MovementTestResult&)>& on_movement_test = {});
+
+/// Whether execute() runs the movement test for `config`: on hal.backend modbus (a bench, or
+/// pneu-plant serve) with controller.movement_test.enabled, when the run starts armed
+/// (controller.start_armed, or an identification run); never on the in-process plant, which
+/// cannot be miswired.
+[[nodiscard]] bool movement_test_runs(const config::Config& config) noexcept;
 
 }  // namespace pneu::controller
