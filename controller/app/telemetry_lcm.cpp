@@ -15,6 +15,11 @@ class LcmTelemetry final : public Telemetry {
     bridge_.set_command_log(run.runtime.get());  // both on the service thread (execute)
   }
   void handle(int timeout_ms) override { (void)bridge_.handle(timeout_ms); }
+  std::optional<std::string> another_controller(double listen_s, std::string& why_not) override {
+    why_not = bridge_.watch_off();
+    if (const auto other = bridge_.listen_for_another(listen_s)) return telemetry::describe(*other);
+    return std::nullopt;
+  }
   [[nodiscard]] controller::TelemetryFigures figures() const override { return bridge_.figures(); }
 
  private:
