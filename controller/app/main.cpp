@@ -87,10 +87,11 @@ link to the device lost and back are each one line on stderr as they happen, qui
 the syslog priority prefix journald reads ("<3>" a fault, "<4>" a refused reset or a link lost,
 "<5>" a reset, arming, disarming, a link back, "<6>" the hold).
 
-Exit codes: 0 success, 1 run failure (an --identify run that showed too little among them), 2 bad command line or configuration (nothing was run), 3 the run ended with a fault
-still latched (the outputs in the safe state), 4 the module did not confirm the safe output on
-closing (it may still hold the last command; 4 wins over 3). On 3 and 4 the summary's first line
-and the last line on stderr say why.
+Exit codes: 0 success; 1 run failure (an --identify run that showed too little among them); 2 bad
+command line or configuration (nothing was run); 3 the run ended with a fault still latched (the
+outputs in the safe state); 4 the module did not confirm the safe output on closing (it may still
+hold the last command; 4 wins over 3). On 3 and 4 the summary's first line and the last line on
+stderr say why. Another pneud heard on the LCM channels at start-up: exit 1, naming it.
 )";
 
 std::atomic<bool> g_stop{false};
