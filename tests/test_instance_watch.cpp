@@ -53,6 +53,13 @@ TEST(InstanceWatch, AnotherWithALongerHealthPeriodCountsAsThereForThreeOfItsOwn)
   EXPECT_FALSE(w.other(20.1));
 }
 
+TEST(InstanceWatch, AnotherCountsAsThereForThreeOfTheHealthPeriodsItsMessagesCarryFromTheFirstOn) {
+  InstanceWatch w(id(100), 0.1);
+  w.heard({id(200), false, 3.0}, 0.0);  // its first message: it speaks every 3 s
+  EXPECT_TRUE(w.other(8.9)) << "not forgotten 0.3 s later, before it could speak again";
+  EXPECT_FALSE(w.other(9.1));
+}
+
 TEST(InstanceWatch, AnothersLastMessageForgetsItAtOnce) {
   InstanceWatch w(id(100), 1.0);
   w.heard(health(id(200)), 0.0);
@@ -92,11 +99,15 @@ TEST(HealthDatagram, DecodesTheInstanceOfAHealthMessageOnTheHealthChannelOnly) {
   h.start_utime = 1'795'000'000'000'000;
   h.nonce = -5;
   h.is_final = true;
+  h.period = 0.5;
   const auto heard = decode_health_datagram(datagram("PNEU_HEALTH", h), "PNEU_HEALTH");
   ASSERT_TRUE(heard);
+  EXPECT_EQ(heard->period_s, 0.5);
   EXPECT_EQ(heard->from, (InstanceId{"bench-pc", 4321, 1'795'000'000'000'000, -5}));
   EXPECT_TRUE(heard->is_final);
   EXPECT_FALSE(decode_health_datagram(datagram("AXIS2_HEALTH", h), "PNEU_HEALTH")) << "another axis's prefix";
+  EXPECT_EQ(lcm_channel_of(datagram("PNEU_STATE", h)), "PNEU_STATE");
+  EXPECT_FALSE(lcm_channel_of(std::vector<std::uint8_t>{0x4c, 0x43, 0x30, 0x33, 0, 0, 0, 1, 'X', 0})) << "a fragment";
 }
 
 TEST(HealthDatagram, RefusesGarbageAHostileStringLengthAndTrailingBytes) {
@@ -107,7 +118,7 @@ TEST(HealthDatagram, RefusesGarbageAHostileStringLengthAndTrailingBytes) {
   longer.push_back(0);
   EXPECT_FALSE(decode_health_datagram(longer, "PNEU_HEALTH"));
   // The host string's length on the wire (its int32 before the "x\0"), made negative, then huge.
-  const std::size_t len_at = d.size() - (4 + 2 + 4 + 8 + 8);
+  const std::size_t len_at = d.size() - (4 + 2 + 4 + 8 + 8 + 8);  // length, "x\0", pid, start, nonce, period
   for (const std::uint8_t first : {std::uint8_t{0xff}, std::uint8_t{0x7f}}) {
     std::vector<std::uint8_t> bad = d;
     bad[len_at] = first;

@@ -43,6 +43,7 @@ using pneu::test::Csv;
 using pneu::test::loop_timing_faults_off;
 using pneu::test::slurp;
 using ::testing::HasSubstr;
+using ::testing::Not;
 using namespace std::chrono_literals;
 
 constexpr const char* kUrl = "udpm://239.255.76.67:7667?ttl=0";
@@ -478,18 +479,22 @@ TEST_F(LcmIntegration, ASecondControllerOnTheChannelsRefusesToStartNamingTheFirs
   EXPECT_EQ(slurp(dir_ / "first.err"), "") << "it heard no other";
 }
 
-// Two started together pass each other's start-up check: neither publishes health before its loop
-// runs. The second here starts as the first has just said its health (every 2 s), so that its own
-// check (0.15 s, its period 0.1 s) is over before the first speaks again. Then each hears the other:
-// both latch the another-controller fault, say so on stderr, and refuse a reset while the other is
-// heard. Once the second has stopped (its last health forgets it at once), the first's reset is
-// accepted.
+// A controller that cannot be heard when another starts (stalled here by SIGSTOP, as a frozen
+// machine or a network partition would hide it) and then speaks again: the two hear each other while
+// running. Both latch the another-controller fault, say so on stderr, and refuse a reset while the
+// other is heard. Once the second has stopped (its last health forgets it at once), the first's
+// reset is accepted.
 TEST_F(LcmIntegration, TwoControllersThatHearEachOtherWhileRunningBothLatchAFault) {
   Healths healths;
   ASSERT_TRUE(healths.good());
-  Child first = Child::spawn(pneud_until_sigterm(dir_, "first", 2.0), dir_ / "first.out", dir_ / "first.err");
-  ASSERT_TRUE(healths.wait(first.pid, [](const auto& h) { return h.mode == 1; }, 15s)) << slurp(dir_ / "first.err");
-  Child second = Child::spawn(pneud_until_sigterm(dir_, "second", 0.1), dir_ / "second.out", dir_ / "second.err");
+  Child first = Child::spawn(pneud_until_sigterm(dir_, "first", 0.2), dir_ / "first.out", dir_ / "first.err");
+  ASSERT_TRUE(healths.wait(first.pid, [](const auto& h) { return h.mode == 1; }, 10s)) << slurp(dir_ / "first.err");
+  kill(first.pid, SIGSTOP);
+  std::this_thread::sleep_for(200ms);  // what it sent last is delivered, or dropped
+  Child second = Child::spawn(pneud_until_sigterm(dir_, "second", 0.2), dir_ / "second.out", dir_ / "second.err");
+  ASSERT_TRUE(healths.wait(second.pid, [](const auto& h) { return h.mode == 1; }, 10s))
+      << "the second heard no other as it started: " << slurp(dir_ / "second.err");
+  kill(first.pid, SIGCONT);
   const auto faulted = [](const auto& h) { return h.mode == 2 && h.fault_cause == 13; };
   EXPECT_TRUE(healths.wait(first.pid, faulted, 10s)) << slurp(dir_ / "first.err");
   EXPECT_TRUE(healths.wait(second.pid, faulted, 10s)) << slurp(dir_ / "second.err");
@@ -498,6 +503,7 @@ TEST_F(LcmIntegration, TwoControllersThatHearEachOtherWhileRunningBothLatchAFaul
   EXPECT_THAT(slurp(dir_ / "second.err"), HasSubstr("<3>pneud: another controller on the channels PNEU_*: pneud pid " +
                                                     std::to_string(first.pid) + " on host "));
   EXPECT_THAT(slurp(dir_ / "first.err"), HasSubstr("<3>pneud: FAULT at "));
+  EXPECT_THAT(slurp(dir_ / "second.err"), Not(HasSubstr("no longer heard"))) << "not forgotten between messages";
 
   lcm::LCM lcm(kUrl);
   ASSERT_TRUE(lcm.good());

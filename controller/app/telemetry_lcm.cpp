@@ -17,8 +17,7 @@ class LcmTelemetry final : public Telemetry {
   void handle(int timeout_ms) override { (void)bridge_.handle(timeout_ms); }
   std::optional<std::string> another_controller(double listen_s, std::string& why_not) override {
     why_not = bridge_.watch_off();
-    if (const auto other = bridge_.listen_for_another(listen_s)) return telemetry::describe(*other);
-    return std::nullopt;
+    return bridge_.listen_for_another(listen_s);
   }
   [[nodiscard]] controller::TelemetryFigures figures() const override { return bridge_.figures(); }
 

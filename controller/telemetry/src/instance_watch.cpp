@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <ctime>
 #include <random>
@@ -33,17 +34,21 @@ std::string describe(const InstanceId& id) {
   return "pneud pid " + std::to_string(id.pid) + " on host " + (id.host.empty() ? "?" : id.host) + ", started " + when;
 }
 
-std::optional<HealthHeard> decode_health_datagram(std::span<const std::uint8_t> datagram, std::string_view health_channel) {
+std::optional<std::string_view> lcm_channel_of(std::span<const std::uint8_t> datagram) {
   constexpr std::uint8_t kShortMagic[4] = {0x4c, 0x43, 0x30, 0x32};  // "LC02": a whole message in one datagram
   const std::size_t n = datagram.size();
   if (n < 8 || std::memcmp(datagram.data(), kShortMagic, 4) != 0) return std::nullopt;
   const auto* name = reinterpret_cast<const char*>(datagram.data() + 8);
   const void* nul = std::memchr(name, '\0', std::min<std::size_t>(n - 8, 256));
   if (!nul) return std::nullopt;
-  const std::string_view channel(name, static_cast<std::size_t>(static_cast<const char*>(nul) - name));
-  if (channel != health_channel) return std::nullopt;
-  const std::size_t at = 8 + channel.size() + 1;
-  const int bytes = static_cast<int>(n - at);
+  return std::string_view(name, static_cast<std::size_t>(static_cast<const char*>(nul) - name));
+}
+
+std::optional<HealthHeard> decode_health_datagram(std::span<const std::uint8_t> datagram, std::string_view health_channel) {
+  const std::optional<std::string_view> channel = lcm_channel_of(datagram);
+  if (!channel || *channel != health_channel) return std::nullopt;
+  const std::size_t at = 8 + channel->size() + 1;
+  const int bytes = static_cast<int>(datagram.size() - at);
   pneu_lcm::health_t h;
   try {  // lcm-gen's string decoding trusts the length on the wire: a hostile one can throw
     if (h.decode(datagram.data() + at, 0, bytes) != bytes) return std::nullopt;
@@ -53,6 +58,7 @@ std::optional<HealthHeard> decode_health_datagram(std::span<const std::uint8_t> 
   HealthHeard heard;
   heard.from = {h.host, h.pid, h.start_utime, h.nonce};
   heard.is_final = h.is_final;
+  heard.period_s = h.period;
   return heard;
 }
 
@@ -66,12 +72,13 @@ void InstanceWatch::heard(const HealthHeard& m, double now_s) {
     return;
   }
   interval_s_ = same ? now_s - last_heard_s_ : 0.0;
+  other_period_s_ = std::isfinite(m.period_s) ? m.period_s : 0.0;
   other_ = m.from;
   last_heard_s_ = now_s;
 }
 
 std::optional<InstanceId> InstanceWatch::other(double now_s) const {
-  if (other_ && now_s - last_heard_s_ <= 3.0 * std::max(period_s_, interval_s_)) return other_;
+  if (other_ && now_s - last_heard_s_ <= 3.0 * std::max({period_s_, other_period_s_, interval_s_})) return other_;
   return std::nullopt;
 }
 

@@ -6,6 +6,7 @@
 #include <array>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <thread>
 
@@ -49,6 +50,7 @@ LcmBridge::LcmBridge(const config::Config& config, controller::LoopOutputs& loop
       loop_(loop),
       accept_commands_(accept_commands),
       watch_(InstanceId::of_this_process(), config.telemetry.health_period_s),
+      health_period_s_(config.telemetry.health_period_s),
       validator_(config),
       epoch_utime_(unix_now_us()),
       started_(std::chrono::steady_clock::now()) {
@@ -122,22 +124,32 @@ void LcmBridge::update_watch() {
   }
 }
 
-std::optional<InstanceId> LcmBridge::listen_for_another(double listen_s) {
+std::optional<std::string> LcmBridge::listen_for_another(double listen_s) {
   if (!socket_) return std::nullopt;
   const double until_s = watch_time_s() + listen_s;
   std::array<std::uint8_t, kMaxDatagramBytes> buffer{};
   CommandSocket::Datagram d;
-  for (double left_s = listen_s; left_s > 0.0; left_s = until_s - watch_time_s()) {
+  std::optional<in_addr> state_from;  // <prefix>STATE heard: this pneud publishes none yet
+  // Once its state is heard, a while longer for its health, to name it.
+  const auto left = [&] { return (state_from ? until_s + 2.0 * listen_s : until_s) - watch_time_s(); };
+  for (double left_s = listen_s; left_s > 0.0; left_s = left()) {
     pollfd p{socket_->fd(), POLLIN, 0};
     if (::poll(&p, 1, static_cast<int>(std::ceil(left_s * 1e3))) <= 0) continue;
     while (socket_->receive(buffer, d)) {
       if (d.bytes > d.stored) continue;
-      if (const auto heard = decode_health_datagram(std::span<const std::uint8_t>(buffer.data(), d.stored), health_channel_))
-        watch_.heard(*heard, watch_time_s());
+      const std::span<const std::uint8_t> bytes(buffer.data(), d.stored);
+      if (!state_from && lcm_channel_of(bytes) == std::string_view(state_channel_)) state_from = d.source;
+      if (const auto heard = decode_health_datagram(bytes, health_channel_)) watch_.heard(*heard, watch_time_s());
     }
-    if (auto other = watch_.other(watch_time_s())) return other;
+    if (const auto other = watch_.other(watch_time_s())) return describe(*other);
   }
-  return std::nullopt;
+  if (!state_from) return std::nullopt;
+  char source[INET_ADDRSTRLEN] = "?";
+  inet_ntop(AF_INET, &*state_from, source, sizeof source);
+  char within[32];
+  std::snprintf(within, sizeof within, "%.2f s", 3.0 * listen_s);
+  return "a publisher of " + state_channel_ + " (from " + source + "; no health of it heard within " + within +
+         " to name it)";
 }
 
 std::int64_t LcmBridge::utime_of(double t_s) const noexcept {
@@ -286,6 +298,7 @@ void LcmBridge::on_health(const controller::HealthRecord& h) {
   m.pid = self.pid;
   m.start_utime = self.start_utime;
   m.nonce = self.nonce;
+  m.period = health_period_s_;
   publish(health_channel_, m);
 }
 

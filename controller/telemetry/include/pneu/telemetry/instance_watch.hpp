@@ -28,11 +28,17 @@ struct InstanceId {
 /// "pneud pid 1234 on host bench-pc, started 2026-11-27 16:50:01 UTC", for people.
 [[nodiscard]] std::string describe(const InstanceId& id);
 
-/// A health message as heard: whose, and whether it was its last (is_final).
+/// A health message as heard: whose, whether it was its last (is_final), and its sender's health
+/// period.
 struct HealthHeard {
   InstanceId from;
   bool is_final = false;
+  double period_s = 0.0;
 };
+
+/// The channel of `datagram` (a whole UDP payload off the LCM group) when it is one LCM short
+/// message; nothing otherwise. The view points into `datagram`.
+[[nodiscard]] std::optional<std::string_view> lcm_channel_of(std::span<const std::uint8_t> datagram);
 
 /// Decodes `datagram` (a whole UDP payload off the LCM group) when it is one LCM short message on
 /// `health_channel` holding a health_t; nothing otherwise (another channel, a fragment, garbage).
@@ -44,7 +50,8 @@ class InstanceWatch {
  public:
   /// `self`: this process (its own health, heard back off the group, is no other); `period_s`: its
   /// health period. Another instance counts as present until it said its last (is_final), or for 3
-  /// of the longer of this period and the interval between its own messages after the last one heard.
+  /// of the longest of this period, its own and the interval between its messages after the last
+  /// one heard.
   InstanceWatch(InstanceId self, double period_s);
 
   /// A health message heard at `now_s` (any monotonic clock).
@@ -59,6 +66,7 @@ class InstanceWatch {
   std::optional<InstanceId> other_;
   double last_heard_s_ = 0.0;
   double interval_s_ = 0.0;  // between its last two messages (0: one heard so far)
+  double other_period_s_ = 0.0;
 };
 
 }  // namespace pneu::telemetry

@@ -47,8 +47,11 @@ class LcmBridge final : public controller::RunListener {
   bool handle(int timeout_ms);
 
   /// Before the run (nothing of this pneud published yet): listens up to `listen_s` for another
-  /// controller's health on <prefix>HEALTH, and returns the first heard, or nothing.
-  [[nodiscard]] std::optional<InstanceId> listen_for_another(double listen_s);
+  /// controller on the channels, and says who: the first whose health is heard on <prefix>HEALTH
+  /// (at once), or, when only its <prefix>STATE was (a loaded machine can drop a datagram now and
+  /// then, and state comes every tick), where that came from, once another 2 `listen_s` brought no
+  /// health to name it. Nothing: none.
+  [[nodiscard]] std::optional<std::string> listen_for_another(double listen_s);
   /// Why no other controller can be heard (empty: it can).
   [[nodiscard]] const std::string& watch_off() const noexcept { return watch_off_; }
   /// This pneud, as its health messages name it.
@@ -98,6 +101,7 @@ class LcmBridge final : public controller::RunListener {
   bool accept_commands_ = false;
   InstanceWatch watch_;
   std::string watch_off_;
+  double health_period_s_ = 0.0;  // telemetry.health_period_s, as health_t.period
   bool other_said_ = false;  // another controller announced on stderr, the loop asked to fault
   CommandValidator validator_;
   controller::Runtime* command_log_ = nullptr;
