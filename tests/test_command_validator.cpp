@@ -125,9 +125,25 @@ TEST(CommandValidator, EachCommandIsAllowedOnlyInItsModes) {
   EXPECT_FALSE(check(telemetry::kWireDisarm, Mode::kDisarmed).accepted);
   EXPECT_TRUE(check(telemetry::kWireFaultReset, Mode::kFault).accepted);
   EXPECT_THAT(check(telemetry::kWireFaultReset, Mode::kArmed).text, HasSubstr("no fault is latched"));
-  EXPECT_TRUE(check(telemetry::kWireSetPoint, Mode::kDisarmed).accepted);
+  EXPECT_TRUE(check(telemetry::kWireSetPoint, Mode::kArmed).accepted);
+  EXPECT_TRUE(check(telemetry::kWireSetPoint, Mode::kHold).accepted);
+  EXPECT_EQ(check(telemetry::kWireSetPoint, Mode::kDisarmed).rejection, Rejection::kMode);
   EXPECT_EQ(check(telemetry::kWireSetPoint, Mode::kFault).rejection, Rejection::kMode);
-  EXPECT_EQ(v.counters().mode, 5u);
+  EXPECT_EQ(v.counters().mode, 6u);
+}
+
+// Arming holds the carriage where it is (the loop's bumpless arm), whatever set point came before:
+// a set point sent while disarmed would be a promise the arm breaks, so it is refused, saying what
+// arming will do.
+TEST(CommandValidator, RefusesASetPointWhileDisarmedSayingThatArmingHoldsWhereTheCarriageIs) {
+  CommandValidator v(make_config());
+  for (const std::int8_t kind : {telemetry::kWireSetPoint, telemetry::kWireSetPointStep}) {
+    const auto r = v.validate(cmd(kind, kind, 0.005), static_cast<double>(kind), 0, 0.1, Mode::kDisarmed);
+    EXPECT_FALSE(r.accepted) << telemetry::wire_kind_name(kind);
+    EXPECT_EQ(r.rejection, Rejection::kMode);
+    EXPECT_EQ(r.text, "set point refused: disarmed: arm first; on arm the carriage holds where it is");
+  }
+  EXPECT_EQ(v.counters().mode, 2u);
 }
 
 TEST(CommandValidator, CountsMalformedMessagesAmongTheRejected) {

@@ -739,10 +739,14 @@ TEST_F(Hil, AModuleThatAnswersLateIsACountedCommsFaultAndTheLoopNeverWaits) {
   Child pneud = Child::spawn(pneud_args(with({"--duration", "3", "--summary-json", summary_json()}, no_movement_test()),
                                         /*bench_link=*/true),
                              dir_ / "pneud.out", dir_ / "pneud.err");
-  ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
+  // The safe output not confirmed (below), and the comms fault latched: exit code 4, said first.
+  ASSERT_EQ(pneud.wait(), 4) << slurp(dir_ / "pneud.err");
   kill(plant.pid, SIGINT);
   EXPECT_EQ(plant.wait(), 0);
   const std::string out = slurp(dir_ / "pneud.out");
+  EXPECT_THAT(out, ::testing::StartsWith("SAFE OUTPUT NOT CONFIRMED: the module did not confirm the safe output on "
+                                         "closing (3 attempts): it may still hold the last command, and the run "
+                                         "ended with a fault latched (comms, since "));
   const auto summary = pneu::test::PneudSummary::read(summary_json());
   ASSERT_TRUE(summary.has_loop && summary.has_modbus) << out;
   EXPECT_GE(summary.errors, 5u) << "each late reply is a counted comms error";

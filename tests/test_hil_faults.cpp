@@ -16,7 +16,11 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <lcm/lcm-cpp.hpp>
+#include <fcntl.h>
 #include <signal.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <chrono>
@@ -222,7 +226,7 @@ class HilFaults : public ::testing::Test {
                                   (dir_ / "traj.csv").string()};
     if (!bench_link) args = pneu::test::link_stalls_tolerated(std::move(args));
     args.insert(args.end(), extra.begin(), extra.end());
-    return Child::spawn(pneu::test::loop_timing_faults_off(std::move(args)), dir_ / "pneud.out", dir_ / "pneud.err");
+    return Child::spawn(pneu::test::loop_timing_faults_off(std::move(args)), dir_ / "pneud.out", pneud_err_);
   }
   // The last complete line of the plant's record (it may be writing the next one).
   Outputs last_outputs(const std::string& name) const {
@@ -247,11 +251,12 @@ class HilFaults : public ::testing::Test {
   bool wait_armed_and_running(double ticks) {
     return telemetry_.wait_health([&](const auto& h) { return h.mode == kModeArmed && h.ticks >= ticks; }, 10s);
   }
-  // SIGTERM: the daemon exits 0 promptly, having published a final health message.
-  void stop_pneud(Child& p) {
+  // SIGTERM: the daemon exits promptly, having published a final health message: 0, or 3 when a
+  // fault is still latched (`faulted`).
+  void stop_pneud(Child& p, bool faulted = false) {
     kill(p.pid, SIGTERM);
     const auto t0 = std::chrono::steady_clock::now();
-    EXPECT_EQ(p.wait(), 0) << slurp(dir_ / "pneud.err");
+    EXPECT_EQ(p.wait(), faulted ? 3 : 0) << slurp(dir_ / "pneud.err");
     EXPECT_LT(std::chrono::steady_clock::now() - t0, 2s) << "within the unit's stop timeout";
     EXPECT_TRUE(telemetry_.wait_health([](const auto& h) { return h.is_final; }, 1s)) << "a final health message";
   }
@@ -371,6 +376,7 @@ class HilFaults : public ::testing::Test {
   }
 
   pneu::test::TestDir dir_{"pneu_hilf_"};
+  fs::path pneud_err_ = dir_ / "pneud.err";  // where pneud's stderr goes (a FIFO: read as it comes)
   int port_ = 0;
   Telemetry telemetry_;
 };
@@ -394,6 +400,51 @@ TEST_F(HilFaults, APlantKilledMidRunIsACommsFaultAndItsReplacementReceivesTheSaf
   reset_then_arm("plant2");
   stop_pneud_leaving_the_safe_output(p, "plant2");
   expect_comms_detection_time();
+}
+
+// Issue 29: a fault is heard at once, not at exit. pneud's stderr is a pipe read while it runs:
+// within two seconds of the plant's SIGKILL (a generous bound on a shared machine: the link is seen
+// lost within a response timeout, the fault latches 50 ms later), one "<3>" line names the comms
+// fault, pneud still running, after a "<4>" line saying the link was lost. The run then ends with the
+// fault latched and no module to confirm the safe output: exit code 4, said first in the summary.
+TEST_F(HilFaults, APlantKilledIsAnErrorLineOnStderrAtOnceAndTheExitCodeSaysTheSafeOutputIsUnconfirmed) {
+  Child plant = serve("plant");
+  pneud_err_ = dir_ / "pneud.stderr";
+  ASSERT_EQ(mkfifo(pneud_err_.c_str(), 0600), 0);
+  const int pipe = open(pneud_err_.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);  // before pneud opens it
+  ASSERT_GE(pipe, 0);
+  std::string err;
+  const auto read_err = [&] {
+    char buf[4096];
+    for (ssize_t n; (n = read(pipe, buf, sizeof buf)) > 0;) err.append(buf, static_cast<std::size_t>(n));
+  };
+  Child p = pneud({}, /*bench_link=*/true);
+  ASSERT_TRUE(wait_armed_and_running(1300)) << err;
+  read_err();
+  EXPECT_EQ(err.find("<3>"), std::string::npos) << "no error before the kill: " << err;
+
+  kill(plant.pid, SIGKILL);
+  plant.wait();
+  const bool heard = pneu::test::eventually(
+      [&] {
+        read_err();
+        return err.find("<3>pneud: FAULT at ") != std::string::npos;
+      },
+      2s);
+  ASSERT_TRUE(heard) << "no error line within 2 s of the kill: " << err;
+  EXPECT_EQ(waitpid(p.pid, nullptr, WNOHANG), 0) << "pneud still runs: the line came as it happened";
+  const std::size_t fault = err.find("<3>pneud: FAULT at ");
+  EXPECT_THAT(err.substr(fault, err.find('\n', fault) - fault), HasSubstr("): comms: sensor samples stale"));
+  const std::size_t lost = err.find("<4>pneud: link to the device lost at ");
+  EXPECT_LT(lost, fault) << "the link lost, then the fault: " << err;
+
+  kill(p.pid, SIGTERM);
+  EXPECT_EQ(p.wait(), 4) << "the safe output not confirmed (and the fault latched): " << err;
+  read_err();
+  close(pipe);
+  EXPECT_THAT(err, HasSubstr("<3>pneud: SAFE OUTPUT NOT CONFIRMED: "));
+  EXPECT_THAT(err, HasSubstr("and the run ended with a fault latched (comms, since "));
+  EXPECT_THAT(slurp(dir_ / "pneud.out"), ::testing::StartsWith("SAFE OUTPUT NOT CONFIRMED: "));
 }
 
 TEST_F(HilFaults, AFrozenPlantIsACommsFaultAndReceivesTheSafeOutputOnceItThaws) {
@@ -502,7 +553,7 @@ TEST_F(HilFaults, APositionJumpingToItsRailIsASensorFaultAndArmingOnItFaultsAgai
   ASSERT_TRUE(telemetry_.wait_health([](const auto& h) { return h.mode == kModeFault && h.fault_cause == 7; }, 3s))
       << "soft-limit fault on arming";
   EXPECT_TRUE(wait_outputs("plant", /*safe=*/true, 3s)) << "the safe output again";
-  stop_pneud(p);
+  stop_pneud(p, /*faulted=*/true);
   const Run r = read_run();
   const double jumped = first_tick(r.traj, [](const auto& row) { return std::stod(row[3]) > 0.249; }, r.fault_t_s);
   EXPECT_NEAR(r.fault_t_s, jumped, 0.5 * kPeriodS) << "on the first sample at the rail: " << r.fault_line;
@@ -552,7 +603,7 @@ TEST_F(HilFaults, AStuckValveIsAFollowingErrorAfterItsTimeLimit) {
   EXPECT_TRUE(telemetry_.wait_health([](const auto& h) { return h.mode == kModeFault && h.faults == 2; }, 5s))
       << "the next move: a following error again";
   EXPECT_TRUE(wait_outputs("plant", /*safe=*/true, 2s));
-  stop_pneud(p);
+  stop_pneud(p, /*faulted=*/true);
   const Run r = read_run();
   const double window_m = 0.01;
   const double from = first_tick(

@@ -43,6 +43,7 @@ using pneu::test::Csv;
 using pneu::test::loop_timing_faults_off;
 using pneu::test::slurp;
 using ::testing::HasSubstr;
+using ::testing::Not;
 using namespace std::chrono_literals;
 
 constexpr const char* kUrl = "udpm://239.255.76.67:7667?ttl=0";
@@ -402,6 +403,132 @@ TEST_F(LcmIntegration, CommandsAreValidatedAndOnlyValidOnesReachTheLoop) {
   EXPECT_EQ(ticks, traj.rows.size());
 }
 
+// One controller per bench (issue 29). Health messages off the group, by the pid that sent them.
+class Healths {
+ public:
+  Healths() {
+    thread_ = std::thread([this] {
+      std::string channel;
+      std::vector<std::uint8_t> payload;
+      while (!done_) {
+        if (!sniffer_.receive(channel, payload, 20) || channel != "PNEU_HEALTH") continue;
+        pneu_lcm::health_t h;
+        if (h.decode(payload.data(), 0, static_cast<int>(payload.size())) != static_cast<int>(payload.size())) continue;
+        std::lock_guard<std::mutex> l(m_);
+        last_[h.pid] = h;
+      }
+    });
+  }
+  ~Healths() {
+    done_ = true;
+    thread_.join();
+  }
+  bool good() const { return sniffer_.good(); }
+  // Whether the last health of `pid` satisfies `pred` within `limit`.
+  bool wait(pid_t pid, const std::function<bool(const pneu_lcm::health_t&)>& pred, std::chrono::milliseconds limit) {
+    return pneu::test::eventually(
+        [&] {
+          std::lock_guard<std::mutex> l(m_);
+          const auto it = last_.find(pid);
+          return it != last_.end() && pred(it->second);
+        },
+        limit, 5ms);
+  }
+
+ private:
+  pneu::test::LcmSniffer sniffer_;
+  std::mutex m_;
+  std::map<std::int32_t, pneu_lcm::health_t> last_;
+  std::atomic<bool> done_{false};
+  std::thread thread_;
+};
+
+std::vector<std::string> pneud_until_sigterm(const pneu::test::TestDir& dir, const std::string& name,
+                                             double health_period_s) {
+  return loop_timing_faults_off({bin("pneud"), "--clock", "real", "--duration", "0", "--require-telemetry", "--set",
+                                 "controller.setpoints.schedule=[]", "--set",
+                                 "telemetry.health_period_s=" + std::to_string(health_period_s), "--events",
+                                 (dir / (name + ".events.jsonl")).string(), "--trajectory",
+                                 (dir / (name + ".traj.csv")).string()});
+}
+
+TEST_F(LcmIntegration, ASecondControllerOnTheChannelsRefusesToStartNamingTheFirst) {
+  Healths healths;
+  ASSERT_TRUE(healths.good());
+  Child first = Child::spawn(pneud_until_sigterm(dir_, "first", 0.2), dir_ / "first.out", dir_ / "first.err");
+  ASSERT_TRUE(healths.wait(first.pid, [](const auto& h) { return h.mode == 1; }, 10s)) << slurp(dir_ / "first.err");
+  ASSERT_TRUE(healths.wait(first.pid, [](const auto& h) {
+    char host[256] = "";
+    gethostname(host, sizeof host - 1);
+    return h.host == host && h.start_utime > 0;
+  }, 1s)) << "its health names it";
+
+  Child second = Child::spawn(pneud_until_sigterm(dir_, "second", 0.2), dir_ / "second.out", dir_ / "second.err");
+  EXPECT_EQ(second.wait(), 1) << slurp(dir_ / "second.err");
+  const std::string err = slurp(dir_ / "second.err");
+  EXPECT_THAT(err, HasSubstr("pneud: another controller is running on the channels PNEU_*: pneud pid " +
+                             std::to_string(first.pid) + " on host "));
+  EXPECT_THAT(err, HasSubstr("one controller per bench"));
+  EXPECT_FALSE(fs::exists(dir_ / "second.traj.csv")) << "nothing ran: no file left";
+  EXPECT_FALSE(fs::exists(dir_ / "second.events.jsonl"));
+
+  EXPECT_TRUE(healths.wait(first.pid, [](const auto& h) { return h.mode == 1 && h.faults == 0 && !h.is_final; }, 2s))
+      << "the first drives on";
+  kill(first.pid, SIGTERM);
+  EXPECT_EQ(first.wait(), 0) << slurp(dir_ / "first.err");
+  EXPECT_EQ(slurp(dir_ / "first.err"), "") << "it heard no other";
+}
+
+// A controller that cannot be heard when another starts (stalled here by SIGSTOP, as a frozen
+// machine or a network partition would hide it) and then speaks again: the two hear each other while
+// running. Both latch the another-controller fault, say so on stderr, and refuse a reset while the
+// other is heard. Once the second has stopped (its last health forgets it at once), the first's
+// reset is accepted.
+TEST_F(LcmIntegration, TwoControllersThatHearEachOtherWhileRunningBothLatchAFault) {
+  Healths healths;
+  ASSERT_TRUE(healths.good());
+  Child first = Child::spawn(pneud_until_sigterm(dir_, "first", 0.2), dir_ / "first.out", dir_ / "first.err");
+  ASSERT_TRUE(healths.wait(first.pid, [](const auto& h) { return h.mode == 1; }, 10s)) << slurp(dir_ / "first.err");
+  kill(first.pid, SIGSTOP);
+  std::this_thread::sleep_for(200ms);  // what it sent last is delivered, or dropped
+  Child second = Child::spawn(pneud_until_sigterm(dir_, "second", 0.2), dir_ / "second.out", dir_ / "second.err");
+  ASSERT_TRUE(healths.wait(second.pid, [](const auto& h) { return h.mode == 1; }, 10s))
+      << "the second heard no other as it started: " << slurp(dir_ / "second.err");
+  kill(first.pid, SIGCONT);
+  const auto faulted = [](const auto& h) { return h.mode == 2 && h.fault_cause == 13; };
+  EXPECT_TRUE(healths.wait(first.pid, faulted, 10s)) << slurp(dir_ / "first.err");
+  EXPECT_TRUE(healths.wait(second.pid, faulted, 10s)) << slurp(dir_ / "second.err");
+  EXPECT_THAT(slurp(dir_ / "first.err"), HasSubstr("<3>pneud: another controller on the channels PNEU_*: pneud pid " +
+                                                   std::to_string(second.pid) + " on host "));
+  EXPECT_THAT(slurp(dir_ / "second.err"), HasSubstr("<3>pneud: another controller on the channels PNEU_*: pneud pid " +
+                                                    std::to_string(first.pid) + " on host "));
+  EXPECT_THAT(slurp(dir_ / "first.err"), HasSubstr("<3>pneud: FAULT at "));
+  EXPECT_THAT(slurp(dir_ / "second.err"), Not(HasSubstr("no longer heard"))) << "not forgotten between messages";
+
+  lcm::LCM lcm(kUrl);
+  ASSERT_TRUE(lcm.good());
+  const pneu_lcm::command_t refused = command(1, pneu_lcm::command_t::KIND_FAULT_RESET, 0.0);
+  ASSERT_EQ(lcm.publish("PNEU_COMMAND", &refused), 0);
+  EXPECT_TRUE(pneu::test::eventually(
+      [&] {
+        return slurp(dir_ / "first.err")
+                   .find("<4>pneud: fault reset refused at ") != std::string::npos;
+      },
+      5s))
+      << "refused while the other is heard: " << slurp(dir_ / "first.err");
+
+  kill(second.pid, SIGTERM);
+  EXPECT_EQ(second.wait(), 3) << "it ended with the fault latched: " << slurp(dir_ / "second.err");
+  EXPECT_TRUE(pneu::test::eventually([&] {
+    return slurp(dir_ / "first.err").find("no longer heard") != std::string::npos;
+  }, 5s)) << slurp(dir_ / "first.err");
+  const pneu_lcm::command_t reset = command(2, pneu_lcm::command_t::KIND_FAULT_RESET, 0.0);
+  ASSERT_EQ(lcm.publish("PNEU_COMMAND", &reset), 0);
+  EXPECT_TRUE(healths.wait(first.pid, [](const auto& h) { return h.mode == 0; }, 8s)) << "reset: disarmed";
+  kill(first.pid, SIGTERM);
+  EXPECT_EQ(first.wait(), 0) << slurp(dir_ / "first.err");
+}
+
 // pneu-command run to its end: exit code, stdout, stderr.
 struct CommandRun {
   int exit_code = -1;
@@ -474,6 +601,54 @@ TEST_F(LcmIntegration, PneuCommandPrintsTheDaemonsVerdictAndExitsNonZeroOnARejec
                                   "\"value\":0.9,\"text\":\"set point 900.000 mm is outside the soft limits"));
   EXPECT_THAT(lines[2], HasSubstr(",\"verdict\":\"rejected\",\"reason\":\"mode\",\"kind\":\"arm\",\"seq\":12,"
                                   "\"value\":0,\"text\":\"arm refused: already armed\"}"));
+}
+
+// Issue 29: a set point sent while disarmed used to be "accepted: set point ..." and then not the
+// one in force: arming holds where the carriage is. It is refused now, and its verdict says what
+// arming does; arming then does exactly that.
+TEST_F(LcmIntegration, ASetPointWhileDisarmedIsRefusedSayingWhatArmingDoesAndArmingDoesIt) {
+  pneu::test::LcmSniffer sniffer;
+  ASSERT_TRUE(sniffer.good());
+  const fs::path traj = dir_ / "traj.csv";
+  Child pneud = Child::spawn(loop_timing_faults_off({bin("pneud"), "--clock", "real", "--duration", "0",
+                                                     "--require-telemetry", "--set", "controller.setpoints.schedule=[]",
+                                                     "--trajectory", traj.string()}),
+                             dir_ / "pneud.out", dir_ / "pneud.err");
+  std::string channel;
+  std::vector<std::uint8_t> payload;
+  ASSERT_TRUE(pneu::test::eventually([&] { return sniffer.receive(channel, payload, 100) && channel == "PNEU_STATE"; },
+                                     10s, 1ms))
+      << "pneud up, its loop ticking";
+
+  const CommandRun disarm = pneu_command(dir_, {"--seq", "10", "--timeout-s", "10", "disarm"});
+  EXPECT_EQ(disarm.exit_code, 0) << disarm.err;
+  const CommandRun step = pneu_command(dir_, {"--seq", "11", "--timeout-s", "10", "step", "-0.005"});
+  EXPECT_EQ(step.exit_code, 3) << step.out;
+  EXPECT_EQ(step.err, "pneu-command: pneud rejected (mode): set point refused: disarmed: arm first; on arm the "
+                      "carriage holds where it is\n");
+  const CommandRun arm = pneu_command(dir_, {"--seq", "12", "--timeout-s", "10", "arm"});
+  EXPECT_EQ(arm.exit_code, 0) << arm.err;
+  std::this_thread::sleep_for(300ms);
+  kill(pneud.pid, SIGTERM);
+  ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
+  EXPECT_THAT(slurp(dir_ / "pneud.err"), HasSubstr("<5>pneud: disarmed at "));
+  EXPECT_THAT(slurp(dir_ / "pneud.err"), HasSubstr("<5>pneud: armed at "));
+
+  // The trajectory: armed, disarmed, armed again holding where the carriage was; the refused step
+  // never in force.
+  const Csv t = Csv::read(traj);
+  const std::size_t c_y_d = t.col("y_d"), c_y = t.col("y"), c_mode = t.col("mode");
+  std::string modes;
+  for (const auto& row : t.rows) {
+    if (modes.empty() || modes.back() != row[c_mode][0]) {
+      modes += row[c_mode][0];
+      if (modes == "101") {
+        EXPECT_EQ(row[c_y_d], row[c_y]) << "armed where the carriage is";
+      }
+    }
+    ASSERT_NEAR(std::stod(row[c_y_d]), 0.2195, 0.001) << "the step to 214.5 mm never in force";
+  }
+  EXPECT_EQ(modes, "101") << "armed, disarmed, armed";
 }
 
 TEST_F(LcmIntegration, PneuCommandWithoutADaemonExitsWithNoAnswerAfterItsTimeout) {

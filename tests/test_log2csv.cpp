@@ -468,6 +468,11 @@ TEST_F(Log2Csv, HealthAndCommandFieldsReadBack) {
   h.fault_cause = 10;
   h.faults = 11;
   h.is_final = true;
+  h.host = "bench-pc";
+  h.pid = 4321;
+  h.start_utime = kLogStart - 5'000'000;
+  h.nonce = -1234567890123;
+  h.period = 0.25;
 
   std::vector<pneu_lcm::command_t> commands;
   const std::vector<std::string> names = {"set_point", "set_point_step", "arm",
@@ -498,7 +503,7 @@ TEST_F(Log2Csv, HealthAndCommandFieldsReadBack) {
                         "commands_accepted", "commands_rejected", "rejected_malformed",
                         "rejected_invalid", "rejected_rate", "rejected_mode", "rejected_sequence",
                         "rejected_stale", "rejected_foreign", "rejected_oversized", "deadlines_skipped",
-                        "fault_cause", "faults", "is_final"})
+                        "fault_cause", "faults", "is_final", "host", "pid", "start_utime", "nonce", "period"})
     expected_header.emplace_back(c);
   EXPECT_EQ(health.header, expected_header);
   ASSERT_EQ(health.rows.size(), 1u);
@@ -521,6 +526,11 @@ TEST_F(Log2Csv, HealthAndCommandFieldsReadBack) {
   for (int i = 0; i < 17; ++i)
     expect_int(health.rows[0][static_cast<std::size_t>(14 + i)], counters[i],
                expected_header[static_cast<std::size_t>(14 + i)]);
+  EXPECT_EQ(health.at(0, "host"), "bench-pc");
+  expect_int(health.at(0, "pid"), h.pid, "pid");
+  expect_int(health.at(0, "start_utime"), h.start_utime, "start_utime");
+  expect_int(health.at(0, "nonce"), h.nonce, "nonce");
+  expect_double(health.at(0, "period"), h.period, "period");
 
   const Csv cmd = read_csv("PNEU_COMMAND.csv");
   EXPECT_EQ(cmd.header, split_header("log_utime,utime,seq,kind,kind_name,value"));

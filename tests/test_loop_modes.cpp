@@ -237,6 +237,39 @@ TEST_F(LoopModes, AResetWhileTheCauseStaysIsRefusedNamingTheCause) {
   EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
 }
 
+// Another controller on the channels: only the service thread hears it, and asks through
+// LoopOutputs::external_fault, which the loop latches at its next tick and which refuses a reset
+// for as long as it stays set.
+TEST_F(LoopModes, AFaultTheServiceSideSeesLatchesAtTheNextTickAndRefusesResetsWhileItLasts) {
+  start();
+  run_ticks(100);
+  ASSERT_EQ(mode(), Mode::kArmed);
+  (void)events();
+  outputs_->external_fault.store(controller::FaultCause::kAnotherController);
+  run_ticks(1);
+  EXPECT_EQ(mode(), Mode::kFault);
+  EXPECT_EQ(loop_->fault_cause(), controller::FaultCause::kAnotherController);
+  EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
+  auto seen = events();
+  ASSERT_EQ(seen.size(), 1u);
+  EXPECT_EQ(seen[0].kind, LoopEvent::Kind::kFault);
+  EXPECT_EQ(seen[0].fault_cause, controller::FaultCause::kAnotherController);
+  run_ticks(100);
+  EXPECT_TRUE(events().empty()) << "latched once, not every tick";
+
+  command(LoopCommand::Kind::kFaultReset);
+  EXPECT_EQ(mode(), Mode::kFault) << "the other controller is still heard";
+  seen = events();
+  ASSERT_EQ(seen.size(), 1u);
+  EXPECT_EQ(seen[0].kind, LoopEvent::Kind::kResetRefused);
+  EXPECT_EQ(seen[0].fault_cause, controller::FaultCause::kAnotherController);
+
+  outputs_->external_fault.store(controller::FaultCause::kNone);  // no longer heard
+  run_ticks(1);
+  command(LoopCommand::Kind::kFaultReset);
+  EXPECT_EQ(mode(), Mode::kDisarmed);
+}
+
 TEST_F(LoopModes, NeitherArmNorDisarmLeavesAFault) {
   latch_estop_fault();
   backend_.sample.estop = false;  // the cause gone: still only a reset clears the fault

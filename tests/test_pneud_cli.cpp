@@ -373,7 +373,7 @@ TEST_F(PneudCli, SummaryJsonIsWrittenUnderQuietAndListsTheFaults) {
   const Outcome o = pneud("--quiet --summary-json " + quoted(file("summary.json")) +
                           " --set controller.supervisor.following_error_m=0.01"
                           " --set controller.supervisor.following_error_s=0.01");
-  ASSERT_EQ(o.exit_code, 0) << o.err;
+  ASSERT_EQ(o.exit_code, 3) << "a fault still latched at the end: " << o.err;
   EXPECT_EQ(o.out, "");
   const Json j = Json::read(file("summary.json"));
   ASSERT_EQ(j["faults"].elements().size(), 1u);
@@ -381,6 +381,37 @@ TEST_F(PneudCli, SummaryJsonIsWrittenUnderQuietAndListsTheFaults) {
   EXPECT_EQ(fault["cause"].text(), "following-error");
   EXPECT_GT(fault["t_s"].number(), 1.0) << "after the step at 1 s";
   EXPECT_NEAR(fault["y_m"].number(), 0.2195, 0.001) << "the carriage had barely moved";
+}
+
+// A run that ends with a fault still latched is no success: exit code 3, the summary's first line
+// and the last line on stderr (the journal's, quiet or not) say so, and so does --summary-json.
+// Here the set-point stream times out at once: a fault 2 ms into the run.
+TEST_F(PneudCli, ARunThatFaultsAtOnceExitsThreeSayingSoFirst) {
+  const std::string faulting = " --set commands.setpoint_stream_timeout_s=0.001";
+  const Outcome o = pneud("--summary-json " + quoted(file("summary.json")) + faulting);
+  EXPECT_EQ(o.exit_code, 3) << o.err;
+  EXPECT_THAT(o.out, ::testing::StartsWith("FAULTED: the run ended with a fault latched (command-timeout, since 0.002 s), "
+                                           "the outputs in the safe state; exit code 3\npneud "));
+  const std::vector<std::string> err = lines_of(o.err);
+  ASSERT_EQ(err.size(), 2u) << o.err;
+  EXPECT_THAT(err[0], ::testing::StartsWith("<3>pneud: FAULT at 0.002 s (y = 219.500 mm): command-timeout: "));
+  EXPECT_THAT(err[1], ::testing::StartsWith("<3>pneud: FAULTED: the run ended with a fault latched (command-timeout"));
+  const Json j = Json::read(file("summary.json"));
+  EXPECT_EQ(j["exit_reason"].text(), "fault_latched");
+  EXPECT_EQ(j["exit_code"].count(), 3u);
+  EXPECT_EQ(j["fault_at_end"].text(), "command-timeout");
+
+  const Outcome quiet = pneud("--quiet" + faulting);
+  EXPECT_EQ(quiet.exit_code, 3);
+  EXPECT_EQ(quiet.out, "");
+  EXPECT_THAT(quiet.err, HasSubstr("<3>pneud: FAULT at 0.002 s"));
+  EXPECT_THAT(quiet.err, HasSubstr("<3>pneud: FAULTED:"));
+
+  const Outcome clean = pneud("--summary-json " + quoted(file("clean.json")));
+  EXPECT_EQ(clean.exit_code, 0) << clean.err;
+  EXPECT_EQ(clean.err, "") << "a run without faults says nothing on stderr";
+  EXPECT_EQ(Json::read(file("clean.json"))["exit_reason"].text(), "ok");
+  EXPECT_TRUE(Json::read(file("clean.json"))["fault_at_end"].is_null());
 }
 
 // Issue 14: with the paper's gains (config/paper.yaml) the loop is unstable at mid-stroke. The
@@ -392,7 +423,7 @@ TEST_F(PneudCli, ThePaperGainsAtMidStrokeLatchAnOscillationFaultWithinTwoSeconds
                           quoted(file("events.jsonl")) + " --trajectory " + quoted(file("traj.csv")) +
                           " --set simulation.initial_position_m=0 --set controller.setpoints.initial_m=0"
                           " --set \"controller.setpoints.schedule=[{t_s: 1, position_m: 0.05}]\"");
-  ASSERT_EQ(o.exit_code, 0) << o.err;
+  ASSERT_EQ(o.exit_code, 3) << "the fault still latched at the end: " << o.err;
   const Json j = Json::read(file("summary.json"));
   ASSERT_EQ(j["faults"].elements().size(), 1u);
   const Json& fault = j["faults"].elements().front();
@@ -537,7 +568,7 @@ TEST_F(PneudCli, IdentifyStopsAtAFaultInTheSafeStateAndWritesNothing) {
   const fs::path out = file("identified.yaml");
   const Outcome o = pneud("--identify " + quoted(out) +
                           " --set controller.supervisor.following_error_m=0.002 --set controller.supervisor.following_error_s=0.05");
-  EXPECT_EQ(o.exit_code, 1);
+  EXPECT_EQ(o.exit_code, 3) << "the run ended with the fault latched";
   EXPECT_THAT(o.err, ::testing::HasSubstr("by a fault, following"));
   EXPECT_THAT(o.err, ::testing::HasSubstr("nothing written"));
   EXPECT_FALSE(fs::exists(out));

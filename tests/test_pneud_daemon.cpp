@@ -130,7 +130,8 @@ bool ticked_after_a_stall(const fs::path& trajectory, double gap_s) {
 // use, see loop_timing_faults_off), the same stall skips its deadlines and latches nothing.
 class PneudStall : public PneudDaemon {
  protected:
-  std::string stalled_run(std::vector<std::string> args) {
+  // `exit_code`: 3 when the stall latched a fault (still latched at the end), else 0.
+  std::string stalled_run(std::vector<std::string> args, int exit_code) {
     args.insert(args.end(), {"--events", (dir_ / "events.jsonl").string(), "--trajectory", (dir_ / "traj.csv").string(),
                              "--summary-json", (dir_ / "summary.json").string()});
     Child p = Child::spawn(args, dir_ / "pneud.out", dir_ / "pneud.err");
@@ -150,7 +151,7 @@ class PneudStall : public PneudDaemon {
     EXPECT_TRUE(pneu::test::eventually([&] { return ticked_after_a_stall(growing, 0.25); }, 10s))
         << "the loop did not tick again after the stall";
     kill(p.pid, SIGTERM);
-    EXPECT_EQ(p.wait(), 0) << slurp(dir_ / "pneud.err");
+    EXPECT_EQ(p.wait(), exit_code) << slurp(dir_ / "pneud.err");
     return slurp(dir_ / "pneud.out");
   }
   const std::vector<std::string> pneud_{bin("pneud"), "--clock", "real", "--duration", "0", "--set",
@@ -158,8 +159,9 @@ class PneudStall : public PneudDaemon {
 };
 
 TEST_F(PneudStall, AStalledLoopLatchesTheOverrunFault) {
-  const std::string out = stalled_run(pneud_);
+  const std::string out = stalled_run(pneud_, 3);
   EXPECT_THAT(out, HasSubstr("): overrun: the loop overran its deadlines")) << out;
+  EXPECT_THAT(slurp(dir_ / "pneud.err"), HasSubstr("<3>pneud: FAULT at ")) << "heard as it happened";
   const auto s = pneu::test::PneudSummary::read(dir_ / "summary.json");
   ASSERT_TRUE(s.has_loop) << out;
   EXPECT_GE(s.skipped, 250u) << "the 0.3 s stopped are deadlines skipped, not ticks made up\n" << out;
@@ -169,7 +171,7 @@ TEST_F(PneudStall, AStalledLoopLatchesTheOverrunFault) {
 }
 
 TEST_F(PneudStall, WithTheTimingSupervisionOffTheSameStallLatchesNothing) {
-  const std::string out = stalled_run(pneu::test::loop_timing_faults_off(pneud_));
+  const std::string out = stalled_run(pneu::test::loop_timing_faults_off(pneud_), 0);
   EXPECT_THAT(out, Not(HasSubstr("fault at"))) << out;
   const auto s = pneu::test::PneudSummary::read(dir_ / "summary.json");
   ASSERT_TRUE(s.has_loop) << out;

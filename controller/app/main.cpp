@@ -13,6 +13,7 @@
 #include "pneu/backends/factory.hpp"
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
+#include "pneu/controller/journal.hpp"
 #include "pneu/controller/realtime.hpp"
 #include "pneu/controller/run_summary.hpp"
 #include "pneu/controller/session.hpp"
@@ -70,8 +71,9 @@ Usage:
                      signals (stiction, Coulomb and viscous friction, the valves' conductances and
                      null offset, the dead volumes) and written, with the rest of the configuration,
                      to OUT.yaml; each parameter is printed before and after with its uncertainty.
-                     A fault ends the run in the safe state and writes nothing (exit 1); so does a
-                     run that showed too little to identify, naming what is missing
+                     A fault ends the run in the safe state and writes nothing (exit 3); a run that
+                     showed too little to identify writes nothing either, naming what is missing
+                     (exit 1)
   --armed            required with --identify on hal.backend modbus (a real bench, or pneu-plant
                      serve): the run moves the carriage over the stroke on its own
 
@@ -87,7 +89,16 @@ command once the cause is gone; the daemon then waits disarmed for an ARM comman
 Under systemd (Type=notify): READY=1 once the loop runs, WATCHDOG=1 while it ticks, STOPPING=1
 on SIGTERM/SIGINT, which write the safe output and publish a final health message before exit.
 
-Exit codes: 0 success, 1 run failure, 2 bad command line or configuration (nothing was run).
+Faults, fault resets (and refused ones), arming, disarming, the hold's start and end, and the
+link to the device lost and back are each one line on stderr as they happen, quiet or not, with
+the syslog priority prefix journald reads ("<3>" a fault, "<4>" a refused reset or a link lost,
+"<5>" a reset, arming, disarming, a link back, "<6>" the hold).
+
+Exit codes: 0 success; 1 run failure (an --identify run that showed too little among them); 2 bad
+command line or configuration (nothing was run); 3 the run ended with a fault still latched (the
+outputs in the safe state); 4 the module did not confirm the safe output on closing (it may still
+hold the last command; 4 wins over 3). On 3 and 4 the summary's first line and the last line on
+stderr say why. Another pneud heard on the LCM channels at start-up: exit 1, naming it.
 )";
 
 std::atomic<bool> g_stop{false};
@@ -131,6 +142,7 @@ controller::RunFigures figures_of(const config::Config& cfg, const std::string& 
   f.ticks_dropped = run.outputs->ticks_dropped;
   f.events_dropped = run.outputs->events_dropped;
   f.modbus = run.backend->link_report();
+  f.fault_at_end = run.loop->fault_cause();
   return f;
 }
 
@@ -206,6 +218,8 @@ int run(int argc, char** argv) {
   const controller::ControlLaw& driving = run_law ? *run_law : law;
   controller::Run run = controller::make_run(cfg, *valve, backends::make_backend(cfg, driving), driving);
   files.add_sinks(*run.runtime);
+  controller::JournalLines journal(stderr);  // faults, resets, arming, holds, the link: at once, quiet or not
+  run.runtime->add_sink(journal);
   std::atomic<bool> fault_stop{false};
   identify::Recorder recorder(fault_stop);
   if (identify_path) run.runtime->add_sink(recorder);
@@ -216,6 +230,21 @@ int run(int argc, char** argv) {
   std::optional<identify::OnlineIdentifier> learner;
   if (cfg.controller.predictor.learn_online && !identify_path) run.runtime->add_sink(learner.emplace(as_configured, *run.runtime));
   const std::unique_ptr<Telemetry> telemetry = Telemetry::start(cfg, run, args.flag("require-telemetry"));
+  // One controller per bench: another pneud's health on these channels refuses the start, before
+  // anything is driven or reported ready. Where none can be heard, a bench's run says so.
+  std::string why_not_checked = "LCM telemetry is off";
+  if (telemetry) {
+    why_not_checked.clear();
+    if (const auto other = telemetry->another_controller(1.5 * cfg.telemetry.health_period_s, why_not_checked)) {
+      files.discard();
+      throw std::runtime_error("another controller is running on the channels " + cfg.telemetry.channel_prefix +
+                               "*: " + *other + "; one controller per bench: stop it first (or give this one its "
+                               "own telemetry.channel_prefix, if it drives another axis)");
+    }
+  }
+  if (!why_not_checked.empty() && cfg.hal.backend != config::BackendKind::kSim)
+    std::fprintf(stderr, "pneud: warning: not checked that no other controller drives this bench: %s\n",
+                 why_not_checked.c_str());
   SystemdNotifier notifier(*run.outputs, g_stop);
   std::function<void(int)> wait_for_input;
   std::function<void()> on_loop_thread;
@@ -290,10 +319,13 @@ int run(int argc, char** argv) {
                   learner->stops_on_a_configured_bound(), learner->stops_forecast());
     if (learner->updates() > 0) identify::print_report(stdout, learner->estimate());
   }
+  const controller::RunEnding ending = controller::run_ending(figures);
   if (identify_path) {
-    if (!recorder.fault().empty())
-      throw std::runtime_error("the identification run ended at t = " + std::to_string(recorder.fault_time_s()) +
-                               " s by a fault, " + recorder.fault() + ": outputs in the safe state, nothing written");
+    if (!recorder.fault().empty()) {  // the run stops at its first fault: still latched (exit 3, or 4)
+      std::fprintf(stderr, "pneud: the identification run ended at t = %s s by a fault, %s: outputs in the safe state, "
+                           "nothing written\n", std::to_string(recorder.fault_time_s()).c_str(), recorder.fault().c_str());
+      return controller::exit_code(ending);
+    }
     if (g_stop.load()) throw std::runtime_error("the identification run was interrupted: nothing written");
     identify::Identification id;
     try {
@@ -310,7 +342,10 @@ int run(int argc, char** argv) {
     identified.commit();
     std::printf("written: %s\n", identified.path().c_str());
   }
-  return cli::kExitOk;
+  // A fault still latched, or the safe output not confirmed: said last on stderr, and the exit code.
+  if (ending != controller::RunEnding::kOk)
+    controller::journal_line(stderr, controller::Priority::kErr, controller::ending_text(figures, *run.runtime));
+  return controller::exit_code(ending);
 }
 
 }  // namespace

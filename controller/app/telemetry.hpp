@@ -4,6 +4,8 @@
 #pragma once
 
 #include <memory>
+#include <optional>
+#include <string>
 
 #include "pneu/config/config.hpp"
 #include "pneu/controller/run_figures.hpp"
@@ -26,6 +28,10 @@ class Telemetry {
 
   /// The service thread's wait between drains: up to `timeout_ms` for commands, then handles them.
   virtual void handle(int timeout_ms) = 0;
+  /// One controller per bench, before the run: listens `listen_s` on the health channel for
+  /// another pneud's health, and names the first heard (nothing: none). When nothing can be heard
+  /// there (not a udpm:// URL), says why in `why_not`.
+  [[nodiscard]] virtual std::optional<std::string> another_controller(double listen_s, std::string& why_not) = 0;
   /// For the run's summary.
   [[nodiscard]] virtual controller::TelemetryFigures figures() const = 0;
 };

@@ -15,6 +15,10 @@ class LcmTelemetry final : public Telemetry {
     bridge_.set_command_log(run.runtime.get());  // both on the service thread (execute)
   }
   void handle(int timeout_ms) override { (void)bridge_.handle(timeout_ms); }
+  std::optional<std::string> another_controller(double listen_s, std::string& why_not) override {
+    why_not = bridge_.watch_off();
+    return bridge_.listen_for_another(listen_s);
+  }
   [[nodiscard]] controller::TelemetryFigures figures() const override { return bridge_.figures(); }
 
  private:

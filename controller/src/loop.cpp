@@ -125,9 +125,10 @@ void ControlLoop::apply_commands(double y_m) noexcept {
         // later command, and only what is measured from then on drives the valves.
         if (mode_ == Mode::kFault) {
           LoopEvent e = event(LoopEvent::Kind::kFaultReset, t_s_, y_m);
-          if (supervisor_.cause_present()) {
+          const FaultCause external = out_->external_fault.load(std::memory_order_relaxed);
+          if (supervisor_.cause_present() || external != FaultCause::kNone) {
             e.kind = LoopEvent::Kind::kResetRefused;
-            e.fault_cause = supervisor_.present_cause();
+            e.fault_cause = supervisor_.cause_present() ? supervisor_.present_cause() : external;
           } else {
             e.kind = LoopEvent::Kind::kFaultReset;
             e.fault_cause = fault_cause_;
@@ -198,6 +199,8 @@ void ControlLoop::tick(double t_s) noexcept {
   st.frame = &frame;
   if (const FaultCause cause = supervisor_.check_sample(st); cause != FaultCause::kNone)
     latch_fault(cause, t_s, frame.y_m, supervisor_.decided_by());
+  if (const FaultCause cause = out_->external_fault.load(std::memory_order_relaxed); cause != FaultCause::kNone)
+    latch_fault(cause, t_s, frame.y_m);  // what the service thread sees: another controller
   const bool read_ok = supervisor_.sample_good();
   const double y_measured_m = frame.y_m;
   // Without a good sample, keep the last position: a stale or invalid value must not reach the

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "json_text.hpp"
+#include "pneu/config/cli.hpp"
 #include "pneu/controller/supervisor.hpp"
 #include "pneu/controller/verdict.hpp"
 
@@ -189,10 +190,64 @@ void print_modbus(std::FILE* out, const hal::LinkReport& m, double t_end_s) {
                  m.safe_output_attempts);
 }
 
+// The time of the fault latched at the end: the last fault event's, when it names that cause.
+double latched_since_s(const RunFigures& f, const Runtime& runtime) {
+  const auto& faults = runtime.faults();
+  return !faults.empty() && faults.back().fault_cause == f.fault_at_end ? faults.back().t_s : NAN;
+}
+
 }  // namespace
+
+RunEnding run_ending(const RunFigures& f) noexcept {
+  if (f.modbus && !f.modbus->safe_output_delivered) return RunEnding::kSafeOutputUnconfirmed;
+  if (f.fault_at_end != FaultCause::kNone) return RunEnding::kFaultLatched;
+  return RunEnding::kOk;
+}
+
+const char* to_string(RunEnding ending) noexcept {
+  switch (ending) {
+    case RunEnding::kOk: return "ok";
+    case RunEnding::kFaultLatched: return "fault_latched";
+    case RunEnding::kSafeOutputUnconfirmed: return "safe_output_unconfirmed";
+  }
+  return "?";
+}
+
+int exit_code(RunEnding ending) noexcept {
+  switch (ending) {
+    case RunEnding::kOk: return cli::kExitOk;
+    case RunEnding::kFaultLatched: return cli::kExitFaulted;
+    case RunEnding::kSafeOutputUnconfirmed: return cli::kExitSafeOutputUnconfirmed;
+  }
+  return cli::kExitFailure;
+}
+
+std::string ending_text(const RunFigures& f, const Runtime& runtime) {
+  const RunEnding ending = run_ending(f);
+  if (ending == RunEnding::kOk) return "";
+  char fault[160] = "";
+  if (f.fault_at_end != FaultCause::kNone) {
+    const double since_s = latched_since_s(f, runtime);
+    if (std::isnan(since_s))
+      std::snprintf(fault, sizeof fault, "a fault latched (%s)", fault_name(f.fault_at_end));
+    else
+      std::snprintf(fault, sizeof fault, "a fault latched (%s, since %.3f s)", fault_name(f.fault_at_end), since_s);
+  }
+  char text[512];
+  if (ending == RunEnding::kSafeOutputUnconfirmed)
+    std::snprintf(text, sizeof text,
+                  "SAFE OUTPUT NOT CONFIRMED: the module did not confirm the safe output on closing (%d attempts): it "
+                  "may still hold the last command%s%s; exit code %d",
+                  f.modbus->safe_output_attempts, fault[0] ? ", and the run ended with " : "", fault, exit_code(ending));
+  else
+    std::snprintf(text, sizeof text, "FAULTED: the run ended with %s, the outputs in the safe state; exit code %d", fault,
+                  exit_code(ending));
+  return text;
+}
 
 void print_summary(std::FILE* out, const RunFigures& f, const Runtime& runtime) {
   const double t_end_s = runtime.end_time_s();
+  if (const std::string ending = ending_text(f, runtime); !ending.empty()) std::fprintf(out, "%s\n", ending.c_str());
   std::fprintf(out, "pneud %s: %.3f s on the %s backend, %s clock (%s), u_0 = %+.4f V, wall time %.3f s (%.0fx real time)\n",
                f.version.c_str(), t_end_s, f.backend.c_str(), f.clock.c_str(), f.config.c_str(), f.u_0_v, f.wall_s,
                t_end_s / f.wall_s);
@@ -228,6 +283,11 @@ void write_summary_json(std::ostream& out, const RunFigures& f, const Runtime& r
   json::Writer w(out);
   w.begin_object();
   w.text("pneud", f.version);
+  const RunEnding ending = run_ending(f);
+  w.text("exit_reason", to_string(ending));
+  w.count("exit_code", static_cast<std::uint64_t>(exit_code(ending)));
+  if (f.fault_at_end != FaultCause::kNone) w.text("fault_at_end", fault_name(f.fault_at_end));
+  else w.null("fault_at_end");
   w.text("backend", f.backend);
   w.text("clock", f.clock);
   w.text("config", f.config);

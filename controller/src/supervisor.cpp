@@ -49,6 +49,7 @@ const char* fault_name(FaultCause cause) noexcept {
     case FaultCause::kCommandTimeout: return "command-timeout";
     case FaultCause::kOscillation: return "oscillation";
     case FaultCause::kNotSettled: return "not-settled";
+    case FaultCause::kAnotherController: return "another-controller";
     default: return "unknown";
   }
 }
@@ -67,6 +68,7 @@ const char* fault_text(FaultCause cause) noexcept {
     case FaultCause::kCommandTimeout: return "armed, no set point for commands.setpoint_stream_timeout_s: the set-point stream fell silent";
     case FaultCause::kOscillation: return "the loop does not settle: y_d - y changed sign controller.supervisor.oscillation_sign_changes times beyond +-oscillation_amplitude_m within oscillation_window_s (the gains unstable at this position?)";
     case FaultCause::kNotSettled: return "the loop does not settle: no rest within controller.supervisor.settle_time_s of a set-point change (the carriage still moving: unstable or creeping gains?)";
+    case FaultCause::kAnotherController: return "another controller publishes its health on this one's LCM channels: two controllers on one bench? Both latch this fault; stop one, then reset the other";
     default: return "fault";
   }
 }

@@ -30,8 +30,9 @@ Usage:
   pneu-command [--lcm-url URL] [--prefix PNEU_] [--seq N] [--timeout-s S | --no-wait] COMMAND [VALUE]
 
 Commands:
-  set-point Y_M     move to the set point Y_M [m, from mid-stroke]
-  step DY_M         change the set point by DY_M [m]
+  set-point Y_M     move to the set point Y_M [m, from mid-stroke] (armed only: refused
+                    while disarmed, since arming holds the present position)
+  step DY_M         change the set point by DY_M [m] (armed only, likewise)
   arm               start controlling (holds the present position)
   disarm            stop controlling (valves at the neutral voltage u_0)
   fault-reset       clear a latched fault (the daemon comes back disarmed)

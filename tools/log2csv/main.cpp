@@ -63,7 +63,8 @@ the Unix epoch]; then the message's fields in the order and units of lcmtypes/*.
                 compute_us_{min,median,p99,max},comms_errors,telemetry_dropped,
                 commands_received,commands_accepted,commands_rejected,rejected_malformed,
                 rejected_invalid,rejected_rate,rejected_mode,rejected_sequence,rejected_stale,
-                rejected_foreign,rejected_oversized,deadlines_skipped,fault_cause,faults,is_final
+                rejected_foreign,rejected_oversized,deadlines_skipped,fault_cause,faults,is_final,
+                host,pid,start_utime,nonce,period
   command_t     log_utime,utime,seq,kind,kind_name,value
   identification_t  log_utime,utime,t,updates, then for each parameter of lcmtypes/identification_t.lcm
                 in its order: NAME,NAME_sigma,NAME_identified (NAME its config key's last part:

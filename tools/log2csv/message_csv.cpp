@@ -203,7 +203,7 @@ std::string_view csv_header(MessageType type) {
              "compute_us_p99,compute_us_max,comms_errors,telemetry_dropped,commands_received,"
              "commands_accepted,commands_rejected,rejected_malformed,rejected_invalid,"
              "rejected_rate,rejected_mode,rejected_sequence,rejected_stale,rejected_foreign,"
-             "rejected_oversized,deadlines_skipped,fault_cause,faults,is_final";
+             "rejected_oversized,deadlines_skipped,fault_cause,faults,is_final,host,pid,start_utime,nonce,period";
     case MessageType::kCommand:
       return "log_utime,utime,seq,kind,kind_name,value";
     case MessageType::kIdentification:
@@ -348,6 +348,11 @@ RowInfo format_csv_row(std::int64_t log_utime, const void* data, std::int32_t si
           .integer(m.fault_cause)
           .integer(m.faults)
           .boolean(m.is_final)
+          .text(m.host)
+          .integer(m.pid)
+          .integer(m.start_utime)
+          .integer(m.nonce)
+          .number(m.period)
           .end();
       return {MessageType::kHealth, 0};
     }

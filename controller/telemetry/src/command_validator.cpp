@@ -125,6 +125,10 @@ Verdict CommandValidator::validate(const CommandFields& c, double now_s, std::in
         return reject(Rejection::kInvalid, "set-point change of " + mm(target - setpoint_m) +
                                                " is larger than commands.max_setpoint_step_m (" + mm(max_step_m_) + ")");
       if (mode == Mode::kFault) return reject(Rejection::kMode, "set point refused: a fault is latched, reset it first");
+      // Arming holds where the carriage is (ControlLoop: bumpless): a set point taken now would not
+      // be the one in force once armed, so it is refused rather than promised.
+      if (mode == Mode::kDisarmed)
+        return reject(Rejection::kMode, "set point refused: disarmed: arm first; on arm the carriage holds where it is");
       cmd.kind = step ? LoopCommand::Kind::kSetPointStep : LoopCommand::Kind::kSetPoint;
       what = "set point " + mm(target);
       break;

@@ -6,9 +6,11 @@
 #include <array>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <thread>
 
+#include "pneu/controller/journal.hpp"
 #include "pneu/telemetry/command_datagram.hpp"
 
 #include "pneu_lcm/command_t.hpp"
@@ -24,6 +26,9 @@ using controller::LoopEvent;
 
 namespace {
 constexpr int kRejectionEventsPerSecond = 20;
+// The largest datagram read off the group: any command (longer ones are refused as oversized) and
+// any health message (a host name of up to 255 bytes).
+constexpr std::size_t kMaxDatagramBytes = 2048;
 
 std::int64_t unix_now_us() {
   return std::chrono::duration_cast<std::chrono::microseconds>(
@@ -43,6 +48,9 @@ LcmBridge::LcmBridge(const config::Config& config, controller::LoopOutputs& loop
       command_channel_(prefix_ + "COMMAND"),
       identification_channel_(prefix_ + "IDENTIFICATION"),
       loop_(loop),
+      accept_commands_(accept_commands),
+      watch_(InstanceId::of_this_process(), config.telemetry.health_period_s),
+      health_period_s_(config.telemetry.health_period_s),
       validator_(config),
       epoch_utime_(unix_now_us()),
       started_(std::chrono::steady_clock::now()) {
@@ -50,33 +58,98 @@ LcmBridge::LcmBridge(const config::Config& config, controller::LoopOutputs& loop
     throw LcmError("LCM could not start on '" + config.telemetry.lcm_url +
                    "' (no multicast route? e.g. `ip route add 224.0.0.0/4 dev lo` keeps it on this "
                    "host; or set telemetry.enabled=false)");
-  if (accept_commands) {
+  const bool udpm = config.telemetry.lcm_url.rfind("udpm://", 0) == 0;
+  if (accept_commands || udpm) {
     try {
-      commands_ = std::make_unique<CommandSocket>(config.telemetry.lcm_url);
+      socket_ = std::make_unique<CommandSocket>(config.telemetry.lcm_url);
     } catch (const std::exception& e) {
-      throw LcmError(std::string("commands: ") + e.what());
+      if (accept_commands) throw LcmError(std::string("commands: ") + e.what());
+      watch_off_ = std::string("no socket on the LCM group: ") + e.what();
     }
+  } else {
+    watch_off_ = "telemetry.lcm_url '" + config.telemetry.lcm_url + "' is not udpm://: nothing is heard on it";
   }
 }
 
 LcmBridge::~LcmBridge() = default;
 
 bool LcmBridge::handle(int timeout_ms) {
-  if (!commands_) {
+  if (!socket_) {
     std::this_thread::sleep_for(std::chrono::milliseconds(timeout_ms));
     return true;
   }
-  pollfd p{commands_->fd(), POLLIN, 0};
+  pollfd p{socket_->fd(), POLLIN, 0};
   const int ready = ::poll(&p, 1, timeout_ms);
   if (ready < 0) return errno == EINTR;
-  if (ready == 0) return true;
-  // One byte more than any command: a longer datagram is seen as oversized (MSG_TRUNC gives
-  // its real length), and the buffer needs no more.
-  std::array<std::uint8_t, kMaxCommandDatagramBytes + 1> buffer{};
-  CommandSocket::Datagram d;
-  for (int k = 0; k < 256 && commands_->receive(buffer, d); ++k)
-    on_datagram(std::span<const std::uint8_t>(buffer.data(), d.stored), d);
+  if (ready > 0) {
+    std::array<std::uint8_t, kMaxDatagramBytes> buffer{};
+    CommandSocket::Datagram d;
+    for (int k = 0; k < 256 && socket_->receive(buffer, d); ++k)
+      dispatch(std::span<const std::uint8_t>(buffer.data(), d.stored), d);
+  }
+  update_watch();
   return true;
+}
+
+double LcmBridge::watch_time_s() const {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+}
+
+void LcmBridge::dispatch(std::span<const std::uint8_t> bytes, const CommandSocket::Datagram& d) {
+  // One byte more than any command: a longer datagram is seen as oversized (MSG_TRUNC gives its
+  // real length), whatever the buffer held.
+  const auto command_bytes = bytes.first(std::min(bytes.size(), kMaxCommandDatagramBytes + 1));
+  if (decode_command_datagram(command_bytes, command_channel_).kind != DatagramKind::kOtherChannel) {
+    if (accept_commands_) on_datagram(command_bytes, d);
+    return;
+  }
+  if (d.bytes > bytes.size()) return;  // longer than any health message
+  if (const auto heard = decode_health_datagram(bytes, health_channel_)) watch_.heard(*heard, watch_time_s());
+}
+
+void LcmBridge::update_watch() {
+  const std::optional<InstanceId> other = watch_.other(watch_time_s());
+  if (other && !other_said_) {
+    other_said_ = true;
+    loop_.external_fault.store(controller::FaultCause::kAnotherController, std::memory_order_relaxed);
+    controller::journal_line(stderr, controller::Priority::kErr,
+                             "another controller on the channels " + prefix_ + "*: " + describe(*other) +
+                                 " (this one: pid " + std::to_string(instance().pid) +
+                                 "): both latch a fault (another-controller); stop one, then reset the other");
+  } else if (!other && other_said_) {
+    other_said_ = false;
+    loop_.external_fault.store(controller::FaultCause::kNone, std::memory_order_relaxed);
+    controller::journal_line(stderr, controller::Priority::kNotice,
+                             "the other controller on " + prefix_ + "* is no longer heard: a fault reset is accepted again");
+  }
+}
+
+std::optional<std::string> LcmBridge::listen_for_another(double listen_s) {
+  if (!socket_) return std::nullopt;
+  const double until_s = watch_time_s() + listen_s;
+  std::array<std::uint8_t, kMaxDatagramBytes> buffer{};
+  CommandSocket::Datagram d;
+  std::optional<in_addr> state_from;  // <prefix>STATE heard: this pneud publishes none yet
+  // Once its state is heard, a while longer for its health, to name it.
+  const auto left = [&] { return (state_from ? until_s + 2.0 * listen_s : until_s) - watch_time_s(); };
+  for (double left_s = listen_s; left_s > 0.0; left_s = left()) {
+    pollfd p{socket_->fd(), POLLIN, 0};
+    if (::poll(&p, 1, static_cast<int>(std::ceil(left_s * 1e3))) <= 0) continue;
+    while (socket_->receive(buffer, d)) {
+      if (d.bytes > d.stored) continue;
+      const std::span<const std::uint8_t> bytes(buffer.data(), d.stored);
+      if (!state_from && lcm_channel_of(bytes) == std::string_view(state_channel_)) state_from = d.source;
+      if (const auto heard = decode_health_datagram(bytes, health_channel_)) watch_.heard(*heard, watch_time_s());
+    }
+    if (const auto other = watch_.other(watch_time_s())) return describe(*other);
+  }
+  if (!state_from) return std::nullopt;
+  char source[INET_ADDRSTRLEN] = "?";
+  inet_ntop(AF_INET, &*state_from, source, sizeof source);
+  char within[32];
+  std::snprintf(within, sizeof within, "%.2f s", 3.0 * listen_s);
+  return "a publisher of " + state_channel_ + " (from " + source + "; no health of it heard within " + within +
+         " to name it)";
 }
 
 std::int64_t LcmBridge::utime_of(double t_s) const noexcept {
@@ -220,6 +293,12 @@ void LcmBridge::on_health(const controller::HealthRecord& h) {
   m.fault_cause = static_cast<std::int8_t>(controller::fault_number(h.fault_cause));
   m.faults = static_cast<std::int64_t>(h.faults);
   m.is_final = h.is_final;
+  const InstanceId& self = instance();
+  m.host = self.host;
+  m.pid = self.pid;
+  m.start_utime = self.start_utime;
+  m.nonce = self.nonce;
+  m.period = health_period_s_;
   publish(health_channel_, m);
 }
 

@@ -16,10 +16,16 @@
 
 namespace pneu::cli {
 
-/// Exit codes of every pneu program.
+/// Exit codes of every pneu program (0, 1, 2), and those only pneud gives (3, 4).
 inline constexpr int kExitOk = 0;
 inline constexpr int kExitFailure = 1;    ///< a run failed after it started (I/O, hardware)
 inline constexpr int kExitBadInput = 2;   ///< bad command line, config or input file: nothing was run
+/// pneud: the run ended with a fault still latched (its outputs in the safe state, the summary
+/// naming the cause).
+inline constexpr int kExitFaulted = 3;
+/// pneud: the module did not confirm the safe output on closing (it may still hold the last
+/// command); wins over kExitFaulted when both hold.
+inline constexpr int kExitSafeOutputUnconfirmed = 4;
 
 /// Bad command line or input file; the message is for the user.
 class UsageError : public std::runtime_error {

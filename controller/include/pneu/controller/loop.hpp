@@ -128,6 +128,10 @@ struct LoopOutputs {
   std::atomic<Mode> mode{Mode::kArmed};
   std::atomic<FaultCause> fault_cause{FaultCause::kNone};  ///< latched
   std::atomic<std::uint64_t> heartbeat{0};   ///< ticks run: the watchdog checks that it advances
+  /// A cause of fault only the non-real-time side can see (FaultCause::kAnotherController), held
+  /// while it is present: the loop latches it at its next tick and refuses a reset while it is
+  /// still set. Written by the service thread, read by the loop (relaxed, lock-free).
+  std::atomic<FaultCause> external_fault{FaultCause::kNone};
 };
 
 /// The controller's tick. Construct and start() outside the loop; tick() is real-time safe.

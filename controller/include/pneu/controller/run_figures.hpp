@@ -8,6 +8,7 @@
 #include <string>
 
 #include "pneu/controller/clock.hpp"
+#include "pneu/controller/supervisor.hpp"
 #include "pneu/hal/backend.hpp"
 
 namespace pneu::controller {
@@ -43,6 +44,8 @@ struct RunFigures {
   std::uint64_t events_dropped = 0;  ///< events the loop's full queue dropped
   std::optional<TelemetryFigures> telemetry;  ///< when LCM ran
   std::optional<hal::LinkReport> modbus;      ///< the backend's link (hal::Backend::link_report): modbus
+  /// The fault still latched when the run ended (ControlLoop::fault_cause; FaultCause::kNone: none).
+  FaultCause fault_at_end = FaultCause::kNone;
 };
 
 }  // namespace pneu::controller

@@ -4,15 +4,35 @@
 // figures the runtime does not know (RunFigures).
 #pragma once
 
+#include <cstdint>
 #include <cstdio>
 #include <ostream>
+#include <string>
 
 #include "pneu/controller/run_figures.hpp"
 #include "pneu/controller/runtime.hpp"
 
 namespace pneu::controller {
 
-/// pneud's summary, as the README shows it.
+/// How a run ended, for pneud's exit code and the first line of its summary. When both hold, the
+/// safe output not confirmed wins: the module may still drive the valves, a matter for someone at
+/// the bench at once, whatever the fault.
+enum class RunEnding : std::uint8_t {
+  kOk,                     ///< no fault latched at the end, the safe output confirmed (or no module)
+  kFaultLatched,           ///< a fault still latched at the end: the outputs in the safe state
+  kSafeOutputUnconfirmed,  ///< the module did not confirm the safe output on closing
+};
+[[nodiscard]] RunEnding run_ending(const RunFigures& figures) noexcept;
+/// "ok", "fault_latched", "safe_output_unconfirmed" (--summary-json's exit_reason).
+[[nodiscard]] const char* to_string(RunEnding ending) noexcept;
+/// pneud's exit code for it: cli::kExitOk, kExitFaulted, kExitSafeOutputUnconfirmed.
+[[nodiscard]] int exit_code(RunEnding ending) noexcept;
+/// A sentence for people saying how the run ended, when not kOk (empty otherwise): the summary's
+/// first line, and pneud's last line on stderr (the journal's).
+[[nodiscard]] std::string ending_text(const RunFigures& figures, const Runtime& runtime);
+
+/// pneud's summary, as the README shows it: first, when the run did not end well, why
+/// (ending_text).
 void print_summary(std::FILE* out, const RunFigures& figures, const Runtime& runtime);
 
 /// The run's figures as one JSON object (pneud --summary-json; the README lists its members):

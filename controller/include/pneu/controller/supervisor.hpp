@@ -28,9 +28,12 @@ enum class FaultCause : std::uint8_t {
   kCommandTimeout = 10,  ///< armed, the set-point stream fell silent
   kOscillation = 11,     ///< armed, the loop does not settle: the error swings from side to side
   kNotSettled = 12,      ///< armed, no rest within settle_time_s of a set-point change
+  /// another controller's health heard on this one's channels (LoopOutputs::external_fault, set by
+  /// the service thread while it hears it)
+  kAnotherController = 13,
 };
 /// How many causes there are, kNone included.
-inline constexpr std::size_t kFaultCauseCount = 13;
+inline constexpr std::size_t kFaultCauseCount = 14;
 
 /// The cause's stable number, as it travels in event_t and health_t.
 [[nodiscard]] constexpr std::uint8_t fault_number(FaultCause cause) noexcept {

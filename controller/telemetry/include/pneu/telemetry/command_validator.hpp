@@ -51,7 +51,8 @@ using controller::CommandCounters;
 /// (utime within commands.max_age_s of this host's clock, past or future), sequence (strictly
 /// increasing over accepted commands), values (finite, known kind, resulting set point inside the
 /// soft limits, a set-point change no larger than commands.max_setpoint_step_m), mode (set points:
-/// armed or disarmed; arm: disarmed; disarm: armed; fault reset: fault). Not thread-safe: one
+/// armed or holding, refused disarmed: arming holds the carriage where it is, whatever set point came
+/// before; arm: disarmed; disarm: armed or holding; fault reset: fault). Not thread-safe: one
 /// command thread owns it.
 class CommandValidator {
  public:

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -18,6 +19,7 @@
 #include "pneu/controller/runtime.hpp"
 #include "pneu/telemetry/command_socket.hpp"
 #include "pneu/telemetry/command_validator.hpp"
+#include "pneu/telemetry/instance_watch.hpp"
 
 namespace pneu::telemetry {
 
@@ -29,15 +31,31 @@ class LcmError : public std::runtime_error {
 class LcmBridge final : public controller::RunListener {
  public:
   /// Opens LCM on telemetry.lcm_url. Throws LcmError when LCM cannot start (bad URL, no
-  /// multicast route). With `accept_commands`, opens the command socket for <prefix>COMMAND
-  /// (datagrams from this host only, see CommandSocket).
+  /// multicast route). On a udpm:// URL, opens its own socket on the group (CommandSocket): with
+  /// `accept_commands`, for <prefix>COMMAND (datagrams from this host only), and in any case to
+  /// hear another controller's <prefix>HEALTH (from any host). Without it (another URL, or the
+  /// socket refused while commands are not taken) no other controller can be heard: watch_off()
+  /// says why.
   LcmBridge(const config::Config& config, controller::LoopOutputs& loop, bool accept_commands);
   ~LcmBridge() override;
 
-  /// Waits up to `timeout_ms` for command datagrams and handles those waiting (at most a bounded
-  /// number per call, so that a flood cannot starve the telemetry drain). Returns false on a
-  /// socket failure.
+  /// Waits up to `timeout_ms` for datagrams and handles those waiting (at most a bounded number
+  /// per call, so that a flood cannot starve the telemetry drain): commands, and another
+  /// controller's health. While another controller is heard, the loop is asked to latch
+  /// FaultCause::kAnotherController (LoopOutputs::external_fault), and stderr says who, once;
+  /// and again when it is no longer heard. Returns false on a socket failure.
   bool handle(int timeout_ms);
+
+  /// Before the run (nothing of this pneud published yet): listens up to `listen_s` for another
+  /// controller on the channels, and says who: the first whose health is heard on <prefix>HEALTH
+  /// (at once), or, when only its <prefix>STATE was (a loaded machine can drop a datagram now and
+  /// then, and state comes every tick), where that came from, once another 2 `listen_s` brought no
+  /// health to name it. Nothing: none.
+  [[nodiscard]] std::optional<std::string> listen_for_another(double listen_s);
+  /// Why no other controller can be heard (empty: it can).
+  [[nodiscard]] const std::string& watch_off() const noexcept { return watch_off_; }
+  /// This pneud, as its health messages name it.
+  [[nodiscard]] const InstanceId& instance() const noexcept { return watch_.self(); }
 
   /// Where each command's verdict also goes (Runtime::record_command: its sinks, the events file
   /// among them); may be null; must outlive the bridge. The runtime is not thread-safe: handle()
@@ -62,19 +80,29 @@ class LcmBridge final : public controller::RunListener {
 
  private:
   void on_datagram(std::span<const std::uint8_t> bytes, const CommandSocket::Datagram& d);
+  /// One datagram off the group: a command, another controller's health, or neither.
+  void dispatch(std::span<const std::uint8_t> bytes, const CommandSocket::Datagram& d);
+  /// Asks the loop to latch the fault while another controller is heard, and says so.
+  void update_watch();
+  [[nodiscard]] double watch_time_s() const;
   void publish_text_event(std::int8_t kind, const std::string& text, std::int64_t seq = 0);
   [[nodiscard]] std::int64_t utime_of(double t_s) const noexcept;
   template <typename T>
   void publish(const std::string& channel, const T& msg);
 
   std::unique_ptr<lcm::LCM> lcm_;
-  std::unique_ptr<CommandSocket> commands_;
   std::string url_;
   std::string prefix_;
   // <prefix>STATE, ...: built once, not per message (STATE goes out every tick).
   std::string state_channel_, event_channel_, prediction_channel_, health_channel_, command_channel_,
       identification_channel_;
   controller::LoopOutputs& loop_;
+  std::unique_ptr<CommandSocket> socket_;  // the group: commands in, other controllers' health
+  bool accept_commands_ = false;
+  InstanceWatch watch_;
+  std::string watch_off_;
+  double health_period_s_ = 0.0;  // telemetry.health_period_s, as health_t.period
+  bool other_said_ = false;  // another controller announced on stderr, the loop asked to fault
   CommandValidator validator_;
   controller::Runtime* command_log_ = nullptr;
   double last_t_s_ = 0.0;
