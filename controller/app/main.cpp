@@ -203,7 +203,7 @@ int run(int argc, char** argv) {
   if (identify_path) run.runtime->add_sink(recorder);
   // Online identification (controller.predictor.learn_online): the forecasts on what it learns.
   std::optional<identify::OnlineIdentifier> learner;
-  if (cfg.controller.predictor.learn_online && !identify_path) run.runtime->add_sink(learner.emplace(as_configured, *run.runtime));
+  if (cfg.controller.predictor.learn_online && !identify_path) learner.emplace(as_configured, *run.runtime);
   const std::unique_ptr<Telemetry> telemetry = Telemetry::start(cfg, run, args.flag("require-telemetry"));
   SystemdNotifier notifier(*run.outputs, g_stop);
   std::function<void(int)> wait_for_input;
