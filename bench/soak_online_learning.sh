@@ -60,13 +60,17 @@ with open(csv, "w") as f:
     t0 = time.time()
     while marks and pid:
         try:
+            status = open(f"/proc/{pid}/status").read()
+        except OSError:
+            break  # it ended
+        if "VmRSS" not in status: break  # it ended, not reaped yet
+        try:  # (none yet while pneud reads its configuration)
             with open(events, "rb") as e:
                 e.seek(0, 2); size = e.tell(); e.seek(max(0, size - 8192))
                 tail = e.read().split(b"\n")[:-1]
-            t = float(t_re.findall(tail[-1])[0]) if tail and t_re.search(tail[-1]) else 0.0
-            status = open(f"/proc/{pid}/status").read()
-        except (OSError, IndexError):
-            break
+        except OSError:
+            tail = []
+        t = float(t_re.search(tail[-1]).group(1)) if tail and t_re.search(tail[-1]) else 0.0
         if t >= marks[0]:
             rss = int(re.search(r"VmRSS:\s+(\d+)", status).group(1))
             hwm = int(re.search(r"VmHWM:\s+(\d+)", status).group(1))
