@@ -610,7 +610,6 @@ OnlineRun learn_online(config::Config cfg, const model::PlantParams& bench, doub
     std::vector<controller::IdentificationRecord> records;
     void on_identification(const controller::IdentificationRecord& r) override { records.push_back(r); }
   } updates;
-  b.run.runtime->add_sink(learner);
   b.run.runtime->add_sink(updates);
   b.execute();
   // The sweep's --online: judged after the bench's 3rd restart.

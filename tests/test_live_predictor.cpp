@@ -474,3 +474,99 @@ TEST(LivePredictor, TheTrajectoryHoldsEachForecastFromItsSnapshotToTheStart) {
 }
 
 }  // namespace
+
+namespace {
+
+// A model source that learns a new valve at every stop (its conductance 10 % over or under the
+// configured one, in turn):
+// what it saw and when the runtime took each update.
+struct EveryStopALearner final : controller::RunListener, controller::ModelSource {
+  explicit EveryStopALearner(const controller::Runtime& runtime, const RecordingSink& after, model::PlantParams plant)
+      : runtime_(runtime), after_(after), plant_(std::move(plant)) {}
+  void on_event(const controller::LoopEvent& e) override {
+    if (e.kind != controller::LoopEvent::Kind::kStop) return;
+    ++stops;
+    // Two stops on, the runtime neither forecasts on a valve nor follows a forecast made on it.
+    if (valves.size() >= 2 && !valves[valves.size() - 2].expired()) ++kept_too_long;
+    model::PlantParams p = plant_;
+    p.valve.max_conductance_m3_per_s_pa *= stops % 2 ? 1.1 : 0.9;
+    conductances.push_back(p.valve.max_conductance_m3_per_s_pa);
+    auto valve = std::make_shared<const model::ValveModel>(p.valve, p.gas);
+    valves.push_back(valve);
+    controller::ModelUpdate u{runtime_.model(), std::move(valve), {}};
+    u.model.valve = u.valve.get();
+    u.record.t_s = e.t_s;
+    u.record.updates = static_cast<std::uint32_t>(conductances.size());
+    model_before_taken = runtime_.model().valve;
+    pending = std::move(u);
+  }
+  std::optional<controller::ModelUpdate> take_model_update() override {
+    if (!pending) return std::nullopt;
+    // Taken once every sink had the stop's event, the one added after this too.
+    const auto last = std::find_if(after_.records.rbegin(), after_.records.rend(), [](const auto& r) { return r.kind == 'e'; });
+    if (last == after_.records.rend() || last->event != controller::LoopEvent::Kind::kStop) ++taken_early;
+    // The runtime was not changed while it handed the records out.
+    if (runtime_.model().valve != model_before_taken) ++changed_during_dispatch;
+    std::optional<controller::ModelUpdate> u;
+    u.swap(pending);
+    return u;
+  }
+  const controller::Runtime& runtime_;
+  const RecordingSink& after_;
+  model::PlantParams plant_;
+  std::optional<controller::ModelUpdate> pending;
+  const model::ValveCharacteristic* model_before_taken = nullptr;
+  std::vector<std::weak_ptr<const model::ValveModel>> valves;
+  std::vector<double> conductances;
+  int stops = 0, kept_too_long = 0, taken_early = 0, changed_during_dispatch = 0;
+};
+
+struct IdentificationCount final : controller::RunListener {
+  int records = 0;
+  void on_identification(const controller::IdentificationRecord&) override { ++records; }
+};
+
+}  // namespace
+
+TEST(Runtime, TakesALearntModelOnceEverySinkHadTheStopItWasLearntAtForecastsThatStopOnItAndLetsItsValveGoOnceUnused) {
+  auto overrides = back_and_forth(10);
+  const config::Config c = config::load_string(config::default_config_yaml(), overrides);
+  auto valve = controller::make_valve_characteristic(c, {});
+  config::Config resolved = c;
+  controller::resolve_offset(resolved, *valve);
+  auto run = controller::make_run(resolved, *valve, backends::make_sim_backend(resolved));
+  RecordingSink after;
+  IdentificationCount told;
+  EveryStopALearner learner(*run.runtime, after, resolved.plant);
+  run.runtime->add_sink(learner);
+  run.runtime->add_sink(after);
+  run.runtime->add_sink(told);
+  run.runtime->set_model_source(learner);
+  controller::SimulatedClock clock;
+  const std::atomic<bool> never{false};
+  controller::execute(run, resolved, clock, never);
+
+  ASSERT_GE(learner.stops, 10);
+  EXPECT_EQ(learner.taken_early, 0);
+  EXPECT_EQ(learner.changed_during_dispatch, 0);
+  EXPECT_EQ(learner.kept_too_long, 0);
+  EXPECT_EQ(told.records, learner.stops);
+  // Each stop forecast on the valve learnt at its own event.
+  const auto& stops = run.runtime->stops();
+  ASSERT_EQ(stops.size(), static_cast<std::size_t>(learner.stops));
+  int compared = 0;
+  for (std::size_t k = 0; k < stops.size(); ++k) {
+    if (!stops[k].nonlinear) continue;
+    model::PlantParams p = resolved.plant;
+    p.valve.max_conductance_m3_per_s_pa = learner.conductances[k];
+    const model::ValveModel learnt(p.valve, p.gas);
+    controller::PredictorModel m = controller::predictor_model(resolved, learnt);
+    const controller::Prediction expected = controller::predict_nonlinear(m, stops[k].snapshot);
+    EXPECT_EQ(stops[k].nonlinear->will_restart, expected.will_restart) << "stop " << stops[k].index;
+    if (expected.will_restart) {
+      EXPECT_DOUBLE_EQ(stops[k].nonlinear->t_restart_s, expected.t_restart_s) << "stop " << stops[k].index;
+    }
+    ++compared;
+  }
+  EXPECT_GE(compared, 5);
+}

@@ -228,7 +228,7 @@ int run(int argc, char** argv) {
   if (identify_path && real_clock) run.runtime->add_sink(progress);
   // Online identification (controller.predictor.learn_online): the forecasts on what it learns.
   std::optional<identify::OnlineIdentifier> learner;
-  if (cfg.controller.predictor.learn_online && !identify_path) run.runtime->add_sink(learner.emplace(as_configured, *run.runtime));
+  if (cfg.controller.predictor.learn_online && !identify_path) learner.emplace(as_configured, *run.runtime);
   const std::unique_ptr<Telemetry> telemetry = Telemetry::start(cfg, run, args.flag("require-telemetry"));
   // One controller per bench: another pneud's health on these channels refuses the start, before
   // anything is driven or reported ready. Where none can be heard, a bench's run says so.

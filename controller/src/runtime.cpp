@@ -37,10 +37,22 @@ StopSnapshot snapshot_at(const StopOutcome& s, const TickRecord& r) {
 Runtime::Runtime(const PredictorModel& model, bool linearized, bool nonlinear, double update_period_s)
     : model_(model), linearized_(linearized), nonlinear_(nonlinear), update_period_s_(update_period_s) {
   set_model(model);
+  set_max_stops_kept(kMaxStopsKept);
 }
 
-void Runtime::set_model(const PredictorModel& model) noexcept {
+void Runtime::set_max_stops_kept(std::size_t n) {
+  max_stops_kept_ = std::max<std::size_t>(n, 4);
+  // Taken and touched now (made and let go: the memory stays the vector's), so that it is resident
+  // from the start rather than as the stops come.
+  std::vector<StopOutcome> kept(max_stops_kept_);
+  kept.clear();
+  for (StopOutcome& s : stops_) kept.push_back(std::move(s));
+  stops_ = std::move(kept);
+}
+
+void Runtime::set_model(const PredictorModel& model, std::shared_ptr<const model::ValveCharacteristic> valve) noexcept {
   model_ = model;
+  valve_ = std::move(valve);
   if (!model.has_hidden_state() || model.valve == nullptr) {
     observer_.reset();
     return;
@@ -60,6 +72,20 @@ StopSnapshot Runtime::with_hidden_state(StopSnapshot s) const noexcept {
   return s;
 }
 
+template <class Call>
+void Runtime::dispatch(const Call& call) {
+  for (RunListener* sink : sinks_) call(*sink);
+  take_model_update();
+}
+
+void Runtime::take_model_update() {
+  if (model_source_ == nullptr) return;
+  std::optional<ModelUpdate> update = model_source_->take_model_update();
+  if (!update) return;
+  set_model(update->model, std::move(update->valve));
+  for (RunListener* sink : sinks_) sink->on_identification(update->record);
+}
+
 void Runtime::drain(LoopOutputs& out) {
   // Ticks and events come on two queues. The loop pushes a tick's events before its record, so
   // the events raised up to a record are in their queue when the record is popped.
@@ -75,8 +101,7 @@ void Runtime::drain(LoopOutputs& out) {
   LoopEvent e;
   while (out.events.try_pop(e)) on_event(e);
   HealthRecord h;
-  while (out.health.try_pop(h))
-    for (RunListener* sink : sinks_) sink->on_health(h);
+  while (out.health.try_pop(h)) dispatch([&](RunListener& sink) { sink.on_health(h); });
 }
 
 void Runtime::on_tick(const TickRecord& r) {
@@ -132,7 +157,7 @@ void Runtime::on_tick(const TickRecord& r) {
       }
     }
   }
-  for (RunListener* sink : sinks_) sink->on_tick(r, expected);
+  dispatch([&](RunListener& sink) { sink.on_tick(r, expected); });
   if (reforecast_due) reforecast(stops_.back(), r, expected);
   if (hold_ && r.mode == Mode::kHold && r.stuck && r.t_s >= next_held_s_ - 1e-9 && !stops_.empty() &&
       !stops_.back().ended) {
@@ -161,7 +186,7 @@ void Runtime::held_forecast(StopOutcome& s, const TickRecord& r) {
   if (f.prediction.will_restart) ++s.held_restart_forecasts;
   if (!s.held_first || s.held_first->t_s < hold_->t0_s) s.held_first = f;
   const ForecastRecord record = forecast_record(s, f);
-  for (RunListener* sink : sinks_) sink->on_forecast(record);
+  dispatch([&](RunListener& sink) { sink.on_forecast(record); });
 }
 
 void Runtime::reforecast(StopOutcome& s, const TickRecord& r, const ExpectedAtTick& expected) {
@@ -185,7 +210,7 @@ void Runtime::reforecast(StopOutcome& s, const TickRecord& r, const ExpectedAtTi
     f.prediction = prediction;
     if (keep) s.reforecasts.push_back(f);
     const ForecastRecord record = forecast_record(s, f);
-    for (RunListener* sink : sinks_) sink->on_forecast(record);
+    dispatch([&](RunListener& sink) { sink.on_forecast(record); });
   };
   if (linearized_) emit(predict_linearized(model_, now), expected.linearized.force_n);
   if (nonlinear_) emit(predict_nonlinear(model_, now), expected.nonlinear.force_n);
@@ -203,7 +228,7 @@ void Runtime::emit_forecast(const StopOutcome& s, const Prediction& p) {
   at_stop.stop_forecast_force_n = s.force_n;
   at_stop.prediction = p;
   const ForecastRecord record = forecast_record(s, at_stop);
-  for (RunListener* sink : sinks_) sink->on_forecast(record);
+  dispatch([&](RunListener& sink) { sink.on_forecast(record); });
 }
 
 // The stop has ended (or the run has): its half-way forecasts are settled, and its history goes
@@ -219,7 +244,7 @@ void Runtime::settle(StopOutcome& s) const {
 }
 
 void Runtime::on_event(const LoopEvent& e) {
-  for (RunListener* sink : sinks_) sink->on_event(e);
+  dispatch([&](RunListener& sink) { sink.on_event(e); });
   if (e.kind == LoopEvent::Kind::kStop) {
     StopOutcome s;
     s.index = e.stop_index;
@@ -248,6 +273,7 @@ void Runtime::on_event(const LoopEvent& e) {
     stops_.push_back(s);
     if (forecastable && (linearized_ || nonlinear_ || forecasts(PredictionMethod::kRelaxation))) {
       following_.emplace();
+      following_->valve = valve_;
       if (linearized_) following_->tracks[0].emplace(PredictionMethod::kLinearized, model_, s.snapshot);
       if (nonlinear_) following_->tracks[1].emplace(PredictionMethod::kNonlinear, model_, s.snapshot);
       following_->next_update_s = s.snapshot.t_s + update_period_s_;
@@ -287,16 +313,12 @@ void Runtime::finish(double t_end_s) {
       s.t_end_s = t_end_s_;
       settle(s);
     }
-  for (RunListener* sink : sinks_) sink->on_end(t_end_s_);
+  dispatch([&](RunListener& sink) { sink.on_end(t_end_s_); });
 }
 
 void Runtime::record_command(CommandRecord command) {
   command.t_s = t_end_s_;
-  for (RunListener* sink : sinks_) sink->on_command(command);
-}
-
-void Runtime::record_identification(const IdentificationRecord& record) {
-  for (RunListener* sink : sinks_) sink->on_identification(record);
+  dispatch([&](RunListener& sink) { sink.on_command(command); });
 }
 
 }  // namespace pneu::controller

@@ -318,31 +318,70 @@ double fit_onset(std::span<const Sample> s, std::span<const double> force, const
 }
 
 // Savitzky-Golay: velocity and acceleration at each sample from a quartic fitted over +-half_s (a
-// quadratic lags behind the motion's curvature: F_C+ 1.4 N low on the exact bench).
+// quadratic lags behind the motion's curvature: F_C+ 1.4 N low on the exact bench). Only at the
+// samples `wanted` (the others: not valid): a stuck carriage's need none. The fit is linear in the
+// positions: v and a are weighted sums of them, whose weights depend only on the neighbours' times
+// relative to the sample's; the loop's samples are evenly spaced, so the weights are worked out
+// again only where that pattern changes (a deadline skipped, the record's ends).
 struct Motion {
   std::vector<double> v, a;
   std::vector<bool> valid;
 };
 
-Motion motion_of(std::span<const Sample> s, double half_s) {
+Motion motion_of(std::span<const Sample> s, double half_s, const std::vector<bool>& wanted) {
   Motion m{std::vector<double>(s.size(), 0.0), std::vector<double>(s.size(), 0.0), std::vector<bool>(s.size(), false)};
+  // The patterns seen last (the rounding of the times puts a neighbour at +-half_s in or out, so a
+  // few alternate), and their weights.
+  struct Weights {
+    std::vector<double> offsets;  // t_j - t_k, j over the neighbours
+    std::vector<double> v, a;
+  };
+  std::array<Weights, 8> known;
+  std::size_t next = 0;  // the one replaced next
   std::size_t lo = 0, hi = 0;
   for (std::size_t k = 0; k < s.size(); ++k) {
     while (s[k].t_s - s[lo].t_s > half_s) ++lo;
     while (hi + 1 < s.size() && s[hi + 1].t_s - s[k].t_s <= half_s) ++hi;
+    if (!wanted[k]) continue;
     if (s[k].t_s - s[lo].t_s < 0.9 * half_s || s[hi].t_s - s[k].t_s < 0.9 * half_s) continue;
-    Eigen::Matrix<double, 5, 5> a = Eigen::Matrix<double, 5, 5>::Zero();
-    Eigen::Matrix<double, 5, 1> b = Eigen::Matrix<double, 5, 1>::Zero();
-    for (std::size_t j = lo; j <= hi; ++j) {
-      const double t = (s[j].t_s - s[k].t_s) / half_s;
-      Eigen::Matrix<double, 5, 1> phi;
-      phi << 1.0, t, t * t, t * t * t, t * t * t * t;
-      a += phi * phi.transpose();
-      b += phi * (s[j].y_m - s[k].y_m);
+    const std::size_t n = hi - lo + 1;
+    const auto matches = [&](const Weights& w) {
+      if (w.offsets.size() != n) return false;
+      for (std::size_t i = 0; i < n; ++i)
+        if (std::abs(s[lo + i].t_s - s[k].t_s - w.offsets[i]) > 1e-9 * half_s) return false;
+      return true;
+    };
+    auto found = std::find_if(known.begin(), known.end(), matches);
+    if (found == known.end()) {
+      Weights& w = known[next];
+      next = (next + 1) % known.size();
+      w.offsets.resize(n);
+      w.v.resize(n);
+      w.a.resize(n);
+      std::vector<Eigen::Matrix<double, 5, 1>> phi(n);
+      Eigen::Matrix<double, 5, 5> a = Eigen::Matrix<double, 5, 5>::Zero();
+      for (std::size_t i = 0; i < n; ++i) {
+        w.offsets[i] = s[lo + i].t_s - s[k].t_s;
+        const double t = w.offsets[i] / half_s;
+        phi[i] << 1.0, t, t * t, t * t * t, t * t * t * t;
+        a += phi[i] * phi[i].transpose();
+      }
+      const auto ldlt = a.ldlt();
+      for (std::size_t i = 0; i < n; ++i) {
+        const Eigen::Matrix<double, 5, 1> c = ldlt.solve(phi[i]);
+        w.v[i] = c[1] / half_s;
+        w.a[i] = 2.0 * c[2] / (half_s * half_s);
+      }
+      found = known.begin() + static_cast<std::ptrdiff_t>(&w - known.data());
     }
-    const Eigen::Matrix<double, 5, 1> c = a.ldlt().solve(b);
-    m.v[k] = c[1] / half_s;
-    m.a[k] = 2.0 * c[2] / (half_s * half_s);
+    double v = 0.0, acc = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double dy = s[lo + i].y_m - s[k].y_m;
+      v += found->v[i] * dy;
+      acc += found->a[i] * dy;
+    }
+    m.v[k] = v;
+    m.a[k] = acc;
     m.valid[k] = true;
   }
   return m;
@@ -363,7 +402,6 @@ Sliding sliding_from(std::span<const Sample> s, std::span<const double> force, s
                      const model::PlantParams& p, double fs_pos, double fs_neg, const Options& o) {
   constexpr double kWindow_s = 0.015;
   Sliding out;
-  const Motion m = motion_of(s, kWindow_s);
   // Samples near a stuck phase (the stick is a jump in acceleration) or an end stop are left out.
   std::vector<bool> use(s.size(), true);
   for (const StuckPhase& ph : phases) {
@@ -372,13 +410,15 @@ Sliding sliding_from(std::span<const Sample> s, std::span<const double> force, s
     for (std::size_t k = ph.first; k < s.size() && s[k].t_s <= t1; ++k) use[k] = false;
   }
   const double half = p.geometry.half_stroke_m() - o.end_stop_margin_m - 0.01;
+  for (std::size_t k = 0; k < s.size(); ++k) use[k] = use[k] && std::abs(s[k].y_m) <= half;
+  const Motion m = motion_of(s, kWindow_s, use);
   const double v_s = p.friction.stribeck_velocity_m_per_s;
   std::vector<Eigen::Vector3d> rows;
   std::vector<double> rhs;
   std::vector<std::size_t> sample_of_row;
   double v_min = std::numeric_limits<double>::infinity(), v_max = 0.0;
   for (std::size_t k = 0; k < s.size(); ++k) {
-    if (!use[k] || !m.valid[k] || std::abs(s[k].y_m) > half) continue;
+    if (!use[k] || !m.valid[k]) continue;
     const double v = m.v[k];
     if (std::abs(v) < o.sliding_min_stribeck * v_s) continue;
     const double e = std::exp(-(v / v_s) * (v / v_s));

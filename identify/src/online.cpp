@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <exception>
 
 #include "pneu/identify/identification_run.hpp"
@@ -10,19 +11,33 @@ namespace pneu::identify {
 
 OnlineIdentifier::OnlineIdentifier(const config::Config& config, controller::Runtime& runtime, double window_s)
     : runtime_(runtime), prior_(config.plant), forecast_valves_(config.plant), options_(options_for(config)),
-      window_s_(window_s) {
+      window_s_(window_s), model_(runtime.model()) {
   // The short stuck phases of ordinary stick-slip carry the valves too: fit every one.
   options_.min_fit_phase_s = options_.min_stuck_s;
+  const auto ticks = static_cast<std::size_t>(std::ceil(window_s_ * config.controller.rate_hz)) + 2;
+  samples_.reserve(ticks + ticks / 4);
 
   estimate_.plant = prior_;
+  runtime.add_sink(*this);
+  runtime.set_model_source(*this);
 }
 
 void OnlineIdentifier::on_tick(const controller::TickRecord& tick, const controller::ExpectedAtTick&) {
-  window_.push_back(sample_of(tick));
-  while (!window_.empty() && window_.front().t_s < tick.t_s - window_s_) {
-    window_.pop_front();
+  if (samples_.size() == samples_.capacity() && first_ > 0) {  // full: the window moves to the front
+    samples_.erase(samples_.begin(), samples_.begin() + static_cast<std::ptrdiff_t>(first_));
+    first_ = 0;
+  }
+  samples_.push_back(sample_of(tick));
+  while (first_ < samples_.size() && samples_[first_].t_s < tick.t_s - window_s_) {
+    ++first_;
     window_from_start_ = false;
   }
+}
+
+std::optional<controller::ModelUpdate> OnlineIdentifier::take_model_update() {
+  std::optional<controller::ModelUpdate> update;
+  update.swap(pending_);
+  return update;
 }
 
 void OnlineIdentifier::on_event(const controller::LoopEvent& e) {
@@ -33,7 +48,7 @@ void OnlineIdentifier::on_event(const controller::LoopEvent& e) {
     if (stuck_since_s_ >= 0.0 && e.t_s - stuck_since_s_ >= options_.min_fit_phase_s) new_long_phase_ = true;
     stuck_since_s_ = -1.0;
   } else if (e.kind == Kind::kStop) {
-    if (starts_since_update_ > 0 && !window_.empty()) update(window_.back().t_s);
+    if (starts_since_update_ > 0 && first_ < samples_.size()) update(samples_.back().t_s);
     stuck_since_s_ = e.t_s;
   }
 }
@@ -44,11 +59,24 @@ void OnlineIdentifier::on_forecast(const controller::ForecastRecord& f) {
   ++stops_forecast_;
   const char* key = controller::side_turned_on(f.prediction, f.force_n) > 0 ? "plant.friction.static_positive_n" : "plant.friction.static_negative_n";
   const bool identified = !estimate_.estimates.empty() && estimate_.at(key).identified;
-  if (!identified) stops_on_configured_bound_.push_back(f.stop);
+  if (identified) return;
+  ++stops_on_configured_bound_count_;
+  stops_on_configured_bound_.push_back(f.stop);
+  // Only the stops the runtime keeps are asked about.
+  const auto& kept = runtime_.stops();
+  while (!kept.empty() && !stops_on_configured_bound_.empty() && stops_on_configured_bound_.front() < kept.front().index)
+    stops_on_configured_bound_.pop_front();
 }
 
 bool OnlineIdentifier::forecast_on_a_configured_bound(std::uint64_t stop) const noexcept {
   return std::binary_search(stops_on_configured_bound_.begin(), stops_on_configured_bound_.end(), stop);
+}
+
+bool OnlineIdentifier::valve_fit_due(double t_s) const noexcept {
+  if (!new_long_phase_) return false;
+  if (valve_fits_ == 0) return true;
+  const double since_first_s = t_s - first_valve_fit_s_;
+  return t_s - last_valve_fit_s_ >= kValveRefitShare * std::min(since_first_s, window_s_);
 }
 
 void OnlineIdentifier::update(double t_s) {
@@ -61,14 +89,13 @@ void OnlineIdentifier::update(double t_s) {
     }
   } timed{wall0, longest_update_s_};
   starts_since_update_ = 0;
-  const std::vector<Sample> samples(window_.begin(), window_.end());
   Options o = options_;
-  o.fit_valves = new_long_phase_;
+  o.fit_valves = valve_fit_due(t_s);
   o.at_rest_at_start = window_from_start_;  // the run's start is at rest; a later window's is not
   if (updates_ > 0) o.valve_fit_starts = {forecast_valves_};
   Identification id;
   try {
-    id = identify(samples, prior_, o);
+    id = identify(window(), prior_, o);
   } catch (const std::exception& e) {  // too little in the window (InsufficientData), or worse:
     ++refused_;                         // the run goes on, forecasting on the last estimate
     last_refusal_ = e.what();
@@ -76,6 +103,8 @@ void OnlineIdentifier::update(double t_s) {
   }
   if (o.fit_valves) {
     new_long_phase_ = false;
+    if (valve_fits_++ == 0) first_valve_fit_s_ = t_s;
+    last_valve_fit_s_ = t_s;
     // The link's delay, found by the first fit, is kept: the next fits need not search it.
     if (options_.command_delay_samples < 0 && id.evidence.fitted_phases > 0)
       options_.command_delay_samples = id.evidence.command_delay_samples;
@@ -129,16 +158,15 @@ void OnlineIdentifier::update(double t_s) {
   // and volumes with every parameter free (what predicts the pressures best; the estimate keeps
   // the configured value of one it cannot tell apart, and fits the others around that).
   if (id.jointly_fitted) forecast_valves_ = *id.jointly_fitted;
-  controller::PredictorModel m = runtime_.model();
+  controller::PredictorModel& m = model_;
   m.geometry = forecast_valves_.geometry;
   m.friction = p.friction;
   m.thermal = forecast_valves_.thermal;
   m.spool_time_constant_s = forecast_valves_.valve.spool_time_constant_s;
   // The forecasts say they are uncertain while the last valve fit does not fit.
   if (o.fit_valves && id.evidence.fitted_phases > 0) m.fits = id.evidence.model_fits;
-  valves_.push_back(std::make_unique<model::ValveModel>(forecast_valves_.valve, p.gas));
-  m.valve = valves_.back().get();
-  runtime_.set_model(m);
+  auto valve = std::make_shared<const model::ValveModel>(forecast_valves_.valve, p.gas);
+  m.valve = valve.get();
   controller::IdentificationRecord record;
   record.t_s = t_s;
   record.updates = static_cast<std::uint32_t>(updates_);
@@ -148,7 +176,7 @@ void OnlineIdentifier::update(double t_s) {
     record.sigma[i] = e.identified ? e.std : 0.0;
     record.identified[i] = e.identified;
   }
-  runtime_.record_identification(record);
+  pending_ = controller::ModelUpdate{m, std::move(valve), record};
 }
 
 }  // namespace pneu::identify

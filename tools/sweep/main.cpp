@@ -830,7 +830,7 @@ int run(int argc, char** argv) {
                             cfg.controller.stop_detector.motion_band_m);
         sim.runtime->add_sink(watch);
         std::optional<identify::OnlineIdentifier> learner;
-        if (online) sim.runtime->add_sink(learner.emplace(cfg, *sim.runtime));
+        if (online) learner.emplace(cfg, *sim.runtime);
         controller::SimulatedClock clock;
         std::atomic<bool> never{false};
         controller::execute(sim, cfg, clock, never);

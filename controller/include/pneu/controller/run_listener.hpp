@@ -7,6 +7,8 @@
 #include <array>
 #include <cstdint>
 #include <limits>
+#include <memory>
+#include <optional>
 #include <string_view>
 
 #include "pneu/controller/loop.hpp"
@@ -75,6 +77,26 @@ struct IdentificationRecord {
   std::array<bool, kIdentifiedParameterKeys.size()> identified{};
 };
 
+/// A new model of the bench for the forecasts, from what learns it while the run goes on (online
+/// identification: identify::OnlineIdentifier), with what the sinks are told of it.
+struct ModelUpdate {
+  PredictorModel model;  ///< its valve is `valve`'s
+  /// Owns model.valve: the runtime keeps it while the model is in use or a forecast made on it is
+  /// followed, and lets it go after.
+  std::shared_ptr<const model::ValveCharacteristic> valve;
+  IdentificationRecord record;
+};
+
+/// What learns the bench while the run goes on: the runtime asks it for an update each time every
+/// sink has had a record (Runtime::set_model_source), so that a sink never changes the runtime
+/// while the runtime is handing it a record.
+class ModelSource {
+ public:
+  virtual ~ModelSource() = default;
+  /// The update made since the last call, if any (each once).
+  [[nodiscard]] virtual std::optional<ModelUpdate> take_model_update() = 0;
+};
+
 /// A sink of the runtime: receives, in order, what the runtime drains from the loop and what it
 /// makes of it. For each tick: its events (each before the record of the tick that raised it; a
 /// stop's event before its forecasts), then the tick, then the forecasts made again from it. Each
@@ -92,7 +114,7 @@ class RunListener {
   virtual void on_health(const HealthRecord& /*health*/) {}
   /// A command's verdict (Runtime::record_command).
   virtual void on_command(const CommandRecord& /*command*/) {}
-  /// An update of online identification (Runtime::record_identification).
+  /// An update of online identification (a ModelSource's, as the runtime took it over).
   virtual void on_identification(const IdentificationRecord& /*record*/) {}
   /// The end of the run at `t_end_s`.
   virtual void on_end(double /*t_end_s*/) {}

@@ -9,6 +9,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -43,6 +44,13 @@ class Runtime {
   /// Adds a sink: every record goes to each sink, in the order they were added. Not owned; it
   /// must outlive the runtime's last drain(), finish() or record_command().
   void add_sink(RunListener& sink) { sinks_.push_back(&sink); }
+  /// What learns the bench while the run goes on (online identification), often also a sink. Once
+  /// every sink has had a record, the runtime asks it for an update; one it gives is taken over
+  /// (set_model) and told to the sinks (RunListener::on_identification) before the runtime acts
+  /// on that record: a stop's forecasts are made on the model learnt at the stop's event. So no
+  /// sink changes the runtime while the runtime is handing it a record. Not owned; it must outlive
+  /// the runtime's last drain() or finish().
+  void set_model_source(ModelSource& source) noexcept { model_source_ = &source; }
 
   /// Pops everything the loop queued, each event before the record of the tick that raised it,
   /// so that the result does not depend on how often it is called. Not real-time: call from the
@@ -53,14 +61,15 @@ class Runtime {
   /// Hands a command's verdict to the sinks, dated by the last tick drained. Not real-time, not
   /// thread-safe: call from the thread that drains (the service thread).
   void record_command(CommandRecord command);
-  /// Hands an update of online identification to the sinks. Same thread rule.
-  void record_identification(const IdentificationRecord& record);
 
   /// The stops of the run, the last max_stops_kept of them (kMaxStopsKept unless set; at least 4).
+  /// The memory they take is taken whole when the runtime is made (and when the number is set),
+  /// so that a daemon's does not grow as the stops come.
   [[nodiscard]] const std::vector<StopOutcome>& stops() const noexcept { return stops_; }
   [[nodiscard]] std::uint64_t stops_forgotten() const noexcept { return stops_forgotten_; }
   static constexpr std::size_t kMaxStopsKept = 4096;
-  void set_max_stops_kept(std::size_t n) noexcept { max_stops_kept_ = std::max<std::size_t>(n, 4); }
+  /// Before the first drain().
+  void set_max_stops_kept(std::size_t n);
   [[nodiscard]] double end_time_s() const noexcept { return t_end_s_; }
   /// The faults latched during the run (kind kFault events), in order.
   [[nodiscard]] const std::vector<LoopEvent>& faults() const noexcept { return faults_; }
@@ -68,11 +77,14 @@ class Runtime {
   [[nodiscard]] std::uint64_t sequence_gaps() const noexcept { return sequence_gaps_; }
 
   [[nodiscard]] const PredictorModel& model() const noexcept { return model_; }
-  /// The model the forecasts use from now on (online identification): the forecasts made again
-  /// while stuck from the next one, each stop's from its own. A forecast already followed keeps the
-  /// model it was made with, so the old valve characteristic must stay alive. The estimate of the
-  /// chambers' temperatures and spools goes on from where it stands, on the new model.
-  void set_model(const PredictorModel& model) noexcept;
+  /// The model the forecasts use from now on: the forecasts made again while stuck from the next
+  /// one, each stop's from its own. A forecast already followed keeps the model it was made with.
+  /// `valve`, if given, owns model.valve, and the runtime keeps it while it is in use (by the
+  /// model, or by a forecast followed) and no longer; without it, model.valve must outlive the
+  /// runtime's use of it. The estimate of the chambers' temperatures and spools goes on from where
+  /// it stands, on the new model. Not from a sink while it is handed a record: a ModelSource does
+  /// that (set_model_source).
+  void set_model(const PredictorModel& model, std::shared_ptr<const model::ValveCharacteristic> valve = nullptr) noexcept;
   /// The chambers' temperatures and spools as estimated at the last tick drained, for a model that
   /// has them (PredictorModel::has_hidden_state), else nothing.
   [[nodiscard]] const std::optional<model::ChamberObserver>& chamber_estimate() const noexcept { return observer_; }
@@ -94,6 +106,10 @@ class Runtime {
   void reforecast(StopOutcome& s, const TickRecord& r, const ExpectedAtTick& expected);
   void settle(StopOutcome& s) const;
   void held_forecast(StopOutcome& s, const TickRecord& r);
+  // Hands a record to every sink (`call(sink)`), then takes over the model source's update, if any.
+  template <class Call>
+  void dispatch(const Call& call);
+  void take_model_update();
 
   // The forecasts of the open stop, followed while they hold.
   struct Following {
@@ -101,12 +117,15 @@ class Runtime {
     double next_update_s = 0.0;
     std::uint32_t stride = 1;  // updates kept: every stride-th (thinned beyond kMaxReforecastsKept)
     PhaseHistory history;      // the pressures since the snapshot, for the relaxation method
+    std::shared_ptr<const model::ValveCharacteristic> valve;  // owns the tracks' valve, if it was handed over
   };
 
   // With each snapshot, what no sensor gives (StopSnapshot::t_p_k ...), as estimated now.
   StopSnapshot with_hidden_state(StopSnapshot s) const noexcept;
 
   PredictorModel model_;
+  std::shared_ptr<const model::ValveCharacteristic> valve_;  // owns model_.valve, if it was handed over
+  ModelSource* model_source_ = nullptr;
   std::optional<model::ChamberObserver> observer_;  // with a model that has hidden state
   bool observer_started_ = false;
   // The last commands (u_P, u_N), newest first: the valves act on the one model_.command_delay_samples back.

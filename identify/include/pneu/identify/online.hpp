@@ -5,6 +5,8 @@
 #include <cstdint>
 #include <deque>
 #include <memory>
+#include <optional>
+#include <span>
 #include <vector>
 
 #include "pneu/config/config.hpp"
@@ -23,16 +25,30 @@ namespace pneu::identify {
 /// bounds and the valves' model with the identified conductances, null offset and dead volumes
 /// (not with controller.predictor.valve_table: a measured table is not refined). Runs on the
 /// thread that drains (not the loop's): allocation and the fit's milliseconds are fine there.
-/// Each update goes to the runtime's sinks (Runtime::record_identification: LCM's
+///
+/// It never changes the runtime while the runtime hands it a record: it is the runtime's model
+/// source (Runtime::set_model_source), and an update made at a stop's event waits in it until the
+/// runtime, once every sink has had that event, takes it (take_model_update) and makes the stop's
+/// forecasts on it; the update's record then goes to the runtime's sinks (LCM's
 /// <prefix>IDENTIFICATION).
-class OnlineIdentifier final : public controller::RunListener {
+///
+/// Its memory does not grow with the run: the window's samples in a buffer of fixed size; the
+/// valves' model of each update owned by the update (shared), so that it lives while the runtime
+/// uses it (the model in force, the forecasts it follows) and no longer; the stops forecast on a
+/// configured bound remembered for the stops the runtime keeps.
+class OnlineIdentifier final : public controller::RunListener, public controller::ModelSource {
  public:
+  /// Attaches itself to `runtime`, as a sink and as its model source: it must outlive the
+  /// runtime's last drain() or finish().
   OnlineIdentifier(const config::Config& config, controller::Runtime& runtime, double window_s = kDefaultWindow_s);
   static constexpr double kDefaultWindow_s = 60.0;
+  OnlineIdentifier(const OnlineIdentifier&) = delete;
+  OnlineIdentifier& operator=(const OnlineIdentifier&) = delete;
 
   void on_tick(const controller::TickRecord& tick, const controller::ExpectedAtTick&) override;
   void on_event(const controller::LoopEvent& event) override;
   void on_forecast(const controller::ForecastRecord& forecast) override;
+  [[nodiscard]] std::optional<controller::ModelUpdate> take_model_update() override;
 
   /// The running estimate: the configuration's plant: until the first update. Its evidence is the
   /// last window's, but for the valve fit's figures (phases fitted, residual, command delay): the
@@ -52,31 +68,44 @@ class OnlineIdentifier final : public controller::RunListener {
   /// has only broken away one way tells the other bound: those forecasts are the configured
   /// value's, however well the rest is known.
   [[nodiscard]] int stops_forecast() const noexcept { return stops_forecast_; }
-  [[nodiscard]] int stops_on_a_configured_bound() const noexcept {
-    return static_cast<int>(stops_on_configured_bound_.size());
-  }
-  /// Whether the stop of this index (StopOutcome::index) was forecast on a configured bound.
+  [[nodiscard]] int stops_on_a_configured_bound() const noexcept { return stops_on_configured_bound_count_; }
+  /// Whether the stop of this index (StopOutcome::index) was forecast on a configured bound: known
+  /// for the stops the runtime keeps (Runtime::stops).
   [[nodiscard]] bool forecast_on_a_configured_bound(std::uint64_t stop) const noexcept;
 
  private:
   void update(double t_s);
+  // Whether this update refits the valves (below, at the class).
+  [[nodiscard]] bool valve_fit_due(double t_s) const noexcept;
+  static constexpr double kValveRefitShare = 0.25;
+  // The window: samples_[first_, end), its oldest first.
+  [[nodiscard]] std::span<const Sample> window() const noexcept {
+    return std::span<const Sample>(samples_).subspan(first_);
+  }
 
-  controller::Runtime& runtime_;
+  const controller::Runtime& runtime_;
   model::PlantParams prior_;
   // The valves and volumes the forecasts use: the last valve fit's, every parameter free (the prior
   // until the first fit; a parameter is identified only where a fit ran).
   model::PlantParams forecast_valves_;
   Options options_;
   double window_s_;
-  std::deque<Sample> window_;
+  // The window's samples from first_ on; what comes before is let go when the buffer is full (its
+  // capacity, fixed at the start, holds the window at the loop's rate and a quarter more).
+  std::vector<Sample> samples_;
+  std::size_t first_ = 0;
   Identification estimate_;
-  std::vector<std::unique_ptr<model::ValveModel>> valves_;  // every model a forecast may still use
+  controller::PredictorModel model_;  // the model of the last update, or the runtime's at the start
+  std::optional<controller::ModelUpdate> pending_;  // made, not yet taken by the runtime
   int updates_ = 0, refused_ = 0, restarts_ = 0;
   int starts_since_update_ = 0;
   int stops_forecast_ = 0;
-  std::vector<std::uint64_t> stops_on_configured_bound_;  // their indices, increasing
+  int stops_on_configured_bound_count_ = 0;
+  std::deque<std::uint64_t> stops_on_configured_bound_;  // their indices, increasing, of the stops kept
   std::uint64_t last_stop_forecast_ = 0;  // the stop whose forecasts were counted last
   bool new_long_phase_ = false;  // a stuck phase long enough for the valve fit ended since the last fit
+  int valve_fits_ = 0;
+  double first_valve_fit_s_ = 0.0, last_valve_fit_s_ = 0.0;
   bool window_from_start_ = true;  // the window still holds the run's first tick
   double stuck_since_s_ = -1.0;
   std::string last_refusal_;
