@@ -73,8 +73,9 @@ void JournalLines::on_tick(const TickRecord& r, const ExpectedAtTick& /*expected
 void JournalLines::on_event(const LoopEvent& e) {
   switch (e.kind) {
     case LoopEvent::Kind::kFault:
-      line(Priority::kErr, "FAULT at %.3f s (y = %.3f mm): %s: %s", e.t_s, e.y_m * 1e3, fault_name(e.fault_cause),
-           fault_text(e.fault_cause));
+      line(Priority::kErr, "FAULT at %.3f s (y = %.3f mm): %s: %s%s%s", e.t_s, e.y_m * 1e3, fault_name(e.fault_cause),
+           fault_text(e.fault_cause), e.fault_key != nullptr ? "; decided by " : "",
+           e.fault_key != nullptr ? e.fault_key : "");
       return;
     case LoopEvent::Kind::kFaultReset:
       line(Priority::kNotice, "fault (%s) reset at %.3f s: disarmed, send ARM to drive", fault_name(e.fault_cause),
