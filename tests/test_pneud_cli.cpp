@@ -733,7 +733,7 @@ TEST_F(PneudCli, AStopWithoutAForecastShowsNoEquilibriumForceAndSaysWhyNeverNan)
   // A following error of 10 mm for 10 ms latches at the step; the carriage then stops under the safe output.
   const Outcome o = pneud("--duration 3 --set controller.supervisor.following_error_m=0.01"
                           " --set controller.supervisor.following_error_s=0.01");
-  ASSERT_EQ(o.exit_code, 0) << o.err;
+  ASSERT_EQ(o.exit_code, 3) << "ended with the fault latched: " << o.err;
   EXPECT_THAT(o.out, HasSubstr("fault at 1.0100 s"));
   EXPECT_THAT(o.out, ::testing::ContainsRegex("stuck; u\\* changed at"));
   EXPECT_THAT(o.out, ::testing::ContainsRegex(" n/a  stuck"));
