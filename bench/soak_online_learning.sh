@@ -52,6 +52,8 @@ for _ in range(500):  # pneud is /usr/bin/time's child
     except OSError:
         pass
     time.sleep(0.01)
+# pneud's events file grows beside its path while the run lasts (renamed into place at the end).
+events = f"{events}.partial-{pid}"
 # 10 min, every hour, and 30 s before the end (the last lines come just before it).
 marks = sorted(set(m for m in [600] + list(range(3600, duration, 3600)) + [duration - 30] if 0 < m <= duration - 30))
 t_re = re.compile(rb'"t":([0-9.eE+-]+)')

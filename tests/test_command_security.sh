@@ -49,9 +49,11 @@ start_pneud() {  # DURATION
     --set controller.supervisor.overruns_in_a_row=0 --set controller.supervisor.max_tick_interval_s=0 \
     --trajectory "$D/traj.csv" --summary-json "$D/summary.json" >"$D/pneud.out" 2>"$D/pneud.err" &
   PNEUD=$!
-  # Subscribed once the loop ticks: the trajectory has rows (up to 10 s on a loaded machine).
-  for _ in $(seq 200); do [ "$(wc -l <"$D/traj.csv" 2>/dev/null || echo 0)" -gt 1 ] && break; sleep 0.05; done
-  [ "$(wc -l <"$D/traj.csv" 2>/dev/null || echo 0)" -gt 1 ] || fail "pneud did not start ticking"
+  # Subscribed once the loop ticks: the trajectory has rows (up to 10 s on a loaded machine). While
+  # the run lasts it grows beside its path (traj.csv.partial-PID), renamed into place at the end.
+  local live="$D/traj.csv.partial-$PNEUD"
+  for _ in $(seq 200); do [ "$( (wc -l <"$live") 2>/dev/null || echo 0)" -gt 1 ] && break; sleep 0.05; done
+  [ "$( (wc -l <"$live") 2>/dev/null || echo 0)" -gt 1 ] || fail "pneud did not start ticking"
 }
 # Until FILE holds "ready" (a capture that has joined the group), up to 10 s.
 wait_ready() {
