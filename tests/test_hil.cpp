@@ -412,7 +412,7 @@ TEST_F(Hil, IdentifiedOverModbusThePaperStepsLongStickingPhaseIsForecastWithin5P
 // ms). pneud --identify --armed identifies it over the link, and the paper's step on the identified
 // configuration forecasts its long sticking phases within 5 % of the breakaway that serve's own
 // record (--events) dates, on serve's clock.
-TEST_F(Hil, AThermalBenchWithASpoolLagIdentifiedOverModbusForecastsTheLongStickingPhaseWithin5PercentOfServesRecord) {
+TEST_F(Hil, AThermalBenchWithASpoolLagIdentifiedOverModbusForecastsTheLongStickingPhaseWithin5PercentOfServesRecordOnAnIdleMachine) {
   const std::vector<std::string> bench{"--set", "hal.sim.plant.thermal.heat_transfer_w_per_m2_k=25.72",
                                        "--set", "hal.sim.plant.valve.spool_time_constant_s=0.003",
                                        "--set", "hal.sim.plant.friction.static_positive_n=50",
@@ -764,7 +764,7 @@ TEST_F(Hil, AModuleThatAnswersLateIsACountedCommsFaultAndTheLoopNeverWaits) {
               HasSubstr("the module did not confirm the safe output on closing (3 attempts, last error: "));
 }
 
-TEST_F(Hil, RtuOverAPtyPairAt115200BaudKeepsTheLoopRateAndFreshSamples) {
+TEST_F(Hil, RtuOverAPtyPairAt115200BaudKeepsTheLoopRateAndFreshSamplesOnAnIdleMachine) {
   if (system("command -v socat > /dev/null") != 0) GTEST_SKIP() << "socat (Debian package socat) is not installed";
   const fs::path a = dir_ / "ttyA", b = dir_ / "ttyB";
   Child pty = Child::spawn({"socat", "pty,raw,echo=0,link=" + a.string(), "pty,raw,echo=0,link=" + b.string()},
