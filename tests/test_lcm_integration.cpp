@@ -52,6 +52,23 @@ std::string bin(const std::string& name) { return std::string(PNEU_BINARY_DIR) +
 
 class LcmIntegration : public ::testing::Test {
  protected:
+  // pneud on the real clock until SIGTERM, with no schedule (armed, holding 219.5 mm until
+  // commanded) and `args` added; returned once its state is heard (its loop ticking).
+  Child start_commanded_pneud(const std::vector<std::string>& args) {
+    pneu::test::LcmSniffer sniffer;
+    EXPECT_TRUE(sniffer.good());
+    std::vector<std::string> command = {bin("pneud"), "--clock", "real", "--duration", "0", "--require-telemetry",
+                                        "--set", "controller.setpoints.schedule=[]"};
+    command.insert(command.end(), args.begin(), args.end());
+    Child pneud = Child::spawn(loop_timing_faults_off(command), dir_ / "pneud.out", dir_ / "pneud.err");
+    std::string channel;
+    std::vector<std::uint8_t> payload;
+    EXPECT_TRUE(pneu::test::eventually(
+        [&] { return sniffer.receive(channel, payload, 100) && channel == "PNEU_STATE"; }, 10s, 1ms))
+        << "pneud up, its loop ticking";
+    return pneud;
+  }
+
   pneu::test::TestDir dir_{"pneu_lcm_"};
 };
 
@@ -562,19 +579,9 @@ std::vector<std::string> command_events(const fs::path& events) {
 // The verdict comes back to the command's sender (a generous limit: the test is about the answer,
 // not its delay, and a shared machine stalls processes now and then).
 TEST_F(LcmIntegration, PneuCommandPrintsTheDaemonsVerdictAndExitsNonZeroOnARejection) {
-  pneu::test::LcmSniffer sniffer;
-  ASSERT_TRUE(sniffer.good());
   const fs::path events = dir_ / "events.jsonl";
-  // No schedule: armed, holding 219.5 mm until commanded; runs until SIGTERM.
-  Child pneud = Child::spawn(loop_timing_faults_off({bin("pneud"), "--clock", "real", "--duration", "0",
-                                                     "--require-telemetry", "--set", "controller.setpoints.schedule=[]",
-                                                     "--events", events.string()}),
-                             dir_ / "pneud.out", dir_ / "pneud.err");
-  std::string channel;
-  std::vector<std::uint8_t> payload;
-  ASSERT_TRUE(pneu::test::eventually([&] { return sniffer.receive(channel, payload, 100) && channel == "PNEU_STATE"; },
-                                     10s, 1ms))
-      << "pneud up, its loop ticking";
+  Child pneud = start_commanded_pneud({"--events", events.string()});
+  ASSERT_FALSE(HasFailure());
 
   const CommandRun accepted = pneu_command(dir_, {"--seq", "10", "--timeout-s", "10", "set-point", "0.17"});
   EXPECT_EQ(accepted.exit_code, 0) << accepted.err;
@@ -607,18 +614,9 @@ TEST_F(LcmIntegration, PneuCommandPrintsTheDaemonsVerdictAndExitsNonZeroOnARejec
 // one in force: arming holds where the carriage is. It is refused now, and its verdict says what
 // arming does; arming then does exactly that.
 TEST_F(LcmIntegration, ASetPointWhileDisarmedIsRefusedSayingWhatArmingDoesAndArmingDoesIt) {
-  pneu::test::LcmSniffer sniffer;
-  ASSERT_TRUE(sniffer.good());
   const fs::path traj = dir_ / "traj.csv";
-  Child pneud = Child::spawn(loop_timing_faults_off({bin("pneud"), "--clock", "real", "--duration", "0",
-                                                     "--require-telemetry", "--set", "controller.setpoints.schedule=[]",
-                                                     "--trajectory", traj.string()}),
-                             dir_ / "pneud.out", dir_ / "pneud.err");
-  std::string channel;
-  std::vector<std::uint8_t> payload;
-  ASSERT_TRUE(pneu::test::eventually([&] { return sniffer.receive(channel, payload, 100) && channel == "PNEU_STATE"; },
-                                     10s, 1ms))
-      << "pneud up, its loop ticking";
+  Child pneud = start_commanded_pneud({"--trajectory", traj.string()});
+  ASSERT_FALSE(HasFailure());
 
   const CommandRun disarm = pneu_command(dir_, {"--seq", "10", "--timeout-s", "10", "disarm"});
   EXPECT_EQ(disarm.exit_code, 0) << disarm.err;
