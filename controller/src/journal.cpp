@@ -1,6 +1,5 @@
 #include "pneu/controller/journal.hpp"
 
-#include <cstdarg>
 
 #if __has_include(<systemd/sd-daemon.h>)
 #include <systemd/sd-daemon.h>  // the macros only: nothing of libsystemd is linked here
@@ -12,6 +11,7 @@
 #endif
 
 #include "pneu/controller/supervisor.hpp"
+#include "pneu/config/text.hpp"
 #include "pneu/hal/types.hpp"
 
 namespace pneu::controller {
@@ -36,10 +36,9 @@ void journal_line(std::FILE* out, Priority priority, std::string_view text) {
 }
 
 void JournalLines::line(Priority priority, const char* format, ...) {
-  char text[512];
   va_list args;
   va_start(args, format);
-  std::vsnprintf(text, sizeof text, format, args);
+  const std::string text = text::vformat(format, args);
   va_end(args);
   journal_line(out_, priority, text);
   ++lines_;

@@ -4,12 +4,12 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstdarg>
 #include <cstdio>
 #include <limits>
 
 #include "phases.hpp"
 #include "pneu/controller/run_listener.hpp"
+#include "pneu/config/text.hpp"
 #include "pneu/model/pressure_force.hpp"
 #include "pneu/model/valve.hpp"
 #include "valve_fit.hpp"
@@ -477,14 +477,7 @@ Sliding sliding_from(std::span<const Sample> s, std::span<const double> force, s
   return out;
 }
 
-[[gnu::format(printf, 1, 2)]] std::string format(const char* fmt, ...) {
-  char buf[320];
-  va_list args;
-  va_start(args, fmt);
-  std::vsnprintf(buf, sizeof buf, fmt, args);
-  va_end(args);
-  return buf;
-}
+using text::format;
 
 // The record's sample spacing, its median: the loop's period where it kept its deadlines [s].
 double median_spacing_s(std::span<const Sample> s) {

@@ -14,7 +14,6 @@
 #include <atomic>
 #include <cerrno>
 #include <cmath>
-#include <cstdarg>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -29,6 +28,7 @@
 #include <vector>
 
 #include "pneu/config/cli.hpp"
+#include "pneu/config/text.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/hal/monotonic.hpp"
 #include "pneu/sim_plant/plant.hpp"
@@ -251,15 +251,8 @@ std::string json_string(const std::string& text) {
   return out + "\"";
 }
 
-/// printf into a std::string: the fields of an --events line.
-__attribute__((format(printf, 1, 2))) std::string fields(const char* format, ...) {
-  char text[256];
-  va_list args;
-  va_start(args, format);
-  std::vsnprintf(text, sizeof text, format, args);
-  va_end(args);
-  return text;
-}
+/// The fields of an --events line, as printf would print them.
+using text::format;
 
 /// The valve outputs a module's watchdog sets (--watchdog-outputs): neutral, exhaust or U_P,U_N.
 struct WatchdogOutputs {
@@ -533,10 +526,10 @@ int serve(int argc, char** argv) {
     std::fflush(events);
   };
   if (events) {
-    std::string what = fields(",\"watchdog_s\":%.6f,\"watchdog_u_p\":%.6f,\"watchdog_u_n\":%.6f", watchdog_s,
+    std::string what = format(",\"watchdog_s\":%.6f,\"watchdog_u_p\":%.6f,\"watchdog_u_n\":%.6f", watchdog_s,
                               mb.valve_p.to_volts(watchdog_word_p), mb.valve_n.to_volts(watchdog_word_n));
     if (watchdog_s == 0.0) what = ",\"watchdog_s\":0";
-    record("start", 0.0, what + fields(",\"u_p\":%.6f,\"u_n\":%.6f", mb.valve_p.to_volts(word_p), mb.valve_n.to_volts(word_n)));
+    record("start", 0.0, what + format(",\"u_p\":%.6f,\"u_n\":%.6f", mb.valve_p.to_volts(word_p), mb.valve_n.to_volts(word_n)));
   }
   // The plant's motion events (its time is serve's: both start at 0).
   const auto record_events = [&](std::span<const plant::PlantEvent> happened) {
@@ -576,7 +569,7 @@ int serve(int argc, char** argv) {
   std::uint64_t outputs_skipped = 0;
   const auto write_outputs_line = [&](const OutputsLine& o) {
     record("outputs", o.t,
-           fields(",\"u_p\":%.6f,\"u_n\":%.6f,\"client\":%llu,\"cause\":\"%s\",\"skipped\":%llu",
+           format(",\"u_p\":%.6f,\"u_n\":%.6f,\"client\":%llu,\"cause\":\"%s\",\"skipped\":%llu",
                   mb.valve_p.to_volts(word_p), mb.valve_n.to_volts(word_n), static_cast<unsigned long long>(o.client),
                   o.cause, static_cast<unsigned long long>(outputs_skipped)));
     last_outputs_line_t = std::max(o.t, monotonic_s() - t0);  // when written: a pending line comes late
@@ -656,14 +649,14 @@ int serve(int argc, char** argv) {
                           static_cast<unsigned long long>(c.number), c.peer.c_str(), why);
     ::close(c.fd);
     const double t = monotonic_s() - t0;
-    record("disconnect", t, fields(",\"client\":%llu", static_cast<unsigned long long>(c.number)) +
+    record("disconnect", t, format(",\"client\":%llu", static_cast<unsigned long long>(c.number)) +
                                 ",\"why\":" + json_string(why ? why : "left"));
     if (c.number == owner) {
       owner = 0;
       std::printf("pneu-plant serve: client %llu left: the valve registers are free\n",
                   static_cast<unsigned long long>(c.number));
       std::fflush(stdout);
-      record("released", t, fields(",\"client\":%llu,\"cause\":\"disconnect\"", static_cast<unsigned long long>(c.number)));
+      record("released", t, format(",\"client\":%llu,\"cause\":\"disconnect\"", static_cast<unsigned long long>(c.number)));
     }
     c = Connection{};
     --connected;
@@ -706,7 +699,7 @@ int serve(int argc, char** argv) {
                     static_cast<unsigned long long>(c.number), c.peer.c_str(),
                     watchdog_s > 0.0 ? " or falls silent past the watchdog" : "");
         std::fflush(stdout);
-        record("owner", monotonic_s() - t0, fields(",\"client\":%llu", static_cast<unsigned long long>(c.number)));
+        record("owner", monotonic_s() - t0, format(",\"client\":%llu", static_cast<unsigned long long>(c.number)));
       }
     }
     // A client that stops taking its replies fills its socket: the send fails at once (the socket
@@ -787,7 +780,7 @@ int serve(int argc, char** argv) {
     slot->number = ++clients;
     slot->peer = peer;
     record("connect", monotonic_s() - t0,
-           fields(",\"client\":%llu", static_cast<unsigned long long>(slot->number)) + ",\"peer\":" + json_string(peer));
+           format(",\"client\":%llu", static_cast<unsigned long long>(slot->number)) + ",\"peer\":" + json_string(peer));
     most_connected = std::max(most_connected, ++connected);
   };
 
@@ -805,7 +798,7 @@ int serve(int argc, char** argv) {
     u_n = mb.valve_n.to_volts(word_n);
     record_outputs(now);
     record("watchdog", now,
-           fields(",\"client\":%llu,\"last_request_t\":%.9f,\"last_request_monotonic_s\":%.9f,\"u_p\":%.6f,\"u_n\":%.6f",
+           format(",\"client\":%llu,\"last_request_t\":%.9f,\"last_request_monotonic_s\":%.9f,\"u_p\":%.6f,\"u_n\":%.6f",
                   static_cast<unsigned long long>(client), watched_last_request_s, t0 + watched_last_request_s, u_p, u_n));
     outputs_changed({now, client, "watchdog"});
     std::printf("pneu-plant serve: watchdog: no request from client %llu for %.3f s: valve outputs u_P = %+.4f V, "
@@ -815,7 +808,7 @@ int serve(int argc, char** argv) {
     std::fflush(stdout);
     if (owner == client) {
       owner = 0;
-      record("released", now, fields(",\"client\":%llu,\"cause\":\"watchdog\"", static_cast<unsigned long long>(client)));
+      record("released", now, format(",\"client\":%llu,\"cause\":\"watchdog\"", static_cast<unsigned long long>(client)));
     }
   };
 
@@ -877,7 +870,7 @@ int serve(int argc, char** argv) {
   if (events && pending_outputs) write_outputs_line(*pending_outputs);
   const double t_end = monotonic_s() - t0;
   record("stop", t_end,
-         fields(",\"requests\":%llu,\"watchdog_trips\":%llu,\"u_p\":%.6f,\"u_n\":%.6f",
+         format(",\"requests\":%llu,\"watchdog_trips\":%llu,\"u_p\":%.6f,\"u_n\":%.6f",
                 static_cast<unsigned long long>(requests), static_cast<unsigned long long>(trips), u_p, u_n));
   std::printf("pneu-plant serve: stopped after %.3f s; %llu requests from %llu clients (at most %d at once, %llu "
               "refused beyond --max-clients), %llu valve writes refused as another client's, %llu for other units "
