@@ -162,6 +162,12 @@ bool ModbusBackend::exchange(std::string* why) noexcept {
   uint16_t in[MODBUS_MAX_WR_READ_REGISTERS] = {};
   modbus_t* ctx = as_ctx(ctx_);
   int rc = 0;
+  // The sample is dated by its reply, but the module read the registers earlier, at an instant
+  // no one on this side sees: after the request went out, before the reply was taken. A thread
+  // stalled between the reply's arrival and its date (a loaded machine) dates it late by the
+  // stall; the sample keeps both ends, so that the supervisor judges a jump over the longest
+  // time the carriage may have moved between two readings, not the shortest.
+  const double request_mono_s = monotonic_s();
   if (cfg_.read_write_multiple) {
     rc = modbus_write_and_read_registers(ctx, write_start_, write_count_, out, read_start_, read_count_, in);
   } else {
@@ -182,6 +188,7 @@ bool ModbusBackend::exchange(std::string* why) noexcept {
     return false;
   }
   Sample s;
+  s.request_mono_s = request_mono_s;
   s.mono_s = monotonic_s();
   // A channel's words (two for a float32: high word first). A NaN or infinite float32 reaches the
   // frame as a non-finite value, flagged invalid like any reading outside the raw range.
@@ -308,11 +315,11 @@ Status ModbusBackend::read(double t_s, SensorFrame& frame) noexcept {
   Sample s;
   bool fresh = false;
   if (!sample_.load(s, &fresh)) {
-    frame = SensorFrame{t_s, 0.0, 0.0, 0.0, 0.0, false, false, kSampleStale | kCommsError};
+    frame = SensorFrame{t_s, 0.0, 0.0, 0.0, 0.0, false, false, kSampleStale | kCommsError, 0.0};
     return Status::kCommsError;
   }
   const double age = monotonic_s() - s.mono_s;
-  frame = SensorFrame{t_s - age, s.y_m, s.p_p_pa, s.p_n_pa, age, false, fresh, s.validity};
+  frame = SensorFrame{t_s - age, s.y_m, s.p_p_pa, s.p_n_pa, age, false, fresh, s.validity, s.mono_s - s.request_mono_s};
   if (age > counters_.max_age_s.load(std::memory_order_relaxed)) counters_.max_age_s.store(age, std::memory_order_relaxed);
   const bool up = link_up_.load(std::memory_order_relaxed);
   if (!up) frame.validity |= kCommsError;
