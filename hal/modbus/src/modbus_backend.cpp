@@ -167,12 +167,17 @@ bool ModbusBackend::exchange(std::string* why) noexcept {
   // stalled between the reply's arrival and its date (a loaded machine) dates it late by the
   // stall; the sample keeps both ends, so that the supervisor judges a jump over the longest
   // time the carriage may have moved between two readings, not the shortest.
+  // On a link that reads, then writes by other requests, the reply to the read dates the sample,
+  // not the end of the writes (a few milliseconds later on RTU).
   const double request_mono_s = monotonic_s();
+  double reply_mono_s = 0.0;
   if (cfg_.read_write_multiple) {
     rc = modbus_write_and_read_registers(ctx, write_start_, write_count_, out, read_start_, read_count_, in);
+    reply_mono_s = monotonic_s();
   } else {
     rc = cfg_.sensor_table == config::SensorTable::kInput ? modbus_read_input_registers(ctx, read_start_, read_count_, in)
                                                           : modbus_read_registers(ctx, read_start_, read_count_, in);
+    reply_mono_s = monotonic_s();
     if (rc == read_count_) {
       const int w = write_count_ == 2 ? modbus_write_registers(ctx, write_start_, 2, out)
                                       : (modbus_write_register(ctx, cfg_.valve_p.address, out[at_p]) == 1 &&
@@ -189,7 +194,7 @@ bool ModbusBackend::exchange(std::string* why) noexcept {
   }
   Sample s;
   s.request_mono_s = request_mono_s;
-  s.mono_s = monotonic_s();
+  s.mono_s = reply_mono_s;
   // A channel's words (two for a float32: high word first). A NaN or infinite float32 reaches the
   // frame as a non-finite value, flagged invalid like any reading outside the raw range.
   const auto words = [&](const config::RegisterChannel& c) { return &in[c.address - read_start_]; };
