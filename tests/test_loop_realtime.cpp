@@ -411,7 +411,7 @@ class FlakyBackend final : public pneu::hal::Backend {
   void open(double) override {}
   void close() noexcept override {}
   pneu::hal::Status read(double t_s, pneu::hal::SensorFrame& frame) noexcept override {
-    frame = pneu::hal::SensorFrame{t_s, 0.2195, 3.4e5, 4.9e5, 0.0, false, true, 0};
+    frame = pneu::hal::SensorFrame{t_s, 0.2195, 3.4e5, 4.9e5, 0.0, false, true, 0, 0.0};
     if (!stale) return pneu::hal::Status::kOk;
     frame.validity = pneu::hal::kSampleStale;
     return pneu::hal::Status::kStale;

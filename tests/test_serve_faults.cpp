@@ -330,6 +330,27 @@ TEST_F(ServeFaults, TheFirstClientToWriteTheValvesOwnsThemUntilItDisconnectsAndT
   EXPECT_EQ(err.find("may not write"), err.rfind("may not write")) << "told once per client";
 }
 
+TEST_F(ServeFaults, ASampleAnsweredLateCarriesTheSpanInWhichItWasReadNotJustItsReplyTime) {
+  // serve reads the registers when the request comes and answers 50 ms later: to pneud's side the
+  // same as an I/O thread that took a prompt reply 50 ms late. The backend dates the sample by its
+  // reply, and its frame says the module read it up to the whole exchange earlier: the span
+  // covers the delay (a loaded machine only widens it).
+  Child plant = serve({"--reply-delay-s", "0.05"});
+  const pneu::config::Config cfg = pneu::config::load_file(
+      hil_yaml(), {"hal.modbus.port=" + std::to_string(port_), "hal.modbus.response_timeout_s=0.5",
+                   "hal.modbus.max_sample_age_s=1"});
+  pneu::hal::ModbusBackend backend(cfg.hal.modbus, cfg.sensors);
+  ASSERT_NO_THROW(backend.open(0.0));
+  std::this_thread::sleep_for(200ms);
+  pneu::hal::SensorFrame frame;
+  const pneu::hal::Status status = backend.read(10.0, frame);
+  backend.close();
+  EXPECT_EQ(status, pneu::hal::Status::kOk);
+  EXPECT_GE(frame.read_span_s, 0.05);
+  EXPECT_LT(frame.read_span_s, 2.0) << "one exchange's span, not the time since open";
+  EXPECT_LE(frame.t_s, 10.0) << "dated by its reply, before the loop read it";
+}
+
 TEST_F(ServeFaults, HeldRepliesAreLateByTheDelayForEachClientNotQueuedBehindAnothers) {
   // Two clients' requests at once, each answered 1 s late: both after 1 s, neither after 2 s as
   // if the server slept through one client's delay before reading the other's request. The

@@ -125,6 +125,80 @@ TEST_F(SupervisorChecks, AMoveAtThePlausibleSpeedIsNoJump) {
   }
 }
 
+// A device's sample is dated by its reply, but the device read the sensors earlier, at some
+// instant between the request and the reply (SensorFrame::read_span_s). On a loaded machine the
+// I/O thread may take a reply tens of milliseconds after it arrived, then exchange the next at
+// once: two samples dated a fraction of a period apart were read that far apart. The carriage may
+// have moved for the longest time between two readings, from the earliest read of the one to the
+// latest of the other; a jump is judged over that time.
+class LateDatedSamples : public SupervisorChecks {
+ protected:
+  static constexpr double kExchange = 0.2e-3;  // request to reply on a healthy link [s]
+  static constexpr double kLateRead = 0.02;    // when the sample taken late was read [s]
+  static constexpr double kStart = -0.168;     // where the carriage was at 0 [m]
+
+  // The whole process stalls, the loop with the I/O thread, and is not faulted for it: loop
+  // timing supervision off, as the HIL tests run pneud on a shared machine
+  // (loop_timing_faults_off). Its next tick finds the late sample.
+  LateDatedSamples() {
+    config_.controller.supervisor.max_tick_interval_s = 0.0;
+    config_.controller.supervisor.overruns_in_a_row = 0;
+  }
+
+  // Samples of a carriage moving at `speed`, read every period, each dated by its reply 0.1 ms
+  // after the read, until the one read at kLateRead, whose reply the I/O thread takes `stall`
+  // late; the next request goes out at once, and that sample's reply is taken on time. `next_y`:
+  // what the sensor reads on that next sample (NaN: the carriage's true position). The first
+  // fault raised, on any sample.
+  FaultCause run(double speed, double stall, double next_y = std::numeric_limits<double>::quiet_NaN()) {
+    Supervisor s = make();
+    // Read at `read_t`, dated `dated_t`; its request went out half an exchange before the read.
+    const auto sample = [&](double read_t, double dated_t) {
+      hal::SensorFrame f = good(dated_t);
+      f.y_m = kStart + speed * read_t;
+      f.t_s = dated_t;
+      f.read_span_s = dated_t - (read_t - 0.5 * kExchange);
+      return f;
+    };
+    const auto on_time = [&](double read_t) { return sample(read_t, read_t + 0.5 * kExchange); };
+    for (int k = 0; k < 20; ++k) {
+      const double read_t = k * kPeriod;
+      const hal::SensorFrame f = on_time(read_t);
+      if (const FaultCause cause = tick(s, f.t_s, f, hal::Status::kOk, false); cause != FaultCause::kNone) return cause;
+    }
+    const hal::SensorFrame late = sample(kLateRead, kLateRead + stall);
+    if (const FaultCause cause = tick(s, late.t_s, late, hal::Status::kOk, false); cause != FaultCause::kNone)
+      return cause;
+    hal::SensorFrame next = on_time(kLateRead + stall + kExchange);
+    if (!std::isnan(next_y)) next.y_m = next_y;
+    return tick(s, late.t_s + kPeriod, next, hal::Status::kOk, false);  // the loop's next tick
+  }
+  // How long the carriage may have moved between the late sample's reading and the next one's:
+  // from the late request to the next reply.
+  static double longest_between_s(double stall) { return stall + 1.5 * kExchange; }
+  double max_speed() const { return config_.controller.supervisor.max_speed_m_per_s; }
+};
+
+TEST_F(LateDatedSamples, ASampleTakenLateThenTheNextOnTimeIsNoJumpAtThePlausibleSpeed) {
+  // 57 ms of stall, as in the loaded test run that skipped 57 deadlines: between the two readings,
+  // dated 0.1 ms apart, the carriage covered 0.9 x max_speed x 57 ms (0.26 m at 5 m/s).
+  EXPECT_EQ(run(0.9 * max_speed(), 0.057), FaultCause::kNone);
+  EXPECT_EQ(run(0.9 * max_speed(), 0.005), FaultCause::kNone);
+  EXPECT_EQ(run(1.0, 0.005), FaultCause::kNone) << "a carriage at 1 m/s, a 5 ms stall";
+}
+
+TEST_F(LateDatedSamples, AJumpOfTheSensorIsStillCaughtAfterALateSample) {
+  const double y_late = kStart + 1.0 * kLateRead;
+  // To the rail: further than the carriage could have gone at max_speed in the whole span.
+  EXPECT_EQ(run(1.0, 0.005, config_.plant.geometry.half_stroke_m()), FaultCause::kSensorJump);
+  // Beyond what max_speed allows over the longest time the carriage had, by 20 %: caught; within
+  // it by 20 %: a move it could have made.
+  EXPECT_EQ(run(1.0, 0.005, y_late + 1.2 * max_speed() * longest_between_s(0.005)), FaultCause::kSensorJump);
+  EXPECT_EQ(run(1.0, 0.005, y_late + 0.8 * max_speed() * longest_between_s(0.005)), FaultCause::kNone);
+  // On time, as before: a jump of more than max_speed over a period is caught.
+  EXPECT_EQ(run(1.0, 0.0, y_late + 1.2 * max_speed() * kPeriod), FaultCause::kSensorJump);
+}
+
 TEST_F(SupervisorChecks, APressureFrozenBitForBitIsAFaultAfterFrozenAfterS) {
   Supervisor s = make();
   ASSERT_EQ(run_good(s, 0.0, 0.5), c::FaultCause::kNone);

@@ -240,15 +240,18 @@ FaultCause Supervisor::check_sample(const SupervisedTick& tick) noexcept {
 
   if (sample_good_ && f.fresh) {
     // The position sensor jumped: further than the fastest plausible motion since the last good
-    // sample (at least one loop period apart, so that two samples taken close together by a
-    // fast link are judged over a period).
+    // sample. The carriage may have moved from the earliest instant the last sample may have been
+    // read to the latest this one may have been (each was read within read_span_s before its
+    // date): a sample dated late by a stalled I/O thread, then the next one on time, are dated
+    // closer together than they were read. At least one loop period, so that two samples taken
+    // close together by a fast link are judged over a period.
     if (cfg_.max_speed_m_per_s > 0.0 && have_last_y_) {
-      const double dt = std::max(f.t_s - last_y_t_s_, period_s_);
+      const double dt = std::max(f.t_s - last_y_earliest_t_s_, period_s_);
       if (std::abs(f.y_m - last_y_m_) > cfg_.max_speed_m_per_s * dt) first(FaultCause::kSensorJump);
     }
     have_last_y_ = true;
     last_y_m_ = f.y_m;
-    last_y_t_s_ = f.t_s;
+    last_y_earliest_t_s_ = f.t_s - std::max(f.read_span_s, 0.0);
     // Frozen pressures: real sensors flicker by at least one converter step.
     if (f.p_p_pa != last_p_p_pa_) {
       p_p_changed_s_ = t;

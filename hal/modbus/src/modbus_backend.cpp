@@ -162,11 +162,22 @@ bool ModbusBackend::exchange(std::string* why) noexcept {
   uint16_t in[MODBUS_MAX_WR_READ_REGISTERS] = {};
   modbus_t* ctx = as_ctx(ctx_);
   int rc = 0;
+  // The sample is dated by its reply, but the module read the registers earlier, at an instant
+  // no one on this side sees: after the request went out, before the reply was taken. A thread
+  // stalled between the reply's arrival and its date (a loaded machine) dates it late by the
+  // stall; the sample keeps both ends, so that the supervisor judges a jump over the longest
+  // time the carriage may have moved between two readings, not the shortest.
+  // On a link that reads, then writes by other requests, the reply to the read dates the sample,
+  // not the end of the writes (a few milliseconds later on RTU).
+  const double request_mono_s = monotonic_s();
+  double reply_mono_s = 0.0;
   if (cfg_.read_write_multiple) {
     rc = modbus_write_and_read_registers(ctx, write_start_, write_count_, out, read_start_, read_count_, in);
+    reply_mono_s = monotonic_s();
   } else {
     rc = cfg_.sensor_table == config::SensorTable::kInput ? modbus_read_input_registers(ctx, read_start_, read_count_, in)
                                                           : modbus_read_registers(ctx, read_start_, read_count_, in);
+    reply_mono_s = monotonic_s();
     if (rc == read_count_) {
       const int w = write_count_ == 2 ? modbus_write_registers(ctx, write_start_, 2, out)
                                       : (modbus_write_register(ctx, cfg_.valve_p.address, out[at_p]) == 1 &&
@@ -182,7 +193,8 @@ bool ModbusBackend::exchange(std::string* why) noexcept {
     return false;
   }
   Sample s;
-  s.mono_s = monotonic_s();
+  s.request_mono_s = request_mono_s;
+  s.mono_s = reply_mono_s;
   // A channel's words (two for a float32: high word first). A NaN or infinite float32 reaches the
   // frame as a non-finite value, flagged invalid like any reading outside the raw range.
   const auto words = [&](const config::RegisterChannel& c) { return &in[c.address - read_start_]; };
@@ -308,11 +320,11 @@ Status ModbusBackend::read(double t_s, SensorFrame& frame) noexcept {
   Sample s;
   bool fresh = false;
   if (!sample_.load(s, &fresh)) {
-    frame = SensorFrame{t_s, 0.0, 0.0, 0.0, 0.0, false, false, kSampleStale | kCommsError};
+    frame = SensorFrame{t_s, 0.0, 0.0, 0.0, 0.0, false, false, kSampleStale | kCommsError, 0.0};
     return Status::kCommsError;
   }
   const double age = monotonic_s() - s.mono_s;
-  frame = SensorFrame{t_s - age, s.y_m, s.p_p_pa, s.p_n_pa, age, false, fresh, s.validity};
+  frame = SensorFrame{t_s - age, s.y_m, s.p_p_pa, s.p_n_pa, age, false, fresh, s.validity, s.mono_s - s.request_mono_s};
   if (age > counters_.max_age_s.load(std::memory_order_relaxed)) counters_.max_age_s.store(age, std::memory_order_relaxed);
   const bool up = link_up_.load(std::memory_order_relaxed);
   if (!up) frame.validity |= kCommsError;

@@ -34,7 +34,7 @@ Status SimBackend::read(double t_s, SensorFrame& frame) noexcept {
   });
   const auto& s = plant_.state();
   const auto m = sensors_.measure(s.y_m, s.p_p_pa, s.p_n_pa);
-  frame = SensorFrame{t_s, m.y_m, m.p_p_pa, m.p_n_pa, 0.0, false, true, kSensorsValid};
+  frame = SensorFrame{t_s, m.y_m, m.p_p_pa, m.p_n_pa, 0.0, false, true, kSensorsValid, 0.0};
   return Status::kOk;
 }
 

@@ -117,7 +117,8 @@ class Supervisor {
   FaultCause sample_cause_ = FaultCause::kNone;  // why the last sample was not good
   double bad_since_s_ = -1.0;           // first tick of the current run of bad reads
   bool have_last_y_ = false;
-  double last_y_m_ = 0.0, last_y_t_s_ = 0.0;
+  double last_y_m_ = 0.0;
+  double last_y_earliest_t_s_ = 0.0;  // the earliest the last good position may have been read
   double last_p_p_pa_ = 0.0, last_p_n_pa_ = 0.0;
   double p_p_changed_s_ = 0.0, p_n_changed_s_ = 0.0;
   double following_since_s_ = -1.0;

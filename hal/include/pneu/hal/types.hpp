@@ -17,7 +17,7 @@ enum SensorValidity : std::uint32_t {
 
 /// One sample of the bench's sensors, in SI units.
 struct SensorFrame {
-  double t_s = 0.0;          ///< time the sample was taken, on the loop's clock [s]
+  double t_s = 0.0;          ///< time the sample was taken, on the loop's clock [s]: at the latest (read_span_s)
   double y_m = 0.0;          ///< carriage position from mid-stroke [m]
   double p_p_pa = 0.0;       ///< chamber P absolute pressure [Pa]
   double p_n_pa = 0.0;       ///< chamber N absolute pressure [Pa]
@@ -25,6 +25,10 @@ struct SensorFrame {
   bool estop = false;        ///< emergency-stop input active
   bool fresh = true;         ///< a new sample since the last read (false: the same one again)
   std::uint32_t validity = kSensorsValid;  ///< SensorValidity flags; 0 = all readings valid
+  /// The sensors were read at some instant within [t_s - read_span_s, t_s] [s]: a backend that
+  /// asks a device knows only that the device read them between its request and its reply (a
+  /// thread stalled before it took the reply widens the span). 0: read at t_s exactly (the sim).
+  double read_span_s = 0.0;
 
   [[nodiscard]] bool valid() const noexcept { return validity == kSensorsValid; }
 };

@@ -69,7 +69,10 @@ class ModbusBackend final : public Backend {
 
  private:
   struct Sample {
-    double mono_s = -1.0;        // CLOCK_MONOTONIC when the reply arrived
+    // The module read the registers at some instant between these two (CLOCK_MONOTONIC): the
+    // request about to go out, and the reply taken, however late the I/O thread ran to take it.
+    double request_mono_s = -1.0;
+    double mono_s = -1.0;
     double y_m = 0.0, p_p_pa = 0.0, p_n_pa = 0.0;
     std::uint32_t validity = 0;
   };
