@@ -279,6 +279,7 @@ TEST_F(MovementTestAtArm, ACorrectBenchPassesThenArmsHoldingWhereTheCarriageIsAn
   EXPECT_EQ(e.movement_test.pulses, 2);
   EXPECT_LT(e.movement_test.duration_s, 2.0);
   EXPECT_NEAR(outputs_->setpoint_m.load(), e.y_m, 1e-12) << "armed holding where the carriage is as it passed";
+  EXPECT_EQ(e.y_d_m, outputs_->setpoint_m.load()) << "the event says the set point armed";
   EXPECT_NEAR(y_true_m(), 0.2195, 0.01);
   run_for(1.0);
   EXPECT_EQ(loop_->mode(), Mode::kArmed);

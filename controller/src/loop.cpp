@@ -271,8 +271,8 @@ void ControlLoop::tick(double t_s) noexcept {
       // Not again at a later ARM of this run: the wiring does not change while pneud runs, and
       // each test moves the carriage open loop by millimetres.
       movement_test_due_ = false;
-      end_movement_test(MovementTestEnd::kPassed, t_s, frame.y_m);
       arm_here(frame.y_m);
+      end_movement_test(MovementTestEnd::kPassed, t_s, frame.y_m);  // with the set point armed
     } else if (movement_test_.done()) {
       // Still due: after a reset the next ARM tests again (the wiring may have been mended).
       end_movement_test(MovementTestEnd::kFinding, t_s, y_measured_m);
