@@ -146,6 +146,28 @@ TEST(CommandValidator, RefusesASetPointWhileDisarmedSayingThatArmingHoldsWhereTh
   EXPECT_EQ(v.counters().mode, 2u);
 }
 
+// The movement test at the first ARM (Mode::kMovementTest) drives the valves open loop: set points
+// wait for its pass, as they wait for arming; a disarm ends it at once.
+TEST(CommandValidator, DuringTheMovementTestRefusesSetPointsSayingWhyAndTakesADisarm) {
+  CommandValidator v(make_config());
+  double t = 0.0;
+  std::int64_t seq = 0;
+  const auto check = [&](std::int8_t kind) {
+    t += 1.0;
+    return v.validate(cmd(++seq, kind, 0.005), t, 0, 0.1, Mode::kMovementTest);
+  };
+  for (const std::int8_t kind : {telemetry::kWireSetPoint, telemetry::kWireSetPointStep}) {
+    const auto r = check(kind);
+    EXPECT_EQ(r.rejection, Rejection::kMode) << telemetry::wire_kind_name(kind);
+    EXPECT_EQ(r.text, "set point refused: the movement test runs (open loop, before the law drives): once it passed "
+                      "the carriage holds where it is, then send it");
+  }
+  EXPECT_EQ(check(telemetry::kWireArm).text, "arm refused: already armed, the movement test runs");
+  EXPECT_THAT(check(telemetry::kWireFaultReset).text, HasSubstr("no fault is latched"));
+  EXPECT_TRUE(check(telemetry::kWireDisarm).accepted);
+  EXPECT_EQ(v.counters().mode, 4u);
+}
+
 TEST(CommandValidator, CountsMalformedMessagesAmongTheRejected) {
   CommandValidator v(make_config());
   const auto r = v.malformed("3 bytes");

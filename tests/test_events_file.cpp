@@ -1,9 +1,11 @@
 // The events file's record of the commands' verdicts: one "command" event per verdict, JSON like
-// the others, dated by the last tick the runtime drained.
+// the others, dated by the last tick the runtime drained. And the movement test at ARM: its end,
+// and its finding on the fault it latches.
 #include <gtest/gtest.h>
 
 #include <memory>
 #include <sstream>
+#include <string>
 
 #include "pneu/controller/events_file.hpp"
 #include "pneu/controller/runtime.hpp"
@@ -54,6 +56,34 @@ TEST(EventsFile, WritesARejectionWithItsReasonAndNullsForWhatDidNotDecode) {
   EXPECT_EQ(r.events.str(),
             "{\"event\":\"command\",\"t\":0.5,\"verdict\":\"rejected\",\"reason\":\"malformed\",\"kind\":null,"
             "\"seq\":null,\"value\":null,\"text\":\"malformed: \\\"LC02\\\" \\\\ cut\\u000ashort\\u0001\"}\n");
+}
+
+TEST(EventsFile, WritesTheMovementTestsEndAndTheFindingOnItsFault) {
+  std::ostringstream out;
+  controller::EventsFile sink{out};
+  controller::LoopEvent e;
+  e.kind = controller::LoopEvent::Kind::kMovementTest;
+  e.t_s = 2.5;
+  e.movement_end = controller::MovementTestEnd::kFinding;
+  e.movement_test.finding = controller::MovementFinding::kTubesSwapped;
+  e.movement_test.pulses = 1;
+  e.movement_test.duration_s = 0.25;
+  e.movement_test.y_start_m = e.movement_test.y_end_m = 0.2195;
+  sink.on_event(e);
+  e.kind = controller::LoopEvent::Kind::kFault;
+  e.fault_cause = controller::FaultCause::kMovementTest;
+  e.fault_key = "controller.movement_test";
+  sink.on_event(e);
+  std::istringstream lines(out.str());
+  std::string test, fault;
+  std::getline(lines, test);
+  std::getline(lines, fault);
+  EXPECT_EQ(test.substr(0, test.find(",\"text\":")),
+            "{\"event\":\"movement_test\",\"t\":2.5,\"end\":\"finding\",\"finding\":\"tubes-swapped\",\"pulses\":1,"
+            "\"duration\":0.25,\"y_start\":0.2195,\"y_end\":0.2195");
+  EXPECT_NE(test.find(",\"text\":\"tubes-swapped in 0.25 s (y 219.5 -> 219.5 mm): u_0 +0.00 V"), std::string::npos) << test;
+  EXPECT_NE(fault.find("\"cause\":\"movement-test\""), std::string::npos) << fault;
+  EXPECT_NE(fault.find(",\"key\":\"controller.movement_test\",\"finding\":\"tubes-swapped\"}"), std::string::npos) << fault;
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "pneu/controller/journal.hpp"
+#include "pneu/controller/movement_test.hpp"
 #include "pneu/hal/types.hpp"
 
 namespace {
@@ -100,6 +101,46 @@ TEST(JournalLines, TheHoldsStartAndEndAreInfoLines) {
   const std::string text = j.text();
   EXPECT_THAT(text, StartsWith("<6>pneud: hold from 1.000 s: at rest at 95.100 mm, within the window of the set point 95.000 mm\n"));
   EXPECT_THAT(text, HasSubstr("\n<6>pneud: hold ended at 2.000 s (y = 0.000 mm): setpoint\n"));
+}
+
+// The movement test at the first ARM: arming into it, its pass with the figures, and a finding
+// as the fault's error line naming it.
+TEST(JournalLines, TheMovementTestAtArmIsANoticeWhenItStartsAndPassesAndItsFindingTheFaultsErrorLine) {
+  Journal j;
+  j.sink().on_tick(tick(0.0, Mode::kDisarmed), {});
+  j.sink().on_tick(tick(0.5, Mode::kMovementTest), {});
+  LoopEvent passed = event(LoopEvent::Kind::kMovementTest, 1.4);
+  passed.movement_end = MovementTestEnd::kPassed;
+  passed.y_d_m = 0.2195;
+  passed.movement_test.pulses = 2;
+  passed.movement_test.duration_s = 0.9;
+  j.sink().on_event(passed);
+  j.sink().on_tick(tick(1.4, Mode::kArmed), {});
+  EXPECT_THAT(j.text(), StartsWith("<5>pneud: armed at 0.500 s: the movement test first (controller.movement_test)"));
+  EXPECT_THAT(j.text(), HasSubstr("\n<5>pneud: movement test passed at 1.400 s: passed in 0.90 s (y 0.0 -> 0.0 mm): "
+                                  "u_0 +0.00 V for 0.00 s"));
+  EXPECT_THAT(j.text(), HasSubstr("; the law drives the valves, holding 219.500 mm\n"));
+  EXPECT_EQ(j.sink().lines(), 2) << "the pass arms: no second arming line";
+
+  Journal k;
+  LoopEvent found = event(LoopEvent::Kind::kMovementTest, 2.0);
+  found.movement_end = MovementTestEnd::kFinding;
+  found.movement_test.finding = MovementFinding::kTubesSwapped;
+  k.sink().on_event(found);
+  EXPECT_EQ(k.text(), "") << "the fault's line names it";
+  LoopEvent fault = event(LoopEvent::Kind::kFault, 2.0, FaultCause::kMovementTest);
+  fault.movement_test = found.movement_test;
+  k.sink().on_event(fault);
+  EXPECT_THAT(k.text(), StartsWith("<3>pneud: FAULT at 2.000 s (y = 0.000 mm): movement-test: tubes-swapped: tubes "
+                                   "swapped: +u moved the carriage towards -y"));
+  EXPECT_THAT(k.text(), HasSubstr("reset the fault, and the next ARM tests again\n"));
+
+  Journal a;
+  LoopEvent aborted = event(LoopEvent::Kind::kMovementTest, 3.0, FaultCause::kEStop);
+  aborted.movement_end = MovementTestEnd::kFault;
+  a.sink().on_event(aborted);
+  EXPECT_EQ(a.text(), "<5>pneud: movement test aborted at 3.000 s (y = 0.000 mm) by a fault: e-stop: the next ARM runs "
+                      "it again\n");
 }
 
 TEST(JournalLines, TheLinkLostAndBackAreOneLineEachNotOnePerTick) {

@@ -251,6 +251,33 @@ TEST(ControlLoop, AllocatesNothingWhileHoldingHandingBackAndHoldingAgain) {
   EXPECT_EQ(run.outputs->events_dropped, 0u);
 }
 
+// The movement test at the first ARM of a run started disarmed (as on a real backend): the ticks
+// that step the test, end it and arm the law allocate nothing either.
+TEST(ControlLoop, AllocatesNothingThroughTheMovementTestAtArm) {
+  DefaultRun d({"controller.start_armed=false", "controller.setpoints.schedule=[]"});
+  auto& run = d.run;
+  controller::LoopParams params = controller::LoopParams::from(d.config, run.loop->law());
+  params.movement_test_at_arm = true;  // as hal.backend modbus makes it
+  ControlLoop loop(params, *run.backend, *run.outputs);
+  loop.start(0.0);
+  ASSERT_TRUE(run.outputs->commands.try_push({controller::LoopCommand::Kind::kArm, 0.0, 1}));
+  reset_counters();
+  constexpr std::uint64_t kTicks = 3'000;
+  std::uint64_t testing = 0;
+  for (std::uint64_t k = 0; k < kTicks; ++k) {
+    {
+      CountedWindow window;
+      loop.tick(static_cast<double>(k) * d.period_s());
+    }
+    testing += loop.mode() == controller::Mode::kMovementTest ? 1 : 0;
+    run.runtime->drain(*run.outputs);
+  }
+  EXPECT_EQ(g_allocations.load(), 0u);
+  EXPECT_EQ(g_deallocations.load(), 0u);
+  EXPECT_GT(testing, 100u) << "the test ran";
+  EXPECT_EQ(loop.mode(), controller::Mode::kArmed) << "and passed";
+}
+
 // The forecasts made again while stuck take u* of Eq. 11 from the same scheduled law as the loop:
 // the gains at y*, not controller.law's fixed ones.
 TEST(ControlLoop, TheForecastsTakeUStarFromTheLoopsScheduledGains) {

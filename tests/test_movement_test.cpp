@@ -1,13 +1,18 @@
 // The movement test before closed loop (controller.movement_test) on the in-process plant with
 // hil.yaml's noisy, quantised sensors, in simulated time: a correct bench passes, and each
 // miswiring a backend wrapper makes of it (the tubes or the pressure channels swapped, the position
-// reversed, a sensor dead) is named. Over Modbus: test_hil.cpp (MovementTest*).
+// reversed, a sensor dead) is named; and the same test stepped by the loop at the first ARM of a run
+// started disarmed (MovementTestAtArm). Over Modbus: test_hil.cpp (HilMovementTest*) and, commanded
+// over LCM, test_hil_commanded.cpp.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <optional>
+#include <string>
 #include <utility>
+#include <vector>
 
 #include "pneu/backends/factory.hpp"
 #include "pneu/config/config.hpp"
@@ -43,6 +48,7 @@ class MiswiredBackend final : public hal::Backend {
     if (w_.position_dead) f.y_m = y0_;
     if (w_.p_p_dead) f.p_p_pa = p0_;
     if (w_.p_n_dead) f.p_n_pa = n0_;
+    if (estop) f.estop = true;
     return s;
   }
   hal::Status write(const hal::ActuatorCommand& c) noexcept override {
@@ -59,6 +65,7 @@ class MiswiredBackend final : public hal::Backend {
 
  public:
   hal::ActuatorCommand last_;  // the last command written to the bench
+  bool estop = false;          // the e-stop pressed from now on
   double y0_ = 0.0, p0_ = 0.0, n0_ = 0.0;
 };
 
@@ -177,6 +184,174 @@ TEST(MovementTest, RunsOnAModbusBackendStartingArmedUnlessTheKeySaysNotAndNeverI
   cfg.controller.start_armed = false;
   EXPECT_FALSE(controller::movement_test_runs(cfg)) << "not before an ARM command it would pre-empt";
   EXPECT_FALSE(controller::movement_test_runs(config::load_file_or_default("", {})));
+}
+
+TEST(MovementTest, RunsAtTheFirstArmOnAModbusBackendStartingDisarmedAndNeverInProcess) {
+  config::Config cfg = config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml");
+  EXPECT_FALSE(controller::movement_test_at_first_arm(cfg)) << "starting armed it runs before the loop's time";
+  cfg.controller.start_armed = false;
+  EXPECT_TRUE(controller::movement_test_at_first_arm(cfg));
+  cfg.controller.law.gains = config::GainsKind::kFixed;  // no table to design for this
+  EXPECT_TRUE(controller::LoopParams::from(cfg, controller::ControlLaw(cfg.controller.law)).movement_test_at_arm);
+  cfg.controller.movement_test.enabled = false;
+  EXPECT_FALSE(controller::movement_test_at_first_arm(cfg));
+  config::Config sim = config::load_file_or_default("", {"controller.start_armed=false"});
+  EXPECT_FALSE(controller::movement_test_at_first_arm(sim));
+}
+
+// The loop at the first ARM of a run started disarmed (Mode::kMovementTest), on hil.yaml's bench
+// in process, through a wiring: tick by tick in simulated time, commands pushed as the command
+// thread pushes them. The in-process plant never runs it by itself (it cannot be miswired): the
+// parameters say it does, as hal.backend modbus makes them.
+class MovementTestAtArm : public ::testing::Test {
+ protected:
+  void start(const Wiring& wiring) {
+    cfg_ = config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml",
+                             {"hal.backend=sim", "controller.clock=simulated", "controller.start_armed=false",
+                              "controller.setpoints.schedule=[]", "controller.setpoints.initial_m=0.2195"});
+    const auto valve = controller::make_valve_characteristic(cfg_, {});
+    controller::resolve_offset(cfg_, *valve);
+    auto sim = backends::make_sim_backend(cfg_);
+    plant_ = sim.get();
+    backend_ = std::make_unique<MiswiredBackend>(std::move(sim), wiring);
+    controller::LoopParams params = controller::LoopParams::from(cfg_, controller::make_control_law(cfg_, *valve));
+    params.movement_test_at_arm = true;
+    loop_ = std::make_unique<controller::ControlLoop>(params, *backend_, *outputs_);
+    loop_->start(0.0);
+    run_for(0.1);
+  }
+  // Ticks at the loop's period for `s` seconds, or until the mode leaves `until_not` when given.
+  void run_for(double s, std::optional<controller::Mode> until_not = std::nullopt) {
+    const double period = cfg_.controller.period_s();
+    for (double end = t_ + s; t_ < end - 1e-9;) {
+      t_ += period;
+      loop_->tick(t_);
+      controller::TickRecord r;
+      while (outputs_->ticks.try_pop(r))
+        if (modes_.empty() || modes_.back() != static_cast<char>('0' + static_cast<int>(r.mode)))
+          modes_ += static_cast<char>('0' + static_cast<int>(r.mode));
+      controller::LoopEvent e;
+      while (outputs_->events.try_pop(e))
+        if (e.kind == controller::LoopEvent::Kind::kMovementTest || e.kind == controller::LoopEvent::Kind::kFault)
+          events_.push_back(e);
+      if (until_not && loop_->mode() != *until_not) return;
+    }
+  }
+  void command(controller::LoopCommand::Kind kind, double value_m = 0.0) {
+    ASSERT_TRUE(outputs_->commands.try_push({kind, value_m, ++seq_}));
+    run_for(cfg_.controller.period_s());
+  }
+  // ARM, then the ticks until the test ended (3 s at most).
+  void arm_and_test() {
+    command(controller::LoopCommand::Kind::kArm);
+    ASSERT_EQ(loop_->mode(), controller::Mode::kMovementTest);
+    run_for(3.0, controller::Mode::kMovementTest);
+  }
+  [[nodiscard]] double y_true_m() const { return plant_->plant().state().y_m; }
+
+  config::Config cfg_;
+  hal::SimBackend* plant_ = nullptr;
+  std::unique_ptr<MiswiredBackend> backend_;
+  std::unique_ptr<controller::LoopOutputs> outputs_ = std::make_unique<controller::LoopOutputs>();
+  std::unique_ptr<controller::ControlLoop> loop_;
+  double t_ = 0.0;
+  std::uint64_t seq_ = 0;
+  std::string modes_;  // each run of a mode once, by number: "0412" disarmed, test, armed, fault
+  std::vector<controller::LoopEvent> events_;  // the movement test's ends and the faults
+};
+
+using controller::LoopCommand;
+using controller::Mode;
+using controller::MovementTestEnd;
+
+TEST_F(MovementTestAtArm, ACorrectBenchPassesThenArmsHoldingWhereTheCarriageIsAndALaterArmDoesNotTestAgain) {
+  start({});
+  command(LoopCommand::Kind::kArm);
+  EXPECT_EQ(outputs_->mode.load(), Mode::kMovementTest) << "visible to the command thread and health";
+  EXPECT_TRUE(backend_->last_.valve_power) << "the test drives the valves";
+  command(LoopCommand::Kind::kSetPoint, 0.17);  // refused by the validator; one that got through is dropped
+  run_for(3.0, Mode::kMovementTest);
+  ASSERT_EQ(loop_->mode(), Mode::kArmed) << modes_;
+  ASSERT_EQ(events_.size(), 1u);
+  const controller::LoopEvent& e = events_[0];
+  EXPECT_EQ(e.movement_end, MovementTestEnd::kPassed);
+  EXPECT_TRUE(e.movement_test.passed()) << controller::describe(e.movement_test);
+  EXPECT_EQ(e.movement_test.pulses, 2);
+  EXPECT_LT(e.movement_test.duration_s, 2.0);
+  EXPECT_NEAR(outputs_->setpoint_m.load(), e.y_m, 1e-12) << "armed holding where the carriage is as it passed";
+  EXPECT_EQ(e.y_d_m, outputs_->setpoint_m.load()) << "the event says the set point armed";
+  EXPECT_NEAR(y_true_m(), 0.2195, 0.01);
+  run_for(1.0);
+  EXPECT_EQ(loop_->mode(), Mode::kArmed);
+  EXPECT_NEAR(y_true_m(), e.y_m, 0.002) << "held";
+  EXPECT_FALSE(loop_->movement_test_due());
+
+  command(LoopCommand::Kind::kDisarm);
+  command(LoopCommand::Kind::kArm);
+  EXPECT_EQ(loop_->mode(), Mode::kArmed) << "once passed, not again in this run";
+  EXPECT_EQ(modes_, "04101");
+}
+
+TEST_F(MovementTestAtArm, SwappedTubesLatchTheMovementTestFaultNamingThemAndAResetDoesNotSkipTheNextTest) {
+  start({.tubes_swapped = true});
+  arm_and_test();
+  ASSERT_EQ(loop_->mode(), Mode::kFault) << modes_;
+  EXPECT_EQ(loop_->fault_cause(), controller::FaultCause::kMovementTest);
+  EXPECT_EQ(outputs_->fault_cause.load(), controller::FaultCause::kMovementTest);
+  EXPECT_EQ(modes_, "042") << "the law never drove";
+  ASSERT_EQ(events_.size(), 2u);
+  EXPECT_EQ(events_[0].movement_end, MovementTestEnd::kFinding);
+  EXPECT_EQ(events_[0].movement_test.finding, MovementFinding::kTubesSwapped);
+  EXPECT_EQ(events_[1].kind, controller::LoopEvent::Kind::kFault);
+  EXPECT_EQ(events_[1].movement_test.finding, MovementFinding::kTubesSwapped) << "the fault carries the finding";
+  EXPECT_STREQ(events_[1].fault_key, "controller.movement_test");
+  const hal::ActuatorCommand safe = loop_->safe_command();
+  EXPECT_FALSE(backend_->last_.valve_power);
+  EXPECT_EQ(backend_->last_.u_p_v, safe.u_p_v);
+  EXPECT_EQ(backend_->last_.u_n_v, safe.u_n_v);
+  EXPECT_NEAR(y_true_m(), 0.2195, 0.015);
+
+  command(LoopCommand::Kind::kFaultReset);
+  ASSERT_EQ(loop_->mode(), Mode::kDisarmed);
+  command(LoopCommand::Kind::kArm);
+  EXPECT_EQ(loop_->mode(), Mode::kMovementTest) << "the wiring may have been mended: tested again";
+}
+
+TEST_F(MovementTestAtArm, ADisarmAFaultOrTheRunsStopDuringTheTestAbortItSafelyAndTheNextArmTestsAgain) {
+  start({});
+  command(LoopCommand::Kind::kArm);
+  run_for(0.1);
+  command(LoopCommand::Kind::kDisarm);
+  EXPECT_EQ(loop_->mode(), Mode::kDisarmed);
+  EXPECT_FALSE(backend_->last_.valve_power);
+  EXPECT_EQ(backend_->last_.u_p_v, cfg_.controller.law.offset_v) << "disarmed: u_0";
+  ASSERT_EQ(events_.size(), 1u);
+  EXPECT_EQ(events_[0].movement_end, MovementTestEnd::kDisarmed);
+  EXPECT_EQ(events_[0].movement_test.finding, MovementFinding::kInterrupted);
+
+  command(LoopCommand::Kind::kArm);
+  ASSERT_EQ(loop_->mode(), Mode::kMovementTest) << "not passed: tested again";
+  run_for(0.1);
+  backend_->estop = true;
+  run_for(cfg_.controller.period_s());
+  EXPECT_EQ(loop_->mode(), Mode::kFault);
+  EXPECT_EQ(loop_->fault_cause(), controller::FaultCause::kEStop);
+  EXPECT_FALSE(backend_->last_.valve_power);
+  ASSERT_EQ(events_.size(), 3u);
+  EXPECT_EQ(events_[1].movement_end, MovementTestEnd::kFault);
+  EXPECT_EQ(events_[1].fault_cause, controller::FaultCause::kEStop);
+
+  backend_->estop = false;
+  command(LoopCommand::Kind::kFaultReset);
+  command(LoopCommand::Kind::kArm);
+  ASSERT_EQ(loop_->mode(), Mode::kMovementTest);
+  run_for(0.1);
+  loop_->stop();
+  EXPECT_EQ(loop_->mode(), Mode::kDisarmed);
+  EXPECT_FALSE(backend_->last_.valve_power) << "the run's stop: the safe output";
+  controller::LoopEvent e;
+  ASSERT_TRUE(outputs_->events.try_pop(e));
+  EXPECT_EQ(e.movement_end, MovementTestEnd::kStopped);
 }
 
 }  // namespace

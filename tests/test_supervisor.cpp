@@ -579,7 +579,8 @@ TEST(FaultCauses, KeepTheirNumbersOnTheWire) {
   EXPECT_EQ(c::fault_number(FaultCause::kOscillation), 11);
   EXPECT_EQ(c::fault_number(FaultCause::kNotSettled), 12);
   EXPECT_EQ(c::fault_number(FaultCause::kAnotherController), 13);
-  EXPECT_EQ(c::fault_number(FaultCause::kAnotherController), c::kFaultCauseCount - 1);
+  EXPECT_EQ(c::fault_number(FaultCause::kMovementTest), 14);
+  EXPECT_EQ(c::fault_number(FaultCause::kMovementTest), c::kFaultCauseCount - 1);
   EXPECT_STREQ(c::fault_name(static_cast<FaultCause>(c::kFaultCauseCount)), "unknown");
 }
 

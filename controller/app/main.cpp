@@ -47,8 +47,8 @@ Usage:
   --duration S       run length in seconds; 0 runs until SIGINT/SIGTERM (real clock)
                      (same as --set controller.duration_s=S)
   --events FILE      one JSON object per line: start, stop, prediction, reforecast, fault,
-                     fault_reset, fault_reset_refused, hold_start, hold_end, command (each
-                     command's verdict), end
+                     fault_reset, fault_reset_refused, hold_start, hold_end, movement_test (its
+                     end at ARM), command (each command's verdict), end
   --trajectory FILE  one CSV row per tick: seq,t,y_d,y,v_hat,a_hat,p_P,p_N,F,u,stuck,mode,validity,
                      then, while stuck, the pressures and force each forecast made at the stop
                      expects (p_P_linearized,...,F_nonlinear; empty otherwise)
@@ -89,10 +89,11 @@ command once the cause is gone; the daemon then waits disarmed for an ARM comman
 Under systemd (Type=notify): READY=1 once the loop runs, WATCHDOG=1 while it ticks, STOPPING=1
 on SIGTERM/SIGINT, which write the safe output and publish a final health message before exit.
 
-Faults, fault resets (and refused ones), arming, disarming, the hold's start and end, and the
-link to the device lost and back are each one line on stderr as they happen, quiet or not, with
-the syslog priority prefix journald reads ("<3>" a fault, "<4>" a refused reset or a link lost,
-"<5>" a reset, arming, disarming, a link back, "<6>" the hold).
+Faults, fault resets (and refused ones), arming, disarming, the movement test's pass or abort at
+ARM, the hold's start and end, and the link to the device lost and back are each one line on
+stderr as they happen, quiet or not, with the syslog priority prefix journald reads ("<3>" a
+fault, a movement test's finding among them, "<4>" a refused reset or a link lost, "<5>" a reset,
+arming, disarming, the movement test passed or aborted, a link back, "<6>" the hold).
 
 Exit codes: 0 success; 1 run failure (an --identify run that showed too little among them); 2 bad
 command line or configuration (nothing was run); 3 the run ended with a fault still latched (the
@@ -259,11 +260,15 @@ int run(int argc, char** argv) {
       for (const auto& w : report.warnings) std::fprintf(stderr, "pneud: warning: real time: %s\n", w.c_str());
     };
   }
-  // The start-up line of a real bench: the movement test's verdict, or that the key skipped it.
-  if (cfg.hal.backend == config::BackendKind::kModbus && !controller::movement_test_runs(cfg))
-    std::fprintf(stderr, "pneud: movement test: skipped (%s): the wiring is not checked before closed loop\n",
-                 !cfg.controller.movement_test.enabled ? "controller.movement_test.enabled: false"
-                                                       : "controller.start_armed: false: it runs only when pneud starts armed");
+  // The start-up line of a real bench: the movement test's verdict (starting armed), that it runs
+  // at the first ARM (starting disarmed: the loop runs it, JournalLines says how it went), or that
+  // the key skipped it.
+  if (controller::movement_test_at_first_arm(cfg))
+    std::fprintf(stderr, "pneud: movement test: at the first ARM (controller.start_armed: false): open-loop pulses "
+                         "check the wiring before the law drives the valves\n");
+  else if (cfg.hal.backend == config::BackendKind::kModbus && !controller::movement_test_runs(cfg))
+    std::fprintf(stderr, "pneud: movement test: skipped (controller.movement_test.enabled: false): the wiring is not "
+                         "checked before closed loop\n");
   const auto said_movement_test = [](const controller::MovementTestResult& r) {
     if (r.passed() || r.finding == controller::MovementFinding::kInterrupted)  // a finding: the error line says it
       std::fprintf(stderr, "pneud: movement test %s\n", controller::describe(r).c_str());

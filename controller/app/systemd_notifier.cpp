@@ -44,6 +44,7 @@ void SystemdNotifier::service() {
                mode == Mode::kDisarmed ? "disarmed"
                : mode == Mode::kArmed  ? "armed"
                : mode == Mode::kHold   ? "armed, holding in position"
+               : mode == Mode::kMovementTest ? "armed, movement test (set points refused until it passed)"
                                        : "FAULT: ",
                mode == Mode::kFault ? controller::fault_name(cause) : "",
                mode == Mode::kDisarmed ? " (send ARM to drive)" : "");

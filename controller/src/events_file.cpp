@@ -24,7 +24,18 @@ void EventsFile::on_event(const LoopEvent& e) {
       out_ << "{\"event\":\"fault\",\"t\":" << num(e.t_s, 12) << ",\"y\":" << num(e.y_m, 12) << ",\"cause\":\""
            << fault_name(e.fault_cause) << "\",\"text\":\"" << fault_text(e.fault_cause) << '"';
       if (e.fault_key != nullptr) out_ << ",\"key\":\"" << e.fault_key << '"';
+      if (e.fault_cause == FaultCause::kMovementTest)
+        out_ << ",\"finding\":\"" << movement_finding_name(e.movement_test.finding) << '"';
       out_ << "}\n";
+      return;
+    case LoopEvent::Kind::kMovementTest:
+      out_ << "{\"event\":\"movement_test\",\"t\":" << num(e.t_s, 12) << ",\"end\":\""
+           << movement_test_end_name(e.movement_end) << "\",\"finding\":\""
+           << movement_finding_name(e.movement_test.finding) << "\",\"pulses\":" << e.movement_test.pulses
+           << ",\"duration\":" << num(e.movement_test.duration_s) << ",\"y_start\":" << num(e.movement_test.y_start_m, 12)
+           << ",\"y_end\":" << num(e.movement_test.y_end_m, 12);
+      if (e.movement_end == MovementTestEnd::kFault) out_ << ",\"cause\":\"" << fault_name(e.fault_cause) << '"';
+      out_ << ",\"text\":" << Str{describe(e.movement_test)} << "}\n";
       return;
     case LoopEvent::Kind::kFaultReset:
     case LoopEvent::Kind::kResetRefused:

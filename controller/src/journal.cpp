@@ -56,11 +56,17 @@ void JournalLines::on_tick(const TickRecord& r, const ExpectedAtTick& /*expected
     line(Priority::kNotice, "link to the device back at %.3f s, after %.3f s", r.t_s, r.t_s - link_down_since_s_);
   }
   link_down_ = link_down;
-  // Arming and disarming. A fault and its reset have events of their own (on_event).
+  // Arming and disarming. A fault and its reset have events of their own (on_event), so has the
+  // movement test's end.
   if (seen_tick_) {
     if (mode_ == Mode::kDisarmed && drives(r.mode))
       line(Priority::kNotice, "armed at %.3f s: the law drives the valves, holding %.3f mm", r.t_s, r.y_d_m * 1e3);
-    else if (drives(mode_) && r.mode == Mode::kDisarmed)
+    else if (mode_ == Mode::kDisarmed && r.mode == Mode::kMovementTest)
+      line(Priority::kNotice,
+           "armed at %.3f s: the movement test first (controller.movement_test): open-loop pulses around u_0 check "
+           "the wiring before the law drives the valves; set points are refused until it passed",
+           r.t_s);
+    else if (powered(mode_) && r.mode == Mode::kDisarmed)
       line(Priority::kNotice,
            "disarmed at %.3f s (y = %.3f mm): valve power off, the outputs at the neutral voltage u_0; send ARM to drive",
            r.t_s, r.y_m * 1e3);
@@ -72,9 +78,36 @@ void JournalLines::on_tick(const TickRecord& r, const ExpectedAtTick& /*expected
 void JournalLines::on_event(const LoopEvent& e) {
   switch (e.kind) {
     case LoopEvent::Kind::kFault:
+      if (e.fault_cause == FaultCause::kMovementTest) {  // the finding, its sentence and the figures
+        line(Priority::kErr, "FAULT at %.3f s (y = %.3f mm): %s: %s: %s [%s]; %s", e.t_s, e.y_m * 1e3,
+             fault_name(e.fault_cause), movement_finding_name(e.movement_test.finding),
+             movement_finding_text(e.movement_test.finding), describe(e.movement_test).c_str(),
+             fault_text(e.fault_cause));
+        return;
+      }
       line(Priority::kErr, "FAULT at %.3f s (y = %.3f mm): %s: %s%s%s", e.t_s, e.y_m * 1e3, fault_name(e.fault_cause),
            fault_text(e.fault_cause), e.fault_key != nullptr ? "; decided by " : "",
            e.fault_key != nullptr ? e.fault_key : "");
+      return;
+    case LoopEvent::Kind::kMovementTest:
+      switch (e.movement_end) {
+        case MovementTestEnd::kPassed:
+          line(Priority::kNotice, "movement test passed at %.3f s: %s; the law drives the valves, holding %.3f mm",
+               e.t_s, describe(e.movement_test).c_str(), e.y_d_m * 1e3);
+          return;
+        case MovementTestEnd::kFinding: return;  // the fault's line names it
+        case MovementTestEnd::kDisarmed:
+        case MovementTestEnd::kFault:
+        case MovementTestEnd::kStopped:
+        case MovementTestEnd::kNone:
+          line(Priority::kNotice, "movement test aborted at %.3f s (y = %.3f mm) by %s%s: the next ARM runs it again",
+               e.t_s, e.y_m * 1e3,
+               e.movement_end == MovementTestEnd::kDisarmed ? "a disarm"
+               : e.movement_end == MovementTestEnd::kFault  ? "a fault: "
+                                                            : "the run's stop",
+               e.movement_end == MovementTestEnd::kFault ? fault_name(e.fault_cause) : "");
+          return;
+      }
       return;
     case LoopEvent::Kind::kFaultReset:
       line(Priority::kNotice, "fault (%s) reset at %.3f s: disarmed, send ARM to drive", fault_name(e.fault_cause),

@@ -23,6 +23,18 @@ const char* hold_end_name(HoldEnd why) noexcept {
   return "?";
 }
 
+const char* movement_test_end_name(MovementTestEnd why) noexcept {
+  switch (why) {
+    case MovementTestEnd::kNone: return "none";
+    case MovementTestEnd::kPassed: return "passed";
+    case MovementTestEnd::kFinding: return "finding";
+    case MovementTestEnd::kDisarmed: return "disarmed";
+    case MovementTestEnd::kFault: return "fault";
+    case MovementTestEnd::kStopped: return "stopped";
+  }
+  return "?";
+}
+
 ControlLoop::ControlLoop(LoopParams params, hal::Backend& backend, LoopOutputs& outputs)
     : params_(std::move(params)),
       backend_(&backend),
@@ -33,7 +45,8 @@ ControlLoop::ControlLoop(LoopParams params, hal::Backend& backend, LoopOutputs& 
       half_stroke_m_(params_.geometry.half_stroke_m()),
       force_(params_.geometry, params_.exhaust_pressure_pa),
       supervisor_(params_),
-      hold_law_(params_.controller.hold, params_.controller.law.max_voltage_v, params_.controller.period_s()) {}
+      hold_law_(params_.controller.hold, params_.controller.law.max_voltage_v, params_.controller.period_s()),
+      movement_test_(params_.controller.movement_test, MovementTestBench::of(params_.controller)) {}
 
 void ControlLoop::start(double t0_s) {
   open(t0_s);
@@ -67,6 +80,7 @@ void ControlLoop::begin(double t0_s) {
   last_reach_direction_ = 0;
   reach_rate_scale_ = 1.0;
   reach_y_d_m_ = y_d_m_;
+  movement_test_due_ = params_.movement_test_at_arm;
 }
 
 LoopEvent ControlLoop::event(LoopEvent::Kind kind, double t_s, double y_m) const noexcept {
@@ -92,31 +106,32 @@ void ControlLoop::apply_commands(double y_m) noexcept {
   while (out_->commands.try_pop(cmd)) {
     switch (cmd.kind) {
       case LoopCommand::Kind::kSetPoint:
-        if (mode_ == Mode::kFault) break;  // queued before the fault: stale now
+        // Queued before the fault: stale now. During the movement test the validator refuses set
+        // points (the pass holds where the carriage is): one queued before it is dropped.
+        if (mode_ == Mode::kFault || mode_ == Mode::kMovementTest) break;
         y_d_m_ = std::clamp(cmd.value_m, c.soft_limit_min_m, c.soft_limit_max_m);
         schedule_active_ = false;
         last_setpoint_t_s_ = t_s_;
         break;
       case LoopCommand::Kind::kSetPointStep:
-        if (mode_ == Mode::kFault) break;
+        if (mode_ == Mode::kFault || mode_ == Mode::kMovementTest) break;
         y_d_m_ = std::clamp(y_d_m_ + cmd.value_m, c.soft_limit_min_m, c.soft_limit_max_m);
         schedule_active_ = false;
         last_setpoint_t_s_ = t_s_;
         break;
       case LoopCommand::Kind::kArm:
+        // The first ARM of a run started disarmed on a real backend tests the wiring first.
         if (mode_ == Mode::kDisarmed) {
-          mode_ = Mode::kArmed;
-          // Only what is measured from now on drives the valves: no stale derivative.
-          differentiator_.reset(y_m);
-          // Bumpless: hold where the carriage is until told otherwise.
-          y_d_m_ = std::clamp(y_m, c.soft_limit_min_m, c.soft_limit_max_m);
-          schedule_active_ = false;
-          last_setpoint_t_s_ = t_s_;
-          supervisor_.on_arm();
+          if (movement_test_due_) start_movement_test(y_m);
+          else arm_here(y_m);
         }
         break;
       case LoopCommand::Kind::kDisarm:
         if (mode_ == Mode::kHold) end_hold(HoldEnd::kDisarmed, t_s_, y_m, Mode::kDisarmed);
+        if (mode_ == Mode::kMovementTest) {
+          end_movement_test(MovementTestEnd::kDisarmed, t_s_, y_m);
+          mode_ = Mode::kDisarmed;
+        }
         if (mode_ == Mode::kArmed) mode_ = Mode::kDisarmed;
         break;
       case LoopCommand::Kind::kFaultReset:
@@ -142,15 +157,50 @@ void ControlLoop::apply_commands(double y_m) noexcept {
   }
 }
 
+void ControlLoop::arm_here(double y_m) noexcept {
+  const auto& c = params_.controller;
+  mode_ = Mode::kArmed;
+  // Only what is measured from now on drives the valves: no stale derivative.
+  differentiator_.reset(y_m);
+  // Bumpless: hold where the carriage is until told otherwise.
+  y_d_m_ = std::clamp(y_m, c.soft_limit_min_m, c.soft_limit_max_m);
+  schedule_active_ = false;
+  last_setpoint_t_s_ = t_s_;
+  supervisor_.on_arm();
+}
+
+// The same test, the same parameters and findings as before the loop's time on a run started
+// armed (run_movement_test), stepped here once per tick from the tick's own sample.
+void ControlLoop::start_movement_test(double y_m) noexcept {
+  const auto& c = params_.controller;
+  mode_ = Mode::kMovementTest;
+  movement_test_ = MovementTest(c.movement_test, MovementTestBench::of(c));
+  // The set point shown meanwhile: where the carriage is (a pass arms holding where it is then).
+  y_d_m_ = std::clamp(y_m, c.soft_limit_min_m, c.soft_limit_max_m);
+  schedule_active_ = false;
+}
+
+void ControlLoop::end_movement_test(MovementTestEnd why, double t_s, double y_m, FaultCause cause) noexcept {
+  if (why != MovementTestEnd::kPassed && why != MovementTestEnd::kFinding) movement_test_.interrupt();
+  LoopEvent e = event(LoopEvent::Kind::kMovementTest, t_s, y_m);
+  e.movement_end = why;
+  e.movement_test = movement_test_.result();
+  e.fault_cause = cause;
+  push(e);
+}
+
 void ControlLoop::latch_fault(FaultCause cause, double t_s, double y_m, const char* key) noexcept {
   if (mode_ == Mode::kFault) return;
   if (mode_ == Mode::kHold) end_hold(HoldEnd::kFault, t_s, y_m, Mode::kFault);
+  if (mode_ == Mode::kMovementTest && cause != FaultCause::kMovementTest)
+    end_movement_test(MovementTestEnd::kFault, t_s, y_m, cause);
   mode_ = Mode::kFault;
   fault_cause_ = cause;
   ++faults_;
   LoopEvent e = event(LoopEvent::Kind::kFault, t_s, y_m);
   e.fault_cause = cause;
   e.fault_key = key;
+  if (cause == FaultCause::kMovementTest) e.movement_test = movement_test_.result();
   push(e);
 }
 
@@ -190,6 +240,7 @@ void ControlLoop::tick(double t_s) noexcept {
   hal::SensorFrame frame;
   const hal::Status status = backend_->read(t_s, frame);
   if (status != hal::Status::kOk) ++comms_errors_;  // counted for health
+  const hal::SensorFrame sample = frame;  // as read: the movement test judges it itself
 
   // The supervisor, first on the sample: e-stop, readings, comms. A fault latches the safe output
   // until a reset once the cause is gone.
@@ -210,6 +261,24 @@ void ControlLoop::tick(double t_s) noexcept {
   const auto& schedule = params_.controller.schedule;
   while (schedule_active_ && next_step_ < schedule.size() && schedule[next_step_].t_s <= t_s + 1e-9)
     y_d_m_ = schedule[next_step_++].position_m;
+  // The movement test at ARM drives the valves open loop until it ends: a pass arms the law here
+  // and now, holding where the carriage is; a finding latches the movement-test fault. (A fault
+  // above, a disarm or the run's stop abort it: see latch_fault, apply_commands, stop.)
+  hal::ActuatorCommand test_command;
+  if (mode_ == Mode::kMovementTest) {
+    test_command = movement_test_.step(t_s, status, sample);
+    if (movement_test_.done() && movement_test_.result().passed()) {
+      // Not again at a later ARM of this run: the wiring does not change while pneud runs, and
+      // each test moves the carriage open loop by millimetres.
+      movement_test_due_ = false;
+      arm_here(frame.y_m);
+      end_movement_test(MovementTestEnd::kPassed, t_s, frame.y_m);  // with the set point armed
+    } else if (movement_test_.done()) {
+      // Still due: after a reset the next ARM tests again (the wiring may have been mended).
+      end_movement_test(MovementTestEnd::kFinding, t_s, y_measured_m);
+      latch_fault(FaultCause::kMovementTest, t_s, y_measured_m, "controller.movement_test");
+    }
+  }
   // ... then on the motion, with this tick's commands and set point in force: soft limits,
   // following error, settling, timing, the set-point stream.
   st.armed = drives(mode_);
@@ -313,8 +382,9 @@ void ControlLoop::tick(double t_s) noexcept {
                    : mode_ == Mode::kHold   ? hold_law_.command_v(hold_, t_s, force, read_ok)
                    : detector_.stopped()    ? law_.resting_control_v(y_d_m_, detector_.rest_position_m())
                                             : law_.control_v(y_d_m_, frame.y_m, v_hat, a_hat);
-  const hal::ActuatorCommand command =
-      mode_ == Mode::kFault ? safe_command() : hal::ActuatorCommand::from_control(u, armed);
+  const hal::ActuatorCommand command = mode_ == Mode::kFault          ? safe_command()
+                                       : mode_ == Mode::kMovementTest ? test_command
+                                                                      : hal::ActuatorCommand::from_control(u, armed);
   if (backend_->write(command) != hal::Status::kOk) ++comms_errors_;
   out_->setpoint_m.store(y_d_m_, std::memory_order_relaxed);
   out_->mode.store(mode_, std::memory_order_relaxed);
@@ -347,6 +417,13 @@ hal::ActuatorCommand ControlLoop::safe_command() const noexcept {
   return hal::ActuatorCommand::from_control(law.offset_v, false);
 }
 
-void ControlLoop::stop() noexcept { (void)backend_->write(safe_command()); }
+void ControlLoop::stop() noexcept {
+  if (mode_ == Mode::kMovementTest) {  // the run stops during the movement test: aborted
+    end_movement_test(MovementTestEnd::kStopped, t_s_, detector_last_y_);
+    mode_ = Mode::kDisarmed;
+    out_->mode.store(mode_, std::memory_order_relaxed);
+  }
+  (void)backend_->write(safe_command());
+}
 
 }  // namespace pneu::controller

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdio>
 
+#include "pneu/controller/clock.hpp"
+
 namespace pneu::controller {
 
 const char* movement_finding_name(MovementFinding f) noexcept {
@@ -79,8 +81,7 @@ std::string describe(const MovementTestResult& r) {
   return s;
 }
 
-MovementTestBench MovementTestBench::of(const config::Config& config) noexcept {
-  const auto& c = config.controller;
+MovementTestBench MovementTestBench::of(const config::ControllerConfig& c) noexcept {
   MovementTestBench b;
   b.u_0_v = c.law.offset_v;
   b.comms_fault_after_s = std::max(c.comms_fault_after_s, c.period_s());

@@ -50,6 +50,7 @@ const char* fault_name(FaultCause cause) noexcept {
     case FaultCause::kOscillation: return "oscillation";
     case FaultCause::kNotSettled: return "not-settled";
     case FaultCause::kAnotherController: return "another-controller";
+    case FaultCause::kMovementTest: return "movement-test";
     default: return "unknown";
   }
 }
@@ -69,6 +70,7 @@ const char* fault_text(FaultCause cause) noexcept {
     case FaultCause::kOscillation: return "the loop does not settle: y_d - y changed sign controller.supervisor.oscillation_sign_changes times beyond +-oscillation_amplitude_m within oscillation_window_s (the gains unstable at this position?)";
     case FaultCause::kNotSettled: return "the loop does not settle: no rest within controller.supervisor.settle_time_s of a set-point change (the carriage still moving: unstable or creeping gains?)";
     case FaultCause::kAnotherController: return "another controller publishes its health on this one's LCM channels: two controllers on one bench? Both latch this fault; stop one, then reset the other";
+    case FaultCause::kMovementTest: return "the movement test at ARM (controller.movement_test) found the wiring wrong before closed loop: valve power off, safe output; mend what the finding names, reset the fault, and the next ARM tests again";
     default: return "fault";
   }
 }
@@ -98,6 +100,9 @@ const char* relaxing_costs(const char* key) noexcept {
     return "a loop that does not settle drives on that much longer: look at the gains first";
   if (k == "controller.supervisor.overtravel_m")
     return "the carriage may pass the soft limits further before the safe output: it nears the end stops";
+  if (k == "controller.movement_test")
+    return "controller.movement_test.enabled: false arms without the test: the law then drives a miswired bench the "
+           "wrong way, at full gain; mend the wiring instead";
   if (k == "commands.setpoint_stream_timeout_s")
     return "the set points may fall silent longer before the safe output: the carriage holds the last one meanwhile";
   return "the check it decides is made later or not at all: see docs/configuration.md";

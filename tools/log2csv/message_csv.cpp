@@ -95,6 +95,8 @@ const char* event_kind_name(std::int8_t kind) {
       return "hold_start";
     case E::KIND_HOLD_END:
       return "hold_end";
+    case E::KIND_MOVEMENT_TEST:
+      return "movement_test";
     default:
       return "unknown";
   }

@@ -21,6 +21,7 @@ const char* mode_name(Mode m) {
     case Mode::kDisarmed: return "disarmed";
     case Mode::kFault: return "fault";
     case Mode::kHold: return "holding";
+    case Mode::kMovementTest: return "movement test";
   }
   return "?";
 }
@@ -129,6 +130,9 @@ Verdict CommandValidator::validate(const CommandFields& c, double now_s, std::in
       // be the one in force once armed, so it is refused rather than promised.
       if (mode == Mode::kDisarmed)
         return reject(Rejection::kMode, "set point refused: disarmed: arm first; on arm the carriage holds where it is");
+      if (mode == Mode::kMovementTest)
+        return reject(Rejection::kMode, "set point refused: the movement test runs (open loop, before the law drives): "
+                                        "once it passed the carriage holds where it is, then send it");
       cmd.kind = step ? LoopCommand::Kind::kSetPointStep : LoopCommand::Kind::kSetPoint;
       what = "set point " + mm(target);
       break;
@@ -136,12 +140,14 @@ Verdict CommandValidator::validate(const CommandFields& c, double now_s, std::in
     case kWireArm:
       if (mode != Mode::kDisarmed)
         return reject(Rejection::kMode, std::string("arm refused: ") +
-                                            (mode == Mode::kFault ? "a fault is latched, reset it first" : "already armed"));
+                                            (mode == Mode::kFault          ? "a fault is latched, reset it first"
+                                             : mode == Mode::kMovementTest ? "already armed, the movement test runs"
+                                                                           : "already armed"));
       cmd.kind = LoopCommand::Kind::kArm;
       what = "arm";
       break;
     case kWireDisarm:
-      if (!controller::drives(mode)) return reject(Rejection::kMode, std::string("disarm refused: ") + mode_name(mode));
+      if (!controller::powered(mode)) return reject(Rejection::kMode, std::string("disarm refused: ") + mode_name(mode));
       cmd.kind = LoopCommand::Kind::kDisarm;
       what = "disarm";
       break;

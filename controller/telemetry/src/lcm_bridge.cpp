@@ -210,6 +210,13 @@ void LcmBridge::on_event(const LoopEvent& e) {
   } else if (e.kind == LoopEvent::Kind::kFault) {
     m.kind = pneu_lcm::event_t::KIND_FAULT;
     m.text = std::string("fault (") + controller::fault_name(e.fault_cause) + "): " + controller::fault_text(e.fault_cause);
+    if (e.fault_cause == controller::FaultCause::kMovementTest)
+      m.text += std::string("; finding: ") + controller::movement_finding_name(e.movement_test.finding) + ": " +
+                controller::movement_finding_text(e.movement_test.finding);
+  } else if (e.kind == LoopEvent::Kind::kMovementTest) {
+    m.kind = pneu_lcm::event_t::KIND_MOVEMENT_TEST;
+    m.text = std::string("movement test at ARM ") + controller::movement_test_end_name(e.movement_end) + ": " +
+             controller::describe(e.movement_test);
   } else if (e.restart) {
     m.kind = pneu_lcm::event_t::KIND_RESTART;
     m.text = "restart after a stop, set point unchanged";

@@ -1,8 +1,9 @@
 // What an operator must hear at the moment it happens, as one line each on stderr with the syslog
 // priority prefix journald reads (sd-daemon.h's SD_ERR "<3>", SD_WARNING "<4>", SD_NOTICE "<5>",
 // SD_INFO "<6>"): a sink of the runtime (JournalLines) on the service thread, never on the loop's.
-// Faults, fault resets and refused resets, arming and disarming, the in-position hold's start and
-// end, and the backend's link to its device lost and back. pneud writes them quiet or not: they are
+// Faults, fault resets and refused resets, arming and disarming, the movement test's pass or abort
+// at ARM (a finding is its fault's line), the in-position hold's start and end, and the backend's
+// link to its device lost and back. pneud writes them quiet or not: they are
 // the journal's.
 #pragma once
 
@@ -28,7 +29,7 @@ class JournalLines final : public RunListener {
   /// Arming and disarming (the mode each tick record carries), the link lost and back (its
   /// sensor validity's hal::kCommsError).
   void on_tick(const TickRecord& tick, const ExpectedAtTick& expected) override;
-  /// Faults, resets, refused resets, the hold's start and end.
+  /// Faults, resets, refused resets, the movement test's end, the hold's start and end.
   void on_event(const LoopEvent& event) override;
 
   /// Lines written so far.

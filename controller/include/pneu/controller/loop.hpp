@@ -10,6 +10,7 @@
 #include "pneu/controller/differentiator.hpp"
 #include "pneu/controller/hold_law.hpp"
 #include "pneu/controller/loop_params.hpp"
+#include "pneu/controller/movement_test.hpp"
 #include "pneu/controller/predictor.hpp"
 #include "pneu/controller/spsc_queue.hpp"
 #include "pneu/controller/stop_detector.hpp"
@@ -27,10 +28,27 @@ enum class Mode : std::uint8_t {
                   ///< until a reset received once the cause is gone (then disarmed)
   kHold = 3,      ///< armed, the carriage at rest within controller.hold.window_m of its set point:
                   ///< the loop drives the pressure force into the stiction band instead of Eq. 4
+  kMovementTest = 4,  ///< armed, the movement test first (the first ARM of a run started disarmed
+                      ///< on a real backend, LoopParams::movement_test_at_arm): valve power on, the
+                      ///< test's open-loop pulses drive the valves; set points are refused. A pass
+                      ///< arms (kArmed, holding where the carriage is), a finding latches a fault.
 };
 
 /// Valve power on and the loop driving the valves: armed, or holding.
 [[nodiscard]] constexpr bool drives(Mode m) noexcept { return m == Mode::kArmed || m == Mode::kHold; }
+/// Valve power on: the loop drives the valves, or the movement test pulses them. DISARM ends either.
+[[nodiscard]] constexpr bool powered(Mode m) noexcept { return drives(m) || m == Mode::kMovementTest; }
+
+/// How the movement test at ARM ended (LoopEvent::Kind::kMovementTest).
+enum class MovementTestEnd : std::uint8_t {
+  kNone = 0,
+  kPassed,    ///< passed: armed from then on
+  kFinding,   ///< a finding (LoopEvent::movement_test.finding): the movement-test fault latches
+  kDisarmed,  ///< aborted by a disarm command
+  kFault,     ///< aborted by another fault (LoopEvent::fault_cause)
+  kStopped,   ///< aborted as the run stopped (SIGTERM, SIGINT, the end of its duration)
+};
+[[nodiscard]] const char* movement_test_end_name(MovementTestEnd why) noexcept;
 
 /// Why a hold ended (LoopEvent::Kind::kHoldEnd).
 enum class HoldEnd : std::uint8_t {
@@ -68,7 +86,8 @@ struct LoopEvent {
   /// kFaultReset: a reset cleared the fault (now disarmed); kResetRefused: a reset came while
   /// the cause was still present (fault_cause: which).
   /// kHoldStart / kHoldEnd: the in-position hold took over from Eq. 4 / handed back (hold_end: why).
-  enum class Kind : std::uint8_t { kStop, kStart, kFault, kFaultReset, kResetRefused, kHoldStart, kHoldEnd };
+  /// kMovementTest: the movement test at ARM ended (movement_end: how; movement_test: its result).
+  enum class Kind : std::uint8_t { kStop, kStart, kFault, kFaultReset, kResetRefused, kHoldStart, kHoldEnd, kMovementTest };
   Kind kind = Kind::kStop;
   std::uint64_t stop_index = 0;  ///< stops are numbered from 1; a start refers to the last stop (0: none)
   double t_s = 0.0;              ///< backdated to the signals (see StopDetector) [s]
@@ -85,6 +104,9 @@ struct LoopEvent {
   const char* fault_key = nullptr;
   HoldEnd hold_end = HoldEnd::kNone;           ///< hold end: why
   HoldState hold;                              ///< hold start: the hold's law as it starts
+  MovementTestEnd movement_end = MovementTestEnd::kNone;  ///< movement test: how it ended
+  /// movement test, and a movement-test fault: the test's result (its finding and figures)
+  MovementTestResult movement_test;
   std::uint64_t tick_seq = 0;    ///< the tick that raised it (its TickRecord::seq)
 };
 
@@ -167,6 +189,9 @@ class ControlLoop {
   [[nodiscard]] std::uint64_t comms_errors() const noexcept { return comms_errors_; }
   [[nodiscard]] FaultCause fault_cause() const noexcept { return fault_cause_; }
   [[nodiscard]] std::uint64_t faults() const noexcept { return faults_; }
+  /// Whether the next ARM runs the movement test first: LoopParams::movement_test_at_arm, until
+  /// it passed in this run.
+  [[nodiscard]] bool movement_test_due() const noexcept { return movement_test_due_; }
 
  private:
   void push(LoopEvent e) noexcept;
@@ -176,6 +201,11 @@ class ControlLoop {
   void latch_fault(FaultCause cause, double t_s, double y_m, const char* key = nullptr) noexcept;
   void start_hold(double t_s, double y_m, double force_n, int reach_direction) noexcept;
   void end_hold(HoldEnd why, double t_s, double y_m, Mode next) noexcept;
+  /// Arming: the law drives from the next command on, holding where the carriage is.
+  void arm_here(double y_m) noexcept;
+  void start_movement_test(double y_m) noexcept;
+  /// Pushes the movement test's end (aborting it unless it passed or found); the caller sets the mode.
+  void end_movement_test(MovementTestEnd why, double t_s, double y_m, FaultCause cause = FaultCause::kNone) noexcept;
 
   LoopParams params_;
   hal::Backend* backend_;  // pointers, not references: the loop can be moved
@@ -209,6 +239,9 @@ class ControlLoop {
   int last_reach_direction_ = 0;
   double reach_rate_scale_ = 1.0;
   double reach_y_d_m_ = 0.0;  // the set point those hold for
+  // The movement test at ARM: due until it passed; the one running in mode kMovementTest.
+  bool movement_test_due_ = false;
+  MovementTest movement_test_;
 };
 
 }  // namespace pneu::controller

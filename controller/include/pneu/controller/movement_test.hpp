@@ -5,7 +5,9 @@
 // u_0 for rest_s. A first pulse that did not move the carriage the right way is the last. From what the sensors did it judges the wiring: +u (valve P opening to
 // the supply, valve N to the exhaust, docs/model.md) must move the carriage towards +y, raise p_P
 // and lower p_N, and each reading must change by more than its noise. The state machine is pure
-// logic and real-time safe (no allocation, no throw); run_movement_test() paces it on a backend.
+// logic and real-time safe (no allocation, no throw): run_movement_test() paces it on a backend
+// before the loop's time starts (pneud starting armed), and the loop steps it tick by tick at the
+// first ARM of a run that started disarmed (ControlLoop, Mode::kMovementTest).
 #pragma once
 
 #include <atomic>
@@ -13,10 +15,11 @@
 #include <string>
 
 #include "pneu/config/config.hpp"
-#include "pneu/controller/clock.hpp"
 #include "pneu/hal/backend.hpp"
 
 namespace pneu::controller {
+
+class Clock;  // clock.hpp (which includes loop.hpp, which holds a MovementTest)
 
 /// What the movement test found.
 enum class MovementFinding : std::uint8_t {
@@ -67,7 +70,9 @@ struct MovementTestBench {
   double comms_fault_after_s = 0.05;  ///< this long without a good sample ends the test [s]
   double soft_min_m = -0.24, soft_max_m = 0.24;  ///< a pulse ends beyond them [m]
   /// `config`'s (its offset resolved), with the loop's period as the least comms limit.
-  [[nodiscard]] static MovementTestBench of(const config::Config& config) noexcept;
+  [[nodiscard]] static MovementTestBench of(const config::Config& config) noexcept { return of(config.controller); }
+  /// ... from controller.* alone (what the loop holds, LoopParams).
+  [[nodiscard]] static MovementTestBench of(const config::ControllerConfig& controller) noexcept;
 };
 
 /// The test's state machine: one step() per tick with the tick's sample; it answers with the

@@ -102,10 +102,11 @@ void execute(Run& run, const config::Config& config, Clock& clock,
              const std::function<void()>& on_loop_thread = {},
              const std::function<void(const MovementTestResult&)>& on_movement_test = {});
 
-/// Whether execute() runs the movement test for `config`: on hal.backend modbus (a bench, or
-/// pneu-plant serve) with controller.movement_test.enabled, when the run starts armed
-/// (controller.start_armed, or an identification run); never on the in-process plant, which
-/// cannot be miswired.
+/// Whether execute() runs the movement test for `config` before the loop's time starts: on
+/// hal.backend modbus (a bench, or pneu-plant serve) with controller.movement_test.enabled, when
+/// the run starts armed (controller.start_armed, or an identification run); never on the
+/// in-process plant, which cannot be miswired. A run that starts disarmed runs it in the loop at
+/// its first ARM instead (movement_test_at_first_arm(), loop_params.hpp; Mode::kMovementTest).
 [[nodiscard]] bool movement_test_runs(const config::Config& config) noexcept;
 
 }  // namespace pneu::controller

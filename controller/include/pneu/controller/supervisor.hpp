@@ -31,9 +31,12 @@ enum class FaultCause : std::uint8_t {
   /// another controller's health heard on this one's channels (LoopOutputs::external_fault, set by
   /// the service thread while it hears it)
   kAnotherController = 13,
+  /// the movement test at the first ARM of a run started disarmed found the wiring wrong
+  /// (controller.movement_test; LoopEvent::movement_test names the finding)
+  kMovementTest = 14,
 };
 /// How many causes there are, kNone included.
-inline constexpr std::size_t kFaultCauseCount = 14;
+inline constexpr std::size_t kFaultCauseCount = 15;
 
 /// The cause's stable number, as it travels in event_t and health_t.
 [[nodiscard]] constexpr std::uint8_t fault_number(FaultCause cause) noexcept {
