@@ -598,14 +598,15 @@ struct OnlineRun {
   identify::Identification estimate;  ///< the running estimate at the end
 };
 
-OnlineRun learn_online(config::Config cfg, const model::PlantParams& bench, double y0_m, double y_d_m, double duration_s) {
+OnlineRun learn_online(config::Config cfg, const model::PlantParams& bench, double y0_m, double y_d_m, double duration_s,
+                       identify::OnlineIdentifier::Fitting fitting = identify::OnlineIdentifier::Fitting::kOnTheDrainingThread) {
   cfg.simulation.initial_position_m = y0_m;
   cfg.controller.initial_setpoint_m = y0_m;
   cfg.controller.schedule = {{1.0, y_d_m}};
   cfg.controller.duration_s = duration_s;
   cfg.controller.clock = config::ClockKind::kSimulated;
   BenchRun b(cfg, bench);
-  identify::OnlineIdentifier learner(b.cfg, *b.run.runtime);
+  identify::OnlineIdentifier learner(b.cfg, *b.run.runtime, identify::OnlineIdentifier::kDefaultWindow_s, fitting);
   struct Updates final : controller::RunListener {
     std::vector<controller::IdentificationRecord> records;
     void on_identification(const controller::IdentificationRecord& r) override { records.push_back(r); }
@@ -728,6 +729,35 @@ TEST(OnlineIdentification, KeepsTheValvesItIdentifiedNearTheStrokesEndWithHilSen
   }
   EXPECT_GE(identified, 5) << "of " << r.updates.size() << " updates";
   EXPECT_LE(r.judged.worst_percent, 5.0) << r.judged.long_restarts << " long restarts";
+}
+
+// The fit on the learner's own thread (pneud's, on the real clock): on the simulated clock the run
+// waits for each update (execute), so that the run is the same as with the fit made within the
+// stop's event: the same updates, to the last bit, and the same forecasts. (Scenario 190, as above.)
+TEST(OnlineIdentification, FittedOnItsOwnThreadASimulatedRunMakesTheSameUpdatesAndForecasts) {
+  const config::Config cfg =
+      config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", {"hal.backend=sim"});
+  const model::PlantParams bench =
+      sweep_bench(config::simulated_bench(cfg),
+                  {51.4346, 41.5546, -48.7893, -43.7132, 50.3059, 1.44733e-08, 8.79404e-10,
+                   1.15749e-09, 9.81443e-06, 1.09907e-05, 0.0921853});
+  const OnlineRun within = learn_online(cfg, bench, -0.129596, 0.208150, 4.0);
+  const OnlineRun own = learn_online(cfg, bench, -0.129596, 0.208150, 4.0,
+                                     identify::OnlineIdentifier::Fitting::kOnItsOwnThread);
+  ASSERT_GE(within.updates.size(), 5u);
+  ASSERT_EQ(own.updates.size(), within.updates.size());
+  for (std::size_t k = 0; k < own.updates.size(); ++k) {
+    EXPECT_EQ(own.updates[k].t_s, within.updates[k].t_s);
+    EXPECT_EQ(own.updates[k].updates, within.updates[k].updates);
+    for (std::size_t i = 0; i < controller::kIdentifiedParameterKeys.size(); ++i) {
+      EXPECT_EQ(own.updates[k].value[i], within.updates[k].value[i]) << controller::kIdentifiedParameterKeys[i];
+      EXPECT_EQ(own.updates[k].sigma[i], within.updates[k].sigma[i]) << controller::kIdentifiedParameterKeys[i];
+    }
+  }
+  EXPECT_EQ(own.judged.errors_percent, within.judged.errors_percent);
+  EXPECT_EQ(own.judged.wrong_verdicts, within.judged.wrong_verdicts);
+  EXPECT_EQ(own.stops_forecast, within.stops_forecast);
+  EXPECT_EQ(own.stops_on_a_configured_bound, within.stops_on_a_configured_bound);
 }
 
 // Scenario 58 with ideal sensors: the carriage comes to rest at -95 mm with the force a few

@@ -570,3 +570,141 @@ TEST(Runtime, TakesALearntModelOnceEverySinkHadTheStopItWasLearntAtForecastsThat
   }
   EXPECT_GE(compared, 5);
 }
+
+namespace {
+
+// A model source that learns, at every stop, what EveryStopALearner learns (the valve's
+// conductance 10 % over or under the configured one, in turn), but on a thread of its own: the
+// update is ready only once it has been asked for `ready_after` times after the stop's event;
+// until then it says one is coming. One at a time: a stop while the last update is not taken
+// learns nothing.
+struct SlowLearner final : controller::RunListener, controller::ModelSource {
+  SlowLearner(const controller::Runtime& runtime, model::PlantParams plant, int ready_after)
+      : runtime_(runtime), plant_(std::move(plant)), ready_after_(ready_after) {}
+  void on_event(const controller::LoopEvent& e) override {
+    if (e.kind != controller::LoopEvent::Kind::kStop) return;
+    ++stops;
+    if (pending) return;
+    model::PlantParams p = plant_;
+    p.valve.max_conductance_m3_per_s_pa *= stops % 2 ? 1.1 : 0.9;
+    auto valve = std::make_shared<const model::ValveModel>(p.valve, p.gas);
+    controller::ModelUpdate u{runtime_.model(), valve, {}};
+    u.model.valve = valve.get();
+    u.record.t_s = e.t_s;
+    u.record.updates = static_cast<std::uint32_t>(stops);
+    learnt.push_back(valve.get());
+    pending = std::move(u);
+    asks_left = ready_after_;
+    coming = true;
+  }
+  std::optional<controller::ModelUpdate> take_model_update() override {
+    if (!pending) return std::nullopt;
+    if (asks_left > 0) {
+      --asks_left;
+      return std::nullopt;
+    }
+    coming = false;
+    std::optional<controller::ModelUpdate> u;
+    u.swap(pending);
+    return u;
+  }
+  bool update_coming() const override { return coming; }
+  void update_late() override {
+    coming = false;
+    ++late;
+  }
+  const controller::Runtime& runtime_;
+  model::PlantParams plant_;
+  int ready_after_;
+  std::optional<controller::ModelUpdate> pending;
+  std::vector<const model::ValveCharacteristic*> learnt;
+  int asks_left = 0, stops = 0, late = 0;
+  bool coming = false;
+};
+
+// A simulated run with a SlowLearner, drained after every tick as the loop goes on ticking (a
+// service thread that keeps up): the events and trajectory it writes, and how the drains went.
+struct SlowLearningRun {
+  config::Config config;
+  std::unique_ptr<model::ValveCharacteristic> valve;
+  std::ostringstream events, trajectory;
+  controller::EventsFile events_sink{events};
+  controller::TrajectoryFile trajectory_sink{trajectory};
+  IdentificationCount told;
+  controller::Run run;
+  std::unique_ptr<SlowLearner> learner;
+  int drains = 0, drains_waiting = 0;
+  std::size_t most_ticks_queued = 0;
+
+  SlowLearningRun(const std::vector<std::string>& overrides, int ready_after)
+      : config(config::load_string(config::default_config_yaml(), overrides)),
+        valve(controller::make_valve_characteristic(config, {})) {
+    controller::resolve_offset(config, *valve);
+    run = controller::make_run(config, *valve, backends::make_sim_backend(config));
+    learner = std::make_unique<SlowLearner>(*run.runtime, config.plant, ready_after);
+    run.runtime->add_sink(*learner);
+    run.runtime->add_sink(events_sink);
+    run.runtime->add_sink(trajectory_sink);
+    run.runtime->add_sink(told);
+    run.runtime->set_model_source(*learner);
+    const double period = config.controller.period_s();
+    const auto ticks = static_cast<int>(std::llround(config.controller.duration_s / period)) + 1;
+    run.loop->start(0.0);
+    for (int k = 0; k < ticks; ++k) {
+      run.loop->tick(k * period);
+      most_ticks_queued = std::max(most_ticks_queued, run.outputs->ticks.size());
+      ++drains;
+      if (!run.runtime->drain(*run.outputs)) ++drains_waiting;
+    }
+    while (!run.runtime->drain(*run.outputs)) ++drains_waiting;
+    run.runtime->finish(run.runtime->end_time_s());
+  }
+};
+
+}  // namespace
+
+TEST(Runtime, WaitsForAnUpdateStillBeingMadeResumingWhereItStoppedSoThatTheRunIsTheSameAsWithTheUpdateReadyAtOnce) {
+  const SlowLearningRun at_once(back_and_forth(6), 0);
+  const SlowLearningRun slow(back_and_forth(6), 100);  // ready 100 drains (100 ms of ticks) after the stop
+  ASSERT_GE(slow.learner->stops, 6);
+  EXPECT_EQ(at_once.drains_waiting, 0);
+  // It waited at each stop, about 100 drains each (the first asks twice), the loop ticking on.
+  EXPECT_GE(slow.drains_waiting, 98 * slow.learner->stops);
+  EXPECT_GE(slow.most_ticks_queued, 98u);
+  EXPECT_EQ(slow.run.runtime->model_updates_late(), 0u);
+  EXPECT_EQ(slow.learner->late, 0);
+  EXPECT_EQ(slow.told.records, slow.learner->stops);
+  // Every record the same, in the same order: each stop forecast on the model learnt at its event.
+  EXPECT_EQ(at_once.events.str(), slow.events.str());
+  EXPECT_TRUE(at_once.trajectory.str() == slow.trajectory.str()) << "trajectories differ";
+  EXPECT_EQ(slow.run.runtime->ticks_seen(), at_once.run.runtime->ticks_seen());
+  EXPECT_EQ(slow.run.runtime->sequence_gaps(), 0u);
+}
+
+TEST(Runtime, AnUpdateNotReadyWithHalfTheTicksQueueFullIsLateItsStopForecastOnTheModelInForceAndItIsTakenOnceMade) {
+  // The default's step at 1 s stops twice (1.32 s, 1.44 s); an update ready 6,000 asks after the
+  // first stop: more than the 4,096 drains, one per tick, it takes the ticks queue to fill half
+  // way. The second stop comes while it is still being made.
+  const SlowLearningRun r({"controller.duration_s=7"}, 6000);
+  ASSERT_EQ(r.learner->stops, 2);
+  ASSERT_EQ(r.learner->learnt.size(), 1u);
+  EXPECT_EQ(r.run.runtime->model_updates_late(), 1u);
+  EXPECT_EQ(r.learner->late, 1);
+  EXPECT_EQ(r.most_ticks_queued, controller::Runtime::kMaxTicksQueuedWaiting);
+  EXPECT_EQ(r.run.outputs->ticks_dropped, 0u) << "the queue never overflowed";
+  EXPECT_EQ(r.run.runtime->sequence_gaps(), 0u);
+  EXPECT_EQ(r.run.runtime->ticks_seen(), 7001u);
+  // The stop forecast on the configured valve ...
+  const auto& stops = r.run.runtime->stops();
+  ASSERT_EQ(stops.size(), 2u);
+  ASSERT_TRUE(stops[0].nonlinear);
+  const controller::Prediction configured =
+      controller::predict_nonlinear(controller::predictor_model(r.config, *r.valve), stops[0].snapshot);
+  EXPECT_EQ(stops[0].nonlinear->will_restart, configured.will_restart);
+  if (configured.will_restart) {
+    EXPECT_DOUBLE_EQ(stops[0].nonlinear->t_restart_s, configured.t_restart_s);
+  }
+  // ... and the late update taken over once made, told to the sinks.
+  EXPECT_EQ(r.told.records, 1);
+  EXPECT_EQ(r.run.runtime->model().valve, r.learner->learnt.front());
+}

@@ -229,7 +229,12 @@ int run(int argc, char** argv) {
   if (identify_path && real_clock) run.runtime->add_sink(progress);
   // Online identification (controller.predictor.learn_online): the forecasts on what it learns.
   std::optional<identify::OnlineIdentifier> learner;
-  if (cfg.controller.predictor.learn_online && !identify_path) learner.emplace(as_configured, *run.runtime);
+  // On the real clock the fit runs on the learner's own thread: the service thread that drains
+  // also pets systemd's watchdog, publishes health and handles commands.
+  if (cfg.controller.predictor.learn_online && !identify_path)
+    learner.emplace(as_configured, *run.runtime, identify::OnlineIdentifier::kDefaultWindow_s,
+                    real_clock ? identify::OnlineIdentifier::Fitting::kOnItsOwnThread
+                               : identify::OnlineIdentifier::Fitting::kOnTheDrainingThread);
   const std::unique_ptr<Telemetry> telemetry = Telemetry::start(cfg, run, args.flag("require-telemetry"));
   // One controller per bench: another pneud's health on these channels refuses the start, before
   // anything is driven or reported ready. Where none can be heard, a bench's run says so.
@@ -314,10 +319,16 @@ int run(int argc, char** argv) {
   files.write_summary_json(figures, *run.runtime);
   if (!args.flag("quiet")) controller::print_summary(stdout, figures, *run.runtime);
   if (learner && !args.flag("quiet")) {
-    std::printf("online identification: %d updates from the run's own signals, the longest %.0f ms off the loop's "
-                "thread (%d stops after a breakaway could not update%s%s)\n",
-                learner->updates(), learner->longest_update_s() * 1e3, learner->refused(),
+    std::printf("online identification: %d updates from the run's own signals, the longest %.0f ms %s "
+                "(%d stops after a breakaway could not update%s%s)\n",
+                learner->updates(), learner->longest_update_s() * 1e3,
+                real_clock ? "on the learner's own thread" : "off the loop's thread", learner->refused(),
                 learner->refused() > 0 ? ": " : "", learner->last_refusal().c_str());
+    std::printf("  %d updates late (their stop forecast on the model before: the fit outlasted %.1f s of ticks "
+                "queued), %d stops after a breakaway found a late fit still running\n",
+                learner->updates_late(),
+                static_cast<double>(controller::Runtime::kMaxTicksQueuedWaiting) * cfg.controller.period_s(),
+                learner->stops_while_busy());
     if (learner->stops_forecast() > 0)
       std::printf("  %d of %d stops were forecast on a stiction bound not identified yet (the configured one: no "
                   "breakaway that way yet)\n",

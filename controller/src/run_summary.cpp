@@ -312,6 +312,7 @@ void write_summary_json(std::ostream& out, const RunFigures& f, const Runtime& r
   w.count("sequence_gaps", runtime.sequence_gaps());
   w.count("stops", runtime.stops_forgotten() + runtime.stops().size());
   w.count("stops_forgotten", runtime.stops_forgotten());
+  w.count("model_updates_late", runtime.model_updates_late());
   w.end_object();
 
   w.begin_array("faults");

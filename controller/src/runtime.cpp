@@ -75,33 +75,80 @@ StopSnapshot Runtime::with_hidden_state(StopSnapshot s) const noexcept {
 template <class Call>
 void Runtime::dispatch(const Call& call) {
   for (RunListener* sink : sinks_) call(*sink);
-  take_model_update();
+  if (!waiting_) take_model_update();  // (waiting, it is taken where the drain stopped)
 }
 
-void Runtime::take_model_update() {
-  if (model_source_ == nullptr) return;
+bool Runtime::take_model_update() {
+  if (model_source_ == nullptr) return false;
   std::optional<ModelUpdate> update = model_source_->take_model_update();
-  if (!update) return;
+  if (!update) return false;
   set_model(update->model, std::move(update->valve));
   for (RunListener* sink : sinks_) sink->on_identification(update->record);
+  return true;
 }
 
-void Runtime::drain(LoopOutputs& out) {
+bool Runtime::drain(LoopOutputs& out) {
+  if (waiting_ && !resume(out)) {
+    drain_health(out);
+    return false;
+  }
   // Ticks and events come on two queues. The loop pushes a tick's events before its record, so
   // the events raised up to a record are in their queue when the record is popped.
-  TickRecord r;
-  while (out.ticks.try_pop(r)) {
-    for (const LoopEvent* e = out.events.front(); e && e->tick_seq <= r.seq; e = out.events.front()) {
+  for (;;) {
+    if (!in_hand_) {
+      TickRecord r;
+      if (!out.ticks.try_pop(r)) break;
+      in_hand_ = r;
+    }
+    for (const LoopEvent* e = out.events.front(); e && e->tick_seq <= in_hand_->seq; e = out.events.front()) {
       LoopEvent event;
       (void)out.events.try_pop(event);  // the one front() showed
-      on_event(event);
+      if (!on_event(event, out)) {
+        waiting_on_ = &out;
+        drain_health(out);
+        return false;
+      }
     }
+    const TickRecord r = *in_hand_;
+    in_hand_.reset();
     on_tick(r);
   }
   LoopEvent e;
-  while (out.events.try_pop(e)) on_event(e);
+  while (out.events.try_pop(e))
+    if (!on_event(e, out)) {
+      waiting_on_ = &out;
+      drain_health(out);
+      return false;
+    }
+  drain_health(out);
+  return true;
+}
+
+void Runtime::drain_health(LoopOutputs& out) {
   HealthRecord h;
   while (out.health.try_pop(h)) dispatch([&](RunListener& sink) { sink.on_health(h); });
+}
+
+bool Runtime::on_event(const LoopEvent& e, const LoopOutputs& out) {
+  for (RunListener* sink : sinks_) sink->on_event(e);
+  if (model_source_ != nullptr && !take_model_update() && model_source_->update_coming()) {
+    waiting_ = e;
+    return resume(out);
+  }
+  act_on(e);
+  return true;
+}
+
+bool Runtime::resume(const LoopOutputs& out, bool give_up) {
+  if (!take_model_update() && model_source_->update_coming()) {
+    if (!give_up && out.ticks.size() < kMaxTicksQueuedWaiting) return false;
+    ++model_updates_late_;  // the stop forecast on the model in force; the update from the next record on
+    model_source_->update_late();
+  }
+  const LoopEvent e = *waiting_;
+  waiting_.reset();
+  act_on(e);
+  return true;
 }
 
 void Runtime::on_tick(const TickRecord& r) {
@@ -243,8 +290,7 @@ void Runtime::settle(StopOutcome& s) const {
   if (!keep_reforecasts_) std::vector<Reforecast>().swap(s.reforecasts);
 }
 
-void Runtime::on_event(const LoopEvent& e) {
-  dispatch([&](RunListener& sink) { sink.on_event(e); });
+void Runtime::act_on(const LoopEvent& e) {
   if (e.kind == LoopEvent::Kind::kStop) {
     StopOutcome s;
     s.index = e.stop_index;
@@ -307,6 +353,10 @@ void Runtime::on_event(const LoopEvent& e) {
 }
 
 void Runtime::finish(double t_end_s) {
+  while (waiting_) {  // the update given up on (late), the rest drained
+    (void)resume(*waiting_on_, true);
+    (void)drain(*waiting_on_);
+  }
   t_end_s_ = std::max(t_end_s_, t_end_s);
   for (auto& s : stops_)
     if (!s.ended) {

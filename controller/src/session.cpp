@@ -102,6 +102,17 @@ bool movement_test_runs(const config::Config& config) noexcept {
          config.controller.start_armed;
 }
 
+namespace {
+
+// Drains everything queued, waiting for a model update the drain stops for (no tick is queued
+// meanwhile: between simulated ticks, or once the loop has stopped), so that the run's records do
+// not depend on how long the update takes.
+void drain_all(Runtime& runtime, LoopOutputs& outputs) {
+  while (!runtime.drain(outputs)) std::this_thread::sleep_for(std::chrono::microseconds(200));
+}
+
+}  // namespace
+
 void execute(Run& run, const config::Config& config, Clock& clock,
              const std::atomic<bool>& stop_requested,
              const std::function<void(int timeout_ms)>& wait_for_input,
@@ -128,7 +139,7 @@ void execute(Run& run, const config::Config& config, Clock& clock,
   const double health_s = config.telemetry.health_period_s;
   if (clock.simulated()) {
     run_loop(*run.loop, clock, period, ticks, stop_requested, run.timing,
-             [&] { run.runtime->drain(*run.outputs); }, health_s, run.outputs.get(), {}, before_time);
+             [&] { drain_all(*run.runtime, *run.outputs); }, health_s, run.outputs.get(), {}, before_time);
   } else {
     std::atomic<bool> done{false};
     std::thread service([&] {
@@ -155,7 +166,7 @@ void execute(Run& run, const config::Config& config, Clock& clock,
   }
   run.loop->stop();
   run.backend->close();
-  run.runtime->drain(*run.outputs);
+  drain_all(*run.runtime, *run.outputs);  // a model update still being made: waited for
   run.runtime->finish(run.runtime->end_time_s());
 }
 

@@ -9,17 +9,39 @@
 
 namespace pneu::identify {
 
-OnlineIdentifier::OnlineIdentifier(const config::Config& config, controller::Runtime& runtime, double window_s)
+OnlineIdentifier::OnlineIdentifier(const config::Config& config, controller::Runtime& runtime, double window_s,
+                                   Fitting fitting)
     : runtime_(runtime), prior_(config.plant), forecast_valves_(config.plant), options_(options_for(config)),
-      window_s_(window_s), model_(runtime.model()) {
+      window_s_(window_s), fitting_(fitting), model_(runtime.model()) {
   // The short stuck phases of ordinary stick-slip carry the valves too: fit every one.
   options_.min_fit_phase_s = options_.min_stuck_s;
   const auto ticks = static_cast<std::size_t>(std::ceil(window_s_ * config.controller.rate_hz)) + 2;
   samples_.reserve(ticks + ticks / 4);
+  fit_.window.reserve(samples_.capacity());
 
   estimate_.plant = prior_;
+  if (fitting_ == Fitting::kOnItsOwnThread) thread_ = std::jthread([this](std::stop_token stop) { fit_on_own_thread(stop); });
   runtime.add_sink(*this);
   runtime.set_model_source(*this);
+}
+
+OnlineIdentifier::~OnlineIdentifier() {
+  if (thread_.joinable()) {
+    thread_.request_stop();  // (wakes it from posted_; a fit running is finished first)
+    thread_.join();
+  }
+}
+
+void OnlineIdentifier::fit_on_own_thread(std::stop_token stop) {
+  for (;;) {
+    {
+      std::unique_lock lock(mutex_);
+      if (!posted_.wait(lock, stop, [this] { return fit_posted_; })) return;  // asked to stop
+      fit_posted_ = false;
+    }
+    run_fit(fit_, prior_, outcome_);
+    fit_done_.store(true, std::memory_order_release);
+  }
 }
 
 void OnlineIdentifier::on_tick(const controller::TickRecord& tick, const controller::ExpectedAtTick&) {
@@ -35,9 +57,16 @@ void OnlineIdentifier::on_tick(const controller::TickRecord& tick, const control
 }
 
 std::optional<controller::ModelUpdate> OnlineIdentifier::take_model_update() {
-  std::optional<controller::ModelUpdate> update;
-  update.swap(pending_);
-  return update;
+  if (!fitting_now_ || !fit_done_.load(std::memory_order_acquire)) return std::nullopt;
+  fit_done_.store(false, std::memory_order_relaxed);
+  fitting_now_ = false;
+  awaited_ = false;
+  return finish_update();
+}
+
+void OnlineIdentifier::update_late() {
+  awaited_ = false;
+  ++updates_late_;
 }
 
 void OnlineIdentifier::on_event(const controller::LoopEvent& e) {
@@ -45,10 +74,13 @@ void OnlineIdentifier::on_event(const controller::LoopEvent& e) {
   if (e.kind == Kind::kStart) {
     ++starts_since_update_;
     if (e.restart) ++restarts_;
-    if (stuck_since_s_ >= 0.0 && e.t_s - stuck_since_s_ >= options_.min_fit_phase_s) new_long_phase_ = true;
+    if (stuck_since_s_ >= 0.0 && e.t_s - stuck_since_s_ >= options_.min_fit_phase_s) ++long_phases_ended_;
     stuck_since_s_ = -1.0;
   } else if (e.kind == Kind::kStop) {
-    if (starts_since_update_ > 0 && first_ < samples_.size()) update(samples_.back().t_s);
+    if (starts_since_update_ > 0 && first_ < samples_.size()) {
+      if (fitting_now_) ++stops_while_busy_;  // a late fit still running: the next stop's update
+      else start_update(samples_.back().t_s);
+    }
     stuck_since_s_ = e.t_s;
   }
 }
@@ -73,36 +105,66 @@ bool OnlineIdentifier::forecast_on_a_configured_bound(std::uint64_t stop) const 
 }
 
 bool OnlineIdentifier::valve_fit_due(double t_s) const noexcept {
-  if (!new_long_phase_) return false;
+  if (long_phases_ended_ == long_phases_fitted_) return false;
   if (valve_fits_ == 0) return true;
   const double since_first_s = t_s - first_valve_fit_s_;
   return t_s - last_valve_fit_s_ >= kValveRefitShare * std::min(since_first_s, window_s_);
 }
 
-void OnlineIdentifier::update(double t_s) {
-  const auto wall0 = std::chrono::steady_clock::now();
-  struct Timed {  // the update's wall time, however it ends
-    std::chrono::steady_clock::time_point from;
-    double& longest;
-    ~Timed() {
-      longest = std::max(longest, std::chrono::duration<double>(std::chrono::steady_clock::now() - from).count());
-    }
-  } timed{wall0, longest_update_s_};
+void OnlineIdentifier::start_update(double t_s) {
   starts_since_update_ = 0;
-  Options o = options_;
-  o.fit_valves = valve_fit_due(t_s);
-  o.at_rest_at_start = window_from_start_;  // the run's start is at rest; a later window's is not
-  if (updates_ > 0) o.valve_fit_starts = {forecast_valves_};
-  Identification id;
-  try {
-    id = identify(window(), prior_, o);
-  } catch (const std::exception& e) {  // too little in the window (InsufficientData), or worse:
-    ++refused_;                         // the run goes on, forecasting on the last estimate
-    last_refusal_ = e.what();
+  Fit& f = fit_;  // (no fit is running: fitting_now_ is false)
+  f.options = options_;
+  f.options.fit_valves = valve_fit_due(t_s);
+  f.options.at_rest_at_start = window_from_start_;  // the run's start is at rest; a later window's is not
+  f.options.valve_fit_starts.clear();
+  if (updates_ > 0) f.options.valve_fit_starts = {forecast_valves_};
+  f.t_s = t_s;
+  f.long_phases = long_phases_ended_;
+  const std::span<const Sample> w = window();
+  f.window.assign(w.begin(), w.end());  // within the capacity taken at the start
+  fitting_now_ = true;
+  awaited_ = true;
+  if (fitting_ == Fitting::kOnTheDrainingThread) {
+    run_fit(f, prior_, outcome_);
+    fit_done_.store(true, std::memory_order_relaxed);
     return;
   }
+  {
+    const std::lock_guard lock(mutex_);
+    fit_posted_ = true;
+  }
+  posted_.notify_one();
+}
+
+void OnlineIdentifier::run_fit(const Fit& fit, const model::PlantParams& prior, FitOutcome& outcome) {
+  const auto wall0 = std::chrono::steady_clock::now();
+  outcome.refused = false;
+  outcome.refusal.clear();
+  try {
+    outcome.id = identify(fit.window, prior, fit.options);
+  } catch (const std::exception& e) {  // too little in the window (InsufficientData), or worse:
+    outcome.refused = true;             // the run goes on, forecasting on the last estimate
+    outcome.refusal = e.what();
+  } catch (...) {
+    outcome.refused = true;
+    outcome.refusal = "the fit failed";
+  }
+  outcome.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+}
+
+std::optional<controller::ModelUpdate> OnlineIdentifier::finish_update() {
+  longest_update_s_ = std::max(longest_update_s_, outcome_.wall_s);
+  if (outcome_.refused) {
+    ++refused_;
+    last_refusal_ = outcome_.refusal;
+    return std::nullopt;
+  }
+  const double t_s = fit_.t_s;
+  const Options& o = fit_.options;
+  const Identification& id = outcome_.id;
   if (o.fit_valves) {
-    new_long_phase_ = false;
+    long_phases_fitted_ = fit_.long_phases;
     if (valve_fits_++ == 0) first_valve_fit_s_ = t_s;
     last_valve_fit_s_ = t_s;
     // The link's delay, found by the first fit, is kept: the next fits need not search it.
@@ -176,7 +238,7 @@ void OnlineIdentifier::update(double t_s) {
     record.sigma[i] = e.identified ? e.std : 0.0;
     record.identified[i] = e.identified;
   }
-  pending_ = controller::ModelUpdate{m, std::move(valve), record};
+  return controller::ModelUpdate{m, std::move(valve), record};
 }
 
 }  // namespace pneu::identify

@@ -95,6 +95,16 @@ class ModelSource {
   virtual ~ModelSource() = default;
   /// The update made since the last call, if any (each once).
   [[nodiscard]] virtual std::optional<ModelUpdate> take_model_update() = 0;
+  /// Whether an update for the event just handed (a stop's) is being made and is not ready yet
+  /// (take_model_update() gave none): the runtime then waits for it before it acts on the event
+  /// (Runtime::drain). None by default: a source that makes its update while it is handed the
+  /// event has it ready when asked.
+  [[nodiscard]] virtual bool update_coming() const { return false; }
+  /// The runtime waited for the update update_coming() said was coming as long as it could
+  /// (Runtime::kMaxTicksQueuedWaiting) and went on without it: the event's forecasts are made on
+  /// the model in force. The update, once made, is still given by take_model_update(), and taken
+  /// over from then on.
+  virtual void update_late() {}
 };
 
 /// A sink of the runtime: receives, in order, what the runtime drains from the loop and what it

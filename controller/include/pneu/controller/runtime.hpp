@@ -48,15 +48,32 @@ class Runtime {
   /// every sink has had a record, the runtime asks it for an update; one it gives is taken over
   /// (set_model) and told to the sinks (RunListener::on_identification) before the runtime acts
   /// on that record: a stop's forecasts are made on the model learnt at the stop's event. So no
-  /// sink changes the runtime while the runtime is handing it a record. Not owned; it must outlive
-  /// the runtime's last drain() or finish().
+  /// sink changes the runtime while the runtime is handing it a record. An update still being made
+  /// on a thread of the source's own (ModelSource::update_coming) is waited for: see drain(). Not
+  /// owned; it must outlive the runtime's last drain() or finish().
   void set_model_source(ModelSource& source) noexcept { model_source_ = &source; }
 
   /// Pops everything the loop queued, each event before the record of the tick that raised it,
   /// so that the result does not depend on how often it is called. Not real-time: call from the
-  /// service thread or between simulated ticks.
-  void drain(LoopOutputs& outputs);
-  /// Closes the run at `t_end_s` (or the last tick drained, if later).
+  /// service thread or between simulated ticks. True when it drained everything; false when it
+  /// stopped to wait for a model update: the model source said one was coming for the event just
+  /// handed (ModelSource::update_coming). The records after it then stay in the loop's queues
+  /// (the health records excepted: they are handed on while it waits) and the next drain()
+  /// resumes exactly there, first asking the source for the update. It waits while fewer than
+  /// kMaxTicksQueuedWaiting ticks are queued; then it goes on with the model in force (the stop
+  /// forecast on it), counts the update late (model_updates_late(), ModelSource::update_late) and
+  /// takes the update, once given, from the next record on.
+  bool drain(LoopOutputs& outputs);
+  /// The most ticks queued that drain() waits for a model update with: half the ticks queue,
+  /// 4.1 s of a 1 kHz loop, so that the queue does not overflow while it waits.
+  static constexpr std::size_t kMaxTicksQueuedWaiting = decltype(LoopOutputs::ticks)::capacity() / 2;
+  /// Whether the last drain() stopped to wait for a model update.
+  [[nodiscard]] bool waiting_for_model_update() const noexcept { return waiting_.has_value(); }
+  /// The model updates drain() stopped waiting for before they came (their stops forecast on the
+  /// model in force).
+  [[nodiscard]] std::uint64_t model_updates_late() const noexcept { return model_updates_late_; }
+  /// Closes the run at `t_end_s` (or the last tick drained, if later). Waiting for a model update
+  /// (drain() returned false), it goes on without it first (the update late) and drains the rest.
   void finish(double t_end_s);
   /// Hands a command's verdict to the sinks, dated by the last tick drained. Not real-time, not
   /// thread-safe: call from the thread that drains (the service thread).
@@ -101,7 +118,14 @@ class Runtime {
 
  private:
   void on_tick(const TickRecord& r);
-  void on_event(const LoopEvent& e);
+  // Hands the event to the sinks, then acts on it once the model source's update for it is
+  // taken (or late); false: waiting for it (waiting_).
+  bool on_event(const LoopEvent& e, const LoopOutputs& out);
+  // The wait for the update of waiting_: true once it is over (the update taken, or given up on
+  // with `out`'s ticks queue half full or `give_up`), waiting_ acted on.
+  bool resume(const LoopOutputs& out, bool give_up = false);
+  void act_on(const LoopEvent& e);
+  void drain_health(LoopOutputs& out);
   void emit_forecast(const StopOutcome& s, const Prediction& p);
   void reforecast(StopOutcome& s, const TickRecord& r, const ExpectedAtTick& expected);
   void settle(StopOutcome& s) const;
@@ -109,7 +133,8 @@ class Runtime {
   // Hands a record to every sink (`call(sink)`), then takes over the model source's update, if any.
   template <class Call>
   void dispatch(const Call& call);
-  void take_model_update();
+  // Whether it took one.
+  bool take_model_update();
 
   // The forecasts of the open stop, followed while they hold.
   struct Following {
@@ -126,6 +151,12 @@ class Runtime {
   PredictorModel model_;
   std::shared_ptr<const model::ValveCharacteristic> valve_;  // owns model_.valve, if it was handed over
   ModelSource* model_source_ = nullptr;
+  // Where a drain() waiting for a model update stopped: the event handed (not acted on yet), the
+  // tick popped whose events were being handed (its record not handed yet), the queues.
+  std::optional<LoopEvent> waiting_;
+  std::optional<TickRecord> in_hand_;
+  LoopOutputs* waiting_on_ = nullptr;
+  std::uint64_t model_updates_late_ = 0;
   std::optional<model::ChamberObserver> observer_;  // with a model that has hidden state
   bool observer_started_ = false;
   // The last commands (u_P, u_N), newest first: the valves act on the one model_.command_delay_samples back.

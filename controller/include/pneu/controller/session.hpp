@@ -85,7 +85,9 @@ struct Run {
                            std::unique_ptr<hal::Backend> backend, const ControlLaw& law);
 
 /// Runs it for controller.duration_s on `clock` (the simulated clock drains the runtime between
-/// ticks; the real clock drains it from a service thread), then finishes the runtime.
+/// ticks, waiting there for a model update the drain stops for; the real clock drains it from a
+/// service thread, which does not wait: it calls `wait_for_input` and drains again), then drains
+/// what is left (a model update still being made waited for) and finishes the runtime.
 /// `wait_for_input(timeout_ms)`, when set, is how the service thread waits between drains (LCM's
 /// handle); else it sleeps 2 ms.
 /// `on_loop_thread`, when set, runs on the loop thread once the backend is open, just before time

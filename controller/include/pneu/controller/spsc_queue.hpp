@@ -48,6 +48,10 @@ class SpscQueue {
     }
     return &slots_[tail & (Capacity - 1)];
   }
+  /// Consumer side: how many are queued (at least; the producer may be pushing more).
+  [[nodiscard]] std::size_t size() const noexcept {
+    return head_.load(std::memory_order_acquire) - tail_.load(std::memory_order_relaxed);
+  }
   [[nodiscard]] static constexpr std::size_t capacity() noexcept { return Capacity; }
 
  private:
