@@ -15,6 +15,7 @@
 #include <chrono>
 #include <functional>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -159,16 +160,29 @@ TEST_F(LcmIntegration, LcmLoggerRecordsEveryTickInOrderWithEventsAndPredictions)
   const auto ticks = summary.ticks, skipped = summary.skipped;
   EXPECT_EQ(states.size(), ticks);
   EXPECT_EQ(ticks + skipped, 3001u);
-  bool stop = false, restart = false;
-  for (const auto& e : events) {
-    stop |= e.kind == pneu_lcm::event_t::KIND_STOP;
-    restart |= e.kind == pneu_lcm::event_t::KIND_RESTART;
+  // The events and forecasts in the log are those pneud wrote to its events file: how many stops
+  // and restarts the run had is the bench's business (on a loaded machine, with deadlines skipped,
+  // the short first sticking phase may not come), that each is published is this test's.
+  std::map<std::string, int> written;
+  {
+    std::ifstream in(dir_ / "events.jsonl");
+    for (std::string line; std::getline(in, line);) {
+      for (const char* kind : {"stop", "prediction", "reforecast"})
+        if (line.find(std::string("{\"event\":\"") + kind + "\"") == 0) ++written[kind];
+      if (line.find("{\"event\":\"start\"") == 0 && line.find("\"restart\":true") != std::string::npos)
+        ++written["restart"];
+    }
   }
-  EXPECT_TRUE(stop && restart) << "the paper run stops at 1.6 s and restarts at 1.8 s";
-  EXPECT_GT(made_again, 0) << "the carriage sticks for 0.2 s from 1.6 s: re-forecast at 0.1 s";
-  EXPECT_EQ(at_stops, 2 * static_cast<int>(std::count_if(events.begin(), events.end(), [](const auto& e) {
-                           return e.kind == pneu_lcm::event_t::KIND_STOP;
-                         })));
+  const auto logged = [&](std::int8_t kind) {
+    return static_cast<int>(std::count_if(events.begin(), events.end(), [&](const auto& e) { return e.kind == kind; }));
+  };
+  ASSERT_GE(written["stop"], 1) << "the default bench sticks near its set point within 3 s: " << slurp(dir_ / "events.jsonl");
+  EXPECT_EQ(logged(pneu_lcm::event_t::KIND_STOP), written["stop"]);
+  EXPECT_EQ(logged(pneu_lcm::event_t::KIND_RESTART), written["restart"]);
+  EXPECT_EQ(at_stops, written["prediction"]) << "each stop's forecasts, both methods";
+  EXPECT_EQ(at_stops, 2 * written["stop"]);
+  EXPECT_EQ(made_again, written["reforecast"]);
+  EXPECT_GT(made_again, 0) << "the last sticking phase lasts past 0.1 s: re-forecast while stuck";
   EXPECT_GE(counts["PNEU_HEALTH"], 2);
 
   // The converter's CSV holds the same.
