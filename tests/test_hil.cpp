@@ -299,7 +299,12 @@ TEST_F(Hil, PaperScenarioOverModbusSticksRestartsAndTheNonlinearForecastHoldsWit
 // window, and once held there it never starts again: judged on serve's own record of the plant's
 // motion (--events: no breakaway after the hold, on CLOCK_MONOTONIC), not on pneud's dating, which
 // a loaded machine blurs; the forecasts under the hold's commands say no restart.
-TEST_F(Hil, PaperScenarioWithTheHoldOverModbusNeverRestartsOnceHeldWithinTheWindow) {
+// An idle machine: the hold keeps the force inside the stiction band only while its loop runs on
+// time. With two busy loops beside the suite (bench/ctest_under_load.sh) it failed once in six:
+// the forecasts under the hold said restart three times, and the plant broke away at the bound
+// (-50 N) after the hold began: most likely the pressures drifting under a late loop's commands,
+// the phenomenon itself. A bench's pneud runs with controller.realtime on a PREEMPT_RT kernel.
+TEST_F(Hil, PaperScenarioWithTheHoldOverModbusNeverRestartsOnceHeldWithinTheWindowOnAnIdleMachine) {
   const fs::path plant_events = dir_ / "plant.jsonl";
   Child plant = serve(15.0, {"--events", plant_events.string()});
   Child pneud = Child::spawn(pneud_args(with({"--events", (dir_ / "events.jsonl").string(), "--summary-json", summary_json(),
