@@ -135,6 +135,12 @@ TEST_F(OutputFiles, ADanglingSymbolicLinkCreatesTheFileItNames) {
   EXPECT_EQ(slurp(dir_ / "tgt.csv"), "x\n");
 }
 
+TEST_F(OutputFiles, ANewOrRegularFileIsNotWrittenDirectly) {
+  EXPECT_FALSE(OutputFile(dir_ / "new.csv", "--out").direct()) << "nothing there yet";
+  std::ofstream(dir_ / "old.csv") << "x\n";
+  EXPECT_FALSE(OutputFile(dir_ / "old.csv", "--out").direct());
+}
+
 TEST_F(OutputFiles, ACharacterDeviceIsWrittenDirectlyAndStaysADevice) {
   const fs::path null = device("null", 3);
   OutputFile out(null, "--summary-json");

@@ -201,5 +201,19 @@ for text in "trajectory, held" "the hold's target: x - y = (F_S+ + F_S-) / 2 = -
   grep -qF "$text" "$tmp/held/held_plane.svg" || fail "the held run's plane figure lacks '$text'"
 done
 
+# 6. A run made with --set is drawn with the run's values: without --config the tool reads the
+# effective configuration pneud wrote beside the trajectory (T.csv.config.yaml), not a YAML file
+# that lacks the override (given it, the recorded force disagrees and the tool says so).
+"$bin/pneud" --config "$tmp/config.yaml" --quiet --duration 3 --set plant.geometry.bore_diameter_m=0.04 \
+  --events "$tmp/bore.jsonl" --trajectory "$tmp/bore.csv"
+[ -s "$tmp/bore.csv.config.yaml" ] || fail "no effective configuration beside the trajectory"
+"$py" "$tool" --trajectory "$tmp/bore.csv" --events "$tmp/bore.jsonl" --out-dir "$tmp/bore" --name bore \
+  > /dev/null 2> "$tmp/bore.err" || fail "pneu_plots.py failed on the --set run: $(cat "$tmp/bore.err")"
+! grep -q "is it the run's configuration" "$tmp/bore.err" || fail "drawn with other values than the run's: $(cat "$tmp/bore.err")"
+"$py" "$tool" --trajectory "$tmp/bore.csv" --events "$tmp/bore.jsonl" --config "$tmp/config.yaml" \
+  --out-dir "$tmp/bore_file" --name bore > /dev/null 2> "$tmp/bore_file.err" || fail "pneu_plots.py failed with --config"
+grep -q "is it the run's configuration" "$tmp/bore_file.err" || fail "a configuration without the --set is not noticed"
+
 echo "plots: $stops stops; paper_time, paper_plane and paper_forecast (PNG and SVG) from pneud's output," \
-     "the first two from LCM CSVs and from a trajectory without forecast columns; the stability map; a held run's plane; bad input refused"
+     "the first two from LCM CSVs and from a trajectory without forecast columns; the stability map; a held run's plane;" \
+     "a --set run drawn with its effective configuration; bad input refused"

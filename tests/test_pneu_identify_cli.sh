@@ -8,13 +8,19 @@ bin=$1/bin
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
 fail() { echo "FAIL: $*"; exit 1; }
 
-"$bin/pneud" --quiet --trajectory "$tmp/run.csv" --set hal.sim.plant.friction.static_negative_n=-55
+"$bin/pneud" --quiet --trajectory "$tmp/run.csv" --set hal.sim.plant.friction.static_negative_n=-55 \
+  --set controller.predictor.horizon_s=9
 "$bin/pneu-identify" --trajectory "$tmp/run.csv" --out "$tmp/id.yaml" > "$tmp/out.txt" || fail "identified from an ordinary run"
 cat "$tmp/out.txt"
 grep -qE '^plant.friction.static_negative_n +-50 +-55\.0' "$tmp/out.txt" || fail "F_S- identified from the run's restarts"
 grep -qE '^plant.friction.static_positive_n .*no breakaway in the positive direction' "$tmp/out.txt" \
   || fail "F_S+ reported not identified: the run restarts one way"
 "$bin/pneud" --config "$tmp/id.yaml" --check-config > /dev/null || fail "the written configuration loads"
+
+# Without --config, the run's own configuration, the one pneud wrote beside the trajectory, is
+# the prior: what the run was given with --set is kept in the written configuration.
+[ -s "$tmp/run.csv.config.yaml" ] || fail "pneud wrote no configuration beside the trajectory"
+grep -qE '^ +horizon_s: 9$' "$tmp/id.yaml" || fail "the run's controller.predictor.horizon_s=9 is not kept"
 
 # A record where the carriage never stands still: refused, naming it, nothing written.
 awk -F, 'BEGIN { OFS = "," } NR == 1 { print; next } { $4 = $2 * 0.01; print }' "$tmp/run.csv" > "$tmp/sliding.csv"

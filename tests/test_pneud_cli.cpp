@@ -227,6 +227,32 @@ TEST_F(PneudCli, CheckConfigPrintsTheEffectiveYamlWithTheOffsetResolvedAndRunsNo
   EXPECT_THAT(o.out, Not(HasSubstr("stops (sticking phases)")));
 }
 
+TEST_F(PneudCli, EachRunWritesItsEffectiveConfigurationBesideItsEventsAndTrajectoryWhichLoadsBackTheSame) {
+  const std::string gain = " --set controller.law.position_gain_v_per_m=61";
+  const Outcome o = pneud("--quiet --duration 1 --events " + quoted(file("e.jsonl")) + " --trajectory " +
+                          quoted(file("t.csv")) + gain);
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  const std::string beside_trajectory = slurp(file("t.csv.config.yaml"));
+  EXPECT_EQ(slurp(file("e.jsonl.config.yaml")), beside_trajectory) << "the same beside both";
+  EXPECT_THAT(beside_trajectory, HasSubstr("position_gain_v_per_m: 61")) << "--set applied";
+  EXPECT_THAT(beside_trajectory, HasSubstr("duration_s: 1")) << "--duration applied";
+  // It is the configuration the run had: loaded again, it is what --check-config gives for the run.
+  const Outcome again = pneud("--check-config --config " + quoted(file("t.csv.config.yaml")));
+  const Outcome original = pneud("--check-config --duration 1" + gain);
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  const auto body = [](const std::string& yaml) { return yaml.substr(yaml.find('\n') + 1); };  // past the comment
+  EXPECT_EQ(body(again.out), body(original.out));
+  EXPECT_EQ(body(beside_trajectory), body(original.out));
+}
+
+TEST_F(PneudCli, ARunThatNeverStartedWritesNoConfigurationBesideItsOutputs) {
+  const Outcome o = pneud("--clock real --duration 0.1 --set hal.gpio.enabled=true --set hal.gpio.chip=pneu-no-such-chip"
+                          " --events " + quoted(file("e.jsonl")) + " --trajectory " + quoted(file("t.csv")));
+  EXPECT_EQ(o.exit_code, 1) << o.out;
+  for (const auto& e : fs::directory_iterator(file("")))  // nor the files being written
+    EXPECT_THAT(e.path().filename().string(), Not(HasSubstr(".config.yaml"))) << e.path();
+}
+
 // Bad input: exit code 2, a message on stderr naming the key (or option) and the reason, nothing
 // on stdout, and no output file created (nothing ran).
 struct BadInput {
@@ -612,6 +638,7 @@ TEST_F(PneudCli, OutputsOnACharacterDeviceAreWrittenToItAndLeaveItADevice) {
                           " --trajectory " + quoted(null));
   EXPECT_EQ(o.exit_code, 0) << o.err;
   EXPECT_TRUE(is_char_device(null));
+  EXPECT_FALSE(fs::exists(file("null.config.yaml"))) << "no configuration beside a device";
 }
 
 TEST_F(PneudCli, ASummaryJsonOnAFullDeviceFailsWithExitOneAndLeavesItADevice) {

@@ -13,6 +13,7 @@
 #include "pneu/backends/factory.hpp"
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
+#include "pneu/config/text.hpp"
 #include "pneu/controller/journal.hpp"
 #include "pneu/controller/realtime.hpp"
 #include "pneu/controller/run_summary.hpp"
@@ -52,6 +53,9 @@ Usage:
   --trajectory FILE  one CSV row per tick: seq,t,y_d,y,v_hat,a_hat,p_P,p_N,F,u,stuck,mode,validity,
                      then, while stuck, the pressures and force each forecast made at the stop
                      expects (p_P_linearized,...,F_nonlinear; empty otherwise)
+                     Beside each of the two (a regular file), FILE.config.yaml: the run's
+                     effective configuration, as --check-config prints it; pneu_plots.py and
+                     pneu-identify read it in place of the source YAML
   --summary-json FILE  the run's figures as one JSON object, written whole at the end of the run
                      (--quiet or not; none is left when the run fails): the loop's ticks,
                      overruns, deadlines skipped and timing; the runtime's ticks, stops and
@@ -127,6 +131,20 @@ std::unique_ptr<model::ValveCharacteristic> load_valve(const config::Config& cfg
   } catch (const model::ValveTableError& e) {
     throw config::ConfigError("controller.predictor.valve_table", e.what());
   }
+}
+
+// The run's effective configuration as written beside its outputs: what the loop runs with, a
+// valve table named by its absolute path (the file lands elsewhere than the source YAML).
+std::string effective_configuration(config::Config cfg, const std::string& config_path) {
+  std::string& table = cfg.controller.predictor.valve_table;
+  if (!table.empty() && std::filesystem::path(table).is_relative()) {
+    const std::filesystem::path dir =
+        config_path.empty() ? std::filesystem::path() : std::filesystem::path(config_path).parent_path();
+    table = std::filesystem::absolute(dir / table).lexically_normal().string();
+  }
+  return "# the effective configuration of a pneud " PNEU_VERSION " run: what its loop ran with (" +
+         (config_path.empty() ? std::string("the embedded sim.yaml") : config_path) +
+         ", --set applied; u_0 = " + text::format("%.9g", cfg.controller.law.offset_v) + " V)\n" + config::to_yaml(cfg);
 }
 
 // What the summary says besides the runtime's account.
@@ -214,6 +232,7 @@ int run(int argc, char** argv) {
     std::fprintf(stderr, "pneud: warning: hal.modbus.module_watchdog_s is 0: no module watchdog stated; should pneud "
                          "die, the module holds its last command until a watchdog of its own trips\n");
   RunFiles files(args);  // before the run: a path that cannot be written, or two outputs on one file, fail here
+  files.write_effective_configuration(effective_configuration(cfg, config_path));
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   const controller::ControlLaw& driving = run_law ? *run_law : law;

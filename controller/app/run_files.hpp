@@ -3,8 +3,12 @@
 // before the run starts (a path that cannot be written fails then) and written beside their path,
 // then renamed into place when the run ends, however it ends once it started (nothing is left when
 // it never started); --summary-json, written whole at the end (when the run fails, none is
-// left: not an earlier run's either); and --identify's YAML. Two of them
-// naming the same file are refused before anything is opened.
+// left: not an earlier run's either); and --identify's YAML. Beside the events file and the
+// trajectory file (regular files), PATH.config.yaml: the run's effective configuration, what the
+// loop ran with (--set applied, u_0 resolved, an identification run's own set points), which the
+// tools that read the run (pneu_plots.py, pneu-identify) take in place of the source YAML; opened,
+// put into place and discarded with its file. Two of them naming the same file are refused before
+// anything is opened.
 #pragma once
 
 #include <optional>
@@ -33,7 +37,13 @@ class RunFiles {
   /// After a run that failed before its first tick: leaves no events, trajectory or summary at
   /// their paths (not an earlier run's either); an earlier --identify file is left as it was.
   void discard() noexcept;
-  /// Puts the events and trajectory files into place. Throws std::runtime_error when writing them
+  /// The effective configuration, written beside the events and the trajectory file.
+  void write_effective_configuration(const std::string& yaml);
+  /// The path of the effective configuration beside an output at `path`.
+  [[nodiscard]] static std::string effective_configuration_path(const std::string& path) {
+    return path + ".config.yaml";
+  }
+  /// Puts the events and trajectory files, and their configurations, into place. Throws std::runtime_error when writing them
   /// failed.
   void commit();
   /// --summary-json, when asked for. Throws std::runtime_error when writing it failed.
@@ -43,6 +53,7 @@ class RunFiles {
 
  private:
   std::optional<cli::OutputFile> events_, trajectory_, summary_json_, identified_;
+  std::optional<cli::OutputFile> events_config_, trajectory_config_;  ///< beside them
   std::optional<controller::EventsFile> events_sink_;
   std::optional<controller::TrajectoryFile> trajectory_sink_;
 };

@@ -2,6 +2,7 @@
 // --trajectory file, pneu-log2csv's state CSV, or an LCM log of the daemon's <prefix>STATE.
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <map>
@@ -35,7 +36,9 @@ Usage:
                      of the valve fit): pneud's --trajectory file, or pneu-log2csv's state CSV
   --lcm-log FILE     an LCM log (lcm-logger) of the daemon's state messages ...
   --channel NAME     ... on this channel (default: the config's telemetry.channel_prefix + STATE)
-  --config FILE      the configuration of the run (default: the embedded config/sim.yaml): plant:
+  --config FILE      the configuration of the run (default: the effective configuration pneud
+                     wrote beside --trajectory, FILE.csv.config.yaml, else the embedded
+                     config/sim.yaml): plant:
                      is the prior (what is not identified is kept), the stop detector's rest band
                      says how still a stuck carriage reads
   --out OUT.yaml     write the configuration with plant: identified
@@ -138,10 +141,13 @@ int run(int argc, char** argv) {
     std::printf("pneu-identify %s\n", PNEU_VERSION);
     return cli::kExitOk;
   }
-  const std::string config_path = args.value("config").value_or("");
-  const config::Config cfg = config::load_file_or_default(config_path);
   const auto trajectory = args.value("trajectory");
   const auto lcm_log = args.value("lcm-log");
+  // The run's own configuration, when pneud wrote it beside the trajectory.
+  std::string config_path = args.value("config").value_or("");
+  if (config_path.empty() && trajectory && std::filesystem::is_regular_file(*trajectory + ".config.yaml"))
+    config_path = *trajectory + ".config.yaml";
+  const config::Config cfg = config::load_file_or_default(config_path);
   if (trajectory.has_value() == lcm_log.has_value()) throw cli::UsageError("give one of --trajectory and --lcm-log");
   std::optional<cli::OutputFile> out;
   if (const auto p = args.value("out")) out.emplace(*p, "--out");  // an unwritable path fails first

@@ -20,8 +20,9 @@ pneu-log2csv converts from an LCM log (--log-csv DIR), and writes
                              columns: older trajectories and --log-csv input (the LCM STATE channel
                              carries no forecast) skip it with a note on stderr.
 
-Geometry and friction come from the YAML configuration (--config, default config/sim.yaml of
-the source tree); the null-flow curve from --null-flow CURVE.csv or, without it, from running
+Geometry and friction come from the run's configuration: --config, or else the effective
+configuration pneud wrote beside its output (T.csv.config.yaml, E.jsonl.config.yaml: --set
+applied), or else config/sim.yaml of the source tree; the null-flow curve from --null-flow CURVE.csv or, without it, from running
 `pneu-plant null-flow` on the same configuration. Exit codes: 0 written, 2 bad input (missing
 file, missing column, malformed value), 1 anything else.
 """
@@ -355,6 +356,14 @@ def null_flow_curve(args, config_path):
             raise InputError(f"'{' '.join(cmd)}' failed (exit {r.returncode}): "
                              f"{r.stderr.strip() or r.stdout.strip()}")
         return read_csv_columns(out, cols, what="pneu-plant null-flow output")
+
+
+def effective_config_beside(*outputs):
+    """The effective configuration pneud wrote beside one of its outputs, if any."""
+    for path in outputs:
+        if path and os.path.isfile(path + ".config.yaml"):
+            return path + ".config.yaml"
+    return None
 
 
 def default_config():
@@ -1109,7 +1118,8 @@ def parse_args(argv):
     src.add_argument("--prefix", default="PNEU_", help="channel prefix of the --log-csv files "
                      "(default PNEU_)")
     p.add_argument("--config", metavar="FILE", help="YAML configuration of the run (default: "
-                   "config/sim.yaml of the source tree)")
+                   "the effective configuration pneud wrote beside --trajectory or --events, "
+                   "else config/sim.yaml of the source tree)")
     p.add_argument("--null-flow", metavar="CURVE.csv", help="output of pneu-plant null-flow "
                    "(default: run pneu-plant null-flow on --config)")
     p.add_argument("--pneu-plant", metavar="PATH", help="pneu-plant executable (default: next "
@@ -1139,7 +1149,8 @@ def main(argv):
         except ImportError:
             raise InputError("numpy is missing (Debian package python3-numpy)") from None
         plt = _setup_matplotlib()
-        config_path = args.config or default_config()
+        config_path = (args.config or effective_config_beside(args.trajectory, args.events)
+                       or default_config())
         bench = Bench(config_path)
         if args.log_csv:
             run = load_log_csv(args.log_csv, args.prefix)

@@ -66,7 +66,7 @@ enum class OutputKind {
 struct OutputTarget {
   std::filesystem::path target;  ///< the file written: the path with its links followed, absolute
   bool exists = false;
-  bool regular = false;          ///< a regular file, or nothing yet: written as OutputKind says
+  bool regular = false;          ///< an existing regular file (it, or nothing yet, is written as OutputKind says)
   int fd_alias = -1;             ///< /dev/stdout, /dev/stderr, /dev/fd/N, /proc/self/fd/N: N, written to directly
   std::uint64_t device = 0, inode = 0;  ///< of an existing regular file
 };
@@ -109,7 +109,7 @@ class OutputFile {
   void discard_removing_target() noexcept;
   [[nodiscard]] const std::filesystem::path& path() const { return path_; }
   /// Whether it is written directly (a device, a FIFO, a standard stream), not as a regular file.
-  [[nodiscard]] bool direct() const { return !target_.regular; }
+  [[nodiscard]] bool direct() const { return target_.fd_alias >= 0 || (target_.exists && !target_.regular); }
 
  private:
   class Buffer : public std::streambuf {
