@@ -11,7 +11,9 @@
 set -euo pipefail
 src=$1 bin=$2 lang=$3
 work=$(mktemp -d); trap 'rm -rf "$work"' EXIT
-types=("$src"/lcmtypes/*.lcm)
+# The .lcm files here, and those pneu-records wrote from the records' descriptions (state_t).
+types=("$src"/lcmtypes/*.lcm "$bin"/share/pneu/lcmtypes/state_t.lcm)
+[ -f "$bin/share/pneu/lcmtypes/state_t.lcm" ] || { echo "FAIL: no state_t.lcm in $bin/share/pneu/lcmtypes (pneu-records)"; exit 1; }
 lcm_jar=/usr/share/java/lcm.jar
 fail=0
 say() { echo "$1: $2"; [ "$1" = ok ] || fail=1; }

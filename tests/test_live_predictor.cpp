@@ -431,7 +431,7 @@ TEST(LivePredictor, ASetPointChangeWhileStuckEndsTheFollowingOfThatStop) {
   const double next_stop_s = stuck_at_4s->index < r.stops().size() ? r.stops()[stuck_at_4s->index].t_stop_s : 1e9;
   int rows_checked = 0;
   const Csv traj = Csv::parse(r.trajectory.str());
-  const std::size_t t_col = traj.col("t"), first_forecast_col = traj.col("p_P_linearized");
+  const std::size_t t_col = traj.col("t"), first_forecast_col = traj.col("p_p_linearized");
   for (const auto& row : traj.rows) {
     const double t = std::stod(row[t_col]);
     if (t < 4.0 - 1e-9 || t >= next_stop_s) continue;
@@ -457,9 +457,9 @@ TEST(LivePredictor, TheTrajectoryHoldsEachForecastFromItsSnapshotToTheStart) {
   const StopOutcome& s = r.longest_restart();
   const Csv traj = Csv::parse(r.trajectory.str());
   EXPECT_EQ(std::vector<std::string>(traj.header.end() - 6, traj.header.end()),
-            (std::vector<std::string>{"p_P_linearized", "p_N_linearized", "F_linearized", "p_P_nonlinear",
-                                      "p_N_nonlinear", "F_nonlinear"}));
-  const std::size_t t_col = traj.col("t"), first_forecast_col = traj.col("p_P_linearized");
+            (std::vector<std::string>{"p_p_linearized", "p_n_linearized", "force_linearized", "p_p_nonlinear",
+                                      "p_n_nonlinear", "force_nonlinear"}));
+  const std::size_t t_col = traj.col("t"), first_forecast_col = traj.col("p_p_linearized");
   int filled = 0;
   for (const auto& row : traj.rows) {
     const double t = std::stod(row[t_col]);

@@ -88,8 +88,10 @@ cmp -s "$tmp/out/paper_forecast.svg" "$tmp/again/paper_forecast.svg" || fail "tw
   || fail "pneu_plots.py failed with --time-range"
 check_forecast_figure "$tmp/range" range
 
-# An older pneud's trajectory (no forecast columns): the two figures, a note, no forecast figure.
-cut -d, -f1-12 "$tmp/traj.csv" > "$tmp/old.csv"
+# An older pneud's trajectory (no forecast columns; p_P, p_N, F where state_t says p_p, p_n,
+# force): the two figures, a note, no forecast figure.
+cut -d, -f1-12 "$tmp/traj.csv" | sed '1s/,p_p,p_n,force,/,p_P,p_N,F,/' > "$tmp/old.csv"
+head -1 "$tmp/old.csv" | grep -q ',p_P,p_N,F,' || fail "the older trajectory's header: $(head -1 "$tmp/old.csv")"
 "$py" "$tool" --trajectory "$tmp/old.csv" --events "$tmp/events.jsonl" --config "$tmp/config.yaml" \
   --null-flow "$tmp/null_flow.csv" --out-dir "$tmp/old" --name old > /dev/null 2> "$tmp/old.err" \
   || fail "pneu_plots.py failed on a trajectory without forecast columns: $(cat "$tmp/old.err")"
@@ -110,8 +112,8 @@ with open(f"{tmp}/traj.csv") as f, open(f"{d}/RUN1_STATE.csv", "w", newline="") 
     w.writerow("log_utime,utime,seq,t,y_d,y,v_hat,a_hat,p_p,p_n,force,u,stuck,mode,validity".split(","))
     for r in csv.DictReader(f):
         us = 1_700_000_000_000_000 + round(float(r["t"]) * 1e6)
-        w.writerow([us + 50, us, r["seq"], r["t"], r["y_d"], r["y"], r["v_hat"], r["a_hat"], r["p_P"],
-                    r["p_N"], r["F"], r["u"], r["stuck"], 1, r["validity"]])
+        w.writerow([us + 50, us, r["seq"], r["t"], r["y_d"], r["y"], r["v_hat"], r["a_hat"], r["p_p"],
+                    r["p_n"], r["force"], r["u"], r["stuck"], 1, r["validity"]])
 ev = [json.loads(l) for l in open(f"{tmp}/events.jsonl")]
 with open(f"{d}/RUN1_EVENT.csv", "w", newline="") as o, open(f"{d}/RUN1_PREDICTION.csv", "w", newline="") as p:
     we, wp = csv.writer(o), csv.writer(p)
@@ -165,7 +167,7 @@ expect_refusal() {  # WHAT PATTERN ARGS...
 expect_refusal "a missing trajectory" "no such file" --trajectory "$tmp/nothing.csv" \
   --events "$tmp/events.jsonl" --config "$tmp/config.yaml" --null-flow "$tmp/null_flow.csv"
 cut -d, -f1-8 "$tmp/traj.csv" > "$tmp/short.csv"
-expect_refusal "a trajectory without F, u, stuck" "missing column(s) F, u, stuck" --trajectory "$tmp/short.csv" \
+expect_refusal "a trajectory without force, u, stuck" "missing column(s) force, u, stuck" --trajectory "$tmp/short.csv" \
   --events "$tmp/events.jsonl" --config "$tmp/config.yaml" --null-flow "$tmp/null_flow.csv"
 expect_refusal "a missing log directory" "no such directory" --log-csv "$tmp/nowhere" \
   --config "$tmp/config.yaml" --null-flow "$tmp/null_flow.csv"

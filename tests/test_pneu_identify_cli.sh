@@ -35,5 +35,5 @@ grep -q 'no sticking phase' "$tmp/err.txt" || fail "says what is missing"
 cut -d, -f1-6,8- "$tmp/run.csv" > "$tmp/no_pp.csv"
 status=0
 "$bin/pneu-identify" --trajectory "$tmp/no_pp.csv" 2> "$tmp/err.txt" || status=$?
-[ "$status" = 2 ] && grep -q 'no column p_P' "$tmp/err.txt" || fail "a missing column is named (exit $status: $(cat "$tmp/err.txt"))"
+[ "$status" = 2 ] && grep -q 'no column p_p' "$tmp/err.txt" || fail "a missing column is named (exit $status: $(cat "$tmp/err.txt"))"
 echo ok

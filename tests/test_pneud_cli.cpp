@@ -214,8 +214,8 @@ TEST_F(PneudCli, TrajectoryFileHasAHeaderAndOneRowPerTick) {
   const std::vector<std::string> lines = lines_of(slurp(trajectory));
   ASSERT_EQ(lines.size(), 1u + 12001u);
   EXPECT_EQ(lines.front(),
-            "seq,t,y_d,y,v_hat,a_hat,p_P,p_N,F,u,stuck,mode,validity,"
-            "p_P_linearized,p_N_linearized,F_linearized,p_P_nonlinear,p_N_nonlinear,F_nonlinear");
+            "seq,t,y_d,y,v_hat,a_hat,p_p,p_n,force,u,stuck,mode,validity,"
+            "p_p_linearized,p_n_linearized,force_linearized,p_p_nonlinear,p_n_nonlinear,force_nonlinear");
   EXPECT_THAT(lines.back(), ::testing::StartsWith("12000,12,"));
 }
 

@@ -171,7 +171,7 @@ class PymodbusInterop : public ::testing::Test {
 
     const Csv tr = Csv::read(dir_ / "trajectory.csv");
     ASSERT_GE(tr.rows.size(), 1000u);
-    const std::size_t y = tr.col("y"), p_p = tr.col("p_P"), p_n = tr.col("p_N"), u = tr.col("u"),
+    const std::size_t y = tr.col("y"), p_p = tr.col("p_p"), p_n = tr.col("p_n"), u = tr.col("u"),
                       validity = tr.col("validity");
     int off = 0;
     for (const auto& row : tr.rows) {

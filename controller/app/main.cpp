@@ -50,9 +50,9 @@ Usage:
   --events FILE      one JSON object per line: start, stop, prediction, reforecast, fault,
                      fault_reset, fault_reset_refused, hold_start, hold_end, movement_test (its
                      end at ARM), command (each command's verdict), end
-  --trajectory FILE  one CSV row per tick: seq,t,y_d,y,v_hat,a_hat,p_P,p_N,F,u,stuck,mode,validity,
+  --trajectory FILE  one CSV row per tick: seq,t,y_d,y,v_hat,a_hat,p_p,p_n,force,u,stuck,mode,validity,
                      then, while stuck, the pressures and force each forecast made at the stop
-                     expects (p_P_linearized,...,F_nonlinear; empty otherwise)
+                     expects (p_p_linearized,...,force_nonlinear; empty otherwise)
                      Beside each of the two (a regular file), FILE.config.yaml: the run's
                      effective configuration, as --check-config prints it; pneu_plots.py and
                      pneu-identify read it in place of the source YAML

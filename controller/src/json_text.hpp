@@ -10,27 +10,18 @@
 #include <string>
 #include <string_view>
 
+#include "pneu/records/text.hpp"
+
 namespace pneu::controller::json {
 
-// A JSON number (printf's %.*g, by std::to_chars: the same text, several times faster), or null
-// for NaN / infinity. The trajectory writes 18 per tick.
-struct Num {
-  char text[32];
-  std::size_t size;
-};
+// A JSON number (pneu/records/text.hpp: printf's %.*g), or null for NaN / infinity.
+using Num = records::NumberText;
 inline Num num(double v, int precision = 9) {
+  if (std::isfinite(v)) return records::number_text(v, precision);
   Num n{};
-  if (!std::isfinite(v)) {
-    std::memcpy(n.text, "null", 4);
-    n.size = 4;
-    return n;
-  }
-  const auto r = std::to_chars(n.text, n.text + sizeof n.text, v, std::chars_format::general, precision);
-  n.size = static_cast<std::size_t>(r.ptr - n.text);
+  std::memcpy(n.text, "null", 4);
+  n.size = 4;
   return n;
-}
-inline std::ostream& operator<<(std::ostream& os, const Num& n) {
-  return os.write(n.text, static_cast<std::streamsize>(n.size));
 }
 
 // A JSON string: quotes, backslashes and control characters escaped (RFC 8259).

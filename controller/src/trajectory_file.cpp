@@ -2,25 +2,23 @@
 
 #include <cmath>
 
-#include "json_text.hpp"
+#include "pneu/controller/records.hpp"
+#include "pneu/records/csv.hpp"
 
 namespace pneu::controller {
 
-using json::num;
-
-TrajectoryFile::TrajectoryFile(std::ostream& out) : out_(out) {
-  out_ << "seq,t,y_d,y,v_hat,a_hat,p_P,p_N,F,u,stuck,mode,validity,"
-          "p_P_linearized,p_N_linearized,F_linearized,p_P_nonlinear,p_N_nonlinear,F_nonlinear\n";
+std::string TrajectoryFile::header() {
+  return records::csv_header<TickRecord>() + ',' + records::csv_header<ForecastPoint>("_linearized") + ',' +
+         records::csv_header<ForecastPoint>("_nonlinear");
 }
 
+TrajectoryFile::TrajectoryFile(std::ostream& out) : out_(out) { out_ << header() << '\n'; }
+
 void TrajectoryFile::on_tick(const TickRecord& r, const ExpectedAtTick& expected) {
-  out_ << r.seq << ',' << num(r.t_s, 12) << ',' << num(r.y_d_m) << ',' << num(r.y_m, 12) << ','
-       << num(r.v_hat_m_per_s) << ',' << num(r.a_hat_m_per_s2) << ',' << num(r.p_p_pa) << ',' << num(r.p_n_pa)
-       << ',' << num(r.force_n) << ',' << num(r.u_v) << ',' << (r.stuck ? 1 : 0) << ','
-       << static_cast<int>(r.mode) << ',' << r.sensor_validity;
+  records::write_csv_cells(out_, r);
   for (const ForecastPoint& x : {expected.linearized, expected.nonlinear}) {
-    if (std::isnan(x.force_n)) out_ << ",,,";
-    else out_ << ',' << num(x.p_p_pa) << ',' << num(x.p_n_pa) << ',' << num(x.force_n);
+    if (std::isnan(x.force_n)) records::write_csv_empty_cells<ForecastPoint>(out_, true);
+    else records::write_csv_cells(out_, x, true);
   }
   out_ << '\n';
 }

@@ -31,7 +31,7 @@ Usage:
                 [--out OUT.yaml] [--quiet]
   pneu-identify --help | --version
 
-  --trajectory FILE  a CSV with a header naming t, y, p_P (or p_p), p_N (or p_n) and u, and
+  --trajectory FILE  a CSV with a header naming t, y, p_p, p_n (p_P, p_N: an older pneud's) and u, and
                      optionally mode (1 = armed: the valves driven with +-u; other rows are left out
                      of the valve fit): pneud's --trajectory file, or pneu-log2csv's state CSV
   --lcm-log FILE     an LCM log (lcm-logger) of the daemon's state messages ...
@@ -75,7 +75,7 @@ std::vector<identify::Sample> read_csv(const std::string& path) {
       if (const auto it = at.find(n); it != at.end()) return it->second;
     throw cli::UsageError(path + ": no column " + *names.begin());
   };
-  const std::size_t t = column({"t"}), y = column({"y"}), pp = column({"p_P", "p_p"}), pn = column({"p_N", "p_n"}),
+  const std::size_t t = column({"t"}), y = column({"y"}), pp = column({"p_p", "p_P"}), pn = column({"p_n", "p_N"}),
                     u = column({"u"});
   const auto mode_it = at.find("mode");
   std::vector<identify::Sample> samples;

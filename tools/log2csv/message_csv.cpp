@@ -4,12 +4,15 @@
 #include <cmath>
 #include <cstdio>
 
+#include "pneu/controller/records.hpp"
+#include "pneu/records/csv.hpp"
 #include "pneu_lcm/command_t.hpp"
 #include "pneu_lcm/event_t.hpp"
 #include "pneu_lcm/health_t.hpp"
 #include "pneu_lcm/identification_t.hpp"
 #include "pneu_lcm/prediction_t.hpp"
 #include "pneu_lcm/state_t.hpp"
+#include "pneu_lcm/state_t_members.hpp"
 
 namespace pneu::log2csv {
 namespace {
@@ -40,6 +43,13 @@ class Row {
   Row& boolean(std::int8_t v) {
     separate();
     line_ += v != 0 ? '1' : '0';
+    return *this;
+  }
+  // A described record's fields (pneu/records), numbers to the last bit.
+  template <records::Described R>
+  Row& record(const R& r) {
+    separate();
+    records::write_csv_cells(line_, r, false, records::kDigitsToTheLastBit);
     return *this;
   }
   // A name from a fixed table: never holds a comma or a quote.
@@ -191,8 +201,10 @@ const char* type_name(MessageType type) {
 
 std::string_view csv_header(MessageType type) {
   switch (type) {
-    case MessageType::kState:
-      return "log_utime,utime,seq,t,y_d,y,v_hat,a_hat,p_p,p_n,force,u,stuck,mode,validity";
+    case MessageType::kState: {
+      static const std::string header = "log_utime,utime," + records::csv_header<controller::TickRecord>();
+      return header;
+    }
     case MessageType::kEvent:
       return "log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,seq,text";
     case MessageType::kPrediction:
@@ -262,22 +274,9 @@ RowInfo format_csv_row(std::int64_t log_utime, const void* data, std::int32_t si
   if (fingerprint == pneu_lcm::state_t::getHash()) {
     pneu_lcm::state_t m{};
     if (decode_whole(data, size, &m)) {
-      Row(line, log_utime)
-          .integer(m.utime)
-          .integer(m.seq)
-          .number(m.t)
-          .number(m.y_d)
-          .number(m.y)
-          .number(m.v_hat)
-          .number(m.a_hat)
-          .number(m.p_p)
-          .number(m.p_n)
-          .number(m.force)
-          .number(m.u)
-          .boolean(m.stuck)
-          .integer(m.mode)
-          .integer(m.validity)
-          .end();
+      controller::TickRecord tick;
+      records::from_lcm(m, tick);
+      Row(line, log_utime).integer(m.utime).record(tick).end();
       return {MessageType::kState, m.seq};
     }
   } else if (fingerprint == pneu_lcm::event_t::getHash()) {

@@ -79,9 +79,10 @@ def _parse_bool(text, path, line, column):
     raise InputError(f"{path}:{line}: column '{column}': not a boolean: '{text}'")
 
 
-def read_csv_columns(path, numeric, text=(), what="CSV", optional=()):
+def read_csv_columns(path, numeric, text=(), what="CSV", optional=(), older_spellings=None):
     """Returns {column: list} for the numeric columns (floats) and text columns (str), and for
-    the optional numeric columns the file has (absent from the result otherwise)."""
+    the optional numeric columns the file has (absent from the result otherwise). A header
+    column named as older_spellings says is read under its name of today."""
     _require_file(path, what)
     with open(path, newline="", encoding="utf-8") as f:
         # comment lines may precede the header (pneu-plant's tables); quoted cells after it may
@@ -92,6 +93,8 @@ def read_csv_columns(path, numeric, text=(), what="CSV", optional=()):
             header = [h.strip() for h in next(reader)]
         except StopIteration:
             raise InputError(f"{path}: empty file (no header)") from None
+        if older_spellings:
+            header = [older_spellings.get(h, h) for h in header]
         missing = [c for c in list(numeric) + list(text) if c not in header]
         if missing:
             raise InputError(f"{path}: missing column(s) {', '.join(missing)} "
@@ -132,8 +135,12 @@ class Run:
 MODE_HOLD = 3  # the trajectory's and state_t's mode while the in-position hold drives the valves
 
 # The trajectory's forecast columns: what the forecast made at the stop expects at each tick.
-FORECAST_COLUMNS = {"linearized": ("p_P_linearized", "p_N_linearized", "F_linearized"),
-                    "nonlinear": ("p_P_nonlinear", "p_N_nonlinear", "F_nonlinear")}
+FORECAST_COLUMNS = {m: tuple(f"{c}_{m}" for c in ("p_p", "p_n", "force"))
+                    for m in ("linearized", "nonlinear")}
+# The trajectory's columns as pneud wrote them before they were spelled as state_t's fields.
+OLDER_TRAJECTORY_SPELLINGS = {old: new for m in ("", "_linearized", "_nonlinear")
+                              for old, new in (("p_P" + m, "p_p" + m), ("p_N" + m, "p_n" + m),
+                                               ("F" + m, "force" + m))}
 
 
 def _prediction(ev, update=0):
@@ -150,11 +157,12 @@ def load_pneud_output(trajectory_path, events_path):
     import numpy as np
 
     forecast_cols = [c for cs in FORECAST_COLUMNS.values() for c in cs]
-    cols = read_csv_columns(trajectory_path, ["t", "y_d", "y", "p_P", "p_N", "F", "u", "stuck"],
-                            what="--trajectory", optional=forecast_cols + ["mode"])
+    cols = read_csv_columns(trajectory_path, ["t", "y_d", "y", "p_p", "p_n", "force", "u", "stuck"],
+                            what="--trajectory", optional=forecast_cols + ["mode"],
+                            older_spellings=OLDER_TRAJECTORY_SPELLINGS)
     run = Run()
     run.t, run.y_d, run.y = (np.array(cols[c]) for c in ("t", "y_d", "y"))
-    run.p_p, run.p_n, run.force, run.u = (np.array(cols[c]) for c in ("p_P", "p_N", "F", "u"))
+    run.p_p, run.p_n, run.force, run.u = (np.array(cols[c]) for c in ("p_p", "p_n", "force", "u"))
     run.stuck = np.array(cols["stuck"]) > 0.5
     if "mode" in cols:
         run.held = np.array(cols["mode"]) == MODE_HOLD
@@ -1188,7 +1196,7 @@ def main(argv):
                   file=sys.stderr)
         elif run.forecast is None:
             print(f"pneu_plots: note: no forecast figure: {args.trajectory} has no forecast "
-                  f"columns (p_P_linearized ... F_nonlinear: the trajectory of an older pneud)",
+                  f"columns (p_p_linearized ... force_nonlinear: the trajectory of an older pneud)",
                   file=sys.stderr)
         else:
             print("pneu_plots: note: no forecast figure: no sticking phase with forecast values "

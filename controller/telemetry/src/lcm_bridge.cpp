@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "pneu/controller/journal.hpp"
+#include "pneu/controller/records.hpp"
 #include "pneu/telemetry/command_datagram.hpp"
 
 #include "pneu_lcm/command_t.hpp"
@@ -19,6 +20,7 @@
 #include "pneu_lcm/identification_t.hpp"
 #include "pneu_lcm/prediction_t.hpp"
 #include "pneu_lcm/state_t.hpp"
+#include "pneu_lcm/state_t_members.hpp"
 
 namespace pneu::telemetry {
 
@@ -165,19 +167,7 @@ void LcmBridge::on_tick(const controller::TickRecord& r, const controller::Expec
   last_t_s_ = r.t_s;
   pneu_lcm::state_t m;
   m.utime = utime_of(r.t_s);
-  m.seq = static_cast<std::int64_t>(r.seq);
-  m.t = r.t_s;
-  m.y_d = r.y_d_m;
-  m.y = r.y_m;
-  m.v_hat = r.v_hat_m_per_s;
-  m.a_hat = r.a_hat_m_per_s2;
-  m.p_p = r.p_p_pa;
-  m.p_n = r.p_n_pa;
-  m.force = r.force_n;
-  m.u = r.u_v;
-  m.stuck = r.stuck;
-  m.mode = static_cast<std::int8_t>(r.mode);
-  m.validity = static_cast<std::int32_t>(r.sensor_validity);
+  records::to_lcm(r, m);
   publish(state_channel_, m);
 }
 

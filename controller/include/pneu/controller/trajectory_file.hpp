@@ -1,10 +1,11 @@
 // A sink of the runtime: the trajectory file (pneud --trajectory), one CSV row per tick drained:
-// seq,t,y_d,y,v_hat,a_hat,p_P,p_N,F,u,stuck,mode,validity, then the pressures and force each forecast
-// made at the open stop expects at that tick (p_P_linearized,...,F_nonlinear; empty when not
-// followed).
+// the tick's fields (records.hpp: seq,t,y_d,y,v_hat,a_hat,p_p,p_n,force,u,stuck,mode,validity),
+// then the pressures and force each forecast made at the open stop expects at that tick
+// (p_p_linearized,...,force_nonlinear; empty when not followed).
 #pragma once
 
 #include <ostream>
+#include <string>
 
 #include "pneu/controller/run_listener.hpp"
 
@@ -14,6 +15,9 @@ class TrajectoryFile final : public RunListener {
  public:
   /// Writes the header line to `out` at once; `out` must outlive the sink.
   explicit TrajectoryFile(std::ostream& out);
+
+  /// The header line (without its newline).
+  [[nodiscard]] static std::string header();
 
   void on_tick(const TickRecord& tick, const ExpectedAtTick& expected) override;
 

@@ -1,0 +1,137 @@
+// A record as an LCM message. The message's definition (.lcm text) is written from the record's
+// description at build time (pneu-records, tools/records/), lcm-gen makes the C++ type from it, and
+// pneu-records also writes which of that type's members each field is (LcmMembers<Message>, in the
+// description's order): to_lcm and from_lcm convert field by field. A field added to the
+// description is in the message, the conversion and every decoder lcm-gen writes.
+#pragma once
+
+#include <algorithm>
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <tuple>
+#include <type_traits>
+
+#include "pneu/records/record.hpp"
+
+namespace pneu::records {
+
+/// The LCM type a member of type T travels as.
+template <class T>
+constexpr const char* lcm_type_name() {
+  if constexpr (kind_of<T>() == Kind::kBoolean) return "boolean";
+  else if constexpr (std::is_same_v<T, float>) return "float";
+  else if constexpr (kind_of<T>() == Kind::kNumber) return "double";
+  else if constexpr (sizeof(T) == 1) return "int8_t";
+  else if constexpr (sizeof(T) == 2) return "int16_t";
+  else if constexpr (sizeof(T) == 4) return "int32_t";
+  else return "int64_t";
+}
+
+/// The field declarations of `Record` in an LCM struct: one line each, its documentation (and
+/// unit) as the comment, names aligned.
+template <Described Record>
+[[nodiscard]] std::string lcm_field_declarations() {
+  std::string out;
+  for_each_field<Record>([&](const auto& f) {
+    using M = typename std::remove_cvref_t<decltype(f)>::member_type;
+    std::string decl = std::string("  ") + lcm_type_name<M>();
+    decl.resize(std::max<std::size_t>(decl.size() + 1, 10), ' ');
+    decl += f.name;
+    decl += ';';
+    decl.resize(std::max<std::size_t>(decl.size() + 1, 22), ' ');
+    out += decl + "// " + f.doc;
+    if (f.unit[0] != '\0') out += std::string(" [") + f.unit + "]";
+    out += '\n';
+  });
+  return out;
+}
+
+/// The .lcm definition of `message` in `package` carrying `Record`'s fields: a comment saying where
+/// it comes from, `doc` as the struct's comment, the `transport` declarations first (utime: lines
+/// as in a .lcm file), the fields, then the `constants` declarations.
+template <Described Record>
+[[nodiscard]] std::string lcm_message_text(std::string_view package, std::string_view message, std::string_view doc,
+                                           std::string_view source, std::string_view transport,
+                                           std::string_view constants) {
+  std::string out = "// Written by pneu-records from the description of the record `";
+  out += Description<Record>::kName;
+  out += "` (";
+  out += source;
+  out += "): edit that, not this file.\npackage ";
+  out += package;
+  out += ";\n\n// ";
+  out += doc;
+  out += "\nstruct ";
+  out += message;
+  out += "\n{\n";
+  out += transport;
+  out += lcm_field_declarations<Record>();
+  if (!constants.empty()) {
+    out += '\n';
+    out += constants;
+  }
+  out += "}\n";
+  return out;
+}
+
+/// The members of the lcm-gen'd `Message` that carry a record's fields, in the description's
+/// order: `static constexpr auto kMembers = std::tuple{&Message::a, ...};` (written by
+/// pneu-records beside the message's header).
+template <class Message>
+struct LcmMembers;
+
+/// The C++ header declaring LcmMembers<package::message> for `Record`'s fields: what pneu-records
+/// writes beside lcm-gen's header of the message (package/message.hpp).
+template <Described Record>
+[[nodiscard]] std::string lcm_members_header(std::string_view package, std::string_view message_name) {
+  const std::string message = std::string(package) + "::" + std::string(message_name);
+  std::string out = "// Written by pneu-records: the members of " + message +
+                    " that carry the fields of the record `" + Description<Record>::kName +
+                    "`, in order.\n#pragma once\n\n#include <tuple>\n\n#include \"pneu/records/lcm.hpp\"\n#include \"" +
+                    std::string(package) + "/" + std::string(message_name) + ".hpp\"\n\n" +
+                    "template <>\nstruct pneu::records::LcmMembers<" + message +
+                    "> {\n  static constexpr auto kMembers = std::tuple{";
+  bool first = true;
+  for_each_field<Record>([&](const auto& f) {
+    out += first ? "\n      " : ",\n      ";
+    first = false;
+    out += "&" + std::string(message) + "::" + f.name;
+  });
+  out += "};\n};\n";
+  return out;
+}
+
+/// Fills the members of `m` that carry `r`'s fields.
+template <Described Record, class Message>
+void to_lcm(const Record& r, Message& m) {
+  constexpr auto& members = LcmMembers<Message>::kMembers;
+  static_assert(std::tuple_size_v<std::remove_cvref_t<decltype(members)>> == kFieldCount<Record>,
+                "the message was not generated from this record's description");
+  [&]<std::size_t... I>(std::index_sequence<I...>) {
+    ((m.*std::get<I>(members) =
+          static_cast<std::remove_cvref_t<decltype(m.*std::get<I>(members))>>(
+              std::get<I>(Description<Record>::kFields).of(r))),
+     ...);
+  }(std::make_index_sequence<kFieldCount<Record>>{});
+}
+
+/// Reads `r`'s fields from `m` (the record's other members are left as they are).
+template <Described Record, class Message>
+void from_lcm(const Message& m, Record& r) {
+  constexpr auto& members = LcmMembers<Message>::kMembers;
+  static_assert(std::tuple_size_v<std::remove_cvref_t<decltype(members)>> == kFieldCount<Record>,
+                "the message was not generated from this record's description");
+  [&]<std::size_t... I>(std::index_sequence<I...>) {
+    (([&] {
+       const auto& f = std::get<I>(Description<Record>::kFields);
+       using M = typename std::remove_cvref_t<decltype(f)>::member_type;
+       const auto v = m.*std::get<I>(members);
+       if constexpr (std::is_same_v<M, bool>) f.of(r) = v != 0;
+       else f.of(r) = static_cast<M>(v);
+     }()),
+     ...);
+  }(std::make_index_sequence<kFieldCount<Record>>{});
+}
+
+}  // namespace pneu::records
