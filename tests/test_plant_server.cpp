@@ -14,6 +14,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "pneu/config/config.hpp"
@@ -81,17 +82,15 @@ class Running {
             error_ = std::current_exception();
           }
         }) {}
-  ~Running() { stop(); }
+  ~Running() { halt(); }
   Running(const Running&) = delete;
   Running& operator=(const Running&) = delete;
 
-  // Asks the server to stop, and waits until it has; then the records are whole.
+  // Asks the server to stop, and waits until it has; then the records are whole. What run()
+  // threw is thrown here.
   void stop() {
-    if (!thread_.joinable()) return;
-    server_.request_stop();
-    thread_.join();
-    for (std::FILE* f : {events_, outputs_, messages_, warnings_}) std::fclose(f);
-    if (error_) std::rethrow_exception(error_);
+    halt();
+    if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
   }
   [[nodiscard]] PlantServer& server() { return server_; }
   [[nodiscard]] int port() const { return server_.port(); }
@@ -105,6 +104,13 @@ class Running {
   }
 
  private:
+  void halt() {
+    if (!thread_.joinable()) return;
+    server_.request_stop();
+    thread_.join();
+    for (std::FILE* f : {events_, outputs_, messages_, warnings_}) std::fclose(f);
+  }
+
   fs::path dir_;
   std::FILE *events_, *outputs_, *messages_, *warnings_;
   PlantServer server_;
