@@ -34,7 +34,7 @@ extern "C" void on_stop_signal(int) {
 
 /// The server's parameters that the configuration gives: the simulated bench (hal.sim.plant over
 /// plant), its sensors and pushes, the initial position, the register map and the module's
-/// watchdog (the options set the rest, and may override the watchdog).
+/// watchdog.
 plant_server::ServerParams server_params(const config::Config& cfg) {
   plant_server::ServerParams p;
   p.plant = config::simulated_bench(cfg);
@@ -44,6 +44,30 @@ plant_server::ServerParams server_params(const config::Config& cfg) {
   p.modbus = cfg.hal.modbus;
   p.watchdog_s = cfg.hal.modbus.module_watchdog_s;
   return p;
+}
+
+/// The options' part of the parameters, over `p` (--watchdog-outputs is read later, as before:
+/// once the records are open). Throws UsageError.
+void apply_options(const cli::Args& args, plant_server::ServerParams& p) {
+  p.duration_s = args.number("duration", 0.0);
+  if (p.duration_s < 0.0) throw cli::UsageError("--duration must be >= 0");
+  p.reply_delay_s = args.number("reply-delay-s", 0.0);
+  p.delay_after_s = args.number("delay-after-s", 0.0);
+  if (p.reply_delay_s < 0.0 || p.delay_after_s < 0.0)
+    throw cli::UsageError("--reply-delay-s and --delay-after-s must be >= 0");
+  const double max_clients = args.number("max-clients", 4);
+  if (!(max_clients >= 1 && max_clients <= kMaxClientsLimit && max_clients == std::floor(max_clients)))
+    throw cli::UsageError("--max-clients must be a whole number from 1 to " + std::to_string(kMaxClientsLimit));
+  p.max_clients = static_cast<int>(max_clients);
+  p.watchdog_s = args.number("watchdog-s", p.watchdog_s);
+  if (!(p.watchdog_s >= 0.0 && std::isfinite(p.watchdog_s))) throw cli::UsageError("--watchdog-s must be >= 0 (0: none)");
+  for (const auto& spec : args.all("fault")) {
+    try {
+      p.faults.push_back(plant_server::parse_fault(spec, p.modbus, p.plant.valve.max_voltage_v));
+    } catch (const plant_server::SpecError& e) {
+      throw cli::UsageError(std::string("--fault ") + e.what());
+    }
+  }
 }
 
 }  // namespace
@@ -146,26 +170,7 @@ int serve(int argc, char** argv) {
   const config::Config cfg = config::load_file_or_default(args.value("config").value_or(""), args.all("set"));
   if (!cfg.hal.has_modbus) throw config::ConfigError("hal.modbus", "missing: serve needs the register map (see config/hil.yaml)");
   plant_server::ServerParams params = server_params(cfg);
-  params.duration_s = args.number("duration", 0.0);
-  if (params.duration_s < 0.0) throw cli::UsageError("--duration must be >= 0");
-  params.reply_delay_s = args.number("reply-delay-s", 0.0);
-  params.delay_after_s = args.number("delay-after-s", 0.0);
-  if (params.reply_delay_s < 0.0 || params.delay_after_s < 0.0)
-    throw cli::UsageError("--reply-delay-s and --delay-after-s must be >= 0");
-  const double max_clients = args.number("max-clients", 4);
-  if (!(max_clients >= 1 && max_clients <= kMaxClientsLimit && max_clients == std::floor(max_clients)))
-    throw cli::UsageError("--max-clients must be a whole number from 1 to " + std::to_string(kMaxClientsLimit));
-  params.max_clients = static_cast<int>(max_clients);
-  params.watchdog_s = args.number("watchdog-s", params.watchdog_s);
-  if (!(params.watchdog_s >= 0.0 && std::isfinite(params.watchdog_s)))
-    throw cli::UsageError("--watchdog-s must be >= 0 (0: none)");
-  for (const auto& spec : args.all("fault")) {
-    try {
-      params.faults.push_back(plant_server::parse_fault(spec, params.modbus, params.plant.valve.max_voltage_v));
-    } catch (const plant_server::SpecError& e) {
-      throw cli::UsageError(std::string("--fault ") + e.what());
-    }
-  }
+  apply_options(args, params);
 
   // Live records (flushed line by line, read while serve runs, kept after a SIGKILL), opened as
   // every output is (cli::OutputFile): links followed, a device or FIFO written directly.
@@ -193,6 +198,7 @@ int serve(int argc, char** argv) {
     throw cli::UsageError(std::string("--watchdog-outputs ") + e.what());
   }
 
+  const int server_max_clients = params.max_clients;
   plant_server::PlantServer server(std::move(params), sinks);
   struct Handlers {  // the signals reach this server while it lives
     explicit Handlers(plant_server::PlantServer& s) {
@@ -208,7 +214,7 @@ int serve(int argc, char** argv) {
   if (!args.flag("quiet")) {
     if (mb.transport == config::ModbusTransport::kTcp)
       std::printf("pneu-plant serve: listening on %s:%d (unit %d, up to %d clients)\n", mb.host.c_str(), server.port(),
-                  mb.unit_id, static_cast<int>(max_clients));
+                  mb.unit_id, server_max_clients);
     else std::printf("pneu-plant serve: serving %s at %d baud (unit %d)\n", mb.device.c_str(), mb.baud, mb.unit_id);
     std::fflush(stdout);
   }
