@@ -186,7 +186,7 @@ TEST_F(PlantServerTest, ServesOnAPortTheKernelPicksAndStopsWhenAskedClosingItsCo
   EXPECT_EQ(s.clients, 1u);
   EXPECT_EQ(s.busy, 0u);
   const auto events = r.events();
-  ASSERT_GE(events.size(), 4u);
+  ASSERT_GE(events.size(), 3u);  // start, connect, stop (a disconnect the stop may come before)
   EXPECT_EQ(events.front()["event"].text(), "start");
   EXPECT_EQ(events.back()["event"].text(), "stop");
   EXPECT_EQ(events.back()["requests"].count(), 2u);
