@@ -1,5 +1,6 @@
 // pneu-plant: the simulated bench. Open-loop runs, valve characterisation, the plant behind a
-// Modbus server (serve.cpp) and the gain design on its tangent-linear model (tune.cpp).
+// Modbus server (serve.cpp, around pneu_plant_server) and the gain design on its tangent-linear
+// model (tune.cpp).
 #include <chrono>
 #include <cmath>
 #include <cstdio>
