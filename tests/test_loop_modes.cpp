@@ -333,6 +333,34 @@ TEST_F(LoopModes, AFaultTheServiceSideSeesLatchesAtTheNextTickAndRefusesResetsWh
   EXPECT_EQ(mode(), Mode::kDisarmed);
 }
 
+TEST_F(LoopModes, AnEStopWhileDisarmedLatchesTheFaultToo) {
+  config_.controller.start_armed = false;
+  start();
+  run_ticks(10);
+  (void)events();
+  backend_.sample.estop = true;
+  run_ticks(1);
+  EXPECT_EQ(mode(), Mode::kFault);
+  const auto seen = events();
+  ASSERT_EQ(seen.size(), 1u);
+  EXPECT_EQ(seen[0].kind, LoopEvent::Kind::kFault);
+  EXPECT_EQ(seen[0].fault_cause, controller::FaultCause::kEStop);
+  EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
+  backend_.sample.estop = false;
+  command(LoopCommand::Kind::kArm);
+  EXPECT_EQ(mode(), Mode::kFault) << "latched: only a reset clears it";
+}
+
+TEST_F(LoopModes, AResetWithoutAFaultChangesNothingAndSaysNothing) {
+  start();
+  run_ticks(10);
+  (void)events();
+  command(LoopCommand::Kind::kFaultReset);
+  EXPECT_EQ(mode(), Mode::kArmed);
+  EXPECT_TRUE(events().empty());
+  EXPECT_TRUE(backend_.written.valve_power);
+}
+
 TEST_F(LoopModes, NeitherArmNorDisarmLeavesAFault) {
   latch_estop_fault();
   backend_.sample.estop = false;  // the cause gone: still only a reset clears the fault
