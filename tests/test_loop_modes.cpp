@@ -8,15 +8,20 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
+#include <iterator>
 #include <memory>
+#include <optional>
 #include <ostream>
 #include <utility>
 #include <vector>
 
 #include "pneu/config/config.hpp"
 #include "pneu/controller/loop.hpp"
+#include "pneu/controller/modes.hpp"
 #include "pneu/controller/supervisor.hpp"
 #include "pneu/hal/backend.hpp"
 
@@ -118,6 +123,64 @@ const hal::ActuatorCommand kNeutralPowerOff = hal::ActuatorCommand::from_control
 // u_0 and the safe voltages are copied, not computed: compared exactly.
 MATCHER_P(IsCommand, expected, "is " + ::testing::PrintToString(expected)) {
   return arg.u_p_v == expected.u_p_v && arg.u_n_v == expected.u_n_v && arg.valve_power == expected.valve_power;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The modes as one state machine (modes.hpp): the table of every change, as the specification.
+// The tests below show each change on a running loop with what it does on the way.
+
+using controller::ModeEvent;
+
+const char* mode_name(Mode m) {
+  switch (m) {
+    case Mode::kDisarmed: return "disarmed";
+    case Mode::kArmed: return "armed";
+    case Mode::kFault: return "fault";
+    case Mode::kHold: return "hold";
+    case Mode::kMovementTest: return "movement test";
+  }
+  return "?";
+}
+constexpr const char* kEventNames[] = {"ARM",         "ARM (test due)", "DISARM",   "fault",    "reset",
+                                       "reset refused", "test passed",  "hold start", "hold end", "run stops"};
+static_assert(std::size(kEventNames) == controller::kModeEventCount);
+
+TEST(LoopModesStateMachine, EachModeAndEventLeadsToTheModeThisTableSays) {
+  constexpr std::optional<Mode> none = std::nullopt;  // the event changes nothing and does nothing there
+  constexpr Mode disarmed = Mode::kDisarmed, armed = Mode::kArmed, fault = Mode::kFault, hold = Mode::kHold,
+                 test = Mode::kMovementTest;
+  struct Row {
+    Mode from;
+    std::array<std::optional<Mode>, controller::kModeEventCount> to;  // by ModeEvent, in its order
+  };
+  const Row spec[] = {
+      // in mode   ARM     ARM,    DISARM    fault  reset     reset    test    hold   hold   run
+      //                   test                             refused  passed  start  end    stops
+      //                   due
+      {disarmed,  {armed,  test,   none,     fault, none,     none,    none,   none,  none,  none}},
+      {armed,     {none,   none,   disarmed, fault, none,     none,    none,   hold,  none,  none}},
+      {hold,      {none,   none,   disarmed, fault, none,     none,    none,   none,  armed, none}},
+      {test,      {none,   none,   disarmed, fault, none,     none,    armed,  none,  none,  disarmed}},
+      {fault,     {none,   none,   none,     none,  disarmed, fault,   none,   none,  none,  none}},
+  };
+  ASSERT_EQ(std::size(spec), controller::kModeCount);
+  for (const Row& row : spec) {
+    for (std::size_t e = 0; e < controller::kModeEventCount; ++e) {
+      const std::optional<Mode> next = controller::next_mode(row.from, static_cast<ModeEvent>(e));
+      EXPECT_EQ(next, row.to[e]) << "in mode " << mode_name(row.from) << ", " << kEventNames[e] << " leads to "
+                                 << (next ? mode_name(*next) : "no change") << ", the specification says "
+                                 << (row.to[e] ? mode_name(*row.to[e]) : "no change");
+    }
+  }
+}
+
+TEST(LoopModesStateMachine, ListsEachModeAndEventAtMostOnce) {
+  const auto& table = controller::kModeTransitions;
+  for (std::size_t i = 0; i < table.size(); ++i)
+    for (std::size_t j = i + 1; j < table.size(); ++j)
+      EXPECT_FALSE(table[i].from == table[j].from && table[i].event == table[j].event)
+          << "rows " << i << " and " << j << ": " << mode_name(table[i].from) << ", "
+          << kEventNames[static_cast<std::size_t>(table[i].event)];
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -268,6 +331,34 @@ TEST_F(LoopModes, AFaultTheServiceSideSeesLatchesAtTheNextTickAndRefusesResetsWh
   run_ticks(1);
   command(LoopCommand::Kind::kFaultReset);
   EXPECT_EQ(mode(), Mode::kDisarmed);
+}
+
+TEST_F(LoopModes, AnEStopWhileDisarmedLatchesTheFaultToo) {
+  config_.controller.start_armed = false;
+  start();
+  run_ticks(10);
+  (void)events();
+  backend_.sample.estop = true;
+  run_ticks(1);
+  EXPECT_EQ(mode(), Mode::kFault);
+  const auto seen = events();
+  ASSERT_EQ(seen.size(), 1u);
+  EXPECT_EQ(seen[0].kind, LoopEvent::Kind::kFault);
+  EXPECT_EQ(seen[0].fault_cause, controller::FaultCause::kEStop);
+  EXPECT_THAT(backend_.written, IsCommand(kNeutralPowerOff));
+  backend_.sample.estop = false;
+  command(LoopCommand::Kind::kArm);
+  EXPECT_EQ(mode(), Mode::kFault) << "latched: only a reset clears it";
+}
+
+TEST_F(LoopModes, AResetWithoutAFaultChangesNothingAndSaysNothing) {
+  start();
+  run_ticks(10);
+  (void)events();
+  command(LoopCommand::Kind::kFaultReset);
+  EXPECT_EQ(mode(), Mode::kArmed);
+  EXPECT_TRUE(events().empty());
+  EXPECT_TRUE(backend_.written.valve_power);
 }
 
 TEST_F(LoopModes, NeitherArmNorDisarmLeavesAFault) {

@@ -10,6 +10,7 @@
 #include "pneu/controller/differentiator.hpp"
 #include "pneu/controller/hold_law.hpp"
 #include "pneu/controller/loop_params.hpp"
+#include "pneu/controller/modes.hpp"
 #include "pneu/controller/movement_test.hpp"
 #include "pneu/controller/predictor.hpp"
 #include "pneu/controller/spsc_queue.hpp"
@@ -19,25 +20,6 @@
 #include "pneu/model/pressure_force.hpp"
 
 namespace pneu::controller {
-
-/// The loop's operating mode.
-enum class Mode : std::uint8_t {
-  kDisarmed = 0,  ///< valve power off, outputs at the neutral voltage u_0 (F_e(u_0) = 0)
-  kArmed = 1,     ///< valve power on, the control law drives the valves
-  kFault = 2,     ///< latched by the supervisor: valve power off, the configured safe output,
-                  ///< until a reset received once the cause is gone (then disarmed)
-  kHold = 3,      ///< armed, the carriage at rest within controller.hold.window_m of its set point:
-                  ///< the loop drives the pressure force into the stiction band instead of Eq. 4
-  kMovementTest = 4,  ///< armed, the movement test first (the first ARM of a run started disarmed
-                      ///< on a real backend, LoopParams::movement_test_at_arm): valve power on, the
-                      ///< test's open-loop pulses drive the valves; set points are refused. A pass
-                      ///< arms (kArmed, holding where the carriage is), a finding latches a fault.
-};
-
-/// Valve power on and the loop driving the valves: armed, or holding.
-[[nodiscard]] constexpr bool drives(Mode m) noexcept { return m == Mode::kArmed || m == Mode::kHold; }
-/// Valve power on: the loop drives the valves, or the movement test pulses them. DISARM ends either.
-[[nodiscard]] constexpr bool powered(Mode m) noexcept { return drives(m) || m == Mode::kMovementTest; }
 
 /// How the movement test at ARM ended (LoopEvent::Kind::kMovementTest).
 enum class MovementTestEnd : std::uint8_t {
@@ -194,18 +176,50 @@ class ControlLoop {
   [[nodiscard]] bool movement_test_due() const noexcept { return movement_test_due_; }
 
  private:
+  /// This tick's sample: as read, and as the loop goes on with it (a bad one keeps the last good
+  /// position).
+  struct Sample {
+    hal::Status status = hal::Status::kOk;
+    hal::SensorFrame as_read;  ///< what the backend returned: the supervisor and the movement test judge it
+    hal::SensorFrame frame;    ///< ... its position the last good one unless the sample is good
+    bool good = false;         ///< Supervisor::sample_good(): may reach the differentiator and the detector
+  };
+  /// An event for the state machine (ModeEvent) with what its actions need, at the tick's time.
+  struct ModeInput {
+    ModeEvent event = ModeEvent::kArm;
+    double y_m = 0.0;                      ///< the position the loop's event records carry
+    FaultCause cause = FaultCause::kNone;  ///< fault, reset refused: which cause
+    const char* key = nullptr;             ///< fault: the config key of the rule that latched it
+    HoldEnd why = HoldEnd::kNone;          ///< hold end: why
+    double force_n = 0.0;                  ///< hold start: the force measured [N]
+    int direction = 0;                     ///< hold start: +1 / -1 reaching that way, 0 within the window
+  };
+
+  // The tick's steps, in order (tick()).
+  [[nodiscard]] Sample read_sample(double t_s) noexcept;
+  void apply_commands(double y_m) noexcept;
+  void follow_schedule(double t_s) noexcept;
+  [[nodiscard]] hal::ActuatorCommand step_movement_test(const Sample& s) noexcept;
+  void check_motion(const Sample& s) noexcept;
+  [[nodiscard]] double observe(const Sample& s) noexcept;
+  void watch_hold(const Sample& s, double force_n) noexcept;
+  [[nodiscard]] hal::ActuatorCommand output(const Sample& s, double force_n, const hal::ActuatorCommand& test) noexcept;
+  void publish(const Sample& s, double force_n, const hal::ActuatorCommand& command) noexcept;
+
+  /// The state machine: the change kModeTransitions lists for `in.event` in the mode in force, with
+  /// what it does on the way; nothing when it lists none.
+  void transition(const ModeInput& in) noexcept;
+  // The actions of transition().
+  void arm_here(double y_m) noexcept;
+  void start_movement_test(double y_m) noexcept;
+  /// Pushes the movement test's end (aborting it unless it passed or found).
+  void end_movement_test(MovementTestEnd why, double y_m, FaultCause cause = FaultCause::kNone) noexcept;
+  void start_hold(double y_m, double force_n, int reach_direction) noexcept;
+  void end_hold(HoldEnd why, double y_m) noexcept;
+
   void push(LoopEvent e) noexcept;
   /// An event of `kind` at `t_s`, position `y_m`: the last stop's index and the set point filled.
   [[nodiscard]] LoopEvent event(LoopEvent::Kind kind, double t_s, double y_m) const noexcept;
-  void apply_commands(double y_m) noexcept;
-  void latch_fault(FaultCause cause, double t_s, double y_m, const char* key = nullptr) noexcept;
-  void start_hold(double t_s, double y_m, double force_n, int reach_direction) noexcept;
-  void end_hold(HoldEnd why, double t_s, double y_m, Mode next) noexcept;
-  /// Arming: the law drives from the next command on, holding where the carriage is.
-  void arm_here(double y_m) noexcept;
-  void start_movement_test(double y_m) noexcept;
-  /// Pushes the movement test's end (aborting it unless it passed or found); the caller sets the mode.
-  void end_movement_test(MovementTestEnd why, double t_s, double y_m, FaultCause cause = FaultCause::kNone) noexcept;
 
   LoopParams params_;
   hal::Backend* backend_;  // pointers, not references: the loop can be moved
