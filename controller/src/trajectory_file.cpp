@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "json_text.hpp"
+#include "pneu/controller/json_text.hpp"
 
 namespace pneu::controller {
 
