@@ -133,7 +133,7 @@ settled ones); in_window (the time into controller.hold.window_m; all_p50_s / al
 never); hold; settling_rules; identification (with --identify); methods (linearized, nonlinear,
 relaxation: the verdicts' counts, the errors' percentiles, the half-way forecasts, the --online
 splits); wall_s and jobs. Percentiles are objects of count, p50, p90, p99 and max (null when
-count is 0).
+count is 0). A sweep that fails once started leaves no file there (an earlier one's is removed).
 )";
 
 // "LO" or "LO:HI" of --bench-thermal-s and --bench-spool-lag-s: the range drawn from [s].
@@ -241,7 +241,15 @@ int run(int argc, char** argv) {
     }
     if (d == n && tty) std::fprintf(stderr, "\n");
   };
-  const sweep::SweepRun run = sweep::run_all(config, o, scenarios, jobs, progress);
+  std::optional<sweep::SweepRun> ran;
+  try {
+    ran.emplace(sweep::run_all(config, o, scenarios, jobs, progress));
+  } catch (...) {
+    // As pneud's: no figures of an earlier sweep left at --summary-json to be taken for this one's.
+    if (summary_json) summary_json->discard_removing_target();
+    throw;
+  }
+  const sweep::SweepRun& run = *ran;
   const sweep::Statistics stats = sweep::aggregate(sweep::setting_of(config, o), run);
 
   sweep::write_stops_csv(out.stream(), run.results, o.online);
