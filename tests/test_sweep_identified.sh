@@ -21,6 +21,8 @@
 # reported as not fitting, every one (20 steps).
 # Every scenario is counted: those whose identification failed, or whose gains could not be
 # designed on the identified model, are listed by the summary and must stay few (<= 2 %).
+# The figures are read from the sweep's data: its --summary-json (tests/sweep_summary.py) and its
+# CSV files, not from the summary's sentences.
 #   test_sweep_identified.sh BINARY_DIR ideal|hil|ideal-thermal|hil-thermal|unmodelled-thermal SOURCE_DIR
 set -euo pipefail
 sweep=$1/bin/pneu-sweep
@@ -28,6 +30,8 @@ kind=$2
 src=$3
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
 fail() { echo "FAIL: $*"; exit 1; }
+# summary KEY...: members of the sweep's --summary-json, one a line.
+summary() { /usr/bin/python3 "$(dirname "$0")/sweep_summary.py" "$tmp/summary.json" "$@"; }
 steps=200; methods="nonlinear, relaxation"; thermal=0
 case "$kind" in
   *-thermal) steps=60; methods="nonlinear"; thermal=1
@@ -36,7 +40,7 @@ esac
 [ "$kind" = hil-thermal ] && steps=100
 [ "$kind" = unmodelled-thermal ] && steps=20
 args=(--steps "$steps" --bench-spread 0.2 --identify --quiet --set "controller.predictor.methods=[$methods]"
-      --out "$tmp/stops.csv" --scenarios-out "$tmp/scenarios.csv")
+      --out "$tmp/stops.csv" --scenarios-out "$tmp/scenarios.csv" --summary-json "$tmp/summary.json")
 [ "$thermal" = 1 ] && args+=("${bench_physics[@]}")
 case "$kind" in
   ideal-thermal|hil-thermal)
@@ -50,12 +54,14 @@ fi
 "$sweep" "${args[@]}" > "$tmp/summary.txt"
 cat "$tmp/summary.txt"
 
-# identified first ...: K of N, F failed
-read -r identified failed < <(grep -E '^  identified first' "$tmp/summary.txt" | sed -E "s/.*: ([0-9]+) of $steps, ([0-9]+) failed.*/\1 \2/")
+# Identified and run, and failed (each listed with its reason).
+[ "$(summary scenarios)" = "$steps" ] || fail "the summary counts $(summary scenarios) scenarios, not $steps"
+identified=$(summary identification.identified_and_run)
+failed=$(/usr/bin/python3 -c 'import json, sys; print(len(json.load(open(sys.argv[1]))["identification"]["failed"]))' "$tmp/summary.json")
 [ $((identified + failed)) = "$steps" ] || fail "every scenario is counted ($identified identified, $failed failed)"
 
-# the model fits ... on K of N; ...
-fits=$(grep -F '    the model fits (pressure residual' "$tmp/summary.txt" | sed -E 's/.* on ([0-9]+) of ([0-9]+);.*/\1/')
+# The model fits (its pressure residual within twice what the noise explains) on how many.
+fits=$(summary identification.fits)
 if [ "$kind" = unmodelled-thermal ]; then
   [ "$identified" -gt 0 ] || fail "no bench was identified"
   [ "$fits" = 0 ] || fail "a model without the benches' heat exchange is reported as fitting $fits of $identified"
@@ -69,29 +75,37 @@ fi
 [ "$failed" -le $((steps / 50)) ] || fail "$failed scenarios failed identification or design"
 if [ "$thermal" = 1 ]; then
   [ "$fits" = "$identified" ] || fail "the model fits $fits of $identified benches"
-  read -r inside published < <(grep -F '    parameters published that the bench has too' "$tmp/summary.txt" | sed -E 's/.*: ([0-9]+) of ([0-9]+) .*/\1 \2/')
+  read -r inside published <<< "$(summary identification.within_3_sigma identification.published | tr '\n' ' ')"
   awk -v i="$inside" -v p="$published" 'BEGIN { exit !(p > 0 && i >= 0.95 * p) }' ||
     fail "$inside of $published parameters published within 3 sigma of the bench (need 95 %)"
-  grep -qF '    heat transfer error against the bench' "$tmp/summary.txt" || fail "the heat transfer's error is reported"
-  grep -qF '    spool lag error against the bench' "$tmp/summary.txt" || fail "the spool lag's error is reported"
+  [ "$(summary identification.heat_transfer_error_percent.count)" -gt 0 ] || fail "the heat transfer's error is reported"
+  [ "$(summary identification.spool_lag_error_ms.count)" -gt 0 ] || fail "the spool lag's error is reported"
   # Every scenario settles, no fault.
-  grep -qE "^  outcomes \(the first rest after the step\): $steps settled, 0 never settled, 0 at rest against an end stop, 0 faults" \
-    "$tmp/summary.txt" || fail "every scenario settles with no fault"
+  [ "$(summary outcomes.settled.count outcomes.never_settled.count outcomes.end_stop.count outcomes.fault.count | tr '\n' ' ')" \
+    = "$steps 0 0 0 " ] || fail "every scenario settles with no fault"
 fi
-[ "$(grep -c '^    failed: scenario ' "$tmp/summary.txt")" = "$failed" ] || fail "each failure is listed with its reason"
+# Each failure listed with its reason: "scenario I: reason", a scenario of the sweep, each once.
+/usr/bin/python3 -c '
+import json, re, sys
+failed = json.load(open(sys.argv[1]))["identification"]["failed"]
+indices = [int(m.group(1)) for m in (re.fullmatch(r"scenario (\d+): .+", f) for f in failed) if m]
+sys.exit(len(indices) != len(failed) or len(set(indices)) != len(indices) or any(i >= int(sys.argv[2]) for i in indices))' \
+  "$tmp/summary.json" "$steps" || fail "each failure is listed with its reason"
 [ "$(tail -n +2 "$tmp/scenarios.csv" | grep -c ',identification_failed,')" = "$failed" ] || fail "each failure has its row"
 
-# F_S+ / F_S- error against the bench: ... max X %
-for side in 'F_S+' 'F_S-'; do
-  max=$(grep -F "    $side error against the bench" "$tmp/summary.txt" | sed -E 's/.*max ([0-9.]+) %.*/\1/')
-  awk -v m="$max" -v l="$stiction" 'BEGIN { exit !(m <= l) }' || fail "$side identified within $stiction % (max $max %)"
+# The identified stiction's error against each bench, and p_null(u)'s over |u| < 1 V.
+for side in positive negative; do
+  max=$(summary identification.static_${side}_error_percent.max)
+  awk -v m="$max" -v l="$stiction" 'BEGIN { exit !(m != "" && m <= l) }' || fail "F_S $side identified within $stiction % (max $max %)"
 done
-null_max=$(grep -F 'p_null(u) over |u| < 1 V' "$tmp/summary.txt" | sed -E 's/.*max ([0-9]+) Pa.*/\1/')
-[ "$null_max" -le 5000 ] || fail "p_null(u) within 5 kPa (max $null_max Pa)"
+null_max=$(summary identification.null_pressure_error_pa.max)
+awk -v m="$null_max" 'BEGIN { exit !(m != "" && m <= 5000) }' || fail "p_null(u) within 5 kPa (max $null_max Pa)"
 
-# sticking >= 0.5 s, within 2 %: A, 5 %: B, 10 %: C of N; verdict wrong (restart or none): W of S judged stops (P %)
-line=$(grep -F '    sticking >= 0.5 s, within' "$tmp/summary.txt")
-read -r w2 w5 w10 n wrong judged < <(echo "$line" | sed -E 's/.*within 2 %: ([0-9]+), 5 %: ([0-9]+), 10 %: ([0-9]+) of ([0-9]+); verdict wrong \(restart or none\): ([0-9]+) of ([0-9]+).*/\1 \2 \3 \4 \5 \6/')
+# The nonlinear forecasts made at the stop: the long restarts within 2 / 5 / 10 %, and the verdicts.
+nl=methods.nonlinear
+read -r w2 w5 w10 n wrong judged <<< "$(summary $nl.long_within.2_percent $nl.long_within.5_percent $nl.long_within.10_percent \
+  $nl.long_error_percent.count $nl.false_restart $nl.judged | tr '\n' ' ')"
+wrong=$((wrong + $(summary $nl.missed_restart)))
 [ "$n" -ge 20 ] || fail "enough long restarts to judge ($n)"
 within=$w2; [ "$most" = 5 ] && within=$w5
 awk -v w="$within" -v n="$n" 'BEGIN { exit !(w >= 0.95 * n) }' || fail "$within of $n long restarts within $most % (need 95 %)"
@@ -101,9 +115,8 @@ if [ "$thermal" = 1 ]; then
   echo "ok: $kind: $within of $n within $most %, $w10 within 10 %, verdict wrong $wrong of $judged; the model fits $fits of $identified; $inside of $published published within 3 sigma; $failed of $steps not run"
   exit 0
 fi
-# relaxation ... made again half-way ... then "of N such restarts: within 2 %: A, 5 %: B, 10 %: C ..."
-rx=$(grep -A2 -F '  relaxation (made again only' "$tmp/summary.txt" | grep -F 'such restarts')
-read -r rn r5 < <(echo "$rx" | sed -E 's/.*of ([0-9]+) such restarts: within 2 %: [0-9]+, 5 %: ([0-9]+),.*/\1 \2/')
+# The relaxation method's forecasts made again half-way of the long restarts: within 5 %.
+read -r rn r5 <<< "$(summary methods.relaxation.halfway.restarts methods.relaxation.halfway.within.5_percent | tr '\n' ' ')"
 [ "$rn" -ge 20 ] || fail "enough long restarts for the relaxation method ($rn)"
 awk -v w="$r5" -v n="$rn" 'BEGIN { exit !(w >= 0.9 * n) }' || fail "relaxation half-way: $r5 of $rn within 5 % (need 90 %)"
 echo "ok: $kind: $within of $n within $most %, $w10 within 10 %, verdict wrong $wrong of $judged; $failed of 200 not run; relaxation half-way $r5 of $rn within 5 %"

@@ -6,6 +6,8 @@
 # settling rules checked alongside would latch the oscillation fault on each of them; with the
 # shipped default (the designed schedule) every scenario of the 200-step sweep settles, --strict
 # passes, and supervised no fault latches.
+# The figures are read from the sweep's data: its --summary-json (tests/sweep_summary.py) and its
+# CSV files, not from the summary's sentences.
 #   test_sweep_outcomes.sh BINARY_DIR
 set -euo pipefail
 sweep=$1/bin/pneu-sweep
@@ -16,26 +18,26 @@ paper=(--set controller.law.gains=fixed)  # config/paper.yaml's law: the paper's
 
 # column NAME FILE: the values of a column of a CSV file with a header, one a line.
 column() { awk -F, -v name="$1" 'NR == 1 { for (i = 1; i <= NF; ++i) if ($i == name) c = i; next } { print $c }' "$2"; }
-# summary_count WHAT FILE: the count before WHAT on the summary's outcomes line.
-summary_count() { grep -E '^  outcomes ' "$2" | grep -oE "[0-9]+ $1" | grep -oE '^[0-9]+'; }
+# summary FILE KEY...: members of a --summary-json, one a line.
+summary() { /usr/bin/python3 "$(dirname "$0")/sweep_summary.py" "$@"; }
 
 echo "== the paper's gains: 40 scenarios"
 status=0
 "$sweep" --steps 40 --quiet --strict "${paper[@]}" "${nonlinear[@]}" --out "$tmp/stops.csv" --scenarios-out "$tmp/scenarios.csv" \
-  > "$tmp/summary.txt" 2> "$tmp/err.txt" || status=$?
+  --summary-json "$tmp/summary.json" > "$tmp/summary.txt" 2> "$tmp/err.txt" || status=$?
 cat "$tmp/summary.txt" "$tmp/err.txt"
 [ "$status" = 1 ] || fail "--strict exits 1 when scenarios do not settle (got $status)"
 grep -qE '^pneu-sweep: strict: [0-9]+ of 40 scenarios did not settle \([0-9]+ never settled' "$tmp/err.txt" \
   || fail "--strict says why"
-grep -q 'forecasts outside' "$tmp/err.txt" && fail "the nonlinear forecasts are all within their criteria"
+[ "$(summary "$tmp/summary.json" methods.nonlinear.outside_criteria methods.linearized.outside_criteria | tr '\n' ' ')" = "0 0 " ] \
+  || fail "the nonlinear forecasts are all within their criteria"
+grep -q 'forecasts outside' "$tmp/err.txt" && fail "--strict names no forecast outside its criteria"
 
 [ "$(head -1 "$tmp/scenarios.csv")" = "scenario,y0_m,y_d_m,friction_scale,gain_scale,outcome,settle_time_s,final_error_m,fault_cause,fault_after_s,stops,restarts,at_rest_at_end,last_second_swing_m,oscillation_rule_after_s,bench_static_positive_n,bench_coulomb_positive_n,bench_static_negative_n,bench_coulomb_negative_n,bench_viscous_n_s_per_m,bench_max_conductance_m3_per_s_pa,bench_leak_conductance_in_m3_per_s_pa,bench_leak_conductance_out_m3_per_s_pa,bench_dead_volume_p_m3,bench_dead_volume_n_m3,bench_null_offset_v,bench_heat_transfer_w_per_m2_k,bench_thermal_time_constant_s,bench_spool_time_constant_s,in_window_after_s,hold_after_s,restarts_after_hold" ] \
   || fail "the scenarios file's header: $(head -1 "$tmp/scenarios.csv")"
 [ "$(column scenario "$tmp/scenarios.csv" | tr '\n' ' ')" = "$(seq 0 39 | tr '\n' ' ')" ] || fail "one row per scenario, in order"
-settled=$(summary_count settled "$tmp/summary.txt")
-never=$(summary_count 'never settled' "$tmp/summary.txt")
-end_stop=$(summary_count 'at rest against' "$tmp/summary.txt")
-faults=$(summary_count faults "$tmp/summary.txt")
+read -r settled never end_stop faults <<< "$(summary "$tmp/summary.json" outcomes.settled.count outcomes.never_settled.count \
+  outcomes.end_stop.count outcomes.fault.count | tr '\n' ' ')"
 [ $((settled + never + end_stop + faults)) = 40 ] || fail "the counts add up to the scenarios: $settled + $never + $end_stop + $faults"
 for outcome in settled never-settled end-stop fault; do
   rows=$(column outcome "$tmp/scenarios.csv" | grep -cx -- "$outcome" || true)
@@ -53,12 +55,17 @@ awk -F, 'NR > 1 {
   if ($6 == "never-settled" && ($7 != "" || $14 < 0.02 || $15 == "" || $15 > 2.0)) { print "never-settled row " $0; bad = 1 }
   if ($8 == "" || $11 == "" || $12 == "" || $13 == "") { print "incomplete row " $0; bad = 1 }
 } END { exit bad }' "$tmp/scenarios.csv" || fail "rows"
-grep -qE "^    settle time from the step \($settled settled\): p50 [0-9.]+ s  p90 [0-9.]+ s  p99 [0-9.]+ s  max [0-9.]+ s$" \
-  "$tmp/summary.txt" || fail "settle time percentiles over the settled ones"
-grep -qE "^    final \|y_d - y\| \($settled settled\): p50 [0-9.]+ mm" "$tmp/summary.txt" || fail "final error percentiles"
-grep -qE "^    never-settled: y0 in \[-?[0-9.]+, -?[0-9.]+\] m, y_d in \[-?[0-9.]+, -?[0-9.]+\] m$" "$tmp/summary.txt" \
-  || fail "where the unsettled ones lie"
-grep -qE "would latch the oscillation or not-settled fault in: [0-9]+ of $settled settled, $never of $never never-settled" "$tmp/summary.txt" \
+# numbers N FILE KEY...: each member a number (not null), one a line; N of them.
+numbers() { local n=$1; shift; [ "$(summary "$@" | grep -cE '^-?[0-9.]+(e-?[0-9]+)?$')" = "$n" ]; }
+[ "$(summary "$tmp/summary.json" settle_time_s.count)" = "$settled" ] &&
+  numbers 4 "$tmp/summary.json" settle_time_s.p50 settle_time_s.p90 settle_time_s.p99 settle_time_s.max \
+  || fail "settle time percentiles over the settled ones"
+[ "$(summary "$tmp/summary.json" final_error_m.count)" = "$settled" ] && numbers 1 "$tmp/summary.json" final_error_m.p50 \
+  || fail "final error percentiles"
+numbers 4 "$tmp/summary.json" outcomes.never_settled.y0_min_m outcomes.never_settled.y0_max_m \
+  outcomes.never_settled.y_d_min_m outcomes.never_settled.y_d_max_m || fail "where the unsettled ones lie"
+[ "$(summary "$tmp/summary.json" settling_rules.checked_alongside outcomes.never_settled.settling_rules_would_latch | tr '\n' ' ')" \
+  = "1 $never " ] && numbers 1 "$tmp/summary.json" outcomes.settled.settling_rules_would_latch \
   || fail "the settling rules checked alongside latch on every never-settled scenario"
 
 echo "== --strict-forecasts: the forecasts only"
@@ -67,27 +74,33 @@ echo "== --strict-forecasts: the forecasts only"
 cmp -s "$tmp/stops.csv" "$tmp/stops2.csv" || fail "the outcomes change nothing of the per-stop CSV"
 
 echo "== --supervised: a fault is an outcome, named"
-"$sweep" --steps 40 --quiet --supervised "${paper[@]}" --out "$tmp/stops3.csv" --scenarios-out "$tmp/supervised.csv" > "$tmp/summary3.txt"
+"$sweep" --steps 40 --quiet --supervised "${paper[@]}" --out "$tmp/stops3.csv" --scenarios-out "$tmp/supervised.csv" \
+  --summary-json "$tmp/summary3.json" > "$tmp/summary3.txt"
 cat "$tmp/summary3.txt"
 osc=$(column fault_cause "$tmp/supervised.csv" | grep -cx oscillation || true)
 [ "$osc" -ge "$never" ] || fail "every scenario that never settled latches the oscillation fault ($osc < $never)"
-grep -qE "^    faults by cause:.* oscillation $osc" "$tmp/summary3.txt" || fail "the summary names the causes"
+[ "$(summary "$tmp/summary3.json" faults_by_cause.oscillation)" = "$osc" ] || fail "the summary names the causes"
 awk -F, 'NR > 1 && $6 == "fault" && ($9 == "" || $10 == "") { print; bad = 1 } END { exit bad }' "$tmp/supervised.csv" \
   || fail "a fault row names its cause and time"
 
 echo "== the shipped default, the designed schedule: all 200 scenarios settle, --strict passes, no fault"
 "$sweep" --steps 200 --quiet --strict "${nonlinear[@]}" --out "$tmp/stops4.csv" \
-  --scenarios-out "$tmp/designed.csv" > "$tmp/summary4.txt" || { cat "$tmp/summary4.txt"; fail "--strict on the default"; }
+  --scenarios-out "$tmp/designed.csv" --summary-json "$tmp/summary4.json" > "$tmp/summary4.txt" \
+  || { cat "$tmp/summary4.txt"; fail "--strict on the default"; }
 cat "$tmp/summary4.txt"
-[ "$(summary_count settled "$tmp/summary4.txt")" = 200 ] || fail "200 settled"
-grep -q "would latch the oscillation or not-settled fault in: 0 of 200 settled$" "$tmp/summary4.txt" || fail "no false oscillation fault"
-"$sweep" --steps 200 --quiet --supervised --out "$tmp/stops5.csv" --scenarios-out "$tmp/designed5.csv" > "$tmp/summary5.txt"
-[ "$(summary_count faults "$tmp/summary5.txt")" = 0 ] || { cat "$tmp/summary5.txt"; fail "supervised, no fault latches"; }
+[ "$(summary "$tmp/summary4.json" outcomes.settled.count)" = 200 ] || fail "200 settled"
+[ "$(summary "$tmp/summary4.json" settling_rules.checked_alongside outcomes.settled.settling_rules_would_latch | tr '\n' ' ')" \
+  = "1 0 " ] || fail "no false oscillation fault"
+"$sweep" --steps 200 --quiet --supervised --out "$tmp/stops5.csv" --scenarios-out "$tmp/designed5.csv" \
+  --summary-json "$tmp/summary5.json" > "$tmp/summary5.txt"
+[ "$(summary "$tmp/summary5.json" outcomes.fault.count)" = 0 ] || { cat "$tmp/summary5.txt"; fail "supervised, no fault latches"; }
 [ "$(column outcome "$tmp/designed5.csv" | grep -cx settled)" = 200 ] || fail "supervised, 200 rows settled"
 
 echo "== --bench-spread: each scenario a bench of its own, the controller's model unchanged"
-"$sweep" --steps 40 --quiet --bench-spread 0.2 --out "$tmp/bench.csv" --scenarios-out "$tmp/bench_sc.csv" > "$tmp/bench.txt"
-grep -q "bench +-20 % of the model and a valve null offset within +-0.1 V" "$tmp/bench.txt" || fail "the summary names the bench spread"
+"$sweep" --steps 40 --quiet --bench-spread 0.2 --out "$tmp/bench.csv" --scenarios-out "$tmp/bench_sc.csv" \
+  --summary-json "$tmp/bench.json" > "$tmp/bench.txt"
+[ "$(summary "$tmp/bench.json" setting.bench_spread setting.bench_null_offset_within_v | tr '\n' ' ')" = "0.2 0.1 " ] \
+  || fail "the summary names the bench spread"
 "$sweep" --steps 40 --quiet --out "$tmp/nobench.csv" --scenarios-out "$tmp/nobench_sc.csv" > /dev/null
 [ "$(cut -d, -f1-3 "$tmp/bench_sc.csv")" = "$(cut -d, -f1-3 "$tmp/nobench_sc.csv")" ] || fail "the same scenarios (y0, y_d) as without it"
 # Without it every bench is the model (sim.yaml): F_S+ 45, F_C+ 35, F_S- -50, F_C- -38, sigma 60,
@@ -108,7 +121,8 @@ awk -F, 'function off(v, m) { return m > 0 ? v < m * 0.8 - 1e-12 || v > m * 1.2 
 grep -q -- "--bench-spread must be in \[0, 1)" "$tmp/err.txt" || fail "--bench-spread 1 refused saying why"
 
 echo "== --online: the stops on a side the bench had broken away to after 0.5 s or more stuck"
-"$sweep" --steps 40 --quiet --bench-spread 0.2 --online "${nonlinear[@]}" --out "$tmp/online.csv" > "$tmp/online.txt"
+"$sweep" --steps 40 --quiet --bench-spread 0.2 --online "${nonlinear[@]}" --out "$tmp/online.csv" \
+  --summary-json "$tmp/online.json" > "$tmp/online.txt"
 cat "$tmp/online.txt"
 # side_broken_away_slowly is 1 exactly where the forecast's side (the restart's, or for "no restart"
 # the side the force relaxes towards) is that of an earlier stop of the scenario that ended, after
@@ -131,6 +145,6 @@ awk -F, 'NR == 1 { for (i = 1; i <= NF; ++i) c[$i] = i; next }
 # The summary counts the judged ones among them.
 judged_slow=$(awk -F, 'NR == 1 { for (i = 1; i <= NF; ++i) c[$i] = i; next }
   $c["side_broken_away_slowly"] == 1 && $c["nl_verdict"] != "not_judged" { n++ } END { print n + 0 }' "$tmp/online.csv")
-grep -q "judged stops on a side the bench had already broken away to after >= 0.5 s stuck (a slow breakaway): $judged_slow," \
-  "$tmp/online.txt" || fail "the summary counts the $judged_slow judged stops on a slowly broken-away side"
+[ "$(summary "$tmp/online.json" setting.online methods.nonlinear.online_slow_side.stops | tr '\n' ' ')" = "1 $judged_slow " ] \
+  || fail "the summary counts the $judged_slow judged stops on a slowly broken-away side"
 echo "all well"

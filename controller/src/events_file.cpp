@@ -1,6 +1,6 @@
 #include "pneu/controller/events_file.hpp"
 
-#include "json_text.hpp"
+#include "pneu/controller/json_text.hpp"
 #include "pneu/controller/supervisor.hpp"
 
 namespace pneu::controller {

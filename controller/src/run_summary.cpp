@@ -4,7 +4,7 @@
 #include <cmath>
 #include <string>
 
-#include "json_text.hpp"
+#include "pneu/controller/json_text.hpp"
 #include "pneu/config/cli.hpp"
 #include "pneu/controller/supervisor.hpp"
 #include "pneu/controller/verdict.hpp"

@@ -1,4 +1,5 @@
-// Numbers and strings as JSON text, streamed without building a string (private to the sinks).
+// Numbers and strings as JSON text, streamed without building a string: the sinks' and the
+// summaries' writer (pneud's --summary-json, pneu-sweep's).
 #pragma once
 
 #include <charconv>

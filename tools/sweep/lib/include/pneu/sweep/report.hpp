@@ -1,0 +1,23 @@
+// What a sweep writes: the summary printed from its statistics, the same figures as JSON, the
+// stops file (one row per stop) and the scenarios file (one row per scenario).
+#pragma once
+
+#include <cstdio>
+#include <ostream>
+#include <span>
+
+#include "pneu/sweep/run.hpp"
+#include "pneu/sweep/statistics.hpp"
+
+namespace pneu::sweep {
+
+/// The summary's lines (pneu-sweep's standard output, less the "wrote" lines).
+void print_summary(std::FILE* out, const Statistics& statistics);
+/// The statistics as one JSON object (pneu-sweep --summary-json).
+void write_summary_json(std::ostream& out, const Statistics& statistics);
+/// One CSV row per judged-window stop (pneu-sweep --out).
+void write_stops_csv(std::ostream& out, std::span<const ScenarioResult> results, bool online);
+/// One CSV row per scenario (pneu-sweep --scenarios-out); identified_* columns with --identify.
+void write_scenarios_csv(std::ostream& out, std::span<const ScenarioResult> results, bool identify);
+
+}  // namespace pneu::sweep

@@ -1,0 +1,556 @@
+// What a sweep writes: its summary and its JSON from the statistics, its stops and scenarios files
+// from the results.
+#include "pneu/sweep/report.hpp"
+
+#include <algorithm>
+#include <string>
+
+#include "pneu/controller/json_text.hpp"
+#include "pneu/controller/supervisor.hpp"
+#include "pneu/model/chamber.hpp"
+
+namespace pneu::sweep {
+
+using controller::Verdict;
+
+namespace {
+
+const char* verdict_name(Verdict::Kind k) {
+  switch (k) {
+    case Verdict::Kind::kTruePositive: return "true_restart";
+    case Verdict::Kind::kTrueNegative: return "true_no_restart";
+    case Verdict::Kind::kFalsePositive: return "false_restart";
+    case Verdict::Kind::kFalseNegative: return "missed_restart";
+    case Verdict::Kind::kNotJudged: return "not_judged";
+  }
+  return "?";
+}
+
+unsigned long long ull(std::uint64_t v) { return static_cast<unsigned long long>(v); }
+
+// The live predictor's half-way forecasts of the restarts after >= 0.5 s.
+void print_halfway(std::FILE* out, const MethodStatistics& st) {
+  const Percentiles& h = st.halfway_error_percent;
+  std::fprintf(out,
+               "    made again half-way, sticking >= 0.5 s (%zu): p50 %.3f %%  p90 %.3f %%  p99 %.3f %%  max %.3f %% "
+               "(the live predictor, from the pressures of the moment; not judged)\n",
+               h.count, h.p50, h.p90, h.p99, h.max);
+  const Within2510& within = st.halfway_within;
+  std::fprintf(out,
+               "      of %llu such restarts: within 2 %%: %zu, 5 %%: %zu, 10 %%: %zu (wrong direction: %llu); forecast "
+               "none: %llu; restart after the run: %llu; no forecast by half-way: %llu\n",
+               ull(st.halfway_restarts()), within[0], within[1], within[2], ull(st.halfway_wrong_direction),
+               ull(st.halfway_none), ull(st.halfway_after_run), ull(st.halfway_missing));
+}
+
+}  // namespace
+
+void print_summary(std::FILE* out, const Statistics& st) {
+  const Setting& set = st.setting;
+  const Options& o = set.options;
+  const int n = st.scenarios;
+  char bench_text[96] = "";
+  if (o.bench_spread > 0.0)
+    std::snprintf(bench_text, sizeof bench_text, ", bench +-%.0f %% of the model and a valve null offset within +-%.3g V",
+                  o.bench_spread * 100, 0.5 * o.bench_spread);
+  std::fprintf(out,
+               "pneu-sweep: %d scenarios (%d set-point steps over [%.3f, %.3f] m, seed %llu, friction +-%.0f %%, gains "
+               "+-%.0f %%%s), stops of the first %.0f s judged (+ %.1f s tail)\n",
+               n, n, set.targets.lo_m, set.targets.hi_m, ull(o.seed), o.friction_spread * 100, o.gain_spread * 100,
+               bench_text, o.duration_s, o.tail_s);
+  std::fprintf(out,
+               "  %llu stops, %llu restarts (%llu after >= 0.5 s of sticking, %llu after >= 1 s), timed by the plant's "
+               "breakaways; %llu of them moved the carriage less than the stop detector's motion band\n",
+               ull(st.stops), ull(st.restarts), ull(st.long_restarts), ull(st.restarts_after_1_s),
+               ull(st.restarts_below_motion_band));
+  if (st.start_gap_ms.count > 0) {
+    const Percentiles &early = st.start_early_ms, &late = st.start_late_ms, &gap = st.start_gap_ms;
+    std::fprintf(out,
+                 "  the detector dated the %zu starts it saw %zu before the plant's breakaway (max %.1f ms), %zu at or "
+                 "after it (max %.1f ms); |gap| p50 %.2f ms p90 %.2f ms p99 %.1f ms\n",
+                 gap.count, early.count, early.count == 0 ? 0.0 : early.max, late.count,
+                 late.count == 0 ? 0.0 : late.max, gap.p50, gap.p90, gap.p99);
+  }
+  if (st.not_at_rest > 0)
+    std::fprintf(out,
+                 "  %llu stops were confirmed while the plant was still sliding within the detector's rest band: "
+                 "their forecasts are not judged\n",
+                 ull(st.not_at_rest));
+  std::fprintf(out,
+               "  outcomes (the first rest after the step): %llu settled, %llu never settled, %llu at rest against an end "
+               "stop, %llu faults\n",
+               ull(st.count(Outcome::kSettled)), ull(st.count(Outcome::kNeverSettled)), ull(st.count(Outcome::kEndStop)),
+               ull(st.count(Outcome::kFault)));
+  if (st.count(Outcome::kFault) > 0) {
+    std::fprintf(out, "    faults by cause:");
+    for (std::size_t c = 1; c < st.faults_by_cause.size(); ++c)
+      if (st.faults_by_cause[c] > 0)
+        std::fprintf(out, " %s %llu", controller::fault_name(static_cast<controller::FaultCause>(c)),
+                     ull(st.faults_by_cause[c]));
+    std::fprintf(out, "\n");
+  }
+  for (const Outcome oc : {Outcome::kNeverSettled, Outcome::kEndStop, Outcome::kFault}) {
+    const OutcomeStatistics& k = st.outcomes[static_cast<std::size_t>(oc)];
+    if (k.count == 0) continue;
+    std::fprintf(out, "    %s: y0 in [%.3f, %.3f] m, y_d in [%.3f, %.3f] m\n", outcome_name(oc), k.y0_min_m, k.y0_max_m,
+                 k.y_d_min_m, k.y_d_max_m);
+  }
+  const Percentiles &settle = st.settle_time_s, &fin = st.final_error_m, &win = st.in_window_after_s;
+  std::fprintf(out, "    settle time from the step (%zu settled): p50 %.3f s  p90 %.3f s  p99 %.3f s  max %.3f s\n",
+               settle.count, settle.p50, settle.p90, settle.p99, settle.max);
+  std::fprintf(out, "    final |y_d - y| (%zu settled): p50 %.3f mm  p90 %.3f mm  p99 %.3f mm  max %.3f mm\n", fin.count,
+               fin.p50 * 1e3, fin.p90 * 1e3, fin.p99 * 1e3, fin.max * 1e3);
+  std::fprintf(out,
+               "    at rest within +-%.3f mm of the set point (controller.hold.window_m), from the step (%zu of %zu run): "
+               "p50 %.3f s  p90 %.3f s  max %.3f s\n",
+               set.hold_window_m * 1e3, win.count, st.scenarios_run, win.p50, win.p90, win.max);
+  {
+    // Over every scenario run, those never at rest within the window counted as never: beside the
+    // percentiles above, which count only those that came to rest there.
+    char p50[32], p90[32];
+    for (auto [text, v] : {std::pair{p50, st.in_window_all_p50_s}, std::pair{p90, st.in_window_all_p90_s}}) {
+      if (std::isinf(v)) std::snprintf(text, sizeof p50, "never");
+      else std::snprintf(text, sizeof p50, "%.3f s", v);
+    }
+    std::fprintf(out, "    ... over all %zu run, the %zu never at rest within it counted as never: p50 %s  p90 %s\n",
+                 win.count + st.never_in_window, st.never_in_window, p50, p90);
+  }
+  std::fprintf(out,
+               "    the in-position hold (%s): began in %llu scenarios; restarts after it began (breakaways of the plant "
+               "beyond the motion band): %llu, in %llu scenarios\n",
+               set.hold_enabled ? "on" : "off", ull(st.held), ull(st.restarts_after_hold), ull(st.restarted_after_hold));
+  if (set.hold_enabled) {
+    const Percentiles& reach = st.reach_forecast_error_ms;
+    const auto& within = st.reach_forecasts_within_1_2_5_ms;
+    std::fprintf(out,
+                 "    forecasts under the hold's commands (method held): %llu made while held within the window, %llu of "
+                 "them a restart; reaches that broke away: %zu, forecast as each began within 1 / 2 / 5 ms of the start "
+                 "seen: %zu / %zu / %zu (|error| p50 %.2f ms, max %.2f ms), %llu forecast none\n",
+                 ull(st.held_forecasts), ull(st.held_restart_forecasts), reach.count, within[0], within[1], within[2],
+                 reach.p50, reach.max, ull(st.reaches_forecast_none));
+  }
+  if (st.settling_rules_checked) {
+    const SettlingRules& rules = set.settling_rules;
+    std::fprintf(out,
+                 "    the settling rules (%u sign changes beyond +-%.1f mm within %.2f s; settle time %.2f s), checked "
+                 "alongside, would latch the oscillation or not-settled fault in:",
+                 rules.sign_changes, rules.amplitude_m * 1e3, rules.window_s, rules.settle_time_s);
+    const char* separator = " ";
+    for (const Outcome oc : kOutcomes) {
+      const OutcomeStatistics& k = st.outcomes[static_cast<std::size_t>(oc)];
+      if (k.count == 0) continue;
+      std::fprintf(out, "%s%zu of %llu %s", separator, k.settling_rules_latched, ull(k.count), outcome_name(oc));
+      separator = ", ";
+    }
+    if (st.settling_rules_latched_after_s.count > 0)
+      std::fprintf(out, "; after the step: p50 %.3f s  max %.3f s", st.settling_rules_latched_after_s.p50,
+                   st.settling_rules_latched_after_s.max);
+    std::fprintf(out, "\n");
+  }
+  if (o.online)
+    std::fprintf(out, "  online identification: %llu stops before their bench had restarted %d times (while it learns) not judged\n",
+                 ull(st.before_learning), kOnlineLearningRestarts);
+  if (o.identify) {
+    const IdentificationStatistics& id = st.identification;
+    std::fprintf(out, "  identified first (pneud's identification run on each bench): %zu of %d, %zu failed\n",
+                 id.identified_and_run, n, id.failures.size());
+    for (const auto& f : id.failures) std::fprintf(out, "    failed: %s\n", f.c_str());
+    if (id.null_pressure_error_pa.count > 0) {
+      for (int side = 0; side < 2; ++side) {
+        const Percentiles& e = id.stiction_error_percent[static_cast<std::size_t>(side)];
+        std::fprintf(out, "    %s error against the bench: p50 %.3f %%  p90 %.3f %%  max %.3f %%\n",
+                     side == 0 ? "F_S+" : "F_S-", e.p50, e.p90, e.max);
+      }
+      const Percentiles& e = id.null_pressure_error_pa;
+      std::fprintf(out, "    p_null(u) over |u| < 1 V, largest error against the bench: p50 %.0f Pa  p90 %.0f Pa  max %.0f Pa\n",
+                   e.p50, e.p90, e.max);
+    }
+    if (id.residual_ratio.count > 0) {
+      const Percentiles& r = id.residual_ratio;
+      std::fprintf(out,
+                   "    the model fits (pressure residual within twice what the sensors' noise explains) on %zu of %zu; "
+                   "residual in what the noise explains: p50 %.2f  p90 %.2f  max %.2f\n",
+                   id.fits, r.count, r.p50, r.p90, r.max);
+      std::fprintf(out,
+                   "    parameters published that the bench has too, within 3 of their stated sigmas of it: %d of %d "
+                   "(%.1f %%)\n",
+                   id.within_3_sigma, id.published, id.published > 0 ? 100.0 * id.within_3_sigma / id.published : 0.0);
+      std::fprintf(out, "     ");
+      for (const auto& k : id.by_key)
+        std::fprintf(out, " %s %d of %d;", k.key.substr(k.key.rfind('.') + 1).c_str(), k.within_3_sigma, k.published);
+      std::fprintf(out, "\n");
+      for (std::size_t i = 0; i < id.outside.size() && i < 10; ++i) std::fprintf(out, "      outside: %s\n", id.outside[i].c_str());
+      if (id.outside.size() > 10) std::fprintf(out, "      ... %zu scenarios with one outside in all\n", id.outside.size());
+      if (id.heat_transfer_error_percent.count > 0) {
+        const Percentiles& e = id.heat_transfer_error_percent;
+        std::fprintf(out, "    heat transfer error against the bench: p50 %.3f %%  p90 %.3f %%  max %.3f %%\n", e.p50, e.p90,
+                     e.max);
+      }
+      if (id.spool_lag_error_ms.count > 0) {
+        const Percentiles& e = id.spool_lag_error_ms;
+        std::fprintf(out, "    spool lag error against the bench: p50 %.4f ms  p90 %.4f ms  max %.4f ms\n", e.p50, e.p90,
+                     e.max);
+      }
+    }
+  }
+  std::fprintf(out, "  %.2f s wall on %d threads: %.1f scenarios/s\n", st.wall_s, st.jobs, n / st.wall_s);
+  const std::string names[2] = {set.linearized_name, "nonlinear"};
+  for (std::size_t m = 0; m < 2; ++m) {
+    const MethodStatistics& ms = st.methods[m];
+    if (ms.judged() == 0) continue;
+    std::fprintf(out, "  %s:\n", names[m].c_str());
+    std::fprintf(out, "    confusion            actual restart  actual none\n");
+    std::fprintf(out, "      forecast restart   %14llu  %11llu\n", ull(ms.true_restart), ull(ms.false_restart));
+    std::fprintf(out, "      forecast none      %14llu  %11llu\n", ull(ms.missed_restart), ull(ms.true_no_restart));
+    std::fprintf(out,
+                 "    not judged: %llu (the set point moved, the plant was not at rest, or the forecast restart falls after "
+                 "the run)\n",
+                 ull(ms.not_judged));
+    std::fprintf(out, "    wrong direction: %llu\n", ull(ms.wrong_direction));
+    const Percentiles &lg = ms.long_error_percent, &sh = ms.short_error_ms;
+    std::fprintf(out,
+                 "    error, sticking >= 0.5 s (%zu): p50 %.3f %%  p90 %.3f %%  p99 %.3f %%  max %.3f %% of the sticking "
+                 "time\n",
+                 lg.count, lg.p50, lg.p90, lg.p99, lg.max);
+    std::fprintf(out, "    error, sticking <  0.5 s (%zu): p50 %.3f ms p90 %.3f ms p99 %.3f ms max %.3f ms\n", sh.count,
+                 sh.p50, sh.p90, sh.p99, sh.max);
+    std::fprintf(out,
+                 "    sticking >= 0.5 s, within 2 %%: %zu, 5 %%: %zu, 10 %%: %zu of %zu; verdict wrong (restart or "
+                 "none): %llu of %llu judged stops (%.2f %%)\n",
+                 ms.long_within[0], ms.long_within[1], ms.long_within[2], lg.count, ull(ms.wrong()), ull(ms.judged()),
+                 ms.judged() ? 100.0 * static_cast<double>(ms.wrong()) / static_cast<double>(ms.judged()) : 0.0);
+    std::fprintf(out, "    outside the acceptance criteria (%s %%, 10 ms): %llu\n", m == 0 ? "5" : "1",
+                 ull(ms.outside_criteria));
+    if (o.online) {
+      const Split& un = ms.unidentified_bound;
+      std::fprintf(out,
+                   "    --online, judged stops forecast on a stiction bound not identified yet (the configured one: no "
+                   "breakaway that way yet): %llu, verdict wrong on %llu; sticking >= 0.5 s within 2 %%: %zu, "
+                   "5 %%: %zu, 10 %%: %zu of %zu\n",
+                   ull(un.stops), ull(un.wrong), un.long_within[0], un.long_within[1], un.long_within[2], un.long_restarts);
+      // The others, on bounds it had identified.
+      std::fprintf(out,
+                   "    --online, the others, on identified bounds: %llu, verdict wrong on %llu; sticking >= 0.5 s within "
+                   "2 %%: %zu, 5 %%: %zu, 10 %%: %zu of %zu\n",
+                   ull(ms.judged() - un.stops), ull(ms.wrong() - un.wrong), ms.long_within[0] - un.long_within[0],
+                   ms.long_within[1] - un.long_within[1], ms.long_within[2] - un.long_within[2],
+                   lg.count - un.long_restarts);
+      // Across both: the stops on a side the bench had broken away to slowly.
+      const Split& slow = ms.slow_side;
+      std::fprintf(out,
+                   "    --online, judged stops on a side the bench had already broken away to after >= %.1f s stuck (a "
+                   "slow breakaway): %llu, verdict wrong on %llu; sticking >= 0.5 s within 2 %%: %zu, 5 %%: %zu, 10 %%: "
+                   "%zu of %zu\n",
+                   kLongSticking_s, ull(slow.stops), ull(slow.wrong), slow.long_within[0], slow.long_within[1],
+                   slow.long_within[2], slow.long_restarts);
+    }
+    print_halfway(out, ms);
+  }
+  if (set.halfway_enabled[2]) {
+    std::fprintf(out, "  relaxation (made again only, fitted to the phase's own pressures; no valve model):\n");
+    print_halfway(out, st.methods[2]);
+  }
+}
+
+namespace {
+
+void write_percentiles(controller::json::Writer& w, std::string_view key, const Percentiles& p) {
+  w.begin_object(key);
+  w.count("count", p.count);
+  w.number("p50", p.p50);
+  w.number("p90", p.p90);
+  w.number("p99", p.p99);
+  w.number("max", p.max);
+  w.end_object();
+}
+
+void write_within(controller::json::Writer& w, std::string_view key, const Within2510& within) {
+  w.begin_object(key);
+  w.count("2_percent", within[0]);
+  w.count("5_percent", within[1]);
+  w.count("10_percent", within[2]);
+  w.end_object();
+}
+
+void write_split(controller::json::Writer& w, std::string_view key, const Split& s) {
+  w.begin_object(key);
+  w.count("stops", s.stops);
+  w.count("wrong", s.wrong);
+  w.count("long_restarts", s.long_restarts);
+  write_within(w, "long_within", s.long_within);
+  w.end_object();
+}
+
+void write_method(controller::json::Writer& w, std::string_view key, const MethodStatistics& m) {
+  w.begin_object(key);
+  w.count("judged", m.judged());
+  w.count("true_restart", m.true_restart);
+  w.count("true_no_restart", m.true_no_restart);
+  w.count("false_restart", m.false_restart);
+  w.count("missed_restart", m.missed_restart);
+  w.count("not_judged", m.not_judged);
+  w.count("wrong_direction", m.wrong_direction);
+  w.count("outside_criteria", m.outside_criteria);
+  write_percentiles(w, "long_error_percent", m.long_error_percent);
+  write_within(w, "long_within", m.long_within);
+  write_percentiles(w, "short_error_ms", m.short_error_ms);
+  w.begin_object("halfway");
+  w.count("restarts", m.halfway_restarts());
+  write_percentiles(w, "error_percent", m.halfway_error_percent);
+  write_within(w, "within", m.halfway_within);
+  w.count("wrong_direction", m.halfway_wrong_direction);
+  w.count("forecast_none", m.halfway_none);
+  w.count("restart_after_run", m.halfway_after_run);
+  w.count("no_forecast", m.halfway_missing);
+  w.end_object();
+  write_split(w, "online_unidentified_bound", m.unidentified_bound);
+  write_split(w, "online_slow_side", m.slow_side);
+  w.end_object();
+}
+
+}  // namespace
+
+void write_summary_json(std::ostream& out, const Statistics& st) {
+  controller::json::Writer w(out);
+  const Setting& set = st.setting;
+  const Options& o = set.options;
+  w.begin_object();
+  w.count("scenarios", static_cast<std::uint64_t>(st.scenarios));
+  w.count("scenarios_run", st.scenarios_run);
+  w.begin_object("setting");
+  w.count("seed", o.seed);
+  w.number("targets_lo_m", set.targets.lo_m);
+  w.number("targets_hi_m", set.targets.hi_m);
+  w.number("duration_s", o.duration_s);
+  w.number("step_time_s", o.step_time_s);
+  w.number("tail_s", o.tail_s);
+  w.number("friction_spread", o.friction_spread);
+  w.number("gain_spread", o.gain_spread);
+  w.number("bench_spread", o.bench_spread);
+  w.number("bench_null_offset_within_v", 0.5 * o.bench_spread);
+  w.flag("supervised", o.supervised);
+  w.flag("identify", o.identify);
+  w.flag("online", o.online);
+  w.flag("hold_enabled", set.hold_enabled);
+  w.number("hold_window_m", set.hold_window_m);
+  w.end_object();
+  w.begin_object("stops");
+  w.count("count", st.stops);
+  w.count("restarts", st.restarts);
+  w.count("restarts_after_0_5_s", st.long_restarts);
+  w.count("restarts_after_1_s", st.restarts_after_1_s);
+  w.count("restarts_below_motion_band", st.restarts_below_motion_band);
+  w.count("plant_not_at_rest", st.not_at_rest);
+  w.count("before_learning", st.before_learning);
+  write_percentiles(w, "start_before_breakaway_ms", st.start_early_ms);
+  write_percentiles(w, "start_after_breakaway_ms", st.start_late_ms);
+  write_percentiles(w, "start_gap_ms", st.start_gap_ms);
+  w.end_object();
+  w.begin_object("outcomes");
+  for (const Outcome oc : kOutcomes) {
+    const OutcomeStatistics& k = st.outcomes[static_cast<std::size_t>(oc)];
+    std::string key = outcome_name(oc);
+    std::replace(key.begin(), key.end(), '-', '_');
+    w.begin_object(key);
+    w.count("count", k.count);
+    w.number("y0_min_m", k.y0_min_m);
+    w.number("y0_max_m", k.y0_max_m);
+    w.number("y_d_min_m", k.y_d_min_m);
+    w.number("y_d_max_m", k.y_d_max_m);
+    w.count("settling_rules_would_latch", k.settling_rules_latched);
+    w.end_object();
+  }
+  w.end_object();
+  w.begin_object("faults_by_cause");
+  for (std::size_t c = 1; c < st.faults_by_cause.size(); ++c)
+    if (st.faults_by_cause[c] > 0)
+      w.count(controller::fault_name(static_cast<controller::FaultCause>(c)), st.faults_by_cause[c]);
+  w.end_object();
+  write_percentiles(w, "settle_time_s", st.settle_time_s);
+  write_percentiles(w, "final_error_m", st.final_error_m);
+  w.begin_object("in_window");
+  w.number("window_m", set.hold_window_m);
+  write_percentiles(w, "after_s", st.in_window_after_s);
+  w.count("never", st.never_in_window);
+  w.number("all_p50_s", st.in_window_all_p50_s);  // null: never
+  w.number("all_p90_s", st.in_window_all_p90_s);
+  w.end_object();
+  w.begin_object("hold");
+  w.flag("enabled", set.hold_enabled);
+  w.count("began", st.held);
+  w.count("restarts_after", st.restarts_after_hold);
+  w.count("scenarios_restarted_after", st.restarted_after_hold);
+  w.count("held_forecasts", st.held_forecasts);
+  w.count("held_restart_forecasts", st.held_restart_forecasts);
+  write_percentiles(w, "reach_forecast_error_ms", st.reach_forecast_error_ms);
+  w.count("reach_forecasts_within_1_ms", st.reach_forecasts_within_1_2_5_ms[0]);
+  w.count("reach_forecasts_within_2_ms", st.reach_forecasts_within_1_2_5_ms[1]);
+  w.count("reach_forecasts_within_5_ms", st.reach_forecasts_within_1_2_5_ms[2]);
+  w.count("reaches_forecast_none", st.reaches_forecast_none);
+  w.end_object();
+  w.begin_object("settling_rules");
+  w.flag("checked_alongside", st.settling_rules_checked);
+  w.count("sign_changes", set.settling_rules.sign_changes);
+  w.number("amplitude_m", set.settling_rules.amplitude_m);
+  w.number("window_s", set.settling_rules.window_s);
+  w.number("settle_time_s", set.settling_rules.settle_time_s);
+  write_percentiles(w, "would_latch_after_s", st.settling_rules_latched_after_s);
+  w.end_object();
+  if (o.identify) {
+    const IdentificationStatistics& id = st.identification;
+    w.begin_object("identification");
+    w.count("identified_and_run", id.identified_and_run);
+    w.begin_array("failed");
+    for (const auto& f : id.failures) w.text({}, f);
+    w.end_array();
+    write_percentiles(w, "static_positive_error_percent", id.stiction_error_percent[0]);
+    write_percentiles(w, "static_negative_error_percent", id.stiction_error_percent[1]);
+    write_percentiles(w, "null_pressure_error_pa", id.null_pressure_error_pa);
+    write_percentiles(w, "residual_in_noise", id.residual_ratio);
+    w.count("fits", id.fits);
+    w.count("published", static_cast<std::uint64_t>(id.published));
+    w.count("within_3_sigma", static_cast<std::uint64_t>(id.within_3_sigma));
+    w.begin_object("by_key");
+    for (const auto& k : id.by_key) {
+      w.begin_object(k.key);
+      w.count("published", static_cast<std::uint64_t>(k.published));
+      w.count("within_3_sigma", static_cast<std::uint64_t>(k.within_3_sigma));
+      w.end_object();
+    }
+    w.end_object();
+    w.begin_array("outside");
+    for (const auto& s : id.outside) w.text({}, s);
+    w.end_array();
+    write_percentiles(w, "heat_transfer_error_percent", id.heat_transfer_error_percent);
+    write_percentiles(w, "spool_lag_error_ms", id.spool_lag_error_ms);
+    w.end_object();
+  }
+  w.begin_object("methods");
+  write_method(w, "linearized", st.methods[0]);
+  write_method(w, "nonlinear", st.methods[1]);
+  write_method(w, "relaxation", st.methods[2]);
+  w.end_object();
+  w.number("wall_s", st.wall_s);
+  w.count("jobs", static_cast<std::uint64_t>(st.jobs));
+  w.end_object();
+}
+
+void write_stops_csv(std::ostream& os, std::span<const ScenarioResult> results, bool online) {
+  os << "scenario,y0_m,y_d_m,friction_scale,gain_scale,stop,t_stop_s,y_stop_m,force_n,u_star_v,"
+        "equilibrium_force_n,outcome,t_end_s,sticking_s,direction";
+  for (const char* m : {"lin", "nl"})
+    os << ',' << m << "_will_restart," << m << "_t_restart_s," << m << "_direction," << m << "_verdict,"
+       << m << "_error_ms," << m << "_error_percent," << m << "_within_criteria";
+  os << ",lin_halfway_error_percent,nl_halfway_error_percent,rx_halfway_error_percent,forecast_on_unidentified_bound,"
+        "side_broken_away_slowly\n";
+  char buf[512];
+  for (const ScenarioResult& r : results)
+    for (const JudgedStop& j : r.stops) {
+      const controller::StopOutcome& s = j.stop;
+      const controller::Prediction* any = s.nonlinear ? &*s.nonlinear : (s.linearized ? &*s.linearized : nullptr);
+      std::snprintf(buf, sizeof buf, "%d,%.6f,%.6f,%.4f,%.4f,%llu,%.6f,%.9f,%.4f,%.6f,%.4f,%s,%.6f,%.6f,%d",
+                    r.scenario.index, r.scenario.y0_m, r.scenario.y_d_m, r.scenario.friction_scale,
+                    r.scenario.gain_scale, ull(s.index), s.t_stop_s, s.y_stop_m, s.force_n, s.snapshot.u_v,
+                    any ? any->equilibrium_force_n : NAN, fate_name(j.fate), s.t_end_s, s.sticking_s(), s.direction);
+      os << buf;
+      for (const std::optional<JudgedForecast>& f : j.at_stop) {
+        if (!f) {
+          os << ",,,,,,,";
+          continue;
+        }
+        const controller::Prediction& p = f->prediction;
+        const Verdict& v = f->verdict;
+        const bool tp = v.kind == Verdict::Kind::kTruePositive;
+        std::snprintf(buf, sizeof buf, ",%d,%.6f,%d,%s,%s,%s,%d", p.will_restart ? 1 : 0, p.t_restart_s, p.direction,
+                      verdict_name(v.kind), tp ? std::to_string(v.error_s * 1e3).c_str() : "",
+                      tp ? std::to_string(v.error_percent).c_str() : "", f->within_criteria ? 1 : 0);
+        os << buf;
+      }
+      for (const std::optional<Verdict>& v : j.halfway) {
+        if (v && v->kind == Verdict::Kind::kTruePositive) os << ',' << std::to_string(v->error_percent);
+        else os << ',';
+      }
+      // --online: 1 when the stop was forecast on a stiction bound online learning had not
+      // identified yet (pneud's summary counts these), 0 otherwise; empty without --online.
+      if (online) os << ',' << (j.truth.on_configured_bound ? 1 : 0) << ',' << (j.on_slow_side ? 1 : 0);
+      else os << ",,";
+      os << '\n';
+    }
+}
+
+void write_scenarios_csv(std::ostream& os, std::span<const ScenarioResult> results, bool identify) {
+  const auto cell = [](double v, int digits = 6) {  // empty: not applicable
+    if (std::isnan(v)) return std::string();
+    char b[64];
+    std::snprintf(b, sizeof b, "%.*f", digits, v);
+    return std::string(b);
+  };
+  os << "scenario,y0_m,y_d_m,friction_scale,gain_scale,outcome,settle_time_s,final_error_m,"
+        "fault_cause,fault_after_s,stops,restarts,at_rest_at_end,last_second_swing_m,"
+        "oscillation_rule_after_s,bench_static_positive_n,bench_coulomb_positive_n,"
+        "bench_static_negative_n,bench_coulomb_negative_n,bench_viscous_n_s_per_m,"
+        "bench_max_conductance_m3_per_s_pa,bench_leak_conductance_in_m3_per_s_pa,"
+        "bench_leak_conductance_out_m3_per_s_pa,bench_dead_volume_p_m3,bench_dead_volume_n_m3,"
+        "bench_null_offset_v,bench_heat_transfer_w_per_m2_k,bench_thermal_time_constant_s,"
+        "bench_spool_time_constant_s"
+     << (identify ? ",identified_static_positive_n,identified_static_negative_n,"
+                    "identified_null_offset_v,identified_null_pressure_error_pa,"
+                    "identified_pressure_residual_pa,identified_pressure_explained_pa,"
+                    "identified_model_fits,identified_heat_transfer_w_per_m2_k,"
+                    "identified_spool_time_constant_s,identified_published,"
+                    "identified_within_3_sigma,identification_failed"
+                  : "")
+     << ",in_window_after_s,hold_after_s,restarts_after_hold\n";
+  for (const ScenarioResult& r : results) {
+    const bool ran = r.ran();
+    const Settling& g = r.settling;
+    // The positions and the bench exactly (they read back as the same doubles): a scenario can be
+    // run again with pneud.
+    char exact[2][32];
+    std::snprintf(exact[0], sizeof exact[0], "%.17g", r.scenario.y0_m);
+    std::snprintf(exact[1], sizeof exact[1], "%.17g", r.scenario.y_d_m);
+    os << r.scenario.index << ',' << exact[0] << ',' << exact[1] << ',' << cell(r.scenario.friction_scale, 4) << ','
+       << cell(r.scenario.gain_scale, 4) << ',';
+    if (ran)
+      os << outcome_name(g.outcome) << ',' << cell(g.settle_time_s) << ',' << cell(g.final_error_m, 9) << ','
+         << (g.fault == controller::FaultCause::kNone ? "" : controller::fault_name(g.fault)) << ','
+         << cell(g.fault_after_s) << ',' << g.stops << ',' << g.restarts << ',' << (g.at_rest_at_end ? 1 : 0) << ','
+         << cell(g.last_second_swing_m, 9) << ',' << cell(g.oscillation_rule_after_s);
+    else
+      os << "identification_failed" << std::string(9, ',');  // the outcome's 9 figures: none
+    const model::PlantParams& b = r.bench;
+    char row[512];
+    std::snprintf(row, sizeof row, ",%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g",
+                  b.friction.static_positive_n, b.friction.coulomb_positive_n, b.friction.static_negative_n,
+                  b.friction.coulomb_negative_n, b.friction.viscous_n_s_per_m, b.valve.max_conductance_m3_per_s_pa,
+                  b.valve.leak_conductance_in_m3_per_s_pa, b.valve.leak_conductance_out_m3_per_s_pa,
+                  b.geometry.dead_volume_p_m3, b.geometry.dead_volume_n_m3, b.valve.null_offset_v);
+    os << row;
+    if (b.has_thermal)
+      std::snprintf(row, sizeof row, ",%.17g,%.17g", b.thermal.heat_transfer_w_per_m2_k, model::thermal_time_constant_s(b));
+    else
+      std::snprintf(row, sizeof row, ",,");
+    os << row;
+    std::snprintf(row, sizeof row, ",%.17g", b.valve.spool_time_constant_s);
+    os << row;
+    if (identify) {
+      if (r.identified)
+        std::snprintf(row, sizeof row, ",%.6g,%.6g,%.6g,%.1f,%.3f,%.3f,%d,%s,%.6g,%d,%d",
+                      r.identified->friction.static_positive_n, r.identified->friction.static_negative_n,
+                      r.identified->valve.null_offset_v, r.check.null_pressure_error_pa, r.check.residual_pa,
+                      r.check.explained_pa, r.check.fits ? 1 : 0,
+                      r.identified->has_thermal ? cell(r.identified->thermal.heat_transfer_w_per_m2_k, 4).c_str() : "",
+                      r.identified->valve.spool_time_constant_s, r.check.published, r.check.within_3_sigma);
+      else
+        std::snprintf(row, sizeof row, ",,,,,,,,,,");
+      std::string reason = r.identification_failed;  // one quoted cell
+      std::replace(reason.begin(), reason.end(), '"', '\'');
+      os << row << ',' << (reason.empty() ? "" : "\"" + reason + "\"");
+    }
+    if (ran) os << ',' << cell(g.in_window_after_s) << ',' << cell(g.hold_after_s) << ',' << g.restarts_after_hold;
+    else os << ",,,";
+    os << '\n';
+  }
+}
+
+}  // namespace pneu::sweep
