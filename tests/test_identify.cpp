@@ -10,6 +10,7 @@
 #include <cstdlib>
 
 #include "pneu/backends/factory.hpp"
+#include "pneu/config/config.hpp"
 #include "pneu/controller/session.hpp"
 #include "pneu/identify/identification_run.hpp"
 #include "pneu/identify/online.hpp"

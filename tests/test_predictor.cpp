@@ -19,6 +19,7 @@
 #include <cstdio>
 
 #include "pneu/controller/predictor.hpp"
+#include "pneu/config/config.hpp"
 #include "pneu/model/params.hpp"
 #include "pneu/model/valve.hpp"
 

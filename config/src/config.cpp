@@ -23,8 +23,6 @@ namespace pneu::config {
 using detail::KeyCatalogue;
 using detail::MapReader;
 
-const char* to_string(LinearizedSlope s) noexcept { return schema::one_of(schema::kLinearizedSlopes).name_of(s); }
-const char* to_string(GainsKind g) noexcept { return schema::one_of(schema::kGainsKinds).name_of(g); }
 
 namespace {
 

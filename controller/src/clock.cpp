@@ -23,8 +23,8 @@ double RealClock::now_s() noexcept { return monotonic_s() - epoch_s_; }
 
 void RealClock::sleep_until(double t_s) noexcept { hal::sleep_until_monotonic_s(epoch_s_ + t_s); }
 
-std::unique_ptr<Clock> make_clock(config::ClockKind kind) {
-  if (kind == config::ClockKind::kReal) return std::make_unique<RealClock>();
+std::unique_ptr<Clock> make_clock(ClockKind kind) {
+  if (kind == ClockKind::kReal) return std::make_unique<RealClock>();
   return std::make_unique<SimulatedClock>();
 }
 

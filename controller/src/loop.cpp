@@ -306,7 +306,7 @@ void ControlLoop::apply_commands(double y_m) noexcept {
 }
 
 void ControlLoop::follow_schedule(double t_s) noexcept {
-  const auto& schedule = params_.controller.schedule;
+  const auto schedule = params_.controller.schedule();
   while (schedule_active_ && next_step_ < schedule.size() && schedule[next_step_].t_s <= t_s + 1e-9)
     y_d_m_ = schedule[next_step_++].position_m;
 }
@@ -486,7 +486,7 @@ void ControlLoop::push(LoopEvent e) noexcept {
 
 hal::ActuatorCommand ControlLoop::safe_command() const noexcept {
   const auto& law = params_.controller.law;
-  if (params_.controller.supervisor.safe_output == config::SafeOutput::kExhaust)
+  if (params_.controller.supervisor.safe_output == SafeOutput::kExhaust)
     return {-law.max_voltage_v, -law.max_voltage_v, false};  // both chambers to the exhaust
   return hal::ActuatorCommand::from_control(law.offset_v, false);
 }

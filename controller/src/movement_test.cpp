@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "pneu/controller/clock.hpp"
+#include "pneu/controller/loop_params.hpp"
 
 namespace pneu::controller {
 
@@ -81,7 +82,7 @@ std::string describe(const MovementTestResult& r) {
   return s;
 }
 
-MovementTestBench MovementTestBench::of(const config::ControllerConfig& c) noexcept {
+MovementTestBench MovementTestBench::of(const LoopSettings& c) noexcept {
   MovementTestBench b;
   b.u_0_v = c.law.offset_v;
   b.comms_fault_after_s = std::max(c.comms_fault_after_s, c.period_s());
@@ -90,7 +91,7 @@ MovementTestBench MovementTestBench::of(const config::ControllerConfig& c) noexc
   return b;
 }
 
-MovementTest::MovementTest(const config::MovementTestConfig& cfg, const MovementTestBench& bench) noexcept
+MovementTest::MovementTest(const MovementTestConfig& cfg, const MovementTestBench& bench) noexcept
     : cfg_(cfg), bench_(bench) {}
 
 void MovementTest::finish(MovementFinding f) noexcept {

@@ -30,7 +30,7 @@ std::string rlimit_text(int resource) {
 }
 }  // namespace
 
-RealtimeReport setup_realtime_thread(const config::RealtimeConfig& rt, bool require) {
+RealtimeReport setup_realtime_thread(const RealtimeConfig& rt, bool require) {
   RealtimeReport r;
   const auto problem = [&](const std::string& what) {
     if (require) throw RealtimeError(what + " (--require-rt)");

@@ -1,4 +1,5 @@
 #include "pneu/controller/session.hpp"
+#include "pneu/config/config.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -33,9 +34,9 @@ model::SampledLoop sampled_loop(const config::Config& config) {
 }
 
 ControlLaw make_control_law(const config::Config& config, const model::ValveCharacteristic& valve, const LawDesign& how) {
-  const config::ControlLawParams& law = config.controller.law;
-  if (law.gains == config::GainsKind::kFixed) return ControlLaw(law);
-  const config::GainDesignParams& d = law.design;
+  const ControlLawParams& law = config.controller.law;
+  if (law.gains == GainsKind::kFixed) return ControlLaw(law);
+  const GainDesignParams& d = law.design;
   const double u_e = equilibrium_voltage_v(config, valve);
   const model::RequestedDynamics poles{d.real_pole_1_per_s, d.natural_frequency_rad_per_s, d.damping};
   const model::GainLimits limits{d.max_position_gain_v_per_m, d.max_velocity_gain_v_s_per_m,
@@ -43,7 +44,7 @@ ControlLaw make_control_law(const config::Config& config, const model::ValveChar
   model::SampledLoop loop = sampled_loop(config);
   if (how.delay_samples) loop.delay_samples = *how.delay_samples;
   try {
-    if (d.infeasible == config::InfeasibleDesign::kFallBack) {
+    if (d.infeasible == InfeasibleDesign::kFallBack) {
       model::ScheduleDesign design = model::design_schedule_falling_back(config.plant, valve, u_e, poles, limits,
                                                                          d.node_spacing_m, how.check_sampled ? &loop : nullptr);
       if (how.fallbacks != nullptr) *how.fallbacks = std::move(design.fallbacks);
@@ -95,6 +96,50 @@ Run make_run(const config::Config& config, const model::ValveCharacteristic& val
     run.runtime->set_hold_law(HoldLaw(config.controller.hold, config.controller.law.max_voltage_v,
                                       config.controller.period_s()));
   return run;
+}
+
+MovementTestBench MovementTestBench::of(const config::Config& config) noexcept {
+  MovementTestBench b;
+  const config::ControllerConfig& c = config.controller;
+  b.u_0_v = c.law.offset_v;
+  b.comms_fault_after_s = std::max(c.comms_fault_after_s, c.period_s());
+  b.soft_min_m = c.soft_limit_min_m;
+  b.soft_max_m = c.soft_limit_max_m;
+  return b;
+}
+
+bool movement_test_at_first_arm(const config::Config& config) noexcept {
+  return config.hal.backend == config::BackendKind::kModbus && config.controller.movement_test.enabled &&
+         !config.controller.start_armed;
+}
+
+LoopParams LoopParams::from(const config::Config& config, const ControlLaw& law) {
+  const config::ControllerConfig& c = config.controller;
+  LoopSettings s;
+  s.rate_hz = c.rate_hz;
+  s.law = c.law;
+  s.differentiator = c.differentiator;
+  s.stop_detector = c.stop_detector;
+  s.hold = c.hold;
+  s.movement_test = c.movement_test;
+  s.initial_setpoint_m = c.initial_setpoint_m;
+  if (c.schedule.size() > s.schedule_steps.size())  // the schema refuses it first
+    throw config::ConfigError("controller.setpoints.schedule", "more steps than the loop holds");
+  std::copy(c.schedule.begin(), c.schedule.end(), s.schedule_steps.begin());
+  s.schedule_size = c.schedule.size();
+  s.soft_limit_min_m = c.soft_limit_min_m;
+  s.soft_limit_max_m = c.soft_limit_max_m;
+  s.start_armed = c.start_armed;
+  s.comms_fault_after_s = c.comms_fault_after_s;
+  s.supervisor = c.supervisor;
+  return {s, config.commands.setpoint_stream_timeout_s, config.plant.geometry, config.plant.gas.exhaust_pressure_pa,
+          config.plant.friction, law, movement_test_at_first_arm(config)};
+}
+
+LoopParams LoopParams::from(const config::Config& config) {
+  if (config.controller.law.gains != GainsKind::kFixed)
+    throw std::invalid_argument("LoopParams::from: a scheduled law needs its designed table (make_control_law)");
+  return from(config, ControlLaw(config.controller.law));
 }
 
 bool movement_test_runs(const config::Config& config) noexcept {

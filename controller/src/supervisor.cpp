@@ -163,7 +163,7 @@ FaultCause Supervisor::not_settling(const SupervisedTick& tick) noexcept {
   const double error_m = tick.y_d_m - tick.frame->y_m;
   const int side = error_m > amplitude_m ? +1 : error_m < -amplitude_m ? -1 : error_side_;
   if (error_side_ != 0 && side != error_side_) {
-    constexpr std::size_t kRing = config::SupervisorConfig::kMaxOscillationSignChanges;
+    constexpr std::size_t kRing = SupervisorConfig::kMaxOscillationSignChanges;
     sign_change_t_s_[sign_changes_ % kRing] = t;
     ++sign_changes_;
     const std::uint32_t n = cfg_.oscillation_sign_changes;

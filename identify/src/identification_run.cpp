@@ -1,4 +1,5 @@
 #include "pneu/identify/identification_run.hpp"
+#include "pneu/config/config.hpp"
 
 #include <algorithm>
 #include <cmath>

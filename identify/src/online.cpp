@@ -1,4 +1,5 @@
 #include "pneu/identify/online.hpp"
+#include "pneu/config/config.hpp"
 
 #include <algorithm>
 #include <chrono>

@@ -1,4 +1,5 @@
 #include "pneu/backends/factory.hpp"
+#include "pneu/config/config.hpp"
 
 #include <utility>
 

@@ -1,4 +1,5 @@
 #include "pneu/telemetry/command_validator.hpp"
+#include "pneu/config/config.hpp"
 
 #include <algorithm>
 #include <cmath>

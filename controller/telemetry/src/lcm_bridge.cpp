@@ -1,4 +1,5 @@
 #include "pneu/telemetry/lcm_bridge.hpp"
+#include "pneu/config/config.hpp"
 
 #include <arpa/inet.h>
 #include <poll.h>

@@ -1,4 +1,5 @@
 #include "pneu/hal/modbus_backend.hpp"
+#include "pneu/config/config.hpp"
 
 #include <modbus.h>
 

@@ -9,9 +9,17 @@
 //   - the key catalogue behind "unknown key; did you mean ...?" and the keys of a configuration
 //     (keys_of: the hostile-input matrix of tests/test_config_hostile.cpp).
 //
+// A component owns its parameters: its struct and its describe() live beside it, in its params
+// header (controller/params/include/pneu/controller/*_params.hpp: the law, differentiator, stop
+// detector, predictor, hold, movement test, supervisor, real-time set-up, clock, set points), with
+// the vocabulary of pneu/config/describe.hpp; the root configuration (config.hpp) aggregates them
+// and this file describes what is left (plant:, sensors:, hal:, telemetry:, commands:, the
+// controller: section's own keys).
+//
 // Adding a key: its member, with its default, in its struct; one line in that struct's describe()
-// below; its documented line in the shipped configurations (config/*.yaml: the comment is the
-// documentation users read, and docs/configuration.md is generated from it).
+// (here or in the component's params header); its documented line in the shipped configurations
+// (config/*.yaml: the comment is the documentation users read, and docs/configuration.md is
+// generated from it).
 //
 // A description is a function template `describe(a, object, context...)` run by every archive
 // `a` over a const (writing, listing) or mutable (reading) object, top to bottom: a rule (check)
@@ -46,6 +54,7 @@
 #include <vector>
 
 #include "pneu/config/config.hpp"
+#include "pneu/config/describe.hpp"
 #include "pneu/config/register_map.hpp"
 #include "pneu/model/params.hpp"
 #include "pneu/model/sensors.hpp"
@@ -55,256 +64,8 @@
 namespace pneu::config::schema {
 
 // ---------------------------------------------------------------------------------------------
-// The vocabulary
-
-/// A number as the messages quote it: up to 9 significant digits ("0.032", "1e-07").
-inline std::string fmt(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.9g", v);
-  return buf;
-}
-
-/// Whether a key may be left out of its mapping.
-enum class Presence : std::uint8_t {
-  kRequired,  ///< left out: refused ("missing")
-  kOptional,  ///< left out: the member keeps its default (the struct's initializer)
-  kIgnored,   ///< meaningless here: accepted and type-checked when given, not kept, not written
-};
-
-/// How to_yaml writes a mapping.
-enum class Style : std::uint8_t { kBlock, kFlow };
-
-/// A key of a mapping, and when it may be left out.
-struct Key {
-  const char* name;
-  Presence presence = Presence::kRequired;
-  const char* required_because = nullptr;  ///< the reason a conditionally required key is missing
-  Style style = Style::kBlock;
-
-  constexpr Key(const char* key_name) : name(key_name) {}  // NOLINT: a key is its name
-};
-
-/// A key and the member it fills.
-template <class T>
-struct Field {
-  constexpr Field(Key k, T& member) : key(k), value(member) {}
-  Key key;
-  T& value;
-};
-
-/// The key named as the member it fills, as Drake's DRAKE_NVP: `PNEU_NVP(g, stroke_m)` is the key
-/// "stroke_m" of g.stroke_m. (A key named otherwise: `Field("register", c.address)`.)
-#define PNEU_NVP(object, member) ::pneu::config::schema::Field(#member, (object).member)
-
-template <class T>
-[[nodiscard]] constexpr Field<T> optional(Field<T> f) {
-  f.key.presence = Presence::kOptional;
-  return f;
-}
-/// Required when `condition` (left out: refused as "missing: <because>"), optional otherwise.
-template <class T>
-[[nodiscard]] constexpr Field<T> required_when(bool condition, Field<T> f, const char* because) {
-  f.key.presence = condition ? Presence::kRequired : Presence::kOptional;
-  f.key.required_because = because;
-  return f;
-}
-/// Accepted and type-checked when given, not kept, not written, unless `condition` (then required).
-template <class T>
-[[nodiscard]] constexpr Field<T> meaningful_when(bool condition, Field<T> f) {
-  f.key.presence = condition ? Presence::kRequired : Presence::kIgnored;
-  return f;
-}
-/// Written as a mapping on one line.
-template <class T>
-[[nodiscard]] constexpr Field<T> flow(Field<T> f) {
-  f.key.style = Style::kFlow;
-  return f;
-}
-
-/// The values a number accepts (every one finite), and the refusal of the others.
-class Range {
- public:
-  [[nodiscard]] static constexpr Range any() { return {Kind::kAny, 0.0, 0.0}; }
-  [[nodiscard]] static constexpr Range positive() { return {Kind::kPositive, 0.0, 0.0}; }         ///< > 0
-  [[nodiscard]] static constexpr Range non_negative() { return {Kind::kNonNegative, 0.0, 0.0}; }  ///< >= 0
-  [[nodiscard]] static constexpr Range negative() { return {Kind::kNegative, 0.0, 0.0}; }         ///< < 0
-  [[nodiscard]] static constexpr Range non_zero() { return {Kind::kNonZero, 0.0, 0.0}; }          ///< != 0
-  /// [lo, hi]
-  [[nodiscard]] static constexpr Range closed(double lo, double hi) { return {Kind::kClosed, lo, hi}; }
-  /// (lo, hi)
-  [[nodiscard]] static constexpr Range open(double lo, double hi) { return {Kind::kOpen, lo, hi}; }
-  /// (lo, hi]
-  [[nodiscard]] static constexpr Range left_open(double lo, double hi) { return {Kind::kLeftOpen, lo, hi}; }
-
-  [[nodiscard]] constexpr bool contains(double v) const {
-    switch (kind_) {
-      case Kind::kAny: return true;
-      case Kind::kPositive: return v > 0.0;
-      case Kind::kNonNegative: return v >= 0.0;
-      case Kind::kNegative: return v < 0.0;
-      case Kind::kNonZero: return v != 0.0;
-      case Kind::kClosed: return v >= lo_ && v <= hi_;
-      case Kind::kOpen: return v > lo_ && v < hi_;
-      case Kind::kLeftOpen: return v > lo_ && v <= hi_;
-    }
-    return false;
-  }
-  /// The range as the documentation states it: "> 0", "in [1, 1.4]"; empty for any().
-  [[nodiscard]] std::string text() const {
-    switch (kind_) {
-      case Kind::kAny: return "";
-      case Kind::kPositive: return "> 0";
-      case Kind::kNonNegative: return ">= 0";
-      case Kind::kNegative: return "< 0";
-      case Kind::kNonZero: return "!= 0";
-      case Kind::kClosed: return "in [" + fmt(lo_) + ", " + fmt(hi_) + "]";
-      case Kind::kOpen: return "in (" + fmt(lo_) + ", " + fmt(hi_) + ")";
-      case Kind::kLeftOpen: return "in (" + fmt(lo_) + ", " + fmt(hi_) + "]";
-    }
-    return "";
-  }
-  /// "must be > 0 (got -1)"; "must not be 0".
-  [[nodiscard]] std::string refusal(double v) const {
-    if (kind_ == Kind::kNonZero) return "must not be 0";
-    return "must be " + text() + " (got " + fmt(v) + ")";
-  }
-
- private:
-  enum class Kind : std::uint8_t { kAny, kPositive, kNonNegative, kNegative, kNonZero, kClosed, kOpen, kLeftOpen };
-  constexpr Range(Kind kind, double lo, double hi) : kind_(kind), lo_(lo), hi_(hi) {}
-  Kind kind_;
-  double lo_, hi_;
-};
-
-/// The values an integer accepts, [lo, hi], and the refusal of the others: "must be in [lo, hi]",
-/// "must be >= lo", or a text of its own where "{}" stands for the value given.
-class IntRange {
- public:
-  [[nodiscard]] static constexpr IntRange in(long long lo, long long hi) { return {lo, hi}; }
-  [[nodiscard]] static constexpr IntRange at_least(long long lo) {
-    return {lo, std::numeric_limits<long long>::max()};
-  }
-  [[nodiscard]] constexpr IntRange says(const char* refusal) const {
-    IntRange r = *this;
-    r.says_ = refusal;
-    return r;
-  }
-
-  [[nodiscard]] constexpr bool contains(long long v) const { return v >= lo_ && v <= hi_; }
-  /// ">= 0", "in [1, 247]"
-  [[nodiscard]] std::string text() const {
-    if (hi_ == std::numeric_limits<long long>::max()) return ">= " + std::to_string(lo_);
-    return "in [" + std::to_string(lo_) + ", " + std::to_string(hi_) + "]";
-  }
-  [[nodiscard]] std::string refusal(long long v) const {
-    if (says_ == nullptr) return "must be " + text();
-    std::string out = says_;
-    if (const auto at = out.find("{}"); at != std::string::npos) out.replace(at, 2, std::to_string(v));
-    return out;
-  }
-
- private:
-  constexpr IntRange(long long lo, long long hi) : lo_(lo), hi_(hi) {}
-  long long lo_, hi_;
-  const char* says_ = nullptr;
-};
-
-/// One name of an enum-valued key.
-template <class E>
-struct Choice {
-  const char* name;
-  E value;
-};
-
-/// The names an enum-valued key accepts, and the refusal of the others: "must be 'a', 'b' or 'c'
-/// (got 'x')", or "must be a, b or c (got 'x')" unquoted(), or "unknown <noun> 'x' (a, b)".
-template <class E>
-struct Choices {
-  std::span<const Choice<E>> names;
-  const char* noun = nullptr;
-  bool quoted = true;
-
-  [[nodiscard]] constexpr Choices unquoted() const {
-    Choices c = *this;
-    c.quoted = false;
-    return c;
-  }
-  [[nodiscard]] constexpr Choices unknown(const char* what) const {
-    Choices c = *this;
-    c.noun = what;
-    return c;
-  }
-  /// The name of `value` (the first name for a value that has none, which the reader never makes).
-  [[nodiscard]] constexpr const char* name_of(E value) const {
-    for (const Choice<E>& c : names)
-      if (c.value == value) return c.name;
-    return names.front().name;
-  }
-  [[nodiscard]] std::string refusal(const std::string& given) const {
-    if (noun != nullptr) return "unknown " + std::string(noun) + " '" + given + "' (" + listed(", ", ", ") + ")";
-    return "must be " + listed(", ", " or ") + " (got '" + given + "')";
-  }
-  /// "'a', 'b' or 'c'" (`last` before the last name).
-  [[nodiscard]] std::string listed(const char* between, const char* last) const {
-    std::string text;
-    for (std::size_t i = 0; i < names.size(); ++i) {
-      if (i > 0) text += i + 1 == names.size() ? last : between;
-      text += quoted && noun == nullptr ? "'" + std::string(names[i].name) + "'" : names[i].name;
-    }
-    return text;
-  }
-};
-
-template <class E, std::size_t N>
-[[nodiscard]] constexpr Choices<E> one_of(const Choice<E> (&names)[N]) {
-  return {std::span<const Choice<E>>(names)};
-}
-
-/// One name of a list of names: present, it sets `member` of the owner.
-template <class S>
-struct Flag {
-  const char* name;
-  bool S::* member;
-};
-
-/// The names a list of names may hold ("unknown <noun> 'x' (a, b)" for any other).
-template <class S>
-struct Flags {
-  std::span<const Flag<S>> names;
-  const char* noun;
-
-  /// "a, b"
-  [[nodiscard]] std::string listed() const {
-    std::string text;
-    for (const Flag<S>& f : names) text += (text.empty() ? "" : ", ") + std::string(f.name);
-    return text;
-  }
-};
-
-template <class S, std::size_t N>
-[[nodiscard]] constexpr Flags<S> any_of(const Flag<S> (&names)[N], const char* noun) {
-  return {std::span<const Flag<S>>(names), noun};
-}
-
-/// `T` or `const T`: a description serves the reader (mutable) and the other archives (const).
-template <class T, class U>
-concept Like = std::same_as<std::remove_const_t<T>, U>;
-
-// ---------------------------------------------------------------------------------------------
 // The names of enum-valued keys
 
-inline constexpr Choice<ClockKind> kClocks[] = {{"simulated", ClockKind::kSimulated}, {"real", ClockKind::kReal}};
-inline constexpr Choice<LinearizedSlope> kLinearizedSlopes[] = {{"stop", LinearizedSlope::kStopTangent},
-                                                               {"chord", LinearizedSlope::kChord},
-                                                               {"equilibrium", LinearizedSlope::kEquilibriumTangent}};
-inline constexpr Flag<PredictorConfig> kPredictorMethods[] = {{"linearized", &PredictorConfig::linearized},
-                                                              {"nonlinear", &PredictorConfig::nonlinear},
-                                                              {"relaxation", &PredictorConfig::relaxation}};
-inline constexpr Choice<GainsKind> kGainsKinds[] = {{"fixed", GainsKind::kFixed}, {"scheduled", GainsKind::kScheduled}};
-inline constexpr Choice<InfeasibleDesign> kInfeasibleDesigns[] = {{"fall_back", InfeasibleDesign::kFallBack},
-                                                                  {"refuse", InfeasibleDesign::kRefuse}};
-inline constexpr Choice<SafeOutput> kSafeOutputs[] = {{"neutral", SafeOutput::kNeutral},
-                                                      {"exhaust", SafeOutput::kExhaust}};
 inline constexpr Choice<BackendKind> kBackends[] = {{"sim", BackendKind::kSim}, {"modbus", BackendKind::kModbus}};
 inline constexpr Choice<ModbusTransport> kTransports[] = {{"tcp", ModbusTransport::kTcp},
                                                           {"rtu", ModbusTransport::kRtu}};
@@ -313,15 +74,6 @@ inline constexpr Choice<SensorTable> kSensorTables[] = {{"holding", SensorTable:
                                                         {"input", SensorTable::kInput}};
 inline constexpr Choice<RegisterFormat> kRegisterFormats[] = {{"int16", RegisterFormat::kInt16},
                                                               {"float32", RegisterFormat::kFloat32}};
-
-// ---------------------------------------------------------------------------------------------
-// Messages shared by several rules
-
-/// "must lie inside the stroke [-0.25, 0.25] m (got 0.3)"
-inline std::string outside_the_stroke(double half_stroke_m, double v) {
-  return "must lie inside the stroke [" + fmt(-half_stroke_m) + ", " + fmt(half_stroke_m) + "] m (got " + fmt(v) +
-         ")";
-}
 
 // ---------------------------------------------------------------------------------------------
 // plant.*: the bench as the controller models it (docs/model.md)
@@ -440,152 +192,6 @@ void describe(auto& a, Like<SimulationConfig> auto& s, const model::Geometry& ge
 // ---------------------------------------------------------------------------------------------
 // controller.*
 
-void describe(auto& a, Like<GainDesignParams> auto& d, const model::Geometry& geometry) {
-  a.field(PNEU_NVP(d, real_pole_1_per_s), Range::positive(), "alpha: the real pole, s = -alpha [1/s]");
-  a.field(PNEU_NVP(d, natural_frequency_rad_per_s), Range::positive(), "omega: the damped pair's natural frequency [rad/s]");
-  a.field(PNEU_NVP(d, damping), Range::positive(), "zeta: the damped pair's damping");
-  a.field(PNEU_NVP(d, node_spacing_m), Range::positive(), "the gain table's nodes over the stroke, about this far apart [m]");
-  a.check("node_spacing_m", geometry.stroke_m / d.node_spacing_m <= static_cast<double>(model::GainSchedule::kMaxNodes - 1),
-          [&] {
-            return "makes more than " + std::to_string(model::GainSchedule::kMaxNodes) +
-                   " nodes over the stroke (plant.geometry.stroke_m " + fmt(geometry.stroke_m) + " m): at least " +
-                   fmt(geometry.stroke_m / static_cast<double>(model::GainSchedule::kMaxNodes - 1)) + " m";
-          });
-  a.field(PNEU_NVP(d, max_position_gain_v_per_m), Range::positive(), "a design beyond this K_y is refused [V/m]");
-  a.field(PNEU_NVP(d, max_velocity_gain_v_s_per_m), Range::positive(), "... K_v [V/(m/s)]");
-  a.field(PNEU_NVP(d, max_acceleration_gain_v_s2_per_m), Range::positive(), "... K_a [V/(m/s^2)]");
-  a.field(optional(PNEU_NVP(d, infeasible)), one_of(kInfeasibleDesigns),
-          "where the requested dynamics cannot be had: fall_back | refuse");
-}
-
-void describe(auto& a, Like<ControlLawParams> auto& law, Like<bool> auto& offset_auto, const model::Geometry& geometry) {
-  a.field(optional(PNEU_NVP(law, gains)), one_of(kGainsKinds),
-          "fixed: the three gains below | scheduled: designed by position from controller.law.design");
-  a.field(PNEU_NVP(law, position_gain_v_per_m), Range::non_negative(), "K_y [V/m]");
-  a.field(PNEU_NVP(law, velocity_gain_v_s_per_m), Range::non_negative(), "K_v [V/(m/s)]");
-  a.field(PNEU_NVP(law, acceleration_gain_v_s2_per_m), Range::non_negative(), "K_a [V/(m/s^2)]");
-  a.number_or_auto(PNEU_NVP(law, offset_v), offset_auto, "u_0 [V]; auto = u_e of Eq. 7");
-  a.field(PNEU_NVP(law, max_voltage_v), Range::positive(), "u_max: the control saturates at +-u_max [V]");
-  a.section(optional(PNEU_NVP(law, design)), geometry);
-}
-
-void describe(auto& a, Like<DifferentiatorParams> auto& d) {
-  a.field(PNEU_NVP(d, smoothing), Range::left_open(0.0, 1.0), "alpha of each low-pass, x += alpha (raw - x)");
-}
-
-void describe(auto& a, Like<StopDetectorParams> auto& d) {
-  a.field(PNEU_NVP(d, rest_band_m), Range::non_negative(), "positions this close to the first still one rest [m]");
-  a.field(PNEU_NVP(d, motion_band_m), Range::positive(), "leaving rest: moved more than this [m]");
-  a.check("motion_band_m", d.motion_band_m > d.rest_band_m, "must exceed rest_band_m");
-  a.field(PNEU_NVP(d, hold_s), Range::positive(), "a stop is confirmed after this long at rest [s]");
-}
-
-void describe(auto& a, Like<PredictorConfig::ModelFit> auto& f) {
-  a.field(PNEU_NVP(f, pressure_residual_pa), Range::non_negative(),
-          "the identification's pressure residual, both chambers, rms [Pa]");
-  a.field(PNEU_NVP(f, pressure_explained_pa), Range::positive(), "what the sensors' noise explains of it [Pa]");
-}
-
-void describe(auto& a, Like<PredictorConfig> auto& p) {
-  a.flags("methods", p, any_of(kPredictorMethods, "method"), "the restart predictors run at each stop");
-  a.field(optional(PNEU_NVP(p, valve_table)), "valve table from pneu-plant characterize-valve; empty: the model");
-  a.field(PNEU_NVP(p, horizon_s), Range::positive(), "the nonlinear method gives up after this long [s]");
-  a.field(optional(PNEU_NVP(p, linearized_slope)), one_of(kLinearizedSlopes),
-          "the linearized method's flow slope (Eq. 23)");
-  a.field(optional(PNEU_NVP(p, update_period_s)), Range::non_negative(),
-          "while stuck, forecast again this often [s]; 0 = only at the stop");
-  a.check("update_period_s", !p.relaxation || p.update_period_s > 0.0,
-          "must be > 0 with the relaxation method, which forecasts only while stuck");
-  a.field(optional(PNEU_NVP(p, learn_online)),
-          "identify the bench again at each stop after a breakaway and forecast on what was identified");
-  a.optional_section(optional(PNEU_NVP(p, model_fit)), p.has_model_fit);
-}
-
-void describe(auto& a, Like<HoldConfig> auto& h) {
-  a.field(PNEU_NVP(h, enabled), "true: hold the carriage at rest within the window by its pressure force");
-  a.field(PNEU_NVP(h, window_m), Range::positive(), "at rest this close to the set point: hold [m]");
-  a.field(PNEU_NVP(h, force_gain_v_per_n), Range::non_negative(), "u = u* + this * (F_ref - F) + ... [V/N]");
-  a.field(PNEU_NVP(h, integral_gain_v_per_n_s), Range::non_negative(),
-          "... + this * integral of (F_ref - F) [V/(N s)]");
-  a.field(PNEU_NVP(h, ramp_s), Range::non_negative(),
-          "F_ref from the force at the hold's start to the stiction band's middle over this long [s]");
-  a.field(optional(PNEU_NVP(h, reach_m)), Range::non_negative(),
-          "at rest outside the window but this close: break away towards the set point [m]; 0 = off");
-  a.field(optional(PNEU_NVP(h, reach_rate_n_per_s)), Range::positive(), "... the force ramped this fast [N/s]");
-  a.field(optional(PNEU_NVP(h, reach_preload)), Range::closed(0.0, 0.95),
-          "... from this share of the stiction bound it must cross (or the force, if past it) [-]");
-}
-
-void describe(auto& a, Like<MovementTestConfig> auto& m) {
-  a.field(optional(PNEU_NVP(m, enabled)), "true: the movement test before closed loop on hal.backend modbus");
-  a.field(optional(PNEU_NVP(m, pulse_v)), Range::positive(), "each pulse drives u = u_0 +- this [V]");
-  a.field(optional(PNEU_NVP(m, travel_m)), Range::positive(), "a pulse ends once the carriage moved this far [m]");
-  a.field(optional(PNEU_NVP(m, pulse_s)), Range::positive(), "... or after this long [s]");
-  a.field(optional(PNEU_NVP(m, rest_s)), Range::non_negative(), "u_0 after each pulse [s]");
-  a.field(optional(PNEU_NVP(m, min_pressure_change_pa)), Range::positive(),
-          "a chamber's reading must change this much in a pulse [Pa]");
-}
-
-/// One step of controller.setpoints.schedule.
-void describe(auto& a, Like<SetpointStep> auto& s, double half_stroke_m) {
-  a.field(PNEU_NVP(s, t_s), Range::non_negative(), "from this time on [s]");
-  a.field(PNEU_NVP(s, position_m), Range::any(), "the set point [m]");
-  a.check("position_m", std::abs(s.position_m) <= half_stroke_m,
-          [&] { return outside_the_stroke(half_stroke_m, s.position_m); });
-}
-
-/// `period_s`: the loop's.
-void describe(auto& a, Like<SupervisorConfig> auto& s, const model::PlantParams& plant, double period_s) {
-  const double half = plant.geometry.half_stroke_m();
-  constexpr const char* kMustContainTheStroke =
-      " m (the range must contain the stroke: a carriage at an end stop is not a fault)";
-  a.field(PNEU_NVP(s, position_min_m), Range::any(), "position readings below are out of range [m]");
-  a.field(PNEU_NVP(s, position_max_m), Range::any(), "position readings above are out of range [m]");
-  a.check("position_max_m", s.position_max_m > s.position_min_m, "must exceed position_min_m");
-  a.check("position_min_m", s.position_min_m <= -half,
-          [&] { return "must not exceed the stroke's lower end " + fmt(-half) + kMustContainTheStroke; });
-  a.check("position_max_m", s.position_max_m >= half,
-          [&] { return "must not lie below the stroke's upper end " + fmt(half) + kMustContainTheStroke; });
-  a.field(PNEU_NVP(s, pressure_min_pa), Range::non_negative(), "pressure readings below are out of range [Pa]");
-  a.field(PNEU_NVP(s, pressure_max_pa), Range::positive(), "pressure readings above are out of range [Pa]");
-  a.check("pressure_max_pa", s.pressure_max_pa > s.pressure_min_pa, "must exceed pressure_min_pa");
-  a.check("pressure_max_pa", s.pressure_max_pa > plant.gas.supply_pressure_pa, [&] {
-    return "must exceed the supply pressure (" + fmt(plant.gas.supply_pressure_pa) + " Pa): a chamber may reach it";
-  });
-  a.check("pressure_min_pa", s.pressure_min_pa < plant.gas.exhaust_pressure_pa, [&] {
-    return "must lie below the exhaust pressure (" + fmt(plant.gas.exhaust_pressure_pa) +
-           " Pa): a chamber may reach it";
-  });
-  a.field(PNEU_NVP(s, max_speed_m_per_s), Range::non_negative(), "the position sensor jumped [m/s]; 0 = off");
-  a.field(PNEU_NVP(s, frozen_after_s), Range::closed(0.0, 60.0), "a pressure reading frozen this long [s]");
-  a.field(PNEU_NVP(s, overtravel_m), Range::non_negative(), "armed: overshoot allowed past the soft limits [m]");
-  a.field(PNEU_NVP(s, following_error_m), Range::positive(), "|y_d - y| above this ... [m]");
-  a.field(PNEU_NVP(s, following_error_s), Range::closed(0.0, 600.0), "... this long is a fault [s]; 0 = off");
-  a.field(optional(PNEU_NVP(s, oscillation_amplitude_m)), Range::positive(),
-          "armed: each half-swing of y_d - y beyond +- this ... [m]");
-  a.field(optional(PNEU_NVP(s, oscillation_sign_changes)),
-          IntRange::in(0, SupervisorConfig::kMaxOscillationSignChanges),
-          "... this many sign changes of the error ...; 0 = off");
-  a.field(optional(PNEU_NVP(s, oscillation_window_s)), Range::positive(), "... within this long is a fault [s]");
-  a.field(optional(PNEU_NVP(s, settle_time_s)), Range::closed(0.0, 600.0),
-          "armed: no rest this long after a set-point change is a fault [s]; 0 = off");
-  a.field(PNEU_NVP(s, overruns_in_a_row), IntRange::in(0, 1000000).says("must be in [0, 1000000] (0 = off)"),
-          "this many overruns in a row are a fault; 0 = off");
-  a.field(PNEU_NVP(s, max_tick_interval_s), Range::closed(0.0, 10.0),
-          "a longer tick interval is a fault [s]; 0 = off");
-  a.check("max_tick_interval_s", s.max_tick_interval_s == 0.0 || s.max_tick_interval_s > period_s,
-          [&] { return "must exceed the loop period (" + fmt(period_s) + " s), or be 0 (off)"; });
-  a.field(PNEU_NVP(s, safe_output), one_of(kSafeOutputs), "the valves' output while a fault is latched");
-}
-
-void describe(auto& a, Like<RealtimeConfig> auto& r) {
-  a.field(PNEU_NVP(r, priority), IntRange::in(0, 99).says("must be in [0, 99] (0 = normal scheduling)"),
-          "SCHED_FIFO priority; 0 = normal scheduling");
-  a.field(PNEU_NVP(r, cpu), IntRange::in(-1, 1023).says("must be a CPU number, or -1 (no pinning)"),
-          "the loop thread's CPU; -1 = no pinning");
-  a.field(PNEU_NVP(r, lock_memory), "mlockall and a pre-faulted stack");
-}
-
 void describe(auto& a, Like<ControllerConfig> auto& c, const model::PlantParams& plant) {
   const double half = plant.geometry.half_stroke_m();
   a.field(PNEU_NVP(c, rate_hz), Range::closed(1.0, 20000.0), "loop rate [Hz]");
@@ -603,6 +209,10 @@ void describe(auto& a, Like<ControllerConfig> auto& c, const model::PlantParams&
     s.check("initial_m", std::abs(c.initial_setpoint_m) <= half,
             [&] { return outside_the_stroke(half, c.initial_setpoint_m); });
     s.list(optional(PNEU_NVP(c, schedule)), half);
+    s.check("schedule", c.schedule.size() <= controller::kMaxScheduleSteps, [&] {
+      return "has " + std::to_string(c.schedule.size()) + " steps, more than the loop holds (" +
+             std::to_string(controller::kMaxScheduleSteps) + "): stream set points as commands instead";
+    });
     for (std::size_t i = 1; i < c.schedule.size(); ++i)
       s.check("schedule[" + std::to_string(i) + "].t_s", c.schedule[i].t_s > c.schedule[i - 1].t_s,
               "times must increase");

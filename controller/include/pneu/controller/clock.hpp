@@ -7,6 +7,7 @@
 #include <limits>
 #include <memory>
 
+#include "pneu/controller/clock_params.hpp"
 #include "pneu/controller/loop.hpp"
 #include "pneu/controller/timing_stats.hpp"
 
@@ -61,7 +62,7 @@ class SimulatedClock final : public Clock {
 };
 
 /// The clock controller.clock names.
-[[nodiscard]] std::unique_ptr<Clock> make_clock(config::ClockKind kind);
+[[nodiscard]] std::unique_ptr<Clock> make_clock(ClockKind kind);
 
 /// Timing of a run. Written by the loop thread; read after the run.
 struct LoopTiming {

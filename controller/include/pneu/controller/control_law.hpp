@@ -2,14 +2,13 @@
 // position.
 #pragma once
 
-#include "pneu/config/config.hpp"
+#include "pneu/controller/law_params.hpp"
 #include "pneu/model/tangent_linear.hpp"
 
 #include <algorithm>
 
 namespace pneu::controller {
 
-using config::ControlLawParams;
 
 
 /// u = K_y (y_d - y) - K_v v_hat - K_a a_hat + u_0, saturated to [-u_max, u_max], with the gains

@@ -1,11 +1,10 @@
 // Velocity and acceleration from the sampled position (they are not measured, docs/model.md section 1).
 #pragma once
 
-#include "pneu/config/config.hpp"
+#include "pneu/controller/differentiator_params.hpp"
 
 namespace pneu::controller {
 
-using config::DifferentiatorParams;
 
 
 /// Backward difference of the position, low-passed by a first-order discrete filter, then the same

@@ -5,7 +5,7 @@
 
 #include <algorithm>
 
-#include "pneu/config/config.hpp"
+#include "pneu/controller/hold_params.hpp"
 
 namespace pneu::controller {
 
@@ -28,7 +28,7 @@ struct HoldState {
 /// hold's start to the band's middle over hold.ramp_s, or (reaching) ramped towards the set point.
 class HoldLaw {
  public:
-  HoldLaw(const config::HoldConfig& hold, double max_voltage_v, double period_s) noexcept
+  HoldLaw(const HoldConfig& hold, double max_voltage_v, double period_s) noexcept
       : hold_(hold), u_max_v_(max_voltage_v), period_s_(period_s) {}
 
   /// F_ref at `t_s` [N].
@@ -51,10 +51,10 @@ class HoldLaw {
     return std::clamp(s.u0_v + hold_.force_gain_v_per_n * error + s.integral_v, -u_max_v_, u_max_v_);
   }
   [[nodiscard]] double period_s() const noexcept { return period_s_; }
-  [[nodiscard]] const config::HoldConfig& config() const noexcept { return hold_; }
+  [[nodiscard]] const HoldConfig& config() const noexcept { return hold_; }
 
  private:
-  config::HoldConfig hold_;
+  HoldConfig hold_;
   double u_max_v_;
   double period_s_;
 };

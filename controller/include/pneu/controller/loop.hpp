@@ -5,7 +5,6 @@
 #include <atomic>
 #include <cstdint>
 
-#include "pneu/config/config.hpp"
 #include "pneu/controller/control_law.hpp"
 #include "pneu/controller/differentiator.hpp"
 #include "pneu/controller/hold_law.hpp"

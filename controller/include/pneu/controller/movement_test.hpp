@@ -14,11 +14,16 @@
 #include <cstdint>
 #include <string>
 
-#include "pneu/config/config.hpp"
+#include "pneu/controller/movement_test_params.hpp"
 #include "pneu/hal/backend.hpp"
+
+namespace pneu::config {
+struct Config;
+}
 
 namespace pneu::controller {
 
+struct LoopSettings;  // loop_params.hpp
 class Clock;  // clock.hpp (which includes loop.hpp, which holds a MovementTest)
 
 /// What the movement test found.
@@ -69,17 +74,17 @@ struct MovementTestBench {
   double u_0_v = 0.0;                 ///< the neutral voltage (controller.law.offset_v, resolved) [V]
   double comms_fault_after_s = 0.05;  ///< this long without a good sample ends the test [s]
   double soft_min_m = -0.24, soft_max_m = 0.24;  ///< a pulse ends beyond them [m]
-  /// `config`'s (its offset resolved), with the loop's period as the least comms limit.
-  [[nodiscard]] static MovementTestBench of(const config::Config& config) noexcept { return of(config.controller); }
-  /// ... from controller.* alone (what the loop holds, LoopParams).
-  [[nodiscard]] static MovementTestBench of(const config::ControllerConfig& controller) noexcept;
+  /// `config`'s (its offset resolved), with the loop's period as the least comms limit (session.cpp).
+  [[nodiscard]] static MovementTestBench of(const config::Config& config) noexcept;
+  /// ... from what the loop holds of controller.* (LoopParams).
+  [[nodiscard]] static MovementTestBench of(const LoopSettings& controller) noexcept;
 };
 
 /// The test's state machine: one step() per tick with the tick's sample; it answers with the
 /// command to write (valve power on while it runs; off, at u_0, once done).
 class MovementTest {
  public:
-  MovementTest(const config::MovementTestConfig& cfg, const MovementTestBench& bench) noexcept;
+  MovementTest(const MovementTestConfig& cfg, const MovementTestBench& bench) noexcept;
 
   [[nodiscard]] hal::ActuatorCommand step(double t_s, hal::Status status, const hal::SensorFrame& frame) noexcept;
   /// Ends the test (a stop was requested).
@@ -94,7 +99,7 @@ class MovementTest {
   void start_pulse(double t_s, const hal::SensorFrame& f) noexcept;
   [[nodiscard]] MovementFinding judge() const noexcept;
 
-  config::MovementTestConfig cfg_;
+  MovementTestConfig cfg_;
   MovementTestBench bench_;
   Phase phase_ = Phase::kStart;
   MovementTestResult result_;

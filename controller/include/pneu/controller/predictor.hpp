@@ -10,7 +10,7 @@
 #include <limits>
 #include <optional>
 
-#include "pneu/config/config.hpp"
+#include "pneu/controller/predictor_params.hpp"
 #include "pneu/controller/hold_law.hpp"
 #include "pneu/model/chamber.hpp"
 #include "pneu/model/params.hpp"
@@ -35,7 +35,6 @@ enum class PredictionMethod : std::uint8_t {
 [[nodiscard]] const char* to_string(PredictionMethod m) noexcept;
 
 /// Where the linearized method takes each chamber's flow slope of Eq. 23 (the config's key).
-using LinearizedSlope = config::LinearizedSlope;
 
 /// What the predictor knows of the bench.
 struct PredictorModel {

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "pneu/config/config.hpp"
+#include "pneu/controller/realtime_params.hpp"
 
 namespace pneu::controller {
 
@@ -27,6 +27,6 @@ struct RealtimeReport {
 /// Applies controller.realtime to the CALLING thread (call it on the loop thread, before the
 /// loop starts). Settings left at their "off" values are not touched. Without `require`, what is
 /// not permitted becomes a warning in the report; with it, a RealtimeError.
-RealtimeReport setup_realtime_thread(const config::RealtimeConfig& rt, bool require);
+RealtimeReport setup_realtime_thread(const RealtimeConfig& rt, bool require);
 
 }  // namespace pneu::controller

@@ -8,13 +8,17 @@
 #include <optional>
 #include <vector>
 
-#include "pneu/config/config.hpp"
+#include "pneu/config/describe.hpp"
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/movement_test.hpp"
 #include "pneu/controller/runtime.hpp"
 #include "pneu/hal/backend.hpp"
 #include "pneu/model/tangent_linear.hpp"
 #include "pneu/model/valve_table.hpp"
+
+namespace pneu::config {
+struct Config;  // pneu/config/config.hpp: the root configuration, taken whole by reference here
+}
 
 namespace pneu::controller {
 

@@ -1,7 +1,7 @@
 // Detects when the carriage stops and when it leaves rest, from the sampled position alone.
 #pragma once
 
-#include "pneu/config/config.hpp"
+#include "pneu/controller/stop_detector_params.hpp"
 
 #include <algorithm>
 #include <array>
@@ -10,7 +10,6 @@
 
 namespace pneu::controller {
 
-using config::StopDetectorParams;
 
 
 /// What one update found.

@@ -7,7 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "pneu/config/config.hpp"
+#include "pneu/controller/supervisor_params.hpp"
 #include "pneu/controller/loop_params.hpp"
 #include "pneu/hal/types.hpp"
 
@@ -107,7 +107,7 @@ class Supervisor {
   [[nodiscard]] FaultCause not_settling(const SupervisedTick& tick) noexcept;
   void forget_settling() noexcept;
 
-  const config::SupervisorConfig cfg_;
+  const SupervisorConfig cfg_;
   const double period_s_;
   const double comms_fault_after_s_;
   const double soft_min_m_, soft_max_m_;
@@ -130,7 +130,7 @@ class Supervisor {
   // Oscillation: the side of the error band the error was last seen beyond (+1, -1; 0: not yet),
   // and the times of the last sign changes (a ring of kMaxOscillationSignChanges).
   int error_side_ = 0;
-  std::array<double, config::SupervisorConfig::kMaxOscillationSignChanges> sign_change_t_s_{};
+  std::array<double, SupervisorConfig::kMaxOscillationSignChanges> sign_change_t_s_{};
   std::uint64_t sign_changes_ = 0;
   // Settle time: the last set-point change, whether a rest began since, and the last tick's rest.
   double settle_since_s_ = -1.0;  // -1: settled, or not armed

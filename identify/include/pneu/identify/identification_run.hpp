@@ -15,19 +15,24 @@
 #include <string>
 #include <vector>
 
-#include "pneu/config/config.hpp"
+#include "pneu/config/describe.hpp"
+#include "pneu/controller/setpoint_params.hpp"
 #include "pneu/controller/control_law.hpp"
 #include "pneu/controller/run_listener.hpp"
 #include "pneu/hal/backend.hpp"
 #include "pneu/identify/identify.hpp"
 #include "pneu/model/valve.hpp"
 
+namespace pneu::config {
+struct Config;  // pneu/config/config.hpp: the root configuration, taken whole by reference here
+}
+
 namespace pneu::identify {
 
 /// The run's set points and length.
 struct RunPlan {
   double initial_setpoint_m = 0.0;
-  std::vector<config::SetpointStep> schedule;
+  std::vector<controller::SetpointStep> schedule;
   double duration_s = 0.0;
   std::vector<double> positions_m;  ///< where it ramps
   /// Its phases, in order: the move to each position (and the settling there), then the ramp.

@@ -15,11 +15,14 @@
 #include <thread>
 #include <vector>
 
-#include "pneu/config/config.hpp"
 #include "pneu/controller/run_listener.hpp"
 #include "pneu/controller/runtime.hpp"
 #include "pneu/identify/identify.hpp"
 #include "pneu/model/valve.hpp"
+
+namespace pneu::config {
+struct Config;  // pneu/config/config.hpp: the root configuration, taken whole by reference here
+}
 
 namespace pneu::identify {
 

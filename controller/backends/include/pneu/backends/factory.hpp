@@ -6,10 +6,14 @@
 
 #include <memory>
 
-#include "pneu/config/config.hpp"
+#include "pneu/config/describe.hpp"
 #include "pneu/controller/control_law.hpp"
 #include "pneu/hal/backend.hpp"
 #include "pneu/hal/sim_backend.hpp"
+
+namespace pneu::config {
+struct Config;  // pneu/config/config.hpp: the root configuration, taken whole by reference here
+}
 
 namespace pneu::backends {
 

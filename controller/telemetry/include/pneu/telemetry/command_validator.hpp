@@ -5,9 +5,12 @@
 #include <cstdint>
 #include <string>
 
-#include "pneu/config/config.hpp"
 #include "pneu/controller/loop.hpp"
 #include "pneu/controller/run_figures.hpp"
+
+namespace pneu::config {
+struct Config;  // pneu/config/config.hpp: the root configuration, taken whole by reference here
+}
 
 namespace pneu::telemetry {
 

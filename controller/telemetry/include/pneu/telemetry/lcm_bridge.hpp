@@ -13,13 +13,16 @@
 #include <stdexcept>
 #include <string>
 
-#include "pneu/config/config.hpp"
 #include "pneu/controller/run_figures.hpp"
 #include "pneu/controller/run_listener.hpp"
 #include "pneu/controller/runtime.hpp"
 #include "pneu/telemetry/command_socket.hpp"
 #include "pneu/telemetry/command_validator.hpp"
 #include "pneu/telemetry/instance_watch.hpp"
+
+namespace pneu::config {
+struct Config;  // pneu/config/config.hpp: the root configuration, taken whole by reference here
+}
 
 namespace pneu::telemetry {
 

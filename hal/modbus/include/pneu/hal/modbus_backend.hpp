@@ -13,7 +13,7 @@
 #include <mutex>
 #include <thread>
 
-#include "pneu/config/config.hpp"
+#include "pneu/config/register_map.hpp"
 #include "pneu/hal/backend.hpp"
 #include "pneu/hal/latest_value.hpp"
 #include "pneu/model/sensors.hpp"
