@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "pneu/config/config.hpp"
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/loop_params.hpp"
 
@@ -82,7 +83,11 @@ std::string describe(const MovementTestResult& r) {
   return s;
 }
 
-MovementTestBench MovementTestBench::of(const LoopSettings& c) noexcept {
+namespace {
+
+// From controller.* as the configuration holds it or as the loop does (the same keys).
+template <class Controller>
+MovementTestBench bench_of(const Controller& c) noexcept {
   MovementTestBench b;
   b.u_0_v = c.law.offset_v;
   b.comms_fault_after_s = std::max(c.comms_fault_after_s, c.period_s());
@@ -90,6 +95,11 @@ MovementTestBench MovementTestBench::of(const LoopSettings& c) noexcept {
   b.soft_max_m = c.soft_limit_max_m;
   return b;
 }
+
+}  // namespace
+
+MovementTestBench MovementTestBench::of(const LoopSettings& c) noexcept { return bench_of(c); }
+MovementTestBench MovementTestBench::of(const config::Config& config) noexcept { return bench_of(config.controller); }
 
 MovementTest::MovementTest(const MovementTestConfig& cfg, const MovementTestBench& bench) noexcept
     : cfg_(cfg), bench_(bench) {}

@@ -98,16 +98,6 @@ Run make_run(const config::Config& config, const model::ValveCharacteristic& val
   return run;
 }
 
-MovementTestBench MovementTestBench::of(const config::Config& config) noexcept {
-  MovementTestBench b;
-  const config::ControllerConfig& c = config.controller;
-  b.u_0_v = c.law.offset_v;
-  b.comms_fault_after_s = std::max(c.comms_fault_after_s, c.period_s());
-  b.soft_min_m = c.soft_limit_min_m;
-  b.soft_max_m = c.soft_limit_max_m;
-  return b;
-}
-
 bool movement_test_at_first_arm(const config::Config& config) noexcept {
   return config.hal.backend == config::BackendKind::kModbus && config.controller.movement_test.enabled &&
          !config.controller.start_armed;

@@ -74,7 +74,7 @@ struct MovementTestBench {
   double u_0_v = 0.0;                 ///< the neutral voltage (controller.law.offset_v, resolved) [V]
   double comms_fault_after_s = 0.05;  ///< this long without a good sample ends the test [s]
   double soft_min_m = -0.24, soft_max_m = 0.24;  ///< a pulse ends beyond them [m]
-  /// `config`'s (its offset resolved), with the loop's period as the least comms limit (session.cpp).
+  /// `config`'s (its offset resolved), with the loop's period as the least comms limit.
   [[nodiscard]] static MovementTestBench of(const config::Config& config) noexcept;
   /// ... from what the loop holds of controller.* (LoopParams).
   [[nodiscard]] static MovementTestBench of(const LoopSettings& controller) noexcept;
