@@ -147,18 +147,19 @@ struct RestingChamber {
   // `steps` RK4 steps over h, at least as many as the chamber's fastest rate asks.
   void integrate(double target, double h, int steps, double& p, double& t_k, double& w) const noexcept {
     const double w0 = w;
-    const auto rates = [&](double tau, double pp, double tt) {
-      return process->rates(*valve, side, pp, tt, spool.after(w0, target, tau), y_m, 0.0);
-    };
+    // At rest: the volume and the wall's area are the same at every stage.
+    const model::ChamberProcess::Place at = process->place(side, y_m, 0.0);
+    const auto rates = [&](double spool_w, double pp, double tt) { return process->rates(*valve, at, pp, tt, spool_w); };
     const double fastest = process->fastest_rate_1_per_s(*valve, side, p, t_k, w0, y_m);
     steps = std::clamp(std::max(steps, static_cast<int>(std::ceil(h * fastest / 0.5))), 1, 10000);
     const double dt = h / steps;
     for (int i = 0; i < steps; ++i) {
       const double tau = i * dt;
-      const model::ChamberRates k1 = rates(tau, p, t_k);
-      const model::ChamberRates k2 = rates(tau + 0.5 * dt, p + 0.5 * dt * k1.dp_dt_pa_per_s, t_k + 0.5 * dt * k1.dtemperature_dt_k_per_s);
-      const model::ChamberRates k3 = rates(tau + 0.5 * dt, p + 0.5 * dt * k2.dp_dt_pa_per_s, t_k + 0.5 * dt * k2.dtemperature_dt_k_per_s);
-      const model::ChamberRates k4 = rates(tau + dt, p + dt * k3.dp_dt_pa_per_s, t_k + dt * k3.dtemperature_dt_k_per_s);
+      const double w_middle = spool.after(w0, target, tau + 0.5 * dt);  // the second and third stages'
+      const model::ChamberRates k1 = rates(spool.after(w0, target, tau), p, t_k);
+      const model::ChamberRates k2 = rates(w_middle, p + 0.5 * dt * k1.dp_dt_pa_per_s, t_k + 0.5 * dt * k1.dtemperature_dt_k_per_s);
+      const model::ChamberRates k3 = rates(w_middle, p + 0.5 * dt * k2.dp_dt_pa_per_s, t_k + 0.5 * dt * k2.dtemperature_dt_k_per_s);
+      const model::ChamberRates k4 = rates(spool.after(w0, target, tau + dt), p + dt * k3.dp_dt_pa_per_s, t_k + dt * k3.dtemperature_dt_k_per_s);
       p += dt / 6.0 * (k1.dp_dt_pa_per_s + 2.0 * k2.dp_dt_pa_per_s + 2.0 * k3.dp_dt_pa_per_s + k4.dp_dt_pa_per_s);
       t_k += dt / 6.0 *
              (k1.dtemperature_dt_k_per_s + 2.0 * k2.dtemperature_dt_k_per_s + 2.0 * k3.dtemperature_dt_k_per_s +
@@ -410,8 +411,10 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
     if (nz > 0) j.jz = problem.start_derivatives(th, zz) / noise;
     return j;
   };
+  // The Jacobian of the last normal equations formed: at the solution, once the search ends.
+  Jacobian j;
   const auto normal = [&](const Theta& th, const Eigen::VectorXd& zz, const Eigen::VectorXd& r) {
-    const Jacobian j = jacobian(th, zz, r);
+    j = jacobian(th, zz, r);
     const Eigen::MatrixXd& jt = j.jt;
     Normal out{Eigen::MatrixXd::Zero(n, n), Eigen::VectorXd::Zero(n)};
     out.a.topLeftCorner(nf, nf) = jt.transpose() * jt;
@@ -502,7 +505,6 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
     // would. Each parameter keeps the larger of the two variances.
     const Normal data_and_prior = with_priors(nm, prior, Eigen::VectorXd::Zero(nz));
     const Eigen::MatrixXd a_inverse = data_and_prior.a.inverse();
-    const Jacobian j = jacobian(theta, z, r);
     Eigen::MatrixXd meat = Eigen::MatrixXd::Zero(n, n);
     for (std::size_t ph = 0; ph < problem.phases().size(); ++ph) {
       const auto [from, to] = problem.rows_of(ph);
