@@ -138,7 +138,12 @@ Identification identify_by_run(const config::Config& config, const model::ValveC
   const RecordedRun r = record_run(config, valve, law, std::move(backend), start_m);
   if (!r.fault.empty())
     throw std::runtime_error("the identification run faulted at t = " + std::to_string(r.fault_t_s) + " s: " + r.fault);
-  return identify(r.samples, config.plant, options_for(config));
+  Options o = options_for(config);
+  // A simulated bench in process has no bus between the command and its valves: the delay is 0,
+  // known, not searched for (searching tried 1 sample too, a whole second fit, more than half of
+  // the identification's time on a thermal bench; the search is for a record over Modbus).
+  if (config.hal.backend == config::BackendKind::kSim) o.command_delay_samples = 0;
+  return identify(r.samples, config.plant, o);
 }
 
 std::string identified_config_yaml(const config::Config& config, const Identification& id, const std::string& source) {
