@@ -4,9 +4,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <stdexcept>
 
 #include "pneu/controller/clock.hpp"
+#include "pneu/controller/runtime.hpp"
 #include "pneu/controller/session.hpp"
 #include "pneu/controller/supervisor.hpp"
 
@@ -115,6 +117,10 @@ RecordedRun record_run(const config::Config& config, const model::ValveCharacter
   config::Config cfg = configured_for(config, r.plan);
   cfg.controller.clock = config::ClockKind::kSimulated;
   controller::Run run = controller::make_run(cfg, valve, std::move(backend), law);
+  // What is recorded is the loop's ticks and events: no forecast is read here, so the runtime
+  // makes none (under the in-position hold, forecasting every update period took half the run's
+  // time). The loop, and so the record, is the same.
+  run.runtime = std::make_unique<controller::Runtime>(run.runtime->model(), false, false);
   run.runtime->set_follow_forecasts(false);
   std::atomic<bool> stop{false};
   Recorder recorder(stop);
@@ -133,7 +139,12 @@ Identification identify_by_run(const config::Config& config, const model::ValveC
   const RecordedRun r = record_run(config, valve, law, std::move(backend), start_m);
   if (!r.fault.empty())
     throw std::runtime_error("the identification run faulted at t = " + std::to_string(r.fault_t_s) + " s: " + r.fault);
-  return identify(r.samples, config.plant, options_for(config));
+  Options o = options_for(config);
+  // A simulated bench in process has no bus between the command and its valves: the delay is 0,
+  // known, not searched for (searching tried 1 sample too, a whole second fit, more than half of
+  // the identification's time on a thermal bench; the search is for a record over Modbus).
+  if (config.hal.backend == config::BackendKind::kSim) o.command_delay_samples = 0;
+  return identify(r.samples, config.plant, o);
 }
 
 std::string identified_config_yaml(const config::Config& config, const Identification& id, const std::string& source) {

@@ -147,18 +147,19 @@ struct RestingChamber {
   // `steps` RK4 steps over h, at least as many as the chamber's fastest rate asks.
   void integrate(double target, double h, int steps, double& p, double& t_k, double& w) const noexcept {
     const double w0 = w;
-    const auto rates = [&](double tau, double pp, double tt) {
-      return process->rates(*valve, side, pp, tt, spool.after(w0, target, tau), y_m, 0.0);
-    };
+    // At rest: the volume and the wall's area are the same at every stage.
+    const model::ChamberProcess::Place at = process->place(side, y_m, 0.0);
+    const auto rates = [&](double spool_w, double pp, double tt) { return process->rates(*valve, at, pp, tt, spool_w); };
     const double fastest = process->fastest_rate_1_per_s(*valve, side, p, t_k, w0, y_m);
     steps = std::clamp(std::max(steps, static_cast<int>(std::ceil(h * fastest / 0.5))), 1, 10000);
     const double dt = h / steps;
     for (int i = 0; i < steps; ++i) {
       const double tau = i * dt;
-      const model::ChamberRates k1 = rates(tau, p, t_k);
-      const model::ChamberRates k2 = rates(tau + 0.5 * dt, p + 0.5 * dt * k1.dp_dt_pa_per_s, t_k + 0.5 * dt * k1.dtemperature_dt_k_per_s);
-      const model::ChamberRates k3 = rates(tau + 0.5 * dt, p + 0.5 * dt * k2.dp_dt_pa_per_s, t_k + 0.5 * dt * k2.dtemperature_dt_k_per_s);
-      const model::ChamberRates k4 = rates(tau + dt, p + dt * k3.dp_dt_pa_per_s, t_k + dt * k3.dtemperature_dt_k_per_s);
+      const double w_middle = spool.after(w0, target, tau + 0.5 * dt);  // the second and third stages'
+      const model::ChamberRates k1 = rates(spool.after(w0, target, tau), p, t_k);
+      const model::ChamberRates k2 = rates(w_middle, p + 0.5 * dt * k1.dp_dt_pa_per_s, t_k + 0.5 * dt * k1.dtemperature_dt_k_per_s);
+      const model::ChamberRates k3 = rates(w_middle, p + 0.5 * dt * k2.dp_dt_pa_per_s, t_k + 0.5 * dt * k2.dtemperature_dt_k_per_s);
+      const model::ChamberRates k4 = rates(spool.after(w0, target, tau + dt), p + dt * k3.dp_dt_pa_per_s, t_k + dt * k3.dtemperature_dt_k_per_s);
       p += dt / 6.0 * (k1.dp_dt_pa_per_s + 2.0 * k2.dp_dt_pa_per_s + 2.0 * k3.dp_dt_pa_per_s + k4.dp_dt_pa_per_s);
       t_k += dt / 6.0 *
              (k1.dtemperature_dt_k_per_s + 2.0 * k2.dtemperature_dt_k_per_s + 2.0 * k3.dtemperature_dt_k_per_s +
@@ -207,13 +208,16 @@ class Problem {
   [[nodiscard]] std::pair<Eigen::Index, Eigen::Index> rows_of(std::size_t j) const noexcept { return {rows_[j], rows_[j + 1]}; }
   [[nodiscard]] const std::vector<FitPhase>& phases() const noexcept { return phases_; }
 
-  // Measured minus Eq. 19's pressures at every observed sample, P then N [Pa].
-  [[nodiscard]] Eigen::VectorXd residuals(const Theta& th, const Eigen::VectorXd& z) const {
+  // Measured minus Eq. 19's pressures at every observed sample, P then N [Pa]: the rows of both
+  // chambers, or of one (`only`; the other's rows are left unset). The chambers are integrated
+  // apart: a parameter of one chamber alone (its dead volume) leaves the other's rows as they were.
+  [[nodiscard]] Eigen::VectorXd residuals(const Theta& th, const Eigen::VectorXd& z,
+                                          std::optional<model::Side> only = std::nullopt) const {
     const model::PlantParams p = applied(prior_, th);
     const model::ValveModel valve(p.valve, p.gas);
     const std::vector<model::ChamberState> at = hidden_states(p, valve);
     Eigen::VectorXd r(size_);
-    for (std::size_t j = 0; j < phases_.size(); ++j) phase_residuals(p, valve, at, j, z, r);
+    for (std::size_t j = 0; j < phases_.size(); ++j) phase_residuals(p, valve, at, j, z, r, only);
     return r;
   }
   // d(residual)/d(z of its row's start), row by row: each row depends on one start alone.
@@ -266,7 +270,8 @@ class Problem {
 
   void phase_residuals(const model::PlantParams& p, const model::ValveModel& valve,
                        const std::vector<model::ChamberState>& at, std::size_t j, const Eigen::VectorXd& z,
-                       Eigen::VectorXd& r) const {
+                       Eigen::VectorXd& r, std::optional<model::Side> only = std::nullopt) const {
+    const bool do_p = only != model::Side::kN, do_n = only != model::Side::kP;
     const FitPhase& ph = phases_[j];
     const auto zj = static_cast<Eigen::Index>(2 * j);
     double pp = s_[ph.first].p_p_pa + (fit_starts_ ? z[zj] * kPressureNoiseFloor_pa : 0.0);
@@ -285,8 +290,8 @@ class Problem {
           std::size_t next = k + 1;
           while (next < obs && u_at(next) == u_at(k)) ++next;
           const double h = s_[next].t_s - s_[k].t_s;
-          pp = cp.advance(u_at(k), pp, h);
-          pn = cn.advance(-u_at(k), pn, h);
+          if (do_p) pp = cp.advance(u_at(k), pp, h);
+          if (do_n) pn = cn.advance(-u_at(k), pn, h);
           k = next;
         }
         r[row++] = s_[obs].p_p_pa - pp;
@@ -305,8 +310,8 @@ class Problem {
         std::size_t next = k + 1;
         while (next < obs && u.p(next) == u.p(k) && u.n(next) == u.n(k)) ++next;
         const double h = s_[next].t_s - s_[k].t_s;
-        cp.advance(u.p(k), h, pp, tp, wp);
-        cn.advance(u.n(k), h, pn, tn, wn);
+        if (do_p) cp.advance(u.p(k), h, pp, tp, wp);
+        if (do_n) cn.advance(u.n(k), h, pn, tn, wn);
         k = next;
       }
       r[row++] = s_[obs].p_p_pa - pp;
@@ -373,8 +378,9 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
     start_of[static_cast<std::size_t>(row)] = problem.start_of_row(row);
   Eigen::VectorXd z = Eigen::VectorXd::Zero(nz);
   // The data's residuals, weighted by the noise.
-  const auto residuals = [&](const Theta& th, const Eigen::VectorXd& zz) {
-    return Eigen::VectorXd(problem.residuals(th, zz) / noise);
+  const auto residuals = [&](const Theta& th, const Eigen::VectorXd& zz,
+                             std::optional<model::Side> only = std::nullopt) {
+    return Eigen::VectorXd(problem.residuals(th, zz, only) / noise);
   };
   const auto prior_cost = [&](const Theta& th, const Eigen::VectorXd& zz) {
     double c = zz.squaredNorm();
@@ -404,14 +410,26 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
       down[i] -= h;
       // Central differences; forward ones where each evaluation follows the whole record (the
       // model's hidden state: half the cost, and the Jacobian only steers the search).
-      j.jt.col(c) = problem.plain() ? Eigen::VectorXd((residuals(up, zz) - residuals(down, zz)) / (2.0 * h))
-                                    : Eigen::VectorXd((residuals(up, zz) - r) / h);
+      // A dead volume is one chamber's: the other's rows do not move (r's rows less themselves).
+      const std::optional<model::Side> only = i == kDeadVolumeP   ? std::optional(model::Side::kP)
+                                              : i == kDeadVolumeN ? std::optional(model::Side::kN)
+                                                                  : std::nullopt;
+      j.jt.col(c) = problem.plain()
+                        ? Eigen::VectorXd((residuals(up, zz, only) - residuals(down, zz, only)) / (2.0 * h))
+                        : Eigen::VectorXd((residuals(up, zz, only) - r) / h);
+      if (only) {
+        const Eigen::Index other = *only == model::Side::kP ? 1 : 0;  // rows alternate P, N
+        for (Eigen::Index row = other; row < m; row += 2)
+          j.jt(row, c) = problem.plain() ? (r[row] - r[row]) / (2.0 * h) : (r[row] - r[row]) / h;
+      }
     }
     if (nz > 0) j.jz = problem.start_derivatives(th, zz) / noise;
     return j;
   };
+  // The Jacobian of the last normal equations formed: at the solution, once the search ends.
+  Jacobian j;
   const auto normal = [&](const Theta& th, const Eigen::VectorXd& zz, const Eigen::VectorXd& r) {
-    const Jacobian j = jacobian(th, zz, r);
+    j = jacobian(th, zz, r);
     const Eigen::MatrixXd& jt = j.jt;
     Normal out{Eigen::MatrixXd::Zero(n, n), Eigen::VectorXd::Zero(n)};
     out.a.topLeftCorner(nf, nf) = jt.transpose() * jt;
@@ -502,7 +520,6 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
     // would. Each parameter keeps the larger of the two variances.
     const Normal data_and_prior = with_priors(nm, prior, Eigen::VectorXd::Zero(nz));
     const Eigen::MatrixXd a_inverse = data_and_prior.a.inverse();
-    const Jacobian j = jacobian(theta, z, r);
     Eigen::MatrixXd meat = Eigen::MatrixXd::Zero(n, n);
     for (std::size_t ph = 0; ph < problem.phases().size(); ++ph) {
       const auto [from, to] = problem.rows_of(ph);

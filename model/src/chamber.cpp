@@ -53,21 +53,25 @@ ChamberProcess::ChamberProcess(const Geometry& geometry, const Gas& gas, const T
       exhaust_pa_(gas.exhaust_pressure_pa),
       gamma_r_((thermal != nullptr ? thermal->adiabatic_index : gas.polytropic_index) * gas.gas_constant_j_per_kg_k) {}
 
+ChamberProcess::Place ChamberProcess::place(Side side, double y, double v) const noexcept {
+  const bool p_side = side == Side::kP;
+  return {side, volume_m3(side, y), v, p_side ? area_p_m2_ * v : -area_n_m2_ * v,
+          !thermal_ ? 0.0 : p_side ? wall_area_p_m2(geometry_, y) : wall_area_n_m2(geometry_, y)};
+}
+
 // Eq. 2's pressure equation, or the energy balance (docs/model.md section 2). The polytropic form is
 // the plant's own, term for term (the simulated bench is bit for bit what it was).
-ChamberRates ChamberProcess::rates(const ValveCharacteristic& valve, Side side, double p, double t_k, double w,
-                                   double y, double v) const noexcept {
-  const double volume = volume_m3(side, y);
+ChamberRates ChamberProcess::rates(const ValveCharacteristic& valve, const Place& at, double p, double t_k,
+                                   double w) const noexcept {
+  const double volume = at.volume_m3;
   if (!thermal_) {
     const double q = valve.mass_flow_kg_per_s(w, p);
-    return {side == Side::kP ? k_r_t_ / volume * (q - area_p_m2_ * p * v / r_t_)
-                             : k_r_t_ / volume * (q + area_n_m2_ * p * v / r_t_),
+    const double v = at.v_m_per_s;
+    return {at.side == Side::kP ? k_r_t_ / volume * (q - area_p_m2_ * p * v / r_t_)
+                                : k_r_t_ / volume * (q + area_n_m2_ * p * v / r_t_),
             0.0};
   }
-  const bool p_side = side == Side::kP;
-  return chamber_.rates(valve.chamber_inflow(w, p, t_k, supply_k_), p, t_k, volume,
-                        p_side ? area_p_m2_ * v : -area_n_m2_ * v,
-                        p_side ? wall_area_p_m2(geometry_, y) : wall_area_n_m2(geometry_, y));
+  return chamber_.rates(valve.chamber_inflow(w, p, t_k, supply_k_), p, t_k, volume, at.dvolume_dt_m3_per_s, at.wall_m2);
 }
 
 double ChamberProcess::fastest_rate_1_per_s(const ValveCharacteristic& valve, Side side, double p, double t_k,

@@ -124,7 +124,22 @@ class ChamberProcess {
   /// dp/dt and dT/dt (0 for the polytropic process) of chamber `side` at pressure p and
   /// temperature T, its valve at voltage w, the carriage at y moving at v.
   [[nodiscard]] ChamberRates rates(const ValveCharacteristic& valve, Side side, double p_pa, double t_k, double w_v,
-                                   double y_m, double v_m_per_s) const noexcept;
+                                   double y_m, double v_m_per_s) const noexcept {
+    return rates(valve, place(side, y_m, v_m_per_s), p_pa, t_k, w_v);
+  }
+  /// What rates() needs of chamber `side`'s geometry with the carriage at y moving at v: its volume,
+  /// the volume's rate and (with the energy balance) the wall's area. An integration that holds y
+  /// and v computes it once, and rates() from it is the same, bit for bit.
+  struct Place {
+    Side side;
+    double volume_m3 = 0.0;
+    double v_m_per_s = 0.0;
+    double dvolume_dt_m3_per_s = 0.0;
+    double wall_m2 = 0.0;  ///< the energy balance's only
+  };
+  [[nodiscard]] Place place(Side side, double y_m, double v_m_per_s) const noexcept;
+  [[nodiscard]] ChamberRates rates(const ValveCharacteristic& valve, const Place& at, double p_pa, double t_k,
+                                   double w_v) const noexcept;
   /// The rate at which chamber `side` at rest at y forgets a disturbance of its state (the
   /// largest of its local valve and thermal rates) [1/s]: for step sizes.
   [[nodiscard]] double fastest_rate_1_per_s(const ValveCharacteristic& valve, Side side, double p_pa, double t_k,
