@@ -103,7 +103,7 @@ TEST_F(PneuPlantCli, SimulateWritesOneRowPerSampleTakenBeforeTheSamplesInputIsAp
   ASSERT_EQ(r.exit_code, 0) << r.err;
   std::string header;
   const auto data = rows(slurp(out), &header);
-  EXPECT_EQ(header, "t,y,v,p_P,p_N,F,stuck,u");
+  EXPECT_EQ(header, "t,y,v,p_p,p_n,force,stuck,u");
   ASSERT_EQ(data.size(), 5u);
   EXPECT_DOUBLE_EQ(data[2][0], 0.02);
 
@@ -149,7 +149,7 @@ TEST_F(PneuPlantCli, SimulateAddsSensorReadingsOnRequest) {
   EXPECT_TRUE(r.out.empty());
   std::string header;
   const auto data = rows(slurp(out), &header);
-  EXPECT_EQ(header, "t,y,v,p_P,p_N,F,stuck,u,y_meas,p_P_meas,p_N_meas");
+  EXPECT_EQ(header, "t,y,v,p_p,p_n,force,stuck,u,y_meas,p_p_meas,p_n_meas");
   // 12 bits over 10 V at 20 V/m: one step is 0.122 mm; the reading is within half a step.
   EXPECT_NEAR(data[0][8], data[0][1], 0.5 * 10.0 / 4095.0 / 20.0 + 1e-12);
   EXPECT_NE(data[0][8], data[0][1]) << "quantisation must show at 219.5 mm";

@@ -48,9 +48,9 @@ constexpr const char* kSimulateHelp = R"(pneu-plant simulate: open-loop run of t
                     strictly increasing at a fixed sample rate. u is held between samples and drives
                     u_P = u, u_N = -u.
   --out TRAJ.csv    trajectory, one row per input sample, taken at the sample's time before its
-                    input is applied: t (s), y (m, from mid-stroke), v (m/s), p_P, p_N (Pa abs),
-                    F (N, Eq. 14), stuck (0/1), u (V, the input applied from t on)
-  --sensors         add the sensor readings y_meas, p_P_meas, p_N_meas (sensor models of the config)
+                    input is applied: t (s), y (m, from mid-stroke), v (m/s), p_p, p_n (Pa abs),
+                    force (N, Eq. 14), stuck (0/1), u (V, the input applied from t on)
+  --sensors         add the sensor readings y_meas, p_p_meas, p_n_meas (sensor models of the config)
   --set KEY=VALUE   override a config key by its dotted path (repeatable)
   --quiet           no summary
 
@@ -115,7 +115,7 @@ int simulate(int argc, char** argv) {
 
   cli::OutputFile out(out_path, "--out");
   auto& os = out.stream();
-  os << "t,y,v,p_P,p_N,F,stuck,u" << (with_sensors ? ",y_meas,p_P_meas,p_N_meas" : "") << '\n';
+  os << "t,y,v,p_p,p_n,force,stuck,u" << (with_sensors ? ",y_meas,p_p_meas,p_n_meas" : "") << '\n';
   os << std::setprecision(10);
 
   struct Stick { double start_s, end_s; };
