@@ -520,10 +520,10 @@ TEST_P(HilSensorFaults, AreLatchedOnTheFirstBadReadingAndClearOnlyByResetOnceGon
   EXPECT_NEAR(r.fault_t_s, bad_from, 0.5 * kPeriodS) << "on the first bad reading: " << r.fault_line;
 }
 
-// A number of a trajectory row (pneud writes a non-finite value as "null").
+// A number of a trajectory row (pneud writes a value that is not a number as an empty cell).
 double col(const std::vector<std::string>& row, int i) {
   const std::string& cell = row[static_cast<std::size_t>(i)];
-  return cell == "null" ? NAN : std::stod(cell);
+  return cell.empty() ? NAN : std::stod(cell);
 }
 
 INSTANTIATE_TEST_SUITE_P(
