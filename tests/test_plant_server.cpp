@@ -21,6 +21,7 @@
 #include "pneu/hal/modbus_backend.hpp"
 #include "pneu/plant_server/plant_server.hpp"
 #include "support/child_process.hpp"
+#include "support/hil_modbus_client.hpp"
 #include "support/json.hpp"
 
 namespace {
@@ -41,10 +42,8 @@ std::string hil_yaml() { return std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml
 // hil.yaml's registers: position 0, pressure_p 1, pressure_n 2 (unsigned, 0..65535 for 0..10 V),
 // valve_p 16, valve_n 17 (signed, -32767..32767 for -10..10 V).
 constexpr int kPosition = 0, kPressureP = 1, kValveP = 16, kValveN = 17;
-std::uint16_t valve_word(double volts) {
-  return static_cast<std::uint16_t>(static_cast<std::int16_t>(std::lround(volts / 10.0 * 32767.0)));
-}
-double valve_volts(std::uint16_t word) { return static_cast<std::int16_t>(word) * 10.0 / 32767.0; }
+using pneu::test::hil_valve_volts;
+using pneu::test::hil_valve_word;
 
 pneu::config::Config hil_config() { return pneu::config::load_file(hil_yaml(), {}); }
 
@@ -125,38 +124,7 @@ std::vector<Json> of_kind(const std::vector<Json>& events, const std::string& ki
   return found;
 }
 
-// A libmodbus TCP client of unit 1 on loopback.
-class Client {
- public:
-  explicit Client(int port) : ctx_(modbus_new_tcp("127.0.0.1", port)) {
-    modbus_set_slave(ctx_, 1);
-    modbus_set_response_timeout(ctx_, 0, 500000);
-    connected_ = modbus_connect(ctx_) == 0;
-  }
-  ~Client() {
-    modbus_close(ctx_);
-    modbus_free(ctx_);
-  }
-  Client(const Client&) = delete;
-  Client& operator=(const Client&) = delete;
-  [[nodiscard]] bool connected() const { return connected_; }
-
-  std::vector<std::uint16_t> read(int address, int count) {
-    std::vector<std::uint16_t> regs(static_cast<std::size_t>(count));
-    EXPECT_EQ(modbus_read_registers(ctx_, address, count, regs.data()), count) << modbus_strerror(errno);
-    return regs;
-  }
-  std::uint16_t read1(int address) { return read(address, 1)[0]; }
-  // The valve registers written (function 16): 0, or the errno of the refusal.
-  int write_valves(double u_p_v, double u_n_v) {
-    const std::uint16_t out[2] = {valve_word(u_p_v), valve_word(u_n_v)};
-    return modbus_write_registers(ctx_, kValveP, 2, out) == 2 ? 0 : errno;
-  }
-
- private:
-  modbus_t* ctx_;
-  bool connected_ = false;
-};
+using Client = pneu::test::HilModbusClient;
 
 class PlantServerTest : public ::testing::Test {
  protected:
@@ -172,8 +140,8 @@ TEST_F(PlantServerTest, ServesOnAPortTheKernelPicksAndStopsWhenAskedClosingItsCo
     ASSERT_TRUE(c.connected());
     EXPECT_GT(c.read(kPosition, 3)[kPosition], 60000) << "at rest at 219.5 mm: about 9.39 V";
     const auto valves = c.read(kValveP, 2);
-    EXPECT_NEAR(valve_volts(valves[0]), r.server().neutral_voltage_v(), 10.0 / 32767.0) << "u_P = u_e";
-    EXPECT_NEAR(valve_volts(valves[1]), -r.server().neutral_voltage_v(), 10.0 / 32767.0) << "u_N = -u_e";
+    EXPECT_NEAR(hil_valve_volts(valves[0]), r.server().neutral_voltage_v(), 10.0 / 32767.0) << "u_P = u_e";
+    EXPECT_NEAR(hil_valve_volts(valves[1]), -r.server().neutral_voltage_v(), 10.0 / 32767.0) << "u_N = -u_e";
   }
   const auto asked = Clock::now();
   r.stop();
@@ -257,7 +225,7 @@ TEST_F(PlantServerTest, TheFirstWriterOwnsTheValvesAndASecondWriterGetsException
   EXPECT_EQ(owner->write_valves(1.0, -1.0), 0);
   EXPECT_EQ(other.write_valves(5.0, 5.0), EMBXSBUSY) << "server device busy";
   EXPECT_EQ(other.write_valves(5.0, 5.0), EMBXSBUSY);
-  EXPECT_EQ(other.read(kValveP, 2), (std::vector<std::uint16_t>{valve_word(1.0), valve_word(-1.0)})) << "the owner's";
+  EXPECT_EQ(other.read(kValveP, 2), (std::vector<std::uint16_t>{hil_valve_word(1.0), hil_valve_word(-1.0)})) << "the owner's";
   owner.reset();  // disconnects: the valve registers are free
   EXPECT_EQ(other.write_valves(3.0, -3.0), 0);
   r.stop();
@@ -289,7 +257,7 @@ TEST_F(PlantServerTest, TheWatchdogSetsItsOutputsAndFreesTheValvesWhenTheOwnerFa
   ASSERT_TRUE(owner.connected() && other.connected());
   EXPECT_EQ(owner.write_valves(1.0, -1.0), 0);
   EXPECT_TRUE(pneu::test::eventually(
-      [&] { return other.read(kValveP, 2) == std::vector<std::uint16_t>{valve_word(-10.0), valve_word(-10.0)}; }, 2s))
+      [&] { return other.read(kValveP, 2) == std::vector<std::uint16_t>{hil_valve_word(-10.0), hil_valve_word(-10.0)}; }, 2s))
       << "the owner silent (connected) past 0.1 s: the watchdog's outputs";
   EXPECT_EQ(other.write_valves(2.0, -2.0), 0) << "the valve registers are free for the next writer";
   r.stop();

@@ -23,6 +23,7 @@
 #include "pneu/config/config.hpp"
 #include "pneu/hal/modbus_backend.hpp"
 #include "support/child_process.hpp"
+#include "support/hil_modbus_client.hpp"
 
 namespace {
 
@@ -50,44 +51,10 @@ std::vector<std::string> float32_overrides() {
   return lines;
 }
 
-std::uint16_t valve_word(double volts) {  // hil.yaml's valve scaling
-  return static_cast<std::uint16_t>(static_cast<std::int16_t>(std::lround(volts / 10.0 * 32767.0)));
-}
-double valve_volts(std::uint16_t word) { return static_cast<std::int16_t>(word) * 10.0 / 32767.0; }
+using pneu::test::hil_valve_volts;
+using pneu::test::hil_valve_word;
 
-// A libmodbus TCP client of unit 1 on loopback.
-class Client {
- public:
-  explicit Client(int port, double response_timeout_s = 0.5) : ctx_(modbus_new_tcp("127.0.0.1", port)) {
-    modbus_set_slave(ctx_, 1);
-    modbus_set_response_timeout(ctx_, static_cast<uint32_t>(response_timeout_s),
-                                static_cast<uint32_t>(std::fmod(response_timeout_s, 1.0) * 1e6));
-    connected_ = modbus_connect(ctx_) == 0;
-  }
-  ~Client() {
-    modbus_close(ctx_);
-    modbus_free(ctx_);
-  }
-  Client(const Client&) = delete;
-  Client& operator=(const Client&) = delete;
-  [[nodiscard]] bool connected() const { return connected_; }
-  [[nodiscard]] modbus_t* ctx() const { return ctx_; }
-
-  std::vector<std::uint16_t> read(int address, int count) {
-    std::vector<std::uint16_t> regs(static_cast<std::size_t>(count));
-    EXPECT_EQ(modbus_read_registers(ctx_, address, count, regs.data()), count) << modbus_strerror(errno);
-    return regs;
-  }
-  std::uint16_t read1(int address) { return read(address, 1)[0]; }
-  void write_valves(std::uint16_t p, std::uint16_t n) {
-    const std::uint16_t out[2] = {p, n};
-    EXPECT_EQ(modbus_write_registers(ctx_, kValveP, 2, out), 2) << modbus_strerror(errno);
-  }
-
- private:
-  modbus_t* ctx_;
-  bool connected_ = false;
-};
+using Client = pneu::test::HilModbusClient;
 
 bool wait_listening(int port) {
   for (int i = 0; i < 200; ++i) {
@@ -231,7 +198,7 @@ TEST_F(ServeFaults, AStuckValveMovesThePlantWhileOutputsRecordWhatTheClientWrote
   const std::uint16_t held_p = static_cast<std::uint16_t>(u0[0] + 1), held_n = static_cast<std::uint16_t>(u0[1] - 1);
   std::vector<std::uint16_t> positions_before, positions_after;
   while (since_start_s() < 2.5) {
-    c.write_valves(held_p, held_n);
+    EXPECT_EQ(c.write_valve_words(held_p, held_n), 0) << modbus_strerror(errno);
     (since_start_s() < 0.9 ? positions_before : positions_after).push_back(c.read1(kPosition));
     std::this_thread::sleep_for(5ms);
   }
@@ -248,10 +215,10 @@ TEST_F(ServeFaults, AStuckValveMovesThePlantWhileOutputsRecordWhatTheClientWrote
   ASSERT_EQ(out.header, (std::vector<std::string>{"t_s", "u_p_v", "u_n_v"}));
   ASSERT_EQ(out.rows.size(), 2u) << "the initial values, then one change: hundreds of writes of the same words";
   EXPECT_EQ(std::stod(out.rows[0][out.col("t_s")]), 0.0);
-  EXPECT_NEAR(std::stod(out.rows[0][out.col("u_p_v")]), valve_volts(u0[0]), 1e-6);
-  EXPECT_NEAR(std::stod(out.rows[0][out.col("u_n_v")]), valve_volts(u0[1]), 1e-6);
-  EXPECT_NEAR(std::stod(out.rows[1][out.col("u_p_v")]), valve_volts(held_p), 1e-6) << "what the client wrote, not -3 V";
-  EXPECT_NEAR(std::stod(out.rows[1][out.col("u_n_v")]), valve_volts(held_n), 1e-6);
+  EXPECT_NEAR(std::stod(out.rows[0][out.col("u_p_v")]), hil_valve_volts(u0[0]), 1e-6);
+  EXPECT_NEAR(std::stod(out.rows[0][out.col("u_n_v")]), hil_valve_volts(u0[1]), 1e-6);
+  EXPECT_NEAR(std::stod(out.rows[1][out.col("u_p_v")]), hil_valve_volts(held_p), 1e-6) << "what the client wrote, not -3 V";
+  EXPECT_NEAR(std::stod(out.rows[1][out.col("u_n_v")]), hil_valve_volts(held_n), 1e-6);
   EXPECT_GT(std::stod(out.rows[1][out.col("t_s")]), 0.0);
 }
 
@@ -265,7 +232,7 @@ TEST_F(ServeFaults, TheOutputsFileHoldsTheLastWrittenVoltagesAfterASigkill) {
   const std::vector<std::pair<double, double>> settings{{1.0, -1.0}, {0.25, 2.5}, {-10.0, -10.0}};
   for (const auto& [p, n] : settings)
     for (int i = 0; i < 10; ++i) {
-      c.write_valves(valve_word(p), valve_word(n));
+      EXPECT_EQ(c.write_valve_words(hil_valve_word(p), hil_valve_word(n)), 0) << modbus_strerror(errno);
       std::this_thread::sleep_for(2ms);
     }
   kill(plant.pid, SIGKILL);
@@ -291,12 +258,12 @@ TEST_F(ServeFaults, TheFirstClientToWriteTheValvesOwnsThemUntilItDisconnectsAndT
   auto owner = std::make_unique<Client>(port_);
   Client other(port_);
   ASSERT_TRUE(owner->connected() && other.connected());
-  owner->write_valves(valve_word(1.0), valve_word(-1.0));
+  EXPECT_EQ(owner->write_valve_words(hil_valve_word(1.0), hil_valve_word(-1.0)), 0) << modbus_strerror(errno);
 
   // Every function that writes a register, touching a valve register, from another client:
   // refused with exception 06 (server device busy), and nothing written.
   modbus_t* c = other.ctx();
-  const std::uint16_t words[2] = {valve_word(5.0), valve_word(5.0)};
+  const std::uint16_t words[2] = {hil_valve_word(5.0), hil_valve_word(5.0)};
   std::uint16_t in[3] = {};
   const auto refusal = [](int rc) { return rc == -1 ? errno : 0; };
   EXPECT_EQ(refusal(modbus_write_registers(c, kValveP, 2, words)), EMBXSBUSY) << "function 16";
@@ -305,14 +272,14 @@ TEST_F(ServeFaults, TheFirstClientToWriteTheValvesOwnsThemUntilItDisconnectsAndT
   EXPECT_EQ(refusal(modbus_write_and_read_registers(c, kValveP, 2, words, kPosition, 3, in)), EMBXSBUSY)
       << "function 23, as a second pneud would send";
   EXPECT_EQ(refusal(modbus_write_registers(c, kValveN, 1, words)), EMBXSBUSY) << "valve_n alone";
-  EXPECT_EQ(other.read(kValveP, 2), (std::vector<std::uint16_t>{valve_word(1.0), valve_word(-1.0)})) << "the owner's";
+  EXPECT_EQ(other.read(kValveP, 2), (std::vector<std::uint16_t>{hil_valve_word(1.0), hil_valve_word(-1.0)})) << "the owner's";
   EXPECT_EQ(other.read(kPosition, 3).size(), 3u) << "reading is free for all";
   EXPECT_EQ(modbus_write_register(c, 5, 1234), 1) << "a register beside the valves is no one's";
 
-  owner->write_valves(valve_word(2.0), valve_word(-2.0));
+  EXPECT_EQ(owner->write_valve_words(hil_valve_word(2.0), hil_valve_word(-2.0)), 0) << modbus_strerror(errno);
   owner.reset();  // disconnects: the valve registers are free
-  other.write_valves(valve_word(3.0), valve_word(-3.0));
-  EXPECT_EQ(other.read(kValveP, 2), (std::vector<std::uint16_t>{valve_word(3.0), valve_word(-3.0)}));
+  EXPECT_EQ(other.write_valve_words(hil_valve_word(3.0), hil_valve_word(-3.0)), 0) << modbus_strerror(errno);
+  EXPECT_EQ(other.read(kValveP, 2), (std::vector<std::uint16_t>{hil_valve_word(3.0), hil_valve_word(-3.0)}));
   kill(plant.pid, SIGTERM);
   EXPECT_EQ(plant.wait(), 0);
 

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "support/child_process.hpp"
+#include "support/hil_modbus_client.hpp"
 #include "support/json.hpp"
 
 namespace {
@@ -33,41 +34,10 @@ using ::testing::HasSubstr;
 std::string bin(const std::string& name) { return std::string(PNEU_BINARY_DIR) + "/bin/" + name; }
 std::string hil_yaml() { return std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml"; }
 
-constexpr int kValveP = 16;  // hil.yaml: valve_p 16, valve_n 17, signed, -32767..32767 for -10..10 V
-std::uint16_t valve_word(double volts) {
-  return static_cast<std::uint16_t>(static_cast<std::int16_t>(std::lround(volts / 10.0 * 32767.0)));
-}
+constexpr int kValveP = pneu::test::kHilValveP;
+using pneu::test::hil_valve_word;
 
-// A libmodbus TCP client of unit 1 on loopback.
-class Client {
- public:
-  explicit Client(int port) : ctx_(modbus_new_tcp("127.0.0.1", port)) {
-    modbus_set_slave(ctx_, 1);
-    modbus_set_response_timeout(ctx_, 1, 0);
-    connected_ = modbus_connect(ctx_) == 0;
-  }
-  ~Client() {
-    modbus_close(ctx_);
-    modbus_free(ctx_);
-  }
-  Client(const Client&) = delete;
-  Client& operator=(const Client&) = delete;
-  [[nodiscard]] bool connected() const { return connected_; }
-  // 0, or the errno of the refusal (EMBXSBUSY: another client owns the valves).
-  int write_valves(double u_p, double u_n) {
-    const std::uint16_t words[2] = {valve_word(u_p), valve_word(u_n)};
-    return modbus_write_registers(ctx_, kValveP, 2, words) == 2 ? 0 : errno;
-  }
-  std::vector<std::uint16_t> read(int address, int count) {
-    std::vector<std::uint16_t> regs(static_cast<std::size_t>(count));
-    EXPECT_EQ(modbus_read_registers(ctx_, address, count, regs.data()), count) << modbus_strerror(errno);
-    return regs;
-  }
-
- private:
-  modbus_t* ctx_;
-  bool connected_ = false;
-};
+using Client = pneu::test::HilModbusClient;
 
 class ServeWatchdog : public ::testing::Test {
  protected:
@@ -146,7 +116,7 @@ TEST_F(ServeWatchdog, AfterASigkillOfPneudServesRecordShowsTheSafeOutputsWithin1
 
 TEST_F(ServeWatchdog, AClientThatVanishedWithoutClosingLosesTheValvesToTheWatchdogAndAnotherTakesThem) {
   Child plant = serve({"--watchdog-s", "1", "--outputs", (dir_ / "outputs.csv").string()});
-  Client first(port_), second(port_);
+  Client first(port_, 1.0), second(port_, 1.0);
   ASSERT_TRUE(first.connected() && second.connected());
   ASSERT_EQ(first.write_valves(2.0, -2.0), 0);
   EXPECT_EQ(second.write_valves(3.0, -3.0), EMBXSBUSY) << "the first writer owns the valves";
@@ -174,7 +144,7 @@ TEST_F(ServeWatchdog, AClientThatVanishedWithoutClosingLosesTheValvesToTheWatchd
   EXPECT_NEAR(trips[0]["u_p"].number(), start["u_p"].number(), 1e-6);
   EXPECT_NEAR(trips[0]["u_n"].number(), start["u_n"].number(), 1e-6);
   EXPECT_EQ(second.write_valves(3.0, -3.0), 0) << "free once the watchdog tripped";
-  EXPECT_EQ(second.read(kValveP, 2), (std::vector<std::uint16_t>{valve_word(3.0), valve_word(-3.0)}));
+  EXPECT_EQ(second.read(kValveP, 2), (std::vector<std::uint16_t>{hil_valve_word(3.0), hil_valve_word(-3.0)}));
   const auto owners = of_kind("owner");
   ASSERT_EQ(owners.size(), 2u);
   EXPECT_EQ(owners[1]["client"].count(), 2u);
@@ -186,7 +156,7 @@ TEST_F(ServeWatchdog, AClientThatVanishedWithoutClosingLosesTheValvesToTheWatchd
 
 TEST_F(ServeWatchdog, TheRecordWritesTheHeldOutputsAtMostOnceEvery10MsCountingTheSkippedAndTheLastAlways) {
   Child plant = serve({});
-  Client c(port_);
+  Client c(port_, 1.0);
   ASSERT_TRUE(c.connected());
   int changes = 0;
   const auto t0 = std::chrono::steady_clock::now();
