@@ -182,7 +182,20 @@ std::string fit_verdict(const Evidence& e) {
                   "the model fits the stuck phases' pressures: %.1f Pa rms, within twice what the sensors' noise explains "
                   "(%.1f Pa)",
                   e.pressure_rms_residual_pa, e.pressure_explained_pa);
-    return line;
+    std::string text = line;
+    if (!e.left_out.empty()) {
+      std::snprintf(line, sizeof line, "; %zu phase%s left out, beyond three times it where the %d others fit:",
+                    e.left_out.size(), e.left_out.size() == 1 ? "" : "s", e.fitted_phases);
+      text += line;
+      for (std::size_t i = 0; i < e.left_out.size(); ++i) {
+        std::snprintf(line, sizeof line, "%s t = %.2f s at %.0f mm, %.0f Pa", i > 0 ? ";" : "", e.left_out[i].t_s,
+                      e.left_out[i].y_m * 1e3, e.left_out[i].rms_pa);
+        text += line;
+      }
+      text += " (a disturbance the model does not have: a knock on the carriage, a glitch, a link that stalled? "
+              "the record shows it there)";
+    }
+    return text;
   }
   std::snprintf(line, sizeof line,
                 "THE MODEL DOES NOT FIT the stuck phases' pressures: %.0f Pa rms, %.0f times what the sensors' noise "

@@ -680,6 +680,27 @@ Identification identify(std::span<const Sample> s, const model::PlantParams& pri
     std::vector<StuckPhase> still(phases.begin(), phases.end());
     for (StuckPhase& p : still) p.still_last = valve_fit_last(s, force, p, prior.mass_kg, o);
     vf = detail::fit_valves(s, still, id.plant, o);
+    // A disturbance the model does not have (a knock on the carriage, a link that stalled) spoils
+    // a phase or two of a run that is otherwise the model's. Where the other phases, nine or more
+    // for each spoiled one, fit without them, those are left out, and named; where they do not,
+    // the model does not fit, and says so.
+    if (!vf.fits) {
+      std::vector<StuckPhase> kept;
+      std::vector<Evidence::PhaseMisfit> spoiled;
+      for (const StuckPhase& p : still) {
+        const auto r = std::find_if(vf.phase_residuals.begin(), vf.phase_residuals.end(),
+                                    [&](const auto& x) { return x.first >= p.first && x.last <= p.last; });
+        if (r != vf.phase_residuals.end() && r->misfit) spoiled.push_back({s[r->first].t_s, r->y_m, r->rms_pa});
+        else kept.push_back(p);
+      }
+      if (!spoiled.empty() && 9 * spoiled.size() <= vf.phase_residuals.size() - spoiled.size()) {
+        detail::ValveFit without = detail::fit_valves(s, kept, id.plant, o);
+        if (without.fits) {
+          vf = std::move(without);
+          ev.left_out = std::move(spoiled);
+        }
+      }
+    }
   } else {
     vf.plant = id.plant;
     vf.phases = -1;

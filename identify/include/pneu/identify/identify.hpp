@@ -114,6 +114,10 @@ struct Evidence {
   };
   std::vector<PhaseMisfit> misfit;
   int misfit_phases_of = 0;  ///< ... of this many fitted
+  /// Phases left out of the valve fit: beyond three times what the noise explains when the others,
+  /// many (nine or more for each), fit without them (a disturbance the model does not have: a
+  /// knock on the carriage, a stalled link). Not counted in `fitted_phases`.
+  std::vector<PhaseMisfit> left_out;
   /// The loop's deadlines missing from the fitted phases' samples (a gap over 1.5 times the
   /// record's median spacing counts the ticks it lacks), of `fitted_samples`: over a bus, each one
   /// shifts when the commands reached the valves, which the fit's whole-sample delay does not have.
