@@ -513,19 +513,12 @@ const Estimate& Identification::at(const std::string& key) const {
   throw std::out_of_range("no estimate of " + key);
 }
 
-Identification identify(std::span<const Sample> s, const model::PlantParams& prior, const Options& o) {
-  const model::PressureForce pf(prior.geometry, prior.gas.exhaust_pressure_pa);
-  std::vector<double> force(s.size());
-  for (std::size_t k = 0; k < s.size(); ++k) force[k] = pf.force_n(s[k].p_p_pa, s[k].p_n_pa);
+namespace {
 
-  const std::vector<StuckPhase> phases = detail::stuck_phases(s, prior.geometry.half_stroke_m(), o);
-  Identification id;
-  id.plant = prior;
-  Evidence& ev = id.evidence;
+// What the stuck phases are: how many, how long, over which positions and voltages.
+Evidence evidence_of(std::span<const Sample> s, std::span<const StuckPhase> phases) {
+  Evidence ev;
   ev.stuck_phases = static_cast<int>(phases.size());
-  if (phases.empty())
-    throw InsufficientData(format("no sticking phase: the carriage never stood still for %.3g s away from the end stops",
-                                  o.min_stuck_s));
   double y_lo = 1e9, y_hi = -1e9, u_lo = 1e9, u_hi = -1e9;
   for (const StuckPhase& p : phases) {
     ev.stuck_s += s[p.last].t_s - s[p.first].t_s;
@@ -538,16 +531,11 @@ Identification identify(std::span<const Sample> s, const model::PlantParams& pri
   }
   ev.stuck_position_span_m = y_hi - y_lo;
   ev.voltage_span_v = u_hi - u_lo;
+  return ev;
+}
 
-  // Stiction (Eq. 15 and the forces held).
-  const Stiction st = stiction_from(s, force, phases, prior.mass_kg, o);
-  ev.breakaways_positive = st.positive.breakaways;
-  ev.breakaways_negative = st.negative.breakaways;
-  ev.held_positive_n = st.held_positive_n;
-  ev.held_negative_n = st.held_negative_n;
-  if (st.positive.breakaways + st.negative.breakaways == 0)
-    throw InsufficientData("no breakaway: the carriage never left a stuck phase under its own pressure force, so "
-                           "neither stiction bound can be bounded from beyond");
+// The stiction bounds from the brackets of the breakaways (Eq. 15 and the forces held).
+void estimate_stiction(const Stiction& st, const model::PlantParams& prior, const Options& o, Identification& id) {
   auto& f = id.plant.friction;
   const auto stiction_estimate = [&](const char* key, double prior_n, const Bracket& b, bool positive) {
     Estimate e{key, prior_n, prior_n, 0.0, false, ""};
@@ -575,10 +563,14 @@ Identification identify(std::span<const Sample> s, const model::PlantParams& pri
   id.estimates.push_back(stiction_estimate(kKeys[1], prior.friction.static_negative_n, st.negative, false));
   f.static_positive_n = id.estimates[0].value;
   f.static_negative_n = id.estimates[1].value;
+}
 
-  // Coulomb and viscous friction from the sliding phases (Eq. 3).
+// Coulomb and viscous friction from the sliding phases (Eq. 3).
+void estimate_sliding(std::span<const Sample> s, std::span<const double> force, std::span<const StuckPhase> phases,
+                      const model::PlantParams& prior, const Options& o, Identification& id) {
+  auto& f = id.plant.friction;
   const Sliding sl = sliding_from(s, force, phases, prior, f.static_positive_n, f.static_negative_n, o);
-  ev.sliding_s = sl.seconds;
+  id.evidence.sliding_s = sl.seconds;
   const auto sliding_estimate = [&](const char* key, double prior_v, double value, double sd, bool sign_ok) {
     Estimate e{key, prior_v, prior_v, 0.0, false, ""};
     if (!sl.solved) {
@@ -611,96 +603,105 @@ Identification identify(std::span<const Sample> s, const model::PlantParams& pri
   if (f.coulomb_negative_n != id.estimates[3].value) id.estimates[3].basis += "; capped at F_S-";
   id.estimates[2].value = f.coulomb_positive_n;
   id.estimates[3].value = f.coulomb_negative_n;
+}
 
-  // Noisy sensors: the breakaways dated by the onset itself replace the brackets, whose reading
-  // of the motion comes late. Each fit is weighted by how slowly the force crossed (how little it
-  // had moved on by the reading that showed the motion, its standard deviation): a slow crossing
-  // is dated best.
-  if (o.rest_band_m > 0.0) {
-    struct Fit {
-      double value, weight;
-    };
-    std::vector<Fit> fits[2];
-    for (const StuckPhase& p : phases) {
-      if (!p.breakaway || p.last + 1 >= s.size() || (p.direction > 0) != (force[p.last + 1] > 0.0)) continue;
-      const double fit = fit_onset(s, force, p, f, prior.mass_kg);
-      if (!std::isfinite(fit)) continue;
-      const double moved_on = std::abs(force[p.last] - fit) + kOnsetWeightFloor_n;
-      fits[p.direction > 0 ? 0 : 1].push_back({fit, 1.0 / (moved_on * moved_on)});
-    }
-    for (int side = 0; side < 2; ++side) {
-      Estimate& e = id.estimates[static_cast<std::size_t>(side)];
-      if (fits[side].empty()) continue;
-      double sw = 0, swx = 0, sw2 = 0;
-      for (const Fit& x : fits[side]) {
-        sw += x.weight;
-        swx += x.weight * x.value;
-        sw2 += x.weight * x.weight;
-      }
-      const double mean = swx / sw;
-      double spread2 = 0;
-      for (const Fit& x : fits[side]) spread2 += x.weight * (x.value - mean) * (x.value - mean);
-      const double n_eff = sw * sw / sw2;
-      // The spread of the fits about their mean. Fewer than two (effective) fits have no spread to
-      // show (a set-point step's fast breakaway, dated alone): each is then taken as good to how
-      // far the force moved on while the onset hid.
-      const double sd = (n_eff >= 2.0 ? std::sqrt(spread2 / sw) / std::sqrt(n_eff - 1.0) : 1.0 / std::sqrt(sw)) +
-                        st.force_noise_n;
-      // The forces held and the breakaways' readings still bound it: F_S lies within the bracket
-      // whatever the fits say (the fits of fast breakaways spread by newtons, and a mean inside a
-      // force the carriage held forecasts a restart at once). The uncertainty stays the fits': a
-      // wide bracket says little, and a narrow one that the fits miss says they spread.
-      const Bracket& b = side == 0 ? st.positive : st.negative;
-      const double value = b.lower <= b.upper ? std::clamp(mean, b.lower, b.upper) : mean;
-      const bool ok = (side == 0 ? value > 0 : value < 0) && sd <= o.max_relative_std * std::abs(value);
-      if (!ok) continue;
-      e.value = value;
-      e.std = sd;
-      e.identified = true;
-      e.basis = format("%d breakaways dated by their onset (%d bracketed: held up to %.3f N, moved from %.3f N%s)",
-                       static_cast<int>(fits[side].size()), side == 0 ? st.positive.breakaways : st.negative.breakaways,
-                       side == 0 ? st.positive.lower : st.negative.upper, side == 0 ? st.positive.upper : st.negative.lower,
-                       value != mean ? format("; their mean %.3f N lies outside: the bracket's end", mean).c_str() : "");
-    }
-    f.static_positive_n = id.estimates[0].value;
-    f.static_negative_n = id.estimates[1].value;
-    for (const std::size_t i : {std::size_t{2}, std::size_t{3}}) {
-      Estimate& c = id.estimates[i];
-      const double capped = i == 2 ? std::min(c.value, f.static_positive_n) : std::max(c.value, f.static_negative_n);
-      if (capped != c.value) c.basis += "; capped at the stiction";
-      c.value = capped;
-    }
-    f.coulomb_positive_n = id.estimates[2].value;
-    f.coulomb_negative_n = id.estimates[3].value;
+// Noisy sensors: the breakaways dated by the onset itself replace the brackets, whose reading
+// of the motion comes late. Each fit is weighted by how slowly the force crossed (how little it
+// had moved on by the reading that showed the motion, its standard deviation): a slow crossing
+// is dated best.
+void date_breakaways_by_onset(std::span<const Sample> s, std::span<const double> force,
+                              std::span<const StuckPhase> phases, const Stiction& st, const model::PlantParams& prior,
+                              const Options& o, Identification& id) {
+  auto& f = id.plant.friction;
+  struct Fit {
+    double value, weight;
+  };
+  std::vector<Fit> fits[2];
+  for (const StuckPhase& p : phases) {
+    if (!p.breakaway || p.last + 1 >= s.size() || (p.direction > 0) != (force[p.last + 1] > 0.0)) continue;
+    const double fit = fit_onset(s, force, p, f, prior.mass_kg);
+    if (!std::isfinite(fit)) continue;
+    const double moved_on = std::abs(force[p.last] - fit) + kOnsetWeightFloor_n;
+    fits[p.direction > 0 ? 0 : 1].push_back({fit, 1.0 / (moved_on * moved_on)});
   }
+  for (int side = 0; side < 2; ++side) {
+    Estimate& e = id.estimates[static_cast<std::size_t>(side)];
+    if (fits[side].empty()) continue;
+    double sw = 0, swx = 0, sw2 = 0;
+    for (const Fit& x : fits[side]) {
+      sw += x.weight;
+      swx += x.weight * x.value;
+      sw2 += x.weight * x.weight;
+    }
+    const double mean = swx / sw;
+    double spread2 = 0;
+    for (const Fit& x : fits[side]) spread2 += x.weight * (x.value - mean) * (x.value - mean);
+    const double n_eff = sw * sw / sw2;
+    // The spread of the fits about their mean. Fewer than two (effective) fits have no spread to
+    // show (a set-point step's fast breakaway, dated alone): each is then taken as good to how
+    // far the force moved on while the onset hid.
+    const double sd = (n_eff >= 2.0 ? std::sqrt(spread2 / sw) / std::sqrt(n_eff - 1.0) : 1.0 / std::sqrt(sw)) +
+                      st.force_noise_n;
+    // The forces held and the breakaways' readings still bound it: F_S lies within the bracket
+    // whatever the fits say (the fits of fast breakaways spread by newtons, and a mean inside a
+    // force the carriage held forecasts a restart at once). The uncertainty stays the fits': a
+    // wide bracket says little, and a narrow one that the fits miss says they spread.
+    const Bracket& b = side == 0 ? st.positive : st.negative;
+    const double value = b.lower <= b.upper ? std::clamp(mean, b.lower, b.upper) : mean;
+    const bool ok = (side == 0 ? value > 0 : value < 0) && sd <= o.max_relative_std * std::abs(value);
+    if (!ok) continue;
+    e.value = value;
+    e.std = sd;
+    e.identified = true;
+    e.basis = format("%d breakaways dated by their onset (%d bracketed: held up to %.3f N, moved from %.3f N%s)",
+                     static_cast<int>(fits[side].size()), side == 0 ? st.positive.breakaways : st.negative.breakaways,
+                     side == 0 ? st.positive.lower : st.negative.upper, side == 0 ? st.positive.upper : st.negative.lower,
+                     value != mean ? format("; their mean %.3f N lies outside: the bracket's end", mean).c_str() : "");
+  }
+  f.static_positive_n = id.estimates[0].value;
+  f.static_negative_n = id.estimates[1].value;
+  for (const std::size_t i : {std::size_t{2}, std::size_t{3}}) {
+    Estimate& c = id.estimates[i];
+    const double capped = i == 2 ? std::min(c.value, f.static_positive_n) : std::max(c.value, f.static_negative_n);
+    if (capped != c.value) c.basis += "; capped at the stiction";
+    c.value = capped;
+  }
+  f.coulomb_positive_n = id.estimates[2].value;
+  f.coulomb_negative_n = id.estimates[3].value;
+}
 
-  // The valves and the dead volumes from the stuck phases' pressure transients (Eq. 19).
+// A disturbance the model does not have (a knock on the carriage, a link that stalled) spoils a
+// phase or two of a run that is otherwise the model's. Where the other phases, nine or more for
+// each spoiled one, fit without them, those are left out (in `left_out`) and the fit without them
+// is the result; where they do not, the model does not fit, and the fit with them says so.
+detail::ValveFit without_spoiled_phases(std::span<const Sample> s, std::span<const StuckPhase> still, detail::ValveFit vf,
+                                        const model::PlantParams& plant, const Options& o,
+                                        std::vector<Evidence::PhaseMisfit>& left_out) {
+  std::vector<StuckPhase> kept;
+  std::vector<Evidence::PhaseMisfit> spoiled;
+  for (const StuckPhase& p : still) {
+    const auto r = std::find_if(vf.phase_residuals.begin(), vf.phase_residuals.end(),
+                                [&](const auto& x) { return x.first >= p.first && x.last <= p.last; });
+    if (r != vf.phase_residuals.end() && r->misfit) spoiled.push_back({s[r->first].t_s, r->y_m, r->rms_pa});
+    else kept.push_back(p);
+  }
+  if (spoiled.empty() || 9 * spoiled.size() > vf.phase_residuals.size() - spoiled.size()) return vf;
+  detail::ValveFit without = detail::fit_valves(s, kept, plant, o);
+  if (!without.fits) return vf;
+  left_out = std::move(spoiled);
+  return without;
+}
+
+// The valves and the dead volumes from the stuck phases' pressure transients (Eq. 19).
+void estimate_valves(std::span<const Sample> s, std::span<const double> force, std::span<const StuckPhase> phases,
+                     const model::PlantParams& prior, const Options& o, Identification& id) {
+  Evidence& ev = id.evidence;
   detail::ValveFit vf;
   if (o.fit_valves) {
     std::vector<StuckPhase> still(phases.begin(), phases.end());
     for (StuckPhase& p : still) p.still_last = valve_fit_last(s, force, p, prior.mass_kg, o);
     vf = detail::fit_valves(s, still, id.plant, o);
-    // A disturbance the model does not have (a knock on the carriage, a link that stalled) spoils
-    // a phase or two of a run that is otherwise the model's. Where the other phases, nine or more
-    // for each spoiled one, fit without them, those are left out, and named; where they do not,
-    // the model does not fit, and says so.
-    if (!vf.fits) {
-      std::vector<StuckPhase> kept;
-      std::vector<Evidence::PhaseMisfit> spoiled;
-      for (const StuckPhase& p : still) {
-        const auto r = std::find_if(vf.phase_residuals.begin(), vf.phase_residuals.end(),
-                                    [&](const auto& x) { return x.first >= p.first && x.last <= p.last; });
-        if (r != vf.phase_residuals.end() && r->misfit) spoiled.push_back({s[r->first].t_s, r->y_m, r->rms_pa});
-        else kept.push_back(p);
-      }
-      if (!spoiled.empty() && 9 * spoiled.size() <= vf.phase_residuals.size() - spoiled.size()) {
-        detail::ValveFit without = detail::fit_valves(s, kept, id.plant, o);
-        if (without.fits) {
-          vf = std::move(without);
-          ev.left_out = std::move(spoiled);
-        }
-      }
-    }
+    if (!vf.fits) vf = without_spoiled_phases(s, still, std::move(vf), id.plant, o, ev.left_out);
   } else {
     vf.plant = id.plant;
     vf.phases = -1;
@@ -755,6 +756,34 @@ Identification identify(std::span<const Sample> s, const model::PlantParams& pri
                         vf.joint_rms_residual_pa, vf.joint_rms_residual_pa / vf.explained_pa);
     id.estimates.push_back(e);
   }
+}
+
+}  // namespace
+
+Identification identify(std::span<const Sample> s, const model::PlantParams& prior, const Options& o) {
+  const model::PressureForce pf(prior.geometry, prior.gas.exhaust_pressure_pa);
+  std::vector<double> force(s.size());
+  for (std::size_t k = 0; k < s.size(); ++k) force[k] = pf.force_n(s[k].p_p_pa, s[k].p_n_pa);
+  const std::vector<StuckPhase> phases = detail::stuck_phases(s, prior.geometry.half_stroke_m(), o);
+  if (phases.empty())
+    throw InsufficientData(format("no sticking phase: the carriage never stood still for %.3g s away from the end stops",
+                                  o.min_stuck_s));
+  Identification id;
+  id.plant = prior;
+  id.evidence = evidence_of(s, phases);
+  const Stiction st = stiction_from(s, force, phases, prior.mass_kg, o);
+  if (st.positive.breakaways + st.negative.breakaways == 0)
+    throw InsufficientData("no breakaway: the carriage never left a stuck phase under its own pressure force, so "
+                           "neither stiction bound can be bounded from beyond");
+  id.evidence.breakaways_positive = st.positive.breakaways;
+  id.evidence.breakaways_negative = st.negative.breakaways;
+  id.evidence.held_positive_n = st.held_positive_n;
+  id.evidence.held_negative_n = st.held_negative_n;
+  // In this order: each estimate is made on the friction the ones before it identified.
+  estimate_stiction(st, prior, o, id);
+  estimate_sliding(s, force, phases, prior, o, id);
+  if (o.rest_band_m > 0.0) date_breakaways_by_onset(s, force, phases, st, prior, o, id);
+  estimate_valves(s, force, phases, prior, o, id);
   id.estimates.push_back({kKeys[kPublished], prior.friction.stribeck_velocity_m_per_s,
                           prior.friction.stribeck_velocity_m_per_s, 0.0, false, "not identified: taken from the configuration"});
   id.estimates.push_back({kKeys[kPublished + 1], prior.mass_kg, prior.mass_kg, 0.0, false,
