@@ -22,8 +22,12 @@
 
 #include "pneu/config/config.hpp"
 #include "support/child_process.hpp"
+#include "support/paths.hpp"
 
 namespace {
+
+using pneu::test::bin;
+using pneu::test::hil_yaml;
 
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
@@ -32,8 +36,6 @@ using pneu::test::free_port;
 using pneu::test::slurp;
 using ::testing::HasSubstr;
 
-std::string bin(const std::string& name) { return std::string(PNEU_BINARY_DIR) + "/bin/" + name; }
-std::string hil_yaml() { return std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml"; }
 
 
 // A TCP connection to `port` on loopback, or -1.

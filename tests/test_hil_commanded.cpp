@@ -14,9 +14,13 @@
 #include <vector>
 
 #include "support/child_process.hpp"
+#include "support/paths.hpp"
 #include "support/lcm_sniffer.hpp"
 
 namespace {
+
+using pneu::test::bin;
+using pneu::test::hil_yaml;
 
 namespace fs = std::filesystem;
 using pneu::test::Child;
@@ -26,8 +30,6 @@ using ::testing::HasSubstr;
 using ::testing::Not;
 using namespace std::chrono_literals;
 
-std::string bin(const std::string& name) { return std::string(PNEU_BINARY_DIR) + "/bin/" + name; }
-std::string hil_yaml() { return std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml"; }
 
 class HilMovementTestAtArm : public ::testing::Test {
  protected:

@@ -37,9 +37,13 @@
 #include "pneu_lcm/event_t.hpp"
 #include "pneu_lcm/health_t.hpp"
 #include "support/child_process.hpp"
+#include "support/paths.hpp"
 #include "support/lcm_sniffer.hpp"
 
 namespace {
+
+using pneu::test::bin;
+using pneu::test::hil_yaml;
 
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
@@ -58,8 +62,6 @@ constexpr double kCommsFaultAfterS = 0.05;
 constexpr double kFollowingErrorS = 2.0;
 constexpr std::int8_t kModeDisarmed = 0, kModeArmed = 1, kModeFault = 2;
 
-std::string bin(const std::string& name) { return std::string(PNEU_BINARY_DIR) + "/bin/" + name; }
-std::string hil_yaml() { return std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml"; }
 
 std::vector<std::string> float32_overrides() {
   std::vector<std::string> sets;

@@ -34,9 +34,12 @@
 #include "pneu_lcm/state_t.hpp"
 
 #include "support/child_process.hpp"
+#include "support/paths.hpp"
 #include "support/lcm_sniffer.hpp"
 
 namespace {
+
+using pneu::test::bin;
 
 namespace fs = std::filesystem;
 using pneu::test::Child;
@@ -49,7 +52,6 @@ using namespace std::chrono_literals;
 
 constexpr const char* kUrl = "udpm://239.255.76.67:7667?ttl=0";
 
-std::string bin(const std::string& name) { return std::string(PNEU_BINARY_DIR) + "/bin/" + name; }
 
 class LcmIntegration : public ::testing::Test {
  protected:

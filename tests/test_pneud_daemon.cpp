@@ -19,8 +19,11 @@
 #include <vector>
 
 #include "support/child_process.hpp"
+#include "support/paths.hpp"
 
 namespace {
+
+using pneu::test::bin;
 
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
@@ -29,7 +32,6 @@ using pneu::test::slurp;
 using ::testing::HasSubstr;
 using ::testing::Not;
 
-std::string bin(const std::string& name) { return std::string(PNEU_BINARY_DIR) + "/bin/" + name; }
 
 class PneudDaemon : public ::testing::Test {
  protected:

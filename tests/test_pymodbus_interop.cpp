@@ -18,8 +18,11 @@
 #include <vector>
 
 #include "support/child_process.hpp"
+#include "support/paths.hpp"
 
 namespace {
+
+using pneu::test::bin;
 
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
@@ -42,7 +45,6 @@ constexpr double kPositionStepM = kSensorStepV / 20.0;     // 7.6 um
 constexpr double kPressureStepPa = kSensorStepV / 1.0e-5;  // 15.3 Pa
 constexpr double kValveStepV = 10.0 / 32767.0;             // 0.31 mV, signed -32767..32767
 
-std::string bin(const std::string& name) { return std::string(PNEU_BINARY_DIR) + "/bin/" + name; }
 std::string src(const std::string& path) { return std::string(PNEU_SOURCE_DIR) + "/" + path; }
 
 // Empty when the module can import everything it needs (pymodbus and what its server imports);

@@ -29,9 +29,13 @@
 #include "pneu/hal/modbus_backend.hpp"
 #include "pneu/hal/monotonic.hpp"
 #include "support/child_process.hpp"
+#include "support/paths.hpp"
 #include "support/json.hpp"
 
 namespace {
+
+using pneu::test::bin;
+using pneu::test::hil_yaml;
 
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
@@ -39,8 +43,6 @@ using pneu::test::Child;
 using pneu::test::Json;
 using pneu::test::slurp;
 
-std::string bin(const std::string& name) { return std::string(PNEU_BINARY_DIR) + "/bin/" + name; }
-std::string hil_yaml() { return std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml"; }
 
 // hil.yaml's registers: position 0, pressure_p 1, pressure_n 2, valve_p 16, valve_n 17 (signed,
 // -32767..32767 for -10..10 V).

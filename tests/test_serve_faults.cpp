@@ -23,9 +23,13 @@
 #include "pneu/config/config.hpp"
 #include "pneu/hal/modbus_backend.hpp"
 #include "support/child_process.hpp"
+#include "support/paths.hpp"
 #include "support/hil_modbus_client.hpp"
 
 namespace {
+
+using pneu::test::bin;
+using pneu::test::hil_yaml;
 
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
@@ -36,8 +40,6 @@ using pneu::test::slurp;
 using ::testing::HasSubstr;
 using Clock = std::chrono::steady_clock;
 
-std::string bin(const std::string& name) { return std::string(PNEU_BINARY_DIR) + "/bin/" + name; }
-std::string hil_yaml() { return std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml"; }
 
 // hil.yaml's registers: position 0, pressure_p 1, pressure_n 2 (unsigned, 0..65535 for 0..10 V),
 // valve_p 16, valve_n 17 (signed, -32767..32767 for -10..10 V).

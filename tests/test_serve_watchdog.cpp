@@ -18,10 +18,14 @@
 #include <vector>
 
 #include "support/child_process.hpp"
+#include "support/paths.hpp"
 #include "support/hil_modbus_client.hpp"
 #include "support/json.hpp"
 
 namespace {
+
+using pneu::test::bin;
+using pneu::test::hil_yaml;
 
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
@@ -31,8 +35,6 @@ using pneu::test::Json;
 using pneu::test::slurp;
 using ::testing::HasSubstr;
 
-std::string bin(const std::string& name) { return std::string(PNEU_BINARY_DIR) + "/bin/" + name; }
-std::string hil_yaml() { return std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml"; }
 
 constexpr int kValveP = pneu::test::kHilValveP;
 using pneu::test::hil_valve_word;
