@@ -624,172 +624,248 @@ def _view(xs, ys, margin, min_span, min_aspect=0.62):
     return xc - sx / 2, xc + sx / 2, yc - sy / 2, yc + sy / 2
 
 
-def plane_figure(run, bench, curve, name, plt):
-    import numpy as np
-    from matplotlib.patches import Rectangle
+class _FirstLabels:
+    """label(key, text): text the first time key is asked for, None after (one legend entry)."""
 
-    x, y = bench.plane(run.p_p, run.p_n)
+    def __init__(self):
+        self.seen = set()
+
+    def __call__(self, key, text):
+        if key in self.seen:
+            return None
+        self.seen.add(key)
+        return text
+
+
+def _with_neighbours(mask):
+    """1.0 where mask or a neighbour is set, else NaN: each stretch joined to the ticks by it."""
+    import numpy as np
+    joined = mask.copy()
+    joined[1:] |= mask[:-1]
+    joined[:-1] |= mask[1:]
+    return np.where(joined, 1.0, np.nan)
+
+
+def _trajectory_masks(run):
+    """Multipliers (1.0 or NaN) of the moving, stuck and held ticks; held None without a hold."""
+    import numpy as np
+    held = run.held is not None and run.held.any()
+    return {"moving": np.where(run.stuck, np.nan, 1.0), "stuck": _with_neighbours(run.stuck),
+            "held": _with_neighbours(run.held) if held else None}
+
+
+def _longest_phase_panels(run, bench, curve, x, y, longest):
+    """The longest sticking phase's panel and the close-up on how it ends."""
+    band = bench.fs_pos - bench.fs_neg
+    s, end, restart = longest
+    sel = (run.t >= s["t"]) & (run.t <= end)
+    pred = [p for p in run.predictions if p["stop"] == s["index"]]
+    eq = _equilibrium_point(bench, curve, pred[0]) if pred else None
+    zx, zy = list(x[sel]), list(y[sel])
+    if eq:
+        zx.append(eq[0])
+        zy.append(eq[1])
+    phase = {"view": _view(zx, zy, 0.14, 0.35 * band), "phase": longest, "pred": pred, "eq": eq,
+             "title": f"sticking phase {s['index']}: {end - s['t']:.3f} s at rest "
+                      f"(t = {s['t']:.3f} to {end:.3f} s)"}
+    # close-up: the last tenth of the phase, its forecasts and the equilibrium it aims at
+    tail = sel & (run.t >= end - 0.1 * (end - s["t"]))
+    cx, cy = list(x[tail]), list(y[tail])
+    for p in pred:
+        if p["will_restart"] and p["t_restart"] is not None:
+            cx.append(_interp(run, p["t_restart"], x))
+            cy.append(_interp(run, p["t_restart"], y))
+    if eq:
+        cx.append(eq[0])
+        cy.append(eq[1])
+    what = "restart" if restart else "end"
+    close_up = {"view": _view(cx, cy, 0.3, 0.03 * band, min_aspect=0.8), "phase": longest,
+                "pred": pred, "eq": eq,
+                "title": f"close-up: the {what} of sticking phase {s['index']}"}
+    return [phase, close_up]
+
+
+def plane_panels(run, bench, curve, x, y):
+    """The plane's panels (view, phase, title): the whole run; the longest phase and its end."""
     phases = sticking_phases(run)
     longest = max(phases, key=lambda ph: ph[1] - ph[0]["t"]) if phases else None
     band = bench.fs_pos - bench.fs_neg
-
-    # Panels: the whole run; the longest sticking phase; a close-up of how that phase ends.
     panels = [{"view": _view(x, y, 0.08, 1.6 * band), "phase": None,
                "title": f"the whole record, t = {run.t[0]:g} to {run.t[-1]:g} s"}]
     if longest:
-        s, end, restart = longest
-        sel = (run.t >= s["t"]) & (run.t <= end)
-        pred = [p for p in run.predictions if p["stop"] == s["index"]]
-        eq = _equilibrium_point(bench, curve, pred[0]) if pred else None
-        zx, zy = list(x[sel]), list(y[sel])
-        if eq:
-            zx.append(eq[0])
-            zy.append(eq[1])
-        panels.append({"view": _view(zx, zy, 0.14, 0.35 * band), "phase": longest,
-                       "title": f"sticking phase {s['index']}: {end - s['t']:.3f} s at rest "
-                                f"(t = {s['t']:.3f} to {end:.3f} s)"})
-        # close-up: the last tenth of the phase, its forecasts and the equilibrium it aims at
-        tail = sel & (run.t >= end - 0.1 * (end - s["t"]))
-        cx, cy = list(x[tail]), list(y[tail])
-        for p in pred:
-            if p["will_restart"] and p["t_restart"] is not None:
-                cx.append(_interp(run, p["t_restart"], x))
-                cy.append(_interp(run, p["t_restart"], y))
-        if eq:
-            cx.append(eq[0])
-            cy.append(eq[1])
-        what = "restart" if restart else "end"
-        panels.append({"view": _view(cx, cy, 0.3, 0.03 * band, min_aspect=0.8), "phase": longest,
-                       "title": f"close-up: the {what} of sticking phase {s['index']}"})
+        panels += _longest_phase_panels(run, bench, curve, x, y, longest)
+    return panels
 
-    ncols = 2 if len(panels) > 1 else 1
+
+def _plane_axes(plt, n_panels):
+    """The figure, its panels' axes and the axes the legend fills: 2 x 2, or 2 x 1 for one panel."""
+    ncols = 2 if n_panels > 1 else 1
     fig, grid = plt.subplots(2, ncols, figsize=(12.0, 11.6) if ncols == 2 else (7.6, 11.6),
                              squeeze=False)
     cells = [grid[0, 0], grid[0, 1], grid[1, 0]] if ncols == 2 else [grid[0, 0]]
-    legend_ax = grid[1, 1] if ncols == 2 else grid[1, 0]
+    return fig, cells, grid[1, 1] if ncols == 2 else grid[1, 0]
 
-    moving = np.where(run.stuck, np.nan, 1.0)
-    stuck = run.stuck.copy()
-    stuck[1:] |= run.stuck[:-1]  # each stuck stretch joins the samples either side: no gaps
-    stuck[:-1] |= run.stuck[1:]
-    stuck = np.where(stuck, 1.0, np.nan)
+
+def _null_flow_layer(ax, bench, curve):
+    """The null-flow curve, thick where it is a complete equilibrium (inside the stiction band)."""
+    import numpy as np
     f_eq = curve["x"] - curve["y"]
     inside = np.where((f_eq >= bench.fs_neg) & (f_eq <= bench.fs_pos), 1.0, np.nan)
+    ax.plot(curve["x"], curve["y"], color="0.1", lw=1.0, ls="-.", zorder=2,
+            label="null-flow curve (S_P p_null(u), S_N p_null(-u) + S_r p_E)")
+    ax.plot(curve["x"] * inside, curve["y"] * inside, color="0.1", lw=3.2, zorder=2,
+            solid_capstyle="butt", label="complete-equilibrium line (null flow, no restart)")
 
-    for k, (ax, panel) in enumerate(zip(cells, panels)):
-        x_lo, x_hi, y_lo, y_hi = panel["view"]
-        ax.set_xlim(x_lo, x_hi)
-        ax.set_ylim(y_lo, y_hi)
-        first = set()
 
-        def label(key, text, first=first):
-            if key in first:
-                return None
-            first.add(key)
-            return text
+def _trajectory_layer(ax, x, y, masks):
+    """The trajectory, moving and stuck."""
+    ax.plot(x * masks["moving"], y * masks["moving"], color=C_Y, lw=1.3, zorder=3,
+            label="trajectory, moving")
+    ax.plot(x * masks["stuck"], y * masks["stuck"], color="#c0392b", lw=2.0, zorder=3.5,
+            label="trajectory, stuck (the pressures drift at rest)")
 
-        pad = 10 * (x_hi - x_lo + y_hi - y_lo)
-        _draw_areas(ax, bench, x_lo - pad, x_hi + pad)
-        ax.plot(curve["x"], curve["y"], color="0.1", lw=1.0, ls="-.", zorder=2,
-                label="null-flow curve (S_P p_null(u), S_N p_null(-u) + S_r p_E)")
-        ax.plot(curve["x"] * inside, curve["y"] * inside, color="0.1", lw=3.2, zorder=2,
-                solid_capstyle="butt", label="complete-equilibrium line (null flow, no restart)")
-        ax.plot(x * moving, y * moving, color=C_Y, lw=1.3, zorder=3, label="trajectory, moving")
-        ax.plot(x * stuck, y * stuck, color="#c0392b", lw=2.0, zorder=3.5,
-                label="trajectory, stuck (the pressures drift at rest)")
-        if run.held is not None and run.held.any():
-            held = run.held.copy()
-            held[1:] |= run.held[:-1]
-            held[:-1] |= run.held[1:]
-            held = np.where(held, 1.0, np.nan)
-            ax.plot(x * held, y * held, color=C_HELD, lw=3.0, zorder=3.7,
-                    label="trajectory, held (controller.hold: the pressure force driven, measured, "
-                          "to the stiction band's middle)")
-            target = 0.5 * (bench.fs_pos + bench.fs_neg)
-            xs = np.array([x_lo - pad, x_hi + pad])
-            ax.plot(xs, xs - target, color=C_HELD, lw=1.0, ls=(0, (6, 3)), zorder=1.6,
-                    label=f"the hold's target: x - y = (F_S+ + F_S-) / 2 = {target:g} N")
-            for h in run.holds:
-                reach = h["reach"] != 0
-                ax.plot(_interp(run, h["t"], x), _interp(run, h["t"], y), ">" if reach else "h",
-                        color=C_HELD, ms=7.5 if reach else 9, mfc="white" if reach else C_HELD,
-                        mec="0.15", mew=1.0, zorder=7.2,
-                        label=label("reach" if reach else "hold",
-                                    "reach began (at rest outside the window: the force ramped "
-                                    "towards the set point)" if reach else
-                                    "hold began (at rest within the window)"))
-        ax.plot(x[0], y[0], "s", color="0.3", ms=6, mfc="white", mew=1.3, zorder=6,
-                label=f"start of the run (t = {run.t[0]:g} s)")
-        for s in run.stops:
-            xs, ys = _interp(run, s["t"], x), _interp(run, s["t"], y)
-            ax.plot(xs, ys, "o", color=C_STOP, ms=6.5, zorder=7, label=label("stop", "stop"))
-            if x_lo < xs < x_hi and y_lo < ys < y_hi:
-                ax.annotate(str(s["index"]), (xs, ys), xytext=(-5, 4), textcoords="offset points",
-                            fontsize=9, fontweight="bold", ha="right", zorder=8)
-        for st in run.starts:
-            if st["restart"]:
-                ax.plot(_interp(run, st["t"], x), _interp(run, st["t"], y), "x", color=C_RESTART,
-                        ms=9, mew=2.0, zorder=8, label=label("restart", "actual restart"))
-        for p in run.predictions:
-            if p["will_restart"] and p["t_restart"] is not None:
-                stl = _method_style(p["method"])
-                ax.plot(_interp(run, p["t_restart"], x), _interp(run, p["t_restart"], y),
-                        stl["marker"], color=stl["color"], ms=8, mfc="none", mew=1.6, zorder=7.5,
-                        label=label(p["method"], stl["label"] + ": where the pressures were "
-                                    "at the forecast time"))
-        if panel["phase"]:
-            s, end, _ = panel["phase"]
-            pred = [p for p in run.predictions if p["stop"] == s["index"]]
-            eq = _equilibrium_point(bench, curve, pred[0]) if pred else None
-            lin = next((p for p in pred if p["method"] == "linearized"), None)
-            if eq and lin and _positive(lin.get("tau_p")) and _positive(lin.get("tau_n")):
-                # Eq. 24 from the pressures at the forecast (the stop's confirmation): each
-                # coordinate relaxes towards the equilibrium with its own time constant.
-                x_c, y_c = _interp(run, lin["t"], x), _interp(run, lin["t"], y)
-                s_grid = np.linspace(0.0, 8.0 * max(lin["tau_p"], lin["tau_n"]), 800)
-                ax.plot(eq[0] + (x_c - eq[0]) * np.exp(-s_grid / lin["tau_p"]),
-                        eq[1] + (y_c - eq[1]) * np.exp(-s_grid / lin["tau_n"]),
-                        color=METHOD_STYLE["linearized"]["color"], lw=1.2, ls="--", zorder=3.2,
-                        label=f"linearized forecast path of stop {s['index']} (Eq. 24)")
-            if eq:
-                ax.plot(*eq, "*", color="#f39c12", mec="0.2", ms=15, zorder=7,
-                        label=f"complete equilibrium of stop {s['index']}: null flow under "
-                              f"u* = {pred[0]['u_star']:+.4f} V (Eq. 11)")
-            # time along the stuck path, where it is in view; labels only where they do not crowd
-            in_view = (run.t >= s["t"]) & (run.t <= end) & (x > x_lo) & (x < x_hi) \
-                & (y > y_lo) & (y < y_hi)
-            if np.any(in_view):
-                t_a, t_b = float(run.t[in_view][0]), float(run.t[in_view][-1])
-                step = next((d for d in (0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.25,
-                                         0.5, 1, 2, 5, 10, 20, 60, 120, 300, 600, 1800, 3600)
-                             if (t_b - t_a) / d <= 16), 7200)
-                last = None
-                for tt in np.arange(math.ceil(t_a / step) * step, t_b, step):
-                    px, py = _interp(run, tt, x), _interp(run, tt, y)
-                    ax.plot(px, py, ".", color="0.1", ms=5, zorder=6,
-                            label=label("tick", "time along the stuck path (ticks)"))
-                    d = ax.transData.transform((px, py))
-                    if last is None or np.hypot(*(d - last)) > 34:
-                        ax.annotate(f"{tt:g} s", (px, py), xytext=(3, 4),
-                                    textcoords="offset points", fontsize=7.2, color="0.2",
-                                    zorder=6)
-                        last = d
-        _label_band_lines(ax, bench, x_lo, x_hi, y_lo, y_hi)
-        ax.set_xlabel("x = S_P p_P [N]")
-        ax.set_ylabel("y = S_N p_N + S_r p_E [N]")
-        ax.set_title(panel["title"])
-        if k + 1 < len(panels):  # where the next panel zooms in
-            nx_lo, nx_hi, ny_lo, ny_hi = panels[k + 1]["view"]
-            ax.add_patch(Rectangle((nx_lo, ny_lo), nx_hi - nx_lo, ny_hi - ny_lo, fill=False,
-                                   ec="0.2", lw=1.1, ls="--", zorder=9))
-            ax.annotate(f"panel {k + 2}", (nx_hi, ny_lo), xytext=(2, 2),
-                        textcoords="offset points", fontsize=7.5, zorder=9)
-        ax.annotate(f"{k + 1}", (0.985, 0.015), xycoords="axes fraction", ha="right",
-                    va="bottom", fontsize=11, fontweight="bold", zorder=10,
-                    bbox={"boxstyle": "circle,pad=0.2", "fc": "white", "ec": "0.3"})
 
+def _hold_layer(ax, run, bench, x, y, held, x_span, label):
+    """The held trajectory, the hold's target line over x_span, where each hold and reach began."""
+    import numpy as np
+    ax.plot(x * held, y * held, color=C_HELD, lw=3.0, zorder=3.7,
+            label="trajectory, held (controller.hold: the pressure force driven, measured, "
+                  "to the stiction band's middle)")
+    target = 0.5 * (bench.fs_pos + bench.fs_neg)
+    xs = np.array(x_span)
+    ax.plot(xs, xs - target, color=C_HELD, lw=1.0, ls=(0, (6, 3)), zorder=1.6,
+            label=f"the hold's target: x - y = (F_S+ + F_S-) / 2 = {target:g} N")
+    for h in run.holds:
+        reach = h["reach"] != 0
+        ax.plot(_interp(run, h["t"], x), _interp(run, h["t"], y), ">" if reach else "h",
+                color=C_HELD, ms=7.5 if reach else 9, mfc="white" if reach else C_HELD,
+                mec="0.15", mew=1.0, zorder=7.2,
+                label=label("reach" if reach else "hold",
+                            "reach began (at rest outside the window: the force ramped "
+                            "towards the set point)" if reach else
+                            "hold began (at rest within the window)"))
+
+
+def _event_layer(ax, run, x, y, view, label):
+    """The stops (numbered where in view), the actual restarts and the forecast ones."""
+    x_lo, x_hi, y_lo, y_hi = view
+    for s in run.stops:
+        xs, ys = _interp(run, s["t"], x), _interp(run, s["t"], y)
+        ax.plot(xs, ys, "o", color=C_STOP, ms=6.5, zorder=7, label=label("stop", "stop"))
+        if x_lo < xs < x_hi and y_lo < ys < y_hi:
+            ax.annotate(str(s["index"]), (xs, ys), xytext=(-5, 4), textcoords="offset points",
+                        fontsize=9, fontweight="bold", ha="right", zorder=8)
+    for st in run.starts:
+        if st["restart"]:
+            ax.plot(_interp(run, st["t"], x), _interp(run, st["t"], y), "x", color=C_RESTART,
+                    ms=9, mew=2.0, zorder=8, label=label("restart", "actual restart"))
+    for p in run.predictions:
+        if p["will_restart"] and p["t_restart"] is not None:
+            stl = _method_style(p["method"])
+            ax.plot(_interp(run, p["t_restart"], x), _interp(run, p["t_restart"], y),
+                    stl["marker"], color=stl["color"], ms=8, mfc="none", mew=1.6, zorder=7.5,
+                    label=label(p["method"], stl["label"] + ": where the pressures were "
+                                "at the forecast time"))
+
+
+def _linearized_path(ax, run, x, y, stop, eq, lin):
+    """The linearized forecast's path in the plane (Eq. 24) towards the equilibrium eq."""
+    import numpy as np
+    # from the pressures at the forecast (the stop's confirmation): each coordinate relaxes
+    # towards the equilibrium with its own time constant
+    x_c, y_c = _interp(run, lin["t"], x), _interp(run, lin["t"], y)
+    s_grid = np.linspace(0.0, 8.0 * max(lin["tau_p"], lin["tau_n"]), 800)
+    ax.plot(eq[0] + (x_c - eq[0]) * np.exp(-s_grid / lin["tau_p"]),
+            eq[1] + (y_c - eq[1]) * np.exp(-s_grid / lin["tau_n"]),
+            color=METHOD_STYLE["linearized"]["color"], lw=1.2, ls="--", zorder=3.2,
+            label=f"linearized forecast path of stop {stop['index']} (Eq. 24)")
+
+
+def _tick_step(duration):
+    """A round time step [s] putting at most 16 ticks on the duration."""
+    return next((d for d in (0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.25, 0.5, 1, 2, 5,
+                             10, 20, 60, 120, 300, 600, 1800, 3600)
+                 if duration / d <= 16), 7200)
+
+
+def _stuck_time_ticks(ax, run, x, y, phase, view, label):
+    """Time along the stuck path where it is in view; labels only where they do not crowd."""
+    import numpy as np
+    s, end, _ = phase
+    x_lo, x_hi, y_lo, y_hi = view
+    in_view = (run.t >= s["t"]) & (run.t <= end) & (x > x_lo) & (x < x_hi) \
+        & (y > y_lo) & (y < y_hi)
+    if not np.any(in_view):
+        return
+    t_a, t_b = float(run.t[in_view][0]), float(run.t[in_view][-1])
+    step = _tick_step(t_b - t_a)
+    last = None
+    for tt in np.arange(math.ceil(t_a / step) * step, t_b, step):
+        px, py = _interp(run, tt, x), _interp(run, tt, y)
+        ax.plot(px, py, ".", color="0.1", ms=5, zorder=6,
+                label=label("tick", "time along the stuck path (ticks)"))
+        d = ax.transData.transform((px, py))
+        if last is None or np.hypot(*(d - last)) > 34:
+            ax.annotate(f"{tt:g} s", (px, py), xytext=(3, 4), textcoords="offset points",
+                        fontsize=7.2, color="0.2", zorder=6)
+            last = d
+
+
+def _phase_layer(ax, run, x, y, panel, label):
+    """A zoomed phase: its linearized forecast path, its complete equilibrium, time along it."""
+    s = panel["phase"][0]
+    pred, eq = panel["pred"], panel["eq"]
+    lin = next((p for p in pred if p["method"] == "linearized"), None)
+    if eq and lin and _positive(lin.get("tau_p")) and _positive(lin.get("tau_n")):
+        _linearized_path(ax, run, x, y, s, eq, lin)
+    if eq:
+        ax.plot(*eq, "*", color="#f39c12", mec="0.2", ms=15, zorder=7,
+                label=f"complete equilibrium of stop {s['index']}: null flow under "
+                      f"u* = {pred[0]['u_star']:+.4f} V (Eq. 11)")
+    _stuck_time_ticks(ax, run, x, y, panel["phase"], panel["view"], label)
+
+
+def _plane_panel(ax, run, bench, curve, x, y, masks, panel):
+    """One panel of the plane: the areas, the null-flow curve, the trajectory and its events."""
+    x_lo, x_hi, y_lo, y_hi = panel["view"]
+    ax.set_xlim(x_lo, x_hi)
+    ax.set_ylim(y_lo, y_hi)
+    label = _FirstLabels()
+    pad = 10 * (x_hi - x_lo + y_hi - y_lo)
+    _draw_areas(ax, bench, x_lo - pad, x_hi + pad)
+    _null_flow_layer(ax, bench, curve)
+    _trajectory_layer(ax, x, y, masks)
+    if masks["held"] is not None:
+        _hold_layer(ax, run, bench, x, y, masks["held"], [x_lo - pad, x_hi + pad], label)
+    ax.plot(x[0], y[0], "s", color="0.3", ms=6, mfc="white", mew=1.3, zorder=6,
+            label=f"start of the run (t = {run.t[0]:g} s)")
+    _event_layer(ax, run, x, y, panel["view"], label)
+    if panel["phase"]:
+        _phase_layer(ax, run, x, y, panel, label)
+    _label_band_lines(ax, bench, x_lo, x_hi, y_lo, y_hi)
+    ax.set_xlabel("x = S_P p_P [N]")
+    ax.set_ylabel("y = S_N p_N + S_r p_E [N]")
+    ax.set_title(panel["title"])
+
+
+def _number_panel(ax, k, panels):
+    """Panel k's number in its corner, and a frame on where the next panel zooms in."""
+    from matplotlib.patches import Rectangle
+    if k + 1 < len(panels):
+        nx_lo, nx_hi, ny_lo, ny_hi = panels[k + 1]["view"]
+        ax.add_patch(Rectangle((nx_lo, ny_lo), nx_hi - nx_lo, ny_hi - ny_lo, fill=False,
+                               ec="0.2", lw=1.1, ls="--", zorder=9))
+        ax.annotate(f"panel {k + 2}", (nx_hi, ny_lo), xytext=(2, 2),
+                    textcoords="offset points", fontsize=7.5, zorder=9)
+    ax.annotate(f"{k + 1}", (0.985, 0.015), xycoords="axes fraction", ha="right",
+                va="bottom", fontsize=11, fontweight="bold", zorder=10,
+                bbox={"boxstyle": "circle,pad=0.2", "fc": "white", "ec": "0.3"})
+
+
+def _plane_legend(legend_ax, axes):
+    """The panels' legend entries, each once, filling legend_ax."""
     handles, labels = {}, []
-    for ax in cells[:len(panels)]:
+    for ax in axes:
         for h, lab in zip(*ax.get_legend_handles_labels()):
             if lab not in handles:
                 handles[lab] = h
@@ -800,6 +876,18 @@ def plane_figure(run, bench, curve, name, plt):
                      loc="center", fontsize=8.3, framealpha=1.0, borderpad=0.9, labelspacing=0.75,
                      title="panels 1-3 (numbered in their lower right corners)",
                      title_fontsize=8.8)
+
+
+def plane_figure(run, bench, curve, name, plt):
+    """The pressure-force plane (cf. Fig. 7, 10, 11): the whole run, the longest phase, its end."""
+    x, y = bench.plane(run.p_p, run.p_n)
+    panels = plane_panels(run, bench, curve, x, y)
+    fig, cells, legend_ax = _plane_axes(plt, len(panels))
+    masks = _trajectory_masks(run)
+    for k, (ax, panel) in enumerate(zip(cells, panels)):
+        _plane_panel(ax, run, bench, curve, x, y, masks, panel)
+        _number_panel(ax, k, panels)
+    _plane_legend(legend_ax, cells[:len(panels)])
     fig.suptitle(f"{name}: the pressure-force plane (cf. Brun et al. 2005, Fig. 7, 10, 11); "
                  f"the pressure force is F = x - y (Eq. 14)\n{run.source}; "
                  f"S_P = {bench.area_p * 1e4:.3f} cm^2, S_N = {bench.area_n * 1e4:.3f} cm^2, "
