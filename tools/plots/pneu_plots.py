@@ -624,172 +624,248 @@ def _view(xs, ys, margin, min_span, min_aspect=0.62):
     return xc - sx / 2, xc + sx / 2, yc - sy / 2, yc + sy / 2
 
 
-def plane_figure(run, bench, curve, name, plt):
-    import numpy as np
-    from matplotlib.patches import Rectangle
+class _FirstLabels:
+    """label(key, text): text the first time key is asked for, None after (one legend entry)."""
 
-    x, y = bench.plane(run.p_p, run.p_n)
+    def __init__(self):
+        self.seen = set()
+
+    def __call__(self, key, text):
+        if key in self.seen:
+            return None
+        self.seen.add(key)
+        return text
+
+
+def _with_neighbours(mask):
+    """1.0 where mask or a neighbour is set, else NaN: each stretch joined to the ticks by it."""
+    import numpy as np
+    joined = mask.copy()
+    joined[1:] |= mask[:-1]
+    joined[:-1] |= mask[1:]
+    return np.where(joined, 1.0, np.nan)
+
+
+def _trajectory_masks(run):
+    """Multipliers (1.0 or NaN) of the moving, stuck and held ticks; held None without a hold."""
+    import numpy as np
+    held = run.held is not None and run.held.any()
+    return {"moving": np.where(run.stuck, np.nan, 1.0), "stuck": _with_neighbours(run.stuck),
+            "held": _with_neighbours(run.held) if held else None}
+
+
+def _longest_phase_panels(run, bench, curve, x, y, longest):
+    """The longest sticking phase's panel and the close-up on how it ends."""
+    band = bench.fs_pos - bench.fs_neg
+    s, end, restart = longest
+    sel = (run.t >= s["t"]) & (run.t <= end)
+    pred = [p for p in run.predictions if p["stop"] == s["index"]]
+    eq = _equilibrium_point(bench, curve, pred[0]) if pred else None
+    zx, zy = list(x[sel]), list(y[sel])
+    if eq:
+        zx.append(eq[0])
+        zy.append(eq[1])
+    phase = {"view": _view(zx, zy, 0.14, 0.35 * band), "phase": longest, "pred": pred, "eq": eq,
+             "title": f"sticking phase {s['index']}: {end - s['t']:.3f} s at rest "
+                      f"(t = {s['t']:.3f} to {end:.3f} s)"}
+    # close-up: the last tenth of the phase, its forecasts and the equilibrium it aims at
+    tail = sel & (run.t >= end - 0.1 * (end - s["t"]))
+    cx, cy = list(x[tail]), list(y[tail])
+    for p in pred:
+        if p["will_restart"] and p["t_restart"] is not None:
+            cx.append(_interp(run, p["t_restart"], x))
+            cy.append(_interp(run, p["t_restart"], y))
+    if eq:
+        cx.append(eq[0])
+        cy.append(eq[1])
+    what = "restart" if restart else "end"
+    close_up = {"view": _view(cx, cy, 0.3, 0.03 * band, min_aspect=0.8), "phase": longest,
+                "pred": pred, "eq": eq,
+                "title": f"close-up: the {what} of sticking phase {s['index']}"}
+    return [phase, close_up]
+
+
+def plane_panels(run, bench, curve, x, y):
+    """The plane's panels (view, phase, title): the whole run; the longest phase and its end."""
     phases = sticking_phases(run)
     longest = max(phases, key=lambda ph: ph[1] - ph[0]["t"]) if phases else None
     band = bench.fs_pos - bench.fs_neg
-
-    # Panels: the whole run; the longest sticking phase; a close-up of how that phase ends.
     panels = [{"view": _view(x, y, 0.08, 1.6 * band), "phase": None,
                "title": f"the whole record, t = {run.t[0]:g} to {run.t[-1]:g} s"}]
     if longest:
-        s, end, restart = longest
-        sel = (run.t >= s["t"]) & (run.t <= end)
-        pred = [p for p in run.predictions if p["stop"] == s["index"]]
-        eq = _equilibrium_point(bench, curve, pred[0]) if pred else None
-        zx, zy = list(x[sel]), list(y[sel])
-        if eq:
-            zx.append(eq[0])
-            zy.append(eq[1])
-        panels.append({"view": _view(zx, zy, 0.14, 0.35 * band), "phase": longest,
-                       "title": f"sticking phase {s['index']}: {end - s['t']:.3f} s at rest "
-                                f"(t = {s['t']:.3f} to {end:.3f} s)"})
-        # close-up: the last tenth of the phase, its forecasts and the equilibrium it aims at
-        tail = sel & (run.t >= end - 0.1 * (end - s["t"]))
-        cx, cy = list(x[tail]), list(y[tail])
-        for p in pred:
-            if p["will_restart"] and p["t_restart"] is not None:
-                cx.append(_interp(run, p["t_restart"], x))
-                cy.append(_interp(run, p["t_restart"], y))
-        if eq:
-            cx.append(eq[0])
-            cy.append(eq[1])
-        what = "restart" if restart else "end"
-        panels.append({"view": _view(cx, cy, 0.3, 0.03 * band, min_aspect=0.8), "phase": longest,
-                       "title": f"close-up: the {what} of sticking phase {s['index']}"})
+        panels += _longest_phase_panels(run, bench, curve, x, y, longest)
+    return panels
 
-    ncols = 2 if len(panels) > 1 else 1
+
+def _plane_axes(plt, n_panels):
+    """The figure, its panels' axes and the axes the legend fills: 2 x 2, or 2 x 1 for one panel."""
+    ncols = 2 if n_panels > 1 else 1
     fig, grid = plt.subplots(2, ncols, figsize=(12.0, 11.6) if ncols == 2 else (7.6, 11.6),
                              squeeze=False)
     cells = [grid[0, 0], grid[0, 1], grid[1, 0]] if ncols == 2 else [grid[0, 0]]
-    legend_ax = grid[1, 1] if ncols == 2 else grid[1, 0]
+    return fig, cells, grid[1, 1] if ncols == 2 else grid[1, 0]
 
-    moving = np.where(run.stuck, np.nan, 1.0)
-    stuck = run.stuck.copy()
-    stuck[1:] |= run.stuck[:-1]  # each stuck stretch joins the samples either side: no gaps
-    stuck[:-1] |= run.stuck[1:]
-    stuck = np.where(stuck, 1.0, np.nan)
+
+def _null_flow_layer(ax, bench, curve):
+    """The null-flow curve, thick where it is a complete equilibrium (inside the stiction band)."""
+    import numpy as np
     f_eq = curve["x"] - curve["y"]
     inside = np.where((f_eq >= bench.fs_neg) & (f_eq <= bench.fs_pos), 1.0, np.nan)
+    ax.plot(curve["x"], curve["y"], color="0.1", lw=1.0, ls="-.", zorder=2,
+            label="null-flow curve (S_P p_null(u), S_N p_null(-u) + S_r p_E)")
+    ax.plot(curve["x"] * inside, curve["y"] * inside, color="0.1", lw=3.2, zorder=2,
+            solid_capstyle="butt", label="complete-equilibrium line (null flow, no restart)")
 
-    for k, (ax, panel) in enumerate(zip(cells, panels)):
-        x_lo, x_hi, y_lo, y_hi = panel["view"]
-        ax.set_xlim(x_lo, x_hi)
-        ax.set_ylim(y_lo, y_hi)
-        first = set()
 
-        def label(key, text, first=first):
-            if key in first:
-                return None
-            first.add(key)
-            return text
+def _trajectory_layer(ax, x, y, masks):
+    """The trajectory, moving and stuck."""
+    ax.plot(x * masks["moving"], y * masks["moving"], color=C_Y, lw=1.3, zorder=3,
+            label="trajectory, moving")
+    ax.plot(x * masks["stuck"], y * masks["stuck"], color="#c0392b", lw=2.0, zorder=3.5,
+            label="trajectory, stuck (the pressures drift at rest)")
 
-        pad = 10 * (x_hi - x_lo + y_hi - y_lo)
-        _draw_areas(ax, bench, x_lo - pad, x_hi + pad)
-        ax.plot(curve["x"], curve["y"], color="0.1", lw=1.0, ls="-.", zorder=2,
-                label="null-flow curve (S_P p_null(u), S_N p_null(-u) + S_r p_E)")
-        ax.plot(curve["x"] * inside, curve["y"] * inside, color="0.1", lw=3.2, zorder=2,
-                solid_capstyle="butt", label="complete-equilibrium line (null flow, no restart)")
-        ax.plot(x * moving, y * moving, color=C_Y, lw=1.3, zorder=3, label="trajectory, moving")
-        ax.plot(x * stuck, y * stuck, color="#c0392b", lw=2.0, zorder=3.5,
-                label="trajectory, stuck (the pressures drift at rest)")
-        if run.held is not None and run.held.any():
-            held = run.held.copy()
-            held[1:] |= run.held[:-1]
-            held[:-1] |= run.held[1:]
-            held = np.where(held, 1.0, np.nan)
-            ax.plot(x * held, y * held, color=C_HELD, lw=3.0, zorder=3.7,
-                    label="trajectory, held (controller.hold: the pressure force driven, measured, "
-                          "to the stiction band's middle)")
-            target = 0.5 * (bench.fs_pos + bench.fs_neg)
-            xs = np.array([x_lo - pad, x_hi + pad])
-            ax.plot(xs, xs - target, color=C_HELD, lw=1.0, ls=(0, (6, 3)), zorder=1.6,
-                    label=f"the hold's target: x - y = (F_S+ + F_S-) / 2 = {target:g} N")
-            for h in run.holds:
-                reach = h["reach"] != 0
-                ax.plot(_interp(run, h["t"], x), _interp(run, h["t"], y), ">" if reach else "h",
-                        color=C_HELD, ms=7.5 if reach else 9, mfc="white" if reach else C_HELD,
-                        mec="0.15", mew=1.0, zorder=7.2,
-                        label=label("reach" if reach else "hold",
-                                    "reach began (at rest outside the window: the force ramped "
-                                    "towards the set point)" if reach else
-                                    "hold began (at rest within the window)"))
-        ax.plot(x[0], y[0], "s", color="0.3", ms=6, mfc="white", mew=1.3, zorder=6,
-                label=f"start of the run (t = {run.t[0]:g} s)")
-        for s in run.stops:
-            xs, ys = _interp(run, s["t"], x), _interp(run, s["t"], y)
-            ax.plot(xs, ys, "o", color=C_STOP, ms=6.5, zorder=7, label=label("stop", "stop"))
-            if x_lo < xs < x_hi and y_lo < ys < y_hi:
-                ax.annotate(str(s["index"]), (xs, ys), xytext=(-5, 4), textcoords="offset points",
-                            fontsize=9, fontweight="bold", ha="right", zorder=8)
-        for st in run.starts:
-            if st["restart"]:
-                ax.plot(_interp(run, st["t"], x), _interp(run, st["t"], y), "x", color=C_RESTART,
-                        ms=9, mew=2.0, zorder=8, label=label("restart", "actual restart"))
-        for p in run.predictions:
-            if p["will_restart"] and p["t_restart"] is not None:
-                stl = _method_style(p["method"])
-                ax.plot(_interp(run, p["t_restart"], x), _interp(run, p["t_restart"], y),
-                        stl["marker"], color=stl["color"], ms=8, mfc="none", mew=1.6, zorder=7.5,
-                        label=label(p["method"], stl["label"] + ": where the pressures were "
-                                    "at the forecast time"))
-        if panel["phase"]:
-            s, end, _ = panel["phase"]
-            pred = [p for p in run.predictions if p["stop"] == s["index"]]
-            eq = _equilibrium_point(bench, curve, pred[0]) if pred else None
-            lin = next((p for p in pred if p["method"] == "linearized"), None)
-            if eq and lin and _positive(lin.get("tau_p")) and _positive(lin.get("tau_n")):
-                # Eq. 24 from the pressures at the forecast (the stop's confirmation): each
-                # coordinate relaxes towards the equilibrium with its own time constant.
-                x_c, y_c = _interp(run, lin["t"], x), _interp(run, lin["t"], y)
-                s_grid = np.linspace(0.0, 8.0 * max(lin["tau_p"], lin["tau_n"]), 800)
-                ax.plot(eq[0] + (x_c - eq[0]) * np.exp(-s_grid / lin["tau_p"]),
-                        eq[1] + (y_c - eq[1]) * np.exp(-s_grid / lin["tau_n"]),
-                        color=METHOD_STYLE["linearized"]["color"], lw=1.2, ls="--", zorder=3.2,
-                        label=f"linearized forecast path of stop {s['index']} (Eq. 24)")
-            if eq:
-                ax.plot(*eq, "*", color="#f39c12", mec="0.2", ms=15, zorder=7,
-                        label=f"complete equilibrium of stop {s['index']}: null flow under "
-                              f"u* = {pred[0]['u_star']:+.4f} V (Eq. 11)")
-            # time along the stuck path, where it is in view; labels only where they do not crowd
-            in_view = (run.t >= s["t"]) & (run.t <= end) & (x > x_lo) & (x < x_hi) \
-                & (y > y_lo) & (y < y_hi)
-            if np.any(in_view):
-                t_a, t_b = float(run.t[in_view][0]), float(run.t[in_view][-1])
-                step = next((d for d in (0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.25,
-                                         0.5, 1, 2, 5, 10, 20, 60, 120, 300, 600, 1800, 3600)
-                             if (t_b - t_a) / d <= 16), 7200)
-                last = None
-                for tt in np.arange(math.ceil(t_a / step) * step, t_b, step):
-                    px, py = _interp(run, tt, x), _interp(run, tt, y)
-                    ax.plot(px, py, ".", color="0.1", ms=5, zorder=6,
-                            label=label("tick", "time along the stuck path (ticks)"))
-                    d = ax.transData.transform((px, py))
-                    if last is None or np.hypot(*(d - last)) > 34:
-                        ax.annotate(f"{tt:g} s", (px, py), xytext=(3, 4),
-                                    textcoords="offset points", fontsize=7.2, color="0.2",
-                                    zorder=6)
-                        last = d
-        _label_band_lines(ax, bench, x_lo, x_hi, y_lo, y_hi)
-        ax.set_xlabel("x = S_P p_P [N]")
-        ax.set_ylabel("y = S_N p_N + S_r p_E [N]")
-        ax.set_title(panel["title"])
-        if k + 1 < len(panels):  # where the next panel zooms in
-            nx_lo, nx_hi, ny_lo, ny_hi = panels[k + 1]["view"]
-            ax.add_patch(Rectangle((nx_lo, ny_lo), nx_hi - nx_lo, ny_hi - ny_lo, fill=False,
-                                   ec="0.2", lw=1.1, ls="--", zorder=9))
-            ax.annotate(f"panel {k + 2}", (nx_hi, ny_lo), xytext=(2, 2),
-                        textcoords="offset points", fontsize=7.5, zorder=9)
-        ax.annotate(f"{k + 1}", (0.985, 0.015), xycoords="axes fraction", ha="right",
-                    va="bottom", fontsize=11, fontweight="bold", zorder=10,
-                    bbox={"boxstyle": "circle,pad=0.2", "fc": "white", "ec": "0.3"})
 
+def _hold_layer(ax, run, bench, x, y, held, x_span, label):
+    """The held trajectory, the hold's target line over x_span, where each hold and reach began."""
+    import numpy as np
+    ax.plot(x * held, y * held, color=C_HELD, lw=3.0, zorder=3.7,
+            label="trajectory, held (controller.hold: the pressure force driven, measured, "
+                  "to the stiction band's middle)")
+    target = 0.5 * (bench.fs_pos + bench.fs_neg)
+    xs = np.array(x_span)
+    ax.plot(xs, xs - target, color=C_HELD, lw=1.0, ls=(0, (6, 3)), zorder=1.6,
+            label=f"the hold's target: x - y = (F_S+ + F_S-) / 2 = {target:g} N")
+    for h in run.holds:
+        reach = h["reach"] != 0
+        ax.plot(_interp(run, h["t"], x), _interp(run, h["t"], y), ">" if reach else "h",
+                color=C_HELD, ms=7.5 if reach else 9, mfc="white" if reach else C_HELD,
+                mec="0.15", mew=1.0, zorder=7.2,
+                label=label("reach" if reach else "hold",
+                            "reach began (at rest outside the window: the force ramped "
+                            "towards the set point)" if reach else
+                            "hold began (at rest within the window)"))
+
+
+def _event_layer(ax, run, x, y, view, label):
+    """The stops (numbered where in view), the actual restarts and the forecast ones."""
+    x_lo, x_hi, y_lo, y_hi = view
+    for s in run.stops:
+        xs, ys = _interp(run, s["t"], x), _interp(run, s["t"], y)
+        ax.plot(xs, ys, "o", color=C_STOP, ms=6.5, zorder=7, label=label("stop", "stop"))
+        if x_lo < xs < x_hi and y_lo < ys < y_hi:
+            ax.annotate(str(s["index"]), (xs, ys), xytext=(-5, 4), textcoords="offset points",
+                        fontsize=9, fontweight="bold", ha="right", zorder=8)
+    for st in run.starts:
+        if st["restart"]:
+            ax.plot(_interp(run, st["t"], x), _interp(run, st["t"], y), "x", color=C_RESTART,
+                    ms=9, mew=2.0, zorder=8, label=label("restart", "actual restart"))
+    for p in run.predictions:
+        if p["will_restart"] and p["t_restart"] is not None:
+            stl = _method_style(p["method"])
+            ax.plot(_interp(run, p["t_restart"], x), _interp(run, p["t_restart"], y),
+                    stl["marker"], color=stl["color"], ms=8, mfc="none", mew=1.6, zorder=7.5,
+                    label=label(p["method"], stl["label"] + ": where the pressures were "
+                                "at the forecast time"))
+
+
+def _linearized_path(ax, run, x, y, stop, eq, lin):
+    """The linearized forecast's path in the plane (Eq. 24) towards the equilibrium eq."""
+    import numpy as np
+    # from the pressures at the forecast (the stop's confirmation): each coordinate relaxes
+    # towards the equilibrium with its own time constant
+    x_c, y_c = _interp(run, lin["t"], x), _interp(run, lin["t"], y)
+    s_grid = np.linspace(0.0, 8.0 * max(lin["tau_p"], lin["tau_n"]), 800)
+    ax.plot(eq[0] + (x_c - eq[0]) * np.exp(-s_grid / lin["tau_p"]),
+            eq[1] + (y_c - eq[1]) * np.exp(-s_grid / lin["tau_n"]),
+            color=METHOD_STYLE["linearized"]["color"], lw=1.2, ls="--", zorder=3.2,
+            label=f"linearized forecast path of stop {stop['index']} (Eq. 24)")
+
+
+def _tick_step(duration):
+    """A round time step [s] putting at most 16 ticks on the duration."""
+    return next((d for d in (0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.25, 0.5, 1, 2, 5,
+                             10, 20, 60, 120, 300, 600, 1800, 3600)
+                 if duration / d <= 16), 7200)
+
+
+def _stuck_time_ticks(ax, run, x, y, phase, view, label):
+    """Time along the stuck path where it is in view; labels only where they do not crowd."""
+    import numpy as np
+    s, end, _ = phase
+    x_lo, x_hi, y_lo, y_hi = view
+    in_view = (run.t >= s["t"]) & (run.t <= end) & (x > x_lo) & (x < x_hi) \
+        & (y > y_lo) & (y < y_hi)
+    if not np.any(in_view):
+        return
+    t_a, t_b = float(run.t[in_view][0]), float(run.t[in_view][-1])
+    step = _tick_step(t_b - t_a)
+    last = None
+    for tt in np.arange(math.ceil(t_a / step) * step, t_b, step):
+        px, py = _interp(run, tt, x), _interp(run, tt, y)
+        ax.plot(px, py, ".", color="0.1", ms=5, zorder=6,
+                label=label("tick", "time along the stuck path (ticks)"))
+        d = ax.transData.transform((px, py))
+        if last is None or np.hypot(*(d - last)) > 34:
+            ax.annotate(f"{tt:g} s", (px, py), xytext=(3, 4), textcoords="offset points",
+                        fontsize=7.2, color="0.2", zorder=6)
+            last = d
+
+
+def _phase_layer(ax, run, x, y, panel, label):
+    """A zoomed phase: its linearized forecast path, its complete equilibrium, time along it."""
+    s = panel["phase"][0]
+    pred, eq = panel["pred"], panel["eq"]
+    lin = next((p for p in pred if p["method"] == "linearized"), None)
+    if eq and lin and _positive(lin.get("tau_p")) and _positive(lin.get("tau_n")):
+        _linearized_path(ax, run, x, y, s, eq, lin)
+    if eq:
+        ax.plot(*eq, "*", color="#f39c12", mec="0.2", ms=15, zorder=7,
+                label=f"complete equilibrium of stop {s['index']}: null flow under "
+                      f"u* = {pred[0]['u_star']:+.4f} V (Eq. 11)")
+    _stuck_time_ticks(ax, run, x, y, panel["phase"], panel["view"], label)
+
+
+def _plane_panel(ax, run, bench, curve, x, y, masks, panel):
+    """One panel of the plane: the areas, the null-flow curve, the trajectory and its events."""
+    x_lo, x_hi, y_lo, y_hi = panel["view"]
+    ax.set_xlim(x_lo, x_hi)
+    ax.set_ylim(y_lo, y_hi)
+    label = _FirstLabels()
+    pad = 10 * (x_hi - x_lo + y_hi - y_lo)
+    _draw_areas(ax, bench, x_lo - pad, x_hi + pad)
+    _null_flow_layer(ax, bench, curve)
+    _trajectory_layer(ax, x, y, masks)
+    if masks["held"] is not None:
+        _hold_layer(ax, run, bench, x, y, masks["held"], [x_lo - pad, x_hi + pad], label)
+    ax.plot(x[0], y[0], "s", color="0.3", ms=6, mfc="white", mew=1.3, zorder=6,
+            label=f"start of the run (t = {run.t[0]:g} s)")
+    _event_layer(ax, run, x, y, panel["view"], label)
+    if panel["phase"]:
+        _phase_layer(ax, run, x, y, panel, label)
+    _label_band_lines(ax, bench, x_lo, x_hi, y_lo, y_hi)
+    ax.set_xlabel("x = S_P p_P [N]")
+    ax.set_ylabel("y = S_N p_N + S_r p_E [N]")
+    ax.set_title(panel["title"])
+
+
+def _number_panel(ax, k, panels):
+    """Panel k's number in its corner, and a frame on where the next panel zooms in."""
+    from matplotlib.patches import Rectangle
+    if k + 1 < len(panels):
+        nx_lo, nx_hi, ny_lo, ny_hi = panels[k + 1]["view"]
+        ax.add_patch(Rectangle((nx_lo, ny_lo), nx_hi - nx_lo, ny_hi - ny_lo, fill=False,
+                               ec="0.2", lw=1.1, ls="--", zorder=9))
+        ax.annotate(f"panel {k + 2}", (nx_hi, ny_lo), xytext=(2, 2),
+                    textcoords="offset points", fontsize=7.5, zorder=9)
+    ax.annotate(f"{k + 1}", (0.985, 0.015), xycoords="axes fraction", ha="right",
+                va="bottom", fontsize=11, fontweight="bold", zorder=10,
+                bbox={"boxstyle": "circle,pad=0.2", "fc": "white", "ec": "0.3"})
+
+
+def _plane_legend(legend_ax, axes):
+    """The panels' legend entries, each once, filling legend_ax."""
     handles, labels = {}, []
-    for ax in cells[:len(panels)]:
+    for ax in axes:
         for h, lab in zip(*ax.get_legend_handles_labels()):
             if lab not in handles:
                 handles[lab] = h
@@ -800,6 +876,18 @@ def plane_figure(run, bench, curve, name, plt):
                      loc="center", fontsize=8.3, framealpha=1.0, borderpad=0.9, labelspacing=0.75,
                      title="panels 1-3 (numbered in their lower right corners)",
                      title_fontsize=8.8)
+
+
+def plane_figure(run, bench, curve, name, plt):
+    """The pressure-force plane (cf. Fig. 7, 10, 11): the whole run, the longest phase, its end."""
+    x, y = bench.plane(run.p_p, run.p_n)
+    panels = plane_panels(run, bench, curve, x, y)
+    fig, cells, legend_ax = _plane_axes(plt, len(panels))
+    masks = _trajectory_masks(run)
+    for k, (ax, panel) in enumerate(zip(cells, panels)):
+        _plane_panel(ax, run, bench, curve, x, y, masks, panel)
+        _number_panel(ax, k, panels)
+    _plane_legend(legend_ax, cells[:len(panels)])
     fig.suptitle(f"{name}: the pressure-force plane (cf. Brun et al. 2005, Fig. 7, 10, 11); "
                  f"the pressure force is F = x - y (Eq. 14)\n{run.source}; "
                  f"S_P = {bench.area_p * 1e4:.3f} cm^2, S_N = {bench.area_n * 1e4:.3f} cm^2, "
@@ -847,267 +935,372 @@ def forecast_phase(run):
     return best
 
 
-def forecast_figure(run, bench, name, plt):
-    """The longest sticking phase against the forecasts made at its stop (cf. Fig. 13), or None
-    when the run has no forecast columns or no sticking phase with forecast values."""
-    import numpy as np
-    from mpl_toolkits.axes_grid1.inset_locator import mark_inset
+def _forecast_style(m):
+    """A method's curve here: METHOD_STYLE's colour and marker, FORECAST_STYLE's line."""
+    return dict(_method_style(m), **FORECAST_STYLE.get(
+        m, {"ls": "--", "lw": 1.3, "label": f"{m} forecast, made at the stop"}))
 
-    phase = forecast_phase(run)
-    if phase is None:
-        return None
-    s, end, restart, ticks = phase
-    k = s["index"]
-    span = end - s["t"]
-    t_last = max(end, float(run.t[ticks][-1]))
-    t0 = max(s["t"] - 0.05 * span, float(run.t[0]))
-    t1 = min(t_last + 0.05 * span, float(run.t[-1]))
-    win = (run.t >= t0) & (run.t <= t1)
-    t = run.t[win]
+
+def _forecast_curves(run, ticks, win):
+    """Each method's forecast on the phase's ticks in the window; the methods with values."""
+    import numpy as np
     fc = {m: {c: np.where(ticks, v, np.nan)[win] for c, v in cols.items()}
           for m, cols in run.forecast.items()}
     methods = [m for m in list(FORECAST_STYLE) + sorted(set(fc) - set(FORECAST_STYLE))
                if m in fc and np.any(np.isfinite(fc[m]["force"]))]
-    p_p, p_n, force = run.p_p[win], run.p_n[win], run.force[win]
-    stuck = (t >= s["t"]) & (t <= end)  # the gaps that matter: the forecasts assume v = 0
-    pred = {p["method"]: p for p in run.predictions if p["stop"] == k}
-    refc = [p for p in run.reforecasts if p["stop"] == k]
-    direction = (restart or {}).get("direction") or next(
-        (p["direction"] for p in pred.values() if p["will_restart"]), 0)
-    bound = bench.fs_pos if direction > 0 else bench.fs_neg
-    t_act = restart["t"] if restart else None
-    restarts = {m: p["t_restart"] for m, p in pred.items()
-                if p["will_restart"] and p["t_restart"] is not None}
+    return fc, methods
 
-    # the restart time each method forecast, against when: at the stop, then while stuck
+
+def _restart_forecasts_made(methods, pred, refc):
+    """Per method, (when made, restart time forecast): at the stop, then while stuck."""
     made = {m: sorted((p["t"], p["t_restart"]) for p in ([pred[m]] if m in pred else [])
                       + [r for r in refc if r["method"] == m]
                       if p["will_restart"] and p["t_restart"] is not None) for m in methods}
-    made = {m: pts for m, pts in made.items() if pts}
+    return {m: pts for m, pts in made.items() if pts}
 
-    def style(m):
-        return dict(_method_style(m), **FORECAST_STYLE.get(
-            m, {"ls": "--", "lw": 1.3, "label": f"{m} forecast, made at the stop"}))
 
-    panels = 4 if refc and made else 3
-    fig, axes = plt.subplots(panels, 1, sharex=True, figsize=(10.0, 11.2 if refc else 9.4),
-                             gridspec_kw={"height_ratios": [1.45, 2.1, 1.1, 1.3][:panels]})
-    ax_p, ax_f, ax_e = axes[:3]
+class ForecastWindow:
+    """What the forecast figure draws: a sticking phase, the window around it, its forecasts."""
+
+    def __init__(self, run, bench, phase):
+        s, end, restart, ticks = phase
+        self.stop, self.end, self.restart = s, end, restart  # as forecast_phase() gives them
+        self.span = end - s["t"]                             # time at rest [s]
+        t_last = max(end, float(run.t[ticks][-1]))
+        self.t0 = max(s["t"] - 0.05 * self.span, float(run.t[0]))  # the window drawn [s]
+        self.t1 = min(t_last + 0.05 * self.span, float(run.t[-1]))
+        win = (run.t >= self.t0) & (run.t <= self.t1)
+        self.t = run.t[win]                                  # the window's ticks and measures
+        self.p_p, self.p_n, self.force = run.p_p[win], run.p_n[win], run.force[win]
+        self.fc, self.methods = _forecast_curves(run, ticks, win)  # {method: {column: values}}
+        # the ticks whose gaps matter: the forecasts assume v = 0
+        self.stuck = (self.t >= s["t"]) & (self.t <= end)
+        self.pred = {p["method"]: p for p in run.predictions if p["stop"] == s["index"]}
+        self.refc = [p for p in run.reforecasts if p["stop"] == s["index"]]
+        self.direction = (restart or {}).get("direction") or next(
+            (p["direction"] for p in self.pred.values() if p["will_restart"]), 0)
+        self.bound = bench.fs_pos if self.direction > 0 else bench.fs_neg  # the restart's bound [N]
+        self.t_act = restart["t"] if restart else None       # the actual restart, if any
+        self.restarts = {m: p["t_restart"] for m, p in self.pred.items()  # forecast at the stop
+                         if p["will_restart"] and p["t_restart"] is not None}
+        self.made = _restart_forecasts_made(self.methods, self.pred, self.refc)
+
+
+def _forecast_axes(w, plt):
+    """The figure and its three panels, four with the re-forecasts, on one time axis."""
+    panels = 4 if w.refc and w.made else 3
+    return plt.subplots(panels, 1, sharex=True, figsize=(10.0, 11.2 if w.refc else 9.4),
+                        gridspec_kw={"height_ratios": [1.45, 2.1, 1.1, 1.3][:panels]})
+
+
+def _restart_lines(ax, w):
+    """Vertical lines at each forecast restart and at the actual one."""
+    for m, tr in w.restarts.items():
+        ax.axvline(tr, color=_forecast_style(m)["color"], lw=1.1, ls="--", zorder=1.8)
+    if w.t_act is not None:
+        ax.axvline(w.t_act, color=C_RESTART, lw=1.2, zorder=1.9)
+
+
+def _phase_marks(axes, w):
+    """Every panel: the sticking phase, its stop and (but on the re-forecast panel) the restarts."""
+    s = w.stop
     for ax in axes:
-        ax.axvspan(s["t"], end, color=C_STUCK_SPAN, alpha=0.28, lw=0,
-                   label="sticking phase (stop to start)" if ax is ax_p else None)
+        ax.axvspan(s["t"], w.end, color=C_STUCK_SPAN, alpha=0.28, lw=0,
+                   label="sticking phase (stop to start)" if ax is axes[0] else None)
         ax.axvline(s["t"], color=C_STOP, lw=0.9, ls=":",
-                   label=f"stop {k}: t_stop = {s['t']:.3f} s at y* = {s['y'] * 1e3:.2f} mm"
-                   if ax is ax_p else None)
-        if panels == 4 and ax is axes[-1]:
+                   label=f"stop {s['index']}: t_stop = {s['t']:.3f} s at y* = {s['y'] * 1e3:.2f} mm"
+                   if ax is axes[0] else None)
+        if len(axes) == 4 and ax is axes[-1]:
             continue  # the last panel shows these times on its y axis
-        for m, tr in restarts.items():
-            ax.axvline(tr, color=style(m)["color"], lw=1.1, ls="--", zorder=1.8)
-        if t_act is not None:
-            ax.axvline(t_act, color=C_RESTART, lw=1.2, zorder=1.9)
+        _restart_lines(ax, w)
 
-    # a) the chamber pressures
+
+def _largest_pressure_gap(w, m):
+    """The largest gap [Pa] of a method's forecast pressures to the measured ones while stuck."""
+    import numpy as np
+    fc = w.fc[m]
+    return np.nanmax(np.abs(np.concatenate([fc["p_p"] - w.p_p, fc["p_n"] - w.p_n])[
+        np.concatenate([w.stuck, w.stuck])]))
+
+
+def _pressure_panel(ax, w):
+    """Panel a: the measured chamber pressures against the forecast ones."""
+    for values, c, lab in ((w.p_p, C_PP, "p_P measured (chamber P, bore side)"),
+                           (w.p_n, C_PN, "p_N measured (chamber N, rod side)")):
+        ax.plot(w.t, values / 1e5, color=c, lw=2.6, alpha=0.55, zorder=2, label=lab)
     gaps = []
-    for values, c, lab in ((p_p, C_PP, "p_P measured (chamber P, bore side)"),
-                           (p_n, C_PN, "p_N measured (chamber N, rod side)")):
-        ax_p.plot(t, values / 1e5, color=c, lw=2.6, alpha=0.55, zorder=2, label=lab)
-    for m in methods:
-        st = style(m)
-        for i, (key, values) in enumerate((("p_p", p_p), ("p_n", p_n))):
-            ax_p.plot(t, fc[m][key] / 1e5, color=st["color"], ls=st["ls"], lw=st["lw"],
-                      zorder=3, label=st["label"] if i == 0 else None)
-        gap = np.nanmax(np.abs(np.concatenate([fc[m]["p_p"] - p_p, fc[m]["p_n"] - p_n])[
-            np.concatenate([stuck, stuck])]))
-        gaps.append(f"{m} {gap / 100:.2f} mbar")
-    ax_p.set_ylabel("pressure [bar abs]")
-    ax_p.ticklabel_format(axis="y", useOffset=False)
-    ax_p.set_title("a/ chamber pressures; the forecasts' largest gap to the measure while "
-                   "stuck: " + ", ".join(gaps), loc="left", fontsize=9.5)
-    # which curve is which chamber, half-way through the sticking phase, between the two
-    i_lab = int(np.searchsorted(t, s["t"] + 0.5 * span))
-    if i_lab < len(t):
-        upper = p_n[i_lab] > p_p[i_lab]
-        for values, c, text, high in ((p_p, C_PP, "p_P", not upper), (p_n, C_PN, "p_N", upper)):
-            ax_p.annotate(text, (t[i_lab], values[i_lab] / 1e5), xytext=(0, -5 if high else 5),
-                          textcoords="offset points", color=c, fontsize=9, fontweight="bold",
-                          ha="center", va="top" if high else "bottom")
-    t_zero = s["t"]
-    top = ax_p.secondary_xaxis("top", functions=(lambda x: x - t_zero, lambda x: x + t_zero))
+    for m in w.methods:
+        st = _forecast_style(m)
+        for i, key in enumerate(("p_p", "p_n")):
+            ax.plot(w.t, w.fc[m][key] / 1e5, color=st["color"], ls=st["ls"], lw=st["lw"],
+                    zorder=3, label=st["label"] if i == 0 else None)
+        gaps.append(f"{m} {_largest_pressure_gap(w, m) / 100:.2f} mbar")
+    ax.set_ylabel("pressure [bar abs]")
+    ax.ticklabel_format(axis="y", useOffset=False)
+    ax.set_title("a/ chamber pressures; the forecasts' largest gap to the measure while "
+                 "stuck: " + ", ".join(gaps), loc="left", fontsize=9.5)
+    _name_chambers(ax, w)
+    t_zero = w.stop["t"]
+    top = ax.secondary_xaxis("top", functions=(lambda x: x - t_zero, lambda x: x + t_zero))
     top.set_xlabel("time since the stop t - t_stop [s] (Fig. 13's time reference)", fontsize=8.5)
     top.tick_params(labelsize=8)
 
-    # b) the pressure force, the bound it restarts at and the restarts
-    def force_panel(ax, lw_scale=1.0):
-        ax.plot(t, force, color=C_F, lw=2.6 * lw_scale, alpha=0.55, zorder=2,
-                label="F measured (Eq. 14, from the measured pressures)")
-        for m in methods:
-            st = style(m)
-            ax.plot(t, fc[m]["force"], color=st["color"], ls=st["ls"], lw=st["lw"] * lw_scale,
-                    zorder=3)
-        for m, tr in restarts.items():
-            st = style(m)
-            ax.plot(tr, bound, st["marker"], color=st["color"], ms=7, mfc="white", mew=1.5,
-                    zorder=6)
-        if t_act is not None:
-            ax.plot(t_act, _interp(run, t_act, run.force), "x", color=C_RESTART, ms=9, mew=2.0,
-                    zorder=7)
 
-    force_panel(ax_f)
-    lo = min(float(np.nanmin(force)), *(float(np.nanmin(fc[m]["force"])) for m in methods))
-    hi = max(float(np.nanmax(force)), *(float(np.nanmax(fc[m]["force"])) for m in methods))
+def _name_chambers(ax, w):
+    """Which curve is which chamber: named half-way through the sticking phase, between the two."""
+    import numpy as np
+    i = int(np.searchsorted(w.t, w.stop["t"] + 0.5 * w.span))
+    if i < len(w.t):
+        upper = w.p_n[i] > w.p_p[i]
+        for values, c, text, high in ((w.p_p, C_PP, "p_P", not upper), (w.p_n, C_PN, "p_N", upper)):
+            ax.annotate(text, (w.t[i], values[i] / 1e5), xytext=(0, -5 if high else 5),
+                        textcoords="offset points", color=c, fontsize=9, fontweight="bold",
+                        ha="center", va="top" if high else "bottom")
+
+
+def _force_curves(ax, run, w, lw_scale=1.0):
+    """Measured and forecast pressure force, the forecast restarts on the bound, the actual one."""
+    ax.plot(w.t, w.force, color=C_F, lw=2.6 * lw_scale, alpha=0.55, zorder=2,
+            label="F measured (Eq. 14, from the measured pressures)")
+    for m in w.methods:
+        st = _forecast_style(m)
+        ax.plot(w.t, w.fc[m]["force"], color=st["color"], ls=st["ls"], lw=st["lw"] * lw_scale,
+                zorder=3)
+    for m, tr in w.restarts.items():
+        st = _forecast_style(m)
+        ax.plot(tr, w.bound, st["marker"], color=st["color"], ms=7, mfc="white", mew=1.5, zorder=6)
+    if w.t_act is not None:
+        ax.plot(w.t_act, _interp(run, w.t_act, run.force), "x", color=C_RESTART, ms=9, mew=2.0,
+                zorder=7)
+
+
+def _force_range(w, bench):
+    """The forces' range, its margin, and the stiction bounds worth drawing."""
+    import numpy as np
+    lo = min(float(np.nanmin(w.force)), *(float(np.nanmin(w.fc[m]["force"])) for m in w.methods))
+    hi = max(float(np.nanmax(w.force)), *(float(np.nanmax(w.fc[m]["force"])) for m in w.methods))
     pad = 0.06 * (hi - lo)
     # the bound the restart is forecast (or seen) at and any other one near the force; both
     # when no restart is forecast: the force staying between them is the point (Eq. 16)
     shown = [(f, n) for f, n in ((bench.fs_pos, "F_S+"), (bench.fs_neg, "F_S-"))
-             if lo - 4 * pad <= f <= hi + 4 * pad or not direction or f == bound]
+             if lo - 4 * pad <= f <= hi + 4 * pad or not w.direction or f == w.bound]
+    return lo, hi, pad, shown
+
+
+def _force_panel(ax, run, bench, w):
+    """Panel b: the pressure force, the bound it restarts at, the restarts, a zoom on them."""
+    _force_curves(ax, run, w)
+    lo, hi, pad, shown = _force_range(w, bench)
     for f, _ in shown:
-        ax_f.axhline(f, color="0.25", lw=1.0, ls="--", zorder=1.5)
+        ax.axhline(f, color="0.25", lw=1.0, ls="--", zorder=1.5)
     if shown:
-        ax_f.plot([], [], color="0.25", lw=1.0, ls="--",
-                  label=("stiction bounds " if len(shown) > 1 else "stiction bound ")
-                  + ", ".join(f"{n} = {f:g} N" for f, n in shown))
+        ax.plot([], [], color="0.25", lw=1.0, ls="--",
+                label=("stiction bounds " if len(shown) > 1 else "stiction bound ")
+                + ", ".join(f"{n} = {f:g} N" for f, n in shown))
     lo, hi = min([lo] + [f for f, _ in shown]), max([hi] + [f for f, _ in shown])
-    ax_f.set_ylim(lo - pad, hi + pad)
-    ax_f.ticklabel_format(axis="y", useOffset=False)
-    ax_f.set_ylabel("pressure force F [N]")
-    ax_f.set_title("b/ pressure force F = S_P p_P - S_N p_N - S_r p_E, and "
-                   + (f"the restart at {'F_S+' if bound > 0 else 'F_S-'} = {bound:g} N "
-                      f"(Eq. 16-17, 25)" if direction else
-                      "the stiction bounds (Eq. 16): no restart forecast"),
-                   loc="left", fontsize=9.5)
-    for m, tr in restarts.items():
+    ax.set_ylim(lo - pad, hi + pad)
+    ax.ticklabel_format(axis="y", useOffset=False)
+    ax.set_ylabel("pressure force F [N]")
+    ax.set_title("b/ pressure force F = S_P p_P - S_N p_N - S_r p_E, and "
+                 + (f"the restart at {'F_S+' if w.bound > 0 else 'F_S-'} = {w.bound:g} N "
+                    f"(Eq. 16-17, 25)" if w.direction else
+                    "the stiction bounds (Eq. 16): no restart forecast"),
+                 loc="left", fontsize=9.5)
+    _restart_legend_entries(ax, w)
+    if w.t_act is not None and w.restarts:
+        _restart_zoom(ax, run, w, hi - lo)
+
+
+def _restart_legend_entries(ax, w):
+    """Legend entries of the forecast restarts (how far from the actual one) and the actual one."""
+    for m, tr in w.restarts.items():
         st = _method_style(m)
-        late = f", {_ms(tr - t_act)} ms from the actual one" if t_act is not None else ""
-        ax_f.plot([], [], st["marker"], color=st["color"], ms=7, mfc="white", mew=1.5, ls="--",
-                  lw=1.1, label=f"{st['label']}: t = {tr:.3f} s{late}")
-    if t_act is not None:
-        ax_f.plot([], [], "x", color=C_RESTART, ms=9, mew=2.0, ls="-", lw=1.2,
-                  label=f"actual restart: t = {t_act:.4f} s, {t_act - s['t']:.3f} s after the stop")
+        late = f", {_ms(tr - w.t_act)} ms from the actual one" if w.t_act is not None else ""
+        ax.plot([], [], st["marker"], color=st["color"], ms=7, mfc="white", mew=1.5, ls="--",
+                lw=1.1, label=f"{st['label']}: t = {tr:.3f} s{late}")
+    if w.t_act is not None:
+        ax.plot([], [], "x", color=C_RESTART, ms=9, mew=2.0, ls="-", lw=1.2,
+                label=f"actual restart: t = {w.t_act:.4f} s, {w.t_act - w.stop['t']:.3f} s after "
+                      "the stop")
 
-    # the zoom a control engineer wants: how much earlier each forecast reaches the bound
-    if t_act is not None and restarts:
-        times = list(restarts.values()) + [t_act]
-        z_pad = max(0.35 * (max(times) - min(times)), 0.01)
-        z0, z1 = max(min(times) - z_pad, t0), min(max(times) + z_pad, t1)
-        zsel = (t >= z0) & (t <= z1)
-        zvals = np.concatenate([force[zsel]] + [fc[m]["force"][zsel] for m in methods] + [[bound]])
-        z_lo, z_hi = float(np.nanmin(zvals)), float(np.nanmax(zvals))
-        z_lo, z_hi = z_lo - 0.12 * (z_hi - z_lo), z_hi + 0.12 * (z_hi - z_lo)
-        if (z_hi - z_lo) < 0.25 * (hi - lo):
-            corner = [0.52, 0.37, 0.46, 0.56] if bound < 0 else [0.52, 0.07, 0.46, 0.56]
-            ins = ax_f.inset_axes(corner)
-            ins.axhline(bound, color="0.25", lw=1.0, ls="--", zorder=1.5)
-            for m, tr in restarts.items():
-                ins.axvline(tr, color=style(m)["color"], lw=1.1, ls="--", zorder=1.8)
-            ins.axvline(t_act, color=C_RESTART, lw=1.2, zorder=1.9)
-            force_panel(ins, lw_scale=1.15)
-            ins.set_xlim(z0, z1)
-            ins.set_ylim(z_lo, z_hi)
-            ins.set_facecolor("white")
-            ins.tick_params(labelsize=7.5)
-            ins.ticklabel_format(useOffset=False)
-            ins.set_title("zoom on the restart [N]", fontsize=8.5, pad=3)
-            notes, worst = [], 0.0
-            for m, tr in restarts.items():
-                gap = (_interp(run, t_act, run.forecast[m]["force"]) if m in run.forecast
-                       else math.nan) - _interp(run, t_act, run.force)
-                if not math.isnan(gap):
-                    worst = max(worst, abs(gap))
-                dt = abs(tr - t_act) * 1e3
-                notes.append(f"{m}: " + ("" if math.isnan(gap) else f"{_newtons(gap)} N off, ")
-                             + f"crosses {bound:g} N {dt:.{1 if dt < 10 else 0}f} ms "
-                             + ("early" if tr < t_act else "late"))
-            i0 = int(np.searchsorted(run.t, t_act - 0.02))
-            i1 = min(int(np.searchsorted(run.t, t_act)), len(run.t) - 1)
-            if i1 > i0 and worst >= 0.01:
-                slope = (run.force[i1] - run.force[i0]) / (run.t[i1] - run.t[i0])
-                notes.append(f"F moves only {slope:+.2f} N/s there: a gap of\n{worst:.2f} N "
-                             f"is {worst / max(abs(slope), 1e-9):.2f} s of sticking time")
-            # beside the inset, where the force has already left (falling) or not yet reached
-            # (rising) that height
-            ax_f.text(0.075, 0.93 if bound < 0 else 0.07,
-                      "forecast at the actual restart (zoom):\n" + "\n".join(notes),
-                      transform=ax_f.transAxes,
-                      fontsize=7.8, va="top" if bound < 0 else "bottom", ha="left", zorder=9,
-                      bbox={"boxstyle": "round,pad=0.35", "fc": "white", "ec": "0.7",
-                            "alpha": 0.92})
-            # the connectors leave the inset's edge that faces the zoomed region
-            mark_inset(ax_f, ins, loc1=3 if bound < 0 else 2, loc2=4 if bound < 0 else 1,
-                       fc="none", ec="0.55", lw=0.7)
 
-    # c) where the forecasts leave the measure
-    ax_e.axhline(0.0, color="0.3", lw=0.8)
+def _restart_zoom_view(w):
+    """The zoom's limits (t0, t1, F_lo, F_hi) around the forecast and actual restarts."""
+    import numpy as np
+    times = list(w.restarts.values()) + [w.t_act]
+    z_pad = max(0.35 * (max(times) - min(times)), 0.01)
+    z0, z1 = max(min(times) - z_pad, w.t0), min(max(times) + z_pad, w.t1)
+    zsel = (w.t >= z0) & (w.t <= z1)
+    zvals = np.concatenate([w.force[zsel]] + [w.fc[m]["force"][zsel] for m in w.methods]
+                           + [[w.bound]])
+    z_lo, z_hi = float(np.nanmin(zvals)), float(np.nanmax(zvals))
+    return z0, z1, z_lo - 0.12 * (z_hi - z_lo), z_hi + 0.12 * (z_hi - z_lo)
+
+
+def _restart_zoom(ax, run, w, f_span):
+    """An inset zoom on how much earlier each forecast reaches the bound, when f_span dwarfs it."""
+    from mpl_toolkits.axes_grid1.inset_locator import mark_inset
+    z0, z1, z_lo, z_hi = _restart_zoom_view(w)
+    if not (z_hi - z_lo) < 0.25 * f_span:
+        return
+    falling = w.bound < 0
+    ins = ax.inset_axes([0.52, 0.37, 0.46, 0.56] if falling else [0.52, 0.07, 0.46, 0.56])
+    ins.axhline(w.bound, color="0.25", lw=1.0, ls="--", zorder=1.5)
+    _restart_lines(ins, w)
+    _force_curves(ins, run, w, lw_scale=1.15)
+    ins.set_xlim(z0, z1)
+    ins.set_ylim(z_lo, z_hi)
+    ins.set_facecolor("white")
+    ins.tick_params(labelsize=7.5)
+    ins.ticklabel_format(useOffset=False)
+    ins.set_title("zoom on the restart [N]", fontsize=8.5, pad=3)
+    # beside the inset, where the force has already left (falling) or not yet reached (rising)
+    # that height
+    ax.text(0.075, 0.93 if falling else 0.07,
+            "forecast at the actual restart (zoom):\n" + "\n".join(_restart_zoom_notes(run, w)),
+            transform=ax.transAxes,
+            fontsize=7.8, va="top" if falling else "bottom", ha="left", zorder=9,
+            bbox={"boxstyle": "round,pad=0.35", "fc": "white", "ec": "0.7", "alpha": 0.92})
+    # the connectors leave the inset's edge that faces the zoomed region
+    mark_inset(ax, ins, loc1=3 if falling else 2, loc2=4 if falling else 1,
+               fc="none", ec="0.55", lw=0.7)
+
+
+def _restart_zoom_notes(run, w):
+    """Beside the zoom: each forecast's gap and timing at the actual restart, in sticking time."""
+    import numpy as np
+    notes, worst = [], 0.0
+    for m, tr in w.restarts.items():
+        gap = (_interp(run, w.t_act, run.forecast[m]["force"]) if m in run.forecast
+               else math.nan) - _interp(run, w.t_act, run.force)
+        if not math.isnan(gap):
+            worst = max(worst, abs(gap))
+        dt = abs(tr - w.t_act) * 1e3
+        notes.append(f"{m}: " + ("" if math.isnan(gap) else f"{_newtons(gap)} N off, ")
+                     + f"crosses {w.bound:g} N {dt:.{1 if dt < 10 else 0}f} ms "
+                     + ("early" if tr < w.t_act else "late"))
+    i0 = int(np.searchsorted(run.t, w.t_act - 0.02))
+    i1 = min(int(np.searchsorted(run.t, w.t_act)), len(run.t) - 1)
+    if i1 > i0 and worst >= 0.01:
+        slope = (run.force[i1] - run.force[i0]) / (run.t[i1] - run.t[i0])
+        notes.append(f"F moves only {slope:+.2f} N/s there: a gap of\n{worst:.2f} N "
+                     f"is {worst / max(abs(slope), 1e-9):.2f} s of sticking time")
+    return notes
+
+
+def _largest_force_gap(w, err):
+    """The tick of the largest |forecast - measured| force while stuck, or None."""
+    import numpy as np
+    if not np.any(np.isfinite(err[w.stuck])):
+        return None
+    return int(np.nanargmax(np.where(w.stuck, np.abs(err), np.nan)))
+
+
+def _gap_panel(ax, w):
+    """Panel c: forecast minus measured force, each method's largest gap while stuck named."""
+    ax.axhline(0.0, color="0.3", lw=0.8)
     worst_gaps = []
-    for m in methods:
-        st = style(m)
-        err = fc[m]["force"] - force
-        ax_e.plot(t, err, color=st["color"], ls=st["ls"], lw=st["lw"], zorder=3)
-        if np.any(np.isfinite(err[stuck])):
-            i = int(np.nanargmax(np.where(stuck, np.abs(err), np.nan)))
-            ax_e.plot(t[i], err[i], "o", color=st["color"], ms=4.5, zorder=4)
-            worst_gaps.append((m, t[i], err[i]))
+    for m in w.methods:
+        st = _forecast_style(m)
+        err = w.fc[m]["force"] - w.force
+        ax.plot(w.t, err, color=st["color"], ls=st["ls"], lw=st["lw"], zorder=3)
+        i = _largest_force_gap(w, err)
+        if i is not None:
+            ax.plot(w.t[i], err[i], "o", color=st["color"], ms=4.5, zorder=4)
+            worst_gaps.append((m, w.t[i], err[i]))
     # the largest gaps (the dots) named on the side the curves leave free
     low = max((e for _, _, e in worst_gaps), key=abs, default=1.0) > 0
     for n, (m, tw, ew) in enumerate(worst_gaps):
-        ax_e.text(0.3, (0.05 + 0.13 * (len(worst_gaps) - 1 - n)) if low else (0.95 - 0.13 * n),
-                  f"{m}: largest gap while stuck {_newtons(ew)} N, at t = {tw:.3f} s (dot)",
-                  transform=ax_e.transAxes, fontsize=8, color=style(m)["color"],
-                  va="bottom" if low else "top", zorder=5)
+        ax.text(0.3, (0.05 + 0.13 * (len(worst_gaps) - 1 - n)) if low else (0.95 - 0.13 * n),
+                f"{m}: largest gap while stuck {_newtons(ew)} N, at t = {tw:.3f} s (dot)",
+                transform=ax.transAxes, fontsize=8, color=_forecast_style(m)["color"],
+                va="bottom" if low else "top", zorder=5)
     e_lim = max([abs(e) for _, _, e in worst_gaps] + [0.0])
-    ax_e.set_ylim(-1.45 * max(e_lim, 0.05), 1.45 * max(e_lim, 0.05))
-    ax_e.set_ylabel("forecast - measured\nforce [N]")
-    ax_e.set_title("c/ forecast minus measured force: where each forecast leaves the measure",
-                   loc="left", fontsize=9.5)
+    ax.set_ylim(-1.45 * max(e_lim, 0.05), 1.45 * max(e_lim, 0.05))
+    ax.set_ylabel("forecast - measured\nforce [N]")
+    ax.set_title("c/ forecast minus measured force: where each forecast leaves the measure",
+                 loc="left", fontsize=9.5)
 
-    # d) the live predictor: the restart time forecast again while stuck
-    if panels == 4:
-        ax_r = axes[3]
-        for m, pts in made.items():
-            st = style(m)
-            ax_r.plot(*zip(*pts), color=st["color"], ls="-", lw=1.0, marker=st["marker"],
-                      ms=4, mfc="white", mew=1.1, zorder=3,
-                      label=f"{m} (first point: the forecast made at the stop)")
-        none = sum(1 for r in refc if not (r["will_restart"] and r["t_restart"] is not None))
-        if t_act is not None:
-            ax_r.axhline(t_act, color=C_RESTART, lw=1.2, zorder=2)
-            ax_r.secondary_yaxis("right", functions=(lambda x: (x - t_act) * 1e3,
-                                                     lambda x: x / 1e3 + t_act)) \
-                .set_ylabel("minus actual\nrestart [ms]")
-        ax_r.set_ylabel("forecast restart\ntime [s]")
-        ax_r.set_title("d/ forecast restart time vs when it was made (the stop's forecast, then "
-                       "the re-forecasts while stuck)"
-                       + (f"; {none} forecast no restart" if none else ""),
-                       loc="left", fontsize=9.5)
-        ax_r.legend(loc="lower right", fontsize=7.8, framealpha=0.92)
-    axes[-1].set_xlabel("time t [s]")
-    axes[-1].set_xlim(t0, t1)
 
+def _reforecast_panel(ax, w):
+    """Panel d, the live predictor: the restart time forecast again while stuck."""
+    for m, pts in w.made.items():
+        st = _forecast_style(m)
+        ax.plot(*zip(*pts), color=st["color"], ls="-", lw=1.0, marker=st["marker"],
+                ms=4, mfc="white", mew=1.1, zorder=3,
+                label=f"{m} (first point: the forecast made at the stop)")
+    none = sum(1 for r in w.refc if not (r["will_restart"] and r["t_restart"] is not None))
+    if w.t_act is not None:
+        t_act = w.t_act
+        ax.axhline(t_act, color=C_RESTART, lw=1.2, zorder=2)
+        ax.secondary_yaxis("right", functions=(lambda x: (x - t_act) * 1e3,
+                                               lambda x: x / 1e3 + t_act)) \
+            .set_ylabel("minus actual\nrestart [ms]")
+    ax.set_ylabel("forecast restart\ntime [s]")
+    ax.set_title("d/ forecast restart time vs when it was made (the stop's forecast, then "
+                 "the re-forecasts while stuck)"
+                 + (f"; {none} forecast no restart" if none else ""),
+                 loc="left", fontsize=9.5)
+    ax.legend(loc="lower right", fontsize=7.8, framealpha=0.92)
+
+
+def _forecast_title(run, w, name):
+    """The title: the phase, the run, when the forecasts were made, how the phase ended."""
+    s, end = w.stop, w.end
+    how_it_ends = "" if w.restart else \
+        " (then a start, not a restart)" if any(s["t"] < o["t"] <= end for o in run.starts) else \
+        " (no start before the end of the plotted record)"
+    return (f"{name}: sticking phase {s['index']}, measured vs forecast pressures and force "
+            f"(cf. Brun et al. 2005, Fig. 13)\n{run.source}; both forecasts made at the stop "
+            f"(t = {next(iter(w.pred.values()))['t'] if w.pred else s['t']:.3f} s), "
+            f"stuck {w.span:.3f} s{how_it_ends}")
+
+
+def _forecast_legend(fig, axes):
+    """One legend of these panels' curves: measured first, then the forecasts, then the rest."""
     handles, labels = [], []
-    for ax in (ax_p, ax_f):
+    for ax in axes:
         for h, lab in zip(*ax.get_legend_handles_labels()):
             if lab not in labels:
                 handles.append(h)
                 labels.append(lab)
-    # measured first, then the forecasts, then the rest
     order = sorted(range(len(labels)), key=lambda i: (0 if "measured" in labels[i] else
                                                       1 if "forecast (" in labels[i] else 2, i))
-    how_it_ends = "" if restart else \
-        " (then a start, not a restart)" if any(s["t"] < o["t"] <= end for o in run.starts) else \
-        " (no start before the end of the plotted record)"
-    fig.suptitle(f"{name}: sticking phase {k}, measured vs forecast pressures and force "
-                 f"(cf. Brun et al. 2005, Fig. 13)\n{run.source}; both forecasts made at the stop "
-                 f"(t = {next(iter(pred.values()))['t'] if pred else s['t']:.3f} s), "
-                 f"stuck {span:.3f} s{how_it_ends}", fontsize=11)
-    leg = fig.legend([handles[i] for i in order], [labels[i] for i in order], loc="upper center",
-                     bbox_to_anchor=(0.5, 0.945), ncol=2, framealpha=0.95, fontsize=8.2)
+    return fig.legend([handles[i] for i in order], [labels[i] for i in order], loc="upper center",
+                      bbox_to_anchor=(0.5, 0.945), ncol=2, framealpha=0.95, fontsize=8.2)
+
+
+def _fit_below_legend(fig, leg, ax_top):
+    """Lay the panels out below the legend, the top panel's title meeting it."""
     fig.canvas.draw()
     to_fig = fig.transFigure.inverted()
     below_legend = leg.get_window_extent().transformed(to_fig).y0 - 0.008
     fig.tight_layout(rect=(0, 0, 1, below_legend))
     # tight_layout leaves room above the top panel as if its secondary axis were not there:
     # lift the panels until the top panel's title meets the legend
-    top = ax_p.get_tightbbox(fig.canvas.get_renderer()).transformed(to_fig).y1
+    top = ax_top.get_tightbbox(fig.canvas.get_renderer()).transformed(to_fig).y1
     fig.subplots_adjust(top=fig.subplotpars.top + below_legend - top)
+
+
+def forecast_figure(run, bench, name, plt):
+    """The longest sticking phase against the forecasts made at its stop (cf. Fig. 13), or None
+    when the run has no forecast columns or no sticking phase with forecast values."""
+    phase = forecast_phase(run)
+    if phase is None:
+        return None
+    w = ForecastWindow(run, bench, phase)
+    fig, axes = _forecast_axes(w, plt)
+    _phase_marks(axes, w)
+    _pressure_panel(axes[0], w)
+    _force_panel(axes[1], run, bench, w)
+    _gap_panel(axes[2], w)
+    if len(axes) == 4:
+        _reforecast_panel(axes[3], w)
+    axes[-1].set_xlabel("time t [s]")
+    axes[-1].set_xlim(w.t0, w.t1)
+    fig.suptitle(_forecast_title(run, w, name), fontsize=11)
+    leg = _forecast_legend(fig, axes[:2])
+    _fit_below_legend(fig, leg, axes[0])
     return fig
 
 
