@@ -23,7 +23,10 @@
 #include "pneu/controller/setpoint_params.hpp"
 #include "pneu/controller/stop_detector_params.hpp"
 #include "pneu/controller/supervisor_params.hpp"
-#include "pneu/config/register_map.hpp"
+#include "pneu/hal/gpio_params.hpp"
+#include "pneu/hal/modbus_params.hpp"
+#include "pneu/hal/register_map.hpp"
+#include "pneu/hal/sim_params.hpp"
 #include "pneu/model/params.hpp"
 #include "pneu/model/sensors.hpp"
 
@@ -48,10 +51,16 @@ using controller::StopDetectorParams;
 using controller::SupervisorConfig;
 using controller::to_string;
 
-/// How the open-loop simulator starts (pneu-plant simulate).
-struct SimulationConfig {
-  double initial_position_m = 0.2195;  ///< simulation.initial_position_m: rest position at t = 0 [m], inside the stroke
-};
+// The HAL's backends' parameters (hal/params: hal.modbus and its register map, hal.gpio, hal.sim,
+// simulation).
+using hal::GpioConfig;
+using hal::ModbusConfig;
+using hal::ModbusTransport;
+using hal::RegisterChannel;
+using hal::RegisterFormat;
+using hal::SensorTable;
+using hal::SimBenchConfig;
+using hal::SimulationConfig;
 
 /// pneud's loop and control.
 struct ControllerConfig {
@@ -104,29 +113,7 @@ struct CommandsConfig {
   double setpoint_stream_timeout_s = 0.0;
 };
 
-/// Digital lines beside either backend (hal.gpio.*, libgpiod).
-struct GpioConfig {
-  bool enabled = false;
-  std::string chip = "gpiochip0";       ///< name, /dev path, label or number
-  unsigned estop_line = 0;              ///< e-stop input line offset
-  bool estop_active_low = true;         ///< pressed = electrically low (a broken wire reads pressed)
-  unsigned valve_power_line = 1;        ///< valve power-enable output line offset
-  bool valve_power_active_low = false;  ///< power on = electrically low
-  std::string consumer = "pneud";       ///< consumer name shown by gpioinfo
-};
-
 enum class BackendKind { kSim, kModbus };
-
-/// hal.sim: the simulated bench (in process, and pneu-plant serve and simulate).
-struct SimBenchConfig {
-  /// hal.sim.plant present: the simulated bench is not the controller's model. Any subset of
-  /// plant:'s keys, each over plant:'s value.
-  bool has_plant = false;
-  model::PlantParams plant;  ///< the bench: plant: with hal.sim.plant's keys over it
-  /// hal.sim.pushes: external forces on the carriage (the simulated bench's disturbance input), on
-  /// the loop's time in process, on pneu-plant serve's own (from its start) over Modbus.
-  std::vector<model::Push> pushes;
-};
 
 /// The hardware abstraction layer: which backend pneud drives.
 struct HalConfig {
