@@ -29,6 +29,8 @@
 #include "pneu/hal/sim_params.hpp"
 #include "pneu/model/params.hpp"
 #include "pneu/model/sensors.hpp"
+#include "pneu/telemetry/commands_params.hpp"
+#include "pneu/telemetry/telemetry_params.hpp"
 
 namespace pneu::config {
 
@@ -52,7 +54,7 @@ using controller::SupervisorConfig;
 using controller::to_string;
 
 // The HAL's backends' parameters (hal/params: hal.modbus and its register map, hal.gpio, hal.sim,
-// simulation).
+// simulation) and telemetry's (controller/telemetry/params: telemetry, commands).
 using hal::GpioConfig;
 using hal::ModbusConfig;
 using hal::ModbusTransport;
@@ -61,6 +63,8 @@ using hal::RegisterFormat;
 using hal::SensorTable;
 using hal::SimBenchConfig;
 using hal::SimulationConfig;
+using telemetry::CommandsConfig;
+using telemetry::TelemetryConfig;
 
 /// pneud's loop and control.
 struct ControllerConfig {
@@ -85,32 +89,6 @@ struct ControllerConfig {
   RealtimeConfig realtime;              ///< controller.realtime.*
 
   [[nodiscard]] double period_s() const noexcept { return 1.0 / rate_hz; }
-};
-
-/// LCM telemetry (state, events, predictions, health).
-struct TelemetryConfig {
-  bool enabled = true;
-  std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0";  ///< ttl=0: nothing leaves the host
-  std::string channel_prefix = "PNEU_";   ///< channels: <prefix>STATE, EVENT, PREDICTION, HEALTH
-  double health_period_s = 1.0;           ///< health message period [s]
-  /// Publish also when the loop runs on the simulated clock (a 12 s run then floods the network
-  /// with 12,000 states in a few tens of milliseconds and runs 5x slower).
-  bool in_simulated_time = false;
-};
-
-/// Inbound commands on <prefix>COMMAND (real clock only).
-struct CommandsConfig {
-  bool enabled = true;
-  double max_rate_hz = 20.0;   ///< sustained command rate accepted [1/s]; above it: rejected
-  double burst = 5.0;          ///< commands accepted back to back before the rate applies
-  /// A command stamped (utime) further than this from this host's clock, past or future, is
-  /// refused as stale or replayed [s].
-  double max_age_s = 0.5;
-  /// Largest set-point change one command may make [m] (rate of change of the set point).
-  double max_setpoint_step_m = 0.5;
-  /// With a set-point stream configured (> 0): armed, no set point for this long latches a
-  /// fault [s]; 0 = set points come when they come.
-  double setpoint_stream_timeout_s = 0.0;
 };
 
 enum class BackendKind { kSim, kModbus };

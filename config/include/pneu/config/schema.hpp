@@ -15,9 +15,9 @@
 //       detector, predictor, hold, movement test, supervisor, real-time set-up, clock, set points
 //   hal/params/include/pneu/hal/   hal.modbus (modbus_params.hpp, its channels in register_map.hpp),
 //       hal.gpio (gpio_params.hpp), hal.sim and simulation (sim_params.hpp)
+//   controller/telemetry/params/include/pneu/telemetry/   telemetry, commands
 // The root configuration (config.hpp) aggregates them, and this file describes what is left
-// (plant:, sensors:, the controller: and hal: sections' own keys, telemetry:, commands:) and the
-// rules across sections.
+// (plant:, sensors:, the controller: and hal: sections' own keys) and the rules across sections.
 //
 // Adding a key: its member, with its default, in its struct; one line in that struct's describe()
 // (here or in the component's params header); its documented line in the shipped configurations
@@ -244,32 +244,6 @@ void describe(auto& a, Like<HalConfig> auto& h) {
       h.has_modbus);
   a.section(optional(PNEU_NVP(h, gpio)));
   a.optional_section(optional(PNEU_NVP(h, sim)), h.has_sim);
-}
-
-// ---------------------------------------------------------------------------------------------
-// telemetry.*, commands.*
-
-void describe(auto& a, Like<TelemetryConfig> auto& t) {
-  a.field(PNEU_NVP(t, enabled), "publish (real clock; simulated clock with in_simulated_time)");
-  a.field(PNEU_NVP(t, lcm_url), "LCM provider URL");
-  a.check("lcm_url", !t.lcm_url.empty(), "must not be empty");
-  a.field(PNEU_NVP(t, channel_prefix), "channels: <prefix>STATE, EVENT, PREDICTION, HEALTH");
-  bool plain = true;
-  for (char ch : t.channel_prefix)
-    plain = plain && (std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-' || ch == '.');
-  a.check("channel_prefix", plain, "may hold letters, digits, '_', '-' and '.' only");
-  a.field(PNEU_NVP(t, health_period_s), Range::closed(0.01, 60.0), "health message period [s]");
-  a.field(PNEU_NVP(t, in_simulated_time), "publish on the simulated clock too");
-}
-
-void describe(auto& a, Like<CommandsConfig> auto& c) {
-  a.field(PNEU_NVP(c, enabled), "accept commands on <prefix>COMMAND");
-  a.field(PNEU_NVP(c, max_rate_hz), Range::closed(0.01, 1000.0), "sustained accepted command rate [1/s]");
-  a.field(PNEU_NVP(c, burst), Range::closed(1.0, 1000.0), "commands accepted back to back before the rate applies");
-  a.field(PNEU_NVP(c, max_age_s), Range::closed(0.001, 3600.0), "older or newer commands are refused [s]");
-  a.field(PNEU_NVP(c, max_setpoint_step_m), Range::positive(), "largest set-point change of one command [m]");
-  a.field(PNEU_NVP(c, setpoint_stream_timeout_s), Range::closed(0.0, 3600.0),
-          "> 0: armed, no set point this long is a fault [s]");
 }
 
 // ---------------------------------------------------------------------------------------------
