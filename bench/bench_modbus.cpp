@@ -35,8 +35,8 @@
 #include <thread>
 #include <vector>
 
-#include "pneu/config/register_map.hpp"
 #include "pneu/hal/modbus_backend.hpp"
+#include "pneu/hal/modbus_params.hpp"
 #include "pneu/hal/monotonic.hpp"
 #include "pneu/model/sensors.hpp"
 
@@ -47,8 +47,8 @@ using namespace pneu;
 // hil.yaml's register map and sensor calibration.
 constexpr int kRegPosition = 0, kRegPressureP = 1, kRegPressureN = 2, kRegValveP = 16,
               kRegValveN = 17;
-const config::RegisterChannel kSensorChannel{0, false, 0.0, 65535.0, 0.0, 10.0};
-const config::RegisterChannel kValveChannel{0, true, -32767.0, 32767.0, -10.0, 10.0};
+const hal::RegisterChannel kSensorChannel{0, false, 0.0, 65535.0, 0.0, 10.0};
+const hal::RegisterChannel kValveChannel{0, true, -32767.0, 32767.0, -10.0, 10.0};
 
 using pneu::hal::monotonic_s;
 using pneu::hal::sleep_until_monotonic_s;
@@ -156,8 +156,8 @@ struct RawClient {
 };
 
 // hil.yaml's hal.modbus section and sensor calibration.
-config::ModbusConfig hil_modbus(double min_exchange_period_s) {
-  config::ModbusConfig c;
+hal::ModbusConfig hil_modbus(double min_exchange_period_s) {
+  hal::ModbusConfig c;
   c.host = "127.0.0.1";
   c.port = module().port();
   c.unit_id = 1;

@@ -26,11 +26,15 @@ config::Config make_config() {
   return c;
 }
 
+CommandValidator validator_of(const config::Config& c) {
+  return {c.commands, c.controller.soft_limit_min_m, c.controller.soft_limit_max_m};
+}
+
 CommandFields cmd(std::int64_t seq, std::int8_t kind, double value = 0.0) { return {0, seq, kind, value}; }
 
 TEST(CommandValidator, RefusesACommandStampedOutsideTheAgeLimitEitherWay) {
   const config::Config c = make_config();
-  CommandValidator v(c);
+  CommandValidator v = validator_of(c);
   const std::int64_t now_us = 1'800'000'000'000'000;
   const auto age_us = static_cast<std::int64_t>(c.commands.max_age_s * 1e6);
   auto r = v.validate({now_us - age_us - 1000, 1, telemetry::kWireSetPoint, 0.1}, 0.0, now_us, 0.0, Mode::kArmed);
@@ -45,7 +49,7 @@ TEST(CommandValidator, RefusesACommandStampedOutsideTheAgeLimitEitherWay) {
 TEST(CommandValidator, RefusesASetPointChangeLargerThanTheStepLimit) {
   config::Config c = make_config();
   c.commands.max_setpoint_step_m = 0.05;
-  CommandValidator v(c);
+  CommandValidator v = validator_of(c);
   auto r = v.validate(cmd(1, telemetry::kWireSetPoint, 0.16), 0.0, 0, 0.1, Mode::kArmed);
   EXPECT_EQ(r.rejection, Rejection::kInvalid);
   EXPECT_THAT(r.text, HasSubstr("max_setpoint_step_m"));
@@ -55,7 +59,7 @@ TEST(CommandValidator, RefusesASetPointChangeLargerThanTheStepLimit) {
 }
 
 TEST(CommandValidator, AcceptsASetPointInsideTheSoftLimits) {
-  CommandValidator v(make_config());
+  CommandValidator v = validator_of(make_config());
   const auto r = v.validate(cmd(1, telemetry::kWireSetPoint, 0.15), 0.0, 0, 0.0, Mode::kArmed);
   ASSERT_TRUE(r.accepted) << r.text;
   EXPECT_EQ(r.command.kind, LoopCommand::Kind::kSetPoint);
@@ -64,7 +68,7 @@ TEST(CommandValidator, AcceptsASetPointInsideTheSoftLimits) {
 }
 
 TEST(CommandValidator, RefusesSetPointsOutsideTheSoftLimitsIncludingByAStep) {
-  CommandValidator v(make_config());
+  CommandValidator v = validator_of(make_config());
   auto r = v.validate(cmd(1, telemetry::kWireSetPoint, 0.21), 0.0, 0, 0.0, Mode::kArmed);
   EXPECT_FALSE(r.accepted);
   EXPECT_EQ(r.rejection, Rejection::kInvalid);
@@ -78,7 +82,7 @@ TEST(CommandValidator, RefusesSetPointsOutsideTheSoftLimitsIncludingByAStep) {
 }
 
 TEST(CommandValidator, RefusesNonFiniteValuesAndUnknownKinds) {
-  CommandValidator v(make_config());
+  CommandValidator v = validator_of(make_config());
   EXPECT_EQ(v.validate(cmd(1, telemetry::kWireSetPoint, std::numeric_limits<double>::quiet_NaN()), 0, 0, 0, Mode::kArmed)
                 .rejection,
             Rejection::kInvalid);
@@ -91,7 +95,7 @@ TEST(CommandValidator, RefusesNonFiniteValuesAndUnknownKinds) {
 }
 
 TEST(CommandValidator, RequiresIncreasingSequenceNumbers) {
-  CommandValidator v(make_config());
+  CommandValidator v = validator_of(make_config());
   ASSERT_TRUE(v.validate(cmd(10, telemetry::kWireSetPoint, 0.1), 0, 0, 0, Mode::kArmed).accepted);
   EXPECT_EQ(v.validate(cmd(10, telemetry::kWireSetPoint, 0.1), 1, 0, 0, Mode::kArmed).rejection, Rejection::kSequence);
   EXPECT_EQ(v.validate(cmd(9, telemetry::kWireSetPoint, 0.1), 2, 0, 0, Mode::kArmed).rejection, Rejection::kSequence);
@@ -99,7 +103,7 @@ TEST(CommandValidator, RequiresIncreasingSequenceNumbers) {
 }
 
 TEST(CommandValidator, RateLimitAllowsTheBurstThenTheSustainedRate) {
-  CommandValidator v(make_config());  // burst 3, 10 per second
+  CommandValidator v = validator_of(make_config());  // burst 3, 10 per second
   int accepted = 0;
   for (int i = 0; i < 6; ++i)  // six at the same instant: the burst passes, the rest do not
     accepted += v.validate(cmd(i + 1, telemetry::kWireSetPoint, 0.1), 5.0, 0, 0, Mode::kArmed).accepted;
@@ -111,7 +115,7 @@ TEST(CommandValidator, RateLimitAllowsTheBurstThenTheSustainedRate) {
 }
 
 TEST(CommandValidator, EachCommandIsAllowedOnlyInItsModes) {
-  CommandValidator v(make_config());
+  CommandValidator v = validator_of(make_config());
   double t = 0.0;
   std::int64_t seq = 0;
   const auto check = [&](std::int8_t kind, Mode mode) {
@@ -136,7 +140,7 @@ TEST(CommandValidator, EachCommandIsAllowedOnlyInItsModes) {
 // a set point sent while disarmed would be a promise the arm breaks, so it is refused, saying what
 // arming will do.
 TEST(CommandValidator, RefusesASetPointWhileDisarmedSayingThatArmingHoldsWhereTheCarriageIs) {
-  CommandValidator v(make_config());
+  CommandValidator v = validator_of(make_config());
   for (const std::int8_t kind : {telemetry::kWireSetPoint, telemetry::kWireSetPointStep}) {
     const auto r = v.validate(cmd(kind, kind, 0.005), static_cast<double>(kind), 0, 0.1, Mode::kDisarmed);
     EXPECT_FALSE(r.accepted) << telemetry::wire_kind_name(kind);
@@ -149,7 +153,7 @@ TEST(CommandValidator, RefusesASetPointWhileDisarmedSayingThatArmingHoldsWhereTh
 // The movement test at the first ARM (Mode::kMovementTest) drives the valves open loop: set points
 // wait for its pass, as they wait for arming; a disarm ends it at once.
 TEST(CommandValidator, DuringTheMovementTestRefusesSetPointsSayingWhyAndTakesADisarm) {
-  CommandValidator v(make_config());
+  CommandValidator v = validator_of(make_config());
   double t = 0.0;
   std::int64_t seq = 0;
   const auto check = [&](std::int8_t kind) {
@@ -169,7 +173,7 @@ TEST(CommandValidator, DuringTheMovementTestRefusesSetPointsSayingWhyAndTakesADi
 }
 
 TEST(CommandValidator, CountsMalformedMessagesAmongTheRejected) {
-  CommandValidator v(make_config());
+  CommandValidator v = validator_of(make_config());
   const auto r = v.malformed("3 bytes");
   EXPECT_FALSE(r.accepted);
   EXPECT_EQ(r.rejection, Rejection::kMalformed);

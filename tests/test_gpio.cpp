@@ -46,7 +46,7 @@ bool any_gpio_chip() {
   return false;
 }
 
-std::string message_of_construction(const hal::GpioParams& params) {
+std::string message_of_construction(const hal::GpioConfig& params) {
   try {
     hal::LibgpiodLines lines(params);
   } catch (const std::runtime_error& e) {
@@ -56,7 +56,7 @@ std::string message_of_construction(const hal::GpioParams& params) {
 }
 
 TEST(LibgpiodLines, ConstructingOnAMissingChipThrowsNamingTheChipAndItsKey) {
-  hal::GpioParams params;
+  hal::GpioConfig params;
   params.chip = "pneu-test-no-such-chip";
   const std::string message = message_of_construction(params);
   EXPECT_THAT(message, HasSubstr("'pneu-test-no-such-chip'"));
@@ -65,7 +65,7 @@ TEST(LibgpiodLines, ConstructingOnAMissingChipThrowsNamingTheChipAndItsKey) {
 }
 
 TEST(LibgpiodLines, RefusesOneLineForBothTheEStopAndValvePowerBeforeTouchingTheChip) {
-  hal::GpioParams params;
+  hal::GpioConfig params;
   // Refused before the chip is looked up: the same message on any machine.
   params.chip = "pneu-test-no-such-chip";
   params.estop_line = 3;
@@ -76,7 +76,8 @@ TEST(LibgpiodLines, RefusesOneLineForBothTheEStopAndValvePowerBeforeTouchingTheC
 }
 
 TEST(LibgpiodLines, RefusesAnEmptyChipName) {
-  hal::GpioParams params;  // chip left empty
+  hal::GpioConfig params;
+  params.chip.clear();
   EXPECT_THAT(message_of_construction(params), HasSubstr("no GPIO chip given (hal.gpio.chip)"));
 }
 
@@ -132,8 +133,8 @@ class LibgpiodLinesOnASimulatedChip : public ::testing::Test {
       GTEST_SKIP() << "GPIO chips exist but none is simulated (gpio-sim, gpio-mockup): a test "
                       "does not drive the lines of a real chip; the adapter is not exercised";
   }
-  [[nodiscard]] hal::GpioParams params(bool active_low) const {
-    return {chip_->name, 0, active_low, 1, active_low, "pneu-test"};
+  [[nodiscard]] hal::GpioConfig params(bool active_low) const {
+    return {true, chip_->name, 0, active_low, 1, active_low, "pneu-test"};
   }
   std::optional<SimulatedChip> chip_;
 };

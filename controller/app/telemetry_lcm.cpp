@@ -10,7 +10,10 @@ namespace {
 class LcmTelemetry final : public Telemetry {
  public:
   LcmTelemetry(const config::Config& config, controller::Run& run, bool accept_commands)
-      : bridge_(config, *run.outputs, accept_commands) {
+      : bridge_(config.telemetry,
+                telemetry::CommandValidator(config.commands, config.controller.soft_limit_min_m,
+                                            config.controller.soft_limit_max_m),
+                *run.outputs, accept_commands) {
     run.runtime->add_sink(bridge_);
     bridge_.set_command_log(run.runtime.get());  // both on the service thread (execute)
   }

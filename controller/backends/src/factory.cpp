@@ -85,10 +85,7 @@ std::unique_ptr<hal::Backend> make_backend(const config::Config& config, const c
   std::unique_ptr<hal::Backend> device = make_device(config, law);
 #ifdef PNEU_WITH_GPIOD
   if (config.hal.gpio.enabled) {
-    const auto& g = config.hal.gpio;
-    auto lines = std::make_unique<hal::LibgpiodLines>(
-        hal::GpioParams{g.chip, g.estop_line, g.estop_active_low, g.valve_power_line, g.valve_power_active_low,
-                        g.consumer});
+    auto lines = std::make_unique<hal::LibgpiodLines>(config.hal.gpio);
     return std::make_unique<WithGpioLines>(std::move(device), std::move(lines));
   }
 #endif

@@ -1,5 +1,4 @@
 #include "pneu/telemetry/command_validator.hpp"
-#include "pneu/config/config.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -54,14 +53,14 @@ const char* wire_kind_name(std::int8_t kind) noexcept {
   }
 }
 
-CommandValidator::CommandValidator(const config::Config& config)
-    : min_m_(config.controller.soft_limit_min_m),
-      max_m_(config.controller.soft_limit_max_m),
-      rate_hz_(config.commands.max_rate_hz),
-      burst_(config.commands.burst),
-      max_age_s_(config.commands.max_age_s),
-      max_step_m_(config.commands.max_setpoint_step_m),
-      tokens_(config.commands.burst) {}
+CommandValidator::CommandValidator(const CommandsConfig& commands, double soft_limit_min_m, double soft_limit_max_m)
+    : min_m_(soft_limit_min_m),
+      max_m_(soft_limit_max_m),
+      rate_hz_(commands.max_rate_hz),
+      burst_(commands.burst),
+      max_age_s_(commands.max_age_s),
+      max_step_m_(commands.max_setpoint_step_m),
+      tokens_(commands.burst) {}
 
 Verdict CommandValidator::reject(Rejection why, std::string text) {
   ++counters_.rejected;

@@ -1,5 +1,4 @@
 #include "pneu/telemetry/lcm_bridge.hpp"
-#include "pneu/config/config.hpp"
 
 #include <arpa/inet.h>
 #include <poll.h>
@@ -10,6 +9,7 @@
 #include <cstdio>
 #include <limits>
 #include <thread>
+#include <utility>
 
 #include "pneu/controller/journal.hpp"
 #include "pneu/controller/records.hpp"
@@ -40,10 +40,11 @@ std::int64_t unix_now_us() {
 }
 }  // namespace
 
-LcmBridge::LcmBridge(const config::Config& config, controller::LoopOutputs& loop, bool accept_commands)
-    : lcm_(std::make_unique<lcm::LCM>(config.telemetry.lcm_url)),
-      url_(config.telemetry.lcm_url),
-      prefix_(config.telemetry.channel_prefix),
+LcmBridge::LcmBridge(const TelemetryConfig& telemetry, CommandValidator validator, controller::LoopOutputs& loop,
+                     bool accept_commands)
+    : lcm_(std::make_unique<lcm::LCM>(telemetry.lcm_url)),
+      url_(telemetry.lcm_url),
+      prefix_(telemetry.channel_prefix),
       state_channel_(prefix_ + "STATE"),
       event_channel_(prefix_ + "EVENT"),
       prediction_channel_(prefix_ + "PREDICTION"),
@@ -52,25 +53,25 @@ LcmBridge::LcmBridge(const config::Config& config, controller::LoopOutputs& loop
       identification_channel_(prefix_ + "IDENTIFICATION"),
       loop_(loop),
       accept_commands_(accept_commands),
-      watch_(InstanceId::of_this_process(), config.telemetry.health_period_s),
-      health_period_s_(config.telemetry.health_period_s),
-      validator_(config),
+      watch_(InstanceId::of_this_process(), telemetry.health_period_s),
+      health_period_s_(telemetry.health_period_s),
+      validator_(std::move(validator)),
       epoch_utime_(unix_now_us()),
       started_(std::chrono::steady_clock::now()) {
   if (!lcm_->good())
-    throw LcmError("LCM could not start on '" + config.telemetry.lcm_url +
+    throw LcmError("LCM could not start on '" + telemetry.lcm_url +
                    "' (no multicast route? e.g. `ip route add 224.0.0.0/4 dev lo` keeps it on this "
                    "host; or set telemetry.enabled=false)");
-  const bool udpm = config.telemetry.lcm_url.rfind("udpm://", 0) == 0;
+  const bool udpm = telemetry.lcm_url.rfind("udpm://", 0) == 0;
   if (accept_commands || udpm) {
     try {
-      socket_ = std::make_unique<CommandSocket>(config.telemetry.lcm_url);
+      socket_ = std::make_unique<CommandSocket>(telemetry.lcm_url);
     } catch (const std::exception& e) {
       if (accept_commands) throw LcmError(std::string("commands: ") + e.what());
       watch_off_ = std::string("no socket on the LCM group: ") + e.what();
     }
   } else {
-    watch_off_ = "telemetry.lcm_url '" + config.telemetry.lcm_url + "' is not udpm://: nothing is heard on it";
+    watch_off_ = "telemetry.lcm_url '" + telemetry.lcm_url + "' is not udpm://: nothing is heard on it";
   }
 }
 

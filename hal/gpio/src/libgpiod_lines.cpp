@@ -27,7 +27,7 @@ void LibgpiodLines::ChipCloser::operator()(gpiod_chip* chip) const noexcept {
   gpiod_chip_close(chip);
 }
 
-LibgpiodLines::LibgpiodLines(const GpioParams& p) {
+LibgpiodLines::LibgpiodLines(const GpioConfig& p) {
   if (p.chip.empty())
     throw std::runtime_error(
         "gpio: no GPIO chip given (hal.gpio.chip); name one, e.g. gpiochip0 or /dev/gpiochip0 "

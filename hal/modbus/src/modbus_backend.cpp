@@ -1,5 +1,4 @@
 #include "pneu/hal/modbus_backend.hpp"
-#include "pneu/config/config.hpp"
 
 #include <modbus.h>
 
@@ -10,6 +9,7 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "pneu/config/describe.hpp"
 #include "pneu/hal/monotonic.hpp"
 
 namespace pneu::hal {
@@ -20,7 +20,7 @@ modbus_t* as_ctx(void* p) { return static_cast<modbus_t*>(p); }
 
 }  // namespace
 
-ModbusBackend::ModbusBackend(const config::ModbusConfig& modbus, const model::SensorParams& calibration)
+ModbusBackend::ModbusBackend(const ModbusConfig& modbus, const model::SensorParams& calibration)
     : cfg_(modbus),
       position_(calibration.position),
       pressure_p_(calibration.pressure_p),
@@ -83,7 +83,7 @@ void ModbusBackend::set_error(const std::string& why) {
 
 bool ModbusBackend::connect_once(std::string* why) noexcept {
   disconnect();
-  modbus_t* ctx = cfg_.transport == config::ModbusTransport::kTcp
+  modbus_t* ctx = cfg_.transport == ModbusTransport::kTcp
                       ? modbus_new_tcp(cfg_.host.c_str(), cfg_.port)
                       : modbus_new_rtu(cfg_.device.c_str(), cfg_.baud, cfg_.parity, cfg_.data_bits, cfg_.stop_bits);
   if (!ctx) {
@@ -108,7 +108,7 @@ bool ModbusBackend::connect_once(std::string* why) noexcept {
   // RTU frames carry no transaction id: a reply that arrived after its request timed out would be
   // taken for the reply to the next request. Whatever the line holds now belongs to no request of
   // this connection. (TCP: a new connection carries nothing of the old one.)
-  if (cfg_.transport == config::ModbusTransport::kRtu) (void)modbus_flush(ctx);
+  if (cfg_.transport == ModbusTransport::kRtu) (void)modbus_flush(ctx);
   ctx_ = ctx;
   return true;
 }
@@ -176,7 +176,7 @@ bool ModbusBackend::exchange(std::string* why) noexcept {
     rc = modbus_write_and_read_registers(ctx, write_start_, write_count_, out, read_start_, read_count_, in);
     reply_mono_s = monotonic_s();
   } else {
-    rc = cfg_.sensor_table == config::SensorTable::kInput ? modbus_read_input_registers(ctx, read_start_, read_count_, in)
+    rc = cfg_.sensor_table == SensorTable::kInput ? modbus_read_input_registers(ctx, read_start_, read_count_, in)
                                                           : modbus_read_registers(ctx, read_start_, read_count_, in);
     reply_mono_s = monotonic_s();
     if (rc == read_count_) {
@@ -198,8 +198,8 @@ bool ModbusBackend::exchange(std::string* why) noexcept {
   s.mono_s = reply_mono_s;
   // A channel's words (two for a float32: high word first). A NaN or infinite float32 reaches the
   // frame as a non-finite value, flagged invalid like any reading outside the raw range.
-  const auto words = [&](const config::RegisterChannel& c) { return &in[c.address - read_start_]; };
-  const auto take = [&](const config::RegisterChannel& c, const model::SensorChannelParams& cal, double& value,
+  const auto words = [&](const RegisterChannel& c) { return &in[c.address - read_start_]; };
+  const auto take = [&](const RegisterChannel& c, const model::SensorChannelParams& cal, double& value,
                         std::uint32_t invalid_flag) {
     const uint16_t* w = words(c);
     value = cal.to_si(c.to_volts(w));
@@ -215,7 +215,7 @@ bool ModbusBackend::exchange(std::string* why) noexcept {
 
 void ModbusBackend::open(double) {
   std::string why;
-  const std::string where = cfg_.transport == config::ModbusTransport::kTcp
+  const std::string where = cfg_.transport == ModbusTransport::kTcp
                                 ? cfg_.host + ":" + std::to_string(cfg_.port)
                                 : cfg_.device + " at " + std::to_string(cfg_.baud) + " baud";
   if (!connect_once(&why)) throw std::runtime_error("modbus " + where + ": " + why);

@@ -22,7 +22,7 @@ std::optional<double> parse_number(const std::string& text) {
   return v;
 }
 
-const config::RegisterChannel& channel_of(const config::ModbusConfig& mb, FaultChannel c) {
+const hal::RegisterChannel& channel_of(const hal::ModbusConfig& mb, FaultChannel c) {
   switch (c) {
     case FaultChannel::kPosition: return mb.position;
     case FaultChannel::kPressureP: return mb.pressure_p;
@@ -40,7 +40,7 @@ const config::RegisterChannel& channel_of(const config::ModbusConfig& mb, FaultC
 bool is_valve(FaultChannel c) noexcept { return c == FaultChannel::kValveP || c == FaultChannel::kValveN; }
 bool is_wiring(FaultChannel c) noexcept { return c == FaultChannel::kTubes || c == FaultChannel::kPressureSensors; }
 
-Fault parse_fault(const std::string& spec, const config::ModbusConfig& mb, double u_max_v) {
+Fault parse_fault(const std::string& spec, const hal::ModbusConfig& mb, double u_max_v) {
   const auto bad = [&](const std::string& why) { return SpecError(spec, why); };
   const auto colon = spec.find(':');
   if (colon == std::string::npos) throw bad("expected CHANNEL:MODE@T, e.g. pressure_p:rail-high@2.5");
@@ -93,8 +93,8 @@ Fault parse_fault(const std::string& spec, const config::ModbusConfig& mb, doubl
     throw bad("stuck=V is a valve mode: a sensor channel takes rail-low, rail-high, raw=N, volts=V, freeze, nan or dead");
   if (is_wiring(f.channel)) return f;
 
-  const config::RegisterChannel& c = channel_of(mb, f.channel);
-  const bool is_float = c.format == config::RegisterFormat::kFloat32;
+  const hal::RegisterChannel& c = channel_of(mb, f.channel);
+  const bool is_float = c.format == hal::RegisterFormat::kFloat32;
   const std::string type = is_float ? "float32" : c.is_signed ? "signed 16-bit" : "unsigned 16-bit";
   switch (f.mode) {
     case FaultMode::kRailLow: (void)c.raw_to_words(c.raw_min, f.words.data()); break;

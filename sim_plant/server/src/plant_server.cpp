@@ -201,9 +201,9 @@ class PlantServer::Impl {
   void finish();
 
   const ServerParams p_;
-  const config::ModbusConfig& mb_ = p_.modbus;
+  const hal::ModbusConfig& mb_ = p_.modbus;
   const Sinks sinks_;
-  const bool tcp_ = p_.modbus.transport == config::ModbusTransport::kTcp;
+  const bool tcp_ = p_.modbus.transport == hal::ModbusTransport::kTcp;
   std::atomic<bool> stop_{false};
   bool ran_ = false;
 
@@ -220,7 +220,7 @@ class PlantServer::Impl {
 
   // The sensor registers: from the sensor models, or what an active fault makes them read.
   const Fault* sensor_fault_[3] = {nullptr, nullptr, nullptr};  // position, pressure_p, pressure_n
-  const config::RegisterChannel* sensor_channel_[3] = {&mb_.position, &mb_.pressure_p, &mb_.pressure_n};
+  const hal::RegisterChannel* sensor_channel_[3] = {&mb_.position, &mb_.pressure_p, &mb_.pressure_n};
   // Miswirings and dead sensors (tubes:swapped, pressure_sensors:swapped, CHANNEL:dead).
   bool tubes_swapped_ = false, pressure_sensors_swapped_ = false;
   std::optional<double> dead_value_[3];  // what a dead sensor reads (before its noise)
@@ -267,7 +267,7 @@ PlantServer::Impl::Impl(ServerParams params, Sinks sinks)
                             mb_.valve_p.last_address(), mb_.valve_n.last_address()}) + 1;
   m_.map = modbus_mapping_new(0, 0, top, top);
   if (!m_.map) throw std::runtime_error(std::string("cannot allocate the register map: ") + modbus_strerror(errno));
-  sensor_regs_ = mb_.sensor_table == config::SensorTable::kInput ? m_.map->tab_input_registers : m_.map->tab_registers;
+  sensor_regs_ = mb_.sensor_table == hal::SensorTable::kInput ? m_.map->tab_input_registers : m_.map->tab_registers;
   m_.map->tab_registers[mb_.valve_p.address] = mb_.valve_p.to_word(u_p_);
   m_.map->tab_registers[mb_.valve_n.address] = mb_.valve_n.to_word(u_n_);
   word_p_ = m_.map->tab_registers[mb_.valve_p.address];
@@ -380,7 +380,7 @@ void PlantServer::Impl::update_sensor_registers() {
   const auto v = sensors_.read_volts(q[0], q[1], q[2]);
   const double volts[3] = {v.y_m, v.p_p_pa, v.p_n_pa};
   for (int i = 0; i < 3; ++i) {
-    const config::RegisterChannel& c = *sensor_channel_[i];
+    const hal::RegisterChannel& c = *sensor_channel_[i];
     std::uint16_t* w = &sensor_regs_[c.address];
     if (!sensor_fault_[i]) c.to_words(volts[i], w);
     else std::copy_n(sensor_fault_[i]->words.begin(), c.register_count(), w);
@@ -434,7 +434,7 @@ void PlantServer::Impl::activate(Fault& f) {
 // A held reply answers with the readings of its request's time, as a module that answers late.
 void PlantServer::Impl::save_sensor_words(std::array<std::uint16_t, 6>& words) const {
   std::uint16_t* w = words.data();
-  for (const config::RegisterChannel* c : sensor_channel_) {
+  for (const hal::RegisterChannel* c : sensor_channel_) {
     std::copy_n(&sensor_regs_[c->address], c->register_count(), w);
     w += c->register_count();
   }
@@ -442,7 +442,7 @@ void PlantServer::Impl::save_sensor_words(std::array<std::uint16_t, 6>& words) c
 
 void PlantServer::Impl::restore_sensor_words(const std::array<std::uint16_t, 6>& words) {
   const std::uint16_t* w = words.data();
-  for (const config::RegisterChannel* c : sensor_channel_) {
+  for (const hal::RegisterChannel* c : sensor_channel_) {
     std::copy_n(w, c->register_count(), &sensor_regs_[c->address]);
     w += c->register_count();
   }

@@ -23,9 +23,14 @@
 #include "pneu/controller/setpoint_params.hpp"
 #include "pneu/controller/stop_detector_params.hpp"
 #include "pneu/controller/supervisor_params.hpp"
-#include "pneu/config/register_map.hpp"
+#include "pneu/hal/gpio_params.hpp"
+#include "pneu/hal/modbus_params.hpp"
+#include "pneu/hal/register_map.hpp"
+#include "pneu/hal/sim_params.hpp"
 #include "pneu/model/params.hpp"
 #include "pneu/model/sensors.hpp"
+#include "pneu/telemetry/commands_params.hpp"
+#include "pneu/telemetry/telemetry_params.hpp"
 
 namespace pneu::config {
 
@@ -48,10 +53,18 @@ using controller::StopDetectorParams;
 using controller::SupervisorConfig;
 using controller::to_string;
 
-/// How the open-loop simulator starts (pneu-plant simulate).
-struct SimulationConfig {
-  double initial_position_m = 0.2195;  ///< simulation.initial_position_m: rest position at t = 0 [m], inside the stroke
-};
+// The HAL's backends' parameters (hal/params: hal.modbus and its register map, hal.gpio, hal.sim,
+// simulation) and telemetry's (controller/telemetry/params: telemetry, commands).
+using hal::GpioConfig;
+using hal::ModbusConfig;
+using hal::ModbusTransport;
+using hal::RegisterChannel;
+using hal::RegisterFormat;
+using hal::SensorTable;
+using hal::SimBenchConfig;
+using hal::SimulationConfig;
+using telemetry::CommandsConfig;
+using telemetry::TelemetryConfig;
 
 /// pneud's loop and control.
 struct ControllerConfig {
@@ -78,55 +91,7 @@ struct ControllerConfig {
   [[nodiscard]] double period_s() const noexcept { return 1.0 / rate_hz; }
 };
 
-/// LCM telemetry (state, events, predictions, health).
-struct TelemetryConfig {
-  bool enabled = true;
-  std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0";  ///< ttl=0: nothing leaves the host
-  std::string channel_prefix = "PNEU_";   ///< channels: <prefix>STATE, EVENT, PREDICTION, HEALTH
-  double health_period_s = 1.0;           ///< health message period [s]
-  /// Publish also when the loop runs on the simulated clock (a 12 s run then floods the network
-  /// with 12,000 states in a few tens of milliseconds and runs 5x slower).
-  bool in_simulated_time = false;
-};
-
-/// Inbound commands on <prefix>COMMAND (real clock only).
-struct CommandsConfig {
-  bool enabled = true;
-  double max_rate_hz = 20.0;   ///< sustained command rate accepted [1/s]; above it: rejected
-  double burst = 5.0;          ///< commands accepted back to back before the rate applies
-  /// A command stamped (utime) further than this from this host's clock, past or future, is
-  /// refused as stale or replayed [s].
-  double max_age_s = 0.5;
-  /// Largest set-point change one command may make [m] (rate of change of the set point).
-  double max_setpoint_step_m = 0.5;
-  /// With a set-point stream configured (> 0): armed, no set point for this long latches a
-  /// fault [s]; 0 = set points come when they come.
-  double setpoint_stream_timeout_s = 0.0;
-};
-
-/// Digital lines beside either backend (hal.gpio.*, libgpiod).
-struct GpioConfig {
-  bool enabled = false;
-  std::string chip = "gpiochip0";       ///< name, /dev path, label or number
-  unsigned estop_line = 0;              ///< e-stop input line offset
-  bool estop_active_low = true;         ///< pressed = electrically low (a broken wire reads pressed)
-  unsigned valve_power_line = 1;        ///< valve power-enable output line offset
-  bool valve_power_active_low = false;  ///< power on = electrically low
-  std::string consumer = "pneud";       ///< consumer name shown by gpioinfo
-};
-
 enum class BackendKind { kSim, kModbus };
-
-/// hal.sim: the simulated bench (in process, and pneu-plant serve and simulate).
-struct SimBenchConfig {
-  /// hal.sim.plant present: the simulated bench is not the controller's model. Any subset of
-  /// plant:'s keys, each over plant:'s value.
-  bool has_plant = false;
-  model::PlantParams plant;  ///< the bench: plant: with hal.sim.plant's keys over it
-  /// hal.sim.pushes: external forces on the carriage (the simulated bench's disturbance input), on
-  /// the loop's time in process, on pneu-plant serve's own (from its start) over Modbus.
-  std::vector<model::Push> pushes;
-};
 
 /// The hardware abstraction layer: which backend pneud drives.
 struct HalConfig {

@@ -10,11 +10,14 @@
 //     (keys_of: the hostile-input matrix of tests/test_config_hostile.cpp).
 //
 // A component owns its parameters: its struct and its describe() live beside it, in its params
-// header (controller/params/include/pneu/controller/*_params.hpp: the law, differentiator, stop
-// detector, predictor, hold, movement test, supervisor, real-time set-up, clock, set points), with
-// the vocabulary of pneu/config/describe.hpp; the root configuration (config.hpp) aggregates them
-// and this file describes what is left (plant:, sensors:, hal:, telemetry:, commands:, the
-// controller: section's own keys).
+// header, with the vocabulary of pneu/config/describe.hpp:
+//   controller/params/include/pneu/controller/*_params.hpp   the law, differentiator, stop
+//       detector, predictor, hold, movement test, supervisor, real-time set-up, clock, set points
+//   hal/params/include/pneu/hal/   hal.modbus (modbus_params.hpp, its channels in register_map.hpp),
+//       hal.gpio (gpio_params.hpp), hal.sim and simulation (sim_params.hpp)
+//   controller/telemetry/params/include/pneu/telemetry/   telemetry, commands
+// The root configuration (config.hpp) aggregates them, and this file describes what is left
+// (plant:, sensors:, the controller: and hal: sections' own keys) and the rules across sections.
 //
 // Adding a key: its member, with its default, in its struct; one line in that struct's describe()
 // (here or in the component's params header); its documented line in the shipped configurations
@@ -55,7 +58,6 @@
 
 #include "pneu/config/config.hpp"
 #include "pneu/config/describe.hpp"
-#include "pneu/config/register_map.hpp"
 #include "pneu/model/params.hpp"
 #include "pneu/model/sensors.hpp"
 #include "pneu/model/tangent_linear.hpp"
@@ -67,13 +69,6 @@ namespace pneu::config::schema {
 // The names of enum-valued keys
 
 inline constexpr Choice<BackendKind> kBackends[] = {{"sim", BackendKind::kSim}, {"modbus", BackendKind::kModbus}};
-inline constexpr Choice<ModbusTransport> kTransports[] = {{"tcp", ModbusTransport::kTcp},
-                                                          {"rtu", ModbusTransport::kRtu}};
-inline constexpr Choice<char> kParities[] = {{"none", 'N'}, {"even", 'E'}, {"odd", 'O'}};
-inline constexpr Choice<SensorTable> kSensorTables[] = {{"holding", SensorTable::kHolding},
-                                                        {"input", SensorTable::kInput}};
-inline constexpr Choice<RegisterFormat> kRegisterFormats[] = {{"int16", RegisterFormat::kInt16},
-                                                              {"float32", RegisterFormat::kFloat32}};
 
 // ---------------------------------------------------------------------------------------------
 // plant.*: the bench as the controller models it (docs/model.md)
@@ -160,7 +155,7 @@ void describe(auto& a, Like<model::PlantParams> auto& p) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// sensors.*, simulation.*
+// sensors.*
 
 /// One channel; `gain_key` names its sensitivity with its unit (gain_v_per_m, gain_v_per_pa).
 void describe(auto& a, Like<model::SensorChannelParams> auto& c, const char* gain_key) {
@@ -180,13 +175,6 @@ void describe(auto& a, Like<model::SensorParams> auto& s) {
   a.section(PNEU_NVP(s, position), "gain_v_per_m");
   a.section(PNEU_NVP(s, pressure_p), "gain_v_per_pa");
   a.section(PNEU_NVP(s, pressure_n), "gain_v_per_pa");
-}
-
-void describe(auto& a, Like<SimulationConfig> auto& s, const model::Geometry& geometry) {
-  const double half = geometry.half_stroke_m();
-  a.field(PNEU_NVP(s, initial_position_m), Range::any(), "rest position at t = 0 [m], inside the stroke");
-  a.check("initial_position_m", std::abs(s.initial_position_m) <= half,
-          [&] { return outside_the_stroke(half, s.initial_position_m); });
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -247,135 +235,7 @@ void describe(auto& a, Like<ControllerConfig> auto& c, const model::PlantParams&
 }
 
 // ---------------------------------------------------------------------------------------------
-// hal.*
-
-/// One channel of hal.modbus.channels; `sensor`: an input (may be float32), else a valve output.
-void describe(auto& a, Like<RegisterChannel> auto& c, bool sensor) {
-  a.field(Field("register", c.address), IntRange::in(0, 65535), "register address (0-based, as on the wire)");
-  a.field(optional(PNEU_NVP(c, format)), one_of(kRegisterFormats),
-          "int16: one register; float32: two, high word first");
-  a.check("format", sensor || c.format == RegisterFormat::kInt16,
-          "float32 is for sensor channels only: a valve output is one 16-bit register");
-  a.check("register", c.format != RegisterFormat::kFloat32 || c.address <= 65534,
-          "must be in [0, 65534] (a float32 spans this register and the next)");
-  a.field(meaningful_when(c.format == RegisterFormat::kInt16, Field("signed", c.is_signed)),
-          "int16: the register holds a two's complement value");
-  a.field(PNEU_NVP(c, raw_min), Range::any(), "raw value at volts_min");
-  a.field(PNEU_NVP(c, raw_max), Range::any(), "raw value at volts_max");
-  if (c.format == RegisterFormat::kFloat32) {
-    constexpr double kFloatMax = 3.4028234663852886e38;
-    a.check("raw_min", std::abs(c.raw_min) <= kFloatMax, "must fit a float32 (|raw_min| <= 3.4028235e38)");
-    a.check("raw_max", std::abs(c.raw_max) <= kFloatMax, "must fit a float32 (|raw_max| <= 3.4028235e38)");
-  } else {
-    const double lo = c.is_signed ? -32768.0 : 0.0, hi = c.is_signed ? 32767.0 : 65535.0;
-    const auto must_fit = [&] {
-      return "must fit a " + std::string(c.is_signed ? "signed" : "unsigned") + " 16-bit register [" + fmt(lo) +
-             ", " + fmt(hi) + "]";
-    };
-    a.check("raw_min", c.raw_min >= lo && c.raw_min <= hi, must_fit);
-    a.check("raw_max", c.raw_max >= lo && c.raw_max <= hi, must_fit);
-  }
-  a.check("raw_max", c.raw_max > c.raw_min, [&] {
-    return "the raw range is empty (raw_max " + fmt(c.raw_max) + " <= raw_min " + fmt(c.raw_min) + ")";
-  });
-  a.field(PNEU_NVP(c, volts_min), Range::any(), "[V]");
-  a.field(PNEU_NVP(c, volts_max), Range::any(), "[V]");
-  a.check("volts_max", c.volts_max > c.volts_min, [&] {
-    return "the volts range is empty (volts_max " + fmt(c.volts_max) + " <= volts_min " + fmt(c.volts_min) + ")";
-  });
-}
-
-void describe(auto& a, Like<ModbusConfig> auto& m) {
-  a.field(PNEU_NVP(m, transport), one_of(kTransports), "tcp | rtu");
-  a.field(optional(PNEU_NVP(m, host)), "TCP: the module's address");
-  a.field(optional(PNEU_NVP(m, port)), IntRange::in(1, 65535), "TCP port");
-  a.field(optional(PNEU_NVP(m, device)), "RTU: serial device");
-  a.field(optional(PNEU_NVP(m, baud)), IntRange::in(300, 4000000), "RTU: bits per second");
-  a.field(optional(PNEU_NVP(m, parity)), one_of(kParities).unquoted(), "RTU: none | even | odd");
-  a.field(optional(PNEU_NVP(m, data_bits)), IntRange::in(5, 8), "RTU");
-  a.field(optional(PNEU_NVP(m, stop_bits)), IntRange::in(1, 2).says("must be 1 or 2"), "RTU");
-  a.field(PNEU_NVP(m, unit_id), IntRange::in(1, 247), "Modbus unit (slave) identifier");
-  a.field(PNEU_NVP(m, response_timeout_s), Range::closed(1e-4, 10.0), "a later answer is a comms error [s]");
-  a.field(PNEU_NVP(m, max_sample_age_s), Range::closed(1e-4, 10.0), "older samples are stale [s]");
-  a.field(PNEU_NVP(m, min_exchange_period_s), Range::closed(0.0, 1.0),
-          "the I/O thread exchanges at most this often [s]");
-  a.field(PNEU_NVP(m, read_write_multiple), "one function-23 transaction per cycle");
-  a.field(PNEU_NVP(m, sensor_table), one_of(kSensorTables), "holding (FC3/FC23) | input (FC4)");
-  a.check("read_write_multiple", !(m.read_write_multiple && m.sensor_table == SensorTable::kInput),
-          "function 23 reads holding registers: with sensor_table input, set read_write_multiple false");
-  a.field(PNEU_NVP(m, reconnect_min_s), Range::closed(1e-3, 60.0), "back-off after a failure [s]");
-  a.field(PNEU_NVP(m, reconnect_max_s), Range::any(), "... doubling up to this [s]");
-  a.check("reconnect_max_s", m.reconnect_max_s >= m.reconnect_min_s && m.reconnect_max_s <= 600.0, [&] {
-    return "must be in [" + fmt(m.reconnect_min_s) + ", 600] (got " + fmt(m.reconnect_max_s) + ")";
-  });
-  a.field(optional(PNEU_NVP(m, module_watchdog_s)), Range::closed(0.0, 600.0),
-          "the module's fieldbus watchdog the bench's coupler is set to [s]; 0: none");
-  a.group("channels", [&](auto& ch) {
-    ch.section(flow(PNEU_NVP(m, position)), true);
-    ch.section(flow(PNEU_NVP(m, pressure_p)), true);
-    ch.section(flow(PNEU_NVP(m, pressure_n)), true);
-    ch.section(flow(PNEU_NVP(m, valve_p)), false);
-    ch.section(flow(PNEU_NVP(m, valve_n)), false);
-    // One register holds one channel: no overlaps within a table (the valves are holding
-    // registers; the sensors are too unless sensor_table is input). A float32 channel holds two.
-    struct Named {
-      const char* name;
-      const RegisterChannel* c;
-      bool holding;
-    };
-    const bool sensors_holding = m.sensor_table == SensorTable::kHolding;
-    const Named all[] = {{"position", &m.position, sensors_holding},
-                         {"pressure_p", &m.pressure_p, sensors_holding},
-                         {"pressure_n", &m.pressure_n, sensors_holding},
-                         {"valve_p", &m.valve_p, true},
-                         {"valve_n", &m.valve_n, true}};
-    for (std::size_t i = 0; i < 5; ++i)
-      for (std::size_t j = i + 1; j < 5; ++j) {
-        const RegisterChannel &x = *all[i].c, &y = *all[j].c;
-        const int shared = std::max(x.address, y.address);  // the first register both hold, if any
-        ch.check(std::string(all[j].name) + ".register",
-                 !(all[i].holding == all[j].holding && shared <= std::min(x.last_address(), y.last_address())),
-                 [&] {
-                   return "overlaps " + std::string(all[i].name) + " (both at register " +
-                          std::to_string(shared) + ")";
-                 });
-      }
-    ch.check("valve_n.register", !m.read_write_multiple || std::abs(m.valve_p.address - m.valve_n.address) == 1,
-             "function 23 writes one block: valve_p and valve_n must be adjacent registers");
-    const int lo = std::min({m.position.address, m.pressure_p.address, m.pressure_n.address});
-    const int hi = std::max({m.position.last_address(), m.pressure_p.last_address(), m.pressure_n.last_address()});
-    ch.check("pressure_n.register", hi - lo < 121,
-             "the sensor registers must lie within 121 consecutive registers (one read transaction)");
-  });
-}
-
-void describe(auto& a, Like<GpioConfig> auto& g) {
-  a.field(PNEU_NVP(g, enabled), "open the lines at start-up");
-  a.field(optional(PNEU_NVP(g, chip)), "GPIO chip: name, /dev path, label or number");
-  a.check("chip", !g.chip.empty(), "must not be empty");
-  a.field(optional(PNEU_NVP(g, estop_line)), IntRange::in(0, 65535).says("must be a line offset >= 0"),
-          "e-stop input line offset");
-  a.field(optional(PNEU_NVP(g, estop_active_low)), "pressed = electrically low");
-  a.field(optional(PNEU_NVP(g, valve_power_line)), IntRange::in(0, 65535).says("must be a line offset >= 0"),
-          "valve power-enable output line offset");
-  a.check("valve_power_line", g.valve_power_line != g.estop_line, "must differ from estop_line");
-  a.field(optional(PNEU_NVP(g, valve_power_active_low)), "power on = electrically low");
-  a.field(optional(PNEU_NVP(g, consumer)), "the name gpioinfo shows for both lines");
-}
-
-// hal.sim.plant: any subset of plant:'s keys (the loader lays them over plant:'s before reading);
-// written whole.
-/// One of hal.sim.pushes.
-void describe(auto& a, Like<model::Push> auto& p) {
-  a.field(PNEU_NVP(p, t_s), Range::non_negative(), "it starts [s]");
-  a.field(PNEU_NVP(p, force_n), Range::any(), "towards +y while it lasts [N]");
-  a.field(PNEU_NVP(p, duration_s), Range::positive(), "it lasts [s]");
-}
-
-void describe(auto& a, Like<SimBenchConfig> auto& s) {
-  a.optional_section(optional(PNEU_NVP(s, plant)), s.has_plant);
-  a.list(optional(PNEU_NVP(s, pushes)));
-}
+// hal.*: its own key, and its sections (hal/params: modbus, gpio, sim)
 
 void describe(auto& a, Like<HalConfig> auto& h) {
   a.field(PNEU_NVP(h, backend), one_of(kBackends).unknown("backend"), "sim: the plant in-process | modbus");
@@ -384,32 +244,6 @@ void describe(auto& a, Like<HalConfig> auto& h) {
       h.has_modbus);
   a.section(optional(PNEU_NVP(h, gpio)));
   a.optional_section(optional(PNEU_NVP(h, sim)), h.has_sim);
-}
-
-// ---------------------------------------------------------------------------------------------
-// telemetry.*, commands.*
-
-void describe(auto& a, Like<TelemetryConfig> auto& t) {
-  a.field(PNEU_NVP(t, enabled), "publish (real clock; simulated clock with in_simulated_time)");
-  a.field(PNEU_NVP(t, lcm_url), "LCM provider URL");
-  a.check("lcm_url", !t.lcm_url.empty(), "must not be empty");
-  a.field(PNEU_NVP(t, channel_prefix), "channels: <prefix>STATE, EVENT, PREDICTION, HEALTH");
-  bool plain = true;
-  for (char ch : t.channel_prefix)
-    plain = plain && (std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-' || ch == '.');
-  a.check("channel_prefix", plain, "may hold letters, digits, '_', '-' and '.' only");
-  a.field(PNEU_NVP(t, health_period_s), Range::closed(0.01, 60.0), "health message period [s]");
-  a.field(PNEU_NVP(t, in_simulated_time), "publish on the simulated clock too");
-}
-
-void describe(auto& a, Like<CommandsConfig> auto& c) {
-  a.field(PNEU_NVP(c, enabled), "accept commands on <prefix>COMMAND");
-  a.field(PNEU_NVP(c, max_rate_hz), Range::closed(0.01, 1000.0), "sustained accepted command rate [1/s]");
-  a.field(PNEU_NVP(c, burst), Range::closed(1.0, 1000.0), "commands accepted back to back before the rate applies");
-  a.field(PNEU_NVP(c, max_age_s), Range::closed(0.001, 3600.0), "older or newer commands are refused [s]");
-  a.field(PNEU_NVP(c, max_setpoint_step_m), Range::positive(), "largest set-point change of one command [m]");
-  a.field(PNEU_NVP(c, setpoint_stream_timeout_s), Range::closed(0.0, 3600.0),
-          "> 0: armed, no set point this long is a fault [s]");
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -7,10 +7,7 @@
 
 #include "pneu/controller/loop.hpp"
 #include "pneu/controller/run_figures.hpp"
-
-namespace pneu::config {
-struct Config;  // pneu/config/config.hpp: the root configuration, taken whole by reference here
-}
+#include "pneu/telemetry/commands_params.hpp"
 
 namespace pneu::telemetry {
 
@@ -59,7 +56,9 @@ using controller::CommandCounters;
 /// command thread owns it.
 class CommandValidator {
  public:
-  explicit CommandValidator(const config::Config& config);
+  /// `commands`: the rate, age and step limits; set points outside [soft_limit_min_m,
+  /// soft_limit_max_m] (controller.soft_limit_*) are refused.
+  CommandValidator(const CommandsConfig& commands, double soft_limit_min_m, double soft_limit_max_m);
 
   /// `now_s` on any monotonic clock; `now_unix_us` this host's clock (Unix time, us) for the age
   /// check; `setpoint_m` and `mode` as the loop last published them.

@@ -19,10 +19,7 @@
 #include "pneu/telemetry/command_socket.hpp"
 #include "pneu/telemetry/command_validator.hpp"
 #include "pneu/telemetry/instance_watch.hpp"
-
-namespace pneu::config {
-struct Config;  // pneu/config/config.hpp: the root configuration, taken whole by reference here
-}
+#include "pneu/telemetry/telemetry_params.hpp"
 
 namespace pneu::telemetry {
 
@@ -33,13 +30,14 @@ class LcmError : public std::runtime_error {
 
 class LcmBridge final : public controller::RunListener {
  public:
-  /// Opens LCM on telemetry.lcm_url. Throws LcmError when LCM cannot start (bad URL, no
+  /// Opens LCM on `telemetry`'s lcm_url; commands are checked by `validator`. Throws LcmError when LCM cannot start (bad URL, no
   /// multicast route). On a udpm:// URL, opens its own socket on the group (CommandSocket): with
   /// `accept_commands`, for <prefix>COMMAND (datagrams from this host only), and in any case to
   /// hear another controller's <prefix>HEALTH (from any host). Without it (another URL, or the
   /// socket refused while commands are not taken) no other controller can be heard: watch_off()
   /// says why.
-  LcmBridge(const config::Config& config, controller::LoopOutputs& loop, bool accept_commands);
+  LcmBridge(const TelemetryConfig& telemetry, CommandValidator validator, controller::LoopOutputs& loop,
+            bool accept_commands);
   ~LcmBridge() override;
 
   /// Waits up to `timeout_ms` for datagrams and handles those waiting (at most a bounded number

@@ -6,24 +6,13 @@
 #include <memory>
 #include <string>
 
+#include "pneu/hal/gpio_params.hpp"
 #include "pneu/hal/types.hpp"
 
 struct gpiod_chip;  // libgpiod 1.6 handles, kept out of the public headers
 struct gpiod_line;
 
 namespace pneu::hal {
-
-/// Where the two lines are. Values are logical: with `*_active_low` the kernel inverts the
-/// electrical level, so "e-stop active" and "valve power on" keep their meaning either way.
-struct GpioParams {
-  /// GPIO chip: name (gpiochip0), path (/dev/gpiochip0), label or number.
-  std::string chip;
-  unsigned estop_line = 0;              ///< e-stop input: line offset on `chip`
-  bool estop_active_low = false;        ///< the e-stop is active when the line is electrically low
-  unsigned valve_power_line = 1;        ///< valve power-enable output: offset, != estop_line
-  bool valve_power_active_low = false;  ///< power is on when the line is driven electrically low
-  std::string consumer = "pneud";       ///< consumer name shown by `gpioinfo` for both lines
-};
 
 /// The e-stop input and the valve power-enable output. Both calls run on the loop thread:
 /// real-time safe (no allocation, no exception, no lock, only the driver's own bounded I/O).
@@ -44,7 +33,7 @@ class LibgpiodLines final : public GpioLines {
   /// Opens `params.chip` and requests the e-stop line as input and the valve power line as output,
   /// initially off, under `params.consumer`. Throws std::runtime_error naming the chip or line,
   /// the config key and the system's reason (no such chip, line busy, permission denied ...).
-  explicit LibgpiodLines(const GpioParams& params);
+  explicit LibgpiodLines(const GpioConfig& params);
   /// Switches valve power off, then releases both lines and closes the chip.
   ~LibgpiodLines() override;
   LibgpiodLines(const LibgpiodLines&) = delete;

@@ -13,9 +13,9 @@
 #include <mutex>
 #include <thread>
 
-#include "pneu/config/register_map.hpp"
 #include "pneu/hal/backend.hpp"
 #include "pneu/hal/latest_value.hpp"
+#include "pneu/hal/modbus_params.hpp"
 #include "pneu/model/sensors.hpp"
 
 namespace pneu::hal {
@@ -46,7 +46,7 @@ class ModbusBackend final : public Backend {
   static constexpr int kSafeOutputAttempts = 3;
 
   /// `calibration`: the sensors' volts -> SI (sensors.*).
-  ModbusBackend(const config::ModbusConfig& modbus, const model::SensorParams& calibration);
+  ModbusBackend(const ModbusConfig& modbus, const model::SensorParams& calibration);
   ~ModbusBackend() override;
 
   /// Connects (throws std::runtime_error naming the host/device and the reason) and starts the
@@ -87,7 +87,7 @@ class ModbusBackend final : public Backend {
   bool read_back_outputs(std::string* why) noexcept;
   void disconnect() noexcept;
 
-  config::ModbusConfig cfg_;
+  ModbusConfig cfg_;
   model::SensorChannelParams position_, pressure_p_, pressure_n_;  // their calibrations
   void* ctx_ = nullptr;  // modbus_t*
   LatestValue<Sample> sample_;

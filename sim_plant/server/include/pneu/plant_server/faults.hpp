@@ -9,7 +9,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "pneu/config/register_map.hpp"
+#include "pneu/hal/modbus_params.hpp"
 
 namespace pneu::plant_server {
 
@@ -40,7 +40,7 @@ class SpecError : public std::invalid_argument {
 
 /// Parses CHANNEL:MODE@T (the vocabulary of `pneu-plant serve --help`) against the register map
 /// `mb`; `u_max_v`: the simulated valve's largest voltage, the bound of stuck=V. Throws SpecError.
-[[nodiscard]] Fault parse_fault(const std::string& spec, const config::ModbusConfig& mb, double u_max_v);
+[[nodiscard]] Fault parse_fault(const std::string& spec, const hal::ModbusConfig& mb, double u_max_v);
 
 /// Valve outputs [V], each valve its own.
 struct ValveVoltages {

@@ -11,7 +11,7 @@
 #include <optional>
 #include <vector>
 
-#include "pneu/config/register_map.hpp"
+#include "pneu/hal/modbus_params.hpp"
 #include "pneu/model/params.hpp"
 #include "pneu/model/sensors.hpp"
 #include "pneu/plant_server/faults.hpp"
@@ -29,7 +29,7 @@ struct ServerParams {
   double initial_position_m = 0.2195;  ///< at rest there at start-up, the valves at its neutral voltage u_e
   /// The register map, the transport (TCP host:port, port 0: one the kernel picks; RTU device,
   /// baud...) and the unit id. module_watchdog_s is not read: watchdog_s is the watchdog.
-  config::ModbusConfig modbus;
+  hal::ModbusConfig modbus;
   int max_clients = 4;               ///< TCP: clients served at once, 1 to kMaxClientsLimit
   double duration_s = 0.0;           ///< run() returns after this long; 0: when request_stop() is called
   double reply_delay_s = 0.0;        ///< fault injection: every reply this late ...

@@ -1,7 +1,7 @@
 // The register map of an analog I/O module on Modbus: which register(s) hold which channel (a
-// 16-bit count, or a float32 in two registers), and the linear scaling raw value <-> volts.
-// Volts <-> SI goes through the sensor calibration (sensors.*). Shared by the modbus backend and
-// the HIL plant server, so both read the same map.
+// 16-bit count, or a float32 in two registers), and the linear scaling raw value <-> volts
+// (hal.modbus.channels.*, described below). Volts <-> SI goes through the sensor calibration
+// (sensors.*). Shared by the modbus backend and the HIL plant server, so both read the same map.
 #pragma once
 
 #include <algorithm>
@@ -10,7 +10,9 @@
 #include <cstring>
 #include <string>
 
-namespace pneu::config {
+#include "pneu/config/describe.hpp"
+
+namespace pneu::hal {
 
 /// How a channel's raw value sits in the registers (hal.modbus.channels.*.format).
 enum class RegisterFormat : std::uint8_t {
@@ -124,33 +126,52 @@ struct RegisterChannel {
   }
 };
 
-enum class ModbusTransport { kTcp, kRtu };
-enum class SensorTable { kHolding, kInput };  ///< where the sensor registers sit
+}  // namespace pneu::hal
 
-/// The modbus backend and the HIL server (hal.modbus.*).
-struct ModbusConfig {
-  ModbusTransport transport = ModbusTransport::kTcp;
-  std::string host = "127.0.0.1";        ///< TCP: module address (the HIL server listens on it)
-  int port = 1502;                       ///< TCP port
-  std::string device = "/dev/ttyUSB0";   ///< RTU: serial device
-  int baud = 115200;                     ///< RTU
-  char parity = 'N';                     ///< RTU: 'N', 'E' or 'O'
-  int data_bits = 8;                     ///< RTU
-  int stop_bits = 1;                     ///< RTU
-  int unit_id = 1;                       ///< slave / unit identifier, 1..247
-  double response_timeout_s = 0.02;      ///< a transaction not answered by then is a comms error
-  double max_sample_age_s = 0.02;        ///< the loop flags a sample older than this as stale
-  double min_exchange_period_s = 0.001;  ///< the I/O thread exchanges at most this often
-  bool read_write_multiple = true;       ///< one FC23 transaction per cycle (sensors in holding registers)
-  SensorTable sensor_table = SensorTable::kHolding;  ///< FC3/FC23 (holding) or FC4 (input)
-  double reconnect_min_s = 0.05;         ///< back-off after a failure, doubling up to ...
-  double reconnect_max_s = 2.0;          ///< ... this
-  /// The module's fieldbus watchdog that the controller expects [s]: the bench's coupler must set
-  /// its outputs to their safe values when no request came for this long (pneu-plant serve's
-  /// default --watchdog-s). 0: none stated.
-  double module_watchdog_s = 0.0;
-  RegisterChannel position, pressure_p, pressure_n;  ///< sensors
-  RegisterChannel valve_p, valve_n;                  ///< outputs (holding registers, FC16/FC23)
-};
+// Its keys, described once (pneu/config/describe.hpp; config/include/pneu/config/schema.hpp reads
+// the whole configuration with it).
+namespace pneu::config::schema {
 
-}  // namespace pneu::config
+using hal::RegisterChannel;
+using hal::RegisterFormat;
+
+inline constexpr Choice<RegisterFormat> kRegisterFormats[] = {{"int16", RegisterFormat::kInt16},
+                                                              {"float32", RegisterFormat::kFloat32}};
+
+/// One channel of hal.modbus.channels; `sensor`: an input (may be float32), else a valve output.
+void describe(auto& a, Like<RegisterChannel> auto& c, bool sensor) {
+  a.field(Field("register", c.address), IntRange::in(0, 65535), "register address (0-based, as on the wire)");
+  a.field(optional(PNEU_NVP(c, format)), one_of(kRegisterFormats),
+          "int16: one register; float32: two, high word first");
+  a.check("format", sensor || c.format == RegisterFormat::kInt16,
+          "float32 is for sensor channels only: a valve output is one 16-bit register");
+  a.check("register", c.format != RegisterFormat::kFloat32 || c.address <= 65534,
+          "must be in [0, 65534] (a float32 spans this register and the next)");
+  a.field(meaningful_when(c.format == RegisterFormat::kInt16, Field("signed", c.is_signed)),
+          "int16: the register holds a two's complement value");
+  a.field(PNEU_NVP(c, raw_min), Range::any(), "raw value at volts_min");
+  a.field(PNEU_NVP(c, raw_max), Range::any(), "raw value at volts_max");
+  if (c.format == RegisterFormat::kFloat32) {
+    constexpr double kFloatMax = 3.4028234663852886e38;
+    a.check("raw_min", std::abs(c.raw_min) <= kFloatMax, "must fit a float32 (|raw_min| <= 3.4028235e38)");
+    a.check("raw_max", std::abs(c.raw_max) <= kFloatMax, "must fit a float32 (|raw_max| <= 3.4028235e38)");
+  } else {
+    const double lo = c.is_signed ? -32768.0 : 0.0, hi = c.is_signed ? 32767.0 : 65535.0;
+    const auto must_fit = [&] {
+      return "must fit a " + std::string(c.is_signed ? "signed" : "unsigned") + " 16-bit register [" + fmt(lo) +
+             ", " + fmt(hi) + "]";
+    };
+    a.check("raw_min", c.raw_min >= lo && c.raw_min <= hi, must_fit);
+    a.check("raw_max", c.raw_max >= lo && c.raw_max <= hi, must_fit);
+  }
+  a.check("raw_max", c.raw_max > c.raw_min, [&] {
+    return "the raw range is empty (raw_max " + fmt(c.raw_max) + " <= raw_min " + fmt(c.raw_min) + ")";
+  });
+  a.field(PNEU_NVP(c, volts_min), Range::any(), "[V]");
+  a.field(PNEU_NVP(c, volts_max), Range::any(), "[V]");
+  a.check("volts_max", c.volts_max > c.volts_min, [&] {
+    return "the volts range is empty (volts_max " + fmt(c.volts_max) + " <= volts_min " + fmt(c.volts_min) + ")";
+  });
+}
+
+}  // namespace pneu::config::schema
