@@ -6,12 +6,13 @@
 
 #include "pneu/controller/records.hpp"
 #include "pneu/records/csv.hpp"
+#include "pneu/records/lcm.hpp"
 #include "pneu_lcm/command_t.hpp"
-#include "pneu_lcm/event_t.hpp"
 #include "pneu_lcm/health_t.hpp"
 #include "pneu_lcm/identification_t.hpp"
-#include "pneu_lcm/prediction_t.hpp"
 #include "pneu_lcm/state_t.hpp"
+#include "pneu_lcm/event_t_members.hpp"
+#include "pneu_lcm/prediction_t_members.hpp"
 #include "pneu_lcm/state_t_members.hpp"
 
 namespace pneu::log2csv {
@@ -52,6 +53,14 @@ class Row {
     records::write_csv_cells(line_, r, false, records::kDigitsToTheLastBit);
     return *this;
   }
+  // The fields of a described record as its message `m` carries them (pneu/records/lcm.hpp),
+  // numbers to the last bit.
+  template <records::Described R, class M>
+  Row& message(const M& m) {
+    separate();
+    records::write_lcm_csv_cells<R>(line_, m, false, records::kDigitsToTheLastBit);
+    return *this;
+  }
   // A name from a fixed table: never holds a comma or a quote.
   Row& word(std::string_view v) {
     separate();
@@ -80,38 +89,6 @@ class Row {
   bool first_ = true;
 };
 
-const char* event_kind_name(std::int8_t kind) {
-  using E = pneu_lcm::event_t;
-  switch (kind) {
-    case E::KIND_START:
-      return "start";
-    case E::KIND_RESTART:
-      return "restart";
-    case E::KIND_STOP:
-      return "stop";
-    case E::KIND_FAULT:
-      return "fault";
-    case E::KIND_COMMAND_ACCEPTED:
-      return "command_accepted";
-    case E::KIND_COMMAND_REJECTED:
-      return "command_rejected";
-    case E::KIND_END:
-      return "end";
-    case E::KIND_FAULT_RESET:
-      return "fault_reset";
-    case E::KIND_FAULT_RESET_REFUSED:
-      return "fault_reset_refused";
-    case E::KIND_HOLD_START:
-      return "hold_start";
-    case E::KIND_HOLD_END:
-      return "hold_end";
-    case E::KIND_MOVEMENT_TEST:
-      return "movement_test";
-    default:
-      return "unknown";
-  }
-}
-
 const char* command_kind_name(std::int8_t kind) {
   using C = pneu_lcm::command_t;
   switch (kind) {
@@ -125,22 +102,6 @@ const char* command_kind_name(std::int8_t kind) {
       return "disarm";
     case C::KIND_FAULT_RESET:
       return "fault_reset";
-    default:
-      return "unknown";
-  }
-}
-
-const char* method_name(std::int8_t method) {
-  using P = pneu_lcm::prediction_t;
-  switch (method) {
-    case P::METHOD_LINEARIZED:
-      return "linearized";
-    case P::METHOD_NONLINEAR:
-      return "nonlinear";
-    case P::METHOD_RELAXATION:
-      return "relaxation";
-    case P::METHOD_HELD:
-      return "held";
     default:
       return "unknown";
   }
@@ -205,12 +166,14 @@ std::string_view csv_header(MessageType type) {
       static const std::string header = "log_utime,utime," + records::csv_header<controller::TickRecord>();
       return header;
     }
-    case MessageType::kEvent:
-      return "log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,seq,text";
-    case MessageType::kPrediction:
-      return "log_utime,utime,t,stop,t_stop,update,method,method_name,will_restart,direction,t_restart,"
-             "u_star,equilibrium_force,p_p_equilibrium,p_n_equilibrium,tau_p,tau_n,min_margin,"
-             "horizon_reached,force,stop_forecast_force,model_fits";
+    case MessageType::kEvent: {
+      static const std::string header = "log_utime,utime," + records::csv_header<controller::EventMessage>();
+      return header;
+    }
+    case MessageType::kPrediction: {
+      static const std::string header = "log_utime,utime," + records::csv_header<controller::ForecastRecord>();
+      return header;
+    }
     case MessageType::kHealth:
       return "log_utime,utime,t,mode,ticks,overruns,wake_latency_us_min,wake_latency_us_median,"
              "wake_latency_us_p99,wake_latency_us_max,compute_us_min,compute_us_median,"
@@ -282,47 +245,13 @@ RowInfo format_csv_row(std::int64_t log_utime, const void* data, std::int32_t si
   } else if (fingerprint == pneu_lcm::event_t::getHash()) {
     pneu_lcm::event_t m{};
     if (decode_whole(data, size, &m)) {
-      Row(line, log_utime)
-          .integer(m.utime)
-          .integer(m.kind)
-          .word(event_kind_name(m.kind))
-          .number(m.t)
-          .integer(m.stop)
-          .number(m.y)
-          .number(m.force)
-          .number(m.y_d)
-          .integer(m.direction)
-          .integer(m.seq)
-          .text(m.text)
-          .end();
+      Row(line, log_utime).integer(m.utime).message<controller::EventMessage>(m).end();
       return {MessageType::kEvent, 0};
     }
   } else if (fingerprint == pneu_lcm::prediction_t::getHash()) {
     pneu_lcm::prediction_t m{};
     if (decode_whole(data, size, &m)) {
-      Row(line, log_utime)
-          .integer(m.utime)
-          .number(m.t)
-          .integer(m.stop)
-          .number(m.t_stop)
-          .integer(m.update)
-          .integer(m.method)
-          .word(method_name(m.method))
-          .boolean(m.will_restart)
-          .integer(m.direction)
-          .number(m.t_restart)
-          .number(m.u_star)
-          .number(m.equilibrium_force)
-          .number(m.p_p_equilibrium)
-          .number(m.p_n_equilibrium)
-          .number(m.tau_p)
-          .number(m.tau_n)
-          .number(m.min_margin)
-          .boolean(m.horizon_reached)
-          .number(m.force)
-          .number(m.stop_forecast_force)
-          .boolean(m.model_fits)
-          .end();
+      Row(line, log_utime).integer(m.utime).message<controller::ForecastRecord>(m).end();
       return {MessageType::kPrediction, 0};
     }
   } else if (fingerprint == pneu_lcm::health_t::getHash()) {
