@@ -18,6 +18,8 @@
 #include <string>
 #include <vector>
 
+#include "pneu/controller/records.hpp"
+#include "pneu/records/csv.hpp"
 #include "pneu_lcm/command_t.hpp"
 #include "pneu_lcm/event_t.hpp"
 #include "pneu_lcm/health_t.hpp"
@@ -332,6 +334,8 @@ TEST_F(Log2Csv, EventTextIsQuotedWithQuotesDoubledAndKindsNamed) {
   const Csv csv = parse_csv(raw);
   EXPECT_EQ(csv.header,
             split_header("log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,seq,text"));
+  EXPECT_EQ(csv.header, split_header("log_utime,utime," + pneu::records::csv_header<pneu::controller::EventMessage>()))
+      << "the event message's description";
   ASSERT_EQ(csv.rows.size(), events.size());
   for (std::size_t i = 0; i < events.size(); ++i) {
     const auto& e = events[i];
@@ -405,6 +409,9 @@ TEST_F(Log2Csv, PredictionWithoutRestartHasAnEmptyRestartTime) {
                 "log_utime,utime,t,stop,t_stop,update,method,method_name,will_restart,direction,t_restart,"
                 "u_star,equilibrium_force,p_p_equilibrium,p_n_equilibrium,tau_p,tau_n,min_margin,"
                 "horizon_reached,force,stop_forecast_force,model_fits"));
+  EXPECT_EQ(csv.header,
+            split_header("log_utime,utime," + pneu::records::csv_header<pneu::controller::ForecastRecord>()))
+      << "the forecast's description";
   ASSERT_EQ(csv.rows.size(), 4u);
   EXPECT_EQ(csv.at(0, "t_restart"), "");
   EXPECT_EQ(csv.at(0, "method_name"), "linearized");

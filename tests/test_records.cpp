@@ -13,8 +13,11 @@
 #include <limits>
 #include <sstream>
 #include <string>
+#include <vector>
+#include <algorithm>
 #include <unistd.h>
 
+#include "pneu/controller/events_file.hpp"
 #include "pneu/controller/records.hpp"
 #include "pneu/controller/trajectory_file.hpp"
 #include "pneu/records/csv.hpp"
@@ -23,6 +26,10 @@
 #include "pneu/records/schema.hpp"
 #include "records_probe.hpp"
 #ifdef PNEU_WITH_LCM
+#include "pneu_lcm/event_t.hpp"
+#include "pneu_lcm/event_t_members.hpp"
+#include "pneu_lcm/prediction_t.hpp"
+#include "pneu_lcm/prediction_t_members.hpp"
 #include "pneu_lcm/state_t.hpp"
 #include "pneu_lcm/state_t_members.hpp"
 #include "pneu_test_lcm/probe_t.hpp"
@@ -35,6 +42,7 @@ using ::testing::HasSubstr;
 using pneu::controller::Mode;
 using pneu::controller::TickRecord;
 using pneu::test::Light;
+using pneu::test::ProbeLine;
 using pneu::test::ProbeRecord;
 namespace records = pneu::records;
 namespace fs = std::filesystem;
@@ -142,6 +150,158 @@ TEST(Records, TheJsonObjectsFollowTheirSchemaAndOnesThatDoNotAreRefused) {
             3);
 }
 
+ProbeLine probe_line() {
+  ProbeLine l;
+  l.note = "say \"hi\", twice";
+  l.light = Light::kBlinking;
+  l.inner.level_m = 0.25;
+  l.count = 3;
+  return l;
+}
+
+TEST(Records, AStringIsQuotedInCsvAndEscapedInJsonAndANamedEnumerationIsItsNumberAndNameInCsvItsNameInJson) {
+  EXPECT_EQ(records::csv_header<ProbeLine>(), "note,light,light_name,level,tag,count");
+  EXPECT_EQ(csv_row(probe_line()), R"("say ""hi"", twice",7,blinking,0.25,"",3)")
+      << "the wire number of the name, not the enumeration's value";
+  EXPECT_EQ(json_object(probe_line()), R"({"note":"say \"hi\", twice","light":"blinking","level":0.25,"count":3})");
+  std::string empty;
+  records::write_csv_empty_cells<ProbeLine>(empty);
+  EXPECT_EQ(empty, ",,,,,") << "six columns: the name has one of its own";
+}
+
+TEST(Records, AMemberWrittenWhenItsConditionHoldsIsLeftOutOtherwiseAndANullableOneIsNullWhenItsHolds) {
+  ProbeLine l = probe_line();
+  l.tag = "first";
+  l.known = false;
+  EXPECT_EQ(json_object(l), R"({"note":"say \"hi\", twice","light":"blinking","level":0.25,"tag":"first","count":null})");
+  EXPECT_EQ(csv_row(l), R"("say ""hi"", twice",7,blinking,0.25,"first",3)") << "CSV has every column, always";
+}
+
+TEST(Records, AViewWritesItsOwnSelectionInItsOwnOrderAfterItsName) {
+  std::string line;
+  records::write_json_line(line, pneu::test::kProbeLineView, probe_line());
+  EXPECT_EQ(line, "{\"event\":\"probe\",\"light\":\"blinking\",\"note\":\"say \\\"hi\\\", twice\",\"level\":0.25,\"count\":3}\n");
+  static_assert(records::names_fields_of<ProbeLine>(pneu::test::kProbeLineView));
+  constexpr const char* kNotAField[] = {"note", "nothing"};
+  static_assert(!records::names_fields_of<ProbeLine>(records::View{"x", "", kNotAField}));
+}
+
+TEST(Records, TheSchemaOfStringsNamesOptionalAndNullableMembersTakesWhatTheyWriteAndRefusesTheRest) {
+  const std::string schema = records::json_schema<ProbeLine>("probe_line");
+  EXPECT_THAT(schema, HasSubstr(R"("light": {"enum": ["off", "on", "blinking"], "description": "an enumeration as text"})"));
+  EXPECT_THAT(schema, HasSubstr(R"("count": {"type": ["integer", "null"], "description": "null when not known"})"));
+  EXPECT_THAT(schema, HasSubstr(R"("required": ["note", "light", "level", "count"])")) << "tag is optional";
+  ProbeLine l = probe_line();
+  l.tag = "first";
+  l.known = false;
+  ASSERT_EQ(refused_by_the_schema(schema, {json_object(probe_line()), json_object(l)}), 0);
+  EXPECT_EQ(refused_by_the_schema(schema, {R"({"note":"n","light":"dim","level":0.25,"count":3})",
+                                           R"({"note":"n","light":"on","level":0.25})",
+                                           R"({"note":1,"light":"on","level":0.25,"count":3})",
+                                           R"({"note":"n","light":"on","level":0.25,"count":"3"})"}),
+            4);
+}
+
+std::string installed_schema(const std::string& name) {
+  std::ifstream in(fs::path(PNEU_BINARY_DIR) / "share/pneu/schemas" / (name + ".schema.json"));
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+// Every kind of line the events file writes, each way it can be written.
+std::vector<std::string> every_kind_of_events_line() {
+  using pneu::controller::LoopEvent;
+  namespace c = pneu::controller;
+  std::ostringstream out;
+  c::EventsFile sink(out);
+  LoopEvent e;
+  e.t_s = 1.25;
+  e.stop_index = 2;
+  e.y_m = 0.01;
+  e.force_n = kNaN;
+  e.y_d_m = 0.1;
+  e.direction = -1;
+  for (const auto kind : {LoopEvent::Kind::kStop, LoopEvent::Kind::kStart, LoopEvent::Kind::kFault,
+                          LoopEvent::Kind::kFaultReset, LoopEvent::Kind::kResetRefused, LoopEvent::Kind::kHoldStart,
+                          LoopEvent::Kind::kHoldEnd, LoopEvent::Kind::kMovementTest})
+    for (const bool other : {false, true}) {
+      e.kind = kind;
+      e.restart = other;
+      e.fault_cause = other ? c::FaultCause::kMovementTest : c::FaultCause::kComms;
+      e.fault_key = other ? "controller.movement_test" : nullptr;
+      e.hold_end = other ? c::HoldEnd::kMoved : c::HoldEnd::kSetPoint;
+      e.movement_end = other ? c::MovementTestEnd::kFault : c::MovementTestEnd::kPassed;
+      e.movement_test.finding = other ? c::MovementFinding::kTubesSwapped : c::MovementFinding::kPassed;
+      sink.on_event(e);
+    }
+  c::ForecastRecord f;
+  f.stop = 2;
+  for (const std::uint32_t update : {0u, 3u})
+    for (const bool fits : {true, false}) {
+      f.update = update;
+      f.prediction.model_fits = fits;
+      f.prediction.will_restart = fits;
+      f.prediction.t_restart_s = fits ? 4.5 : kNaN;
+      sink.on_forecast(f);
+    }
+  c::CommandRecord command;
+  command.reason = "rate";
+  command.kind = "arm";
+  command.text = "too many";
+  for (const bool accepted : {false, true})
+    for (const bool decoded : {false, true}) {
+      command.accepted = accepted;
+      command.decoded = decoded;
+      sink.on_command(command);
+    }
+  sink.on_end(9.5);
+  std::vector<std::string> lines;
+  std::istringstream in(out.str());
+  for (std::string l; std::getline(in, l);) lines.push_back(l);
+  return lines;
+}
+
+TEST(Records, EveryLineTheEventsFileWritesFollowsTheEventsSchemaTheBuildInstalls) {
+  const std::string installed = installed_schema("events");
+  ASSERT_FALSE(installed.empty()) << "pneu-records writes it at build time";
+  const std::vector<std::string> lines = every_kind_of_events_line();
+  ASSERT_EQ(lines.size(), 16u + 4u + 4u + 1u);
+  for (const char* event : {"start", "stop", "fault", "fault_reset", "fault_reset_refused", "hold_start", "hold_end",
+                            "movement_test", "prediction", "reforecast", "command", "end"})
+    EXPECT_TRUE(std::any_of(lines.begin(), lines.end(),
+                            [&](const std::string& l) { return l.starts_with("{\"event\":\"" + std::string(event) + "\""); }))
+        << event;
+  EXPECT_EQ(refused_by_the_schema(installed, lines), 0);
+  EXPECT_EQ(refused_by_the_schema(installed, {R"({"event":"stop","t":1,"stop":2,"y":0.1,"y_d":0.1})",
+                                              R"({"event":"halt","t":1})",
+                                              R"({"event":"end","t":1,"stop":2})",
+                                              R"({"event":"prediction","t":1,"stop":2,"t_stop":1,"method":"guessed",)"
+                                              R"("will_restart":false,"direction":0,"t_restart":null,"u_star":0,)"
+                                              R"("equilibrium_force":0,"tau_p":0,"tau_n":0,"min_margin":0,)"
+                                              R"("horizon_reached":false})"}),
+            4)
+      << "no force; no such event; a member the line has not; no such method";
+}
+
+TEST(Records, TheForecastsAndTheEventMessagesJsonFollowTheSchemasTheBuildInstalls) {
+  pneu::controller::ForecastRecord f;
+  f.prediction.method = pneu::controller::PredictionMethod::kHeld;
+  f.prediction.model_fits = false;
+  std::string forecast;
+  records::write_json_object(forecast, f);
+  EXPECT_THAT(forecast, HasSubstr(R"("method":"held")"));
+  EXPECT_EQ(refused_by_the_schema(installed_schema("forecast"), {forecast}), 0);
+  pneu::controller::LoopEvent e;
+  e.kind = pneu::controller::LoopEvent::Kind::kHoldEnd;
+  std::string message;
+  records::write_json_object(message, pneu::controller::event_message(e));
+  EXPECT_THAT(message, HasSubstr(R"("kind":"hold_end")"));
+  EXPECT_EQ(refused_by_the_schema(installed_schema("event_message"), {message}), 0);
+}
+
+TEST(Records, TheForecastMethodsAreNamedAsThePredictorNamesThem) {
+  for (const auto& m : pneu::controller::kPredictionMethods) EXPECT_STREQ(m.name, pneu::controller::to_string(m.value));
+}
+
 TickRecord tick() {
   TickRecord r;
   r.seq = 41;
@@ -222,6 +382,66 @@ TEST(Records, TheTickGoesThroughStateTAndBackUnchanged) {
   TickRecord back;
   records::from_lcm(m, back);
   EXPECT_EQ(csv_row(back), csv_row(tick()));
+}
+
+// The fingerprint a message carries: lcm-gen's hash of the definition (what its generated header
+// says, 0x... below, as lcm-gen wrote it from the hand-written .lcm files) rotated left by one bit.
+constexpr std::uint64_t fingerprint_of_hash(std::uint64_t hash) { return (hash << 1) | (hash >> 63); }
+
+TEST(Records, TheMessagesWrittenFromDescriptionsKeepTheFingerprintsOfTheHandWrittenOnesSoOldLogsDecode) {
+  EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::state_t::getHash()), fingerprint_of_hash(0x47b1a6eb2d982914ULL));
+  EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::event_t::getHash()), fingerprint_of_hash(0xc90eb8a7692da280ULL));
+  EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::prediction_t::getHash()), fingerprint_of_hash(0xba68c62bef413c1dULL));
+  EXPECT_EQ(int{pneu_lcm::event_t::KIND_START}, 1);
+  EXPECT_EQ(int{pneu_lcm::event_t::KIND_MOVEMENT_TEST}, 12);
+  EXPECT_EQ(int{pneu_lcm::event_t::KIND_HOLD_END}, int{pneu::controller::event_kind::kHoldEnd});
+  EXPECT_EQ(int{pneu_lcm::prediction_t::METHOD_LINEARIZED}, 1);
+  EXPECT_EQ(int{pneu_lcm::prediction_t::METHOD_HELD}, 4);
+}
+
+TEST(Records, TheForecastGoesThroughPredictionTsBytesAndBackUnchanged) {
+  pneu::controller::ForecastRecord f;
+  f.stop = 4;
+  f.update = 2;
+  f.t_s = 3.5;
+  f.prediction.method = pneu::controller::PredictionMethod::kRelaxation;
+  f.prediction.direction = -1;
+  f.prediction.model_fits = false;
+  f.stop_forecast_force_n = 12.5;
+  pneu_lcm::prediction_t m{};
+  records::to_lcm(f, m);
+  EXPECT_EQ(m.method, int{pneu_lcm::prediction_t::METHOD_RELAXATION});
+  EXPECT_EQ(m.direction, -1);
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(m.getEncodedSize()));
+  ASSERT_EQ(m.encode(bytes.data(), 0, static_cast<int>(bytes.size())), static_cast<int>(bytes.size()));
+  pneu_lcm::prediction_t decoded{};
+  ASSERT_EQ(decoded.decode(bytes.data(), 0, static_cast<int>(bytes.size())), static_cast<int>(bytes.size()));
+  pneu::controller::ForecastRecord back;
+  records::from_lcm(decoded, back);
+  EXPECT_EQ(csv_row(back), csv_row(f));
+  EXPECT_EQ(json_object(back), json_object(f));
+  std::string from_message;
+  records::write_lcm_csv_cells<pneu::controller::ForecastRecord>(from_message, decoded);
+  EXPECT_EQ(from_message, csv_row(f)) << "the message's CSV is the record's";
+}
+
+TEST(Records, AnEventMessageCarriesItsTextThroughEventTAndAnUnknownKindIsWrittenAsItCame) {
+  pneu::controller::LoopEvent e;
+  e.kind = pneu::controller::LoopEvent::Kind::kStart;
+  e.restart = true;
+  pneu_lcm::event_t m{};
+  records::to_lcm(pneu::controller::event_message(e), m);
+  EXPECT_EQ(m.kind, int{pneu_lcm::event_t::KIND_RESTART});
+  EXPECT_EQ(m.text, "restart after a stop, set point unchanged");
+  pneu::controller::EventMessage back;
+  records::from_lcm(m, back);
+  EXPECT_EQ(back.text, m.text);
+  m.kind = 99;
+  m.text = "a \"quoted\" word";
+  std::string cells;
+  records::write_lcm_csv_cells<pneu::controller::EventMessage>(cells, m);
+  EXPECT_THAT(cells, ::testing::StartsWith("99,unknown,"));
+  EXPECT_THAT(cells, ::testing::EndsWith(R"(,"a ""quoted"" word")"));
 }
 #endif
 
