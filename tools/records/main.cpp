@@ -13,6 +13,7 @@
 #include "pneu/controller/records.hpp"
 #include "pneu/records/lcm.hpp"
 #include "pneu/records/schema.hpp"
+#include "pneu/sweep/rows.hpp"
 
 namespace {
 
@@ -143,6 +144,10 @@ int run(int argc, char** argv) {
                      records::json_schema<controller::EventMessage>(
                          "https://pneu.invalid/schemas/event_message.schema.json"));
     write_if_changed(fs::path(*schemas) / "events.schema.json", events_schema());
+    write_if_changed(fs::path(*schemas) / "sweep_stop.schema.json",
+                     records::json_schema<sweep::StopRow>("https://pneu.invalid/schemas/sweep_stop.schema.json"));
+    write_if_changed(fs::path(*schemas) / "sweep_scenario.schema.json",
+                     records::json_schema<sweep::ScenarioRow>("https://pneu.invalid/schemas/sweep_scenario.schema.json"));
   }
   return cli::kExitOk;
 }

@@ -1,7 +1,8 @@
 // A record as a JSON object: its fields' names as keys, in the description's order (or a view's).
 // Numbers with the field's significant digits, null for NaN; integers and enumerations as
 // integers; booleans as true and false; strings escaped (RFC 8259); an enumeration written as
-// text (.named) as its name. A field with .when(f) is left out unless f holds; one with
+// text (.named) as its name; an optional member with no value as null; a group as an object
+// (null when it has no value). A field with .when(f) is left out unless f holds; one with
 // .null_when(f) is null when f holds. Written to a stream or appended to a string.
 #pragma once
 
@@ -33,18 +34,17 @@ void write_json_string(Out& out, std::string_view s) {
   put(out, '"');
 }
 
-/// Writes one field of `r` as a member ("name":value, no separator), if it is written for `r`;
-/// whether it was.
-template <class Out, class F>
-bool write_json_member(Out& out, const F& f, const typename F::record_type& r) {
-  using M = typename F::member_type;
-  if (!f.written(r)) return false;
-  put(out, '"');
-  put(out, std::string_view(f.name));  // names are identifiers: nothing to escape
-  put(out, std::string_view("\":"));
-  const M& v = f.of(r);
-  if (f.null_for(r)) {
-    put(out, std::string_view("null"));
+template <Described Record, class Out>
+void write_json_object(Out& out, const Record& r);
+
+/// Writes one value of a field as JSON.
+template <class Out, class F, class V>
+void write_json_value(Out& out, const F& f, const V& v) {
+  if constexpr (kIsOptional<V>) {
+    if (v.has_value()) write_json_value(out, f, *v);
+    else put(out, std::string_view("null"));
+  } else if constexpr (F::kind == Kind::kGroup) {
+    write_json_object(out, v);
   } else if constexpr (F::kind == Kind::kBoolean) {
     put(out, std::string_view(v ? "true" : "false"));
   } else if constexpr (F::kind == Kind::kNumber) {
@@ -55,15 +55,28 @@ bool write_json_member(Out& out, const F& f, const typename F::record_type& r) {
       put(out, n.text, n.size);
     }
   } else if constexpr (F::kind == Kind::kString) {
-    if constexpr (std::is_same_v<M, const char*>) write_json_string(out, v == nullptr ? "" : v);
+    if constexpr (std::is_same_v<V, const char*>) write_json_string(out, v == nullptr ? "" : v);
     else write_json_string(out, v);
   } else if constexpr (F::kind == Kind::kName) {
     write_json_string(out, f.name_of(v));
   } else {
+    using W = std::conditional_t<kIsOptional<typename F::member_type>, wire_integer_t<V>, typename F::wire_type>;
     char buf[24];
-    const auto res = std::to_chars(buf, buf + sizeof buf, static_cast<std::int64_t>(static_cast<typename F::wire_type>(v)));
+    const auto res = std::to_chars(buf, buf + sizeof buf, static_cast<std::int64_t>(static_cast<W>(v)));
     put(out, buf, static_cast<std::size_t>(res.ptr - buf));
   }
+}
+
+/// Writes one field of `r` as a member ("name":value, no separator), if it is written for `r`;
+/// whether it was.
+template <class Out, class F>
+bool write_json_member(Out& out, const F& f, const typename F::record_type& r) {
+  if (!f.written(r)) return false;
+  put(out, '"');
+  put(out, std::string_view(f.name));  // names are identifiers: nothing to escape
+  put(out, std::string_view("\":"));
+  if (f.null_for(r)) put(out, std::string_view("null"));
+  else write_json_value(out, f, f.of(r));
   return true;
 }
 

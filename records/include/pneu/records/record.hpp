@@ -20,6 +20,13 @@
 //                    (LCM's constants NAME_VALUE); CSV writes both (columns NAME and NAME_name)
 //   .when(f)         in JSON only when f(record) holds (an optional member: not required)
 //   .null_when(f)    in JSON null when f(record) holds ("no value" for a field of any kind)
+//   .fixed(n)        a number in CSV with n decimals (printf's %.nf), not significant digits
+//   .nan_as_text()   NaN in CSV as printf writes it (nan), not as an empty cell: a file that
+//                    always did so keeps doing it
+// A member of type std::optional<T> is a T that may have no value (an empty CSV cell, JSON's
+// null). A member that is itself a described record, or an optional one, is a group
+// (group("lin", &R::lin, "lin_", doc)): its fields are columns of their own in CSV, each named
+// with the group's prefix (empty cells when it has no value), a nested object in JSON.
 // Everything else derives from the description (csv.hpp, json.hpp, schema.hpp, lcm.hpp): a new
 // field is one line. A view (View) is a named selection of a record's fields in an order of its
 // own: one kind of line in a JSON lines file ({"event":"stop",...}).
@@ -27,6 +34,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -48,17 +56,35 @@ concept Described = requires {
   Description<Record>::kFields;
 };
 
-/// What a value is, whatever the format. kName: an enumeration written as its name.
-enum class Kind : std::uint8_t { kNumber, kInteger, kBoolean, kString, kName };
+/// What a value is, whatever the format. kName: an enumeration written as its name; kGroup: a
+/// described record within a record.
+enum class Kind : std::uint8_t { kNumber, kInteger, kBoolean, kString, kName, kGroup };
 
 template <class T>
 inline constexpr bool kIsString =
     std::is_same_v<T, std::string> || std::is_same_v<T, std::string_view> || std::is_same_v<T, const char*>;
 
-/// The kind of a member of type T.
+/// std::optional<T>: a T that may have no value.
+template <class T>
+struct Optional : std::false_type {
+  using type = T;
+};
+template <class T>
+struct Optional<std::optional<T>> : std::true_type {
+  using type = T;
+};
+template <class T>
+inline constexpr bool kIsOptional = Optional<T>::value;
+/// T, or what an optional T holds.
+template <class T>
+using value_t = typename Optional<T>::type;
+
+/// The kind of a member of type T (an optional's: its value's).
 template <class T>
 constexpr Kind kind_of() {
-  if constexpr (std::is_same_v<T, bool>) return Kind::kBoolean;
+  if constexpr (kIsOptional<T>) return kind_of<value_t<T>>();
+  else if constexpr (Described<T>) return Kind::kGroup;
+  else if constexpr (std::is_same_v<T, bool>) return Kind::kBoolean;
   else if constexpr (std::is_floating_point_v<T>) return Kind::kNumber;
   else if constexpr (kIsString<T>) return Kind::kString;
   else {
@@ -75,9 +101,10 @@ using wire_integer_t = std::conditional_t<
 
 /// The type a member of type T travels as by default (LCM's; the text formats write its value).
 template <class T>
-using default_wire_t = std::conditional_t<kIsString<T>, std::string,
-                                          std::conditional_t<std::is_same_v<T, bool> || std::is_floating_point_v<T>, T,
-                                                             wire_integer_t<T>>>;
+using default_wire_t = std::conditional_t<
+    kIsOptional<T> || Described<T>, T,
+    std::conditional_t<kIsString<T>, std::string,
+                       std::conditional_t<std::is_same_v<T, bool> || std::is_floating_point_v<T>, T, wire_integer_t<T>>>>;
 
 /// One value of an enumeration written as text: the value, its number on the wire, its name.
 template <class T>
@@ -120,6 +147,9 @@ struct Field {
   std::size_t name_count = 0;
   bool (*present)(const Record&) = nullptr;  ///< JSON writes it only when this holds (nullptr: always)
   bool (*absent)(const Record&) = nullptr;   ///< JSON writes null when this holds (nullptr: never)
+  int fixed_decimals = -1;  ///< >= 0: a number in CSV with this many decimals (%.nf)
+  bool nan_text = false;    ///< NaN in CSV as printf writes it (nan)
+  const char* prefix = "";  ///< a group: its columns' prefix in CSV
 
   static constexpr Kind kind = IsNamed ? Kind::kName : kind_of<Member>();
   [[nodiscard]] constexpr const Member& of(const Record& r) const { return path.of(r); }
@@ -128,12 +158,12 @@ struct Field {
   /// An enumeration written as text: `table` names each value and its number on the wire.
   template <std::size_t N>
   [[nodiscard]] constexpr Field<Record, Member, Path, Wire, true> named(const Named<Member> (&table)[N]) const {
-    return {name, path, unit, doc, digits, table, N, present, absent};
+    return {name, path, unit, doc, digits, table, N, present, absent, fixed_decimals, nan_text, prefix};
   }
   /// Travels as `W` (LCM's type, the integer the text formats write).
   template <class W>
   [[nodiscard]] constexpr Field<Record, Member, Path, W, IsNamed> as() const {
-    return {name, path, unit, doc, digits, names, name_count, present, absent};
+    return {name, path, unit, doc, digits, names, name_count, present, absent, fixed_decimals, nan_text, prefix};
   }
   /// In JSON only when `f(record)` holds.
   [[nodiscard]] constexpr Field when(bool (*f)(const Record&)) const {
@@ -145,6 +175,19 @@ struct Field {
   [[nodiscard]] constexpr Field null_when(bool (*f)(const Record&)) const {
     Field g = *this;
     g.absent = f;
+    return g;
+  }
+
+  /// In CSV with `n` decimals.
+  [[nodiscard]] constexpr Field fixed(int n) const {
+    Field g = *this;
+    g.fixed_decimals = n;
+    return g;
+  }
+  /// NaN in CSV as printf writes it.
+  [[nodiscard]] constexpr Field nan_as_text() const {
+    Field g = *this;
+    g.nan_text = true;
     return g;
   }
 
@@ -188,6 +231,16 @@ constexpr Field<Record, Member, NestedPath<Record, Inner, Member>> field(const c
                                                                          Member Inner::*member, const char* unit,
                                                                          const char* doc, int digits = 9) {
   return {name, {outer, member}, unit, doc, digits};
+}
+
+/// A group: the described record (or optional one) `member`, its CSV columns prefixed `prefix`.
+template <class Record, class Member>
+constexpr Field<Record, Member, MemberPath<Record, Member>> group(const char* name, Member Record::*member,
+                                                                  const char* prefix, const char* doc) {
+  static_assert(kind_of<Member>() == Kind::kGroup, "a group is a described record, or an optional one");
+  Field<Record, Member, MemberPath<Record, Member>> f{name, {member}, "", doc, 9};
+  f.prefix = prefix;
+  return f;
 }
 
 /// The number of fields of `Record`.

@@ -1,7 +1,8 @@
 // The JSON Schema (draft 2020-12) of a record as json.hpp writes it: an object with every field
 // required (but those written .when(f): optional) and no other; a number may be null (no value),
 // an integer is an integer, a boolean a boolean, a string a string, an enumeration written as text
-// one of its names; a field written .null_when(f) may also be null. Each property carries the
+// one of its names, a group an object; a field written .null_when(f), or an optional member, may
+// also be null. Each property carries the
 // field's documentation, and its unit ("unit", an annotation). A JSON lines file of views (one
 // object per line, its "event" member naming the view) has the schema of one line: one of the
 // views' objects.
@@ -34,13 +35,18 @@ inline void append_json_string(std::string& out, std::string_view s) {
   out += '"';
 }
 
-// One property: "name": {"type": ..., "description": ..., "unit": ...}.
+template <class Record>
+std::string object_schema_body(const std::string& indent);
+
+// One property: "name": {"type": ..., "description": ..., "unit": ...}; `indent`: a group's
+// nested object's lines.
 template <class F>
-std::string property_schema(const F& f) {
+std::string property_schema(const F& f, const std::string& indent = "    ") {
   std::string s;
   append_json_string(s, f.name);
   s += ": {";
-  const char* nul = f.nullable() ? ", \"null\"]" : "";
+  const bool nullable = f.nullable() || kIsOptional<typename F::member_type>;
+  const char* nul = nullable ? ", \"null\"]" : "";
   if constexpr (F::kind == Kind::kNumber) {
     s += "\"type\": [\"number\", \"null\"]";
   } else if constexpr (F::kind == Kind::kName) {
@@ -51,7 +57,11 @@ std::string property_schema(const F& f) {
       first = false;
       append_json_string(s, n.name);
     }
-    s += f.nullable() ? ", null]" : "]";
+    s += nullable ? ", null]" : "]";
+  } else if constexpr (F::kind == Kind::kGroup) {
+    s += "\"type\": ";
+    s += nullable ? "[\"object\", \"null\"]" : "\"object\"";
+    s += object_schema_body<value_t<typename F::member_type>>(indent + "  ");
   } else {
     const char* type = F::kind == Kind::kInteger ? "\"integer\"" : F::kind == Kind::kBoolean ? "\"boolean\"" : "\"string\"";
     s += "\"type\": ";
@@ -66,6 +76,25 @@ std::string property_schema(const F& f) {
     append_json_string(s, f.unit);
   }
   s += '}';
+  return s;
+}
+
+// ", "properties": {...}, "required": [...], "additionalProperties": false" of `Record`'s
+// object, its properties one a line at `indent`.
+template <class Record>
+std::string object_schema_body(const std::string& indent) {
+  std::string s = ", \"properties\": {";
+  std::string required;
+  bool first = true;
+  for_each_field<Record>([&](const auto& f) {
+    s += (first ? "\n" : ",\n") + indent;
+    first = false;
+    s += property_schema(f, indent);
+    if (f.optional()) return;
+    required += required.empty() ? "" : ", ";
+    append_json_string(required, f.name);
+  });
+  s += "}, \"required\": [" + required + "], \"additionalProperties\": false";
   return s;
 }
 
