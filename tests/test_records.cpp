@@ -19,6 +19,7 @@
 
 #include "pneu/controller/events_file.hpp"
 #include "pneu/controller/records.hpp"
+#include "pneu/controller/run_summary.hpp"
 #include "pneu/controller/trajectory_file.hpp"
 #include "pneu/records/csv.hpp"
 #include "pneu/records/json.hpp"
@@ -268,6 +269,38 @@ TEST(Records, TheForecastsAndTheEventMessagesJsonFollowTheSchemasTheBuildInstall
   records::write_json_object(message, pneu::controller::event_message(e));
   EXPECT_THAT(message, HasSubstr(R"("kind":"hold_end")"));
   EXPECT_EQ(refused_by_the_schema(installed_schema("event_message"), {message}), 0);
+}
+
+TEST(Records, ASummaryWithTelemetryModbusAndFaultsFollowsTheInstalledSchemaAndOneShortOfAMemberDoesNot) {
+  pneu::controller::RunSummaryRecord s;
+  s.pneud = "0.1.0";
+  s.exit_reason = "fault";
+  s.exit_code = 3;
+  s.fault_at_end = "comms";
+  s.loop.epoch_monotonic_s = kNaN;
+  s.faults.push_back({1.5, 0.01, "comms", "controller.comms_fault_after_s"});
+  s.faults.push_back({2.5, 0.02, "e-stop", nullptr});
+  s.telemetry.emplace();
+  s.telemetry->commands.queue_full = 2;
+  s.modbus.emplace();
+  s.modbus->safe_output_on_closing.read_back_u_p_v = kNaN;
+  std::ostringstream document;
+  records::write_json_document(document, s);
+  std::string one_line;
+  records::write_json_object(one_line, s);
+  EXPECT_THAT(one_line, HasSubstr(R"("faults":[{"t_s":1.5,"y_m":0.01,"cause":"comms","key":"controller.comms_fault_after_s"},)"
+                                  R"({"t_s":2.5,"y_m":0.02,"cause":"e-stop"}])"));
+  EXPECT_THAT(one_line, HasSubstr(R"("last_error":null)")) << "no errors";
+  EXPECT_THAT(one_line, HasSubstr(R"("read_back_u_p_v":null,"read_back_u_n_v":null)"));
+  EXPECT_THAT(document.str(), HasSubstr("\n  \"loop\": {\n    \"ticks\": 0,\n")) << "one member a line, indented";
+  const std::string schema = installed_schema("summary");
+  ASSERT_FALSE(schema.empty());
+  pneu::controller::RunSummaryRecord none;
+  none.exit_reason = "ok";
+  EXPECT_EQ(refused_by_the_schema(schema, {one_line, json_object(none)}), 0);
+  std::string short_of_one = one_line;
+  short_of_one.replace(short_of_one.find(R"("exit_code":3,)"), 14, "");
+  EXPECT_EQ(refused_by_the_schema(schema, {short_of_one}), 1);
 }
 
 TEST(Records, TheForecastMethodsAreNamedAsThePredictorNamesThem) {

@@ -11,6 +11,7 @@
 
 #include "pneu/config/cli.hpp"
 #include "pneu/controller/records.hpp"
+#include "pneu/controller/summary_record.hpp"
 #include "pneu/records/lcm.hpp"
 #include "pneu/records/schema.hpp"
 #include "pneu/sweep/rows.hpp"
@@ -144,6 +145,8 @@ int run(int argc, char** argv) {
                      records::json_schema<controller::EventMessage>(
                          "https://pneu.invalid/schemas/event_message.schema.json"));
     write_if_changed(fs::path(*schemas) / "events.schema.json", events_schema());
+    write_if_changed(fs::path(*schemas) / "summary.schema.json",
+                     records::json_schema<controller::RunSummaryRecord>("https://pneu.invalid/schemas/summary.schema.json"));
     write_if_changed(fs::path(*schemas) / "sweep_stop.schema.json",
                      records::json_schema<sweep::StopRow>("https://pneu.invalid/schemas/sweep_stop.schema.json"));
     write_if_changed(fs::path(*schemas) / "sweep_scenario.schema.json",

@@ -9,6 +9,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <string_view>
 
 #include "pneu/records/record.hpp"
 #include "pneu/records/text.hpp"
@@ -45,6 +46,13 @@ void write_json_value(Out& out, const F& f, const V& v) {
     else put(out, std::string_view("null"));
   } else if constexpr (F::kind == Kind::kGroup) {
     write_json_object(out, v);
+  } else if constexpr (F::kind == Kind::kList) {
+    put(out, '[');
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (i > 0) put(out, ',');
+      write_json_object(out, v[i]);
+    }
+    put(out, ']');
   } else if constexpr (F::kind == Kind::kBoolean) {
     put(out, std::string_view(v ? "true" : "false"));
   } else if constexpr (F::kind == Kind::kNumber) {
@@ -115,6 +123,66 @@ void write_json_line(Out& out, const View& view, const Record& r) {
       write_json_member(out, f, r);
     });
   put(out, std::string_view("}\n"));
+}
+
+namespace detail {
+template <class Out>
+void indent(Out& out, int depth) {
+  put(out, '\n');
+  for (int i = 0; i < depth; ++i) put(out, std::string_view("  "));
+}
+
+template <Described Record, class Out>
+void write_json_pretty_object(Out& out, const Record& r, int depth);
+
+// One value, as write_json_value, a group or a list laid out over lines.
+template <class Out, class F, class V>
+void write_json_pretty_value(Out& out, const F& f, const V& v, int depth) {
+  if constexpr (kIsOptional<V>) {
+    if (v.has_value()) write_json_pretty_value(out, f, *v, depth);
+    else put(out, std::string_view("null"));
+  } else if constexpr (F::kind == Kind::kGroup) {
+    write_json_pretty_object(out, v, depth);
+  } else if constexpr (F::kind == Kind::kList) {
+    put(out, '[');
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (i > 0) put(out, ',');
+      indent(out, depth + 1);
+      write_json_pretty_object(out, v[i], depth + 1);
+    }
+    if (!v.empty()) indent(out, depth);
+    put(out, ']');
+  } else {
+    write_json_value(out, f, v);
+  }
+}
+
+template <Described Record, class Out>
+void write_json_pretty_object(Out& out, const Record& r, int depth) {
+  put(out, '{');
+  bool first = true;
+  for_each_field<Record>([&](const auto& f) {
+    if (!f.written(r)) return;
+    if (!first) put(out, ',');
+    first = false;
+    indent(out, depth + 1);
+    put(out, '"');
+    put(out, std::string_view(f.name));
+    put(out, std::string_view("\": "));
+    if (f.null_for(r)) put(out, std::string_view("null"));
+    else write_json_pretty_value(out, f, f.of(r), depth + 1);
+  });
+  if (!first) indent(out, depth);
+  put(out, '}');
+}
+}  // namespace detail
+
+/// Writes `r` as a JSON document laid out for people: one member a line, indented by two spaces
+/// a level ("key": value), and the newline.
+template <Described Record, class Out>
+void write_json_document(Out& out, const Record& r) {
+  detail::write_json_pretty_object(out, r, 0);
+  put(out, '\n');
 }
 
 }  // namespace pneu::records

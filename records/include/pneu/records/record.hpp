@@ -26,7 +26,8 @@
 // A member of type std::optional<T> is a T that may have no value (an empty CSV cell, JSON's
 // null). A member that is itself a described record, or an optional one, is a group
 // (group("lin", &R::lin, "lin_", doc)): its fields are columns of their own in CSV, each named
-// with the group's prefix (empty cells when it has no value), a nested object in JSON.
+// with the group's prefix (empty cells when it has no value), a nested object in JSON. A
+// std::vector of described records is a list: an array of objects in JSON (not in CSV).
 // Everything else derives from the description (csv.hpp, json.hpp, schema.hpp, lcm.hpp): a new
 // field is one line. A view (View) is a named selection of a record's fields in an order of its
 // own: one kind of line in a JSON lines file ({"event":"stop",...}).
@@ -41,6 +42,7 @@
 #include <tuple>
 #include <type_traits>
 #include <utility>
+#include <vector>
 
 namespace pneu::records {
 
@@ -57,8 +59,8 @@ concept Described = requires {
 };
 
 /// What a value is, whatever the format. kName: an enumeration written as its name; kGroup: a
-/// described record within a record.
-enum class Kind : std::uint8_t { kNumber, kInteger, kBoolean, kString, kName, kGroup };
+/// described record within a record; kList: a list of them (JSON only).
+enum class Kind : std::uint8_t { kNumber, kInteger, kBoolean, kString, kName, kGroup, kList };
 
 template <class T>
 inline constexpr bool kIsString =
@@ -79,10 +81,22 @@ inline constexpr bool kIsOptional = Optional<T>::value;
 template <class T>
 using value_t = typename Optional<T>::type;
 
+/// std::vector<T> of a described record T: a list (JSON's array of objects).
+template <class T>
+struct List : std::false_type {};
+template <class T>
+struct List<std::vector<T>> : std::true_type {
+  using element = T;
+};
+
 /// The kind of a member of type T (an optional's: its value's).
 template <class T>
 constexpr Kind kind_of() {
   if constexpr (kIsOptional<T>) return kind_of<value_t<T>>();
+  else if constexpr (List<T>::value) {
+    static_assert(Described<typename List<T>::element>, "a list holds described records");
+    return Kind::kList;
+  }
   else if constexpr (Described<T>) return Kind::kGroup;
   else if constexpr (std::is_same_v<T, bool>) return Kind::kBoolean;
   else if constexpr (std::is_floating_point_v<T>) return Kind::kNumber;
@@ -102,7 +116,7 @@ using wire_integer_t = std::conditional_t<
 /// The type a member of type T travels as by default (LCM's; the text formats write its value).
 template <class T>
 using default_wire_t = std::conditional_t<
-    kIsOptional<T> || Described<T>, T,
+    kIsOptional<T> || Described<T> || List<T>::value, T,
     std::conditional_t<kIsString<T>, std::string,
                        std::conditional_t<std::is_same_v<T, bool> || std::is_floating_point_v<T>, T, wire_integer_t<T>>>>;
 

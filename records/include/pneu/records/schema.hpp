@@ -1,9 +1,9 @@
 // The JSON Schema (draft 2020-12) of a record as json.hpp writes it: an object with every field
 // required (but those written .when(f): optional) and no other; a number may be null (no value),
 // an integer is an integer, a boolean a boolean, a string a string, an enumeration written as text
-// one of its names, a group an object; a field written .null_when(f), or an optional member, may
-// also be null. Each property carries the
-// field's documentation, and its unit ("unit", an annotation). A JSON lines file of views (one
+// one of its names, a group an object, a list an array of objects; a field written .null_when(f),
+// or an optional member, may also be null. Each property carries the field's documentation, and
+// its unit ("unit", an annotation). A JSON lines file of views (one
 // object per line, its "event" member naming the view) has the schema of one line: one of the
 // views' objects.
 #pragma once
@@ -62,6 +62,10 @@ std::string property_schema(const F& f, const std::string& indent = "    ") {
     s += "\"type\": ";
     s += nullable ? "[\"object\", \"null\"]" : "\"object\"";
     s += object_schema_body<value_t<typename F::member_type>>(indent + "  ");
+  } else if constexpr (F::kind == Kind::kList) {
+    s += "\"type\": \"array\", \"items\": {\"type\": \"object\"";
+    s += object_schema_body<typename List<typename F::member_type>::element>(indent + "  ");
+    s += "}";
   } else {
     const char* type = F::kind == Kind::kInteger ? "\"integer\"" : F::kind == Kind::kBoolean ? "\"boolean\"" : "\"string\"";
     s += "\"type\": ";
