@@ -513,6 +513,8 @@ TEST_F(Log2Csv, HealthAndCommandFieldsReadBack) {
                         "fault_cause", "faults", "is_final", "host", "pid", "start_utime", "nonce", "period"})
     expected_header.emplace_back(c);
   EXPECT_EQ(health.header, expected_header);
+  EXPECT_EQ(health.header, split_header("log_utime,utime," + pneu::records::csv_header<pneu::controller::HealthMessage>()))
+      << "the health's description";
   ASSERT_EQ(health.rows.size(), 1u);
   expect_int(health.at(0, "log_utime"), kLogStart + 2, "log_utime");
   expect_int(health.at(0, "utime"), h.utime, "utime");

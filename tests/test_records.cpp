@@ -30,6 +30,8 @@
 #ifdef PNEU_WITH_LCM
 #include "pneu_lcm/event_t.hpp"
 #include "pneu_lcm/event_t_members.hpp"
+#include "pneu_lcm/health_t.hpp"
+#include "pneu_lcm/health_t_members.hpp"
 #include "pneu_lcm/prediction_t.hpp"
 #include "pneu_lcm/prediction_t_members.hpp"
 #include "pneu_lcm/state_t.hpp"
@@ -397,6 +399,7 @@ TEST(Records, TheMessagesWrittenFromDescriptionsKeepTheFingerprintsOfTheHandWrit
   EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::state_t::getHash()), fingerprint_of_hash(0x47b1a6eb2d982914ULL));
   EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::event_t::getHash()), fingerprint_of_hash(0xc90eb8a7692da280ULL));
   EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::prediction_t::getHash()), fingerprint_of_hash(0xba68c62bef413c1dULL));
+  EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::health_t::getHash()), fingerprint_of_hash(0x2a01330226809dfdULL));
   EXPECT_EQ(int{pneu_lcm::event_t::KIND_START}, 1);
   EXPECT_EQ(int{pneu_lcm::event_t::KIND_MOVEMENT_TEST}, 12);
   EXPECT_EQ(int{pneu_lcm::event_t::KIND_HOLD_END}, int{pneu::controller::event_kind::kHoldEnd});
@@ -428,6 +431,38 @@ TEST(Records, TheForecastGoesThroughPredictionTsBytesAndBackUnchanged) {
   std::string from_message;
   records::write_lcm_csv_cells<pneu::controller::ForecastRecord>(from_message, decoded);
   EXPECT_EQ(from_message, csv_row(f)) << "the message's CSV is the record's";
+}
+
+TEST(Records, TheHealthGoesThroughHealthTsBytesItsGroupsAsArraysAndBackUnchanged) {
+  pneu::controller::HealthMessage h;
+  h.t_s = 2.5;
+  h.mode = 3;
+  h.wake_latency_us = {1, 2, 3, 4};
+  h.compute_us = {5, 6, 7, 8.5};
+  h.rejected_stale = 9;
+  h.is_final = true;
+  h.host = "bench-1";
+  h.period_s = 1.0;
+  pneu_lcm::health_t m{};
+  records::to_lcm(h, m);
+  EXPECT_EQ(m.wake_latency_us[3], 4.0);
+  EXPECT_EQ(m.compute_us[3], 8.5);
+  EXPECT_EQ(m.host, "bench-1");
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(m.getEncodedSize()));
+  ASSERT_EQ(m.encode(bytes.data(), 0, static_cast<int>(bytes.size())), static_cast<int>(bytes.size()));
+  pneu_lcm::health_t decoded{};
+  ASSERT_EQ(decoded.decode(bytes.data(), 0, static_cast<int>(bytes.size())), static_cast<int>(bytes.size()));
+  pneu::controller::HealthMessage back;
+  records::from_lcm(decoded, back);
+  EXPECT_EQ(csv_row(back), csv_row(h));
+  EXPECT_EQ(json_object(back), json_object(h));
+  std::string cells;
+  records::write_lcm_csv_cells<pneu::controller::HealthMessage>(cells, decoded);
+  EXPECT_EQ(cells, csv_row(h));
+  EXPECT_THAT(records::csv_header<pneu::controller::HealthMessage>(),
+              HasSubstr("overruns,wake_latency_us_min,wake_latency_us_median,wake_latency_us_p99,wake_latency_us_max,"
+                        "compute_us_min,"));
+  EXPECT_EQ(refused_by_the_schema(installed_schema("health"), {json_object(h)}), 0);
 }
 
 TEST(Records, AnEventMessageCarriesItsTextThroughEventTAndAnUnknownKindIsWrittenAsItCame) {

@@ -8,10 +8,10 @@
 #include "pneu/records/csv.hpp"
 #include "pneu/records/lcm.hpp"
 #include "pneu_lcm/command_t.hpp"
-#include "pneu_lcm/health_t.hpp"
 #include "pneu_lcm/identification_t.hpp"
 #include "pneu_lcm/state_t.hpp"
 #include "pneu_lcm/event_t_members.hpp"
+#include "pneu_lcm/health_t_members.hpp"
 #include "pneu_lcm/prediction_t_members.hpp"
 #include "pneu_lcm/state_t_members.hpp"
 
@@ -41,18 +41,6 @@ class Row {
     line_.append(buf, r.ptr);
     return *this;
   }
-  Row& boolean(std::int8_t v) {
-    separate();
-    line_ += v != 0 ? '1' : '0';
-    return *this;
-  }
-  // A described record's fields (pneu/records), numbers to the last bit.
-  template <records::Described R>
-  Row& record(const R& r) {
-    separate();
-    records::write_csv_cells(line_, r, false, records::kDigitsToTheLastBit);
-    return *this;
-  }
   // The fields of a described record as its message `m` carries them (pneu/records/lcm.hpp),
   // numbers to the last bit.
   template <records::Described R, class M>
@@ -65,17 +53,6 @@ class Row {
   Row& word(std::string_view v) {
     separate();
     line_ += v;
-    return *this;
-  }
-  // Free text, always quoted (RFC 4180): a quote doubled, commas and newlines kept as they are.
-  Row& text(std::string_view v) {
-    separate();
-    line_ += '"';
-    for (const char c : v) {
-      if (c == '"') line_ += '"';
-      line_ += c;
-    }
-    line_ += '"';
     return *this;
   }
   void end() { line_ += '\n'; }
@@ -174,13 +151,10 @@ std::string_view csv_header(MessageType type) {
       static const std::string header = "log_utime,utime," + records::csv_header<controller::ForecastRecord>();
       return header;
     }
-    case MessageType::kHealth:
-      return "log_utime,utime,t,mode,ticks,overruns,wake_latency_us_min,wake_latency_us_median,"
-             "wake_latency_us_p99,wake_latency_us_max,compute_us_min,compute_us_median,"
-             "compute_us_p99,compute_us_max,comms_errors,telemetry_dropped,commands_received,"
-             "commands_accepted,commands_rejected,rejected_malformed,rejected_invalid,"
-             "rejected_rate,rejected_mode,rejected_sequence,rejected_stale,rejected_foreign,"
-             "rejected_oversized,deadlines_skipped,fault_cause,faults,is_final,host,pid,start_utime,nonce,period";
+    case MessageType::kHealth: {
+      static const std::string header = "log_utime,utime," + records::csv_header<controller::HealthMessage>();
+      return header;
+    }
     case MessageType::kCommand:
       return "log_utime,utime,seq,kind,kind_name,value";
     case MessageType::kIdentification:
@@ -237,9 +211,7 @@ RowInfo format_csv_row(std::int64_t log_utime, const void* data, std::int32_t si
   if (fingerprint == pneu_lcm::state_t::getHash()) {
     pneu_lcm::state_t m{};
     if (decode_whole(data, size, &m)) {
-      controller::TickRecord tick;
-      records::from_lcm(m, tick);
-      Row(line, log_utime).integer(m.utime).record(tick).end();
+      Row(line, log_utime).integer(m.utime).message<controller::TickRecord>(m).end();
       return {MessageType::kState, m.seq};
     }
   } else if (fingerprint == pneu_lcm::event_t::getHash()) {
@@ -257,33 +229,7 @@ RowInfo format_csv_row(std::int64_t log_utime, const void* data, std::int32_t si
   } else if (fingerprint == pneu_lcm::health_t::getHash()) {
     pneu_lcm::health_t m{};
     if (decode_whole(data, size, &m)) {
-      Row row(line, log_utime);
-      row.integer(m.utime).number(m.t).integer(m.mode).integer(m.ticks).integer(m.overruns);
-      for (const double v : m.wake_latency_us) row.number(v);
-      for (const double v : m.compute_us) row.number(v);
-      row.integer(m.comms_errors)
-          .integer(m.telemetry_dropped)
-          .integer(m.commands_received)
-          .integer(m.commands_accepted)
-          .integer(m.commands_rejected)
-          .integer(m.rejected_malformed)
-          .integer(m.rejected_invalid)
-          .integer(m.rejected_rate)
-          .integer(m.rejected_mode)
-          .integer(m.rejected_sequence)
-          .integer(m.rejected_stale)
-          .integer(m.rejected_foreign)
-          .integer(m.rejected_oversized)
-          .integer(m.deadlines_skipped)
-          .integer(m.fault_cause)
-          .integer(m.faults)
-          .boolean(m.is_final)
-          .text(m.host)
-          .integer(m.pid)
-          .integer(m.start_utime)
-          .integer(m.nonce)
-          .number(m.period)
-          .end();
+      Row(line, log_utime).integer(m.utime).message<controller::HealthMessage>(m).end();
       return {MessageType::kHealth, 0};
     }
   } else if (fingerprint == pneu_lcm::command_t::getHash()) {

@@ -92,6 +92,14 @@ std::string prediction_t_lcm() {
       "  int64_t utime;      // microseconds since the Unix epoch\n", "");
 }
 
+// health_t: the daemon's health, on <prefix>HEALTH.
+std::string health_t_lcm() {
+  return records::lcm_message_text<controller::HealthMessage>(
+      "pneu_lcm", "health_t", records::Description<controller::HealthMessage>::kDoc,
+      "controller/include/pneu/controller/records.hpp",
+      "  int64_t utime;      // microseconds since the Unix epoch\n", "");
+}
+
 // The JSON Schema of a line of the events file: one of its views.
 std::string events_schema() {
   std::vector<std::string> lines;
@@ -125,6 +133,7 @@ int run(int argc, char** argv) {
     write_if_changed(fs::path(*lcm) / "state_t.lcm", state_t_lcm());
     write_if_changed(fs::path(*lcm) / "event_t.lcm", event_t_lcm());
     write_if_changed(fs::path(*lcm) / "prediction_t.lcm", prediction_t_lcm());
+    write_if_changed(fs::path(*lcm) / "health_t.lcm", health_t_lcm());
     if (cpp) {
       const fs::path dir = fs::path(*cpp) / "pneu_lcm";
       write_if_changed(dir / "state_t_members.hpp", records::lcm_members_header<controller::TickRecord>("pneu_lcm", "state_t"));
@@ -132,6 +141,8 @@ int run(int argc, char** argv) {
                        records::lcm_members_header<controller::EventMessage>("pneu_lcm", "event_t"));
       write_if_changed(dir / "prediction_t_members.hpp",
                        records::lcm_members_header<controller::ForecastRecord>("pneu_lcm", "prediction_t"));
+      write_if_changed(dir / "health_t_members.hpp",
+                       records::lcm_members_header<controller::HealthMessage>("pneu_lcm", "health_t"));
     }
   }
   if (schemas) {
@@ -145,6 +156,8 @@ int run(int argc, char** argv) {
                      records::json_schema<controller::EventMessage>(
                          "https://pneu.invalid/schemas/event_message.schema.json"));
     write_if_changed(fs::path(*schemas) / "events.schema.json", events_schema());
+    write_if_changed(fs::path(*schemas) / "health.schema.json",
+                     records::json_schema<controller::HealthMessage>("https://pneu.invalid/schemas/health.schema.json"));
     write_if_changed(fs::path(*schemas) / "summary.schema.json",
                      records::json_schema<controller::RunSummaryRecord>("https://pneu.invalid/schemas/summary.schema.json"));
     write_if_changed(fs::path(*schemas) / "sweep_stop.schema.json",

@@ -16,10 +16,10 @@
 #include "pneu/telemetry/command_datagram.hpp"
 
 #include "pneu_lcm/command_t.hpp"
-#include "pneu_lcm/health_t.hpp"
 #include "pneu_lcm/identification_t.hpp"
 #include "pneu_lcm/state_t.hpp"
 #include "pneu_lcm/event_t_members.hpp"
+#include "pneu_lcm/health_t_members.hpp"
 #include "pneu_lcm/prediction_t_members.hpp"
 #include "pneu_lcm/state_t_members.hpp"
 
@@ -201,39 +201,40 @@ void LcmBridge::on_identification(const controller::IdentificationRecord& r) {
 
 void LcmBridge::on_health(const controller::HealthRecord& h) {
   const CommandCounters& c = validator_.counters();
+  controller::HealthMessage r;
+  r.t_s = h.t_s;
+  r.mode = static_cast<std::int8_t>(h.mode);
+  r.ticks = static_cast<std::int64_t>(h.ticks);
+  r.overruns = static_cast<std::int64_t>(h.overruns);
+  r.wake_latency_us = {h.wake_latency_s[0] * 1e6, h.wake_latency_s[1] * 1e6, h.wake_latency_s[2] * 1e6,
+                       h.wake_latency_s[3] * 1e6};
+  r.compute_us = {h.compute_s[0] * 1e6, h.compute_s[1] * 1e6, h.compute_s[2] * 1e6, h.compute_s[3] * 1e6};
+  r.comms_errors = static_cast<std::int64_t>(h.comms_errors);
+  r.telemetry_dropped = static_cast<std::int64_t>(h.ticks_dropped + h.events_dropped + publish_errors_);
+  r.commands_received = static_cast<std::int64_t>(c.received);
+  r.commands_accepted = static_cast<std::int64_t>(c.accepted);
+  r.commands_rejected = static_cast<std::int64_t>(c.rejected);
+  r.rejected_malformed = static_cast<std::int64_t>(c.malformed);
+  r.rejected_invalid = static_cast<std::int64_t>(c.invalid);
+  r.rejected_rate = static_cast<std::int64_t>(c.rate);
+  r.rejected_mode = static_cast<std::int64_t>(c.mode);
+  r.rejected_sequence = static_cast<std::int64_t>(c.sequence);
+  r.rejected_stale = static_cast<std::int64_t>(c.stale);
+  r.rejected_foreign = static_cast<std::int64_t>(c.foreign);
+  r.rejected_oversized = static_cast<std::int64_t>(c.oversized);
+  r.deadlines_skipped = static_cast<std::int64_t>(h.deadlines_skipped);
+  r.fault_cause = static_cast<std::int8_t>(controller::fault_number(h.fault_cause));
+  r.faults = static_cast<std::int64_t>(h.faults);
+  r.is_final = h.is_final;
+  const InstanceId& self = instance();
+  r.host = self.host;
+  r.pid = self.pid;
+  r.start_utime = self.start_utime;
+  r.nonce = self.nonce;
+  r.period_s = health_period_s_;
   pneu_lcm::health_t m;
   m.utime = utime_of(h.t_s);
-  m.t = h.t_s;
-  m.mode = static_cast<std::int8_t>(h.mode);
-  m.ticks = static_cast<std::int64_t>(h.ticks);
-  m.overruns = static_cast<std::int64_t>(h.overruns);
-  for (int i = 0; i < 4; ++i) {
-    m.wake_latency_us[i] = h.wake_latency_s[i] * 1e6;
-    m.compute_us[i] = h.compute_s[i] * 1e6;
-  }
-  m.comms_errors = static_cast<std::int64_t>(h.comms_errors);
-  m.telemetry_dropped = static_cast<std::int64_t>(h.ticks_dropped + h.events_dropped + publish_errors_);
-  m.commands_received = static_cast<std::int64_t>(c.received);
-  m.commands_accepted = static_cast<std::int64_t>(c.accepted);
-  m.commands_rejected = static_cast<std::int64_t>(c.rejected);
-  m.rejected_malformed = static_cast<std::int64_t>(c.malformed);
-  m.rejected_invalid = static_cast<std::int64_t>(c.invalid);
-  m.rejected_rate = static_cast<std::int64_t>(c.rate);
-  m.rejected_mode = static_cast<std::int64_t>(c.mode);
-  m.rejected_sequence = static_cast<std::int64_t>(c.sequence);
-  m.rejected_stale = static_cast<std::int64_t>(c.stale);
-  m.rejected_foreign = static_cast<std::int64_t>(c.foreign);
-  m.rejected_oversized = static_cast<std::int64_t>(c.oversized);
-  m.deadlines_skipped = static_cast<std::int64_t>(h.deadlines_skipped);
-  m.fault_cause = static_cast<std::int8_t>(controller::fault_number(h.fault_cause));
-  m.faults = static_cast<std::int64_t>(h.faults);
-  m.is_final = h.is_final;
-  const InstanceId& self = instance();
-  m.host = self.host;
-  m.pid = self.pid;
-  m.start_utime = self.start_utime;
-  m.nonce = self.nonce;
-  m.period = health_period_s_;
+  records::to_lcm(r, m);
   publish(health_channel_, m);
 }
 

@@ -14,6 +14,7 @@
 #include "pneu/controller/loop.hpp"
 #include "pneu/controller/predictor.hpp"
 #include "pneu/controller/run_listener.hpp"
+#include "pneu/controller/summary_record.hpp"
 #include "pneu/records/record.hpp"
 
 namespace pneu::controller {
@@ -79,6 +80,26 @@ struct EventLine {
   const char* cause = nullptr;
   std::string text;
   const char* key = nullptr;
+};
+
+/// The daemon's health as health_t carries it (telemetry::LcmBridge fills it about once a second).
+struct HealthMessage {
+  double t_s = 0.0;
+  std::int8_t mode = 0;
+  std::int64_t ticks = 0, overruns = 0;
+  DurationsSummary wake_latency_us, compute_us;
+  std::int64_t comms_errors = 0, telemetry_dropped = 0;
+  std::int64_t commands_received = 0, commands_accepted = 0, commands_rejected = 0;
+  std::int64_t rejected_malformed = 0, rejected_invalid = 0, rejected_rate = 0, rejected_mode = 0;
+  std::int64_t rejected_sequence = 0, rejected_stale = 0, rejected_foreign = 0, rejected_oversized = 0;
+  std::int64_t deadlines_skipped = 0;
+  std::int8_t fault_cause = 0;
+  std::int64_t faults = 0;
+  bool is_final = false;
+  std::string host;
+  std::int32_t pid = 0;
+  std::int64_t start_utime = 0, nonce = 0;
+  double period_s = 0.0;
 };
 
 /// The methods of a forecast: their numbers on the wire (prediction_t's METHOD_*) and names.
@@ -320,3 +341,49 @@ struct EventLineOf {
 [[nodiscard]] EventLineOf event_line(const LoopEvent& e);
 
 }  // namespace pneu::controller
+
+/// The daemon's health: health_t.
+template <>
+struct pneu::records::Description<pneu::controller::HealthMessage> {
+  using R = pneu::controller::HealthMessage;
+  static constexpr const char* kName = "health";
+  static constexpr const char* kDoc =
+      "The daemon's health, about once a second on <prefix>HEALTH. Counters run from start-up.\n"
+      "// Which pneud this is: two on one bench's channels tell each other apart by host, pid, start_utime\n"
+      "// and nonce (one controller per bench: a pneud refuses to start while it hears another's health,\n"
+      "// and both latch a fault when they hear each other while running).";
+  static constexpr auto kFields = std::tuple{
+      field("t", &R::t_s, "s", "loop time"),
+      field("mode", &R::mode, "", "state_t.MODE_*"),
+      field("ticks", &R::ticks, "", "ticks run"),
+      field("overruns", &R::overruns, "", "ticks that ended after the next deadline"),
+      group("wake_latency_us", &R::wake_latency_us, "wake_latency_us_",
+            "wake-up minus deadline over the last period: min, median, p99, max [us]"),
+      group("compute_us", &R::compute_us, "compute_us_", "one tick's computation over the last period: min, median, p99, max [us]"),
+      field("comms_errors", &R::comms_errors, "", "backend read/write failures"),
+      field("telemetry_dropped", &R::telemetry_dropped, "", "tick records and events the loop could not queue"),
+      field("commands_received", &R::commands_received, "", "commands received"),
+      field("commands_accepted", &R::commands_accepted, "", "commands accepted"),
+      field("commands_rejected", &R::commands_rejected, "", "all rejections; the kinds below add up to it"),
+      field("rejected_malformed", &R::rejected_malformed, "", "undecodable or of the wrong type"),
+      field("rejected_invalid", &R::rejected_invalid, "", "non-finite, unknown kind, out of bounds"),
+      field("rejected_rate", &R::rejected_rate, "", "over the rate limit"),
+      field("rejected_mode", &R::rejected_mode, "", "not allowed in the current mode"),
+      field("rejected_sequence", &R::rejected_sequence, "", "sequence number not increasing"),
+      field("rejected_stale", &R::rejected_stale, "", "stamped too far from this host's clock (a replay, a stuck sender)"),
+      field("rejected_foreign", &R::rejected_foreign, "", "sent from another host"),
+      field("rejected_oversized", &R::rejected_oversized, "", "longer than any command"),
+      field("deadlines_skipped", &R::deadlines_skipped, "", "deadlines passed over after overruns"),
+      field("fault_cause", &R::fault_cause, "",
+            "the latched fault's cause (0: none; the numbers of FaultCause in "
+            "controller/include/pneu/controller/supervisor.hpp); event_t's text names it"),
+      field("faults", &R::faults, "", "faults latched since start"),
+      field("is_final", &R::is_final, "", "the last health message, sent as the daemon stops (\"final\" is a Java keyword)"),
+      field("host", &R::host, "", "the host's name (gethostname)"),
+      field("pid", &R::pid, "", "its process id"),
+      field("start_utime", &R::start_utime, "us", "when it started, microseconds since the Unix epoch"),
+      field("nonce", &R::nonce, "", "a random number drawn at start-up (pids repeat across containers)"),
+      field("period", &R::period_s, "s",
+            "the period of these messages (telemetry.health_period_s): another pneud counts this one gone after 3 of them"),
+  };
+};

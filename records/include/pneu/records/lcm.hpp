@@ -1,7 +1,8 @@
 // A record as an LCM message. The message's definition (.lcm text) is written from the record's
 // description at build time (pneu-records, tools/records/), lcm-gen makes the C++ type from it, and
 // pneu-records also writes which of that type's members each field is (LcmMembers<Message>, in the
-// description's order): to_lcm and from_lcm convert field by field. A field added to the
+// description's order): to_lcm and from_lcm convert field by field (a group of fields of one type
+// travels as an array, element k its field k). A field added to the
 // description is in the message, the conversion and every decoder lcm-gen writes.
 #pragma once
 
@@ -36,10 +37,20 @@ template <Described Record>
 [[nodiscard]] std::string lcm_field_declarations() {
   std::string out;
   for_each_field<Record>([&](const auto& f) {
-    using W = typename std::remove_cvref_t<decltype(f)>::wire_type;
-    std::string decl = std::string("  ") + lcm_type_name<W>();
+    using F = std::remove_cvref_t<decltype(f)>;
+    std::string decl = "  ";
+    std::string dimension;
+    if constexpr (F::kind == Kind::kGroup) {  // an array of its fields, all of one type
+      using G = typename F::member_type;
+      using W = typename std::remove_cvref_t<decltype(std::get<0>(Description<G>::kFields))>::wire_type;
+      decl += lcm_type_name<W>();
+      dimension = "[" + std::to_string(kFieldCount<G>) + "]";
+    } else {
+      decl += lcm_type_name<typename F::wire_type>();
+    }
     decl.resize(std::max<std::size_t>(decl.size() + 1, 10), ' ');
     decl += f.name;
+    decl += dimension;
     decl += ';';
     decl.resize(std::max<std::size_t>(decl.size() + 1, 22), ' ');
     out += decl + "// " + f.doc;
@@ -142,7 +153,11 @@ void to_lcm(const Record& r, Message& m) {
        using F = std::remove_cvref_t<decltype(f)>;
        auto& to = m.*std::get<I>(members);
        using T = std::remove_cvref_t<decltype(to)>;
-       if constexpr (F::kind == Kind::kName) to = static_cast<T>(f.wire_of(f.of(r)));
+       if constexpr (F::kind == Kind::kGroup) {  // an array: element k, field k
+         using G = typename F::member_type;
+         std::size_t k = 0;
+         for_each_field<G>([&](const auto& g) { to[k++] = static_cast<std::remove_cvref_t<decltype(to[0])>>(g.of(f.of(r))); });
+       } else if constexpr (F::kind == Kind::kName) to = static_cast<T>(f.wire_of(f.of(r)));
        else if constexpr (F::kind == Kind::kString) {
          if constexpr (std::is_same_v<typename F::member_type, const char*>) to = f.of(r) == nullptr ? "" : f.of(r);
          else to = T(f.of(r));
@@ -164,7 +179,13 @@ void from_lcm(const Message& m, Record& r) {
        using F = std::remove_cvref_t<decltype(f)>;
        using M = typename F::member_type;
        const auto& v = m.*std::get<I>(members);
-       if constexpr (F::kind == Kind::kName) {
+       if constexpr (F::kind == Kind::kGroup) {
+         using G = typename F::member_type;
+         std::size_t k = 0;
+         for_each_field<G>([&](const auto& g) {
+           g.of(f.of(r)) = static_cast<typename std::remove_cvref_t<decltype(g)>::member_type>(v[k++]);
+         });
+       } else if constexpr (F::kind == Kind::kName) {
          for (const auto& n : f.name_table())
            if (n.wire == static_cast<std::int64_t>(v)) f.of(r) = n.value;
        } else if constexpr (F::kind == Kind::kString) {
@@ -187,7 +208,18 @@ void write_lcm_csv_cells(Out& out, const Message& m, bool leading_comma = false,
   [&]<std::size_t... I>(std::index_sequence<I...>) {
     (([&] {
        if (leading_comma || I > 0) put(out, ',');
-       write_csv_wire_value(out, std::get<I>(Description<Record>::kFields), m.*std::get<I>(members), digits);
+       const auto& f = std::get<I>(Description<Record>::kFields);
+       using F = std::remove_cvref_t<decltype(f)>;
+       if constexpr (F::kind == Kind::kGroup) {  // an array: element k, field k
+         const auto& a = m.*std::get<I>(members);
+         std::size_t k = 0;
+         for_each_field<typename F::member_type>([&](const auto& g) {
+           if (k > 0) put(out, ',');
+           write_csv_wire_value(out, g, a[k++], digits);
+         });
+       } else {
+         write_csv_wire_value(out, f, m.*std::get<I>(members), digits);
+       }
      }()),
      ...);
   }(std::make_index_sequence<kFieldCount<Record>>{});
