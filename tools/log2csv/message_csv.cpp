@@ -157,23 +157,19 @@ std::string_view csv_header(MessageType type) {
     }
     case MessageType::kCommand:
       return "log_utime,utime,seq,kind,kind_name,value";
-    case MessageType::kIdentification:
-      return "log_utime,utime,t,updates,"
-             "static_positive_n,static_positive_n_sigma,static_positive_n_identified,"
-             "static_negative_n,static_negative_n_sigma,static_negative_n_identified,"
-             "coulomb_positive_n,coulomb_positive_n_sigma,coulomb_positive_n_identified,"
-             "coulomb_negative_n,coulomb_negative_n_sigma,coulomb_negative_n_identified,"
-             "viscous_n_s_per_m,viscous_n_s_per_m_sigma,viscous_n_s_per_m_identified,"
-             "max_conductance_m3_per_s_pa,max_conductance_m3_per_s_pa_sigma,max_conductance_m3_per_s_pa_identified,"
-             "leak_conductance_in_m3_per_s_pa,leak_conductance_in_m3_per_s_pa_sigma,"
-             "leak_conductance_in_m3_per_s_pa_identified,"
-             "leak_conductance_out_m3_per_s_pa,leak_conductance_out_m3_per_s_pa_sigma,"
-             "leak_conductance_out_m3_per_s_pa_identified,"
-             "null_offset_v,null_offset_v_sigma,null_offset_v_identified,"
-             "dead_volume_p_m3,dead_volume_p_m3_sigma,dead_volume_p_m3_identified,"
-             "dead_volume_n_m3,dead_volume_n_m3_sigma,dead_volume_n_m3_identified,"
-             "heat_transfer_w_per_m2_k,heat_transfer_w_per_m2_k_sigma,heat_transfer_w_per_m2_k_identified,"
-             "spool_time_constant_s,spool_time_constant_s_sigma,spool_time_constant_s_identified";
+    case MessageType::kIdentification: {
+      // Per parameter, in the order of its arrays (controller::kIdentifiedParameterKeys): NAME,
+      // NAME_sigma, NAME_identified, NAME the config key's last part.
+      static const std::string header = [] {
+        std::string h = "log_utime,utime,t,updates";
+        for (const std::string_view key : controller::kIdentifiedParameterKeys) {
+          const std::string_view name = key.substr(key.rfind('.') + 1);
+          for (const std::string_view suffix : {"", "_sigma", "_identified"}) (h += ',').append(name).append(suffix);
+        }
+        return h;
+      }();
+      return header;
+    }
     case MessageType::kUnknown:
       return "log_utime,bytes,fingerprint_hex";
   }
@@ -249,7 +245,9 @@ RowInfo format_csv_row(std::int64_t log_utime, const void* data, std::int32_t si
     if (decode_whole(data, size, &m)) {
       Row row(line, log_utime);
       row.integer(m.utime).number(m.t).integer(m.updates);
-      for (int i = 0; i < 13; ++i) row.number(m.value[i]).number(m.sigma[i]).integer(m.identified[i]);
+      static_assert(std::extent_v<decltype(m.value)> == controller::kIdentifiedParameterKeys.size());
+      for (std::size_t i = 0; i < controller::kIdentifiedParameterKeys.size(); ++i)
+        row.number(m.value[i]).number(m.sigma[i]).integer(m.identified[i]);
       row.end();
       return {MessageType::kIdentification, 0};
     }
