@@ -1,7 +1,11 @@
 // Records described once (pneu/records): from one description per record type follow its CSV
 // columns and cells, its JSON object, its JSON Schema and its LCM message with the conversion to
 // and from it. A test-only record (records_probe.hpp) carries a field added by one line, `added`:
-// each of the four has it. The tick record (pneu/controller/records.hpp) is held to the same.
+// each of the four has it; another (ProbeLine) has a string, a named enumeration, a member's
+// member, optional and nullable members and a view. The controller's records
+// (pneu/controller/records.hpp, summary_record.hpp) are held to the same: the tick, the events
+// file's lines, the forecast, the event message and the health through their LCM messages (whose
+// fingerprints are those of the hand-written .lcm files they replace), the summary.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
