@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <tuple>
 
 #include "pneu/records/record.hpp"
@@ -36,5 +37,42 @@ struct pneu::records::Description<pneu::test::ProbeRecord> {
       field("light", &R::light, "", "an enumeration"),
       field("flags", &R::flags, "", "unsigned bits"),
       field("added", &R::added_v, "V", "the field added by one line"),
+  };
+};
+
+namespace pneu::test {
+
+/// What a line record may hold beyond numbers: a string, an enumeration written as text, a
+/// member's member, a member written only sometimes, one that may be null.
+struct ProbeInner {
+  double level_m = 0.0;
+};
+struct ProbeLine {
+  std::string note;
+  Light light = Light::kOff;
+  ProbeInner inner;
+  const char* tag = nullptr;  ///< written only when there is one
+  bool known = true;
+  std::int64_t count = 0;     ///< null when not known
+};
+
+inline constexpr pneu::records::Named<Light> kLightNames[] = {
+    {Light::kOff, 0, "off"}, {Light::kOn, 1, "on"}, {Light::kBlinking, 7, "blinking"}};
+inline constexpr const char* kProbeLineFields[] = {"light", "note", "level", "tag", "count"};
+inline constexpr pneu::records::View kProbeLineView{"probe", "a line of a probe", kProbeLineFields};
+
+}  // namespace pneu::test
+
+template <>
+struct pneu::records::Description<pneu::test::ProbeLine> {
+  using R = pneu::test::ProbeLine;
+  static constexpr const char* kName = "probe_line";
+  static constexpr const char* kDoc = "a record for the tests of strings, names, members' members, optional and nullable members";
+  static constexpr auto kFields = std::tuple{
+      field("note", &R::note, "", "free text"),
+      field("light", &R::light, "", "an enumeration as text").named(pneu::test::kLightNames),
+      field("level", &R::inner, &pneu::test::ProbeInner::level_m, "m", "a member's member"),
+      field("tag", &R::tag, "", "written when there is one").when(+[](const R& r) { return r.tag != nullptr; }),
+      field("count", &R::count, "", "null when not known").null_when(+[](const R& r) { return !r.known; }),
   };
 };

@@ -11,9 +11,13 @@
 set -euo pipefail
 src=$1 bin=$2 lang=$3
 work=$(mktemp -d); trap 'rm -rf "$work"' EXIT
-# The .lcm files here, and those pneu-records wrote from the records' descriptions (state_t).
-types=("$src"/lcmtypes/*.lcm "$bin"/share/pneu/lcmtypes/state_t.lcm)
-[ -f "$bin/share/pneu/lcmtypes/state_t.lcm" ] || { echo "FAIL: no state_t.lcm in $bin/share/pneu/lcmtypes (pneu-records)"; exit 1; }
+# The .lcm files here, and those pneu-records wrote from the records' descriptions (state_t,
+# event_t, prediction_t, health_t).
+types=("$src"/lcmtypes/*.lcm)
+for t in state_t event_t prediction_t health_t; do
+  [ -f "$bin/share/pneu/lcmtypes/$t.lcm" ] || { echo "FAIL: no $t.lcm in $bin/share/pneu/lcmtypes (pneu-records)"; exit 1; }
+  types+=("$bin/share/pneu/lcmtypes/$t.lcm")
+done
 lcm_jar=/usr/share/java/lcm.jar
 fail=0
 say() { echo "$1: $2"; [ "$1" = ok ] || fail=1; }

@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -18,9 +19,12 @@
 #include <string>
 #include <vector>
 
+#include "pneu/controller/records.hpp"
+#include "pneu/records/csv.hpp"
 #include "pneu_lcm/command_t.hpp"
 #include "pneu_lcm/event_t.hpp"
 #include "pneu_lcm/health_t.hpp"
+#include "pneu_lcm/identification_t.hpp"
 #include "pneu_lcm/prediction_t.hpp"
 #include "pneu_lcm/state_t.hpp"
 
@@ -332,6 +336,8 @@ TEST_F(Log2Csv, EventTextIsQuotedWithQuotesDoubledAndKindsNamed) {
   const Csv csv = parse_csv(raw);
   EXPECT_EQ(csv.header,
             split_header("log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,seq,text"));
+  EXPECT_EQ(csv.header, split_header("log_utime,utime," + pneu::records::csv_header<pneu::controller::EventMessage>()))
+      << "the event message's description";
   ASSERT_EQ(csv.rows.size(), events.size());
   for (std::size_t i = 0; i < events.size(); ++i) {
     const auto& e = events[i];
@@ -405,6 +411,9 @@ TEST_F(Log2Csv, PredictionWithoutRestartHasAnEmptyRestartTime) {
                 "log_utime,utime,t,stop,t_stop,update,method,method_name,will_restart,direction,t_restart,"
                 "u_star,equilibrium_force,p_p_equilibrium,p_n_equilibrium,tau_p,tau_n,min_margin,"
                 "horizon_reached,force,stop_forecast_force,model_fits"));
+  EXPECT_EQ(csv.header,
+            split_header("log_utime,utime," + pneu::records::csv_header<pneu::controller::ForecastRecord>()))
+      << "the forecast's description";
   ASSERT_EQ(csv.rows.size(), 4u);
   EXPECT_EQ(csv.at(0, "t_restart"), "");
   EXPECT_EQ(csv.at(0, "method_name"), "linearized");
@@ -436,6 +445,57 @@ TEST_F(Log2Csv, PredictionWithoutRestartHasAnEmptyRestartTime) {
     expect_double(csv.at(i, "stop_forecast_force"), m.stop_forecast_force, row + "stop_forecast_force");
     expect_int(csv.at(i, "model_fits"), m.model_fits, row + "model_fits");
   }
+}
+
+TEST_F(Log2Csv, IdentificationColumnsNameEachParameterInTheOrderOfItsArraysAndReadBack) {
+  pneu_lcm::identification_t m{};
+  m.utime = kLogStart;
+  m.t = 30.5;
+  m.updates = 4;
+  for (int i = 0; i < 13; ++i) {
+    m.value[i] = 1.0 + i;
+    m.sigma[i] = i == 12 ? kNaN : 0.1 * i;
+    m.identified[i] = static_cast<std::int8_t>(i % 2);
+  }
+  const auto r = convert(write_log({{"PNEU_IDENTIFICATION", kLogStart, encode(m)}}));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Csv csv = read_csv("PNEU_IDENTIFICATION.csv");
+  EXPECT_EQ(csv.header,
+            split_header("log_utime,utime,t,updates,"
+             "static_positive_n,static_positive_n_sigma,static_positive_n_identified,"
+             "static_negative_n,static_negative_n_sigma,static_negative_n_identified,"
+             "coulomb_positive_n,coulomb_positive_n_sigma,coulomb_positive_n_identified,"
+             "coulomb_negative_n,coulomb_negative_n_sigma,coulomb_negative_n_identified,"
+             "viscous_n_s_per_m,viscous_n_s_per_m_sigma,viscous_n_s_per_m_identified,"
+             "max_conductance_m3_per_s_pa,max_conductance_m3_per_s_pa_sigma,max_conductance_m3_per_s_pa_identified,"
+             "leak_conductance_in_m3_per_s_pa,leak_conductance_in_m3_per_s_pa_sigma,"
+             "leak_conductance_in_m3_per_s_pa_identified,"
+             "leak_conductance_out_m3_per_s_pa,leak_conductance_out_m3_per_s_pa_sigma,"
+             "leak_conductance_out_m3_per_s_pa_identified,"
+             "null_offset_v,null_offset_v_sigma,null_offset_v_identified,"
+             "dead_volume_p_m3,dead_volume_p_m3_sigma,dead_volume_p_m3_identified,"
+             "dead_volume_n_m3,dead_volume_n_m3_sigma,dead_volume_n_m3_identified,"
+             "heat_transfer_w_per_m2_k,heat_transfer_w_per_m2_k_sigma,heat_transfer_w_per_m2_k_identified,"
+             "spool_time_constant_s,spool_time_constant_s_sigma,spool_time_constant_s_identified"))
+      << "the spelling of every column, as before: the config keys' last parts (controller::kIdentifiedParameterKeys)";
+  ASSERT_EQ(csv.rows.size(), 1u);
+  EXPECT_EQ(csv.at(0, "max_conductance_m3_per_s_pa"), "6");
+  EXPECT_EQ(csv.at(0, "max_conductance_m3_per_s_pa_identified"), "1");
+  EXPECT_EQ(csv.at(0, "spool_time_constant_s_sigma"), "");
+  // The message's constants name the same order as the keys.
+  const auto index_of = [](std::string_view key) {
+    const auto& keys = pneu::controller::kIdentifiedParameterKeys;
+    return static_cast<int>(std::find(keys.begin(), keys.end(), key) - keys.begin());
+  };
+  using I = pneu_lcm::identification_t;
+  EXPECT_EQ(index_of("plant.friction.static_positive_n"), int{I::STATIC_POSITIVE_N});
+  EXPECT_EQ(index_of("plant.friction.coulomb_negative_n"), int{I::COULOMB_NEGATIVE_N});
+  EXPECT_EQ(index_of("plant.valve.max_conductance_m3_per_s_pa"), int{I::MAX_CONDUCTANCE});
+  EXPECT_EQ(index_of("plant.valve.leak_conductance_out_m3_per_s_pa"), int{I::LEAK_OUT});
+  EXPECT_EQ(index_of("plant.valve.null_offset_v"), int{I::NULL_OFFSET_V});
+  EXPECT_EQ(index_of("plant.geometry.dead_volume_n_m3"), int{I::DEAD_VOLUME_N_M3});
+  EXPECT_EQ(index_of("plant.thermal.heat_transfer_w_per_m2_k"), int{I::HEAT_TRANSFER_W_PER_M2_K});
+  EXPECT_EQ(index_of("plant.valve.spool_time_constant_s"), int{I::SPOOL_TIME_CONSTANT_S});
 }
 
 TEST_F(Log2Csv, HealthAndCommandFieldsReadBack) {
@@ -506,6 +566,8 @@ TEST_F(Log2Csv, HealthAndCommandFieldsReadBack) {
                         "fault_cause", "faults", "is_final", "host", "pid", "start_utime", "nonce", "period"})
     expected_header.emplace_back(c);
   EXPECT_EQ(health.header, expected_header);
+  EXPECT_EQ(health.header, split_header("log_utime,utime," + pneu::records::csv_header<pneu::controller::HealthMessage>()))
+      << "the health's description";
   ASSERT_EQ(health.rows.size(), 1u);
   expect_int(health.at(0, "log_utime"), kLogStart + 2, "log_utime");
   expect_int(health.at(0, "utime"), h.utime, "utime");

@@ -1,7 +1,11 @@
 // Records described once (pneu/records): from one description per record type follow its CSV
 // columns and cells, its JSON object, its JSON Schema and its LCM message with the conversion to
 // and from it. A test-only record (records_probe.hpp) carries a field added by one line, `added`:
-// each of the four has it. The tick record (pneu/controller/records.hpp) is held to the same.
+// each of the four has it; another (ProbeLine) has a string, a named enumeration, a member's
+// member, optional and nullable members and a view. The controller's records
+// (pneu/controller/records.hpp, summary_record.hpp) are held to the same: the tick, the events
+// file's lines, the forecast, the event message and the health through their LCM messages (whose
+// fingerprints are those of the hand-written .lcm files they replace), the summary.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -13,16 +17,27 @@
 #include <limits>
 #include <sstream>
 #include <string>
+#include <vector>
+#include <algorithm>
 #include <unistd.h>
 
+#include "pneu/controller/events_file.hpp"
 #include "pneu/controller/records.hpp"
+#include "pneu/controller/run_summary.hpp"
 #include "pneu/controller/trajectory_file.hpp"
 #include "pneu/records/csv.hpp"
 #include "pneu/records/json.hpp"
 #include "pneu/records/lcm.hpp"
 #include "pneu/records/schema.hpp"
 #include "records_probe.hpp"
+#include "support/schema_check.hpp"
 #ifdef PNEU_WITH_LCM
+#include "pneu_lcm/event_t.hpp"
+#include "pneu_lcm/event_t_members.hpp"
+#include "pneu_lcm/health_t.hpp"
+#include "pneu_lcm/health_t_members.hpp"
+#include "pneu_lcm/prediction_t.hpp"
+#include "pneu_lcm/prediction_t_members.hpp"
 #include "pneu_lcm/state_t.hpp"
 #include "pneu_lcm/state_t_members.hpp"
 #include "pneu_test_lcm/probe_t.hpp"
@@ -35,7 +50,10 @@ using ::testing::HasSubstr;
 using pneu::controller::Mode;
 using pneu::controller::TickRecord;
 using pneu::test::Light;
+using pneu::test::ProbeLine;
 using pneu::test::ProbeRecord;
+using pneu::test::installed_schema;
+using pneu::test::refused_by_the_schema;
 namespace records = pneu::records;
 namespace fs = std::filesystem;
 
@@ -103,33 +121,6 @@ TEST(Records, TheJsonSchemaDescribesEachFieldWithItsKindUnitAndDocumentation) {
   EXPECT_THAT(schema, Not(HasSubstr("not_described")));
 }
 
-// Runs Python's jsonschema (Debian's python3-jsonschema) on each line of `lines` against
-// `schema`: the number of lines it refused, or -1 when it cannot run.
-int refused_by_the_schema(const std::string& schema, const std::vector<std::string>& lines) {
-  const fs::path dir = fs::temp_directory_path() / ("pneu_records_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  std::ofstream(dir / "schema.json") << schema;
-  {
-    std::ofstream out(dir / "objects.jsonl");
-    for (const auto& l : lines) out << l << '\n';
-  }
-  const std::string script =
-      "import json, sys, jsonschema\n"
-      "schema = json.load(open(sys.argv[1]))\n"
-      "jsonschema.Draft202012Validator.check_schema(schema)\n"
-      "v = jsonschema.Draft202012Validator(schema)\n"
-      "print(sum(1 for line in open(sys.argv[2]) if not v.is_valid(json.loads(line))))\n";
-  std::ofstream(dir / "check.py") << script;
-  const std::string cmd = "/usr/bin/python3 '" + (dir / "check.py").string() + "' '" + (dir / "schema.json").string() +
-                          "' '" + (dir / "objects.jsonl").string() + "' > '" + (dir / "out").string() + "' 2>&1";
-  const int status = std::system(cmd.c_str());
-  std::ifstream in(dir / "out");
-  int refused = -1;
-  if (status == 0) in >> refused;
-  fs::remove_all(dir);
-  return refused;
-}
-
 TEST(Records, TheJsonObjectsFollowTheirSchemaAndOnesThatDoNotAreRefused) {
   ProbeRecord no_value = probe();
   no_value.added_v = kNaN;
@@ -140,6 +131,186 @@ TEST(Records, TheJsonObjectsFollowTheirSchemaAndOnesThatDoNotAreRefused) {
                                            R"({"n":7,"x":0.1,"ok":true,"light":2,"flags":5,"added":"1.5"})",
                                            R"({"n":7,"x":0.1,"ok":true,"light":2,"flags":5,"added":1,"other":1})"}),
             3);
+}
+
+ProbeLine probe_line() {
+  ProbeLine l;
+  l.note = "say \"hi\", twice";
+  l.light = Light::kBlinking;
+  l.inner.level_m = 0.25;
+  l.count = 3;
+  return l;
+}
+
+TEST(Records, FreeTextIsQuotedInCsvAndEscapedInJsonAndANamedEnumerationIsItsNumberAndNameInCsvItsNameInJson) {
+  EXPECT_EQ(records::csv_header<ProbeLine>(), "note,light,light_name,level,tag,count");
+  EXPECT_EQ(csv_row(probe_line()), R"("say ""hi"", twice",7,blinking,0.25,,3)")
+      << "the wire number of the name, not the enumeration's value";
+  EXPECT_EQ(json_object(probe_line()), R"({"note":"say \"hi\", twice","light":"blinking","level":0.25,"count":3})");
+  std::string empty;
+  records::write_csv_empty_cells<ProbeLine>(empty);
+  EXPECT_EQ(empty, ",,,,,") << "six columns: the name has one of its own";
+}
+
+TEST(Records, AMemberWrittenWhenItsConditionHoldsIsLeftOutOtherwiseAndANullableOneIsNullWhenItsHolds) {
+  ProbeLine l = probe_line();
+  l.tag = "first";
+  l.known = false;
+  EXPECT_EQ(json_object(l), R"({"note":"say \"hi\", twice","light":"blinking","level":0.25,"tag":"first","count":null})");
+  EXPECT_EQ(csv_row(l), R"("say ""hi"", twice",7,blinking,0.25,first,3)")
+      << "CSV has every column, always; a word (const char*) as it is, free text quoted";
+}
+
+TEST(Records, AViewWritesItsOwnSelectionInItsOwnOrderAfterItsName) {
+  std::string line;
+  records::write_json_line(line, pneu::test::kProbeLineView, probe_line());
+  EXPECT_EQ(line, "{\"event\":\"probe\",\"light\":\"blinking\",\"note\":\"say \\\"hi\\\", twice\",\"level\":0.25,\"count\":3}\n");
+  static_assert(records::names_fields_of<ProbeLine>(pneu::test::kProbeLineView));
+  constexpr const char* kNotAField[] = {"note", "nothing"};
+  static_assert(!records::names_fields_of<ProbeLine>(records::View{"x", "", kNotAField}));
+}
+
+TEST(Records, TheSchemaOfStringsNamesOptionalAndNullableMembersTakesWhatTheyWriteAndRefusesTheRest) {
+  const std::string schema = records::json_schema<ProbeLine>("probe_line");
+  EXPECT_THAT(schema, HasSubstr(R"("light": {"enum": ["off", "on", "blinking"], "description": "an enumeration as text"})"));
+  EXPECT_THAT(schema, HasSubstr(R"("count": {"type": ["integer", "null"], "description": "null when not known"})"));
+  EXPECT_THAT(schema, HasSubstr(R"("required": ["note", "light", "level", "count"])")) << "tag is optional";
+  ProbeLine l = probe_line();
+  l.tag = "first";
+  l.known = false;
+  ASSERT_EQ(refused_by_the_schema(schema, {json_object(probe_line()), json_object(l)}), 0);
+  EXPECT_EQ(refused_by_the_schema(schema, {R"({"note":"n","light":"dim","level":0.25,"count":3})",
+                                           R"({"note":"n","light":"on","level":0.25})",
+                                           R"({"note":1,"light":"on","level":0.25,"count":3})",
+                                           R"({"note":"n","light":"on","level":0.25,"count":"3"})"}),
+            4);
+}
+
+// Every kind of line the events file writes, each way it can be written.
+std::vector<std::string> every_kind_of_events_line() {
+  using pneu::controller::LoopEvent;
+  namespace c = pneu::controller;
+  std::ostringstream out;
+  c::EventsFile sink(out);
+  LoopEvent e;
+  e.t_s = 1.25;
+  e.stop_index = 2;
+  e.y_m = 0.01;
+  e.force_n = kNaN;
+  e.y_d_m = 0.1;
+  e.direction = -1;
+  for (const auto kind : {LoopEvent::Kind::kStop, LoopEvent::Kind::kStart, LoopEvent::Kind::kFault,
+                          LoopEvent::Kind::kFaultReset, LoopEvent::Kind::kResetRefused, LoopEvent::Kind::kHoldStart,
+                          LoopEvent::Kind::kHoldEnd, LoopEvent::Kind::kMovementTest})
+    for (const bool other : {false, true}) {
+      e.kind = kind;
+      e.restart = other;
+      e.fault_cause = other ? c::FaultCause::kMovementTest : c::FaultCause::kComms;
+      e.fault_key = other ? "controller.movement_test" : nullptr;
+      e.hold_end = other ? c::HoldEnd::kMoved : c::HoldEnd::kSetPoint;
+      e.movement_end = other ? c::MovementTestEnd::kFault : c::MovementTestEnd::kPassed;
+      e.movement_test.finding = other ? c::MovementFinding::kTubesSwapped : c::MovementFinding::kPassed;
+      sink.on_event(e);
+    }
+  c::ForecastRecord f;
+  f.stop = 2;
+  for (const std::uint32_t update : {0u, 3u})
+    for (const bool fits : {true, false}) {
+      f.update = update;
+      f.prediction.model_fits = fits;
+      f.prediction.will_restart = fits;
+      f.prediction.t_restart_s = fits ? 4.5 : kNaN;
+      sink.on_forecast(f);
+    }
+  c::CommandRecord command;
+  command.reason = "rate";
+  command.kind = "arm";
+  command.text = "too many";
+  for (const bool accepted : {false, true})
+    for (const bool decoded : {false, true}) {
+      command.accepted = accepted;
+      command.decoded = decoded;
+      sink.on_command(command);
+    }
+  sink.on_end(9.5);
+  std::vector<std::string> lines;
+  std::istringstream in(out.str());
+  for (std::string l; std::getline(in, l);) lines.push_back(l);
+  return lines;
+}
+
+TEST(Records, EveryLineTheEventsFileWritesFollowsTheEventsSchemaTheBuildInstalls) {
+  const std::string installed = installed_schema("events");
+  ASSERT_FALSE(installed.empty()) << "pneu-records writes it at build time";
+  const std::vector<std::string> lines = every_kind_of_events_line();
+  ASSERT_EQ(lines.size(), 16u + 4u + 4u + 1u);
+  for (const char* event : {"start", "stop", "fault", "fault_reset", "fault_reset_refused", "hold_start", "hold_end",
+                            "movement_test", "prediction", "reforecast", "command", "end"})
+    EXPECT_TRUE(std::any_of(lines.begin(), lines.end(),
+                            [&](const std::string& l) { return l.starts_with("{\"event\":\"" + std::string(event) + "\""); }))
+        << event;
+  EXPECT_EQ(refused_by_the_schema(installed, lines), 0);
+  EXPECT_EQ(refused_by_the_schema(installed, {R"({"event":"stop","t":1,"stop":2,"y":0.1,"y_d":0.1})",
+                                              R"({"event":"halt","t":1})",
+                                              R"({"event":"end","t":1,"stop":2})",
+                                              R"({"event":"prediction","t":1,"stop":2,"t_stop":1,"method":"guessed",)"
+                                              R"("will_restart":false,"direction":0,"t_restart":null,"u_star":0,)"
+                                              R"("equilibrium_force":0,"tau_p":0,"tau_n":0,"min_margin":0,)"
+                                              R"("horizon_reached":false})"}),
+            4)
+      << "no force; no such event; a member the line has not; no such method";
+}
+
+TEST(Records, TheForecastsAndTheEventMessagesJsonFollowTheSchemasTheBuildInstalls) {
+  pneu::controller::ForecastRecord f;
+  f.prediction.method = pneu::controller::PredictionMethod::kHeld;
+  f.prediction.model_fits = false;
+  std::string forecast;
+  records::write_json_object(forecast, f);
+  EXPECT_THAT(forecast, HasSubstr(R"("method":"held")"));
+  EXPECT_EQ(refused_by_the_schema(installed_schema("forecast"), {forecast}), 0);
+  pneu::controller::LoopEvent e;
+  e.kind = pneu::controller::LoopEvent::Kind::kHoldEnd;
+  std::string message;
+  records::write_json_object(message, pneu::controller::event_message(e));
+  EXPECT_THAT(message, HasSubstr(R"("kind":"hold_end")"));
+  EXPECT_EQ(refused_by_the_schema(installed_schema("event_message"), {message}), 0);
+}
+
+TEST(Records, ASummaryWithTelemetryModbusAndFaultsFollowsTheInstalledSchemaAndOneShortOfAMemberDoesNot) {
+  pneu::controller::RunSummaryRecord s;
+  s.pneud = "0.1.0";
+  s.exit_reason = "fault";
+  s.exit_code = 3;
+  s.fault_at_end = "comms";
+  s.loop.epoch_monotonic_s = kNaN;
+  s.faults.push_back({1.5, 0.01, "comms", "controller.comms_fault_after_s"});
+  s.faults.push_back({2.5, 0.02, "e-stop", nullptr});
+  s.telemetry.emplace();
+  s.telemetry->commands.queue_full = 2;
+  s.modbus.emplace();
+  s.modbus->safe_output_on_closing.read_back_u_p_v = kNaN;
+  std::ostringstream document;
+  records::write_json_document(document, s);
+  std::string one_line;
+  records::write_json_object(one_line, s);
+  EXPECT_THAT(one_line, HasSubstr(R"("faults":[{"t_s":1.5,"y_m":0.01,"cause":"comms","key":"controller.comms_fault_after_s"},)"
+                                  R"({"t_s":2.5,"y_m":0.02,"cause":"e-stop"}])"));
+  EXPECT_THAT(one_line, HasSubstr(R"("last_error":null)")) << "no errors";
+  EXPECT_THAT(one_line, HasSubstr(R"("read_back_u_p_v":null,"read_back_u_n_v":null)"));
+  EXPECT_THAT(document.str(), HasSubstr("\n  \"loop\": {\n    \"ticks\": 0,\n")) << "one member a line, indented";
+  const std::string schema = installed_schema("summary");
+  ASSERT_FALSE(schema.empty());
+  pneu::controller::RunSummaryRecord none;
+  none.exit_reason = "ok";
+  EXPECT_EQ(refused_by_the_schema(schema, {one_line, json_object(none)}), 0);
+  std::string short_of_one = one_line;
+  short_of_one.replace(short_of_one.find(R"("exit_code":3,)"), 14, "");
+  EXPECT_EQ(refused_by_the_schema(schema, {short_of_one}), 1);
+}
+
+TEST(Records, TheForecastMethodsAreNamedAsThePredictorNamesThem) {
+  for (const auto& m : pneu::controller::kPredictionMethods) EXPECT_STREQ(m.name, pneu::controller::to_string(m.value));
 }
 
 TickRecord tick() {
@@ -222,6 +393,99 @@ TEST(Records, TheTickGoesThroughStateTAndBackUnchanged) {
   TickRecord back;
   records::from_lcm(m, back);
   EXPECT_EQ(csv_row(back), csv_row(tick()));
+}
+
+// The fingerprint a message carries: lcm-gen's hash of the definition (what its generated header
+// says, 0x... below, as lcm-gen wrote it from the hand-written .lcm files) rotated left by one bit.
+constexpr std::uint64_t fingerprint_of_hash(std::uint64_t hash) { return (hash << 1) | (hash >> 63); }
+
+TEST(Records, TheMessagesWrittenFromDescriptionsKeepTheFingerprintsOfTheHandWrittenOnesSoOldLogsDecode) {
+  EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::state_t::getHash()), fingerprint_of_hash(0x47b1a6eb2d982914ULL));
+  EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::event_t::getHash()), fingerprint_of_hash(0xc90eb8a7692da280ULL));
+  EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::prediction_t::getHash()), fingerprint_of_hash(0xba68c62bef413c1dULL));
+  EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::health_t::getHash()), fingerprint_of_hash(0x2a01330226809dfdULL));
+  EXPECT_EQ(int{pneu_lcm::event_t::KIND_START}, 1);
+  EXPECT_EQ(int{pneu_lcm::event_t::KIND_MOVEMENT_TEST}, 12);
+  EXPECT_EQ(int{pneu_lcm::event_t::KIND_HOLD_END}, int{pneu::controller::event_kind::kHoldEnd});
+  EXPECT_EQ(int{pneu_lcm::prediction_t::METHOD_LINEARIZED}, 1);
+  EXPECT_EQ(int{pneu_lcm::prediction_t::METHOD_HELD}, 4);
+}
+
+TEST(Records, TheForecastGoesThroughPredictionTsBytesAndBackUnchanged) {
+  pneu::controller::ForecastRecord f;
+  f.stop = 4;
+  f.update = 2;
+  f.t_s = 3.5;
+  f.prediction.method = pneu::controller::PredictionMethod::kRelaxation;
+  f.prediction.direction = -1;
+  f.prediction.model_fits = false;
+  f.stop_forecast_force_n = 12.5;
+  pneu_lcm::prediction_t m{};
+  records::to_lcm(f, m);
+  EXPECT_EQ(m.method, int{pneu_lcm::prediction_t::METHOD_RELAXATION});
+  EXPECT_EQ(m.direction, -1);
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(m.getEncodedSize()));
+  ASSERT_EQ(m.encode(bytes.data(), 0, static_cast<int>(bytes.size())), static_cast<int>(bytes.size()));
+  pneu_lcm::prediction_t decoded{};
+  ASSERT_EQ(decoded.decode(bytes.data(), 0, static_cast<int>(bytes.size())), static_cast<int>(bytes.size()));
+  pneu::controller::ForecastRecord back;
+  records::from_lcm(decoded, back);
+  EXPECT_EQ(csv_row(back), csv_row(f));
+  EXPECT_EQ(json_object(back), json_object(f));
+  std::string from_message;
+  records::write_lcm_csv_cells<pneu::controller::ForecastRecord>(from_message, decoded);
+  EXPECT_EQ(from_message, csv_row(f)) << "the message's CSV is the record's";
+}
+
+TEST(Records, TheHealthGoesThroughHealthTsBytesItsGroupsAsArraysAndBackUnchanged) {
+  pneu::controller::HealthMessage h;
+  h.t_s = 2.5;
+  h.mode = 3;
+  h.wake_latency_us = {1, 2, 3, 4};
+  h.compute_us = {5, 6, 7, 8.5};
+  h.rejected_stale = 9;
+  h.is_final = true;
+  h.host = "bench-1";
+  h.period_s = 1.0;
+  pneu_lcm::health_t m{};
+  records::to_lcm(h, m);
+  EXPECT_EQ(m.wake_latency_us[3], 4.0);
+  EXPECT_EQ(m.compute_us[3], 8.5);
+  EXPECT_EQ(m.host, "bench-1");
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(m.getEncodedSize()));
+  ASSERT_EQ(m.encode(bytes.data(), 0, static_cast<int>(bytes.size())), static_cast<int>(bytes.size()));
+  pneu_lcm::health_t decoded{};
+  ASSERT_EQ(decoded.decode(bytes.data(), 0, static_cast<int>(bytes.size())), static_cast<int>(bytes.size()));
+  pneu::controller::HealthMessage back;
+  records::from_lcm(decoded, back);
+  EXPECT_EQ(csv_row(back), csv_row(h));
+  EXPECT_EQ(json_object(back), json_object(h));
+  std::string cells;
+  records::write_lcm_csv_cells<pneu::controller::HealthMessage>(cells, decoded);
+  EXPECT_EQ(cells, csv_row(h));
+  EXPECT_THAT(records::csv_header<pneu::controller::HealthMessage>(),
+              HasSubstr("overruns,wake_latency_us_min,wake_latency_us_median,wake_latency_us_p99,wake_latency_us_max,"
+                        "compute_us_min,"));
+  EXPECT_EQ(refused_by_the_schema(installed_schema("health"), {json_object(h)}), 0);
+}
+
+TEST(Records, AnEventMessageCarriesItsTextThroughEventTAndAnUnknownKindIsWrittenAsItCame) {
+  pneu::controller::LoopEvent e;
+  e.kind = pneu::controller::LoopEvent::Kind::kStart;
+  e.restart = true;
+  pneu_lcm::event_t m{};
+  records::to_lcm(pneu::controller::event_message(e), m);
+  EXPECT_EQ(m.kind, int{pneu_lcm::event_t::KIND_RESTART});
+  EXPECT_EQ(m.text, "restart after a stop, set point unchanged");
+  pneu::controller::EventMessage back;
+  records::from_lcm(m, back);
+  EXPECT_EQ(back.text, m.text);
+  m.kind = 99;
+  m.text = "a \"quoted\" word";
+  std::string cells;
+  records::write_lcm_csv_cells<pneu::controller::EventMessage>(cells, m);
+  EXPECT_THAT(cells, ::testing::StartsWith("99,unknown,"));
+  EXPECT_THAT(cells, ::testing::EndsWith(R"(,"a ""quoted"" word")"));
 }
 #endif
 

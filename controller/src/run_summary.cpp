@@ -5,6 +5,7 @@
 #include <string>
 
 #include "pneu/controller/json_text.hpp"
+#include "pneu/records/json.hpp"
 #include "pneu/config/cli.hpp"
 #include "pneu/controller/supervisor.hpp"
 #include "pneu/controller/verdict.hpp"
@@ -268,117 +269,66 @@ void print_summary(std::FILE* out, const RunFigures& f, const Runtime& runtime) 
 
 namespace {
 
-void write_durations_us(json::Writer& w, std::string_view key, const TimingStats& stats) {
-  w.begin_object(key);
-  w.number("min", stats.min_s() * 1e6);
-  w.number("median", stats.quantile_s(0.5) * 1e6);
-  w.number("p99", stats.quantile_s(0.99) * 1e6);
-  w.number("max", stats.max_s() * 1e6);
-  w.end_object();
+DurationsSummary durations_us(const TimingStats& stats) {
+  return {stats.min_s() * 1e6, stats.quantile_s(0.5) * 1e6, stats.quantile_s(0.99) * 1e6, stats.max_s() * 1e6};
 }
 
 }  // namespace
 
-void write_summary_json(std::ostream& out, const RunFigures& f, const Runtime& runtime) {
-  json::Writer w(out);
-  w.begin_object();
-  w.text("pneud", f.version);
+RunSummaryRecord run_summary_record(const RunFigures& f, const Runtime& runtime) {
+  RunSummaryRecord s;
+  s.pneud = f.version;
   const RunEnding ending = run_ending(f);
-  w.text("exit_reason", to_string(ending));
-  w.count("exit_code", static_cast<std::uint64_t>(exit_code(ending)));
-  if (f.fault_at_end != FaultCause::kNone) w.text("fault_at_end", fault_name(f.fault_at_end));
-  else w.null("fault_at_end");
-  w.text("backend", f.backend);
-  w.text("clock", f.clock);
-  w.text("config", f.config);
-  w.number("u_0_v", f.u_0_v);
-  w.number("t_end_s", runtime.end_time_s());
-  w.number("wall_s", f.wall_s);
-
-  w.begin_object("loop");
-  w.count("ticks", f.timing.ticks);
-  w.number("rate_hz", 1.0 / f.timing.period_s);
-  w.count("overruns", f.timing.overruns);
-  w.count("deadlines_skipped", f.timing.deadlines_skipped);
-  write_durations_us(w, "wake_latency_us", f.timing.wake_latency);
-  write_durations_us(w, "compute_us", f.timing.compute);
-  w.count("tick_records_dropped", f.ticks_dropped);
-  w.count("events_dropped", f.events_dropped);
-  w.number("epoch_monotonic_s", f.timing.epoch_monotonic_s, 16);  // to the microsecond
-  w.end_object();
-
-  w.begin_object("runtime");
-  w.count("ticks_seen", runtime.ticks_seen());
-  w.count("sequence_gaps", runtime.sequence_gaps());
-  w.count("stops", runtime.stops_forgotten() + runtime.stops().size());
-  w.count("stops_forgotten", runtime.stops_forgotten());
-  w.count("model_updates_late", runtime.model_updates_late());
-  w.end_object();
-
-  w.begin_array("faults");
-  for (const auto& fault : runtime.faults()) {
-    w.begin_object();
-    w.number("t_s", fault.t_s);
-    w.number("y_m", fault.y_m);
-    w.text("cause", fault_name(fault.fault_cause));
-    if (fault.fault_key != nullptr) w.text("key", fault.fault_key);
-    w.end_object();
-  }
-  w.end_array();
-
+  s.exit_reason = to_string(ending);
+  s.exit_code = static_cast<std::uint64_t>(exit_code(ending));
+  if (f.fault_at_end != FaultCause::kNone) s.fault_at_end = fault_name(f.fault_at_end);
+  s.backend = f.backend;
+  s.clock = f.clock;
+  s.config = f.config;
+  s.u_0_v = f.u_0_v;
+  s.t_end_s = runtime.end_time_s();
+  s.wall_s = f.wall_s;
+  LoopSummary& l = s.loop;
+  l.ticks = f.timing.ticks;
+  l.rate_hz = 1.0 / f.timing.period_s;
+  l.overruns = f.timing.overruns;
+  l.deadlines_skipped = f.timing.deadlines_skipped;
+  l.wake_latency_us = durations_us(f.timing.wake_latency);
+  l.compute_us = durations_us(f.timing.compute);
+  l.tick_records_dropped = f.ticks_dropped;
+  l.events_dropped = f.events_dropped;
+  l.epoch_monotonic_s = f.timing.epoch_monotonic_s;
+  s.runtime = {runtime.ticks_seen(), runtime.sequence_gaps(), runtime.stops_forgotten() + runtime.stops().size(),
+               runtime.stops_forgotten(), runtime.model_updates_late()};
+  for (const auto& fault : runtime.faults())
+    s.faults.push_back({fault.t_s, fault.y_m, fault_name(fault.fault_cause), fault.fault_key});
   if (const auto& t = f.telemetry) {
-    w.begin_object("telemetry");
-    w.text("lcm_url", t->lcm_url);
-    w.text("channel_prefix", t->channel_prefix);
-    w.count("publish_errors", t->publish_errors);
     const CommandCounters& c = t->commands;
-    w.begin_object("commands");
-    w.count("received", c.received);
-    w.count("accepted", c.accepted);
-    w.count("rejected", c.rejected);
-    w.count("malformed", c.malformed);
-    w.count("oversized", c.oversized);
-    w.count("foreign", c.foreign);
-    w.count("stale", c.stale);
-    w.count("sequence", c.sequence);
-    w.count("invalid", c.invalid);
-    w.count("rate", c.rate);
-    w.count("mode", c.mode);
-    w.count("queue_full", t->commands_dropped);
-    w.end_object();
-    w.end_object();
-  } else {
-    w.null("telemetry");
+    s.telemetry = TelemetrySummary{t->lcm_url, t->channel_prefix, t->publish_errors,
+                                   CommandsSummary{c.received, c.accepted, c.rejected, c.malformed, c.oversized,
+                                                   c.foreign, c.stale, c.sequence, c.invalid, c.rate, c.mode,
+                                                   t->commands_dropped}};
   }
-
   if (const auto& m = f.modbus) {
-    w.begin_object("modbus");
-    w.count("transactions", m->transactions);
-    w.number("transactions_per_s", static_cast<double>(m->transactions) / std::max(runtime.end_time_s(), 1e-9));
-    w.count("errors", m->errors);
-    w.count("reconnects", m->reconnects);
-    w.count("samples_out_of_range", m->out_of_range);
-    w.count("stale_reads", m->stale_reads);
-    w.number("oldest_sample_ms", m->oldest_sample_s * 1e3);
-    if (m->errors) w.text("last_error", m->last_error);
-    else w.null("last_error");
-    w.begin_object("safe_output_on_closing");
-    w.flag("delivered", m->safe_output_delivered);
-    w.count("attempts", static_cast<std::uint64_t>(m->safe_output_attempts));
-    w.count("max_attempts", static_cast<std::uint64_t>(m->safe_output_max_attempts));
-    if (std::isnan(m->safe_output_read_back_u_p_v)) {
-      w.null("read_back_u_p_v");
-      w.null("read_back_u_n_v");
-    } else {
-      w.number("read_back_u_p_v", m->safe_output_read_back_u_p_v);
-      w.number("read_back_u_n_v", m->safe_output_read_back_u_n_v);
-    }
-    w.end_object();
-    w.end_object();
-  } else {
-    w.null("modbus");
+    ModbusSummary b;
+    b.transactions = m->transactions;
+    b.transactions_per_s = static_cast<double>(m->transactions) / std::max(runtime.end_time_s(), 1e-9);
+    b.errors = m->errors;
+    b.reconnects = m->reconnects;
+    b.samples_out_of_range = m->out_of_range;
+    b.stale_reads = m->stale_reads;
+    b.oldest_sample_ms = m->oldest_sample_s * 1e3;
+    b.last_error = m->last_error;
+    b.safe_output_on_closing = {m->safe_output_delivered, static_cast<std::uint64_t>(m->safe_output_attempts),
+                                static_cast<std::uint64_t>(m->safe_output_max_attempts),
+                                m->safe_output_read_back_u_p_v, m->safe_output_read_back_u_n_v};
+    s.modbus = b;
   }
-  w.end_object();
+  return s;
+}
+
+void write_summary_json(std::ostream& out, const RunFigures& f, const Runtime& runtime) {
+  records::write_json_document(out, run_summary_record(f, runtime));
 }
 
 }  // namespace pneu::controller

@@ -53,20 +53,14 @@ One file per channel, OUTDIR/<channel>.csv, every character of the channel name 
 [A-Za-z0-9_.-] replaced by '_' (if two channels end up with the same file name, the later one in
 name order gets "-2", "-3", ...). Each message is decoded by its fingerprint (its first 8 bytes) as
 a pneu_lcm type. The first column is log_utime, when the logger received the message [us since
-the Unix epoch]; then the message's fields in the order and units of lcmtypes/*.lcm:
-  state_t       log_utime,utime,seq,t,y_d,y,v_hat,a_hat,p_p,p_n,force,u,stuck,mode,validity
-  event_t       log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,seq,text
-  prediction_t  log_utime,utime,t,stop,t_stop,update,method,method_name,will_restart,direction,
-                t_restart,u_star,equilibrium_force,p_p_equilibrium,p_n_equilibrium,tau_p,tau_n,
-                min_margin,horizon_reached,force,stop_forecast_force,model_fits
-  health_t      log_utime,utime,t,mode,ticks,overruns,wake_latency_us_{min,median,p99,max},
-                compute_us_{min,median,p99,max},comms_errors,telemetry_dropped,
-                commands_received,commands_accepted,commands_rejected,rejected_malformed,
-                rejected_invalid,rejected_rate,rejected_mode,rejected_sequence,rejected_stale,
-                rejected_foreign,rejected_oversized,deadlines_skipped,fault_cause,faults,is_final,
-                host,pid,start_utime,nonce,period
-  command_t     log_utime,utime,seq,kind,kind_name,value
-  identification_t  log_utime,utime,t,updates, then for each parameter of lcmtypes/identification_t.lcm
+the Unix epoch]; then the message's fields in the order and units of its .lcm definition
+(share/pneu/lcmtypes):
+)";
+
+// The columns of each type written from its description (the lines of the usage between kUsage
+// and kUsageEnd): the header itself, wrapped.
+constexpr const char* kUsageEnd =
+    R"(  identification_t  log_utime,utime,t,updates, then for each parameter of lcmtypes/identification_t.lcm
                 in its order: NAME,NAME_sigma,NAME_identified (NAME its config key's last part:
                 static_positive_n ... spool_time_constant_s)
   unknown       log_utime,bytes,fingerprint_hex: a message of another type, or one that does not
@@ -87,6 +81,32 @@ type, the number of messages and the file (for state_t also the seq range and it
 Exit codes: 0 success (also for a truncated log), 1 writing failed, 2 bad command line, or
 LOGFILE missing, unreadable or not an LCM log (nothing written).
 )";
+
+// The usage, each type's columns as csv_header() names them.
+std::string usage() {
+  std::string u = kUsage;
+  for (const MessageType type : {MessageType::kState, MessageType::kEvent, MessageType::kPrediction,
+                                 MessageType::kHealth, MessageType::kCommand}) {
+    std::string line = "  " + std::string(log2csv::type_name(type));
+    line.resize(16, ' ');
+    const std::string header(log2csv::csv_header(type));
+    std::size_t from = 0;
+    while (from < header.size()) {  // wrapped after a comma, under 100 columns
+      std::size_t to = header.size();
+      if (line.size() + (to - from) > 99) {
+        to = header.rfind(',', from + (99 - line.size()));
+        to = (to == std::string::npos || to < from) ? header.size() : to + 1;
+      }
+      line += header.substr(from, to - from);
+      u += line + "\n";
+      line = std::string(16, ' ');
+      from = to;
+    }
+  }
+  return u + kUsageEnd;
+}
+
+void print_usage(std::ostream& out) { out << usage(); }
 
 // An lcm-logger file is a sequence of events, each: the marker 0xEDA1DA01, event number (int64),
 // timestamp [us] (int64), channel length (int32), payload length (int32), all big-endian, then the
@@ -420,7 +440,7 @@ int main(int argc, char** argv) {
     const cli::Args args(static_cast<int>(options.size()), options.data(), 1, {"channels"},
                          {"help", "version"});
     if (args.flag("help")) {
-      std::cout << kUsage;
+      print_usage(std::cout);
       return cli::kExitOk;
     }
     if (args.flag("version")) {
@@ -432,7 +452,7 @@ int main(int argc, char** argv) {
                 << (positional.size() < 2 ? "needs LOGFILE and OUTDIR"
                                           : "unexpected argument '" + positional[2] + "'")
                 << "\n\n"
-                << kUsage;
+                << usage();
       return cli::kExitBadInput;
     }
     std::optional<ChannelPattern> channels;

@@ -6,12 +6,13 @@
 
 #include "pneu/controller/records.hpp"
 #include "pneu/records/csv.hpp"
+#include "pneu/records/lcm.hpp"
 #include "pneu_lcm/command_t.hpp"
-#include "pneu_lcm/event_t.hpp"
-#include "pneu_lcm/health_t.hpp"
 #include "pneu_lcm/identification_t.hpp"
-#include "pneu_lcm/prediction_t.hpp"
 #include "pneu_lcm/state_t.hpp"
+#include "pneu_lcm/event_t_members.hpp"
+#include "pneu_lcm/health_t_members.hpp"
+#include "pneu_lcm/prediction_t_members.hpp"
 #include "pneu_lcm/state_t_members.hpp"
 
 namespace pneu::log2csv {
@@ -40,33 +41,18 @@ class Row {
     line_.append(buf, r.ptr);
     return *this;
   }
-  Row& boolean(std::int8_t v) {
+  // The fields of a described record as its message `m` carries them (pneu/records/lcm.hpp),
+  // numbers to the last bit.
+  template <records::Described R, class M>
+  Row& message(const M& m) {
     separate();
-    line_ += v != 0 ? '1' : '0';
-    return *this;
-  }
-  // A described record's fields (pneu/records), numbers to the last bit.
-  template <records::Described R>
-  Row& record(const R& r) {
-    separate();
-    records::write_csv_cells(line_, r, false, records::kDigitsToTheLastBit);
+    records::write_lcm_csv_cells<R>(line_, m, false, records::kDigitsToTheLastBit);
     return *this;
   }
   // A name from a fixed table: never holds a comma or a quote.
   Row& word(std::string_view v) {
     separate();
     line_ += v;
-    return *this;
-  }
-  // Free text, always quoted (RFC 4180): a quote doubled, commas and newlines kept as they are.
-  Row& text(std::string_view v) {
-    separate();
-    line_ += '"';
-    for (const char c : v) {
-      if (c == '"') line_ += '"';
-      line_ += c;
-    }
-    line_ += '"';
     return *this;
   }
   void end() { line_ += '\n'; }
@@ -79,38 +65,6 @@ class Row {
   std::string& line_;
   bool first_ = true;
 };
-
-const char* event_kind_name(std::int8_t kind) {
-  using E = pneu_lcm::event_t;
-  switch (kind) {
-    case E::KIND_START:
-      return "start";
-    case E::KIND_RESTART:
-      return "restart";
-    case E::KIND_STOP:
-      return "stop";
-    case E::KIND_FAULT:
-      return "fault";
-    case E::KIND_COMMAND_ACCEPTED:
-      return "command_accepted";
-    case E::KIND_COMMAND_REJECTED:
-      return "command_rejected";
-    case E::KIND_END:
-      return "end";
-    case E::KIND_FAULT_RESET:
-      return "fault_reset";
-    case E::KIND_FAULT_RESET_REFUSED:
-      return "fault_reset_refused";
-    case E::KIND_HOLD_START:
-      return "hold_start";
-    case E::KIND_HOLD_END:
-      return "hold_end";
-    case E::KIND_MOVEMENT_TEST:
-      return "movement_test";
-    default:
-      return "unknown";
-  }
-}
 
 const char* command_kind_name(std::int8_t kind) {
   using C = pneu_lcm::command_t;
@@ -125,22 +79,6 @@ const char* command_kind_name(std::int8_t kind) {
       return "disarm";
     case C::KIND_FAULT_RESET:
       return "fault_reset";
-    default:
-      return "unknown";
-  }
-}
-
-const char* method_name(std::int8_t method) {
-  using P = pneu_lcm::prediction_t;
-  switch (method) {
-    case P::METHOD_LINEARIZED:
-      return "linearized";
-    case P::METHOD_NONLINEAR:
-      return "nonlinear";
-    case P::METHOD_RELAXATION:
-      return "relaxation";
-    case P::METHOD_HELD:
-      return "held";
     default:
       return "unknown";
   }
@@ -205,38 +143,33 @@ std::string_view csv_header(MessageType type) {
       static const std::string header = "log_utime,utime," + records::csv_header<controller::TickRecord>();
       return header;
     }
-    case MessageType::kEvent:
-      return "log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,seq,text";
-    case MessageType::kPrediction:
-      return "log_utime,utime,t,stop,t_stop,update,method,method_name,will_restart,direction,t_restart,"
-             "u_star,equilibrium_force,p_p_equilibrium,p_n_equilibrium,tau_p,tau_n,min_margin,"
-             "horizon_reached,force,stop_forecast_force,model_fits";
-    case MessageType::kHealth:
-      return "log_utime,utime,t,mode,ticks,overruns,wake_latency_us_min,wake_latency_us_median,"
-             "wake_latency_us_p99,wake_latency_us_max,compute_us_min,compute_us_median,"
-             "compute_us_p99,compute_us_max,comms_errors,telemetry_dropped,commands_received,"
-             "commands_accepted,commands_rejected,rejected_malformed,rejected_invalid,"
-             "rejected_rate,rejected_mode,rejected_sequence,rejected_stale,rejected_foreign,"
-             "rejected_oversized,deadlines_skipped,fault_cause,faults,is_final,host,pid,start_utime,nonce,period";
+    case MessageType::kEvent: {
+      static const std::string header = "log_utime,utime," + records::csv_header<controller::EventMessage>();
+      return header;
+    }
+    case MessageType::kPrediction: {
+      static const std::string header = "log_utime,utime," + records::csv_header<controller::ForecastRecord>();
+      return header;
+    }
+    case MessageType::kHealth: {
+      static const std::string header = "log_utime,utime," + records::csv_header<controller::HealthMessage>();
+      return header;
+    }
     case MessageType::kCommand:
       return "log_utime,utime,seq,kind,kind_name,value";
-    case MessageType::kIdentification:
-      return "log_utime,utime,t,updates,"
-             "static_positive_n,static_positive_n_sigma,static_positive_n_identified,"
-             "static_negative_n,static_negative_n_sigma,static_negative_n_identified,"
-             "coulomb_positive_n,coulomb_positive_n_sigma,coulomb_positive_n_identified,"
-             "coulomb_negative_n,coulomb_negative_n_sigma,coulomb_negative_n_identified,"
-             "viscous_n_s_per_m,viscous_n_s_per_m_sigma,viscous_n_s_per_m_identified,"
-             "max_conductance_m3_per_s_pa,max_conductance_m3_per_s_pa_sigma,max_conductance_m3_per_s_pa_identified,"
-             "leak_conductance_in_m3_per_s_pa,leak_conductance_in_m3_per_s_pa_sigma,"
-             "leak_conductance_in_m3_per_s_pa_identified,"
-             "leak_conductance_out_m3_per_s_pa,leak_conductance_out_m3_per_s_pa_sigma,"
-             "leak_conductance_out_m3_per_s_pa_identified,"
-             "null_offset_v,null_offset_v_sigma,null_offset_v_identified,"
-             "dead_volume_p_m3,dead_volume_p_m3_sigma,dead_volume_p_m3_identified,"
-             "dead_volume_n_m3,dead_volume_n_m3_sigma,dead_volume_n_m3_identified,"
-             "heat_transfer_w_per_m2_k,heat_transfer_w_per_m2_k_sigma,heat_transfer_w_per_m2_k_identified,"
-             "spool_time_constant_s,spool_time_constant_s_sigma,spool_time_constant_s_identified";
+    case MessageType::kIdentification: {
+      // Per parameter, in the order of its arrays (controller::kIdentifiedParameterKeys): NAME,
+      // NAME_sigma, NAME_identified, NAME the config key's last part.
+      static const std::string header = [] {
+        std::string h = "log_utime,utime,t,updates";
+        for (const std::string_view key : controller::kIdentifiedParameterKeys) {
+          const std::string_view name = key.substr(key.rfind('.') + 1);
+          for (const std::string_view suffix : {"", "_sigma", "_identified"}) (h += ',').append(name).append(suffix);
+        }
+        return h;
+      }();
+      return header;
+    }
     case MessageType::kUnknown:
       return "log_utime,bytes,fingerprint_hex";
   }
@@ -274,87 +207,25 @@ RowInfo format_csv_row(std::int64_t log_utime, const void* data, std::int32_t si
   if (fingerprint == pneu_lcm::state_t::getHash()) {
     pneu_lcm::state_t m{};
     if (decode_whole(data, size, &m)) {
-      controller::TickRecord tick;
-      records::from_lcm(m, tick);
-      Row(line, log_utime).integer(m.utime).record(tick).end();
+      Row(line, log_utime).integer(m.utime).message<controller::TickRecord>(m).end();
       return {MessageType::kState, m.seq};
     }
   } else if (fingerprint == pneu_lcm::event_t::getHash()) {
     pneu_lcm::event_t m{};
     if (decode_whole(data, size, &m)) {
-      Row(line, log_utime)
-          .integer(m.utime)
-          .integer(m.kind)
-          .word(event_kind_name(m.kind))
-          .number(m.t)
-          .integer(m.stop)
-          .number(m.y)
-          .number(m.force)
-          .number(m.y_d)
-          .integer(m.direction)
-          .integer(m.seq)
-          .text(m.text)
-          .end();
+      Row(line, log_utime).integer(m.utime).message<controller::EventMessage>(m).end();
       return {MessageType::kEvent, 0};
     }
   } else if (fingerprint == pneu_lcm::prediction_t::getHash()) {
     pneu_lcm::prediction_t m{};
     if (decode_whole(data, size, &m)) {
-      Row(line, log_utime)
-          .integer(m.utime)
-          .number(m.t)
-          .integer(m.stop)
-          .number(m.t_stop)
-          .integer(m.update)
-          .integer(m.method)
-          .word(method_name(m.method))
-          .boolean(m.will_restart)
-          .integer(m.direction)
-          .number(m.t_restart)
-          .number(m.u_star)
-          .number(m.equilibrium_force)
-          .number(m.p_p_equilibrium)
-          .number(m.p_n_equilibrium)
-          .number(m.tau_p)
-          .number(m.tau_n)
-          .number(m.min_margin)
-          .boolean(m.horizon_reached)
-          .number(m.force)
-          .number(m.stop_forecast_force)
-          .boolean(m.model_fits)
-          .end();
+      Row(line, log_utime).integer(m.utime).message<controller::ForecastRecord>(m).end();
       return {MessageType::kPrediction, 0};
     }
   } else if (fingerprint == pneu_lcm::health_t::getHash()) {
     pneu_lcm::health_t m{};
     if (decode_whole(data, size, &m)) {
-      Row row(line, log_utime);
-      row.integer(m.utime).number(m.t).integer(m.mode).integer(m.ticks).integer(m.overruns);
-      for (const double v : m.wake_latency_us) row.number(v);
-      for (const double v : m.compute_us) row.number(v);
-      row.integer(m.comms_errors)
-          .integer(m.telemetry_dropped)
-          .integer(m.commands_received)
-          .integer(m.commands_accepted)
-          .integer(m.commands_rejected)
-          .integer(m.rejected_malformed)
-          .integer(m.rejected_invalid)
-          .integer(m.rejected_rate)
-          .integer(m.rejected_mode)
-          .integer(m.rejected_sequence)
-          .integer(m.rejected_stale)
-          .integer(m.rejected_foreign)
-          .integer(m.rejected_oversized)
-          .integer(m.deadlines_skipped)
-          .integer(m.fault_cause)
-          .integer(m.faults)
-          .boolean(m.is_final)
-          .text(m.host)
-          .integer(m.pid)
-          .integer(m.start_utime)
-          .integer(m.nonce)
-          .number(m.period)
-          .end();
+      Row(line, log_utime).integer(m.utime).message<controller::HealthMessage>(m).end();
       return {MessageType::kHealth, 0};
     }
   } else if (fingerprint == pneu_lcm::command_t::getHash()) {
@@ -374,7 +245,9 @@ RowInfo format_csv_row(std::int64_t log_utime, const void* data, std::int32_t si
     if (decode_whole(data, size, &m)) {
       Row row(line, log_utime);
       row.integer(m.utime).number(m.t).integer(m.updates);
-      for (int i = 0; i < 13; ++i) row.number(m.value[i]).number(m.sigma[i]).integer(m.identified[i]);
+      static_assert(std::extent_v<decltype(m.value)> == controller::kIdentifiedParameterKeys.size());
+      for (std::size_t i = 0; i < controller::kIdentifiedParameterKeys.size(); ++i)
+        row.number(m.value[i]).number(m.sigma[i]).integer(m.identified[i]);
       row.end();
       return {MessageType::kIdentification, 0};
     }

@@ -7,11 +7,14 @@
 #include <iostream>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "pneu/config/cli.hpp"
 #include "pneu/controller/records.hpp"
+#include "pneu/controller/summary_record.hpp"
 #include "pneu/records/lcm.hpp"
 #include "pneu/records/schema.hpp"
+#include "pneu/sweep/rows.hpp"
 
 namespace {
 
@@ -64,6 +67,53 @@ std::string state_t_lcm() {
       "  int64_t utime;      // time of the sample, microseconds since the Unix epoch\n", constants);
 }
 
+// event_t: an event, on <prefix>EVENT.
+std::string event_t_lcm() {
+  return records::lcm_message_text<controller::EventMessage>(
+      "pneu_lcm", "event_t", "Something that happened, on <prefix>EVENT.", "controller/include/pneu/controller/records.hpp",
+      "  int64_t utime;      // microseconds since the Unix epoch\n", "");
+}
+
+// prediction_t: a forecast, on <prefix>PREDICTION.
+std::string prediction_t_lcm() {
+  return records::lcm_message_text<controller::ForecastRecord>(
+      "pneu_lcm", "prediction_t",
+      "A restart forecast (docs/model.md section 6), on <prefix>PREDICTION: made at a stop (update 0), then,\n"
+      "// while the carriage stays stuck under the same u*, made again from the pressures of the moment\n"
+      "// every controller.predictor.update_period_s (update 1, 2, ...).\n"
+      "// METHOD_RELAXATION: each chamber's relaxation fitted to the pressures since the stop (no valve\n"
+      "// model); made again only (update >= 1), its tau_* and *_equilibrium the fitted ones, and\n"
+      "// stop_forecast_force NaN.\n"
+      "// METHOD_HELD: while the in-position hold holds the stop, the pressure equations integrated\n"
+      "// under the hold's own commands (its PI law closed on the model's force); made again only\n"
+      "// (update >= 1), u_star the hold's command then, equilibrium_force the force it settles on\n"
+      "// (reaching: the force at the breakaway it forecasts), stop_forecast_force NaN.",
+      "controller/include/pneu/controller/records.hpp",
+      "  int64_t utime;      // microseconds since the Unix epoch\n", "");
+}
+
+// health_t: the daemon's health, on <prefix>HEALTH.
+std::string health_t_lcm() {
+  return records::lcm_message_text<controller::HealthMessage>(
+      "pneu_lcm", "health_t", records::Description<controller::HealthMessage>::kDoc,
+      "controller/include/pneu/controller/records.hpp",
+      "  int64_t utime;      // microseconds since the Unix epoch\n", "");
+}
+
+// The JSON Schema of a line of the events file: one of its views.
+std::string events_schema() {
+  std::vector<std::string> lines;
+  for (const records::View& v : controller::kEventLineViews)
+    lines.push_back(records::json_line_schema<controller::EventLine>(v));
+  lines.push_back(records::json_line_schema<controller::ForecastRecord>(controller::kPredictionLine));
+  lines.push_back(records::json_line_schema<controller::ForecastRecord>(controller::kReforecastLine));
+  lines.push_back(records::json_line_schema<controller::CommandRecord>(controller::kCommandLine));
+  return records::json_lines_schema("https://pneu.invalid/schemas/events.schema.json", "events",
+                                    "a line of the events file (pneud --events): one JSON object a line, its "
+                                    "\"event\" member naming which",
+                                    lines);
+}
+
 int run(int argc, char** argv) {
   const cli::Args args(argc, argv, 1, {"lcm", "cpp", "schemas"}, {"help", "version"}, {});
   if (args.flag("help")) {
@@ -81,15 +131,39 @@ int run(int argc, char** argv) {
   if (cpp && !lcm) throw cli::UsageError("--cpp goes with --lcm");
   if (lcm) {
     write_if_changed(fs::path(*lcm) / "state_t.lcm", state_t_lcm());
-    if (cpp)
-      write_if_changed(fs::path(*cpp) / "pneu_lcm" / "state_t_members.hpp",
-                       records::lcm_members_header<controller::TickRecord>("pneu_lcm", "state_t"));
+    write_if_changed(fs::path(*lcm) / "event_t.lcm", event_t_lcm());
+    write_if_changed(fs::path(*lcm) / "prediction_t.lcm", prediction_t_lcm());
+    write_if_changed(fs::path(*lcm) / "health_t.lcm", health_t_lcm());
+    if (cpp) {
+      const fs::path dir = fs::path(*cpp) / "pneu_lcm";
+      write_if_changed(dir / "state_t_members.hpp", records::lcm_members_header<controller::TickRecord>("pneu_lcm", "state_t"));
+      write_if_changed(dir / "event_t_members.hpp",
+                       records::lcm_members_header<controller::EventMessage>("pneu_lcm", "event_t"));
+      write_if_changed(dir / "prediction_t_members.hpp",
+                       records::lcm_members_header<controller::ForecastRecord>("pneu_lcm", "prediction_t"));
+      write_if_changed(dir / "health_t_members.hpp",
+                       records::lcm_members_header<controller::HealthMessage>("pneu_lcm", "health_t"));
+    }
   }
   if (schemas) {
     write_if_changed(fs::path(*schemas) / "tick.schema.json",
                      records::json_schema<controller::TickRecord>("https://pneu.invalid/schemas/tick.schema.json"));
     write_if_changed(fs::path(*schemas) / "expected.schema.json",
                      records::json_schema<controller::ForecastPoint>("https://pneu.invalid/schemas/expected.schema.json"));
+    write_if_changed(fs::path(*schemas) / "forecast.schema.json",
+                     records::json_schema<controller::ForecastRecord>("https://pneu.invalid/schemas/forecast.schema.json"));
+    write_if_changed(fs::path(*schemas) / "event_message.schema.json",
+                     records::json_schema<controller::EventMessage>(
+                         "https://pneu.invalid/schemas/event_message.schema.json"));
+    write_if_changed(fs::path(*schemas) / "events.schema.json", events_schema());
+    write_if_changed(fs::path(*schemas) / "health.schema.json",
+                     records::json_schema<controller::HealthMessage>("https://pneu.invalid/schemas/health.schema.json"));
+    write_if_changed(fs::path(*schemas) / "summary.schema.json",
+                     records::json_schema<controller::RunSummaryRecord>("https://pneu.invalid/schemas/summary.schema.json"));
+    write_if_changed(fs::path(*schemas) / "sweep_stop.schema.json",
+                     records::json_schema<sweep::StopRow>("https://pneu.invalid/schemas/sweep_stop.schema.json"));
+    write_if_changed(fs::path(*schemas) / "sweep_scenario.schema.json",
+                     records::json_schema<sweep::ScenarioRow>("https://pneu.invalid/schemas/sweep_scenario.schema.json"));
   }
   return cli::kExitOk;
 }

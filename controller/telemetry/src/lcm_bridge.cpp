@@ -16,11 +16,11 @@
 #include "pneu/telemetry/command_datagram.hpp"
 
 #include "pneu_lcm/command_t.hpp"
-#include "pneu_lcm/event_t.hpp"
-#include "pneu_lcm/health_t.hpp"
 #include "pneu_lcm/identification_t.hpp"
-#include "pneu_lcm/prediction_t.hpp"
 #include "pneu_lcm/state_t.hpp"
+#include "pneu_lcm/event_t_members.hpp"
+#include "pneu_lcm/health_t_members.hpp"
+#include "pneu_lcm/prediction_t_members.hpp"
 #include "pneu_lcm/state_t_members.hpp"
 
 namespace pneu::telemetry {
@@ -176,77 +176,14 @@ void LcmBridge::on_tick(const controller::TickRecord& r, const controller::Expec
 void LcmBridge::on_event(const LoopEvent& e) {
   pneu_lcm::event_t m;
   m.utime = utime_of(e.t_s);
-  m.t = e.t_s;
-  m.stop = static_cast<std::int64_t>(e.stop_index);
-  m.y = e.y_m;
-  m.force = e.force_n;
-  m.y_d = e.y_d_m;
-  m.direction = static_cast<std::int8_t>(e.direction);
-  m.seq = 0;
-  if (e.kind == LoopEvent::Kind::kStop) {
-    m.kind = pneu_lcm::event_t::KIND_STOP;
-    m.text = "stop";
-  } else if (e.kind == LoopEvent::Kind::kFaultReset) {
-    m.kind = pneu_lcm::event_t::KIND_FAULT_RESET;
-    m.text = std::string("fault (") + controller::fault_name(e.fault_cause) + ") reset: disarmed, send ARM to drive";
-  } else if (e.kind == LoopEvent::Kind::kResetRefused) {
-    m.kind = pneu_lcm::event_t::KIND_FAULT_RESET_REFUSED;
-    m.text = std::string("fault reset refused: the cause is still present (") + controller::fault_name(e.fault_cause) +
-             "): " + controller::fault_text(e.fault_cause);
-  } else if (e.kind == LoopEvent::Kind::kHoldStart) {
-    m.kind = pneu_lcm::event_t::KIND_HOLD_START;
-    m.text = "hold: at rest within the window, the pressure force driven into the stiction band";
-  } else if (e.kind == LoopEvent::Kind::kHoldEnd) {
-    m.kind = pneu_lcm::event_t::KIND_HOLD_END;
-    m.text = std::string("hold ended: ") + controller::hold_end_name(e.hold_end);
-  } else if (e.kind == LoopEvent::Kind::kFault) {
-    m.kind = pneu_lcm::event_t::KIND_FAULT;
-    m.text = std::string("fault (") + controller::fault_name(e.fault_cause) + "): " + controller::fault_text(e.fault_cause);
-    if (e.fault_cause == controller::FaultCause::kMovementTest)
-      m.text += std::string("; finding: ") + controller::movement_finding_name(e.movement_test.finding) + ": " +
-                controller::movement_finding_text(e.movement_test.finding);
-  } else if (e.kind == LoopEvent::Kind::kMovementTest) {
-    m.kind = pneu_lcm::event_t::KIND_MOVEMENT_TEST;
-    m.text = std::string("movement test at ARM ") + controller::movement_test_end_name(e.movement_end) + ": " +
-             controller::describe(e.movement_test);
-  } else if (e.restart) {
-    m.kind = pneu_lcm::event_t::KIND_RESTART;
-    m.text = "restart after a stop, set point unchanged";
-  } else {
-    m.kind = pneu_lcm::event_t::KIND_START;
-    m.text = "start";
-  }
+  records::to_lcm(controller::event_message(e), m);
   publish(event_channel_, m);
 }
 
 void LcmBridge::on_forecast(const controller::ForecastRecord& f) {
-  const controller::Prediction& p = f.prediction;
   pneu_lcm::prediction_t m;
   m.utime = utime_of(f.t_s);
-  m.t = f.t_s;
-  m.stop = static_cast<std::int64_t>(f.stop);
-  m.t_stop = f.t_stop_s;
-  m.update = static_cast<std::int32_t>(f.update);
-  switch (p.method) {
-    case controller::PredictionMethod::kLinearized: m.method = pneu_lcm::prediction_t::METHOD_LINEARIZED; break;
-    case controller::PredictionMethod::kNonlinear: m.method = pneu_lcm::prediction_t::METHOD_NONLINEAR; break;
-    case controller::PredictionMethod::kRelaxation: m.method = pneu_lcm::prediction_t::METHOD_RELAXATION; break;
-    case controller::PredictionMethod::kHeld: m.method = pneu_lcm::prediction_t::METHOD_HELD; break;
-  }
-  m.will_restart = p.will_restart;
-  m.direction = static_cast<std::int8_t>(p.direction);
-  m.t_restart = p.t_restart_s;
-  m.u_star = f.u_star_v;
-  m.equilibrium_force = p.equilibrium_force_n;
-  m.p_p_equilibrium = p.p_p_equilibrium_pa;
-  m.p_n_equilibrium = p.p_n_equilibrium_pa;
-  m.tau_p = p.tau_p_s;
-  m.tau_n = p.tau_n_s;
-  m.min_margin = p.min_margin_n;
-  m.horizon_reached = p.horizon_reached;
-  m.force = f.force_n;
-  m.stop_forecast_force = f.stop_forecast_force_n;
-  m.model_fits = p.model_fits;
+  records::to_lcm(f, m);
   publish(prediction_channel_, m);
 }
 
@@ -265,45 +202,46 @@ void LcmBridge::on_identification(const controller::IdentificationRecord& r) {
 
 void LcmBridge::on_health(const controller::HealthRecord& h) {
   const CommandCounters& c = validator_.counters();
+  controller::HealthMessage r;
+  r.t_s = h.t_s;
+  r.mode = static_cast<std::int8_t>(h.mode);
+  r.ticks = static_cast<std::int64_t>(h.ticks);
+  r.overruns = static_cast<std::int64_t>(h.overruns);
+  r.wake_latency_us = {h.wake_latency_s[0] * 1e6, h.wake_latency_s[1] * 1e6, h.wake_latency_s[2] * 1e6,
+                       h.wake_latency_s[3] * 1e6};
+  r.compute_us = {h.compute_s[0] * 1e6, h.compute_s[1] * 1e6, h.compute_s[2] * 1e6, h.compute_s[3] * 1e6};
+  r.comms_errors = static_cast<std::int64_t>(h.comms_errors);
+  r.telemetry_dropped = static_cast<std::int64_t>(h.ticks_dropped + h.events_dropped + publish_errors_);
+  r.commands_received = static_cast<std::int64_t>(c.received);
+  r.commands_accepted = static_cast<std::int64_t>(c.accepted);
+  r.commands_rejected = static_cast<std::int64_t>(c.rejected);
+  r.rejected_malformed = static_cast<std::int64_t>(c.malformed);
+  r.rejected_invalid = static_cast<std::int64_t>(c.invalid);
+  r.rejected_rate = static_cast<std::int64_t>(c.rate);
+  r.rejected_mode = static_cast<std::int64_t>(c.mode);
+  r.rejected_sequence = static_cast<std::int64_t>(c.sequence);
+  r.rejected_stale = static_cast<std::int64_t>(c.stale);
+  r.rejected_foreign = static_cast<std::int64_t>(c.foreign);
+  r.rejected_oversized = static_cast<std::int64_t>(c.oversized);
+  r.deadlines_skipped = static_cast<std::int64_t>(h.deadlines_skipped);
+  r.fault_cause = static_cast<std::int8_t>(controller::fault_number(h.fault_cause));
+  r.faults = static_cast<std::int64_t>(h.faults);
+  r.is_final = h.is_final;
+  const InstanceId& self = instance();
+  r.host = self.host;
+  r.pid = self.pid;
+  r.start_utime = self.start_utime;
+  r.nonce = self.nonce;
+  r.period_s = health_period_s_;
   pneu_lcm::health_t m;
   m.utime = utime_of(h.t_s);
-  m.t = h.t_s;
-  m.mode = static_cast<std::int8_t>(h.mode);
-  m.ticks = static_cast<std::int64_t>(h.ticks);
-  m.overruns = static_cast<std::int64_t>(h.overruns);
-  for (int i = 0; i < 4; ++i) {
-    m.wake_latency_us[i] = h.wake_latency_s[i] * 1e6;
-    m.compute_us[i] = h.compute_s[i] * 1e6;
-  }
-  m.comms_errors = static_cast<std::int64_t>(h.comms_errors);
-  m.telemetry_dropped = static_cast<std::int64_t>(h.ticks_dropped + h.events_dropped + publish_errors_);
-  m.commands_received = static_cast<std::int64_t>(c.received);
-  m.commands_accepted = static_cast<std::int64_t>(c.accepted);
-  m.commands_rejected = static_cast<std::int64_t>(c.rejected);
-  m.rejected_malformed = static_cast<std::int64_t>(c.malformed);
-  m.rejected_invalid = static_cast<std::int64_t>(c.invalid);
-  m.rejected_rate = static_cast<std::int64_t>(c.rate);
-  m.rejected_mode = static_cast<std::int64_t>(c.mode);
-  m.rejected_sequence = static_cast<std::int64_t>(c.sequence);
-  m.rejected_stale = static_cast<std::int64_t>(c.stale);
-  m.rejected_foreign = static_cast<std::int64_t>(c.foreign);
-  m.rejected_oversized = static_cast<std::int64_t>(c.oversized);
-  m.deadlines_skipped = static_cast<std::int64_t>(h.deadlines_skipped);
-  m.fault_cause = static_cast<std::int8_t>(controller::fault_number(h.fault_cause));
-  m.faults = static_cast<std::int64_t>(h.faults);
-  m.is_final = h.is_final;
-  const InstanceId& self = instance();
-  m.host = self.host;
-  m.pid = self.pid;
-  m.start_utime = self.start_utime;
-  m.nonce = self.nonce;
-  m.period = health_period_s_;
+  records::to_lcm(r, m);
   publish(health_channel_, m);
 }
 
 void LcmBridge::on_end(double t_end_s) {
   last_t_s_ = t_end_s;
-  publish_text_event(pneu_lcm::event_t::KIND_END, "end of run");
+  publish_text_event(controller::event_kind::kEnd, "end of run");
 }
 
 controller::TelemetryFigures LcmBridge::figures() const {
@@ -317,15 +255,14 @@ controller::TelemetryFigures LcmBridge::figures() const {
 }
 
 void LcmBridge::publish_text_event(std::int8_t kind, const std::string& text, std::int64_t seq) {
+  controller::EventMessage e;
+  e.kind = kind;
+  e.t_s = last_t_s_;
+  e.seq = seq;
+  e.text = text;
   pneu_lcm::event_t m;
   m.utime = unix_now_us();
-  m.kind = kind;
-  m.t = last_t_s_;
-  m.stop = 0;
-  m.y = m.force = m.y_d = std::numeric_limits<double>::quiet_NaN();
-  m.direction = 0;
-  m.seq = seq;
-  m.text = text;
+  records::to_lcm(e, m);
   publish(event_channel_, m);
 }
 
@@ -374,7 +311,7 @@ void LcmBridge::on_datagram(std::span<const std::uint8_t> bytes, const CommandSo
   // The verdict names the command by its sequence number, so that its sender can tell its own.
   const bool is_command = decoded.kind == DatagramKind::kCommand;
   const CommandFields& c = decoded.fields;
-  publish_text_event(v.accepted ? pneu_lcm::event_t::KIND_COMMAND_ACCEPTED : pneu_lcm::event_t::KIND_COMMAND_REJECTED,
+  publish_text_event(v.accepted ? controller::event_kind::kCommandAccepted : controller::event_kind::kCommandRejected,
                      v.accepted ? "accepted: " + v.text : "rejected (" + std::string(reason) + "): " + v.text,
                      is_command ? c.seq : 0);
   if (command_log_) {

@@ -11,6 +11,7 @@
 
 #include "pneu/controller/run_figures.hpp"
 #include "pneu/controller/runtime.hpp"
+#include "pneu/controller/summary_record.hpp"
 
 namespace pneu::controller {
 
@@ -35,8 +36,12 @@ enum class RunEnding : std::uint8_t {
 /// (ending_text).
 void print_summary(std::FILE* out, const RunFigures& figures, const Runtime& runtime);
 
+/// The run's figures as the summary record (pneu/controller/summary_record.hpp describes it).
+[[nodiscard]] RunSummaryRecord run_summary_record(const RunFigures& figures, const Runtime& runtime);
+
 /// The run's figures as one JSON object (pneud --summary-json; the README lists its members):
-/// what the summary's lines say of the run, the loop, LCM and Modbus, with units in the names.
+/// what the summary's lines say of the run, the loop, LCM and Modbus, with units in the names;
+/// the summary record's JSON document.
 void write_summary_json(std::ostream& out, const RunFigures& figures, const Runtime& runtime);
 
 }  // namespace pneu::controller

@@ -1,50 +1,166 @@
 // A record as CSV: its header (the fields' names) and its cells, as its description says.
-// Numbers with the field's significant digits (or as many as asked), an empty cell for NaN;
-// integers and enumerations as integers; booleans as 1 and 0. Written to a stream or appended to
-// a string.
+// Numbers with the field's significant digits (or as many as asked), or its decimals (.fixed), an
+// empty cell for NaN (printf's nan with .nan_as_text); integers and enumerations as integers;
+// booleans as 1 and 0; free text (std::string, std::string_view) always quoted (RFC 4180: a quote
+// doubled), a word (const char*: a name from a fixed table, never a comma or a quote) as it is;
+// an enumeration written as text (.named) as two cells, its number and its name (columns NAME and
+// NAME_name); an optional member with no value, an empty cell; a group, its record's cells (empty
+// ones when it has no value) under its prefix. Written to a stream or appended to a string; from
+// the record, or from an LCM message carrying it (lcm.hpp: the message's values as they came,
+// unknown numbers included). A view (record.hpp) selects and orders the columns.
 #pragma once
 
 #include <charconv>
+#include <cmath>
+#include <cstdio>
 #include <string>
 #include <string_view>
+#include <tuple>
 
 #include "pneu/records/record.hpp"
 #include "pneu/records/text.hpp"
 
 namespace pneu::records {
 
-/// Writes one value of a field as a CSV cell (no separator); `digits`: 0 for the field's.
-template <class Out, class F>
-void write_csv_value(Out& out, const F& field, const typename F::member_type& v, int digits = 0) {
-  using M = typename F::member_type;
-  if constexpr (F::kind == Kind::kBoolean) {
-    put(out, v ? '1' : '0');
+template <class Out>
+void write_csv_integer(Out& out, std::int64_t v) {
+  char buf[24];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  put(out, buf, static_cast<std::size_t>(r.ptr - buf));
+}
+
+template <class Out>
+void write_csv_string(Out& out, std::string_view v) {
+  put(out, '"');
+  for (const char c : v) {
+    if (c == '"') put(out, '"');
+    put(out, c);
+  }
+  put(out, '"');
+}
+
+template <Described Record, class Out>
+void write_csv_cells(Out& out, const Record& r, bool leading_comma = false, int digits = 0);
+template <Described Record, class Out>
+void write_csv_empty_cells(Out& out, bool leading_comma = false);
+
+/// Writes one value of a field as it travels (`w`, of its wire type, or an optional of it) as CSV
+/// cells (no separator before); `digits`: 0 for the field's.
+template <class Out, class F, class W>
+void write_csv_wire_value(Out& out, const F& field, const W& w, int digits = 0) {
+  if constexpr (kIsOptional<W>) {
+    if (w.has_value()) write_csv_wire_value(out, field, *w, digits);
+    else if constexpr (F::kind == Kind::kGroup) write_csv_empty_cells<value_t<W>>(out);
+    else if constexpr (F::kind == Kind::kName) put(out, ',');
+  } else if constexpr (F::kind == Kind::kGroup) {
+    write_csv_cells(out, w, false, digits);
+  } else if constexpr (F::kind == Kind::kBoolean) {
+    put(out, w ? '1' : '0');
   } else if constexpr (F::kind == Kind::kNumber) {
-    const NumberText n = number_text(static_cast<double>(v), digits > 0 ? digits : field.digits);
+    const double v = static_cast<double>(w);
+    if (std::isnan(v) && !field.nan_text) return;
+    if (field.fixed_decimals >= 0 || std::isnan(v)) {
+      char buf[352];
+      const int n = std::snprintf(buf, sizeof buf, "%.*f", field.fixed_decimals >= 0 ? field.fixed_decimals : 6, v);
+      put(out, buf, static_cast<std::size_t>(n));
+      return;
+    }
+    const NumberText n = number_text(v, digits > 0 ? digits : field.digits);
     put(out, n.text, n.size);
+  } else if constexpr (F::kind == Kind::kString) {
+    if constexpr (std::is_same_v<W, const char*>) {
+      if (w != nullptr) put(out, std::string_view(w));  // a word
+    } else {
+      write_csv_string(out, w);
+    }
   } else {
-    char buf[24];
-    const auto r = std::to_chars(buf, buf + sizeof buf, static_cast<wire_integer_t<M>>(v));
-    put(out, buf, static_cast<std::size_t>(r.ptr - buf));
+    write_csv_integer(out, static_cast<std::int64_t>(w));
+    if constexpr (F::kind == Kind::kName) {
+      put(out, ',');
+      put(out, std::string_view(field.name_of_wire(static_cast<std::int64_t>(w))));
+    }
   }
 }
 
-/// The CSV header of `Record`: its fields' names, each followed by `suffix`, comma-separated.
+/// Writes one value of a field as CSV cells (no separator before); `digits`: 0 for the field's.
+template <class Out, class F, class V>
+void write_csv_value(Out& out, const F& field, const V& v, int digits = 0) {
+  if constexpr (kIsOptional<V>) {
+    if (v.has_value()) write_csv_value(out, field, *v, digits);
+    else write_csv_wire_value(out, field, v, digits);  // the empty cells
+  } else if constexpr (F::kind == Kind::kName) {
+    write_csv_wire_value(out, field, field.wire_of(v), digits);
+  } else if constexpr (F::kind == Kind::kInteger) {
+    using W = std::conditional_t<kIsOptional<typename F::member_type>, wire_integer_t<V>, typename F::wire_type>;
+    write_csv_wire_value(out, field, static_cast<W>(v), digits);
+  } else {
+    write_csv_wire_value(out, field, v, digits);
+  }
+}
+
 template <Described Record>
-[[nodiscard]] std::string csv_header(std::string_view suffix = {}) {
+[[nodiscard]] std::string csv_header(std::string_view suffix = {}, std::string_view prefix = {});
+
+/// The CSV columns of one field: its name, after `prefix`, followed by `suffix` (and NAME_name
+/// for an enumeration written as text; a group's columns, after its own prefix too).
+template <class F>
+void append_csv_columns(std::string& h, const F& f, std::string_view suffix = {}, std::string_view prefix = {}) {
+  if constexpr (F::kind == Kind::kGroup) {
+    h += csv_header<value_t<typename F::member_type>>(suffix, std::string(prefix) + f.prefix);
+  } else {
+    h += prefix;
+    h += f.name;
+    h += suffix;
+    if constexpr (F::kind == Kind::kName) {
+      h += ',';
+      h += prefix;
+      h += f.name;
+      h += "_name";
+      h += suffix;
+    }
+  }
+}
+
+/// The number of CSV columns of `Record`.
+template <Described Record>
+constexpr std::size_t csv_column_count() {
+  std::size_t n = 0;
+  for_each_field<Record>([&](const auto& f) {
+    using F = std::remove_cvref_t<decltype(f)>;
+    if constexpr (F::kind == Kind::kGroup) n += csv_column_count<value_t<typename F::member_type>>();
+    else n += F::kind == Kind::kName ? 2 : 1;
+  });
+  return n;
+}
+
+/// The CSV header of `Record`: its fields' names, each after `prefix` and followed by `suffix`,
+/// comma-separated.
+template <Described Record>
+[[nodiscard]] std::string csv_header(std::string_view suffix, std::string_view prefix) {
   std::string h;
   for_each_field<Record>([&](const auto& f) {
     if (!h.empty()) h += ',';
-    h += f.name;
-    h += suffix;
+    append_csv_columns(h, f, suffix, prefix);
   });
+  return h;
+}
+
+/// The CSV header of the columns `view` selects of `Record`, in its order.
+template <Described Record>
+[[nodiscard]] std::string csv_header(const View& view) {
+  std::string h;
+  for (const char* name : view.fields)
+    with_field<Record>(name, [&](const auto& f) {
+      if (!h.empty()) h += ',';
+      append_csv_columns(h, f);
+    });
   return h;
 }
 
 /// Writes the cells of `r`, comma-separated; `leading_comma`: one before the first too; `digits`:
 /// the significant digits of every number (0: each field's own).
 template <Described Record, class Out>
-void write_csv_cells(Out& out, const Record& r, bool leading_comma = false, int digits = 0) {
+void write_csv_cells(Out& out, const Record& r, bool leading_comma, int digits) {
   bool comma = leading_comma;
   for_each_field<Record>([&](const auto& f) {
     if (comma) put(out, ',');
@@ -53,10 +169,23 @@ void write_csv_cells(Out& out, const Record& r, bool leading_comma = false, int 
   });
 }
 
-/// Writes as many empty cells as `Record` has fields (a group of columns with no value).
+/// Writes the cells `view` selects of `r`, in its order, and the newline.
 template <Described Record, class Out>
-void write_csv_empty_cells(Out& out, bool leading_comma = false) {
-  for (std::size_t i = 0; i < kFieldCount<Record>; ++i)
+void write_csv_row(Out& out, const View& view, const Record& r) {
+  bool comma = false;
+  for (const char* name : view.fields)
+    with_field<Record>(name, [&](const auto& f) {
+      if (comma) put(out, ',');
+      comma = true;
+      write_csv_value(out, f, f.of(r));
+    });
+  put(out, '\n');
+}
+
+/// Writes as many empty cells as `Record` has columns (a group of columns with no value).
+template <Described Record, class Out>
+void write_csv_empty_cells(Out& out, bool leading_comma) {
+  for (std::size_t i = 0; i < csv_column_count<Record>(); ++i)
     if (leading_comma || i > 0) put(out, ',');
 }
 

@@ -1,7 +1,8 @@
 // A record as an LCM message. The message's definition (.lcm text) is written from the record's
 // description at build time (pneu-records, tools/records/), lcm-gen makes the C++ type from it, and
 // pneu-records also writes which of that type's members each field is (LcmMembers<Message>, in the
-// description's order): to_lcm and from_lcm convert field by field. A field added to the
+// description's order): to_lcm and from_lcm convert field by field (a group of fields of one type
+// travels as an array, element k its field k). A field added to the
 // description is in the message, the conversion and every decoder lcm-gen writes.
 #pragma once
 
@@ -12,6 +13,7 @@
 #include <tuple>
 #include <type_traits>
 
+#include "pneu/records/csv.hpp"
 #include "pneu/records/record.hpp"
 
 namespace pneu::records {
@@ -19,7 +21,8 @@ namespace pneu::records {
 /// The LCM type a member of type T travels as.
 template <class T>
 constexpr const char* lcm_type_name() {
-  if constexpr (kind_of<T>() == Kind::kBoolean) return "boolean";
+  if constexpr (kIsString<T>) return "string";
+  else if constexpr (kind_of<T>() == Kind::kBoolean) return "boolean";
   else if constexpr (std::is_same_v<T, float>) return "float";
   else if constexpr (kind_of<T>() == Kind::kNumber) return "double";
   else if constexpr (sizeof(T) == 1) return "int8_t";
@@ -34,10 +37,20 @@ template <Described Record>
 [[nodiscard]] std::string lcm_field_declarations() {
   std::string out;
   for_each_field<Record>([&](const auto& f) {
-    using M = typename std::remove_cvref_t<decltype(f)>::member_type;
-    std::string decl = std::string("  ") + lcm_type_name<M>();
+    using F = std::remove_cvref_t<decltype(f)>;
+    std::string decl = "  ";
+    std::string dimension;
+    if constexpr (F::kind == Kind::kGroup) {  // an array of its fields, all of one type
+      using G = typename F::member_type;
+      using W = typename std::remove_cvref_t<decltype(std::get<0>(Description<G>::kFields))>::wire_type;
+      decl += lcm_type_name<W>();
+      dimension = "[" + std::to_string(kFieldCount<G>) + "]";
+    } else {
+      decl += lcm_type_name<typename F::wire_type>();
+    }
     decl.resize(std::max<std::size_t>(decl.size() + 1, 10), ' ');
     decl += f.name;
+    decl += dimension;
     decl += ';';
     decl.resize(std::max<std::size_t>(decl.size() + 1, 22), ' ');
     out += decl + "// " + f.doc;
@@ -47,9 +60,34 @@ template <Described Record>
   return out;
 }
 
+/// The constants of `Record`'s enumerations written as text (.named): for a field `kind` whose
+/// table names `start` 1, `const int8_t KIND_START = 1, ...;`, one declaration a field.
+template <Described Record>
+[[nodiscard]] std::string lcm_named_constants() {
+  std::string out;
+  for_each_field<Record>([&](const auto& f) {
+    using F = std::remove_cvref_t<decltype(f)>;
+    if constexpr (F::kind == Kind::kName) {
+      out += std::string("  const ") + lcm_type_name<typename F::wire_type>() + " ";
+      bool first = true;
+      for (const auto& n : f.name_table()) {
+        if (!first) out += ", ";
+        first = false;
+        for (const char* c = f.name; *c != '\0'; ++c) out += static_cast<char>(*c >= 'a' && *c <= 'z' ? *c - 'a' + 'A' : *c);
+        out += '_';
+        for (const char* c = n.name; *c != '\0'; ++c) out += static_cast<char>(*c >= 'a' && *c <= 'z' ? *c - 'a' + 'A' : *c);
+        out += " = " + std::to_string(n.wire);
+      }
+      out += ";\n";
+    }
+  });
+  return out;
+}
+
 /// The .lcm definition of `message` in `package` carrying `Record`'s fields: a comment saying where
 /// it comes from, `doc` as the struct's comment, the `transport` declarations first (utime: lines
-/// as in a .lcm file), the fields, then the `constants` declarations.
+/// as in a .lcm file), the fields, then the `constants` declarations and those of the fields
+/// written as text (lcm_named_constants).
 template <Described Record>
 [[nodiscard]] std::string lcm_message_text(std::string_view package, std::string_view message, std::string_view doc,
                                            std::string_view source, std::string_view transport,
@@ -67,9 +105,10 @@ template <Described Record>
   out += "\n{\n";
   out += transport;
   out += lcm_field_declarations<Record>();
-  if (!constants.empty()) {
+  const std::string all_constants = std::string(constants) + lcm_named_constants<Record>();
+  if (!all_constants.empty()) {
     out += '\n';
-    out += constants;
+    out += all_constants;
   }
   out += "}\n";
   return out;
@@ -109,9 +148,21 @@ void to_lcm(const Record& r, Message& m) {
   static_assert(std::tuple_size_v<std::remove_cvref_t<decltype(members)>> == kFieldCount<Record>,
                 "the message was not generated from this record's description");
   [&]<std::size_t... I>(std::index_sequence<I...>) {
-    ((m.*std::get<I>(members) =
-          static_cast<std::remove_cvref_t<decltype(m.*std::get<I>(members))>>(
-              std::get<I>(Description<Record>::kFields).of(r))),
+    (([&] {
+       const auto& f = std::get<I>(Description<Record>::kFields);
+       using F = std::remove_cvref_t<decltype(f)>;
+       auto& to = m.*std::get<I>(members);
+       using T = std::remove_cvref_t<decltype(to)>;
+       if constexpr (F::kind == Kind::kGroup) {  // an array: element k, field k
+         using G = typename F::member_type;
+         std::size_t k = 0;
+         for_each_field<G>([&](const auto& g) { to[k++] = static_cast<std::remove_cvref_t<decltype(to[0])>>(g.of(f.of(r))); });
+       } else if constexpr (F::kind == Kind::kName) to = static_cast<T>(f.wire_of(f.of(r)));
+       else if constexpr (F::kind == Kind::kString) {
+         if constexpr (std::is_same_v<typename F::member_type, const char*>) to = f.of(r) == nullptr ? "" : f.of(r);
+         else to = T(f.of(r));
+       } else to = static_cast<T>(f.of(r));
+     }()),
      ...);
   }(std::make_index_sequence<kFieldCount<Record>>{});
 }
@@ -125,10 +176,50 @@ void from_lcm(const Message& m, Record& r) {
   [&]<std::size_t... I>(std::index_sequence<I...>) {
     (([&] {
        const auto& f = std::get<I>(Description<Record>::kFields);
-       using M = typename std::remove_cvref_t<decltype(f)>::member_type;
-       const auto v = m.*std::get<I>(members);
-       if constexpr (std::is_same_v<M, bool>) f.of(r) = v != 0;
+       using F = std::remove_cvref_t<decltype(f)>;
+       using M = typename F::member_type;
+       const auto& v = m.*std::get<I>(members);
+       if constexpr (F::kind == Kind::kGroup) {
+         using G = typename F::member_type;
+         std::size_t k = 0;
+         for_each_field<G>([&](const auto& g) {
+           g.of(f.of(r)) = static_cast<typename std::remove_cvref_t<decltype(g)>::member_type>(v[k++]);
+         });
+       } else if constexpr (F::kind == Kind::kName) {
+         for (const auto& n : f.name_table())
+           if (n.wire == static_cast<std::int64_t>(v)) f.of(r) = n.value;
+       } else if constexpr (F::kind == Kind::kString) {
+         if constexpr (std::is_same_v<M, std::string>) f.of(r) = v;  // a borrowed string cannot be filled
+       } else if constexpr (std::is_same_v<M, bool>) f.of(r) = v != 0;
        else f.of(r) = static_cast<M>(v);
+     }()),
+     ...);
+  }(std::make_index_sequence<kFieldCount<Record>>{});
+}
+
+/// Writes the cells of the record `Record` carried by `m` as the record's CSV (csv.hpp), from the
+/// message's values as they came (an enumeration's number the table does not know is written,
+/// its name "unknown"); `digits`: of every number (0: each field's own).
+template <Described Record, class Message, class Out>
+void write_lcm_csv_cells(Out& out, const Message& m, bool leading_comma = false, int digits = 0) {
+  constexpr auto& members = LcmMembers<Message>::kMembers;
+  static_assert(std::tuple_size_v<std::remove_cvref_t<decltype(members)>> == kFieldCount<Record>,
+                "the message was not generated from this record's description");
+  [&]<std::size_t... I>(std::index_sequence<I...>) {
+    (([&] {
+       if (leading_comma || I > 0) put(out, ',');
+       const auto& f = std::get<I>(Description<Record>::kFields);
+       using F = std::remove_cvref_t<decltype(f)>;
+       if constexpr (F::kind == Kind::kGroup) {  // an array: element k, field k
+         const auto& a = m.*std::get<I>(members);
+         std::size_t k = 0;
+         for_each_field<typename F::member_type>([&](const auto& g) {
+           if (k > 0) put(out, ',');
+           write_csv_wire_value(out, g, a[k++], digits);
+         });
+       } else {
+         write_csv_wire_value(out, f, m.*std::get<I>(members), digits);
+       }
      }()),
      ...);
   }(std::make_index_sequence<kFieldCount<Record>>{});

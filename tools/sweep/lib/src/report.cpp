@@ -6,6 +6,8 @@
 #include <string>
 
 #include "pneu/controller/json_text.hpp"
+#include "pneu/records/csv.hpp"
+#include "pneu/sweep/rows.hpp"
 #include "pneu/controller/supervisor.hpp"
 #include "pneu/model/chamber.hpp"
 
@@ -435,121 +437,140 @@ void write_summary_json(std::ostream& out, const Statistics& st) {
   w.end_object();
 }
 
+StopRow stop_row(const ScenarioResult& r, const JudgedStop& j, bool online) {
+  const controller::StopOutcome& s = j.stop;
+  const controller::Prediction* any = s.nonlinear ? &*s.nonlinear : (s.linearized ? &*s.linearized : nullptr);
+  StopRow row;
+  row.scenario = r.scenario.index;
+  row.y0_m = r.scenario.y0_m;
+  row.y_d_m = r.scenario.y_d_m;
+  row.friction_scale = r.scenario.friction_scale;
+  row.gain_scale = r.scenario.gain_scale;
+  row.stop = s.index;
+  row.t_stop_s = s.t_stop_s;
+  row.y_stop_m = s.y_stop_m;
+  row.force_n = s.force_n;
+  row.u_star_v = s.snapshot.u_v;
+  row.equilibrium_force_n = any ? any->equilibrium_force_n : NAN;
+  row.outcome = fate_name(j.fate);
+  row.t_end_s = s.t_end_s;
+  row.sticking_s = s.sticking_s();
+  row.direction = s.direction;
+  std::optional<ForecastCells>* cells[] = {&row.lin, &row.nl};
+  for (std::size_t m = 0; m < j.at_stop.size(); ++m) {
+    const std::optional<JudgedForecast>& f = j.at_stop[m];
+    if (!f) continue;
+    const bool tp = f->verdict.kind == Verdict::Kind::kTruePositive;
+    ForecastCells c;
+    c.will_restart = f->prediction.will_restart;
+    c.t_restart_s = f->prediction.t_restart_s;
+    c.direction = f->prediction.direction;
+    c.verdict = verdict_name(f->verdict.kind);
+    if (tp) c.error_ms = f->verdict.error_s * 1e3;
+    if (tp) c.error_percent = f->verdict.error_percent;
+    c.within_criteria = f->within_criteria;
+    *cells[m] = c;
+  }
+  std::optional<double>* halfway[] = {&row.lin_halfway_error_percent, &row.nl_halfway_error_percent,
+                                      &row.rx_halfway_error_percent};
+  for (std::size_t m = 0; m < j.halfway.size(); ++m)
+    if (j.halfway[m] && j.halfway[m]->kind == Verdict::Kind::kTruePositive) *halfway[m] = j.halfway[m]->error_percent;
+  // --online: whether the stop was forecast on a stiction bound online learning had not identified
+  // yet (pneud's summary counts these); no value without --online.
+  if (online) {
+    row.forecast_on_unidentified_bound = j.truth.on_configured_bound;
+    row.side_broken_away_slowly = j.on_slow_side;
+  }
+  return row;
+}
+
 void write_stops_csv(std::ostream& os, std::span<const ScenarioResult> results, bool online) {
-  os << "scenario,y0_m,y_d_m,friction_scale,gain_scale,stop,t_stop_s,y_stop_m,force_n,u_star_v,"
-        "equilibrium_force_n,outcome,t_end_s,sticking_s,direction";
-  for (const char* m : {"lin", "nl"})
-    os << ',' << m << "_will_restart," << m << "_t_restart_s," << m << "_direction," << m << "_verdict,"
-       << m << "_error_ms," << m << "_error_percent," << m << "_within_criteria";
-  os << ",lin_halfway_error_percent,nl_halfway_error_percent,rx_halfway_error_percent,forecast_on_unidentified_bound,"
-        "side_broken_away_slowly\n";
-  char buf[512];
+  os << records::csv_header<StopRow>() << '\n';
+  std::string line;
   for (const ScenarioResult& r : results)
     for (const JudgedStop& j : r.stops) {
-      const controller::StopOutcome& s = j.stop;
-      const controller::Prediction* any = s.nonlinear ? &*s.nonlinear : (s.linearized ? &*s.linearized : nullptr);
-      std::snprintf(buf, sizeof buf, "%d,%.6f,%.6f,%.4f,%.4f,%llu,%.6f,%.9f,%.4f,%.6f,%.4f,%s,%.6f,%.6f,%d",
-                    r.scenario.index, r.scenario.y0_m, r.scenario.y_d_m, r.scenario.friction_scale,
-                    r.scenario.gain_scale, ull(s.index), s.t_stop_s, s.y_stop_m, s.force_n, s.snapshot.u_v,
-                    any ? any->equilibrium_force_n : NAN, fate_name(j.fate), s.t_end_s, s.sticking_s(), s.direction);
-      os << buf;
-      for (const std::optional<JudgedForecast>& f : j.at_stop) {
-        if (!f) {
-          os << ",,,,,,,";
-          continue;
-        }
-        const controller::Prediction& p = f->prediction;
-        const Verdict& v = f->verdict;
-        const bool tp = v.kind == Verdict::Kind::kTruePositive;
-        std::snprintf(buf, sizeof buf, ",%d,%.6f,%d,%s,%s,%s,%d", p.will_restart ? 1 : 0, p.t_restart_s, p.direction,
-                      verdict_name(v.kind), tp ? std::to_string(v.error_s * 1e3).c_str() : "",
-                      tp ? std::to_string(v.error_percent).c_str() : "", f->within_criteria ? 1 : 0);
-        os << buf;
-      }
-      for (const std::optional<Verdict>& v : j.halfway) {
-        if (v && v->kind == Verdict::Kind::kTruePositive) os << ',' << std::to_string(v->error_percent);
-        else os << ',';
-      }
-      // --online: 1 when the stop was forecast on a stiction bound online learning had not
-      // identified yet (pneud's summary counts these), 0 otherwise; empty without --online.
-      if (online) os << ',' << (j.truth.on_configured_bound ? 1 : 0) << ',' << (j.on_slow_side ? 1 : 0);
-      else os << ",,";
-      os << '\n';
+      line.clear();
+      records::write_csv_cells(line, stop_row(r, j, online));
+      os << line << '\n';
     }
 }
 
+ScenarioRow scenario_row(const ScenarioResult& r) {
+  ScenarioRow row;
+  row.scenario = r.scenario.index;
+  row.y0_m = r.scenario.y0_m;
+  row.y_d_m = r.scenario.y_d_m;
+  row.friction_scale = r.scenario.friction_scale;
+  row.gain_scale = r.scenario.gain_scale;
+  const Settling& g = r.settling;
+  if (r.ran()) {
+    row.outcome = outcome_name(g.outcome);
+    row.settle_time_s = g.settle_time_s;
+    row.final_error_m = g.final_error_m;
+    row.fault_cause = g.fault == controller::FaultCause::kNone ? nullptr : controller::fault_name(g.fault);
+    row.fault_after_s = g.fault_after_s;
+    row.stops = g.stops;
+    row.restarts = g.restarts;
+    row.at_rest_at_end = g.at_rest_at_end;
+    row.last_second_swing_m = g.last_second_swing_m;
+    row.oscillation_rule_after_s = g.oscillation_rule_after_s;
+    row.in_window_after_s = g.in_window_after_s;
+    row.hold_after_s = g.hold_after_s;
+    row.restarts_after_hold = g.restarts_after_hold;
+  } else {  // it did not run: the run's figures have no value
+    row.outcome = "identification_failed";
+    row.settle_time_s = row.final_error_m = row.fault_after_s = row.last_second_swing_m = NAN;
+    row.oscillation_rule_after_s = row.in_window_after_s = row.hold_after_s = NAN;
+  }
+  const model::PlantParams& b = r.bench;
+  BenchCells& c = row.bench;
+  c.static_positive_n = b.friction.static_positive_n;
+  c.coulomb_positive_n = b.friction.coulomb_positive_n;
+  c.static_negative_n = b.friction.static_negative_n;
+  c.coulomb_negative_n = b.friction.coulomb_negative_n;
+  c.viscous_n_s_per_m = b.friction.viscous_n_s_per_m;
+  c.max_conductance_m3_per_s_pa = b.valve.max_conductance_m3_per_s_pa;
+  c.leak_conductance_in_m3_per_s_pa = b.valve.leak_conductance_in_m3_per_s_pa;
+  c.leak_conductance_out_m3_per_s_pa = b.valve.leak_conductance_out_m3_per_s_pa;
+  c.dead_volume_p_m3 = b.geometry.dead_volume_p_m3;
+  c.dead_volume_n_m3 = b.geometry.dead_volume_n_m3;
+  c.null_offset_v = b.valve.null_offset_v;
+  if (b.has_thermal) {
+    c.heat_transfer_w_per_m2_k = b.thermal.heat_transfer_w_per_m2_k;
+    c.thermal_time_constant_s = model::thermal_time_constant_s(b);
+  }
+  c.spool_time_constant_s = b.valve.spool_time_constant_s;
+  if (r.identified) {
+    IdentifiedCells i;
+    i.static_positive_n = r.identified->friction.static_positive_n;
+    i.static_negative_n = r.identified->friction.static_negative_n;
+    i.null_offset_v = r.identified->valve.null_offset_v;
+    i.null_pressure_error_pa = r.check.null_pressure_error_pa;
+    i.pressure_residual_pa = r.check.residual_pa;
+    i.pressure_explained_pa = r.check.explained_pa;
+    i.model_fits = r.check.fits;
+    if (r.identified->has_thermal) i.heat_transfer_w_per_m2_k = r.identified->thermal.heat_transfer_w_per_m2_k;
+    i.spool_time_constant_s = r.identified->valve.spool_time_constant_s;
+    i.published = r.check.published;
+    i.within_3_sigma = r.check.within_3_sigma;
+    row.identified = i;
+  }
+  if (!r.identification_failed.empty()) {
+    std::string reason = r.identification_failed;  // one quoted cell, with no quote in it
+    std::replace(reason.begin(), reason.end(), '"', '\'');
+    row.identification_failed = reason;
+  }
+  return row;
+}
+
 void write_scenarios_csv(std::ostream& os, std::span<const ScenarioResult> results, bool identify) {
-  const auto cell = [](double v, int digits = 6) {  // empty: not applicable
-    if (std::isnan(v)) return std::string();
-    char b[64];
-    std::snprintf(b, sizeof b, "%.*f", digits, v);
-    return std::string(b);
-  };
-  os << "scenario,y0_m,y_d_m,friction_scale,gain_scale,outcome,settle_time_s,final_error_m,"
-        "fault_cause,fault_after_s,stops,restarts,at_rest_at_end,last_second_swing_m,"
-        "oscillation_rule_after_s,bench_static_positive_n,bench_coulomb_positive_n,"
-        "bench_static_negative_n,bench_coulomb_negative_n,bench_viscous_n_s_per_m,"
-        "bench_max_conductance_m3_per_s_pa,bench_leak_conductance_in_m3_per_s_pa,"
-        "bench_leak_conductance_out_m3_per_s_pa,bench_dead_volume_p_m3,bench_dead_volume_n_m3,"
-        "bench_null_offset_v,bench_heat_transfer_w_per_m2_k,bench_thermal_time_constant_s,"
-        "bench_spool_time_constant_s"
-     << (identify ? ",identified_static_positive_n,identified_static_negative_n,"
-                    "identified_null_offset_v,identified_null_pressure_error_pa,"
-                    "identified_pressure_residual_pa,identified_pressure_explained_pa,"
-                    "identified_model_fits,identified_heat_transfer_w_per_m2_k,"
-                    "identified_spool_time_constant_s,identified_published,"
-                    "identified_within_3_sigma,identification_failed"
-                  : "")
-     << ",in_window_after_s,hold_after_s,restarts_after_hold\n";
+  const records::View& columns = identify ? kIdentifiedScenarioColumns : kScenarioColumns;
+  os << records::csv_header<ScenarioRow>(columns) << '\n';
+  std::string line;
   for (const ScenarioResult& r : results) {
-    const bool ran = r.ran();
-    const Settling& g = r.settling;
-    // The positions and the bench exactly (they read back as the same doubles): a scenario can be
-    // run again with pneud.
-    char exact[2][32];
-    std::snprintf(exact[0], sizeof exact[0], "%.17g", r.scenario.y0_m);
-    std::snprintf(exact[1], sizeof exact[1], "%.17g", r.scenario.y_d_m);
-    os << r.scenario.index << ',' << exact[0] << ',' << exact[1] << ',' << cell(r.scenario.friction_scale, 4) << ','
-       << cell(r.scenario.gain_scale, 4) << ',';
-    if (ran)
-      os << outcome_name(g.outcome) << ',' << cell(g.settle_time_s) << ',' << cell(g.final_error_m, 9) << ','
-         << (g.fault == controller::FaultCause::kNone ? "" : controller::fault_name(g.fault)) << ','
-         << cell(g.fault_after_s) << ',' << g.stops << ',' << g.restarts << ',' << (g.at_rest_at_end ? 1 : 0) << ','
-         << cell(g.last_second_swing_m, 9) << ',' << cell(g.oscillation_rule_after_s);
-    else
-      os << "identification_failed" << std::string(9, ',');  // the outcome's 9 figures: none
-    const model::PlantParams& b = r.bench;
-    char row[512];
-    std::snprintf(row, sizeof row, ",%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g",
-                  b.friction.static_positive_n, b.friction.coulomb_positive_n, b.friction.static_negative_n,
-                  b.friction.coulomb_negative_n, b.friction.viscous_n_s_per_m, b.valve.max_conductance_m3_per_s_pa,
-                  b.valve.leak_conductance_in_m3_per_s_pa, b.valve.leak_conductance_out_m3_per_s_pa,
-                  b.geometry.dead_volume_p_m3, b.geometry.dead_volume_n_m3, b.valve.null_offset_v);
-    os << row;
-    if (b.has_thermal)
-      std::snprintf(row, sizeof row, ",%.17g,%.17g", b.thermal.heat_transfer_w_per_m2_k, model::thermal_time_constant_s(b));
-    else
-      std::snprintf(row, sizeof row, ",,");
-    os << row;
-    std::snprintf(row, sizeof row, ",%.17g", b.valve.spool_time_constant_s);
-    os << row;
-    if (identify) {
-      if (r.identified)
-        std::snprintf(row, sizeof row, ",%.6g,%.6g,%.6g,%.1f,%.3f,%.3f,%d,%s,%.6g,%d,%d",
-                      r.identified->friction.static_positive_n, r.identified->friction.static_negative_n,
-                      r.identified->valve.null_offset_v, r.check.null_pressure_error_pa, r.check.residual_pa,
-                      r.check.explained_pa, r.check.fits ? 1 : 0,
-                      r.identified->has_thermal ? cell(r.identified->thermal.heat_transfer_w_per_m2_k, 4).c_str() : "",
-                      r.identified->valve.spool_time_constant_s, r.check.published, r.check.within_3_sigma);
-      else
-        std::snprintf(row, sizeof row, ",,,,,,,,,,");
-      std::string reason = r.identification_failed;  // one quoted cell
-      std::replace(reason.begin(), reason.end(), '"', '\'');
-      os << row << ',' << (reason.empty() ? "" : "\"" + reason + "\"");
-    }
-    if (ran) os << ',' << cell(g.in_window_after_s) << ',' << cell(g.hold_after_s) << ',' << g.restarts_after_hold;
-    else os << ",,,";
-    os << '\n';
+    line.clear();
+    records::write_csv_row(line, columns, scenario_row(r));
+    os << line;
   }
 }
 

@@ -6,6 +6,7 @@
 #include <ostream>
 #include <span>
 
+#include "pneu/sweep/rows.hpp"
 #include "pneu/sweep/run.hpp"
 #include "pneu/sweep/statistics.hpp"
 
@@ -15,6 +16,10 @@ namespace pneu::sweep {
 void print_summary(std::FILE* out, const Statistics& statistics);
 /// The statistics as one JSON object (pneu-sweep --summary-json).
 void write_summary_json(std::ostream& out, const Statistics& statistics);
+/// The stops file's row of one stop of `r` (`online`: pneu-sweep --online).
+[[nodiscard]] StopRow stop_row(const ScenarioResult& r, const JudgedStop& j, bool online);
+/// The scenarios file's row of `r`.
+[[nodiscard]] ScenarioRow scenario_row(const ScenarioResult& r);
 /// One CSV row per judged-window stop (pneu-sweep --out).
 void write_stops_csv(std::ostream& out, std::span<const ScenarioResult> results, bool online);
 /// One CSV row per scenario (pneu-sweep --scenarios-out); identified_* columns with --identify.
