@@ -27,6 +27,9 @@ class Runtime {
   /// Forecasts with the methods enabled; while stuck, made again every `update_period_s` (0: only
   /// at the stop).
   Runtime(const PredictorModel& model, bool linearized, bool nonlinear, double update_period_s = 0.0);
+  /// The same, owning `valve`, the model's (model.valve == valve.get()), as set_model() does.
+  Runtime(const PredictorModel& model, std::shared_ptr<const model::ValveCharacteristic> valve, bool linearized,
+          bool nonlinear, double update_period_s = 0.0);
 
   /// Whether each forecast made at a stop is followed tick by tick against the measured force
   /// (ExpectedAtTick, the gaps of StopOutcome; on by default). The forecasts made again every
