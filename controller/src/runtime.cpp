@@ -35,9 +35,6 @@ StopSnapshot snapshot_at(const StopOutcome& s, const TickRecord& r) {
 
 }  // namespace
 
-Runtime::Runtime(const PredictorModel& model, bool linearized, bool nonlinear, double update_period_s)
-    : Runtime(model, nullptr, linearized, nonlinear, update_period_s) {}
-
 Runtime::Runtime(const PredictorModel& model, std::shared_ptr<const model::ValveCharacteristic> valve, bool linearized,
                  bool nonlinear, double update_period_s)
     : model_(model), linearized_(linearized), nonlinear_(nonlinear), update_period_s_(update_period_s) {

@@ -24,10 +24,9 @@ namespace pneu::controller {
 
 class Runtime {
  public:
-  /// Forecasts with the methods enabled; while stuck, made again every `update_period_s` (0: only
-  /// at the stop).
-  Runtime(const PredictorModel& model, bool linearized, bool nonlinear, double update_period_s = 0.0);
-  /// The same, owning `valve`, the model's (model.valve == valve.get()), as set_model() does.
+  /// Forecasts on `model` with the methods enabled; while stuck, made again every
+  /// `update_period_s` (0: only at the stop). It owns `valve`, the model's (model.valve ==
+  /// valve.get(); null: a model without one), as set_model() does.
   Runtime(const PredictorModel& model, std::shared_ptr<const model::ValveCharacteristic> valve, bool linearized,
           bool nonlinear, double update_period_s = 0.0);
 
