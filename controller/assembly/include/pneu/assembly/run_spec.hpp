@@ -72,7 +72,7 @@ class RunSpec {
   [[nodiscard]] Scheduled scheduled_design() const;
 
   /// This specification driven by `law` in place of its own (an identification run's, a sweep's
-  /// mistuned copy); the rest shared.
+  /// mistuned copy); the rest shared, but for fallbacks(), empty: they were the replaced design's.
   [[nodiscard]] RunSpec with_law(controller::ControlLaw law) const;
   /// This specification with `change` made to its configuration: what a run does rather than what
   /// the bench is (the set points, the length, the clock, the supervisor's limits; an
