@@ -22,7 +22,7 @@
 #include <optional>
 #include <vector>
 
-#include "pneu/backends/factory.hpp"
+#include "pneu/assembly/assembled_run.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/loop.hpp"
@@ -84,9 +84,7 @@ class ReplayBackend final : public hal::Backend {
 };
 
 struct Recording {
-  config::Config config;
-  std::unique_ptr<model::ValveModel> valve;
-  std::optional<controller::ControlLaw> law;  ///< the default's: designed once, as pneud does
+  std::optional<assembly::RunSpec> spec;  ///< the default's: its law designed once, as pneud does
   std::uint64_t ticks = 0;               ///< ticks of the 12 s run (both ends included)
   std::vector<hal::SensorFrame> frames;  ///< what the loop read: start()'s reading, then each tick
   std::vector<double> control_v;         ///< u of each tick
@@ -95,37 +93,37 @@ struct Recording {
   controller::StopSnapshot long_stop;
   double long_stop_sticking_s = 0.0;
   std::size_t stops = 0;
+
+  [[nodiscard]] const config::Config& config() const { return spec->config(); }
+  [[nodiscard]] const controller::ControlLaw& law() const { return spec->law(); }
 };
 
 // Built once in main(), before any benchmark runs.
 std::optional<Recording> g_rec;
 
 void record_paper_scenario(Recording& rec) {
-  rec.config = config::load_string(config::default_config_yaml());
-  rec.valve = std::make_unique<model::ValveModel>(rec.config.plant.valve, rec.config.plant.gas);
-  controller::resolve_offset(rec.config, *rec.valve);
-  rec.law = controller::make_control_law(rec.config, *rec.valve);
-  rec.model = controller::predictor_model(rec.config, *rec.valve);
-  const double period = rec.config.controller.period_s();
+  rec.spec.emplace(assembly::RunSpec::of(config::load_string(config::default_config_yaml())));
+  rec.model = rec.spec->predictor_model();
+  const double period = rec.config().controller.period_s();
   rec.ticks =
-      static_cast<std::uint64_t>(std::llround(rec.config.controller.duration_s / period)) + 1;
+      static_cast<std::uint64_t>(std::llround(rec.config().controller.duration_s / period)) + 1;
 
-  auto run = controller::make_run(rec.config, *rec.valve, backends::make_sim_backend(rec.config, *rec.law), *rec.law);
+  auto run = assembly::AssembledRun::on_simulated_bench(*rec.spec);
   rec.frames.reserve(rec.ticks + 1);
-  RecordingBackend recorder(*run.backend, rec.frames);
+  RecordingBackend recorder(run.backend(), rec.frames);
   auto outputs = std::make_unique<LoopOutputs>();
-  ControlLoop loop(controller::LoopParams::from(rec.config, *rec.law), recorder, *outputs);
+  ControlLoop loop(controller::LoopParams::from(rec.config(), rec.law()), recorder, *outputs);
   loop.start(0.0);
   for (std::uint64_t k = 0; k < rec.ticks; ++k) {
     loop.tick(static_cast<double>(k) * period);
     controller::TickRecord r;
     while (outputs->ticks.try_pop(r)) rec.control_v.push_back(r.u_v);
-    run.runtime->drain(*outputs);
+    run.runtime().drain(*outputs);
   }
-  run.runtime->finish(run.runtime->end_time_s());
+  run.runtime().finish(run.runtime().end_time_s());
 
-  rec.stops = run.runtime->stops().size();
-  for (const auto& s : run.runtime->stops()) {
+  rec.stops = run.runtime().stops().size();
+  for (const auto& s : run.runtime().stops()) {
     if (s.restarted && s.sticking_s() > rec.long_stop_sticking_s) {
       rec.long_stop_sticking_s = s.sticking_s();
       rec.long_stop = s.snapshot;
@@ -137,11 +135,11 @@ void record_paper_scenario(Recording& rec) {
 bool replay_reproduces_recording(const Recording& rec) {
   ReplayBackend replay(rec.frames);
   auto outputs = std::make_unique<LoopOutputs>();
-  ControlLoop loop(controller::LoopParams::from(rec.config, *rec.law), replay, *outputs);
+  ControlLoop loop(controller::LoopParams::from(rec.config(), rec.law()), replay, *outputs);
   loop.start(0.0);
   std::size_t i = 0;
   for (std::uint64_t k = 0; k < rec.ticks; ++k) {
-    loop.tick(static_cast<double>(k) * rec.config.controller.period_s());
+    loop.tick(static_cast<double>(k) * rec.config().controller.period_s());
     controller::TickRecord r;
     while (outputs->ticks.try_pop(r))
       if (i >= rec.control_v.size() || r.u_v != rec.control_v[i++]) return false;
@@ -165,10 +163,10 @@ void discard_records(LoopOutputs& out) {
 // 0.1 ns per tick.
 void BM_TickReplayedPaperScenario(benchmark::State& state) {
   const Recording& rec = *g_rec;
-  const double period = rec.config.controller.period_s();
+  const double period = rec.config().controller.period_s();
   ReplayBackend replay(rec.frames);
   auto outputs = std::make_unique<LoopOutputs>();
-  ControlLoop loop(controller::LoopParams::from(rec.config, *rec.law), replay, *outputs);
+  ControlLoop loop(controller::LoopParams::from(rec.config(), rec.law()), replay, *outputs);
   loop.start(0.0);
   std::uint64_t k = 0;
   for (auto _ : state) {
@@ -193,19 +191,19 @@ BENCHMARK(BM_TickReplayedPaperScenario);
 // For comparison: one tick with the sim backend in it (the plant integrated over 1 ms, sensors).
 void BM_TickWithSimBackend(benchmark::State& state) {
   const Recording& rec = *g_rec;
-  const double period = rec.config.controller.period_s();
-  auto run = controller::make_run(rec.config, *rec.valve, backends::make_sim_backend(rec.config, *rec.law), *rec.law);
-  run.loop->start(0.0);
+  const double period = rec.config().controller.period_s();
+  auto run = assembly::AssembledRun::on_simulated_bench(*rec.spec);
+  run.loop().start(0.0);
   std::uint64_t k = 0;
   for (auto _ : state) {
-    run.loop->tick(static_cast<double>(k) * period);
+    run.loop().tick(static_cast<double>(k) * period);
     ++k;
     if (k == rec.ticks || (k & 4095u) == 0) {
       state.PauseTiming();
-      discard_records(*run.outputs);
+      discard_records(run.outputs());
       if (k == rec.ticks) {
-        run = controller::make_run(rec.config, *rec.valve, backends::make_sim_backend(rec.config, *rec.law), *rec.law);
-        run.loop->start(0.0);
+        run = assembly::AssembledRun::on_simulated_bench(*rec.spec);
+        run.loop().start(0.0);
         k = 0;
       }
       state.ResumeTiming();
@@ -215,17 +213,17 @@ void BM_TickWithSimBackend(benchmark::State& state) {
 BENCHMARK(BM_TickWithSimBackend);
 
 // (b) The 12 s paper scenario end to end in simulated time, as pneud runs it without output files:
-// assembly (make_run on the sim backend), the loop in lockstep with the plant, the runtime draining every
+// assembly (AssembledRun on the sim backend), the loop in lockstep with the plant, the runtime draining every
 // tick and both predictors at every stop.
 void BM_PaperScenarioSimulatedEndToEnd(benchmark::State& state) {
   const Recording& rec = *g_rec;
   const std::atomic<bool> never_stop{false};
   std::size_t stops = 0;
   for (auto _ : state) {
-    auto run = controller::make_run(rec.config, *rec.valve, backends::make_sim_backend(rec.config, *rec.law), *rec.law);
+    auto run = assembly::AssembledRun::on_simulated_bench(*rec.spec);
     controller::SimulatedClock clock;
-    controller::execute(run, rec.config, clock, never_stop);
-    stops = run.runtime->stops().size();
+    run.execute(clock, never_stop);
+    stops = run.runtime().stops().size();
     benchmark::DoNotOptimize(stops);
   }
   if (stops != rec.stops) {
@@ -234,7 +232,7 @@ void BM_PaperScenarioSimulatedEndToEnd(benchmark::State& state) {
   }
   // Simulated seconds per iteration divided by wall seconds per iteration (UseRealTime below).
   state.counters["real_time_factor"] = benchmark::Counter(
-      rec.config.controller.duration_s, benchmark::Counter::kIsIterationInvariantRate);
+      rec.config().controller.duration_s, benchmark::Counter::kIsIterationInvariantRate);
 }
 BENCHMARK(BM_PaperScenarioSimulatedEndToEnd)->Unit(benchmark::kMillisecond)->UseRealTime();
 

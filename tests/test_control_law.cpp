@@ -7,6 +7,7 @@
 
 #include <algorithm>
 
+#include "pneu/assembly/run_spec.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/control_law.hpp"
 #include "pneu/controller/loop_params.hpp"
@@ -147,10 +148,10 @@ config::Config scheduled_config(std::vector<std::string> overrides = {}) {
 }
 
 TEST(ScheduledControlLaw, IsDesignedFromTheConfigurationAtEveryNode) {
-  config::Config c = scheduled_config();
-  const model::ValveModel valve(c.plant.valve, c.plant.gas);
-  resolve_offset(c, valve);
-  const ControlLaw law = make_control_law(c, valve);
+  const assembly::RunSpec spec = assembly::RunSpec::of(scheduled_config());
+  const config::Config& c = spec.config();
+  const model::ValveCharacteristic& valve = spec.valve();
+  const ControlLaw& law = spec.law();
   const auto& d = c.controller.law.design;
   const model::GainSchedule expected = model::design_schedule(
       c.plant, valve, c.controller.law.offset_v, {d.real_pole_1_per_s, d.natural_frequency_rad_per_s, d.damping},
@@ -170,9 +171,7 @@ TEST(ScheduledControlLaw, RefusingADesignThatNeedsANegativeGainStopsItBeforeTheL
   // omega 20 rad/s is below sqrt(k_s / M) at the stroke's ends: K_v would be negative there.
   config::Config c = scheduled_config(
       {"controller.law.design.natural_frequency_rad_per_s=20", "controller.law.design.infeasible=refuse"});
-  const model::ValveModel valve(c.plant.valve, c.plant.gas);
-  resolve_offset(c, valve);
-  EXPECT_THAT([&] { (void)make_control_law(c, valve); },
+  EXPECT_THAT([&] { (void)assembly::RunSpec::of(c); },
               ::testing::Throws<config::ConfigError>(test::IsConfigError(
                   "controller.law.design", ::testing::AllOf(::testing::HasSubstr("at y = -0.25 m"),
                                                             ::testing::HasSubstr("K_v would be negative")))));
@@ -181,9 +180,7 @@ TEST(ScheduledControlLaw, RefusingADesignThatNeedsANegativeGainStopsItBeforeTheL
 TEST(ScheduledControlLaw, RefusingADesignBeyondAGainLimitNamesTheGain) {
   config::Config c = scheduled_config(
       {"controller.law.design.max_position_gain_v_per_m=100", "controller.law.design.infeasible=refuse"});
-  const model::ValveModel valve(c.plant.valve, c.plant.gas);
-  resolve_offset(c, valve);
-  EXPECT_THAT([&] { (void)make_control_law(c, valve); },
+  EXPECT_THAT([&] { (void)assembly::RunSpec::of(c); },
               ::testing::Throws<config::ConfigError>(test::IsConfigError(
                   "controller.law.design", ::testing::AllOf(::testing::HasSubstr("K_y = "),
                                                             ::testing::HasSubstr("beyond its limit 100 V/m")))));
@@ -193,9 +190,7 @@ TEST(ScheduledControlLaw, RefusingADesignTheSampledLoopCannotFollowNamesTheLoop)
   // Stable on the continuous model everywhere, but at 300 Hz the sampled loop is not (pneu-plant
   // tune: max |z| 1.0089 near mid-stroke); at the default 1 kHz it is.
   config::Config c = scheduled_config({"controller.rate_hz=300", "controller.law.design.infeasible=refuse"});
-  const model::ValveModel valve(c.plant.valve, c.plant.gas);
-  resolve_offset(c, valve);
-  EXPECT_THAT([&] { (void)make_control_law(c, valve); },
+  EXPECT_THAT([&] { (void)assembly::RunSpec::of(c); },
               ::testing::Throws<config::ConfigError>(test::IsConfigError(
                   "controller.law.design", ::testing::AllOf(::testing::HasSubstr("the sampled loop is unstable"),
                                                             ::testing::HasSubstr("higher loop rate")))));
@@ -206,11 +201,11 @@ TEST(ScheduledControlLaw, RefusingADesignTheSampledLoopCannotFollowNamesTheLoop)
 // the requested design's.
 void expect_falls_back_only_where(const std::vector<std::string>& overrides, const char* reason, double lo_m,
                                   double hi_m) {
-  config::Config c = scheduled_config(overrides);
-  const model::ValveModel valve(c.plant.valve, c.plant.gas);
-  resolve_offset(c, valve);
-  std::vector<model::DesignFallback> fallbacks;
-  const ControlLaw law = make_control_law(c, valve, {true, std::nullopt, &fallbacks});
+  const assembly::RunSpec spec = assembly::RunSpec::of(scheduled_config(overrides));
+  const config::Config& c = spec.config();
+  const model::ValveCharacteristic& valve = spec.valve();
+  const std::vector<model::DesignFallback>& fallbacks = spec.fallbacks();
+  const ControlLaw& law = spec.law();
   ASSERT_FALSE(fallbacks.empty());
   const double u_e = model::equilibrium_voltage_v(valve, c.plant.geometry, c.plant.gas.exhaust_pressure_pa);
   const model::SampledLoop loop = sampled_loop(c);

@@ -17,7 +17,7 @@ using namespace pneu;
 struct RuntimeWithEvents {
   std::ostringstream events;
   controller::EventsFile sink{events};
-  controller::Runtime runtime{controller::PredictorModel{}, true, true};
+  controller::Runtime runtime{controller::PredictorModel{}, nullptr, true, true};
   std::unique_ptr<controller::LoopOutputs> outputs = std::make_unique<controller::LoopOutputs>();
 
   RuntimeWithEvents() { runtime.add_sink(sink); }

@@ -16,6 +16,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "pneu/assembly/run_spec.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/loop.hpp"
 #include "pneu/controller/session.hpp"
@@ -213,11 +214,9 @@ class FakeLines final : public hal::GpioLines {
 
 // The default bench (embedded config/sim.yaml) with u_0 resolved.
 struct Bench {
-  config::Config config = config::load_string(config::default_config_yaml());
-  std::unique_ptr<model::ValveCharacteristic> valve =
-      controller::make_valve_characteristic(config, {});
-  Bench() { controller::resolve_offset(config, *valve); }
-  [[nodiscard]] double u_0() const { return config.controller.law.offset_v; }
+  assembly::RunSpec spec = assembly::RunSpec::of(config::load_string(config::default_config_yaml()));
+  const config::Config& config = spec.config();
+  [[nodiscard]] double u_0() const { return spec.u_0_v(); }
 };
 
 // The in-process plant at rest at the configured start, at equilibrium for u_0.
@@ -350,7 +349,7 @@ class EStopLoop : public ::testing::Test {
       : sim_(make_sim(bench_)),
         backend_(*sim_, lines_),
         outputs_(std::make_unique<controller::LoopOutputs>()),
-        loop_(controller::LoopParams::from(bench_.config, controller::make_control_law(bench_.config, *bench_.valve)),
+        loop_(controller::LoopParams::from(bench_.config, bench_.spec.law()),
               backend_, *outputs_) {
     loop_.start(0.0);
   }

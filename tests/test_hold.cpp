@@ -10,11 +10,11 @@
 #include <string_view>
 #include <vector>
 
-#include "pneu/backends/factory.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/runtime.hpp"
 #include "pneu/controller/session.hpp"
 #include "support/child_process.hpp"
+#include "support/simulated_run.hpp"
 
 namespace {
 
@@ -36,20 +36,14 @@ struct Recorder final : controller::RunListener {
 
 // The default configuration (embedded sim.yaml: 12 s, the step to 170 mm at 1 s) with `overrides`.
 struct HoldRun {
-  config::Config config;
-  std::unique_ptr<model::ValveCharacteristic> valve;
-  controller::Run run;
-  const hal::SimBackend* bench = nullptr;
-  Recorder record;
+  assembly::AssembledRun assembled;
+  const config::Config& config = assembled.config();
+  controller::Run& run = assembled.run();
+  const hal::SimBackend* bench = assembled.simulated_bench();
+  Recorder& record = assembled.emplace_sink<Recorder>();
 
   explicit HoldRun(const std::vector<std::string>& overrides, std::string_view yaml = config::default_config_yaml())
-      : config(config::load_string(yaml, overrides)),
-        valve(controller::make_valve_characteristic(config, {})) {
-    controller::resolve_offset(config, *valve);
-    auto sim = backends::make_sim_backend(config);
-    bench = sim.get();
-    run = controller::make_run(config, *valve, std::move(sim));
-    run.runtime->add_sink(record);
+      : assembled(test::simulated_run(config::load_string(yaml, overrides))) {
     const double period = config.controller.period_s();
     const auto ticks = static_cast<int>(std::llround(config.controller.duration_s / period));
     run.loop->start(0.0);

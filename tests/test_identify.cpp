@@ -9,13 +9,14 @@
 #include <cstdio>
 #include <cstdlib>
 
-#include "pneu/backends/factory.hpp"
+#include "pneu/assembly/assembled_run.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/config/text.hpp"
 #include "pneu/controller/session.hpp"
 #include "pneu/identify/identification_run.hpp"
 #include "pneu/identify/online.hpp"
 #include "pneu/model/valve.hpp"
+#include "support/simulated_run.hpp"
 
 namespace {
 
@@ -71,13 +72,9 @@ double null_pressure_error_pa(const model::PlantParams& a, const model::PlantPar
 }
 
 identify::Identification run_identification(const Bench& b) {
-  config::Config cfg = b.cfg;
-  const auto valve = controller::make_valve_characteristic(cfg, {});
-  controller::resolve_offset(cfg, *valve);
-  const controller::ControlLaw law = controller::make_control_law(cfg, *valve);
-  cfg.controller.initial_setpoint_m = cfg.simulation.initial_position_m;
-  return identify::identify_by_run(cfg, *valve, law, backends::make_sim_backend(cfg, law, b.bench),
-                                   cfg.simulation.initial_position_m);
+  const assembly::RunSpec spec = assembly::RunSpec::of(b.cfg).reconfigured(
+      [](config::Config& c) { c.controller.initial_setpoint_m = c.simulation.initial_position_m; });
+  return identify::identify_by_run(spec, b.bench, spec.config().simulation.initial_position_m);
 }
 
 void print(const identify::Identification& id, const model::PlantParams& bench) {
@@ -98,11 +95,7 @@ void print(const identify::Identification& id, const model::PlantParams& bench) 
 identify::RecordedRun record_run(const Bench& b, const std::vector<std::string>& overrides = {}) {
   config::Config cfg = b.cfg;
   for (const auto& o : overrides) cfg = config::load_string(config::to_yaml(cfg), {o});
-  const auto valve = controller::make_valve_characteristic(cfg, {});
-  controller::resolve_offset(cfg, *valve);
-  const controller::ControlLaw law = controller::make_control_law(cfg, *valve);
-  return identify::record_run(cfg, *valve, law, backends::make_sim_backend(cfg, law, b.bench),
-                              cfg.simulation.initial_position_m);
+  return identify::record_run(assembly::RunSpec::of(cfg), b.bench, cfg.simulation.initial_position_m);
 }
 
 void expect_close_to_bench(const identify::Identification& id, const model::PlantParams& bench, double stiction_tolerance) {
@@ -192,13 +185,8 @@ TEST(IdentificationRun, AFaultEndsTheRunAndNothingIsIdentified) {
   EXPECT_NE(r.fault.find("decided by controller.supervisor.following_error_s: relaxing it: "), std::string::npos)
       << r.fault;
   EXPECT_LT(r.samples.back().t_s, r.plan.duration_s - 10.0) << "ended at the fault";
-  config::Config cfg = b.cfg;
-  const auto valve = controller::make_valve_characteristic(cfg, {});
-  controller::resolve_offset(cfg, *valve);
-  const controller::ControlLaw law = controller::make_control_law(cfg, *valve);
   try {
-    (void)identify::identify_by_run(cfg, *valve, law, backends::make_sim_backend(cfg, law, b.bench),
-                                    cfg.simulation.initial_position_m);
+    (void)identify::identify_by_run(assembly::RunSpec::of(b.cfg), b.bench, b.cfg.simulation.initial_position_m);
     ADD_FAILURE() << "identified from a run that faulted";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("faulted"), std::string::npos) << e.what();
@@ -511,29 +499,17 @@ struct Judged {
 
 Judged judge(const controller::Run& run, const hal::SimBackend& plant, int after_restarts = 0);
 
-// pneud's run of `config` (its offset resolved here) on the simulated `bench`, in simulated time.
+// pneud's run of `config` on the simulated `bench`, in simulated time.
 struct BenchRun {
   BenchRun(const config::Config& c, const model::PlantParams& bench)
-      : cfg(c), valve(controller::make_valve_characteristic(cfg, {})), law(resolved_law(cfg, *valve)),
-        backend(backends::make_sim_backend(cfg, law, bench)), plant(*backend),
-        run(controller::make_run(cfg, *valve, std::move(backend), law)) {}
+      : assembled(assembly::AssembledRun::on_simulated_bench(assembly::RunSpec::of(c), bench)) {}
   BenchRun(const BenchRun&) = delete;
   BenchRun& operator=(const BenchRun&) = delete;
-  void execute() {
-    controller::SimulatedClock clock;
-    const std::atomic<bool> never{false};
-    controller::execute(run, cfg, clock, never);
-  }
-  static controller::ControlLaw resolved_law(config::Config& cfg, const model::ValveCharacteristic& valve) {
-    controller::resolve_offset(cfg, valve);
-    return controller::make_control_law(cfg, valve);
-  }
-  config::Config cfg;
-  std::unique_ptr<model::ValveCharacteristic> valve;
-  controller::ControlLaw law;
-  std::unique_ptr<hal::SimBackend> backend;
-  const hal::SimBackend& plant;
-  controller::Run run;
+  void execute() { test::execute_simulated(assembled); }
+  assembly::AssembledRun assembled;
+  const config::Config& cfg = assembled.config();  ///< u_0 resolved
+  const hal::SimBackend& plant = *assembled.simulated_bench();
+  controller::Run& run = assembled.run();
 };
 
 
@@ -596,12 +572,9 @@ void check_table_benches(const std::string& sensors_from, double most_percent, d
     tb.apply(bench);
     const Judged before = paper_step(cfg, cfg.plant, bench, tb.setpoint_m);
     // Identified from pneud's identification run, starting where the paper's step starts.
-    config::Config id_cfg = cfg;
-    const auto valve = controller::make_valve_characteristic(id_cfg, {});
-    controller::resolve_offset(id_cfg, *valve);
-    const controller::ControlLaw law = identify::identification_law(id_cfg, *valve);
+    const assembly::RunSpec prior = assembly::RunSpec::of(cfg);
     const identify::Identification id = identify::identify_by_run(
-        id_cfg, *valve, law, backends::make_sim_backend(id_cfg, law, bench), id_cfg.simulation.initial_position_m);
+        prior.with_law(identify::identification_law(prior)), bench, cfg.simulation.initial_position_m);
     const Judged after = paper_step(cfg, id.plant, bench, tb.setpoint_m);
     std::printf("%-36s uncalibrated: %d long restarts, worst %.2f %%, %d wrong verdicts; identified: %d, worst %.3f %%, "
                 "%d within %.0f %%, %d wrong\n",

@@ -20,7 +20,7 @@
 #include <utility>
 #include <vector>
 
-#include "pneu/backends/factory.hpp"
+#include "pneu/assembly/assembled_run.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/events_file.hpp"
@@ -30,6 +30,7 @@
 #include "pneu/controller/trajectory_file.hpp"
 #include "pneu/controller/verdict.hpp"
 #include "support/child_process.hpp"
+#include "support/simulated_run.hpp"
 
 namespace {
 
@@ -42,12 +43,12 @@ namespace fs = std::filesystem;
 
 // One simulated run of the default configuration, drained every `drain_every` ticks.
 struct LiveRun {
-  config::Config config;
-  std::unique_ptr<model::ValveCharacteristic> valve;
   std::ostringstream events, trajectory;
   controller::EventsFile events_sink{events};
   controller::TrajectoryFile trajectory_sink{trajectory};
-  controller::Run run;
+  assembly::AssembledRun assembled;
+  const config::Config& config = assembled.config();
+  controller::Run& run = assembled.run();
 
   // The paper's step with the paper's gains (config/paper.yaml): its 4 s sticking phase, from
   // about 2.0 s to 6.0 s, gives the live predictor the most to do.
@@ -58,12 +59,9 @@ struct LiveRun {
     config::Config config;
   };
   LiveRun(Loaded loaded, int drain_every, bool keep)
-      : config(std::move(loaded.config)),
-        valve(controller::make_valve_characteristic(config, {})) {
-    controller::resolve_offset(config, *valve);
-    run = controller::make_run(config, *valve, backends::make_sim_backend(config));
-    run.runtime->add_sink(events_sink);
-    run.runtime->add_sink(trajectory_sink);
+      : assembled(test::simulated_run(loaded.config)) {
+    assembled.add_sink(events_sink);
+    assembled.add_sink(trajectory_sink);
     run.runtime->set_keep_reforecasts(keep);
     const double period = config.controller.period_s();
     const auto ticks = static_cast<int>(std::llround(config.controller.duration_s / period)) + 1;
@@ -223,14 +221,10 @@ TEST(Runtime, KeepsTheLastStopsOfALongRunAndCountsTheOthers) {
   auto overrides = back_and_forth(30);
   overrides.push_back("controller.predictor.update_period_s=0");
   const config::Config c = config::load_string(config::default_config_yaml(), overrides);
-  auto valve = controller::make_valve_characteristic(c, {});
-  config::Config resolved = c;
-  controller::resolve_offset(resolved, *valve);
-  auto run = controller::make_run(resolved, *valve, backends::make_sim_backend(resolved));
+  assembly::AssembledRun assembled = test::simulated_run(c);
+  controller::Run& run = assembled.run();
   run.runtime->set_max_stops_kept(8);
-  controller::SimulatedClock clock;
-  const std::atomic<bool> never{false};
-  controller::execute(run, resolved, clock, never);
+  test::execute_simulated(assembled);
 
   const auto& stops = run.runtime->stops();
   ASSERT_FALSE(stops.empty());
@@ -278,15 +272,10 @@ struct RecordingSink final : controller::RunListener {
 
 TEST(Runtime, HandsEachSinkATicksEventsBeforeItsRecordAStopsForecastsAfterItAndTheEndLast) {
   config::Config c = config::load_string(config::default_config_yaml(), {});
-  auto valve = controller::make_valve_characteristic(c, {});
-  controller::resolve_offset(c, *valve);
-  auto run = controller::make_run(c, *valve, backends::make_sim_backend(c));
-  RecordingSink first, second;
-  run.runtime->add_sink(first);
-  run.runtime->add_sink(second);
-  controller::SimulatedClock clock;
-  const std::atomic<bool> never{false};
-  controller::execute(run, c, clock, never);
+  assembly::AssembledRun run = test::simulated_run(c);
+  RecordingSink& first = run.emplace_sink<RecordingSink>();
+  RecordingSink& second = run.emplace_sink<RecordingSink>();
+  test::execute_simulated(run);
 
   const auto& rs = first.records;
   ASSERT_FALSE(rs.empty());
@@ -327,14 +316,14 @@ TEST(Runtime, HandsEachSinkATicksEventsBeforeItsRecordAStopsForecastsAfterItAndT
         break;
       case 'x':
         EXPECT_EQ(i, rs.size() - 1) << "the end is the last record";
-        EXPECT_EQ(rs[i].t_s, run.runtime->end_time_s());
+        EXPECT_EQ(rs[i].t_s, run.runtime().end_time_s());
         break;
       default:
         break;
     }
   }
-  EXPECT_EQ(ticks, run.runtime->ticks_seen());
-  EXPECT_EQ(stops, run.runtime->stops().size());
+  EXPECT_EQ(ticks, run.runtime().ticks_seen());
+  EXPECT_EQ(stops, run.runtime().stops().size());
   EXPECT_GT(forecasts_again, 0u);
   ASSERT_EQ(second.records.size(), rs.size()) << "each sink receives every record";
   for (std::size_t i = 0; i < rs.size(); ++i) {
@@ -531,20 +520,17 @@ struct IdentificationCount final : controller::RunListener {
 TEST(Runtime, TakesALearntModelOnceEverySinkHadTheStopItWasLearntAtForecastsThatStopOnItAndLetsItsValveGoOnceUnused) {
   auto overrides = back_and_forth(10);
   const config::Config c = config::load_string(config::default_config_yaml(), overrides);
-  auto valve = controller::make_valve_characteristic(c, {});
-  config::Config resolved = c;
-  controller::resolve_offset(resolved, *valve);
-  auto run = controller::make_run(resolved, *valve, backends::make_sim_backend(resolved));
+  assembly::AssembledRun assembled = test::simulated_run(c);
+  const config::Config& resolved = assembled.config();
+  controller::Run& run = assembled.run();
   RecordingSink after;
   IdentificationCount told;
   EveryStopALearner learner(*run.runtime, after, resolved.plant);
-  run.runtime->add_sink(learner);
-  run.runtime->add_sink(after);
-  run.runtime->add_sink(told);
+  assembled.add_sink(learner);
+  assembled.add_sink(after);
+  assembled.add_sink(told);
   run.runtime->set_model_source(learner);
-  controller::SimulatedClock clock;
-  const std::atomic<bool> never{false};
-  controller::execute(run, resolved, clock, never);
+  test::execute_simulated(assembled);
 
   ASSERT_GE(learner.stops, 10);
   EXPECT_EQ(learner.taken_early, 0);
@@ -625,22 +611,19 @@ struct SlowLearner final : controller::RunListener, controller::ModelSource {
 // A simulated run with a SlowLearner, drained after every tick as the loop goes on ticking (a
 // service thread that keeps up): the events and trajectory it writes, and how the drains went.
 struct SlowLearningRun {
-  config::Config config;
-  std::unique_ptr<model::ValveCharacteristic> valve;
   std::ostringstream events, trajectory;
   controller::EventsFile events_sink{events};
   controller::TrajectoryFile trajectory_sink{trajectory};
   IdentificationCount told;
-  controller::Run run;
+  assembly::AssembledRun assembled;
+  const config::Config& config = assembled.config();
+  controller::Run& run = assembled.run();
   std::unique_ptr<SlowLearner> learner;
   int drains = 0, drains_waiting = 0;
   std::size_t most_ticks_queued = 0;
 
   SlowLearningRun(const std::vector<std::string>& overrides, int ready_after)
-      : config(config::load_string(config::default_config_yaml(), overrides)),
-        valve(controller::make_valve_characteristic(config, {})) {
-    controller::resolve_offset(config, *valve);
-    run = controller::make_run(config, *valve, backends::make_sim_backend(config));
+      : assembled(test::simulated_run(config::load_string(config::default_config_yaml(), overrides))) {
     learner = std::make_unique<SlowLearner>(*run.runtime, config.plant, ready_after);
     run.runtime->add_sink(*learner);
     run.runtime->add_sink(events_sink);
@@ -699,7 +682,7 @@ TEST(Runtime, AnUpdateNotReadyWithHalfTheTicksQueueFullIsLateItsStopForecastOnTh
   ASSERT_EQ(stops.size(), 2u);
   ASSERT_TRUE(stops[0].nonlinear);
   const controller::Prediction configured =
-      controller::predict_nonlinear(controller::predictor_model(r.config, *r.valve), stops[0].snapshot);
+      controller::predict_nonlinear(r.assembled.spec().predictor_model(), stops[0].snapshot);
   EXPECT_EQ(stops[0].nonlinear->will_restart, configured.will_restart);
   if (configured.will_restart) {
     EXPECT_DOUBLE_EQ(stops[0].nonlinear->t_restart_s, configured.t_restart_s);

@@ -23,11 +23,11 @@
 #include <utility>
 #include <vector>
 
-#include "pneu/backends/factory.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/loop.hpp"
 #include "pneu/controller/session.hpp"
+#include "support/simulated_run.hpp"
 #include "pneu/controller/spsc_queue.hpp"
 #include "pneu/controller/timing_stats.hpp"
 #include "pneu/hal/backend.hpp"
@@ -130,21 +130,15 @@ void reset_counters() {
   g_deallocations.store(0);
 }
 
-// The default bench running the paper scenario (embedded config/sim.yaml). The loop keeps a
-// reference to the config, so this object stays where it was built.
+// The default bench running the paper scenario (embedded config/sim.yaml), as pneud assembles it.
 struct DefaultRun {
-  config::Config config;
-  model::ValveModel valve{config.plant.valve, config.plant.gas};
-  controller::Run run;
-  const hal::SimBackend* bench = nullptr;  // the simulated truth, owned by the run
+  assembly::AssembledRun assembled;
+  const config::Config& config = assembled.config();
+  controller::Run& run = assembled.run();
+  const hal::SimBackend* bench = assembled.simulated_bench();  // the simulated truth, owned by the run
 
   explicit DefaultRun(const std::vector<std::string>& overrides = {})
-      : config(config::load_string(config::default_config_yaml(), overrides)) {
-    controller::resolve_offset(config, valve);
-    auto sim = backends::make_sim_backend(config);
-    bench = sim.get();
-    run = controller::make_run(config, valve, std::move(sim));
-  }
+      : assembled(test::simulated_run(config::load_string(config::default_config_yaml(), overrides))) {}
   DefaultRun(const DefaultRun&) = delete;
   DefaultRun& operator=(const DefaultRun&) = delete;
   [[nodiscard]] double period_s() const { return config.controller.period_s(); }

@@ -14,7 +14,7 @@
 #include <utility>
 #include <vector>
 
-#include "pneu/backends/factory.hpp"
+#include "pneu/assembly/assembled_run.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/movement_test.hpp"
 #include "pneu/controller/session.hpp"
@@ -76,13 +76,13 @@ struct Outcome {
 
 // The test on hil.yaml's bench, run in process from rest at `y0_m`, through `wiring`.
 Outcome run_test(const Wiring& wiring, double y0_m = 0.2195) {
-  config::Config cfg = config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml",
-                                         {"hal.backend=sim", "controller.clock=simulated",
-                                          "simulation.initial_position_m=" + std::to_string(y0_m),
-                                          "controller.setpoints.initial_m=" + std::to_string(y0_m)});
-  const auto valve = controller::make_valve_characteristic(cfg, {});
-  controller::resolve_offset(cfg, *valve);
-  std::unique_ptr<hal::SimBackend> sim = backends::make_sim_backend(cfg);
+  const assembly::RunSpec spec = assembly::RunSpec::of(
+      config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml",
+                        {"hal.backend=sim", "controller.clock=simulated",
+                         "simulation.initial_position_m=" + std::to_string(y0_m),
+                         "controller.setpoints.initial_m=" + std::to_string(y0_m)}));
+  const config::Config& cfg = spec.config();
+  std::unique_ptr<hal::SimBackend> sim = assembly::simulated_bench(spec);
   const hal::SimBackend& plant = *sim;
   MiswiredBackend backend(std::move(sim), wiring);
   backend.open(0.0);
@@ -206,15 +206,15 @@ TEST(MovementTest, RunsAtTheFirstArmOnAModbusBackendStartingDisarmedAndNeverInPr
 class MovementTestAtArm : public ::testing::Test {
  protected:
   void start(const Wiring& wiring) {
-    cfg_ = config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml",
-                             {"hal.backend=sim", "controller.clock=simulated", "controller.start_armed=false",
-                              "controller.setpoints.schedule=[]", "controller.setpoints.initial_m=0.2195"});
-    const auto valve = controller::make_valve_characteristic(cfg_, {});
-    controller::resolve_offset(cfg_, *valve);
-    auto sim = backends::make_sim_backend(cfg_);
+    const assembly::RunSpec spec = assembly::RunSpec::of(
+        config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml",
+                          {"hal.backend=sim", "controller.clock=simulated", "controller.start_armed=false",
+                           "controller.setpoints.schedule=[]", "controller.setpoints.initial_m=0.2195"}));
+    cfg_ = spec.config();
+    auto sim = assembly::simulated_bench(spec);
     plant_ = sim.get();
     backend_ = std::make_unique<MiswiredBackend>(std::move(sim), wiring);
-    controller::LoopParams params = controller::LoopParams::from(cfg_, controller::make_control_law(cfg_, *valve));
+    controller::LoopParams params = controller::LoopParams::from(cfg_, spec.law());
     params.movement_test_at_arm = true;
     loop_ = std::make_unique<controller::ControlLoop>(params, *backend_, *outputs_);
     loop_->start(0.0);

@@ -27,6 +27,7 @@
 #include "pneu/config/config.hpp"
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/runtime.hpp"
+#include "pneu/assembly/assembled_run.hpp"
 #include "pneu/controller/session.hpp"
 #include "pneu/controller/verdict.hpp"
 #include "pneu/model/valve.hpp"
@@ -48,24 +49,20 @@ constexpr double kShortStickingBound_s = 0.010;  // both methods, below kLongSti
 
 // One complete simulated run.
 struct PaperRun {
-  config::Config config;
-  std::unique_ptr<model::ValveCharacteristic> valve;
-  controller::Run run;
+  assembly::AssembledRun run;
 
   // The default bench (the embedded config/sim.yaml, its designed law), or a shipped config by name.
   explicit PaperRun(const std::vector<std::string>& overrides = {}, const std::string& shipped = "")
-      : config(shipped.empty() ? config::load_string(config::default_config_yaml(), overrides)
-                               : config::load_file(fs::path(PNEU_SOURCE_DIR) / "config" / shipped, overrides)),
-        valve(controller::make_valve_characteristic(config, {})) {
-    controller::resolve_offset(config, *valve);
-    run = controller::make_run(config, *valve, backends::make_sim_backend(config));
+      : run(assembly::AssembledRun::on_simulated_bench(assembly::RunSpec::of(
+            shipped.empty() ? config::load_string(config::default_config_yaml(), overrides)
+                            : config::load_file(fs::path(PNEU_SOURCE_DIR) / "config" / shipped, overrides)))) {
     controller::SimulatedClock clock;
     const std::atomic<bool> never_stop{false};
-    controller::execute(run, config, clock, never_stop);
+    run.execute(clock, never_stop);
   }
 
-  [[nodiscard]] const std::vector<StopOutcome>& stops() const { return run.runtime->stops(); }
-  [[nodiscard]] double t_end_s() const { return run.runtime->end_time_s(); }
+  [[nodiscard]] const std::vector<StopOutcome>& stops() const { return run.runtime().stops(); }
+  [[nodiscard]] double t_end_s() const { return run.runtime().end_time_s(); }
 };
 
 const char* to_text(Verdict::Kind k) {
@@ -129,8 +126,8 @@ INSTANTIATE_TEST_SUITE_P(Laws, PaperScenarioWith, ::testing::Values("sim.yaml", 
 TEST_P(PaperScenarioWith, RunsTwelveSecondsAndHasALongStickingPhaseEndingInARestart) {
   const PaperRun r({}, GetParam());
   EXPECT_DOUBLE_EQ(r.t_end_s(), 12.0);
-  EXPECT_EQ(r.run.runtime->ticks_seen(), 12001u);  // t = 0 .. 12 s inclusive at 1 kHz
-  EXPECT_EQ(r.run.runtime->sequence_gaps(), 0u);
+  EXPECT_EQ(r.run.runtime().ticks_seen(), 12001u);  // t = 0 .. 12 s inclusive at 1 kHz
+  EXPECT_EQ(r.run.runtime().sequence_gaps(), 0u);
   EXPECT_TRUE(has_long_sticking_phase_ending_in_restart(r));
 }
 
@@ -213,7 +210,7 @@ TEST(PaperScenario, ForecastsFromAMeasuredValveTableMeetTheSameCriteria) {
 
   const PaperRun r({"controller.predictor.valve_table=" + table.string()});
   // The forecasts really came from the table, not from the model.
-  ASSERT_NE(dynamic_cast<const model::ValveTable*>(r.valve.get()), nullptr);
+  ASSERT_NE(dynamic_cast<const model::ValveTable*>(&r.run.spec().valve()), nullptr);
   EXPECT_TRUE(has_long_sticking_phase_ending_in_restart(r));
   expect_all_forecasts_meet_criteria(r);
 }
@@ -227,11 +224,11 @@ TEST(SimulatedBench, StartsAtEquilibriumForTheFirstOutputOfTheRunsLawFixedOrSche
   config::Config c = config::load_string(config::default_config_yaml(),
                                          {"simulation.initial_position_m=0.0", "controller.setpoints.initial_m=0.00002",
                                           "controller.setpoints.schedule=[]"});
-  const auto valve = controller::make_valve_characteristic(c, {});
-  controller::resolve_offset(c, *valve);
-  const controller::ControlLaw scheduled = controller::make_control_law(c, *valve);
-  const controller::ControlLaw fixed(c.controller.law);
+  const assembly::RunSpec spec = assembly::RunSpec::of(c);
+  const controller::ControlLaw& scheduled = spec.law();
+  const controller::ControlLaw fixed(spec.config().controller.law);
   const double u_first = scheduled.resting_control_v(0.00002, 0.0);
+  EXPECT_EQ(spec.first_output_v(), u_first);
   ASSERT_GT(std::abs(u_first - fixed.resting_control_v(0.00002, 0.0)), 0.01) << "the two laws start apart";
   // The pressures after 0.2 s of the first output, against those at the start.
   const auto drift_pa = [&](std::unique_ptr<hal::SimBackend> bench) {
@@ -244,24 +241,24 @@ TEST(SimulatedBench, StartsAtEquilibriumForTheFirstOutputOfTheRunsLawFixedOrSche
     EXPECT_EQ(f.y_m, 0.0) << "still at rest";
     return std::max(std::abs(f.p_p_pa - f0.p_p_pa), std::abs(f.p_n_pa - f0.p_n_pa));
   };
-  EXPECT_LT(drift_pa(backends::make_sim_backend(c, scheduled)), 1.0);
-  EXPECT_LT(drift_pa(backends::make_sim_backend(c)), 1.0) << "designs the same law itself";
-  EXPECT_GT(drift_pa(backends::make_sim_backend(c, fixed)), 100.0) << "started for another law";
+  EXPECT_LT(drift_pa(backends::make_sim_backend(spec.config(), u_first)), 1.0);
+  EXPECT_LT(drift_pa(assembly::simulated_bench(spec)), 1.0) << "the assembly starts it for the run's law";
+  EXPECT_GT(drift_pa(backends::make_sim_backend(spec.config(), fixed.resting_control_v(0.00002, 0.0))), 100.0)
+      << "started for another law";
 }
 
 // A simulated bench of its own (pneu-sweep --bench-spread): config.plant stays the controller's
 // model, and the plant runs `bench`, starting at its own equilibrium for the loop's first output.
 TEST(SimulatedBench, WithABenchOfItsOwnRunsThatBenchNotTheModel) {
   config::Config c = config::load_string(config::default_config_yaml(), {"controller.setpoints.schedule=[]"});
-  const auto valve = controller::make_valve_characteristic(c, {});
-  controller::resolve_offset(c, *valve);
-  const controller::ControlLaw law = controller::make_control_law(c, *valve);
+  const assembly::RunSpec spec = assembly::RunSpec::of(c);
+  const controller::ControlLaw& law = spec.law();
   model::PlantParams bench = c.plant;
   bench.valve.null_offset_v = 0.05;
   const double u_first = law.resting_control_v(c.controller.initial_setpoint_m, c.simulation.initial_position_m);
   hal::SensorFrame as_model, as_bench, after;
-  auto model_bench = backends::make_sim_backend(c, law);
-  auto own_bench = backends::make_sim_backend(c, law, bench);
+  auto model_bench = assembly::simulated_bench(spec);
+  auto own_bench = assembly::simulated_bench(spec, bench);
   ASSERT_EQ(model_bench->read(0.0, as_model), hal::Status::kOk);
   ASSERT_EQ(own_bench->read(0.0, as_bench), hal::Status::kOk);
   // The null-flow pressures of the offset valve at u*: kilopascals from the model's.
@@ -284,17 +281,15 @@ TEST(SimulatedBench, WithABenchOfItsOwnRunsThatBenchNotTheModel) {
 TEST(SimulatedBench, APushOfTheConfigurationMovesTheCarriageAtItsTimeAndTheLoopBringsItBack) {
   config::Config c = config::load_file(fs::path(PNEU_SOURCE_DIR) / "config/paper.yaml",
                                        {"controller.duration_s=16", "hal.sim.pushes=[{t_s: 10.5, force_n: 150, duration_s: 0.1}]"});
-  const auto valve = controller::make_valve_characteristic(c, {});
-  controller::resolve_offset(c, *valve);
-  controller::Run run = controller::make_run(c, *valve, backends::make_sim_backend(c));
-  const auto& bench = dynamic_cast<const hal::SimBackend&>(*run.backend);
+  assembly::AssembledRun run = assembly::AssembledRun::on_simulated_bench(assembly::RunSpec::of(c));
+  const hal::SimBackend& bench = *run.simulated_bench();
   const double period = c.controller.period_s();
   const double y_d = c.controller.schedule.back().position_m;
-  run.loop->start(0.0);
+  run.loop().start(0.0);
   double y_before = NAN, y_most = -1.0;
   for (int k = 1; k <= 16000; ++k) {
-    run.loop->tick(k * period);
-    run.runtime->drain(*run.outputs);
+    run.loop().tick(k * period);
+    run.runtime().drain(run.outputs());
     const double y = bench.plant().state().y_m;
     if (k == 10499) y_before = y;
     if (k >= 10500) y_most = std::max(y_most, y);
@@ -313,5 +308,5 @@ TEST(SimulatedBench, APushOfTheConfigurationMovesTheCarriageAtItsTimeAndTheLoopB
   EXPECT_GT(y_most, y_before + 1e-3);
   // Back within a millimetre of the set point by the end, no fault.
   EXPECT_LT(std::abs(bench.plant().state().y_m - y_d), 1e-3);
-  EXPECT_TRUE(run.runtime->faults().empty());
+  EXPECT_TRUE(run.runtime().faults().empty());
 }

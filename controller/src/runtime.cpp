@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "pneu/controller/verdict.hpp"
 
@@ -34,9 +35,10 @@ StopSnapshot snapshot_at(const StopOutcome& s, const TickRecord& r) {
 
 }  // namespace
 
-Runtime::Runtime(const PredictorModel& model, bool linearized, bool nonlinear, double update_period_s)
+Runtime::Runtime(const PredictorModel& model, std::shared_ptr<const model::ValveCharacteristic> valve, bool linearized,
+                 bool nonlinear, double update_period_s)
     : model_(model), linearized_(linearized), nonlinear_(nonlinear), update_period_s_(update_period_s) {
-  set_model(model);
+  set_model(model, std::move(valve));
   set_max_stops_kept(kMaxStopsKept);
 }
 

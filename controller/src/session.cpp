@@ -10,22 +10,8 @@
 
 namespace pneu::controller {
 
-std::unique_ptr<model::ValveCharacteristic> make_valve_characteristic(
-    const config::Config& config, const std::filesystem::path& config_dir) {
-  const std::string& table = config.controller.predictor.valve_table;
-  if (table.empty())
-    return std::make_unique<model::ValveModel>(config.plant.valve, config.plant.gas);
-  std::filesystem::path path(table);
-  if (path.is_relative() && !config_dir.empty()) path = config_dir / path;
-  return std::make_unique<model::ValveTable>(model::ValveTable::load(path));
-}
-
 double equilibrium_voltage_v(const config::Config& config, const model::ValveCharacteristic& valve) {
   return model::equilibrium_voltage_v(valve, model::ChamberProcess(config.plant), 0.0);
-}
-
-void resolve_offset(config::Config& config, const model::ValveCharacteristic& valve) {
-  if (config.controller.offset_auto) config.controller.law.offset_v = equilibrium_voltage_v(config, valve);
 }
 
 model::SampledLoop sampled_loop(const config::Config& config) {
@@ -75,27 +61,6 @@ PredictorModel predictor_model(const config::Config& config, const model::ValveC
   const auto& predictor = config.controller.predictor;
   m.fits = !predictor.has_model_fit || predictor.model_fit.fits();
   return m;
-}
-
-Run make_run(const config::Config& config, const model::ValveCharacteristic& valve,
-             std::unique_ptr<hal::Backend> backend) {
-  return make_run(config, valve, std::move(backend), make_control_law(config, valve));
-}
-
-Run make_run(const config::Config& config, const model::ValveCharacteristic& valve,
-             std::unique_ptr<hal::Backend> backend, const ControlLaw& law) {
-  Run run;
-  run.backend = std::move(backend);
-  run.outputs = std::make_unique<LoopOutputs>();
-  run.loop = std::make_unique<ControlLoop>(LoopParams::from(config, law), *run.backend, *run.outputs);
-  const auto& p = config.controller.predictor;
-  run.runtime = std::make_unique<Runtime>(predictor_model(config, valve), p.linearized, p.nonlinear,
-                                          p.update_period_s);
-  run.runtime->set_relaxation_forecasts(p.relaxation);
-  if (config.controller.hold.enabled)
-    run.runtime->set_hold_law(HoldLaw(config.controller.hold, config.controller.law.max_voltage_v,
-                                      config.controller.period_s()));
-  return run;
 }
 
 bool movement_test_at_first_arm(const config::Config& config) noexcept {

@@ -6,18 +6,17 @@
 #include <cstdio>
 #include <memory>
 #include <stdexcept>
+#include <utility>
 
 #include "pneu/controller/clock.hpp"
 #include "pneu/controller/runtime.hpp"
-#include "pneu/controller/session.hpp"
+#include "pneu/assembly/assembled_run.hpp"
 #include "pneu/controller/supervisor.hpp"
 
 namespace pneu::identify {
 
-controller::ControlLaw identification_law(const config::Config& config, const model::ValveCharacteristic& valve) {
-  config::Config designed = config;
-  designed.controller.law.gains = config::GainsKind::kScheduled;
-  return controller::make_control_law(designed, valve);
+controller::ControlLaw identification_law(const assembly::RunSpec& spec) {
+  return spec.scheduled_design().law;
 }
 
 RunPlan plan_run(const config::Config& cfg, const controller::ControlLaw& law, const model::ValveCharacteristic& valve,
@@ -110,35 +109,35 @@ config::Config configured_for(config::Config cfg, const RunPlan& plan) {
   return cfg;
 }
 
-RecordedRun record_run(const config::Config& config, const model::ValveCharacteristic& valve,
-                       const controller::ControlLaw& law, std::unique_ptr<hal::Backend> backend, double start_m) {
+assembly::RunSpec configured_for(const assembly::RunSpec& spec, const RunPlan& plan, controller::ControlLaw law) {
+  return spec.reconfigured([&](config::Config& c) { c = configured_for(std::move(c), plan); }).with_law(std::move(law));
+}
+
+RecordedRun record_run(const assembly::RunSpec& spec, const model::PlantParams& bench, double start_m) {
   RecordedRun r;
-  r.plan = plan_run(config, law, valve, start_m);
-  config::Config cfg = configured_for(config, r.plan);
-  cfg.controller.clock = config::ClockKind::kSimulated;
-  controller::Run run = controller::make_run(cfg, valve, std::move(backend), law);
+  r.plan = plan_run(spec.config(), spec.law(), spec.valve(), start_m);
+  std::unique_ptr<hal::SimBackend> backend = assembly::simulated_bench(spec, bench);
+  const assembly::RunSpec planned = configured_for(spec, r.plan, spec.law()).reconfigured(
+      [](config::Config& c) { c.controller.clock = config::ClockKind::kSimulated; });
   // What is recorded is the loop's ticks and events: no forecast is read here, so the runtime
   // makes none (under the in-position hold, forecasting every update period took half the run's
   // time). The loop, and so the record, is the same.
-  run.runtime = std::make_unique<controller::Runtime>(run.runtime->model(), false, false);
-  run.runtime->set_follow_forecasts(false);
+  assembly::AssembledRun run(planned, std::move(backend), {.forecasts = false});
   std::atomic<bool> stop{false};
-  Recorder recorder(stop);
-  run.runtime->add_sink(recorder);
+  const Recorder& recorder = run.emplace_sink<Recorder>(stop);
   controller::SimulatedClock clock;
-  controller::execute(run, cfg, clock, stop);
+  run.execute(clock, stop);
   r.samples = recorder.samples();
   r.fault = recorder.fault();
   r.fault_t_s = recorder.fault_time_s();
   return r;
 }
 
-Identification identify_by_run(const config::Config& config, const model::ValveCharacteristic& valve,
-                               const controller::ControlLaw& law, std::unique_ptr<hal::Backend> backend,
-                               double start_m) {
-  const RecordedRun r = record_run(config, valve, law, std::move(backend), start_m);
+Identification identify_by_run(const assembly::RunSpec& spec, const model::PlantParams& bench, double start_m) {
+  const RecordedRun r = record_run(spec, bench, start_m);
   if (!r.fault.empty())
     throw std::runtime_error("the identification run faulted at t = " + std::to_string(r.fault_t_s) + " s: " + r.fault);
+  const config::Config& config = spec.config();
   Options o = options_for(config);
   // A simulated bench in process has no bus between the command and its valves: the delay is 0,
   // known, not searched for (searching tried 1 sample too, a whole second fit, more than half of

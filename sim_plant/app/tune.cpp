@@ -16,7 +16,7 @@
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/controller/control_law.hpp"
-#include "pneu/controller/session.hpp"
+#include "pneu/assembly/run_spec.hpp"
 #include "pneu/model/tangent_linear.hpp"
 #include "pneu/model/valve_table.hpp"
 
@@ -215,42 +215,37 @@ int tune(int argc, char** argv) {
     return cli::kExitOk;
   }
   const std::string config_path = args.value("config").value_or("");
-  config::Config cfg = config::load_file_or_default(config_path, args.all("set"));
+  const config::Config loaded = config::load_file_or_default(config_path, args.all("set"));
   const double step_mm = args.number("step-mm", 25.0);
-  if (!(step_mm >= 0.1 && step_mm <= cfg.plant.geometry.stroke_m * 1e3))
+  if (!(step_mm >= 0.1 && step_mm <= loaded.plant.geometry.stroke_m * 1e3))
     throw cli::UsageError("--step-mm must be in [0.1, the stroke in mm]");
   const double delay = args.number("delay-samples", 0.0);
   if (!(delay >= 0.0 && delay <= 10.0 && delay == std::floor(delay)))
     throw cli::UsageError("--delay-samples must be a whole number in [0, 10]");
   const bool map_only = args.flag("map-only");
 
-  std::unique_ptr<model::ValveCharacteristic> valve;
-  try {
-    valve = controller::make_valve_characteristic(
-        cfg, config_path.empty() ? std::filesystem::path() : std::filesystem::path(config_path).parent_path());
-  } catch (const model::ValveTableError& e) {
-    throw config::ConfigError("controller.predictor.valve_table", e.what());
-  }
-  controller::resolve_offset(cfg, *valve);
-  const double u_e = controller::equilibrium_voltage_v(cfg, *valve);
+  // Every design first: a refusal prints nothing else. Falling back (controller.law.design.infeasible
+  // fall_back), the design is pneud's, the sampled loop with --delay-samples checked; refusing, a
+  // schedule the sampled loop cannot follow is not refused here (pneud refuses it): the map shows where.
+  const bool falls_back = loaded.controller.law.design.infeasible == config::InfeasibleDesign::kFallBack;
+  const assembly::RunSpec spec = assembly::RunSpec::of(
+      loaded, {config_path.empty() ? std::filesystem::path() : std::filesystem::path(config_path).parent_path(),
+               falls_back, static_cast<int>(delay)});
+  const config::Config& cfg = spec.config();
+  const model::ValveCharacteristic& valve = spec.valve();
+  const double u_e = spec.equilibrium_voltage_v();
   const model::SampledLoop loop{cfg.controller.period_s(), cfg.controller.differentiator.smoothing,
                                 static_cast<int>(delay)};
   const std::vector<double> ys = positions(cfg.plant.geometry, step_mm * 1e-3);
   const auto& law = cfg.controller.law;
   const bool fixed = law.gains == config::GainsKind::kFixed;
-
-  // Every design first: a refusal prints nothing else. Falling back (controller.law.design.infeasible
-  // fall_back), the design is pneud's, the sampled loop with --delay-samples checked; refusing, a
-  // schedule the sampled loop cannot follow is not refused here (pneud refuses it): the map shows where.
-  const bool falls_back = cfg.controller.law.design.infeasible == config::InfeasibleDesign::kFallBack;
-  std::vector<model::DesignFallback> fallbacks;
-  const controller::LawDesign how{falls_back, static_cast<int>(delay), &fallbacks};
-  const controller::ControlLaw configured = controller::make_control_law(cfg, *valve, how);
+  const controller::ControlLaw& configured = spec.law();
+  std::vector<model::DesignFallback> fallbacks = spec.fallbacks();
   std::optional<controller::ControlLaw> designed;
   if (!map_only) {
-    config::Config scheduled = cfg;
-    scheduled.controller.law.gains = config::GainsKind::kScheduled;
-    designed = controller::make_control_law(scheduled, *valve, how);
+    assembly::RunSpec::Scheduled scheduled = spec.scheduled_design();
+    designed = std::move(scheduled.law);
+    fallbacks = std::move(scheduled.fallbacks);
   }
 
   std::printf("pneu-plant tune: %s\n", config_path.empty() ? "embedded sim.yaml" : config_path.c_str());
@@ -266,7 +261,7 @@ int tune(int argc, char** argv) {
                 d.max_acceleration_gain_v_s2_per_m);
     std::printf("  %7s %12s %10s | %9s %9s %9s\n", "y [mm]", "b [N/(V s)]", "k_s [N/m]", "K_y", "K_v", "K_a");
     for (const double y : ys) {
-      const auto t = model::tangent_linear_model(cfg.plant, *valve, y, u_e).third_order;
+      const auto t = model::tangent_linear_model(cfg.plant, valve, y, u_e).third_order;
       const model::LawGains g = designed->gains_at(y);
       std::printf("  %7.1f %12.5g %10.5g | %9.5g %9.5g %9.5g\n", y * 1e3, t.force_gain_n_per_v_s, t.stiffness_n_per_m,
                   g.position_gain_v_per_m, g.velocity_gain_v_s_per_m, g.acceleration_gain_v_s2_per_m);
@@ -277,11 +272,11 @@ int tune(int argc, char** argv) {
                   model::describe_fallbacks(fallbacks, cfg.controller.law.design.node_spacing_m).c_str());
   }
 
-  const std::vector<MapRow> configured_map = stability_map(cfg, *valve, u_e, configured, ys, loop);
+  const std::vector<MapRow> configured_map = stability_map(cfg, valve, u_e, configured, ys, loop);
   print_map("the configured law, " + (fixed ? fixed_title(law) : scheduled_title(law.design)), configured_map, loop);
   std::vector<MapRow> designed_map;
   if (designed && fixed) {
-    designed_map = stability_map(cfg, *valve, u_e, *designed, ys, loop);
+    designed_map = stability_map(cfg, valve, u_e, *designed, ys, loop);
     print_map(scheduled_title(law.design), designed_map, loop);
   }
 

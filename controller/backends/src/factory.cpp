@@ -3,7 +3,6 @@
 
 #include <utility>
 
-#include "pneu/controller/session.hpp"
 #ifdef PNEU_WITH_MODBUS
 #include "pneu/hal/modbus_backend.hpp"
 #endif
@@ -43,30 +42,24 @@ class WithGpioLines final : public hal::Backend {
 #endif
 
 // The device: the I/O module or the in-process plant.
-std::unique_ptr<hal::Backend> make_device(const config::Config& config, const controller::ControlLaw& law) {
+std::unique_ptr<hal::Backend> make_device(const config::Config& config, double first_output_v) {
 #ifdef PNEU_WITH_MODBUS
   if (config.hal.backend == config::BackendKind::kModbus)
     return std::make_unique<hal::ModbusBackend>(config.hal.modbus, config.sensors);
 #endif
-  return make_sim_backend(config, law);
+  return make_sim_backend(config, first_output_v);
 }
 
 }  // namespace
 
-std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config, const controller::ControlLaw& law,
+std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config, double first_output_v,
                                                   const model::PlantParams& bench) {
-  const double u_initial =
-      law.resting_control_v(config.controller.initial_setpoint_m, config.simulation.initial_position_m);
-  return std::make_unique<hal::SimBackend>(bench, config.sensors, config.simulation.initial_position_m, u_initial,
+  return std::make_unique<hal::SimBackend>(bench, config.sensors, config.simulation.initial_position_m, first_output_v,
                                            config.hal.sim.pushes);
 }
 
-std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config, const controller::ControlLaw& law) {
-  return make_sim_backend(config, law, config::simulated_bench(config));
-}
-
-std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config) {
-  return make_sim_backend(config, controller::make_control_law(config, *controller::make_valve_characteristic(config, {})));
+std::unique_ptr<hal::SimBackend> make_sim_backend(const config::Config& config, double first_output_v) {
+  return make_sim_backend(config, first_output_v, config::simulated_bench(config));
 }
 
 void require_built(const config::Config& config) {
@@ -80,9 +73,9 @@ void require_built(const config::Config& config) {
   (void)config;
 }
 
-std::unique_ptr<hal::Backend> make_backend(const config::Config& config, const controller::ControlLaw& law) {
+std::unique_ptr<hal::Backend> make_backend(const config::Config& config, double first_output_v) {
   require_built(config);
-  std::unique_ptr<hal::Backend> device = make_device(config, law);
+  std::unique_ptr<hal::Backend> device = make_device(config, first_output_v);
 #ifdef PNEU_WITH_GPIOD
   if (config.hal.gpio.enabled) {
     auto lines = std::make_unique<hal::LibgpiodLines>(config.hal.gpio);

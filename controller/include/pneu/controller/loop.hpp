@@ -140,7 +140,7 @@ struct LoopOutputs {
 /// The controller's tick. Construct and start() outside the loop; tick() is real-time safe.
 class ControlLoop {
  public:
-  /// `params.controller.law.offset_v` must already hold u_0 (see resolve_offset()). The loop keeps
+  /// `params.controller.law.offset_v` must already hold u_0 (see assembly::RunSpec). The loop keeps
   /// its parameters; it refers to `backend` and `outputs`, which must outlive it.
   ControlLoop(LoopParams params, hal::Backend& backend, LoopOutputs& outputs);
 

@@ -32,7 +32,7 @@ namespace pneu::controller {
 /// The loop's part of controller.*, under the keys' names.
 struct LoopSettings {
   double rate_hz = 1000.0;              ///< controller.rate_hz [Hz]
-  ControlLawParams law;                 ///< controller.law; law.offset_v must hold u_0 (resolve_offset())
+  ControlLawParams law;                 ///< controller.law; law.offset_v must hold u_0 (assembly::RunSpec)
   DifferentiatorParams differentiator;  ///< controller.differentiator
   StopDetectorParams stop_detector;     ///< controller.stop_detector
   HoldConfig hold;                      ///< controller.hold

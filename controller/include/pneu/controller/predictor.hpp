@@ -41,7 +41,9 @@ struct PredictorModel {
   model::Geometry geometry;
   model::Gas gas;
   model::FrictionParams friction;                 ///< the stiction bounds F_S+, F_S-
-  const model::ValveCharacteristic* valve = nullptr;  ///< model or measured table; must outlive use
+  /// The model or the measured table, not owned: the runtime that forecasts on it owns it
+  /// (Runtime's constructor, set_model(); assembly::AssembledRun hands it the run's).
+  const model::ValveCharacteristic* valve = nullptr;
   double horizon_s = 600.0;  ///< the nonlinear method gives up (no restart) this long after the stop
   /// The time constants' slope (the linearized method's; both methods report the time constants).
   LinearizedSlope linearized_slope = LinearizedSlope::kStopTangent;

@@ -24,9 +24,11 @@ namespace pneu::controller {
 
 class Runtime {
  public:
-  /// Forecasts with the methods enabled; while stuck, made again every `update_period_s` (0: only
-  /// at the stop).
-  Runtime(const PredictorModel& model, bool linearized, bool nonlinear, double update_period_s = 0.0);
+  /// Forecasts on `model` with the methods enabled; while stuck, made again every
+  /// `update_period_s` (0: only at the stop). It owns `valve`, the model's (model.valve ==
+  /// valve.get(); null: a model without one), as set_model() does.
+  Runtime(const PredictorModel& model, std::shared_ptr<const model::ValveCharacteristic> valve, bool linearized,
+          bool nonlinear, double update_period_s = 0.0);
 
   /// Whether each forecast made at a stop is followed tick by tick against the measured force
   /// (ExpectedAtTick, the gaps of StopOutcome; on by default). The forecasts made again every

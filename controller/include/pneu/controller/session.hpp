@@ -1,4 +1,6 @@
-// Assembly of a run from the configuration, shared by pneud, the sweep and the end-to-end tests.
+// The parts of a run derived from the configuration (u_e, the law's design, the predictors' model,
+// the loop's parameters: session.cpp) and the run executed. pneu/assembly/ assembles runs of them:
+// pneud, the sweep, the identification run, the benchmarks and the tests build theirs there.
 #pragma once
 
 #include <atomic>
@@ -22,18 +24,9 @@ struct Config;  // pneu/config/config.hpp: the root configuration, taken whole b
 
 namespace pneu::controller {
 
-/// The valve characteristic the controller uses (u_0 of Eq. 7, the predictors): the measured table
-/// of controller.predictor.valve_table (relative paths against `config_dir`) or the model.
-/// Throws model::ValveTableError.
-[[nodiscard]] std::unique_ptr<model::ValveCharacteristic> make_valve_characteristic(
-    const config::Config& config, const std::filesystem::path& config_dir);
-
 /// u_e of Eq. 7 for `config`'s model: the voltage at which its chambers at rest at mid-stroke, each
 /// where it settles, balance the force [V].
 [[nodiscard]] double equilibrium_voltage_v(const config::Config& config, const model::ValveCharacteristic& valve);
-
-/// Fills controller.law.offset_v with u_e of Eq. 7 when it is "auto".
-void resolve_offset(config::Config& config, const model::ValveCharacteristic& valve);
 
 /// The sampled loop pneud runs for `config`: the loop's period and differentiator, and the I/O
 /// delay of its backend (a module on a bus: the command written at a tick acts after the next
@@ -49,7 +42,8 @@ struct LawDesign {
   std::vector<model::DesignFallback>* fallbacks = nullptr;  ///< filled when given
 };
 
-/// The law of Eq. 4 for `config` (offset already resolved): the fixed gains of controller.law, or
+/// The law of Eq. 4 for `config` (controller.law.offset_v holding u_0: assembly::RunSpec designs it
+/// so): the fixed gains of controller.law, or
 /// with controller.law.gains scheduled, the table designed by pole placement at nodes over the
 /// stroke (controller.law.design) on the tangent-linear model of plant: with `valve`, around u_e of
 /// Eq. 7. Where the requested dynamics cannot be had (a gain negative or beyond its limit, the
@@ -62,13 +56,14 @@ struct LawDesign {
 [[nodiscard]] ControlLaw make_control_law(const config::Config& config, const model::ValveCharacteristic& valve,
                                           const LawDesign& how = {});
 
-/// The predictors' view of the bench.
+/// The predictors' view of the bench; its valve is `valve`, which the caller keeps (the runtime
+/// can own it: Runtime's constructor, set_model()).
 [[nodiscard]] PredictorModel predictor_model(const config::Config& config,
                                              const model::ValveCharacteristic& valve);
 
 /// A complete run, on whatever backend: the backend the loop drives, the loop and its outputs, the
-/// runtime (without sinks: add them with Runtime::add_sink). Movable: the parts the loop refers to
-/// are held by pointer.
+/// runtime. assembly::AssembledRun (pneu/assembly/assembled_run.hpp) builds it and owns it with
+/// what it refers to. Movable: the parts the loop refers to are held by pointer.
 struct Run {
   std::unique_ptr<hal::Backend> backend;
   std::unique_ptr<LoopOutputs> outputs;
@@ -77,16 +72,6 @@ struct Run {
   LoopTiming timing;
   std::optional<MovementTestResult> movement_test;  ///< the movement test's, when it ran
 };
-
-/// Builds the run for `config` (offset already resolved) on `backend` (opened when the run starts,
-/// closed when it ends; pneu/backends/factory.hpp composes it from the configuration), the loop and
-/// the runtime's forecasts with one law, make_control_law()'s (throws config::ConfigError for a
-/// design refused) ...
-[[nodiscard]] Run make_run(const config::Config& config, const model::ValveCharacteristic& valve,
-                           std::unique_ptr<hal::Backend> backend);
-/// ... or `law`, one already made (pneud's, designed before any output file; a sweep's mistuned copy).
-[[nodiscard]] Run make_run(const config::Config& config, const model::ValveCharacteristic& valve,
-                           std::unique_ptr<hal::Backend> backend, const ControlLaw& law);
 
 /// Runs it for controller.duration_s on `clock` (the simulated clock drains the runtime between
 /// ticks, waiting there for a model update the drain stops for; the real clock drains it from a

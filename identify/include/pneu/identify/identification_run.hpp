@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "pneu/assembly/run_spec.hpp"
 #include "pneu/config/describe.hpp"
 #include "pneu/controller/setpoint_params.hpp"
 #include "pneu/controller/control_law.hpp"
@@ -55,12 +56,11 @@ struct PlanOptions {
   double margin_m = 0.03;          ///< the positions stay this far inside the soft limits
 };
 
-/// The law an identification run drives: gains designed on `config`'s model (controller.law.design,
+/// The law an identification run drives: gains designed on `spec`'s model (controller.law.design,
 /// as with controller.law.gains: scheduled) whatever controller.law.gains says, because the run
 /// visits the whole stroke and fixed gains need not be stable over it (the paper's are not, at
 /// mid-stroke). Throws config::ConfigError when the design is refused.
-[[nodiscard]] controller::ControlLaw identification_law(const config::Config& config,
-                                                        const model::ValveCharacteristic& valve);
+[[nodiscard]] controller::ControlLaw identification_law(const assembly::RunSpec& spec);
 
 /// The plan for `config` (soft limits, plant: as the prior) driven by `law`, starting at rest at
 /// `start_m`. Throws std::invalid_argument when the soft limits leave no room for it.
@@ -107,6 +107,9 @@ class Progress final : public controller::RunListener {
 
 /// `config` with the plan's set points and length in force (armed from the start).
 [[nodiscard]] config::Config configured_for(config::Config config, const RunPlan& plan);
+/// `spec` so configured, driven by `law` (identification_law()).
+[[nodiscard]] assembly::RunSpec configured_for(const assembly::RunSpec& spec, const RunPlan& plan,
+                                               controller::ControlLaw law);
 
 /// An identification run as recorded.
 struct RecordedRun {
@@ -116,17 +119,16 @@ struct RecordedRun {
   double fault_t_s = 0.0;
 };
 
-/// The run on the simulated clock, for a simulated bench: plans from `config` with `law`, starting
-/// at rest at `start_m`, runs on `backend` and records every tick, stopping at the first fault.
-[[nodiscard]] RecordedRun record_run(const config::Config& config, const model::ValveCharacteristic& valve,
-                                     const controller::ControlLaw& law, std::unique_ptr<hal::Backend> backend,
-                                     double start_m);
+/// The run on the simulated clock, on the simulated bench `bench`: plans from `spec` (plant: the
+/// prior) with its law, starting at rest at `start_m`, and records every tick, stopping at the
+/// first fault. The bench starts at equilibrium for `spec`'s first output (RunSpec::first_output_v(),
+/// before the plan).
+[[nodiscard]] RecordedRun record_run(const assembly::RunSpec& spec, const model::PlantParams& bench, double start_m);
 
-/// The whole run on the simulated clock, for a simulated bench (tests, pneu-sweep): plans from
-/// `config` (plant: the prior), runs on `backend` with `law` starting at rest at `start_m`, and
-/// identifies. Throws std::runtime_error naming the fault that ended the run, or InsufficientData.
-[[nodiscard]] Identification identify_by_run(const config::Config& config, const model::ValveCharacteristic& valve,
-                                             const controller::ControlLaw& law, std::unique_ptr<hal::Backend> backend,
+/// The whole run on the simulated clock, on the simulated bench `bench` (tests, pneu-sweep): records
+/// it (record_run()) and identifies. Throws std::runtime_error naming the fault that ended the run,
+/// or InsufficientData.
+[[nodiscard]] Identification identify_by_run(const assembly::RunSpec& spec, const model::PlantParams& bench,
                                              double start_m);
 
 /// The configuration to write: `config` (the one the run started from, its own set points and

@@ -10,9 +10,8 @@
 #include <stdexcept>
 #include <thread>
 
-#include "pneu/backends/factory.hpp"
+#include "pneu/assembly/assembled_run.hpp"
 #include "pneu/config/config.hpp"
-#include "pneu/controller/session.hpp"
 #include "pneu/controller/supervisor.hpp"
 #include "pneu/identify/identification_run.hpp"
 #include "pneu/identify/identify.hpp"
@@ -428,13 +427,10 @@ ScenarioResult run_scenario(const config::Config& loaded, const Options& o, cons
   if (o.identify) {
     // pneud --identify on the scenario's bench, from the configured model; the scenario then
     // runs on what it identified.
-    config::Config id_cfg = cfg;
-    const auto prior_valve = controller::make_valve_characteristic(id_cfg, o.config_dir);
-    controller::resolve_offset(id_cfg, *prior_valve);
-    const controller::ControlLaw prior_law = identify::identification_law(id_cfg, *prior_valve);
+    const assembly::RunSpec prior = assembly::RunSpec::of(cfg, {o.config_dir, true, std::nullopt});
     try {
-      const identify::Identification id = identify::identify_by_run(
-          id_cfg, *prior_valve, prior_law, backends::make_sim_backend(id_cfg, prior_law, r.bench), s.y0_m);
+      const identify::Identification id =
+          identify::identify_by_run(prior.with_law(identify::identification_law(prior)), r.bench, s.y0_m);
       r.identified = id.plant;
       r.check = check_identified(id, r.bench);
       r.check.null_pressure_error_pa = identify::largest_null_pressure_difference_pa(*r.identified, r.bench, 1.0);
@@ -451,42 +447,41 @@ ScenarioResult run_scenario(const config::Config& loaded, const Options& o, cons
     }
     cfg.plant = *r.identified;
   }
-  const auto valve = controller::make_valve_characteristic(cfg, o.config_dir);
-  controller::resolve_offset(cfg, *valve);
   // The gains, fixed or scheduled, mistuned by the scenario's factor. Designed on an identified
   // model, the design may be refused (the bench's air spring stiffer than the model's): the
   // scenario is then counted with the reason, as pneud would refuse to start on it.
-  std::optional<controller::ControlLaw> designed;
+  std::optional<assembly::RunSpec> designed;
   try {
-    designed.emplace(controller::make_control_law(cfg, *valve).scaled(s.gain_scale));
+    const assembly::RunSpec spec = assembly::RunSpec::of(cfg, {o.config_dir, true, std::nullopt});
+    designed.emplace(spec.with_law(spec.law().scaled(s.gain_scale)));
   } catch (const config::ConfigError& e) {
     if (!r.identified) throw;
     r.identification_failed = std::string("the gain design on the identified model is refused: ") + e.what();
     return r;
   }
-  const controller::ControlLaw& law = *designed;
-  auto plant = backends::make_sim_backend(cfg, law, r.bench);
-  const hal::SimBackend& bench = *plant;  // the simulated truth, owned by the run
-  auto sim = controller::make_run(cfg, *valve, std::move(plant), law);
-  sim.runtime->set_follow_forecasts(false);  // nobody sees the tick-by-tick comparison here
-  sim.runtime->set_keep_reforecasts(true);   // judged below against the plant's breakaways
-  ScenarioWatch watch(o.supervised ? std::nullopt
-                                   : std::optional(settling_rules_only(controller::LoopParams::from(cfg, law), settling_rules)),
-                      o.step_time_s, cfg.controller.duration_s, half, cfg.controller.hold.window_m,
-                      cfg.controller.stop_detector.motion_band_m);
-  sim.runtime->add_sink(watch);
+  assembly::AssembledRun sim = assembly::AssembledRun::on_simulated_bench(*designed, r.bench);
+  const hal::SimBackend& bench = *sim.simulated_bench();  // the simulated truth, owned by the run
+  sim.runtime().set_follow_forecasts(false);  // nobody sees the tick-by-tick comparison here
+  sim.runtime().set_keep_reforecasts(true);   // judged below against the plant's breakaways
+  const config::Config& run_cfg = sim.config();
+  ScenarioWatch& watch = sim.emplace_sink<ScenarioWatch>(
+      o.supervised ? std::nullopt
+                   : std::optional(settling_rules_only(controller::LoopParams::from(run_cfg, sim.spec().law()),
+                                                       settling_rules)),
+      o.step_time_s, run_cfg.controller.duration_s, half, run_cfg.controller.hold.window_m,
+      run_cfg.controller.stop_detector.motion_band_m);
   std::optional<identify::OnlineIdentifier> learner;
-  if (o.online) learner.emplace(cfg, *sim.runtime);
+  if (o.online) learner.emplace(run_cfg, sim.runtime());
   controller::SimulatedClock clock;
   std::atomic<bool> never{false};
-  controller::execute(sim, cfg, clock, never);
-  r.t_end_s = sim.runtime->end_time_s();
+  sim.execute(clock, never);
+  r.t_end_s = sim.runtime().end_time_s();
   r.settling = watch.settling(bench.motion_events(), bench.plant().state().y_m);
   if (bench.motion_events_dropped() > 0)
     throw std::runtime_error("scenario " + std::to_string(s.index) + ": more plant events than recorded");
   // Stops from the tail are not judged: the tail only lets the carriage show what it did after
   // the stops of the judged window.
-  for (const controller::StopOutcome& stop : sim.runtime->stops()) {
+  for (const controller::StopOutcome& stop : sim.runtime().stops()) {
     if (stop.t_stop_s > o.duration_s) continue;
     JudgedStop& j = r.stops.emplace_back();
     j.stop = stop;
