@@ -2,9 +2,12 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <optional>
+#include <span>
+#include <utility>
 #include <vector>
 
 #include "pneu/model/chamber.hpp"
@@ -102,6 +105,72 @@ struct Chamber {
       p += dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
     }
     return p;
+  }
+};
+
+// What the plain model's pressure of one chamber depends on, as the sensitivity integration carries
+// them: ln C_max, ln C_leak_in, ln C_leak_out, w_0, the logarithm of its own dead volume, and its
+// phase's start (z, in noise floors).
+enum Direction : std::size_t { kDMax, kDLeakIn, kDLeakOut, kDNull, kDVolume, kDStart, kDirections };
+using Directions = std::array<double, kDirections>;
+
+// Chamber with the derivatives of its pressure: each RK4 step of Chamber::advance taken with the
+// variational equation ds/dt = c/V (dq/dp s + dq/dtheta) + d(c/V)/dtheta q beside it, by the same
+// stages. That is the exact derivative of Chamber::advance's own steps (an explicit Runge-Kutta
+// step's derivative is the step applied to the variational equation), where central differences
+// approximate it at twice the cost per parameter.
+struct SensitiveChamber {
+  const model::ValveModel* valve;
+  const model::ValveParams* params;
+  double c_over_v;
+  double dead_volume_m3, volume_m3;
+  double p_supply_pa, p_exhaust_pa;
+
+  // d clamp(x, 0, 1) / dx: at a corner (a valve commanded exactly to its null offset, as an ideal
+  // record's zero command is to a null offset of 0) the mean of its two sides, as a central
+  // difference would take it.
+  static double inside(double x) noexcept { return x > 0.0 && x < 1.0 ? 1.0 : x == 0.0 || x == 1.0 ? 0.5 : 0.0; }
+  // dp/dt at (w, p) and its derivatives given the state's (s).
+  void rate(double w, double p, const Directions& s, double& f, Directions& df) const noexcept {
+    // The orifices' flows are linear in their conductances: q = C_in m_in - C_out m_out (docs/model.md
+    // section 3), C_in = C_leak_in + C_max clamp((w - w_0) / u_max, 0, 1), C_out mirrored.
+    const model::Orifice& orifice = valve->orifice();
+    const double unit_in = orifice.mass_flow_kg_per_s(1.0, p_supply_pa, p);
+    const double unit_out = orifice.mass_flow_kg_per_s(1.0, p, p_exhaust_pa);
+    const double c_in = valve->inlet_conductance_m3_per_s_pa(w), c_out = valve->outlet_conductance_m3_per_s_pa(w);
+    const double q = c_in * unit_in - c_out * unit_out;
+    const double q_p = valve->dq_dp(w, p);
+    const double opening = (w - params->null_offset_v) / params->max_voltage_v;
+    const double slope = params->max_conductance_m3_per_s_pa / params->max_voltage_v;  // dC/dw inside the travel
+    Directions q_theta{};
+    q_theta[kDMax] = (c_in - params->leak_conductance_in_m3_per_s_pa) * unit_in -
+                     (c_out - params->leak_conductance_out_m3_per_s_pa) * unit_out;
+    q_theta[kDLeakIn] = params->leak_conductance_in_m3_per_s_pa * unit_in;
+    q_theta[kDLeakOut] = -params->leak_conductance_out_m3_per_s_pa * unit_out;
+    q_theta[kDNull] = -slope * (inside(opening) * unit_in + inside(-opening) * unit_out);
+    f = c_over_v * q;
+    for (std::size_t d = 0; d < kDirections; ++d) df[d] = c_over_v * (q_p * s[d] + q_theta[d]);
+    df[kDVolume] -= c_over_v * dead_volume_m3 / volume_m3 * q;  // d(c/V)/d ln V_0 = -c V_0 / V^2
+  }
+  // Advances p and its derivatives by h at constant w, in Chamber::advance's steps.
+  void advance(double w, double& p, Directions& s, double h) const noexcept {
+    const double decay = -c_over_v * valve->dq_dp(w, p);
+    const int steps = std::max(1, static_cast<int>(std::ceil(h * decay / 0.5)));
+    const double dt = h / steps;
+    Directions l1, l2, l3, l4, at;
+    double k1, k2, k3, k4;
+    const auto along = [&](const Directions& l, double f) {
+      for (std::size_t d = 0; d < kDirections; ++d) at[d] = s[d] + f * l[d];
+      return at;
+    };
+    for (int i = 0; i < steps; ++i) {
+      rate(w, p, s, k1, l1);
+      rate(w, p + 0.5 * dt * k1, along(l1, 0.5 * dt), k2, l2);
+      rate(w, p + 0.5 * dt * k2, along(l2, 0.5 * dt), k3, l3);
+      rate(w, p + dt * k3, along(l3, dt), k4, l4);
+      p += dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+      for (std::size_t d = 0; d < kDirections; ++d) s[d] += dt / 6.0 * (l1[d] + 2.0 * l2[d] + 2.0 * l3[d] + l4[d]);
+    }
   }
 };
 
@@ -219,6 +288,64 @@ class Problem {
     Eigen::VectorXd r(size_);
     for (std::size_t j = 0; j < phases_.size(); ++j) phase_residuals(p, valve, at, j, z, r, only);
     return r;
+  }
+  // The plain model's residuals' derivatives, exactly (SensitiveChamber): by the parameters `free`
+  // (jt, m x free.size(), per unit of theta) and each row's by its own start (jz, per unit of z,
+  // when the starts are fitted) [Pa].
+  void plain_derivatives(const Theta& th, const Eigen::VectorXd& z, std::span<const std::size_t> free, Eigen::MatrixXd& jt,
+                         Eigen::VectorXd& jz) const {
+    const model::PlantParams p = applied(prior_, th);
+    const model::ValveModel valve(p.valve, p.gas);
+    const double c = p.gas.k_r_t();
+    jt.resize(size_, static_cast<Eigen::Index>(free.size()));
+    jz.resize(fit_starts_ ? size_ : 0);
+    // Column c's direction in chamber P's and chamber N's sensitivities (none: the other's volume).
+    constexpr std::size_t kNone = kDirections;
+    std::vector<std::array<std::size_t, 2>> direction;
+    for (const std::size_t i : free) {
+      switch (i) {
+        case kMaxConductance: direction.push_back({kDMax, kDMax}); break;
+        case kLeakIn: direction.push_back({kDLeakIn, kDLeakIn}); break;
+        case kLeakOut: direction.push_back({kDLeakOut, kDLeakOut}); break;
+        case kNullOffset: direction.push_back({kDNull, kDNull}); break;
+        case kDeadVolumeP: direction.push_back({kDVolume, kNone}); break;
+        default: direction.push_back({kNone, kDVolume}); break;  // kDeadVolumeN (plain: no others)
+      }
+    }
+    for (std::size_t j = 0; j < phases_.size(); ++j) {
+      const FitPhase& ph = phases_[j];
+      const auto zj = static_cast<Eigen::Index>(2 * j);
+      double pp = s_[ph.first].p_p_pa + (fit_starts_ ? z[zj] * kPressureNoiseFloor_pa : 0.0);
+      double pn = s_[ph.first].p_n_pa + (fit_starts_ ? z[zj + 1] * kPressureNoiseFloor_pa : 0.0);
+      Directions sp{}, sn{};
+      sp[kDStart] = sn[kDStart] = kPressureNoiseFloor_pa;
+      const double vp = p.geometry.volume_p_m3(ph.y_m), vn = p.geometry.volume_n_m3(ph.y_m);
+      const SensitiveChamber cp{&valve, &p.valve, c / vp, p.geometry.dead_volume_p_m3, vp, p.gas.supply_pressure_pa,
+                                p.gas.exhaust_pressure_pa};
+      const SensitiveChamber cn{&valve, &p.valve, c / vn, p.geometry.dead_volume_n_m3, vn, p.gas.supply_pressure_pa,
+                                p.gas.exhaust_pressure_pa};
+      const auto u_at = [&](std::size_t i) { return s_[i >= ph.first + delay_ ? i - delay_ : ph.first].u_v; };
+      std::size_t k = ph.first;
+      Eigen::Index row = rows_[j];
+      for (const std::size_t obs : ph.observed) {
+        while (k < obs) {
+          std::size_t next = k + 1;
+          while (next < obs && u_at(next) == u_at(k)) ++next;
+          const double h = s_[next].t_s - s_[k].t_s;
+          cp.advance(u_at(k), pp, sp, h);
+          cn.advance(-u_at(k), pn, sn, h);
+          k = next;
+        }
+        for (const auto& [chamber, s] : {std::pair{0, &sp}, std::pair{1, &sn}}) {
+          for (std::size_t col = 0; col < free.size(); ++col) {
+            const std::size_t d = direction[col][static_cast<std::size_t>(chamber)];
+            jt(row, static_cast<Eigen::Index>(col)) = d == kNone ? 0.0 : -(*s)[d];  // the residual is measured - model
+          }
+          if (fit_starts_) jz[row] = -(*s)[kDStart];
+          ++row;
+        }
+      }
+    }
   }
   // d(residual)/d(z of its row's start), row by row: each row depends on one start alone.
   [[nodiscard]] Eigen::VectorXd start_derivatives(const Theta& th, const Eigen::VectorXd& z) const {
@@ -358,8 +485,8 @@ double prior_spread(std::size_t i) {
   }
 }
 
-// Levenberg-Marquardt on the free parameters and the phases' starts (numerical Jacobian by central
-// differences) for the measured pressures, at kPressureNoiseFloor_pa, and the priors; the
+// Levenberg-Marquardt on the free parameters and the phases' starts (the plain model's Jacobian
+// exact, by the pressures' sensitivities; with the hidden state, by forward differences) for the measured pressures, at kPressureNoiseFloor_pa, and the priors; the
 // posterior covariance of the parameters (the starts' uncertainty marginalised), scaled up when
 // the residual is noisier than the floor. Each row depends on one start alone, so the normal
 // equations are formed without the starts' columns in full.
@@ -402,25 +529,27 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
   };
   const auto jacobian = [&](const Theta& th, const Eigen::VectorXd& zz, const Eigen::VectorXd& r) {
     Jacobian j{Eigen::MatrixXd(m, nf), Eigen::VectorXd()};
+    if (problem.plain()) {  // exactly, by the pressures' sensitivities
+      problem.plain_derivatives(th, zz, idx, j.jt, j.jz);
+      j.jt /= noise;
+      j.jz /= noise;
+      return j;
+    }
     for (Eigen::Index c = 0; c < nf; ++c) {
       const auto i = static_cast<Eigen::Index>(idx[static_cast<std::size_t>(c)]);
       constexpr double h = 1.0e-5;
-      Theta up = th, down = th;
+      Theta up = th;
       up[i] += h;
-      down[i] -= h;
-      // Central differences; forward ones where each evaluation follows the whole record (the
-      // model's hidden state: half the cost, and the Jacobian only steers the search).
+      // Forward differences: each evaluation follows the whole record (the model's hidden state),
+      // and the Jacobian only steers the search.
       // A dead volume is one chamber's: the other's rows do not move (r's rows less themselves).
       const std::optional<model::Side> only = i == kDeadVolumeP   ? std::optional(model::Side::kP)
                                               : i == kDeadVolumeN ? std::optional(model::Side::kN)
                                                                   : std::nullopt;
-      j.jt.col(c) = problem.plain()
-                        ? Eigen::VectorXd((residuals(up, zz, only) - residuals(down, zz, only)) / (2.0 * h))
-                        : Eigen::VectorXd((residuals(up, zz, only) - r) / h);
+      j.jt.col(c) = (residuals(up, zz, only) - r) / h;
       if (only) {
         const Eigen::Index other = *only == model::Side::kP ? 1 : 0;  // rows alternate P, N
-        for (Eigen::Index row = other; row < m; row += 2)
-          j.jt(row, c) = problem.plain() ? (r[row] - r[row]) / (2.0 * h) : (r[row] - r[row]) / h;
+        for (Eigen::Index row = other; row < m; row += 2) j.jt(row, c) = (r[row] - r[row]) / h;
       }
     }
     if (nz > 0) j.jz = problem.start_derivatives(th, zz) / noise;
