@@ -100,6 +100,14 @@ std::string health_t_lcm() {
       "  int64_t utime;      // microseconds since the Unix epoch\n", "");
 }
 
+// identification_t: the running estimate of online identification, on <prefix>IDENTIFICATION.
+std::string identification_t_lcm() {
+  return records::lcm_message_text<controller::IdentificationRecord>(
+      "pneu_lcm", "identification_t", records::Description<controller::IdentificationRecord>::kDoc,
+      "controller/include/pneu/controller/records.hpp",
+      "  int64_t utime;      // microseconds since the Unix epoch\n", "");
+}
+
 // The JSON Schema of a line of the events file: one of its views.
 std::string events_schema() {
   std::vector<std::string> lines;
@@ -134,6 +142,7 @@ int run(int argc, char** argv) {
     write_if_changed(fs::path(*lcm) / "event_t.lcm", event_t_lcm());
     write_if_changed(fs::path(*lcm) / "prediction_t.lcm", prediction_t_lcm());
     write_if_changed(fs::path(*lcm) / "health_t.lcm", health_t_lcm());
+    write_if_changed(fs::path(*lcm) / "identification_t.lcm", identification_t_lcm());
     if (cpp) {
       const fs::path dir = fs::path(*cpp) / "pneu_lcm";
       write_if_changed(dir / "state_t_members.hpp", records::lcm_members_header<controller::TickRecord>("pneu_lcm", "state_t"));
@@ -143,6 +152,8 @@ int run(int argc, char** argv) {
                        records::lcm_members_header<controller::ForecastRecord>("pneu_lcm", "prediction_t"));
       write_if_changed(dir / "health_t_members.hpp",
                        records::lcm_members_header<controller::HealthMessage>("pneu_lcm", "health_t"));
+      write_if_changed(dir / "identification_t_members.hpp",
+                       records::lcm_members_header<controller::IdentificationRecord>("pneu_lcm", "identification_t"));
     }
   }
   if (schemas) {
@@ -158,6 +169,9 @@ int run(int argc, char** argv) {
     write_if_changed(fs::path(*schemas) / "events.schema.json", events_schema());
     write_if_changed(fs::path(*schemas) / "health.schema.json",
                      records::json_schema<controller::HealthMessage>("https://pneu.invalid/schemas/health.schema.json"));
+    write_if_changed(fs::path(*schemas) / "identification.schema.json",
+                     records::json_schema<controller::IdentificationRecord>(
+                         "https://pneu.invalid/schemas/identification.schema.json"));
     write_if_changed(fs::path(*schemas) / "summary.schema.json",
                      records::json_schema<controller::RunSummaryRecord>("https://pneu.invalid/schemas/summary.schema.json"));
     write_if_changed(fs::path(*schemas) / "sweep_stop.schema.json",
