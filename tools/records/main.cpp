@@ -15,6 +15,7 @@
 #include "pneu/records/lcm.hpp"
 #include "pneu/records/schema.hpp"
 #include "pneu/sweep/rows.hpp"
+#include "pneu/sweep/summary_record.hpp"
 
 namespace {
 
@@ -176,6 +177,8 @@ int run(int argc, char** argv) {
                      records::json_schema<controller::RunSummaryRecord>("https://pneu.invalid/schemas/summary.schema.json"));
     write_if_changed(fs::path(*schemas) / "sweep_stop.schema.json",
                      records::json_schema<sweep::StopRow>("https://pneu.invalid/schemas/sweep_stop.schema.json"));
+    write_if_changed(fs::path(*schemas) / "sweep_summary.schema.json",
+                     records::json_schema<sweep::SweepSummary>("https://pneu.invalid/schemas/sweep_summary.schema.json"));
     write_if_changed(fs::path(*schemas) / "sweep_scenario.schema.json",
                      records::json_schema<sweep::ScenarioRow>("https://pneu.invalid/schemas/sweep_scenario.schema.json"));
   }
