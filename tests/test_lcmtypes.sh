@@ -12,9 +12,9 @@ set -euo pipefail
 src=$1 bin=$2 lang=$3
 work=$(mktemp -d); trap 'rm -rf "$work"' EXIT
 # The .lcm files here, and those pneu-records wrote from the records' descriptions (state_t,
-# event_t, prediction_t, health_t).
+# event_t, prediction_t, health_t, identification_t).
 types=("$src"/lcmtypes/*.lcm)
-for t in state_t event_t prediction_t health_t; do
+for t in state_t event_t prediction_t health_t identification_t; do
   [ -f "$bin/share/pneu/lcmtypes/$t.lcm" ] || { echo "FAIL: no $t.lcm in $bin/share/pneu/lcmtypes (pneu-records)"; exit 1; }
   types+=("$bin/share/pneu/lcmtypes/$t.lcm")
 done

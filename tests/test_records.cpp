@@ -36,6 +36,8 @@
 #include "pneu_lcm/event_t_members.hpp"
 #include "pneu_lcm/health_t.hpp"
 #include "pneu_lcm/health_t_members.hpp"
+#include "pneu_lcm/identification_t.hpp"
+#include "pneu_lcm/identification_t_members.hpp"
 #include "pneu_lcm/prediction_t.hpp"
 #include "pneu_lcm/prediction_t_members.hpp"
 #include "pneu_lcm/state_t.hpp"
@@ -404,6 +406,10 @@ TEST(Records, TheMessagesWrittenFromDescriptionsKeepTheFingerprintsOfTheHandWrit
   EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::event_t::getHash()), fingerprint_of_hash(0xc90eb8a7692da280ULL));
   EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::prediction_t::getHash()), fingerprint_of_hash(0xba68c62bef413c1dULL));
   EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::health_t::getHash()), fingerprint_of_hash(0x2a01330226809dfdULL));
+  EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::identification_t::getHash()),
+            fingerprint_of_hash(0x3d13bd6016606726ULL));
+  EXPECT_EQ(int{pneu_lcm::identification_t::MAX_CONDUCTANCE}, 5);
+  EXPECT_EQ(int{pneu_lcm::identification_t::SPOOL_TIME_CONSTANT_S}, 12);
   EXPECT_EQ(int{pneu_lcm::event_t::KIND_START}, 1);
   EXPECT_EQ(int{pneu_lcm::event_t::KIND_MOVEMENT_TEST}, 12);
   EXPECT_EQ(int{pneu_lcm::event_t::KIND_HOLD_END}, int{pneu::controller::event_kind::kHoldEnd});
@@ -467,6 +473,66 @@ TEST(Records, TheHealthGoesThroughHealthTsBytesItsGroupsAsArraysAndBackUnchanged
               HasSubstr("overruns,wake_latency_us_min,wake_latency_us_median,wake_latency_us_p99,wake_latency_us_max,"
                         "compute_us_min,"));
   EXPECT_EQ(refused_by_the_schema(installed_schema("health"), {json_object(h)}), 0);
+}
+
+// Online identification's estimate: three arrays indexed by parameter, separate in LCM and JSON,
+// interleaved per parameter in CSV.
+pneu::controller::IdentificationRecord identification() {
+  pneu::controller::IdentificationRecord r;
+  r.t_s = 30.5;
+  r.updates = 4;
+  for (std::size_t i = 0; i < r.value.size(); ++i) {
+    r.value[i] = 1.0 + static_cast<double>(i);
+    r.sigma[i] = i == 12 ? kNaN : 0.25 * static_cast<double>(i);
+    r.identified[i] = i % 2 == 1;
+  }
+  return r;
+}
+
+TEST(Records, TheIdentificationGoesThroughIdentificationTsBytesItsArraysIndexedByParameterAndBackUnchanged) {
+  const auto r = identification();
+  pneu_lcm::identification_t m{};
+  records::to_lcm(r, m);
+  EXPECT_EQ(m.updates, 4);
+  EXPECT_EQ(m.value[pneu_lcm::identification_t::MAX_CONDUCTANCE], 6.0);
+  EXPECT_EQ(m.sigma[2], 0.5);
+  EXPECT_EQ(m.identified[5], 1);
+  EXPECT_EQ(m.identified[6], 0);
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(m.getEncodedSize()));
+  ASSERT_EQ(m.encode(bytes.data(), 0, static_cast<int>(bytes.size())), static_cast<int>(bytes.size()));
+  pneu_lcm::identification_t decoded{};
+  ASSERT_EQ(decoded.decode(bytes.data(), 0, static_cast<int>(bytes.size())), static_cast<int>(bytes.size()));
+  pneu::controller::IdentificationRecord back;
+  records::from_lcm(decoded, back);
+  EXPECT_EQ(back.value, r.value);
+  EXPECT_EQ(back.identified, r.identified);
+  EXPECT_EQ(csv_row(back), csv_row(r));
+  EXPECT_EQ(json_object(back), json_object(r));
+  std::string cells;
+  records::write_lcm_csv_cells<pneu::controller::IdentificationRecord>(cells, decoded);
+  EXPECT_EQ(cells, csv_row(r));
+  EXPECT_THAT(cells, ::testing::StartsWith("30.5,4,1,0,0,2,0.25,1,3,0.5,0,"));
+  EXPECT_THAT(cells, ::testing::EndsWith(",13,,0"));
+}
+
+TEST(Records, TheIdentificationsColumnsInterleaveEachParametersValueSigmaAndFlagItsJsonKeysEachArrayByParameter) {
+  const std::string header = records::csv_header<pneu::controller::IdentificationRecord>();
+  EXPECT_THAT(header, ::testing::StartsWith("t,updates,static_positive_n,static_positive_n_sigma,"
+                                            "static_positive_n_identified,static_negative_n,"));
+  EXPECT_THAT(header, ::testing::EndsWith(",spool_time_constant_s,spool_time_constant_s_sigma,"
+                                          "spool_time_constant_s_identified"));
+  EXPECT_EQ(records::csv_column_count<pneu::controller::IdentificationRecord>(), 2u + 3u * 13u);
+  const std::string json = json_object(identification());
+  EXPECT_THAT(json, HasSubstr(R"("value":{"static_positive_n":1,"static_negative_n":2,)"));
+  EXPECT_THAT(json, HasSubstr(R"("spool_time_constant_s":null},"identified":{"static_positive_n":false,)"));
+  const std::string schema = installed_schema("identification");
+  EXPECT_EQ(refused_by_the_schema(schema, {json}), 0);
+  std::string short_of_one = json;
+  short_of_one.replace(short_of_one.find(R"("static_negative_n":2,)"), std::string(R"("static_negative_n":2,)").size(), "");
+  std::string a_flag_as_number = json;
+  a_flag_as_number.replace(a_flag_as_number.find(R"("static_positive_n":false)"),
+                           std::string(R"("static_positive_n":false)").size(), R"("static_positive_n":0)");
+  EXPECT_EQ(refused_by_the_schema(schema, {short_of_one, a_flag_as_number}), 2);
 }
 
 TEST(Records, AnEventMessageCarriesItsTextThroughEventTAndAnUnknownKindIsWrittenAsItCame) {

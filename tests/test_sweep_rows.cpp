@@ -1,6 +1,7 @@
 // The sweep's rows described once (pneu/sweep/rows.hpp): the stops and scenarios files' columns
 // are the descriptions', every row has as many cells as the header, and the rows of a real sweep
-// follow the JSON Schemas the build installs.
+// follow the JSON Schemas the build installs; so does its summary (pneu/sweep/summary_record.hpp),
+// with and without --identify's part.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -49,6 +50,7 @@ class SweepRows : public ::testing::Test {
     sweep::Options o;
     o.steps = 6;
     const auto scenarios = sweep::draw_scenarios(o, config.plant.geometry.half_stroke_m());
+    options_ = o;
     results_ = new std::vector<sweep::ScenarioResult>(sweep::run_all(config, o, scenarios, 2).results);
     sweep::ScenarioResult failed = results_->front();
     failed.scenario.index = 6;
@@ -58,8 +60,10 @@ class SweepRows : public ::testing::Test {
   }
   static void TearDownTestSuite() { delete results_; }
   static std::vector<sweep::ScenarioResult>* results_;
+  static sweep::Options options_;
 };
 std::vector<sweep::ScenarioResult>* SweepRows::results_ = nullptr;
+sweep::Options SweepRows::options_;
 
 TEST_F(SweepRows, TheStopsFilesHeaderIsTheDescriptionsAndEachRowHasACellForEachColumn) {
   std::ostringstream out;
@@ -110,6 +114,30 @@ TEST_F(SweepRows, TheRowsOfARealSweepFollowTheSchemasTheBuildInstalls) {
   EXPECT_THAT(scenarios.back(), ::testing::HasSubstr(R"("identification_failed":"too little 'shown'")"));
   EXPECT_THAT(scenarios.back(), ::testing::HasSubstr(R"("bench":{"static_positive_n":)")) << "a group: an object";
   EXPECT_EQ(refused_by_the_schema(scenario_schema, {R"({"scenario":1})"}), 1);
+}
+
+TEST_F(SweepRows, TheSummaryOfARealSweepFollowsTheSchemaTheBuildInstallsWithAndWithoutTheIdentification) {
+  const config::Config config = config::load_file_or_default("");
+  sweep::Setting setting = sweep::setting_of(config, options_);
+  const sweep::Statistics plain = sweep::aggregate(setting, *results_);
+  setting.options.identify = true;
+  const sweep::Statistics identified = sweep::aggregate(setting, *results_);
+  std::string a, b;
+  records::write_json_object(a, sweep::summary_record(plain));
+  records::write_json_object(b, sweep::summary_record(identified));
+  EXPECT_THAT(a, ::testing::Not(::testing::HasSubstr(R"("identification":)")));
+  EXPECT_THAT(b, ::testing::HasSubstr(R"("failed":["scenario 6: too little)"));
+  EXPECT_THAT(a, ::testing::HasSubstr(R"("long_within":{"2_percent":)"));
+  EXPECT_THAT(a, ::testing::HasSubstr(R"("outcomes":{"settled":{"count":)"));
+  const std::string schema = installed_schema("sweep_summary");
+  ASSERT_FALSE(schema.empty());
+  EXPECT_EQ(refused_by_the_schema(schema, {a, b}), 0);
+  std::string short_of_one = a;
+  short_of_one.replace(short_of_one.find(R"("jobs":)"), std::string(R"("jobs":)").size(), R"("threads":)");
+  EXPECT_EQ(refused_by_the_schema(schema, {short_of_one}), 1);
+  std::ostringstream document;
+  sweep::write_summary_json(document, plain);
+  EXPECT_THAT(document.str(), ::testing::StartsWith("{\n  \"scenarios\": "));
 }
 
 }  // namespace

@@ -4,7 +4,6 @@
 #include <cmath>
 #include <string>
 
-#include "pneu/controller/json_text.hpp"
 #include "pneu/records/json.hpp"
 #include "pneu/config/cli.hpp"
 #include "pneu/controller/supervisor.hpp"

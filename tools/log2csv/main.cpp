@@ -60,10 +60,7 @@ the Unix epoch]; then the message's fields in the order and units of its .lcm de
 // The columns of each type written from its description (the lines of the usage between kUsage
 // and kUsageEnd): the header itself, wrapped.
 constexpr const char* kUsageEnd =
-    R"(  identification_t  log_utime,utime,t,updates, then for each parameter of lcmtypes/identification_t.lcm
-                in its order: NAME,NAME_sigma,NAME_identified (NAME its config key's last part:
-                static_positive_n ... spool_time_constant_s)
-  unknown       log_utime,bytes,fingerprint_hex: a message of another type, or one that does not
+    R"(  unknown       log_utime,bytes,fingerprint_hex: a message of another type, or one that does not
                 decode as the type its fingerprint names (too short, or bytes left over); bytes
                 is its size, fingerprint_hex its first 8 bytes. Counted on stderr.
 A channel that carries more than one type (unknown counts as a type) is split by type into
@@ -86,9 +83,9 @@ LOGFILE missing, unreadable or not an LCM log (nothing written).
 std::string usage() {
   std::string u = kUsage;
   for (const MessageType type : {MessageType::kState, MessageType::kEvent, MessageType::kPrediction,
-                                 MessageType::kHealth, MessageType::kCommand}) {
+                                 MessageType::kHealth, MessageType::kCommand, MessageType::kIdentification}) {
     std::string line = "  " + std::string(log2csv::type_name(type));
-    line.resize(16, ' ');
+    line.resize(std::max<std::size_t>(line.size() + 1, 16), ' ');
     const std::string header(log2csv::csv_header(type));
     std::size_t from = 0;
     while (from < header.size()) {  // wrapped after a comma, under 100 columns

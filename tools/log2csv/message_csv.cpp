@@ -8,10 +8,10 @@
 #include "pneu/records/csv.hpp"
 #include "pneu/records/lcm.hpp"
 #include "pneu_lcm/command_t.hpp"
-#include "pneu_lcm/identification_t.hpp"
 #include "pneu_lcm/state_t.hpp"
 #include "pneu_lcm/event_t_members.hpp"
 #include "pneu_lcm/health_t_members.hpp"
+#include "pneu_lcm/identification_t_members.hpp"
 #include "pneu_lcm/prediction_t_members.hpp"
 #include "pneu_lcm/state_t_members.hpp"
 
@@ -158,16 +158,7 @@ std::string_view csv_header(MessageType type) {
     case MessageType::kCommand:
       return "log_utime,utime,seq,kind,kind_name,value";
     case MessageType::kIdentification: {
-      // Per parameter, in the order of its arrays (controller::kIdentifiedParameterKeys): NAME,
-      // NAME_sigma, NAME_identified, NAME the config key's last part.
-      static const std::string header = [] {
-        std::string h = "log_utime,utime,t,updates";
-        for (const std::string_view key : controller::kIdentifiedParameterKeys) {
-          const std::string_view name = key.substr(key.rfind('.') + 1);
-          for (const std::string_view suffix : {"", "_sigma", "_identified"}) (h += ',').append(name).append(suffix);
-        }
-        return h;
-      }();
+      static const std::string header = "log_utime,utime," + records::csv_header<controller::IdentificationRecord>();
       return header;
     }
     case MessageType::kUnknown:
@@ -243,12 +234,7 @@ RowInfo format_csv_row(std::int64_t log_utime, const void* data, std::int32_t si
   } else if (fingerprint == pneu_lcm::identification_t::getHash()) {
     pneu_lcm::identification_t m{};
     if (decode_whole(data, size, &m)) {
-      Row row(line, log_utime);
-      row.integer(m.utime).number(m.t).integer(m.updates);
-      static_assert(std::extent_v<decltype(m.value)> == controller::kIdentifiedParameterKeys.size());
-      for (std::size_t i = 0; i < controller::kIdentifiedParameterKeys.size(); ++i)
-        row.number(m.value[i]).number(m.sigma[i]).integer(m.identified[i]);
-      row.end();
+      Row(line, log_utime).integer(m.utime).message<controller::IdentificationRecord>(m).end();
       return {MessageType::kIdentification, 0};
     }
   }

@@ -15,6 +15,7 @@
 #include "pneu/records/lcm.hpp"
 #include "pneu/records/schema.hpp"
 #include "pneu/sweep/rows.hpp"
+#include "pneu/sweep/summary_record.hpp"
 
 namespace {
 
@@ -100,6 +101,14 @@ std::string health_t_lcm() {
       "  int64_t utime;      // microseconds since the Unix epoch\n", "");
 }
 
+// identification_t: the running estimate of online identification, on <prefix>IDENTIFICATION.
+std::string identification_t_lcm() {
+  return records::lcm_message_text<controller::IdentificationRecord>(
+      "pneu_lcm", "identification_t", records::Description<controller::IdentificationRecord>::kDoc,
+      "controller/include/pneu/controller/records.hpp",
+      "  int64_t utime;      // microseconds since the Unix epoch\n", "");
+}
+
 // The JSON Schema of a line of the events file: one of its views.
 std::string events_schema() {
   std::vector<std::string> lines;
@@ -134,6 +143,7 @@ int run(int argc, char** argv) {
     write_if_changed(fs::path(*lcm) / "event_t.lcm", event_t_lcm());
     write_if_changed(fs::path(*lcm) / "prediction_t.lcm", prediction_t_lcm());
     write_if_changed(fs::path(*lcm) / "health_t.lcm", health_t_lcm());
+    write_if_changed(fs::path(*lcm) / "identification_t.lcm", identification_t_lcm());
     if (cpp) {
       const fs::path dir = fs::path(*cpp) / "pneu_lcm";
       write_if_changed(dir / "state_t_members.hpp", records::lcm_members_header<controller::TickRecord>("pneu_lcm", "state_t"));
@@ -143,6 +153,8 @@ int run(int argc, char** argv) {
                        records::lcm_members_header<controller::ForecastRecord>("pneu_lcm", "prediction_t"));
       write_if_changed(dir / "health_t_members.hpp",
                        records::lcm_members_header<controller::HealthMessage>("pneu_lcm", "health_t"));
+      write_if_changed(dir / "identification_t_members.hpp",
+                       records::lcm_members_header<controller::IdentificationRecord>("pneu_lcm", "identification_t"));
     }
   }
   if (schemas) {
@@ -158,10 +170,15 @@ int run(int argc, char** argv) {
     write_if_changed(fs::path(*schemas) / "events.schema.json", events_schema());
     write_if_changed(fs::path(*schemas) / "health.schema.json",
                      records::json_schema<controller::HealthMessage>("https://pneu.invalid/schemas/health.schema.json"));
+    write_if_changed(fs::path(*schemas) / "identification.schema.json",
+                     records::json_schema<controller::IdentificationRecord>(
+                         "https://pneu.invalid/schemas/identification.schema.json"));
     write_if_changed(fs::path(*schemas) / "summary.schema.json",
                      records::json_schema<controller::RunSummaryRecord>("https://pneu.invalid/schemas/summary.schema.json"));
     write_if_changed(fs::path(*schemas) / "sweep_stop.schema.json",
                      records::json_schema<sweep::StopRow>("https://pneu.invalid/schemas/sweep_stop.schema.json"));
+    write_if_changed(fs::path(*schemas) / "sweep_summary.schema.json",
+                     records::json_schema<sweep::SweepSummary>("https://pneu.invalid/schemas/sweep_summary.schema.json"));
     write_if_changed(fs::path(*schemas) / "sweep_scenario.schema.json",
                      records::json_schema<sweep::ScenarioRow>("https://pneu.invalid/schemas/sweep_scenario.schema.json"));
   }

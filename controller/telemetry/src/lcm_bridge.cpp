@@ -16,7 +16,7 @@
 #include "pneu/telemetry/command_datagram.hpp"
 
 #include "pneu_lcm/command_t.hpp"
-#include "pneu_lcm/identification_t.hpp"
+#include "pneu_lcm/identification_t_members.hpp"
 #include "pneu_lcm/state_t.hpp"
 #include "pneu_lcm/event_t_members.hpp"
 #include "pneu_lcm/health_t_members.hpp"
@@ -190,13 +190,7 @@ void LcmBridge::on_forecast(const controller::ForecastRecord& f) {
 void LcmBridge::on_identification(const controller::IdentificationRecord& r) {
   pneu_lcm::identification_t m{};
   m.utime = utime_of(r.t_s);
-  m.t = r.t_s;
-  m.updates = static_cast<std::int32_t>(r.updates);
-  for (std::size_t i = 0; i < r.value.size(); ++i) {
-    m.value[i] = r.value[i];
-    m.sigma[i] = r.sigma[i];
-    m.identified[i] = r.identified[i] ? 1 : 0;
-  }
+  records::to_lcm(r, m);
   publish(identification_channel_, m);
 }
 

@@ -1,11 +1,14 @@
 // The descriptions of the controller's records (pneu/records/record.hpp): the fields the outside
 // world sees of each, in order, each spelled once. The trajectory file's columns, the events
-// file's lines (views of the event line, the forecast, the command), the state_t, event_t and
-// prediction_t messages (their .lcm definitions are written from here at build time),
-// pneu-log2csv's columns and the JSON Schemas all follow from them: a new field is one line here.
+// file's lines (views of the event line, the forecast, the command), the state_t, event_t,
+// prediction_t, health_t and identification_t messages (their .lcm definitions are written from
+// here at build time), pneu-log2csv's columns and the JSON Schemas all follow from them: a new
+// field is one line here.
 #pragma once
 
+#include <array>
 #include <cstdint>
+#include <iterator>
 #include <limits>
 #include <string>
 #include <tuple>
@@ -112,6 +115,20 @@ inline constexpr records::Named<PredictionMethod> kPredictionMethods[] = {
 
 /// A command's verdict in words.
 inline constexpr records::Named<bool> kVerdicts[] = {{true, 1, "accepted"}, {false, 0, "rejected"}};
+
+/// The parameters online identification estimates, as identification_t's arrays are indexed: each
+/// named by its config key's last part (kIdentifiedParameterKeys), with the message's constant
+/// for its index.
+inline constexpr std::array<records::IndexName, kIdentifiedParameterKeys.size()> kIdentifiedParameters = [] {
+  constexpr const char* kConstants[] = {
+      "STATIC_POSITIVE_N", "STATIC_NEGATIVE_N", "COULOMB_POSITIVE_N", "COULOMB_NEGATIVE_N", "VISCOUS_N_S_PER_M",
+      "MAX_CONDUCTANCE",   "LEAK_IN",           "LEAK_OUT",           "NULL_OFFSET_V",      "DEAD_VOLUME_P_M3",
+      "DEAD_VOLUME_N_M3",  "HEAT_TRANSFER_W_PER_M2_K", "SPOOL_TIME_CONSTANT_S"};
+  static_assert(std::size(kConstants) == kIdentifiedParameterKeys.size());
+  std::array<records::IndexName, kIdentifiedParameterKeys.size()> table{};
+  for (std::size_t i = 0; i < table.size(); ++i) table[i] = {records::last_part(kIdentifiedParameterKeys[i]), kConstants[i]};
+  return table;
+}();
 
 /// The loop's modes as the messages name them (state_t's MODE_* constants).
 inline constexpr std::pair<Mode, const char*> kModeNames[] = {
@@ -385,5 +402,31 @@ struct pneu::records::Description<pneu::controller::HealthMessage> {
       field("nonce", &R::nonce, "", "a random number drawn at start-up (pids repeat across containers)"),
       field("period", &R::period_s, "s",
             "the period of these messages (telemetry.health_period_s): another pneud counts this one gone after 3 of them"),
+  };
+};
+
+/// The running estimate of online identification: identification_t.
+template <>
+struct pneu::records::Description<pneu::controller::IdentificationRecord> {
+  using R = pneu::controller::IdentificationRecord;
+  static constexpr const char* kName = "identification";
+  static constexpr const char* kDoc =
+      "The bench as pneud has identified it online so far (controller.predictor.learn_online), on\n"
+      "// <prefix>IDENTIFICATION after each update. Fixed size. Entry i of the arrays is parameter i, in\n"
+      "// the order of the constants below; its config key is plant.<section>.<name> (README,\n"
+      "// \"Identifying the bench\"). Not identified: the value is the configuration's, sigma 0.";
+  static constexpr auto kFields = std::tuple{
+      field("t", &R::t_s, "s", "loop time of the update", 12),
+      field("updates", &R::updates, "", "updates since start-up"),
+      field("value", &R::value, "", "in the unit of its config key (N, N s/m, m^3/(s Pa), V, m^3, W/(m^2 K), s)")
+          .indexed(pneu::controller::kIdentifiedParameters, ""),
+      field("sigma", &R::sigma, "", "1 sigma uncertainty, same unit; 0 when not identified")
+          .indexed(pneu::controller::kIdentifiedParameters, "_sigma"),
+      field("identified", &R::identified, "",
+            "1 identified; 0: not seen yet, or not separable, or not the model's (the heat transfer without "
+            "plant.thermal, the spool lag without one): the configuration's value (int8_t: lcm-gen 1.4's Python for "
+            "a boolean array does not run)")
+          .indexed(pneu::controller::kIdentifiedParameters, "_identified")
+          .as<std::int8_t>(),
   };
 };

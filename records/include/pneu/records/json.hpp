@@ -2,7 +2,8 @@
 // Numbers with the field's significant digits, null for NaN; integers and enumerations as
 // integers; booleans as true and false; strings escaped (RFC 8259); an enumeration written as
 // text (.named) as its name; an optional member with no value as null; a group as an object
-// (null when it has no value). A field with .when(f) is left out unless f holds; one with
+// (null when it has no value); a list as an array (of objects or strings); a map or a fixed array
+// as an object keyed by its names. A field with .when(f) is left out unless f holds; one with
 // .null_when(f) is null when f holds. Written to a stream or appended to a string.
 #pragma once
 
@@ -38,6 +39,39 @@ void write_json_string(Out& out, std::string_view s) {
 template <Described Record, class Out>
 void write_json_object(Out& out, const Record& r);
 
+/// Writes a number, an integer or a bool as JSON (a number with `digits` significant digits).
+template <class Out, class E>
+void write_json_scalar(Out& out, const E& v, int digits) {
+  if constexpr (std::is_same_v<E, bool>) {
+    put(out, std::string_view(v ? "true" : "false"));
+  } else if constexpr (std::is_floating_point_v<E>) {
+    if (!std::isfinite(static_cast<double>(v))) {
+      put(out, std::string_view("null"));
+    } else {
+      const NumberText n = number_text(static_cast<double>(v), digits);
+      put(out, n.text, n.size);
+    }
+  } else {
+    char buf[24];
+    const auto res = std::to_chars(buf, buf + sizeof buf, static_cast<std::int64_t>(v));
+    put(out, buf, static_cast<std::size_t>(res.ptr - buf));
+  }
+}
+
+/// Writes one element of a fixed array as JSON.
+template <class Out, class F, class E>
+void write_json_element(Out& out, const F& f, const E& v) {
+  if constexpr (std::is_same_v<E, bool> || std::is_floating_point_v<E>) write_json_scalar(out, v, f.digits);
+  else write_json_scalar(out, static_cast<typename F::wire_type>(v), f.digits);
+}
+
+/// Writes one value of a map as JSON.
+template <class Out, class F, class E>
+void write_json_map_value(Out& out, const F& f, const E& v) {
+  if constexpr (Described<E>) write_json_object(out, v);
+  else write_json_scalar(out, v, f.digits);
+}
+
 /// Writes one value of a field as JSON.
 template <class Out, class F, class V>
 void write_json_value(Out& out, const F& f, const V& v) {
@@ -50,9 +84,29 @@ void write_json_value(Out& out, const F& f, const V& v) {
     put(out, '[');
     for (std::size_t i = 0; i < v.size(); ++i) {
       if (i > 0) put(out, ',');
-      write_json_object(out, v[i]);
+      if constexpr (kIsString<typename List<V>::element>) write_json_string(out, v[i]);
+      else write_json_object(out, v[i]);
     }
     put(out, ']');
+  } else if constexpr (F::kind == Kind::kMap) {
+    put(out, '{');
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (i > 0) put(out, ',');
+      write_json_string(out, v[i].first);
+      put(out, ':');
+      write_json_map_value(out, f, v[i].second);
+    }
+    put(out, '}');
+  } else if constexpr (F::kind == Kind::kArray) {
+    put(out, '{');
+    for (std::size_t k = 0; k < v.size(); ++k) {
+      if (k > 0) put(out, ',');
+      put(out, '"');
+      put(out, std::string_view(f.index[k].name));  // identifiers: nothing to escape
+      put(out, std::string_view("\":"));
+      write_json_element(out, f, v[k]);
+    }
+    put(out, '}');
   } else if constexpr (F::kind == Kind::kBoolean) {
     put(out, std::string_view(v ? "true" : "false"));
   } else if constexpr (F::kind == Kind::kNumber) {
@@ -148,10 +202,35 @@ void write_json_pretty_value(Out& out, const F& f, const V& v, int depth) {
     for (std::size_t i = 0; i < v.size(); ++i) {
       if (i > 0) put(out, ',');
       indent(out, depth + 1);
-      write_json_pretty_object(out, v[i], depth + 1);
+      if constexpr (kIsString<typename List<V>::element>) write_json_string(out, v[i]);
+      else write_json_pretty_object(out, v[i], depth + 1);
     }
     if (!v.empty()) indent(out, depth);
     put(out, ']');
+  } else if constexpr (F::kind == Kind::kMap) {
+    put(out, '{');
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (i > 0) put(out, ',');
+      indent(out, depth + 1);
+      write_json_string(out, v[i].first);
+      put(out, std::string_view(": "));
+      if constexpr (Described<typename Map<V>::element>) write_json_pretty_object(out, v[i].second, depth + 1);
+      else write_json_scalar(out, v[i].second, f.digits);
+    }
+    if (!v.empty()) indent(out, depth);
+    put(out, '}');
+  } else if constexpr (F::kind == Kind::kArray) {
+    put(out, '{');
+    for (std::size_t k = 0; k < v.size(); ++k) {
+      if (k > 0) put(out, ',');
+      indent(out, depth + 1);
+      put(out, '"');
+      put(out, std::string_view(f.index[k].name));
+      put(out, std::string_view("\": "));
+      write_json_element(out, f, v[k]);
+    }
+    indent(out, depth);
+    put(out, '}');
   } else {
     write_json_value(out, f, v);
   }

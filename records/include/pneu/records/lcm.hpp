@@ -45,6 +45,9 @@ template <Described Record>
       using W = typename std::remove_cvref_t<decltype(std::get<0>(Description<G>::kFields))>::wire_type;
       decl += lcm_type_name<W>();
       dimension = "[" + std::to_string(kFieldCount<G>) + "]";
+    } else if constexpr (F::kind == Kind::kArray) {  // an array of its elements
+      decl += lcm_type_name<typename F::wire_type>();
+      dimension = "[" + std::to_string(Array<typename F::member_type>::size) + "]";
     } else {
       decl += lcm_type_name<typename F::wire_type>();
     }
@@ -61,13 +64,24 @@ template <Described Record>
 }
 
 /// The constants of `Record`'s enumerations written as text (.named): for a field `kind` whose
-/// table names `start` 1, `const int8_t KIND_START = 1, ...;`, one declaration a field.
+/// table names `start` 1, `const int8_t KIND_START = 1, ...;`, one declaration a field; and the
+/// indices of its fixed arrays whose tables name constants (`const int8_t NAME = 0, ...;`, one
+/// declaration a table).
 template <Described Record>
 [[nodiscard]] std::string lcm_named_constants() {
   std::string out;
   for_each_field<Record>([&](const auto& f) {
     using F = std::remove_cvref_t<decltype(f)>;
-    if constexpr (F::kind == Kind::kName) {
+    if constexpr (F::kind == Kind::kArray) {
+      constexpr std::size_t n = Array<typename F::member_type>::size;
+      if (!leads_its_index<Record>(f) || f.index[0].constant == nullptr) return;
+      out += n <= 128 ? "  const int8_t " : "  const int32_t ";
+      for (std::size_t k = 0; k < n; ++k) {
+        if (k > 0) out += ", ";
+        out += std::string(f.index[k].constant) + " = " + std::to_string(k);
+      }
+      out += ";\n";
+    } else if constexpr (F::kind == Kind::kName) {
       out += std::string("  const ") + lcm_type_name<typename F::wire_type>() + " ";
       bool first = true;
       for (const auto& n : f.name_table()) {
@@ -157,6 +171,8 @@ void to_lcm(const Record& r, Message& m) {
          using G = typename F::member_type;
          std::size_t k = 0;
          for_each_field<G>([&](const auto& g) { to[k++] = static_cast<std::remove_cvref_t<decltype(to[0])>>(g.of(f.of(r))); });
+       } else if constexpr (F::kind == Kind::kArray) {  // element k, element k
+         for (std::size_t k = 0; k < f.of(r).size(); ++k) to[k] = static_cast<std::remove_cvref_t<decltype(to[0])>>(f.of(r)[k]);
        } else if constexpr (F::kind == Kind::kName) to = static_cast<T>(f.wire_of(f.of(r)));
        else if constexpr (F::kind == Kind::kString) {
          if constexpr (std::is_same_v<typename F::member_type, const char*>) to = f.of(r) == nullptr ? "" : f.of(r);
@@ -185,6 +201,9 @@ void from_lcm(const Message& m, Record& r) {
          for_each_field<G>([&](const auto& g) {
            g.of(f.of(r)) = static_cast<typename std::remove_cvref_t<decltype(g)>::member_type>(v[k++]);
          });
+       } else if constexpr (F::kind == Kind::kArray) {
+         for (std::size_t k = 0; k < f.of(r).size(); ++k)
+           f.of(r)[k] = static_cast<typename Array<M>::element>(v[k]);
        } else if constexpr (F::kind == Kind::kName) {
          for (const auto& n : f.name_table())
            if (n.wire == static_cast<std::int64_t>(v)) f.of(r) = n.value;
@@ -205,24 +224,35 @@ void write_lcm_csv_cells(Out& out, const Message& m, bool leading_comma = false,
   constexpr auto& members = LcmMembers<Message>::kMembers;
   static_assert(std::tuple_size_v<std::remove_cvref_t<decltype(members)>> == kFieldCount<Record>,
                 "the message was not generated from this record's description");
-  [&]<std::size_t... I>(std::index_sequence<I...>) {
-    (([&] {
-       if (leading_comma || I > 0) put(out, ',');
-       const auto& f = std::get<I>(Description<Record>::kFields);
-       using F = std::remove_cvref_t<decltype(f)>;
-       if constexpr (F::kind == Kind::kGroup) {  // an array: element k, field k
-         const auto& a = m.*std::get<I>(members);
-         std::size_t k = 0;
-         for_each_field<typename F::member_type>([&](const auto& g) {
-           if (k > 0) put(out, ',');
-           write_csv_wire_value(out, g, a[k++], digits);
-         });
-       } else {
-         write_csv_wire_value(out, f, m.*std::get<I>(members), digits);
-       }
-     }()),
-     ...);
-  }(std::make_index_sequence<kFieldCount<Record>>{});
+  bool comma = leading_comma;
+  for_each_field_at<Record>([&](const auto& f, [[maybe_unused]] auto i) {
+    using F = std::remove_cvref_t<decltype(f)>;
+    if constexpr (F::kind == Kind::kArray) {  // the arrays of its index, element by element
+      if (!leads_its_index<Record>(f)) return;
+      for (std::size_t k = 0; k < Array<typename F::member_type>::size; ++k)
+        for_each_field_at<Record>([&](const auto& g, [[maybe_unused]] auto j) {
+          if constexpr (std::remove_cvref_t<decltype(g)>::kind == Kind::kArray) {
+            if (g.index != f.index) return;
+            if (comma) put(out, ',');
+            comma = true;
+            write_csv_element(out, g, (m.*std::get<decltype(j)::value>(members))[k], digits);
+          }
+        });
+      return;
+    }
+    if (comma) put(out, ',');
+    comma = true;
+    if constexpr (F::kind == Kind::kGroup) {  // an array: element k, field k
+      const auto& a = m.*std::get<decltype(i)::value>(members);
+      std::size_t k = 0;
+      for_each_field<typename F::member_type>([&](const auto& g) {
+        if (k > 0) put(out, ',');
+        write_csv_wire_value(out, g, a[k++], digits);
+      });
+    } else {
+      write_csv_wire_value(out, f, m.*std::get<decltype(i)::value>(members), digits);
+    }
+  });
 }
 
 }  // namespace pneu::records

@@ -27,12 +27,21 @@
 // null). A member that is itself a described record, or an optional one, is a group
 // (group("lin", &R::lin, "lin_", doc)): its fields are columns of their own in CSV, each named
 // with the group's prefix (empty cells when it has no value), a nested object in JSON. A
-// std::vector of described records is a list: an array of objects in JSON (not in CSV).
+// std::vector of described records is a list: an array of objects in JSON (not in CSV), and one of
+// strings an array of strings; a std::vector of (std::string, T) pairs, T a described record or
+// a number, an integer or a bool, is a map: an object in JSON keyed by the pairs' names, in their
+// order (not in CSV). A member of type std::array<T, N> (T a number, an integer or a bool) is a
+// fixed array indexed by a table of N names (.indexed(table, suffix)): an array of N in LCM (the
+// table's constants its indices), an object keyed by the names in JSON, a column a name in CSV
+// (NAME followed by the field's suffix); the fixed arrays indexed by one table are written
+// together in CSV, at the first one's place, element by element (NAME,NAME_sigma,... for each
+// name in turn).
 // Everything else derives from the description (csv.hpp, json.hpp, schema.hpp, lcm.hpp): a new
 // field is one line. A view (View) is a named selection of a record's fields in an order of its
 // own: one kind of line in a JSON lines file ({"event":"stop",...}).
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <optional>
@@ -59,8 +68,9 @@ concept Described = requires {
 };
 
 /// What a value is, whatever the format. kName: an enumeration written as its name; kGroup: a
-/// described record within a record; kList: a list of them (JSON only).
-enum class Kind : std::uint8_t { kNumber, kInteger, kBoolean, kString, kName, kGroup, kList };
+/// described record within a record; kList: a list of them or of strings (JSON only); kArray: a
+/// fixed array indexed by a table of names; kMap: named values or records (JSON only).
+enum class Kind : std::uint8_t { kNumber, kInteger, kBoolean, kString, kName, kGroup, kList, kArray, kMap };
 
 template <class T>
 inline constexpr bool kIsString =
@@ -89,13 +99,55 @@ struct List<std::vector<T>> : std::true_type {
   using element = T;
 };
 
+/// std::array<T, N>: a fixed array (its elements numbers, integers or booleans).
+template <class T>
+struct Array : std::false_type {};
+template <class T, std::size_t N>
+struct Array<std::array<T, N>> : std::true_type {
+  using element = T;
+  static constexpr std::size_t size = N;
+};
+
+/// One index of a fixed array: its name (its CSV columns' and its JSON key) and the name of the
+/// LCM constant that is its index (nullptr: none).
+struct IndexName {
+  const char* name;
+  const char* constant = nullptr;
+};
+
+/// The last part of a dotted key ("plant.valve.null_offset_v": "null_offset_v"), in the key's text.
+constexpr const char* last_part(const char* key) {
+  const char* part = key;
+  for (const char* c = key; *c != '\0'; ++c)
+    if (*c == '.') part = c + 1;
+  return part;
+}
+
+/// std::vector<std::pair<std::string, T>>: a map (JSON's object keyed by the names, in order).
+template <class T>
+struct Map : std::false_type {};
+template <class T>
+struct Map<std::vector<std::pair<std::string, T>>> : std::true_type {
+  using element = T;
+};
+
 /// The kind of a member of type T (an optional's: its value's).
 template <class T>
 constexpr Kind kind_of() {
   if constexpr (kIsOptional<T>) return kind_of<value_t<T>>();
+  else if constexpr (Map<T>::value) {
+    static_assert(Described<typename Map<T>::element> || std::is_arithmetic_v<typename Map<T>::element>,
+                  "a map holds described records, or numbers, integers or booleans");
+    return Kind::kMap;
+  }
   else if constexpr (List<T>::value) {
-    static_assert(Described<typename List<T>::element>, "a list holds described records");
+    static_assert(Described<typename List<T>::element> || kIsString<typename List<T>::element>,
+                  "a list holds described records or strings");
     return Kind::kList;
+  }
+  else if constexpr (Array<T>::value) {
+    static_assert(std::is_arithmetic_v<typename Array<T>::element>, "a fixed array holds numbers, integers or booleans");
+    return Kind::kArray;
   }
   else if constexpr (Described<T>) return Kind::kGroup;
   else if constexpr (std::is_same_v<T, bool>) return Kind::kBoolean;
@@ -113,12 +165,21 @@ using wire_integer_t = std::conditional_t<
     sizeof(T) == 1, std::int8_t,
     std::conditional_t<sizeof(T) == 2, std::int16_t, std::conditional_t<sizeof(T) == 4, std::int32_t, std::int64_t>>>;
 
-/// The type a member of type T travels as by default (LCM's; the text formats write its value).
+/// The type a member of type T travels as by default (LCM's; the text formats write its value; a
+/// fixed array's: its elements').
 template <class T>
-using default_wire_t = std::conditional_t<
-    kIsOptional<T> || Described<T> || List<T>::value, T,
-    std::conditional_t<kIsString<T>, std::string,
-                       std::conditional_t<std::is_same_v<T, bool> || std::is_floating_point_v<T>, T, wire_integer_t<T>>>>;
+struct DefaultWire {
+  using type = std::conditional_t<
+      kIsOptional<T> || Described<T> || List<T>::value, T,
+      std::conditional_t<kIsString<T>, std::string,
+                         std::conditional_t<std::is_same_v<T, bool> || std::is_floating_point_v<T>, T, wire_integer_t<T>>>>;
+};
+template <class T, std::size_t N>
+struct DefaultWire<std::array<T, N>> {
+  using type = typename DefaultWire<T>::type;
+};
+template <class T>
+using default_wire_t = typename DefaultWire<T>::type;
 
 /// One value of an enumeration written as text: the value, its number on the wire, its name.
 template <class T>
@@ -164,6 +225,8 @@ struct Field {
   int fixed_decimals = -1;  ///< >= 0: a number in CSV with this many decimals (%.nf)
   bool nan_text = false;    ///< NaN in CSV as printf writes it (nan)
   const char* prefix = "";  ///< a group: its columns' prefix in CSV
+  const IndexName* index = nullptr;  ///< a fixed array: its indices' names, in order
+  const char* index_suffix = "";     ///< a fixed array: its CSV columns are NAME<index_suffix>
 
   static constexpr Kind kind = IsNamed ? Kind::kName : kind_of<Member>();
   [[nodiscard]] constexpr const Member& of(const Record& r) const { return path.of(r); }
@@ -172,12 +235,13 @@ struct Field {
   /// An enumeration written as text: `table` names each value and its number on the wire.
   template <std::size_t N>
   [[nodiscard]] constexpr Field<Record, Member, Path, Wire, true> named(const Named<Member> (&table)[N]) const {
-    return {name, path, unit, doc, digits, table, N, present, absent, fixed_decimals, nan_text, prefix};
+    return {name, path, unit, doc, digits, table, N, present, absent, fixed_decimals, nan_text, prefix, index, index_suffix};
   }
   /// Travels as `W` (LCM's type, the integer the text formats write).
   template <class W>
   [[nodiscard]] constexpr Field<Record, Member, Path, W, IsNamed> as() const {
-    return {name, path, unit, doc, digits, names, name_count, present, absent, fixed_decimals, nan_text, prefix};
+    return {name, path, unit, doc, digits, names, name_count, present, absent, fixed_decimals, nan_text, prefix, index,
+            index_suffix};
   }
   /// In JSON only when `f(record)` holds.
   [[nodiscard]] constexpr Field when(bool (*f)(const Record&)) const {
@@ -189,6 +253,16 @@ struct Field {
   [[nodiscard]] constexpr Field null_when(bool (*f)(const Record&)) const {
     Field g = *this;
     g.absent = f;
+    return g;
+  }
+
+  /// A fixed array indexed by `table` (a name an element, in order); its CSV columns NAME<suffix>.
+  template <std::size_t N>
+  [[nodiscard]] constexpr Field indexed(const std::array<IndexName, N>& table, const char* suffix) const {
+    static_assert(Array<Member>::value && Array<Member>::size == N, "a fixed array has a name for each element");
+    Field g = *this;
+    g.index = table.data();
+    g.index_suffix = suffix;
     return g;
   }
 
@@ -267,6 +341,15 @@ constexpr void for_each_field(F&& f) {
   std::apply([&](const auto&... fields) { (f(fields), ...); }, Description<Record>::kFields);
 }
 
+/// Calls f(field, std::integral_constant<std::size_t, I>{}) for each field of `Record`, in order, I
+/// its position.
+template <Described Record, class F>
+constexpr void for_each_field_at(F&& f) {
+  [&]<std::size_t... I>(std::index_sequence<I...>) {
+    (f(std::get<I>(Description<Record>::kFields), std::integral_constant<std::size_t, I>{}), ...);
+  }(std::make_index_sequence<kFieldCount<Record>>{});
+}
+
 /// Calls f(field) for the field of `Record` named `name`; false when it has none.
 template <Described Record, class F>
 constexpr bool with_field(std::string_view name, F&& f) {
@@ -278,6 +361,32 @@ constexpr bool with_field(std::string_view name, F&& f) {
     }
   });
   return found;
+}
+
+/// Whether `f` is the first of `Record`'s fixed arrays indexed by its table: the one at whose
+/// place CSV writes the columns of all of them.
+template <Described Record, class F>
+constexpr bool leads_its_index(const F& f) {
+  bool seen = false, leads = false;
+  for_each_field<Record>([&](const auto& g) {
+    if constexpr (std::remove_cvref_t<decltype(g)>::kind == Kind::kArray) {
+      if (!seen && g.index == f.index) {
+        seen = true;
+        leads = std::string_view(g.name) == f.name;
+      }
+    }
+  });
+  return leads;
+}
+
+/// Calls f(field) for each of `Record`'s fixed arrays indexed by `index`, in order.
+template <Described Record, class F>
+constexpr void for_each_indexed_by(const IndexName* index, F&& f) {
+  for_each_field<Record>([&](const auto& g) {
+    if constexpr (std::remove_cvref_t<decltype(g)>::kind == Kind::kArray) {
+      if (g.index == index) f(g);
+    }
+  });
 }
 
 /// A named selection of a record's fields, in an order of its own: one kind of line of a JSON

@@ -1,11 +1,12 @@
 // The JSON Schema (draft 2020-12) of a record as json.hpp writes it: an object with every field
 // required (but those written .when(f): optional) and no other; a number may be null (no value),
 // an integer is an integer, a boolean a boolean, a string a string, an enumeration written as text
-// one of its names, a group an object, a list an array of objects; a field written .null_when(f),
-// or an optional member, may also be null. Each property carries the field's documentation, and
-// its unit ("unit", an annotation). A JSON lines file of views (one
-// object per line, its "event" member naming the view) has the schema of one line: one of the
-// views' objects.
+// one of its names, a group an object, a list an array of objects (or strings), a fixed array an
+// object with a member for each of its indices' names, a map an object of any names whose members
+// are all of its kind; a field written .null_when(f), or an optional member, may also be null.
+// Each property carries the field's documentation, and its unit ("unit", an annotation). A JSON
+// lines file of views (one object per line, its "event" member naming the view) has the schema
+// of one line: one of the views' objects.
 #pragma once
 
 #include <string>
@@ -62,9 +63,45 @@ std::string property_schema(const F& f, const std::string& indent = "    ") {
     s += "\"type\": ";
     s += nullable ? "[\"object\", \"null\"]" : "\"object\"";
     s += object_schema_body<value_t<typename F::member_type>>(indent + "  ");
+  } else if constexpr (F::kind == Kind::kArray) {
+    using E = typename Array<typename F::member_type>::element;
+    const char* type = std::is_same_v<E, bool>            ? "\"boolean\""
+                       : std::is_floating_point_v<E> ? "[\"number\", \"null\"]"
+                                                     : "\"integer\"";
+    s += "\"type\": ";
+    s += nullable ? "[\"object\", \"null\"]" : "\"object\"";
+    s += ", \"properties\": {";
+    std::string required;
+    for (std::size_t k = 0; k < Array<typename F::member_type>::size; ++k) {
+      s += k > 0 ? ",\n" : "\n";
+      s += indent + "  ";
+      append_json_string(s, f.index[k].name);
+      s += ": {\"type\": ";
+      s += type;
+      s += "}";
+      required += k > 0 ? ", " : "";
+      append_json_string(required, f.index[k].name);
+    }
+    s += "}, \"required\": [" + required + "], \"additionalProperties\": false";
   } else if constexpr (F::kind == Kind::kList) {
-    s += "\"type\": \"array\", \"items\": {\"type\": \"object\"";
-    s += object_schema_body<typename List<typename F::member_type>::element>(indent + "  ");
+    using E = typename List<typename F::member_type>::element;
+    if constexpr (kIsString<E>) {
+      s += "\"type\": \"array\", \"items\": {\"type\": \"string\"}";
+    } else {
+      s += "\"type\": \"array\", \"items\": {\"type\": \"object\"";
+      s += object_schema_body<E>(indent + "  ");
+      s += "}";
+    }
+  } else if constexpr (F::kind == Kind::kMap) {
+    using E = typename Map<typename F::member_type>::element;
+    s += "\"type\": \"object\", \"additionalProperties\": {";
+    if constexpr (Described<E>) {
+      s += "\"type\": \"object\"";
+      s += object_schema_body<E>(indent + "  ");
+    } else {
+      s += "\"type\": ";
+      s += std::is_same_v<E, bool> ? "\"boolean\"" : std::is_floating_point_v<E> ? "[\"number\", \"null\"]" : "\"integer\"";
+    }
     s += "}";
   } else {
     const char* type = F::kind == Kind::kInteger ? "\"integer\"" : F::kind == Kind::kBoolean ? "\"boolean\"" : "\"string\"";

@@ -5,8 +5,8 @@
 #include <algorithm>
 #include <string>
 
-#include "pneu/controller/json_text.hpp"
 #include "pneu/records/csv.hpp"
+#include "pneu/records/json.hpp"
 #include "pneu/sweep/rows.hpp"
 #include "pneu/controller/supervisor.hpp"
 #include "pneu/model/chamber.hpp"
@@ -256,186 +256,108 @@ void print_summary(std::FILE* out, const Statistics& st) {
 
 namespace {
 
-void write_percentiles(controller::json::Writer& w, std::string_view key, const Percentiles& p) {
-  w.begin_object(key);
-  w.count("count", p.count);
-  w.number("p50", p.p50);
-  w.number("p90", p.p90);
-  w.number("p99", p.p99);
-  w.number("max", p.max);
-  w.end_object();
-}
+SummaryPercentiles percentiles(const Percentiles& p) { return {p.count, p.p50, p.p90, p.p99, p.max}; }
 
-void write_within(controller::json::Writer& w, std::string_view key, const Within2510& within) {
-  w.begin_object(key);
-  w.count("2_percent", within[0]);
-  w.count("5_percent", within[1]);
-  w.count("10_percent", within[2]);
-  w.end_object();
-}
+SummaryWithin within(const Within2510& w) { return {w[0], w[1], w[2]}; }
 
-void write_split(controller::json::Writer& w, std::string_view key, const Split& s) {
-  w.begin_object(key);
-  w.count("stops", s.stops);
-  w.count("wrong", s.wrong);
-  w.count("long_restarts", s.long_restarts);
-  write_within(w, "long_within", s.long_within);
-  w.end_object();
-}
+SummarySplit split(const Split& s) { return {s.stops, s.wrong, s.long_restarts, within(s.long_within)}; }
 
-void write_method(controller::json::Writer& w, std::string_view key, const MethodStatistics& m) {
-  w.begin_object(key);
-  w.count("judged", m.judged());
-  w.count("true_restart", m.true_restart);
-  w.count("true_no_restart", m.true_no_restart);
-  w.count("false_restart", m.false_restart);
-  w.count("missed_restart", m.missed_restart);
-  w.count("not_judged", m.not_judged);
-  w.count("wrong_direction", m.wrong_direction);
-  w.count("outside_criteria", m.outside_criteria);
-  write_percentiles(w, "long_error_percent", m.long_error_percent);
-  write_within(w, "long_within", m.long_within);
-  write_percentiles(w, "short_error_ms", m.short_error_ms);
-  w.begin_object("halfway");
-  w.count("restarts", m.halfway_restarts());
-  write_percentiles(w, "error_percent", m.halfway_error_percent);
-  write_within(w, "within", m.halfway_within);
-  w.count("wrong_direction", m.halfway_wrong_direction);
-  w.count("forecast_none", m.halfway_none);
-  w.count("restart_after_run", m.halfway_after_run);
-  w.count("no_forecast", m.halfway_missing);
-  w.end_object();
-  write_split(w, "online_unidentified_bound", m.unidentified_bound);
-  write_split(w, "online_slow_side", m.slow_side);
-  w.end_object();
+SummaryMethod method(const MethodStatistics& m) {
+  SummaryMethod r;
+  r.judged = m.judged();
+  r.true_restart = m.true_restart;
+  r.true_no_restart = m.true_no_restart;
+  r.false_restart = m.false_restart;
+  r.missed_restart = m.missed_restart;
+  r.not_judged = m.not_judged;
+  r.wrong_direction = m.wrong_direction;
+  r.outside_criteria = m.outside_criteria;
+  r.long_error_percent = percentiles(m.long_error_percent);
+  r.long_within = within(m.long_within);
+  r.short_error_ms = percentiles(m.short_error_ms);
+  r.halfway = {m.halfway_restarts(), percentiles(m.halfway_error_percent), within(m.halfway_within),
+               m.halfway_wrong_direction, m.halfway_none, m.halfway_after_run, m.halfway_missing};
+  r.online_unidentified_bound = split(m.unidentified_bound);
+  r.online_slow_side = split(m.slow_side);
+  return r;
 }
 
 }  // namespace
 
-void write_summary_json(std::ostream& out, const Statistics& st) {
-  controller::json::Writer w(out);
+SweepSummary summary_record(const Statistics& st) {
   const Setting& set = st.setting;
   const Options& o = set.options;
-  w.begin_object();
-  w.count("scenarios", static_cast<std::uint64_t>(st.scenarios));
-  w.count("scenarios_run", st.scenarios_run);
-  w.begin_object("setting");
-  w.count("seed", o.seed);
-  w.number("targets_lo_m", set.targets.lo_m);
-  w.number("targets_hi_m", set.targets.hi_m);
-  w.number("duration_s", o.duration_s);
-  w.number("step_time_s", o.step_time_s);
-  w.number("tail_s", o.tail_s);
-  w.number("friction_spread", o.friction_spread);
-  w.number("gain_spread", o.gain_spread);
-  w.number("bench_spread", o.bench_spread);
-  w.number("bench_null_offset_within_v", 0.5 * o.bench_spread);
-  w.flag("supervised", o.supervised);
-  w.flag("identify", o.identify);
-  w.flag("online", o.online);
-  w.flag("hold_enabled", set.hold_enabled);
-  w.number("hold_window_m", set.hold_window_m);
-  w.end_object();
-  w.begin_object("stops");
-  w.count("count", st.stops);
-  w.count("restarts", st.restarts);
-  w.count("restarts_after_0_5_s", st.long_restarts);
-  w.count("restarts_after_1_s", st.restarts_after_1_s);
-  w.count("restarts_below_motion_band", st.restarts_below_motion_band);
-  w.count("plant_not_at_rest", st.not_at_rest);
-  w.count("before_learning", st.before_learning);
-  write_percentiles(w, "start_before_breakaway_ms", st.start_early_ms);
-  write_percentiles(w, "start_after_breakaway_ms", st.start_late_ms);
-  write_percentiles(w, "start_gap_ms", st.start_gap_ms);
-  w.end_object();
-  w.begin_object("outcomes");
+  SweepSummary r;
+  r.scenarios = static_cast<std::uint64_t>(st.scenarios);
+  r.scenarios_run = st.scenarios_run;
+  r.setting = {o.seed,          set.targets.lo_m,     set.targets.hi_m, o.duration_s,      o.step_time_s,
+               o.tail_s,        o.friction_spread,    o.gain_spread,    o.bench_spread,    0.5 * o.bench_spread,
+               o.supervised,    o.identify,           o.online,         set.hold_enabled,  set.hold_window_m};
+  r.stops = {st.stops,
+             st.restarts,
+             st.long_restarts,
+             st.restarts_after_1_s,
+             st.restarts_below_motion_band,
+             st.not_at_rest,
+             st.before_learning,
+             percentiles(st.start_early_ms),
+             percentiles(st.start_late_ms),
+             percentiles(st.start_gap_ms)};
   for (const Outcome oc : kOutcomes) {
     const OutcomeStatistics& k = st.outcomes[static_cast<std::size_t>(oc)];
     std::string key = outcome_name(oc);
     std::replace(key.begin(), key.end(), '-', '_');
-    w.begin_object(key);
-    w.count("count", k.count);
-    w.number("y0_min_m", k.y0_min_m);
-    w.number("y0_max_m", k.y0_max_m);
-    w.number("y_d_min_m", k.y_d_min_m);
-    w.number("y_d_max_m", k.y_d_max_m);
-    w.count("settling_rules_would_latch", k.settling_rules_latched);
-    w.end_object();
+    r.outcomes.emplace_back(key, SummaryOutcome{k.count, k.y0_min_m, k.y0_max_m, k.y_d_min_m, k.y_d_max_m,
+                                                k.settling_rules_latched});
   }
-  w.end_object();
-  w.begin_object("faults_by_cause");
   for (std::size_t c = 1; c < st.faults_by_cause.size(); ++c)
     if (st.faults_by_cause[c] > 0)
-      w.count(controller::fault_name(static_cast<controller::FaultCause>(c)), st.faults_by_cause[c]);
-  w.end_object();
-  write_percentiles(w, "settle_time_s", st.settle_time_s);
-  write_percentiles(w, "final_error_m", st.final_error_m);
-  w.begin_object("in_window");
-  w.number("window_m", set.hold_window_m);
-  write_percentiles(w, "after_s", st.in_window_after_s);
-  w.count("never", st.never_in_window);
-  w.number("all_p50_s", st.in_window_all_p50_s);  // null: never
-  w.number("all_p90_s", st.in_window_all_p90_s);
-  w.end_object();
-  w.begin_object("hold");
-  w.flag("enabled", set.hold_enabled);
-  w.count("began", st.held);
-  w.count("restarts_after", st.restarts_after_hold);
-  w.count("scenarios_restarted_after", st.restarted_after_hold);
-  w.count("held_forecasts", st.held_forecasts);
-  w.count("held_restart_forecasts", st.held_restart_forecasts);
-  write_percentiles(w, "reach_forecast_error_ms", st.reach_forecast_error_ms);
-  w.count("reach_forecasts_within_1_ms", st.reach_forecasts_within_1_2_5_ms[0]);
-  w.count("reach_forecasts_within_2_ms", st.reach_forecasts_within_1_2_5_ms[1]);
-  w.count("reach_forecasts_within_5_ms", st.reach_forecasts_within_1_2_5_ms[2]);
-  w.count("reaches_forecast_none", st.reaches_forecast_none);
-  w.end_object();
-  w.begin_object("settling_rules");
-  w.flag("checked_alongside", st.settling_rules_checked);
-  w.count("sign_changes", set.settling_rules.sign_changes);
-  w.number("amplitude_m", set.settling_rules.amplitude_m);
-  w.number("window_s", set.settling_rules.window_s);
-  w.number("settle_time_s", set.settling_rules.settle_time_s);
-  write_percentiles(w, "would_latch_after_s", st.settling_rules_latched_after_s);
-  w.end_object();
+      r.faults_by_cause.emplace_back(controller::fault_name(static_cast<controller::FaultCause>(c)), st.faults_by_cause[c]);
+  r.settle_time_s = percentiles(st.settle_time_s);
+  r.final_error_m = percentiles(st.final_error_m);
+  r.in_window = {set.hold_window_m, percentiles(st.in_window_after_s), st.never_in_window, st.in_window_all_p50_s,
+                 st.in_window_all_p90_s};
+  r.hold = {set.hold_enabled,
+            st.held,
+            st.restarts_after_hold,
+            st.restarted_after_hold,
+            st.held_forecasts,
+            st.held_restart_forecasts,
+            percentiles(st.reach_forecast_error_ms),
+            st.reach_forecasts_within_1_2_5_ms[0],
+            st.reach_forecasts_within_1_2_5_ms[1],
+            st.reach_forecasts_within_1_2_5_ms[2],
+            st.reaches_forecast_none};
+  r.settling_rules = {st.settling_rules_checked, set.settling_rules.sign_changes, set.settling_rules.amplitude_m,
+                      set.settling_rules.window_s, set.settling_rules.settle_time_s,
+                      percentiles(st.settling_rules_latched_after_s)};
+  r.identified = o.identify;
   if (o.identify) {
     const IdentificationStatistics& id = st.identification;
-    w.begin_object("identification");
-    w.count("identified_and_run", id.identified_and_run);
-    w.begin_array("failed");
-    for (const auto& f : id.failures) w.text({}, f);
-    w.end_array();
-    write_percentiles(w, "static_positive_error_percent", id.stiction_error_percent[0]);
-    write_percentiles(w, "static_negative_error_percent", id.stiction_error_percent[1]);
-    write_percentiles(w, "null_pressure_error_pa", id.null_pressure_error_pa);
-    write_percentiles(w, "residual_in_noise", id.residual_ratio);
-    w.count("fits", id.fits);
-    w.count("published", static_cast<std::uint64_t>(id.published));
-    w.count("within_3_sigma", static_cast<std::uint64_t>(id.within_3_sigma));
-    w.begin_object("by_key");
-    for (const auto& k : id.by_key) {
-      w.begin_object(k.key);
-      w.count("published", static_cast<std::uint64_t>(k.published));
-      w.count("within_3_sigma", static_cast<std::uint64_t>(k.within_3_sigma));
-      w.end_object();
-    }
-    w.end_object();
-    w.begin_array("outside");
-    for (const auto& s : id.outside) w.text({}, s);
-    w.end_array();
-    write_percentiles(w, "heat_transfer_error_percent", id.heat_transfer_error_percent);
-    write_percentiles(w, "spool_lag_error_ms", id.spool_lag_error_ms);
-    w.end_object();
+    SummaryIdentification& s = r.identification;
+    s.identified_and_run = id.identified_and_run;
+    s.failed = id.failures;
+    s.static_positive_error_percent = percentiles(id.stiction_error_percent[0]);
+    s.static_negative_error_percent = percentiles(id.stiction_error_percent[1]);
+    s.null_pressure_error_pa = percentiles(id.null_pressure_error_pa);
+    s.residual_in_noise = percentiles(id.residual_ratio);
+    s.fits = id.fits;
+    s.published = static_cast<std::uint64_t>(id.published);
+    s.within_3_sigma = static_cast<std::uint64_t>(id.within_3_sigma);
+    for (const auto& k : id.by_key)
+      s.by_key.emplace_back(k.key, SummaryKeyTally{static_cast<std::uint64_t>(k.published),
+                                                   static_cast<std::uint64_t>(k.within_3_sigma)});
+    s.outside = id.outside;
+    s.heat_transfer_error_percent = percentiles(id.heat_transfer_error_percent);
+    s.spool_lag_error_ms = percentiles(id.spool_lag_error_ms);
   }
-  w.begin_object("methods");
-  write_method(w, "linearized", st.methods[0]);
-  write_method(w, "nonlinear", st.methods[1]);
-  write_method(w, "relaxation", st.methods[2]);
-  w.end_object();
-  w.number("wall_s", st.wall_s);
-  w.count("jobs", static_cast<std::uint64_t>(st.jobs));
-  w.end_object();
+  r.methods = {method(st.methods[0]), method(st.methods[1]), method(st.methods[2])};
+  r.wall_s = st.wall_s;
+  r.jobs = static_cast<std::uint64_t>(st.jobs);
+  return r;
 }
+
+void write_summary_json(std::ostream& out, const Statistics& st) { records::write_json_document(out, summary_record(st)); }
 
 StopRow stop_row(const ScenarioResult& r, const JudgedStop& j, bool online) {
   const controller::StopOutcome& s = j.stop;

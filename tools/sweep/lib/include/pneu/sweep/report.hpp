@@ -9,12 +9,15 @@
 #include "pneu/sweep/rows.hpp"
 #include "pneu/sweep/run.hpp"
 #include "pneu/sweep/statistics.hpp"
+#include "pneu/sweep/summary_record.hpp"
 
 namespace pneu::sweep {
 
 /// The summary's lines (pneu-sweep's standard output, less the "wrote" lines).
 void print_summary(std::FILE* out, const Statistics& statistics);
-/// The statistics as one JSON object (pneu-sweep --summary-json).
+/// The statistics' summary record (summary_record.hpp).
+[[nodiscard]] SweepSummary summary_record(const Statistics& statistics);
+/// The summary record as one JSON document (pneu-sweep --summary-json).
 void write_summary_json(std::ostream& out, const Statistics& statistics);
 /// The stops file's row of one stop of `r` (`online`: pneu-sweep --online).
 [[nodiscard]] StopRow stop_row(const ScenarioResult& r, const JudgedStop& j, bool online);
