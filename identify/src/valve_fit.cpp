@@ -485,6 +485,10 @@ double prior_spread(std::size_t i) {
   }
 }
 
+// A step that lowers the cost (a chi-square) by less than this leaves the parameters within about
+// a thousandth of their sigma of the optimum (sqrt of the decrease): the search has converged.
+constexpr double kConvergedDecrease = 1e-6;
+
 // Levenberg-Marquardt on the free parameters and the phases' starts (the plain model's Jacobian
 // exact, by the pressures' sensitivities; with the hidden state, by forward differences) for the measured pressures, at kPressureNoiseFloor_pa, and the priors; the
 // posterior covariance of the parameters (the starts' uncertainty marginalised), scaled up when
@@ -615,7 +619,7 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
       const Eigen::VectorXd rt = residuals(trial, trial_z);
       const double ct = rt.squaredNorm() + prior_cost(trial, trial_z);
       if (std::isfinite(ct) && ct < cost) {
-        const double gain = (cost - ct) / cost;
+        const double decrease = cost - ct;
         theta = trial;
         z = trial_z;
         r = rt;
@@ -623,7 +627,7 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
         lambda = std::max(lambda / 3.0, 1e-12);
         improved = true;
         nm = normal(theta, z, r);
-        if (gain < 1e-12) iteration = 1000;  // converged
+        if (decrease < std::max(kConvergedDecrease, 1e-12 * ct)) iteration = 1000;  // converged
       } else {
         lambda *= 4.0;
       }
