@@ -19,6 +19,7 @@
 #include "pneu/config/config.hpp"
 #include "pneu/config/schema.hpp"
 #include "support/config_error_matcher.hpp"
+#include "support/paths.hpp"
 
 namespace pneu::config {
 namespace {
@@ -483,7 +484,7 @@ TEST(ConfigRefusal, ASimulatedStartOutsideTheSoftLimitsIsRefusedNamingTheLimits)
                                      "outside the soft limits (controller.soft_limit_min_m, soft_limit_max_m: "
                                      "[-0.24, 0.24] m, got 0.249 m)"));
   // A bench over Modbus starts where the carriage is: the key only places pneu-plant serve's.
-  EXPECT_EQ(load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", {"simulation.initial_position_m=0.249"})
+  EXPECT_EQ(load_file(pneu::test::hil_yaml(), {"simulation.initial_position_m=0.249"})
                 .simulation.initial_position_m,
             0.249);
 }
@@ -873,7 +874,7 @@ TEST(ConfigOverride, UnparsableValueIsRejectedNamingTheKey) {
 // The other shipped configurations stay valid as the schema grows.
 TEST(ShippedConfig, HilAndBenchExamplesLoad) {
   for (const char* name : {"hil.yaml", "bench.yaml"}) {
-    const auto c = pneu::config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/" + name);
+    const auto c = pneu::config::load_file(pneu::test::shipped_config(name));
     EXPECT_EQ(c.hal.backend, pneu::config::BackendKind::kModbus) << name;
     EXPECT_EQ(c.controller.clock, pneu::config::ClockKind::kReal) << name;
   }

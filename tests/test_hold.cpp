@@ -14,6 +14,7 @@
 #include "pneu/controller/runtime.hpp"
 #include "pneu/controller/session.hpp"
 #include "support/child_process.hpp"
+#include "support/paths.hpp"
 #include "support/simulated_run.hpp"
 
 namespace {
@@ -198,7 +199,7 @@ TEST(InPositionHold, ReachingEachBreakawayIsForecastAsTheReachBeginsWithinATick)
 TEST(InPositionHold, ThePapersScenarioReachesTheWindowAndOnceHeldWithinItNeverRestarts) {
   // config/paper.yaml: the paper's gains stop the step 1.7 mm from the set point (then restart at
   // 4.97 s); reaching from 5 mm brings it into the 0.5 mm window, where it is held to the end.
-  const std::string paper = pneu::test::slurp(std::string(PNEU_SOURCE_DIR) + "/config/paper.yaml");
+  const std::string paper = pneu::test::slurp(pneu::test::shipped_config("paper.yaml"));
   const HoldRun without({}, paper);
   EXPECT_FALSE(without.breakaways(2.0).empty()) << "without the hold, the paper's restart";
   const HoldRun r({"controller.hold.enabled=true", "controller.hold.reach_m=0.005"}, paper);

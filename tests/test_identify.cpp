@@ -17,6 +17,7 @@
 #include "pneu/identify/online.hpp"
 #include "pneu/model/valve.hpp"
 #include "support/simulated_run.hpp"
+#include "support/paths.hpp"
 
 namespace {
 
@@ -31,7 +32,7 @@ struct Bench {
 
 Bench mismatched(const std::string& shipped = "") {
   Bench b{shipped.empty() ? config::load_string(config::default_config_yaml())
-                          : config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/" + shipped, {"hal.backend=sim"}),
+                          : config::load_file(pneu::test::shipped_config(shipped), {"hal.backend=sim"}),
           {}};
   b.bench = b.cfg.plant;
   b.bench.friction.static_positive_n = 54.0;
@@ -565,8 +566,8 @@ void check_table_benches(const std::string& sensors_from, double most_percent, d
   for (const TableBench& tb : kTableBenches) {
     SCOPED_TRACE(tb.name);
     config::Config cfg = sensors_from.empty()
-                             ? config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/paper.yaml")
-                             : config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/" + sensors_from,
+                             ? config::load_file(pneu::test::shipped_config("paper.yaml"))
+                             : config::load_file(pneu::test::shipped_config(sensors_from),
                                                  {"hal.backend=sim", "controller.law.gains=fixed"});
     model::PlantParams bench = cfg.plant;
     tb.apply(bench);
@@ -724,7 +725,7 @@ int valve_parameters_within_3_sigma(const OnlineRun& r, const model::PlantParams
 // is 10 mV at most, or it is not identified).
 TEST(OnlineIdentification, KeepsTheValvesItIdentifiedNearTheStrokesEndWithHilSensors) {
   const config::Config cfg =
-      config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", {"hal.backend=sim"});
+      config::load_file(pneu::test::hil_yaml(), {"hal.backend=sim"});
   const model::PlantParams bench =
       sweep_bench(config::simulated_bench(cfg),
                   {51.4346, 41.5546, -48.7893, -43.7132, 50.3059, 1.44733e-08, 8.79404e-10,
@@ -752,7 +753,7 @@ TEST(OnlineIdentification, KeepsTheValvesItIdentifiedNearTheStrokesEndWithHilSen
 // stop's event: the same updates, to the last bit, and the same forecasts. (Scenario 190, as above.)
 TEST(OnlineIdentification, FittedOnItsOwnThreadASimulatedRunMakesTheSameUpdatesAndForecasts) {
   const config::Config cfg =
-      config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", {"hal.backend=sim"});
+      config::load_file(pneu::test::hil_yaml(), {"hal.backend=sim"});
   const model::PlantParams bench =
       sweep_bench(config::simulated_bench(cfg),
                   {51.4346, 41.5546, -48.7893, -43.7132, 50.3059, 1.44733e-08, 8.79404e-10,
@@ -813,7 +814,7 @@ TEST(OnlineIdentification, AForceReadWhileTheCarriageCreepsIsNotHeldWithIdealSen
 // may hide in the rest band now ends the held forces before the still part's end too, as it does
 // before a breakaway.
 TEST(OnlineIdentification, AForceReadAfterTheCarriageCreptOffIsNotHeldWithHilSensors) {
-  config::Config cfg = config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", {"hal.backend=sim"});
+  config::Config cfg = config::load_file(pneu::test::hil_yaml(), {"hal.backend=sim"});
   const model::PlantParams bench =
       sweep_bench(config::simulated_bench(cfg),
                   {49.065, 34.4141, -42.8394, -42.8394, 63.7705, 1.71876e-08, 7.32283e-10, 1.43308e-09,
@@ -848,7 +849,7 @@ TEST(OnlineIdentification, AForceReadAfterTheCarriageCreptOffIsNotHeldWithHilSen
 // the estimate now stays within them.
 TEST(OnlineIdentification, AStictionEstimateStaysWithinTheForcesHeldWithHilSensors) {
   const config::Config cfg =
-      config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", {"hal.backend=sim"});
+      config::load_file(pneu::test::hil_yaml(), {"hal.backend=sim"});
   const model::PlantParams bench =
       sweep_bench(config::simulated_bench(cfg),
                   {46.14105910438068, 39.925974454745933, -45.12807586594348, -36.885359633264052,
@@ -951,7 +952,7 @@ TEST(OnlineIdentification,
 // valve fit now stops where the breakaway's onset could begin.
 TEST(OnlineIdentification, EveryValveParameterPublishedStatesAnUncertaintyThatCoversItsErrorWithHilSensors) {
   const config::Config cfg =
-      config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", {"hal.backend=sim"});
+      config::load_file(pneu::test::hil_yaml(), {"hal.backend=sim"});
   const Scenario scenarios[] = {
       {1,
        {38.752116412819461, 38.752116412819461, -41.704946085707007, -41.704946085707007, 66.696933592672522,
@@ -998,7 +999,7 @@ TEST(OnlineIdentification, EveryValveParameterPublishedStatesAnUncertaintyThatCo
 // uncertainty that covers its error.
 TEST(OnlineIdentification, ASingleFastBreakawaysStictionStatesAnUncertaintyThatCoversItsError) {
   const config::Config cfg =
-      config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", {"hal.backend=sim"});
+      config::load_file(pneu::test::hil_yaml(), {"hal.backend=sim"});
   const model::PlantParams bench =
       sweep_bench(config::simulated_bench(cfg),
                   {45.1792, 34.0915, -56.1286, -33.1991, 57.1752, 1.46683e-08, 9.52179e-10,

@@ -18,6 +18,7 @@
 #include "pneu/config/config.hpp"
 #include "pneu/controller/movement_test.hpp"
 #include "pneu/controller/session.hpp"
+#include "support/paths.hpp"
 
 namespace {
 
@@ -77,7 +78,7 @@ struct Outcome {
 // The test on hil.yaml's bench, run in process from rest at `y0_m`, through `wiring`.
 Outcome run_test(const Wiring& wiring, double y0_m = 0.2195) {
   const assembly::RunSpec spec = assembly::RunSpec::of(
-      config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml",
+      config::load_file(pneu::test::hil_yaml(),
                         {"hal.backend=sim", "controller.clock=simulated",
                          "simulation.initial_position_m=" + std::to_string(y0_m),
                          "controller.setpoints.initial_m=" + std::to_string(y0_m)}));
@@ -176,7 +177,7 @@ TEST(MovementTest, BadSamplesEndItAsACommsFindingAndAStopRequestAsAnInterruption
 }
 
 TEST(MovementTest, RunsOnAModbusBackendStartingArmedUnlessTheKeySaysNotAndNeverInProcess) {
-  config::Config cfg = config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml");
+  config::Config cfg = config::load_file(pneu::test::hil_yaml());
   EXPECT_TRUE(controller::movement_test_runs(cfg));
   cfg.controller.movement_test.enabled = false;
   EXPECT_FALSE(controller::movement_test_runs(cfg));
@@ -187,7 +188,7 @@ TEST(MovementTest, RunsOnAModbusBackendStartingArmedUnlessTheKeySaysNotAndNeverI
 }
 
 TEST(MovementTest, RunsAtTheFirstArmOnAModbusBackendStartingDisarmedAndNeverInProcess) {
-  config::Config cfg = config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml");
+  config::Config cfg = config::load_file(pneu::test::hil_yaml());
   EXPECT_FALSE(controller::movement_test_at_first_arm(cfg)) << "starting armed it runs before the loop's time";
   cfg.controller.start_armed = false;
   EXPECT_TRUE(controller::movement_test_at_first_arm(cfg));
@@ -207,7 +208,7 @@ class MovementTestAtArm : public ::testing::Test {
  protected:
   void start(const Wiring& wiring) {
     const assembly::RunSpec spec = assembly::RunSpec::of(
-        config::load_file(std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml",
+        config::load_file(pneu::test::hil_yaml(),
                           {"hal.backend=sim", "controller.clock=simulated", "controller.start_armed=false",
                            "controller.setpoints.schedule=[]", "controller.setpoints.initial_m=0.2195"}));
     cfg_ = spec.config();

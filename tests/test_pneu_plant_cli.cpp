@@ -19,6 +19,7 @@
 #include "pneu/sim_plant/plant.hpp"
 
 #include "support/child_process.hpp"
+#include "support/paths.hpp"
 
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
@@ -360,7 +361,7 @@ TEST_F(PneuPlantCli, TuneRefusesBadArgumentsAndImpossibleDesignsWithExitTwoSayin
 // --- serve: fault injection and outputs record, refused before serving --------------------------
 
 namespace {
-std::string serve_hil() { return "serve --config " + std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml --duration 0.1 "; }
+std::string serve_hil() { return "serve --config " + pneu::test::hil_yaml() + " --duration 0.1 "; }
 }  // namespace
 
 // serve needs libmodbus: a pneu-plant built without it (PNEU_WITH_MODBUS=OFF) refuses the command

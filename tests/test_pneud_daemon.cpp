@@ -300,7 +300,7 @@ TEST_F(PneudDaemon, ARunThatCannotStartLeavesNoOutputFilesBehind) {
   const int port = pneu::test::free_port();  // nobody listens there
   std::ofstream(dir_ / "summary.json") << "{\"from\": \"an earlier run\"}\n";  // not to be taken for this one's
   std::ofstream(dir_ / "events.jsonl") << "{\"event\":\"start\",\"t\":0}\n";
-  Child p = Child::spawn({bin("pneud"), "--config", std::string(PNEU_SOURCE_DIR) + "/config/hil.yaml", "--set",
+  Child p = Child::spawn({bin("pneud"), "--config", pneu::test::hil_yaml(), "--set",
                           "hal.modbus.port=" + std::to_string(port), "--set", "telemetry.enabled=false", "--events",
                           (dir_ / "events.jsonl").string(), "--trajectory", (dir_ / "traj.csv").string(),
                           "--summary-json", (dir_ / "summary.json").string()},
