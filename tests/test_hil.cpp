@@ -358,7 +358,10 @@ TEST_F(Hil, PaperScenarioWithTheHoldOverModbusNeverRestartsOnceHeldWithinTheWind
 // high, the exhaust leak 22 % low, a valve null offset of 50 mV); pneud --identify identifies it
 // over the link (refused without --armed), and the paper's step on the identified configuration
 // forecasts its long sticking phases within 5 %, where the model as configured was tens of % off.
-TEST_F(Hil, IdentifiedOverModbusThePaperStepsLongStickingPhaseIsForecastWithin5Percent) {
+// On an idle machine: deadlines the loop skips shift when its commands reach the valves, which the
+// fit over the link cannot tell from the valves' physics (beside four builds, 1672 skipped in the
+// fitted phases: a misfit of 181 Pa rms and no null offset found).
+TEST_F(Hil, IdentifiedOverModbusThePaperStepsLongStickingPhaseIsForecastWithin5PercentOnAnIdleMachine) {
   const std::vector<std::string> bench{"--set", "hal.sim.plant.friction.static_positive_n=54",
                                        "--set", "hal.sim.plant.friction.static_negative_n=-60",
                                        "--set", "hal.sim.plant.valve.leak_conductance_out_m3_per_s_pa=9.98e-10",
