@@ -491,6 +491,17 @@ TEST_F(DashServer, ClosesAClientThatSendsAMalformedFrameWithAProtocolErrorAndSer
   EXPECT_EQ(json::parse(m->payload)["seq"], 10);
 }
 
+TEST_F(DashServer, ClosesAClientThatSendsTextThatIsNotUtf8WithCode1007) {
+  start();
+  Client bad(server_->port());
+  bad.handshake_messages();
+  bad.send(std::string("{\"op\":\"\xff\xfe\"}"));
+  beast::error_code ec;
+  EXPECT_FALSE(bad.read(10s, &ec));
+  EXPECT_EQ(ec, websocket::error::closed) << ec.message();
+  EXPECT_EQ(bad.ws().reason().code, websocket::close_code::bad_payload);
+}
+
 TEST_F(DashServer, RefusesAFloodOfSubscriptionsBeyondItsLimitInOneStatusAndKeepsTheOnesWithin) {
   options_.max_subscriptions = 16;
   start();
@@ -571,6 +582,9 @@ TEST_F(DashServer, ServesStaticFilesWithTheirContentTypesAndNothingOutsideItsDir
   EXPECT_EQ(get(p, "/", "POST").rfind("HTTP/1.1 405", 0), 0u);
   EXPECT_EQ(http_raw(p, "NOT A REQUEST\r\n\r\n").rfind("HTTP/1.1 400", 0), 0u);
   EXPECT_EQ(http_raw(p, "GET / HTTP/1.1\r\nX: " + std::string(10000, 'a') + "\r\n\r\n").rfind("HTTP/1.1 431", 0), 0u);
+  EXPECT_EQ(http_raw(p, "POST /playback HTTP/1.1\r\nHost: x\r\nContent-Length: 70000\r\n\r\n")
+                .rfind("HTTP/1.1 413", 0),
+            0u);
 }
 
 TEST_F(DashServer, ServesItsCountersAtMetricsUntilAMetricsHookIsSet) {

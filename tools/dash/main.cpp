@@ -32,6 +32,7 @@ void print_usage(std::ostream& out) {
 usage:
   pneu-dash [--listen HOST:PORT] [--config FILE | --lcm-url URL] [--prefix PREFIX] [--www DIR]
   pneu-dash --log FILE [--paused] [--listen HOST:PORT] [--prefix PREFIX] [--www DIR]
+  pneu-dash ... --check-config
   pneu-dash --help | --version
 
 Subscribes to pneud's LCM channels (<prefix>STATE, EVENT, PREDICTION, HEALTH, IDENTIFICATION) and
@@ -47,6 +48,7 @@ serves, on --listen (default 127.0.0.1:8765, loopback only):
 --lcm-url URL   the LCM URL (default udpm://239.255.76.67:7667?ttl=0, pneud's default)
 --prefix P      the channels' prefix (default: the configuration's, else PNEU_)
 --www DIR       the page's files (default: the installed share/pneu/dash, else the source tree's)
+--check-config  read the options, the configuration and the log, say what would be served, exit
 --log FILE      play a recorded LCM log (lcm-logger) instead of listening live; it plays from its
                 start at once (--paused: waits for POST /playback {"play":true})
 
@@ -85,7 +87,7 @@ fs::path default_www() {
 
 int run(int argc, char** argv) {
   const cli::Args args(argc, argv, 1, {"listen", "config", "lcm-url", "prefix", "www", "log"},
-                       {"help", "version", "paused"});
+                       {"help", "version", "paused", "check-config"});
   if (args.flag("help")) {
     print_usage(std::cout);
     return cli::kExitOk;
@@ -110,6 +112,20 @@ int run(int argc, char** argv) {
   std::tie(options.address, options.port) = parse_listen(args.value("listen").value_or("127.0.0.1:8765"));
   options.www = args.value("www") ? fs::path(*args.value("www")) : default_www();
   if (!fs::is_directory(options.www)) throw cli::UsageError("--www: not a directory: " + options.www.string());
+
+  if (args.flag("check-config")) {
+    if (log) {
+      try {
+        const dash::LogPlayer readable(*log, nullptr, nullptr);
+      } catch (const std::runtime_error& e) {
+        throw cli::UsageError(std::string("--log: ") + e.what());
+      }
+    }
+    std::cout << "pneu-dash: would serve http://" << options.address << ":" << options.port << "/ from "
+              << options.www.string() << ", " << (log ? "playing " + *log : "live from " + telemetry.lcm_url)
+              << ", channels " << telemetry.channel_prefix << "*\n";
+    return cli::kExitOk;
+  }
 
   // SIGINT and SIGTERM are waited for by this thread, blocked in every other.
   sigset_t stop_signals;
