@@ -133,12 +133,13 @@ TEST(DashPlane, AForecastPathRunsFromTheSnapshotToTheStictionBoundAtTheForecastR
   const Bench b;
   const controller::PredictorModel m = b.model();
   const model::PressureForce force = b.force();
-  // Stuck at mid-stroke at the null pressures of u = 0, then held at a u* whose equilibrium force
+  // Stuck at mid-stroke at the null pressures of u_e (F = 0), then held at a u* whose equilibrium force
   // lies beyond F_S+: the force creeps up to F_S+ and the carriage restarts towards +.
   controller::StopSnapshot stop;
   stop.t_s = 3.0;
-  stop.p_p_pa = b.valve.null_pressure_pa(0.0);
-  stop.p_n_pa = b.valve.null_pressure_pa(0.0);
+  const double u_e = model::equilibrium_voltage_v(b.valve, b.plant.geometry, b.plant.gas.exhaust_pressure_pa);
+  stop.p_p_pa = b.valve.null_pressure_pa(u_e);
+  stop.p_n_pa = b.valve.null_pressure_pa(-u_e);
   double u_star = 0.0;
   while (model::equilibrium_force_n(b.valve, b.plant.geometry, b.plant.gas.exhaust_pressure_pa, u_star) <
          b.plant.friction.static_positive_n + 20.0)
@@ -159,7 +160,9 @@ TEST(DashPlane, AForecastPathRunsFromTheSnapshotToTheStictionBoundAtTheForecastR
     EXPECT_NEAR(f.path.back().force_n, b.plant.friction.static_positive_n, 0.01);
     for (const ForecastPathPoint& p : f.path) {
       EXPECT_NEAR(p.x_n - p.y_n, p.force_n, 1e-6);
-      if (&p != &f.path.back()) EXPECT_LT(p.force_n, b.plant.friction.static_positive_n + 1e-6);
+      if (&p != &f.path.back()) {
+        EXPECT_LT(p.force_n, b.plant.friction.static_positive_n + 1e-6);
+      }
     }
     const controller::Prediction direct = controller::predict(method, m, stop);
     EXPECT_DOUBLE_EQ(f.t_restart_s, direct.t_restart_s);

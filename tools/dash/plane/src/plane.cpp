@@ -45,10 +45,12 @@ PlaneGeometry plane_geometry(const controller::PredictorModel& model, int max_po
   const model::PressureForce force(model.geometry, model.gas.exhaust_pressure_pa);
   const model::ValveCharacteristic& valve = *model.valve;
   PlaneGeometry g;
+  // plane_x_n(p) = S_P p, plane_y_n(p) = S_N p + S_r p_E: their slopes are the areas, their
+  // offsets their values at 0.
+  g.x_per_pa = force.area_p_m2();
   g.x_offset_n = force.plane_x_n(0.0);
-  g.x_per_pa = force.plane_x_n(1.0) - g.x_offset_n;
+  g.y_per_pa = force.area_n_m2();
   g.y_offset_n = force.plane_y_n(0.0);
-  g.y_per_pa = force.plane_y_n(1.0) - g.y_offset_n;
   g.static_positive_n = model.friction.static_positive_n;
   g.static_negative_n = model.friction.static_negative_n;
   g.coulomb_positive_n = model.friction.coulomb_positive_n;
