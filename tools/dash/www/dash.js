@@ -31,6 +31,7 @@ const state = {
   stuck: false,
   stop: null,              // the sticking phase: {index, t, point, forecasts: {method: prediction}, paths: {method: path msg}, restart}
   lastPhase: null,         // the last phase that ended in a (re)start, with its restart marked
+  restarts: [],            // the last (re)starts after a stop: {stop, t, kind, forecast: {method: t_restart}}
   events: 0,
   health: null,
   identification: null,
@@ -100,6 +101,47 @@ function makeTraceCharts() {
   ]);
 }
 
+// The events on the traces' time axis, one lane each: what happened, and when the forecasts said
+// the carriage would restart.
+const LANES = ["fault", "command", "hold", "forecast restart", "restart / start", "stop"];
+const LANE_STYLE = {
+  "stop": ["#d62728", "rect"], "restart / start": ["#1a9641", "triangle"], "forecast restart": ["#e66100", "rectRot"],
+  "hold": ["#2471a3", "circle"], "command": ["#6a3d9a", "star"], "fault": ["#c62828", "crossRot"],
+};
+const timeline = Object.fromEntries(LANES.map((l) => [l, []]));
+
+function makeTimeline() {
+  charts.timeline = new Chart(document.getElementById("chart-timeline"), {
+    type: "scatter",
+    data: {
+      datasets: LANES.map((lane) => ({
+        label: lane, data: timeline[lane], parsing: false, borderColor: LANE_STYLE[lane][0],
+        backgroundColor: LANE_STYLE[lane][0], pointStyle: LANE_STYLE[lane][1], pointRadius: 5, borderWidth: 1.5,
+        _seriesRef: timeline[lane],
+      })),
+    },
+    options: {
+      animation: false, responsive: true, maintainAspectRatio: false,
+      plugins: {
+        legend: { display: false },
+        title: { display: true, text: "events (forecast restarts: when each forecast said; stops and restarts: when they were)", font: { size: 12 } },
+        tooltip: { callbacks: { label: (ctx) => `${LANES[ctx.raw.y]} t = ${ctx.raw.x.toFixed(3)} s ${ctx.raw.text ?? ""}` } },
+      },
+      scales: {
+        x: { type: "linear", ticks: { maxRotation: 0 } },
+        y: { type: "linear", min: -0.5, max: LANES.length - 0.5,
+             afterBuildTicks: (axis) => { axis.ticks = LANES.map((_, i) => ({ value: i })); },
+             ticks: { autoSkip: false, callback: (v) => LANES[v] ?? "", font: { size: 10 } } },
+      },
+    },
+  });
+}
+
+function markTimeline(lane, t, text) {
+  if (!Number.isFinite(t)) return;
+  timeline[lane].push({ x: t, y: LANES.indexOf(lane), text });
+}
+
 function trim(arr, t0) {
   let k = 0;
   while (k < arr.length && arr[k].x < t0) ++k;
@@ -116,7 +158,8 @@ function redrawTraces() {
     fs[1]._seriesRef = [{ x: t0, y: state.plane.static_positive }, { x: t1, y: state.plane.static_positive }];
     fs[2]._seriesRef = [{ x: t0, y: state.plane.static_negative }, { x: t1, y: state.plane.static_negative }];
   }
-  for (const c of [charts.position, charts.pressure, charts.u, charts.force]) {
+  for (const arr of Object.values(timeline)) trim(arr, t0 - 0.5);
+  for (const c of [charts.position, charts.pressure, charts.u, charts.force, charts.timeline]) {
     c.options.scales.x.min = t0;
     c.options.scales.x.max = t1;
     // The decimation plugin shows its own copy as `data` once it has run: hand it the whole
@@ -344,10 +387,12 @@ function updateGapBadge() {
 function onTick(m) {
   if (state.tick && m.t < state.tick.t) {  // pneud restarted: a new run, a new time axis
     for (const arr of Object.values(series)) arr.length = 0;
+    for (const arr of Object.values(timeline)) arr.length = 0;
     trail.length = 0;
     state.gapIntervals.length = 0;
     state.stop = null;
     state.lastPhase = null;
+    state.restarts.length = 0;
   }
   state.tick = m;
   state.ticks += 1;
@@ -410,12 +455,20 @@ function onEvent(m) {
                   m.direction ? `direction ${m.direction > 0 ? "+" : "-"}` : "",
                   m.seq ? `command seq ${m.seq}` : ""].filter(Boolean).join("; ");
   addEventRow(m.t, kind, m.stop, detail, EVENT_CLASS[kind]);
+  const lane = { stop: "stop", restart: "restart / start", start: "restart / start", fault: "fault",
+                 fault_reset: "fault", fault_reset_refused: "fault", command_accepted: "command",
+                 command_rejected: "command", hold_start: "hold", hold_end: "hold" }[kind];
+  if (lane) markTimeline(lane, m.t, kind);
   if (kind === "stop") {
     state.stop = { index: m.stop, t: m.t, point: nearestTrailPoint(m.t), forecasts: {}, paths: {}, restart: null };
     state.lastPhase = null;
   } else if ((kind === "restart" || kind === "start") && state.stop) {
     state.stop.restart = { t: m.t, kind, direction: m.direction, point: nearestTrailPoint(m.t) };
     state.lastPhase = state.stop;
+    // the restarts marked, with what the forecasts had said (the last few)
+    state.restarts.push({ stop: m.stop, t: m.t, kind,
+                          forecast: Object.fromEntries(Object.values(state.stop.forecasts).map((f) => [f.method, f.t_restart])) });
+    if (state.restarts.length > 20) state.restarts.shift();
     state.stop = null;
   } else if ((kind === "fault" || kind === "end") && state.stop) {
     state.lastPhase = null;
@@ -431,6 +484,7 @@ function onPrediction(m) {
   }
   const phase = state.stop?.index === m.stop ? state.stop : null;
   if (phase) phase.forecasts[m.method] = m;
+  if (m.update === 0 && m.will_restart) markTimeline("forecast restart", m.t_restart, `${m.method}, stop ${m.stop}`);
 }
 
 function onPlaneForecast(m) {
@@ -647,6 +701,7 @@ window.pneuDash = {
       countdownS: fc.countdownS === undefined ? null : Number(fc.countdownS),
       countdownText: document.getElementById("countdown").textContent,
       lastRestart: state.lastPhase?.restart ? { t: state.lastPhase.restart.t, stop: state.lastPhase.index } : null,
+      restarts: state.restarts.map((r) => ({ ...r })),
       events: state.events,
       gaps: { ...state.gaps },
       health: Boolean(state.health),
@@ -658,6 +713,7 @@ window.pneuDash = {
 };
 
 makeTraceCharts();
+makeTimeline();
 makePlaneChart();
 wireCommandPanel();
 connect();
