@@ -145,13 +145,14 @@ def main():
                     countdowns.append((s["stop"]["index"], s["t"], s["countdownS"]))
                 # well into a phase (the paper's second stop: about 2.5 s on an idle machine; on a
                 # loaded one the real clock's phase may end otherwise)
-                if stuck_seen is None and s["t"] - s["stop"]["t"] > 0.6:
+                if stuck_seen is None and s["t"] - s["stop"]["t"] > 0.3:
                     driver.save_screenshot(shot)
                     after = snap()
                     if after["stuck"] and after["stop"] == s["stop"]:
                         stuck_seen = s
                         print(f"screenshot at t = {s['t']:.3f} s: stop {s['stop']['index']} since "
-                              f"{s['stop']['t']:.3f} s, state point {s['planePoint']}, forecast "
+                              f"{s['stop']['t']:.3f} s, state point {s['planePoint']} (trail: {s['trailPoints']} points, "
+                              f"{s['trailSegments']} segments), forecast "
                               f"{s['forecast']}, countdown '{s['countdownText']}'")
             if stuck_seen:
                 marked = [r for r in s["restarts"] if r["stop"] == stuck_seen["stop"]["index"]]
@@ -178,7 +179,7 @@ def main():
         stops = {e["stop"]: e for e in events if e["event"] == "stop"}
         if stuck_seen is None:
             fail(f"the page never showed a stuck carriage with its forecast and the forecast's path for "
-                 f"0.6 s; pneud's stops: {list(stops.values())}; the page's last look at a stuck carriage: "
+                 f"0.3 s; pneud's stops: {list(stops.values())}; the page's last look at a stuck carriage: "
                  f"{json.dumps({k: v for k, v in (last_stuck or {}).items() if k not in ('tickTimes', 'restarts')})}",
                  logs)
         index = stuck_seen["stop"]["index"]

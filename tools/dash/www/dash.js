@@ -115,7 +115,8 @@ function makeTimeline() {
     type: "scatter",
     data: {
       datasets: LANES.map((lane) => ({
-        label: lane, data: timeline[lane], parsing: false, borderColor: LANE_STYLE[lane][0],
+        // parsed: the forecast restarts are not in the order of their times
+        label: lane, data: timeline[lane], borderColor: LANE_STYLE[lane][0],
         backgroundColor: LANE_STYLE[lane][0], pointStyle: LANE_STYLE[lane][1], pointRadius: 5, borderWidth: 1.5,
         _seriesRef: timeline[lane],
       })),
@@ -185,11 +186,13 @@ function closed(points) {
 
 function makePlaneChart() {
   // Chart.js draws the dataset of the lowest order last, on top: the areas at the bottom, the
-  // state point on top, in the reverse of the order listed here.
+  // state point on top, in the reverse of the order listed here. The data are parsed (not
+  // `parsing: false`, which tells Chart.js the points are sorted by x and lets it draw only those
+  // its binary search finds in view): a trail, a path or an area goes back and forth in x.
   let order = 100;
   const ds = (label, color, extra) => ({
     label, data: [], borderColor: color, backgroundColor: color, showLine: true, pointRadius: 0,
-    borderWidth: 1.2, parsing: false, order: order--, ...extra,
+    borderWidth: 1.2, order: order--, ...extra,
   });
   charts.plane = new Chart(document.getElementById("chart-plane"), {
     type: "scatter",
@@ -693,6 +696,8 @@ window.pneuDash = {
       planeLoaded: Boolean(state.plane),
       nullFlowPoints: state.plane?.null_flow.length ?? 0,
       planePoint: state.planePoint,
+      trailPoints: charts.plane?.data.datasets[PLANE.trail].data.length ?? 0,
+      trailSegments: charts.plane?.getDatasetMeta(PLANE.trail).dataset?.segments.length ?? 0,
       stuck: state.stuck,
       stop: phase ? { index: phase.index, t: phase.t } : null,
       forecast: f ? { method: f.method, will_restart: f.will_restart, t_restart: f.t_restart } : null,
