@@ -34,6 +34,7 @@ usage:
   pneu-dash [--listen HOST:PORT] [--config FILE | --lcm-url URL] [--prefix PREFIX] [--www DIR]
             [--chart-js DIR]
   pneu-dash --log FILE [--paused] [--listen HOST:PORT] [--prefix PREFIX] [--www DIR] [--chart-js DIR]
+  pneu-dash ... --check-config
   pneu-dash --help | --version
 
 Subscribes to pneud's LCM channels (<prefix>STATE, EVENT, PREDICTION, HEALTH, IDENTIFICATION),
@@ -53,6 +54,7 @@ forecast's path through the plane), and serves, on --listen (default 127.0.0.1:8
 --www DIR       the page's files (default: the installed share/pneu/dash, else the source tree's)
 --chart-js DIR  where chart.min.js is, served at /js/chart.js/ (default /usr/share/javascript/chart.js,
                 Debian's libjs-chart.js)
+--check-config  read the options, the configuration and the log, say what would be served, exit
 --log FILE      play a recorded LCM log (lcm-logger) instead of listening live; it plays from its
                 start at once (--paused: waits for POST /playback {"play":true})
 
@@ -91,7 +93,7 @@ fs::path default_www() {
 
 int run(int argc, char** argv) {
   const cli::Args args(argc, argv, 1, {"listen", "config", "lcm-url", "prefix", "www", "log", "chart-js"},
-                       {"help", "version", "paused"});
+                       {"help", "version", "paused", "check-config"});
   if (args.flag("help")) {
     print_usage(std::cout);
     return cli::kExitOk;
@@ -119,6 +121,24 @@ int run(int argc, char** argv) {
   std::tie(options.address, options.port) = parse_listen(args.value("listen").value_or("127.0.0.1:8765"));
   options.www = args.value("www") ? fs::path(*args.value("www")) : default_www();
   if (!fs::is_directory(options.www)) throw cli::UsageError("--www: not a directory: " + options.www.string());
+  const fs::path chart_js = args.value("chart-js").value_or("/usr/share/javascript/chart.js");
+  if (!fs::is_regular_file(chart_js / "chart.min.js"))
+    throw cli::UsageError("--chart-js: no chart.min.js in " + chart_js.string() +
+                          ": the page draws with Chart.js (Debian package libjs-chart.js)");
+
+  if (args.flag("check-config")) {
+    if (log) {
+      try {
+        const dash::LogPlayer readable(*log, nullptr, nullptr);
+      } catch (const std::runtime_error& e) {
+        throw cli::UsageError(std::string("--log: ") + e.what());
+      }
+    }
+    std::cout << "pneu-dash: would serve http://" << options.address << ":" << options.port << "/ from "
+              << options.www.string() << ", " << (log ? "playing " + *log : "live from " + telemetry.lcm_url)
+              << ", channels " << telemetry.channel_prefix << "*\n";
+    return cli::kExitOk;
+  }
 
   // SIGINT and SIGTERM are waited for by this thread, blocked in every other.
   sigset_t stop_signals;
@@ -135,7 +155,7 @@ int run(int argc, char** argv) {
   }
   dash::PneuFeed feed(*server, telemetry.channel_prefix);
   try {
-    dash::serve_chart_js(*server, args.value("chart-js").value_or("/usr/share/javascript/chart.js"));
+    dash::serve_chart_js(*server, chart_js);
   } catch (const std::runtime_error& e) {
     throw cli::UsageError(std::string("--chart-js: ") + e.what());
   }
