@@ -219,6 +219,16 @@ def main():
         else:
             print(f"pneud's run ended before stop {index} restarted: nothing to mark")
         final = snap()
+        # Every tick is received or counted missing: none joined silently.
+        seqs = final["sequences"].get("PNEU_STATE")
+        if not seqs:
+            fail(f"the page counted no sequence numbers on PNEU_STATE: {final['sequences']}")
+        span = seqs["last"] - seqs["first"] + 1
+        if seqs["received"] + final["gaps"]["byTopic"].get("PNEU_STATE", 0) != span:
+            fail(f"ticks {seqs['first']}..{seqs['last']}: {seqs['received']} received and "
+                 f"{final['gaps']['byTopic'].get('PNEU_STATE', 0)} counted missing do not make {span}")
+        print(f"ticks seq {seqs['first']}..{seqs['last']}: {seqs['received']} received, "
+              f"{final['gaps']['missing']} counted missing")
         print(f"the page drew in {final['drawMs']} ms, {final['lagS']} s behind the server; "
               f"gaps counted by the page: {final['gaps']}; events shown: {final['events']}; "
               f"messages by channel: {final['received']}")

@@ -368,7 +368,12 @@ function countSequence(topic, channel, msg) {
   const seq = msg[field];
   const last = channel.lastSeq;
   channel.lastSeq = seq;
-  if (last === undefined || seq <= last) return;  // the first, or a restarted sender
+  if (last === undefined || seq <= last) {  // the first, or a restarted sender
+    channel.firstSeq = seq;
+    channel.receivedSinceFirst = 1;
+    return;
+  }
+  channel.receivedSinceFirst += 1;
   const missing = seq - last - 1;
   if (missing <= 0) return;
   state.gaps.missing += missing;
@@ -689,6 +694,9 @@ window.pneuDash = {
       connected: state.connected,
       topics: Object.keys(state.channels),
       received: Object.fromEntries(Object.entries(state.channels).map(([k, c]) => [k, c.received])),
+      // per channel with sequence numbers: the first and last seen, the messages received between
+      sequences: Object.fromEntries(Object.entries(state.channels).filter(([, c]) => c.lastSeq !== undefined)
+        .map(([k, c]) => [k, { first: c.firstSeq, last: c.lastSeq, received: c.receivedSinceFirst }])),
       ticks: state.ticks,
       t: state.tick?.t ?? null,
       tickTimes: [...state.tickTimes],
