@@ -535,14 +535,18 @@ TEST_F(Log2Csv, HealthAndCommandFieldsReadBack) {
   h.period = 0.25;
 
   std::vector<pneu_lcm::command_t> commands;
-  const std::vector<std::string> names = {"set_point", "set_point_step", "arm",
-                                          "disarm",    "fault_reset",    "unknown"};
-  for (int k = 1; k <= 6; ++k) {
+  const std::vector<std::string> names = {"set_point", "set_point_step", "arm",      "disarm",
+                                          "fault_reset", "hold_on",      "hold_off", "unknown"};
+  for (int k = 1; k <= 8; ++k) {
     pneu_lcm::command_t c{};
     c.utime = kLogStart + 10 * k;
     c.seq = 1000 + k * k;
     c.kind = static_cast<std::int8_t>(k);
     c.value = k == 2 ? -0.0015 : 0.05 * k;
+    // Who sent it: quoted in the CSV; a byte that is not printable ASCII comes out as '?'.
+    const std::string origin = k == 2 ? "a \"quoted\", sender\x07" : "pneu-dash 127.0.0.1:8765";
+    std::copy(origin.begin(), origin.end(), c.origin);
+    c.session = 1000000 + k;
     commands.push_back(c);
   }
   std::vector<Entry> log = {{"PNEU_HEALTH", kLogStart + 2, encode(h)}};
@@ -595,7 +599,7 @@ TEST_F(Log2Csv, HealthAndCommandFieldsReadBack) {
   expect_double(health.at(0, "period"), h.period, "period");
 
   const Csv cmd = read_csv("PNEU_COMMAND.csv");
-  EXPECT_EQ(cmd.header, split_header("log_utime,utime,seq,kind,kind_name,value"));
+  EXPECT_EQ(cmd.header, split_header("log_utime,utime,seq,kind,kind_name,value,origin,session"));
   ASSERT_EQ(cmd.rows.size(), commands.size());
   for (std::size_t i = 0; i < commands.size(); ++i) {
     const auto& c = commands[i];
@@ -606,6 +610,8 @@ TEST_F(Log2Csv, HealthAndCommandFieldsReadBack) {
     expect_int(cmd.at(i, "kind"), c.kind, row + "kind");
     EXPECT_EQ(cmd.at(i, "kind_name"), names[i]) << row;
     expect_double(cmd.at(i, "value"), c.value, row + "value");
+    EXPECT_EQ(cmd.at(i, "origin"), i == 1 ? "a \"quoted\", sender?" : "pneu-dash 127.0.0.1:8765") << row;
+    expect_int(cmd.at(i, "session"), c.session, row + "session");
   }
 }
 
