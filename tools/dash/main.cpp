@@ -17,6 +17,7 @@
 
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
+#include "pneu/dash/commands.hpp"
 #include "pneu/dash/log_player.hpp"
 #include "pneu/dash/pneu_channels.hpp"
 #include "pneu/dash/server.hpp"
@@ -31,6 +32,7 @@ void print_usage(std::ostream& out) {
 
 usage:
   pneu-dash [--listen HOST:PORT] [--config FILE | --lcm-url URL] [--prefix PREFIX] [--www DIR]
+            [--commands-token-file FILE]
   pneu-dash --log FILE [--paused] [--listen HOST:PORT] [--prefix PREFIX] [--www DIR]
   pneu-dash --help | --version
 
@@ -47,6 +49,17 @@ serves, on --listen (default 127.0.0.1:8765, loopback only):
 --lcm-url URL   the LCM URL (default udpm://239.255.76.67:7667?ttl=0, pneud's default)
 --prefix P      the channels' prefix (default: the configuration's, else PNEU_)
 --www DIR       the page's files (default: the installed share/pneu/dash, else the source tree's)
+--commands-token-file FILE
+                take commands from the page (off without it): arm, disarm, fault reset, set point,
+                set-point step, hold on/off, sent to pneud on <prefix>COMMAND as pneu-command sends
+                them, so that pneud's own validation judges them; pneud's verdict comes back on
+                <prefix>EVENT. A browser sends the token (the file's one line) once on its
+                connection before it may command; a wrong one is refused, counted and nothing is
+                sent. Refused (exit 2, saying why) unless the file's mode is 0640 or stricter, it
+                is owned by group pneu when that group exists, the token has 16 characters or more,
+                and --listen is a loopback address (pneu-dash has no TLS: reach it from elsewhere
+                through an SSH tunnel). Each command names this dashboard ("pneu-dash HOST:PORT")
+                and the browser's session, and pneud's events say so.
 --log FILE      play a recorded LCM log (lcm-logger) instead of listening live; it plays from its
                 start at once (--paused: waits for POST /playback {"play":true})
 
@@ -84,7 +97,7 @@ fs::path default_www() {
 }
 
 int run(int argc, char** argv) {
-  const cli::Args args(argc, argv, 1, {"listen", "config", "lcm-url", "prefix", "www", "log"},
+  const cli::Args args(argc, argv, 1, {"listen", "config", "lcm-url", "prefix", "www", "log", "commands-token-file"},
                        {"help", "version", "paused"});
   if (args.flag("help")) {
     print_usage(std::cout);
@@ -111,6 +124,19 @@ int run(int argc, char** argv) {
   options.www = args.value("www") ? fs::path(*args.value("www")) : default_www();
   if (!fs::is_directory(options.www)) throw cli::UsageError("--www: not a directory: " + options.www.string());
 
+  // Commands (off without a token file): refused before anything listens when they cannot be safe.
+  const auto token_file = args.value("commands-token-file");
+  std::string token;
+  if (token_file) {
+    if (log) throw cli::UsageError("--commands-token-file: commands go to a live pneud, not to a log played (--log)");
+    try {
+      dash::listen_allows_commands(options.address);
+      token = dash::read_token_file(*token_file);
+    } catch (const dash::CommandsRefused& e) {
+      throw cli::UsageError(e.what());
+    }
+  }
+
   // SIGINT and SIGTERM are waited for by this thread, blocked in every other.
   sigset_t stop_signals;
   sigemptyset(&stop_signals);
@@ -128,6 +154,7 @@ int run(int argc, char** argv) {
 
   std::unique_ptr<dash::LogPlayer> player;
   std::unique_ptr<lcm::LCM> lcm;
+  std::unique_ptr<dash::CommandGate> gate;
   std::atomic<bool> stopping{false};
   std::thread lcm_thread;
   if (log) {
@@ -153,6 +180,33 @@ int run(int argc, char** argv) {
                     static_cast<dash::PneuFeed*>(user)->forward(channel, rbuf->data, rbuf->data_size, rbuf->recv_utime);
                   },
                   &feed);
+    if (token_file) {
+      const std::string command_channel = telemetry.channel_prefix + "COMMAND";
+      gate = std::make_unique<dash::CommandGate>(
+          dash::GateOptions{.token = token,
+                            .origin = "pneu-dash " + options.address + ":" + std::to_string(server->port())},
+          [&lcm, command_channel](const pneu_lcm::command_t& c) { return lcm->publish(command_channel, &c) == 0; });
+      token.assign(token.size(), '\0');
+      server->set_client_publish([&gate, &server](const dash::ClientMessage& m) -> std::string {
+        const std::string_view payload(reinterpret_cast<const char*>(m.payload.data()), m.payload.size());
+        dash::GateAnswer a;
+        const char* id = nullptr;
+        if (m.topic == dash::kLoginTopic) {
+          a = gate->login(m.client, payload);
+          id = dash::kLoginStatusId;
+        } else if (m.topic == dash::kCommandTopic) {
+          a = gate->command(m.client, payload);
+          id = dash::kCommandStatusId;
+        } else {
+          return "this server takes client messages on " + std::string(dash::kLoginTopic) + " and " +
+                 dash::kCommandTopic + " only";
+        }
+        // An audit trail (the journal): who logged in, what was refused, what was sent.
+        std::cerr << "pneu-dash: connection " << m.client << ": " << a.message << "\n";
+        server->send_status(m.client, a.ok ? 0 : 2, a.message, id);
+        return "";
+      });
+    }
     lcm_thread = std::thread([&] {
       while (!stopping) {
         if (lcm->handleTimeout(100) < 0) {
@@ -166,7 +220,10 @@ int run(int argc, char** argv) {
 
   std::cerr << "pneu-dash: serving http://" << options.address << ":" << server->port() << "/ (WebSocket /ws), "
             << (log ? "playing " + *log : "live from " + telemetry.lcm_url) << ", channels "
-            << telemetry.channel_prefix << "*\n";
+            << telemetry.channel_prefix << "*"
+            << (gate ? "; commands on (token from " + *token_file + "), sent as \"" + gate->origin() + "\""
+                     : std::string("; commands off"))
+            << "\n";
   std::thread server_thread([&] { server->run(); });
   std::thread signal_thread([&] {
     int sig = 0;
