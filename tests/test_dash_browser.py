@@ -1,0 +1,225 @@
+#!/usr/bin/python3
+"""The dashboard in a real browser (issue 31): headless Chromium (Debian's chromium and
+chromium-driver, driven by python3-selenium) opens pneu-dash's page while pneud runs the paper's
+scenario on the real clock (the step to 170 mm at t = 1 s; its second stop sticks about 2.5 s).
+It must hold that the traces advance; that the pressure-force plane gets its geometry (the areas
+and the null-flow curve) and, during the sticking phase, shows the stuck state point, the forecast
+path and the forecast restart time counting down; that the actual restart is then marked at the
+time pneud's events file gives. A screenshot of the page during the sticking phase is written to
+OUT_DIR/dashboard.png (docs/img/dashboard.png is one of them).
+
+Run inside tests/in_private_netns.sh (LCM multicast stays in a namespace of the test's own):
+  test_dash_browser.py BIN_DIR SOURCE_DIR OUT_DIR
+Exit codes: 0 passed, 1 failed (FAIL: what), 77 skipped (SKIPPED: why: no browser, no selenium).
+"""
+import json
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.request
+
+CHROMIUM = "/usr/bin/chromium"
+CHROMEDRIVER = "/usr/bin/chromedriver"
+RUN_S = 7.0                  # pneud's run: the step at 1 s, the long sticking phase ends near 3.9 s
+
+
+def skip(why):
+    print(f"SKIPPED: {why}")
+    sys.exit(77)
+
+
+def fail(why, logs=()):
+    print(f"FAIL: {why}")
+    for path in logs:
+        try:
+            with open(path, encoding="utf-8", errors="replace") as f:
+                print(f"--- {path}\n{f.read()[-4000:]}")
+        except OSError:
+            pass
+    sys.exit(1)
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def wait_http(url, seconds, what, logs):
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        try:
+            with urllib.request.urlopen(url, timeout=1) as r:
+                if r.status == 200:
+                    return r.read()
+        except OSError:
+            time.sleep(0.1)
+    fail(f"{what} did not answer at {url} within {seconds} s", logs)
+
+
+def main():
+    if len(sys.argv) != 4:
+        print(__doc__)
+        sys.exit(2)
+    bin_dir, source_dir, out_dir = sys.argv[1:]
+    for path in (CHROMIUM, CHROMEDRIVER):
+        if not os.access(path, os.X_OK):
+            skip(f"{path} is missing (Debian packages chromium, chromium-driver)")
+    try:
+        from selenium import webdriver
+        from selenium.webdriver.chrome.service import Service
+    except ImportError:
+        skip("selenium is missing (Debian package python3-selenium)")
+
+    work = tempfile.mkdtemp(prefix="pneu_dash_browser.")
+    logs = [os.path.join(work, n) for n in ("dash.err", "pneud.out", "pneud.err")]
+    procs = []
+    driver = None
+    try:
+        port = free_port()
+        base = f"http://127.0.0.1:{port}"
+        dash = subprocess.Popen([os.path.join(bin_dir, "pneu-dash"), "--listen", f"127.0.0.1:{port}"],
+                                stdout=open(logs[0], "w"), stderr=subprocess.STDOUT)
+        procs.append(dash)
+        page = wait_http(base + "/", 20, "pneu-dash", logs).decode()
+        if "chart-plane" not in page:
+            fail("/ is not the dashboard page", logs)
+        wait_http(base + "/js/chart.js/chart.min.js", 5, "pneu-dash's Chart.js", logs)
+
+        options = webdriver.ChromeOptions()
+        options.binary_location = CHROMIUM
+        for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                    "--window-size=1680,1180", "--hide-scrollbars", "--force-device-scale-factor=1"):
+            options.add_argument(arg)
+        driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+        driver.set_script_timeout(10)
+        driver.get(base + "/")
+
+        def snap():
+            return driver.execute_script("return window.pneuDash && window.pneuDash.snapshot();")
+
+        deadline = time.monotonic() + 15
+        s = snap()
+        while not (s and s["connected"] and s["planeLoaded"]):
+            if time.monotonic() > deadline:
+                fail(f"the page did not connect and get the plane within 15 s: {json.dumps(s)}", logs)
+            time.sleep(0.1)
+            s = snap()
+        print(f"connected; channels {s['topics']}; null-flow curve of {s['nullFlowPoints']} points")
+        if s["nullFlowPoints"] < 50:
+            fail(f"the plane's null-flow curve has {s['nullFlowPoints']} points")
+
+        # pneud on the real clock, the paper's scenario; its supervision of the loop's timing off: a
+        # stall of the shared machine would latch a fault (timing is not this test's subject).
+        events_path = os.path.join(work, "events.jsonl")
+        pneud = subprocess.Popen(
+            [os.path.join(bin_dir, "pneud"), "--clock", "real", "--duration", str(RUN_S),
+             "--require-telemetry", "--events", events_path,
+             "--set", "controller.supervisor.overruns_in_a_row=0",
+             "--set", "controller.supervisor.max_tick_interval_s=0"],
+            stdout=open(logs[1], "w"), stderr=open(logs[2], "w"))
+        procs.append(pneud)
+
+        shot = os.path.join(out_dir, "dashboard.png")
+        advancing = []           # (wall time, loop time, trace points)
+        stuck_seen = None        # the snapshot the screenshot was taken at
+        countdowns = []          # (loop time, countdown) during the phase shot
+        restart_seen = None
+        deadline = time.monotonic() + RUN_S + 20
+        while time.monotonic() < deadline:
+            s = snap()
+            if s["t"] is not None:
+                advancing.append((time.monotonic(), s["t"], s["tracePoints"]))
+            stuck_now = (s["stuck"] and s["stop"] and s["forecast"] and s["forecast"]["will_restart"]
+                         and s["forecastPathPoints"] > 1 and s["forecastState"] == "counting")
+            if stuck_now and (stuck_seen is None or stuck_seen["stop"] == s["stop"]):
+                countdowns.append((s["t"], s["countdownS"]))
+                # well into a phase long enough to see (the paper's second stop: about 2.5 s)
+                if stuck_seen is None and s["countdownS"] > 1.0 and s["t"] - s["stop"]["t"] > 0.4:
+                    driver.save_screenshot(shot)
+                    after = snap()
+                    if after["stuck"] and after["stop"] == s["stop"]:
+                        stuck_seen = s
+                        print(f"screenshot at t = {s['t']:.3f} s: stop {s['stop']['index']} since "
+                              f"{s['stop']['t']:.3f} s, state point {s['planePoint']}, forecast "
+                              f"{s['forecast']}, countdown '{s['countdownText']}'")
+            if stuck_seen and s["lastRestart"] and s["lastRestart"]["stop"] == stuck_seen["stop"]["index"]:
+                restart_seen = s
+                break
+            if pneud.poll() is not None and s["t"] is not None and not s["stuck"] and stuck_seen is None:
+                break
+            time.sleep(0.05)
+        pneud.wait(timeout=RUN_S + 20)
+        if pneud.returncode != 0:
+            fail(f"pneud exited with {pneud.returncode}", logs)
+
+        # The traces advance: over at least a second of wall time, loop time and points grew.
+        first = next((a for a in advancing if a[1] > 0.2), None)
+        last = advancing[-1] if advancing else None
+        if not first or not last or last[0] - first[0] < 1.0 or last[1] - first[1] < 0.8 or last[2] <= first[2]:
+            fail(f"the traces did not advance: first {first}, last {last}", logs)
+        print(f"traces advanced: loop time {first[1]:.3f} -> {last[1]:.3f} s over "
+              f"{last[0] - first[0]:.2f} s of wall time, trace points {first[2]} -> {last[2]}")
+
+        with open(events_path, encoding="utf-8") as f:
+            events = [json.loads(line) for line in f if line.strip()]
+        stops = {e["stop"]: e for e in events if e["event"] == "stop"}
+        if stuck_seen is None:
+            fail(f"the page never showed a stuck carriage with a forecast path counting down; pneud's "
+                 f"stops: {list(stops.values())}", logs)
+        index = stuck_seen["stop"]["index"]
+        if index not in stops or abs(stops[index]["t"] - stuck_seen["stop"]["t"]) > 1e-6:
+            fail(f"the page's stop {stuck_seen['stop']} is not pneud's {stops.get(index)}")
+        forecasts = [e for e in events if e["event"] == "prediction" and e["stop"] == index
+                     and e["method"] == stuck_seen["forecast"]["method"]]
+        if not forecasts:
+            fail(f"pneud made no {stuck_seen['forecast']['method']} forecast at stop {index}")
+        # the forecast shown is one pneud made at this stop (at the stop or again while stuck)
+        made = [e["t_restart"] for e in events if e["event"] in ("prediction", "reforecast")
+                and e["stop"] == index and e["method"] == stuck_seen["forecast"]["method"]]
+        if not any(abs(t - stuck_seen["forecast"]["t_restart"]) < 1e-6 for t in made if t is not None):
+            fail(f"the page's forecast {stuck_seen['forecast']} is none of pneud's: {made}")
+        # counting down: the time left falls as loop time goes on, by as much
+        if len(countdowns) < 3:
+            fail(f"too few looks at the countdown: {countdowns}")
+        (t0, c0), (t1, c1) = countdowns[0], countdowns[-1]
+        if not (t1 - t0 > 0.3 and c1 < c0):
+            fail(f"the restart countdown did not count down: {countdowns[:3]} ... {countdowns[-3:]}")
+        print(f"countdown {c0:.3f} s at t = {t0:.3f} s -> {c1:.3f} s at t = {t1:.3f} s")
+
+        restarts = [e for e in events if e["event"] == "start" and e["stop"] == index]
+        if restarts:
+            if restart_seen is None:
+                fail(f"pneud restarted at {restarts[0]['t']} s, the page did not mark it", logs)
+            if abs(restart_seen["lastRestart"]["t"] - restarts[0]["t"]) > 1e-6:
+                fail(f"the page marked the restart at {restart_seen['lastRestart']}, pneud's is {restarts[0]}")
+            print(f"restart marked at t = {restart_seen['lastRestart']['t']:.4f} s (pneud's events file: "
+                  f"{restarts[0]['t']:.4f} s); forecast {stuck_seen['forecast']['t_restart']:.4f} s")
+        else:
+            print(f"pneud's run ended before stop {index} restarted: nothing to mark")
+        final = snap()
+        print(f"gaps counted by the page: {final['gaps']}; events shown: {final['events']}; "
+              f"messages by channel: {final['received']}")
+        if not os.path.isfile(shot) or os.path.getsize(shot) < 10000:
+            fail(f"no screenshot at {shot}")
+        print(f"screenshot: {shot}")
+        print("PASS")
+    finally:
+        if driver is not None:
+            driver.quit()
+        for p in procs:
+            if p.poll() is None:
+                p.terminate()
+                try:
+                    p.wait(timeout=5)
+                except subprocess.TimeoutExpired:
+                    p.kill()
+        shutil.rmtree(work, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
