@@ -166,7 +166,7 @@ TEST(DashCommandGate, TheRightTokenGivesTheConnectionASessionAndItsCommandsGoOut
   ASSERT_TRUE(sp.ok) << sp.message;
   ASSERT_EQ(b.sent.size(), 1u);
   const pneu_lcm::command_t& c = b.sent[0];
-  EXPECT_EQ(c.kind, pneu_lcm::command_t::KIND_SET_POINT);
+  EXPECT_EQ(c.kind, int{pneu_lcm::command_t::KIND_SET_POINT});
   EXPECT_EQ(c.value, 0.17);
   EXPECT_EQ(c.utime, b.now_us);
   EXPECT_EQ(c.seq, sp.seq);
@@ -191,7 +191,9 @@ TEST(DashCommandGate, EachKindMapsToItsWireKindAndSequenceNumbersIncreaseEvenOnA
   ASSERT_EQ(b.sent.size(), kinds.size());
   for (std::size_t i = 0; i < kinds.size(); ++i) {
     EXPECT_EQ(b.sent[i].kind, kinds[i].second);
-    if (i > 0) EXPECT_GT(b.sent[i].seq, b.sent[i - 1].seq) << "pneud refuses a sequence number going back";
+    if (i > 0) {
+      EXPECT_GT(b.sent[i].seq, b.sent[i - 1].seq) << "pneud refuses a sequence number going back";
+    }
   }
   EXPECT_EQ(b.sent[3].value, -0.002);
 }

@@ -246,7 +246,7 @@ struct Listener {
 };
 
 pneu_lcm::command_t command(int64_t seq, int8_t kind, double value) {
-  pneu_lcm::command_t c;
+  pneu_lcm::command_t c{};
   // Stamped now: pneud refuses commands stamped further than commands.max_age_s from its clock.
   c.utime = std::chrono::duration_cast<std::chrono::microseconds>(
                 std::chrono::system_clock::now().time_since_epoch())

@@ -323,6 +323,8 @@ TEST_F(Log2Csv, EventTextIsQuotedWithQuotesDoubledAndKindsNamed) {
     e.y_d = i == 3 ? kNaN : 0.02;
     e.direction = i % 2 == 0 ? 1 : -1;
     e.seq = i == 4 || i == 5 ? 1'718'000'000'000'000 + static_cast<std::int64_t>(i) : 0;  // command events
+    e.origin = i == 4 ? "pneu-dash \"lab, 2\"" : "";  // a command verdict's sender: free text, quoted
+    e.session = i == 4 ? 123456789 : 0;
     e.text = texts[i];
     events.push_back(e);
     log.push_back({"PNEU_EVENT", kLogStart + 100 + static_cast<std::int64_t>(i), encode(e)});
@@ -335,7 +337,7 @@ TEST_F(Log2Csv, EventTextIsQuotedWithQuotesDoubledAndKindsNamed) {
   EXPECT_THAT(raw, HasSubstr(",\"\"\n"));  // empty text: still quoted
   const Csv csv = parse_csv(raw);
   EXPECT_EQ(csv.header,
-            split_header("log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,seq,text"));
+            split_header("log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,seq,origin,session,text"));
   EXPECT_EQ(csv.header, split_header("log_utime,utime," + pneu::records::csv_header<pneu::controller::EventMessage>()))
       << "the event message's description";
   ASSERT_EQ(csv.rows.size(), events.size());
@@ -353,6 +355,8 @@ TEST_F(Log2Csv, EventTextIsQuotedWithQuotesDoubledAndKindsNamed) {
     expect_double(csv.at(i, "y_d"), e.y_d, row + "y_d");
     expect_int(csv.at(i, "direction"), e.direction, row + "direction");
     expect_int(csv.at(i, "seq"), e.seq, row + "seq");
+    EXPECT_EQ(csv.at(i, "origin"), e.origin) << row;
+    expect_int(csv.at(i, "session"), e.session, row + "session");
     EXPECT_EQ(csv.at(i, "text"), e.text) << row;
   }
 }

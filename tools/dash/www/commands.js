@@ -45,7 +45,7 @@ function onEvent(e) {
   if (!isVerdict(e.kind) || !link.session || Number(e.session) !== link.session) return;
   const seq = Number(e.seq);
   const accepted = e.kind === "command_accepted" || e.kind === 5;
-  const verdict = { accepted, text: e.text ?? "", seq, session: link.session, origin: e.origin };
+  const verdict = { accepted, text: e.text ?? "", by: "pneud", seq, session: link.session, origin: e.origin };
   const resolve = link.verdicts.get(seq);
   if (resolve) {
     link.verdicts.delete(seq);
@@ -127,16 +127,16 @@ async function login(token) {
 
 // sendCommand's implementation: (kind, value, token) -> Promise<{accepted, text}>.
 async function send(kind, value, token) {
-  if (!link.ready) return { accepted: false, text: "not connected to pneu-dash" };
-  if (!token) return { accepted: false, text: "enter the token first" };
+  if (!link.ready) return { accepted: false, text: "not connected", by: "pneu-dash" };
+  if (!token) return { accepted: false, text: "enter the token first", by: "pneu-dash" };
   if (kind === "hold") kind = value ? "hold_on" : "hold_off";
   if (!link.session || link.token !== token) {
     const refused = await login(token);
-    if (refused) return { accepted: false, text: refused };
+    if (refused) return { accepted: false, text: refused, by: "pneu-dash" };
   }
   const command = value === undefined || typeof value === "boolean" ? { kind } : { kind, value };
   const s = await ask(link.commandChannel, COMMAND_TOPIC, command);
-  if (s.level !== 0) return { accepted: false, text: s.message };
+  if (s.level !== 0) return { accepted: false, text: s.message, by: "pneu-dash" };
   const seq = numberAfter("seq", s.message);
   if (link.early.has(seq)) {
     const v = link.early.get(seq);
@@ -147,7 +147,7 @@ async function send(kind, value, token) {
     link.verdicts.set(seq, resolve);
     setTimeout(() => {
       if (link.verdicts.delete(seq))
-        resolve({ accepted: false, text: `sent (seq ${seq}), but no verdict from pneud within ${VERDICT_TIMEOUT_MS / 1000} s: ` +
+        resolve({ accepted: false, by: "pneu-dash", text: `sent (seq ${seq}), but no verdict from pneud within ${VERDICT_TIMEOUT_MS / 1000} s: ` +
                                           "is pneud running, on this LCM URL, with commands enabled?" });
     }, VERDICT_TIMEOUT_MS);
   });
