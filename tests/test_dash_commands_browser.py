@@ -91,6 +91,9 @@ class StateReader(threading.Thread):
             return self.count, self.y_d, self.y, set(self.y_d_seen)
 
 
+BROWSER = None  # its console goes with a failure
+
+
 def wait_for(what, predicate, limit_s, *files):
     end = time.monotonic() + limit_s
     while time.monotonic() < end:
@@ -98,6 +101,14 @@ def wait_for(what, predicate, limit_s, *files):
         if v:
             return v
         time.sleep(0.05)
+    if BROWSER is not None:
+        try:
+            for entry in BROWSER.get_log("browser"):
+                print(f"browser console: {entry.get('level')} {entry.get('message')}")
+            print("page's status messages:", BROWSER.execute_script(
+                "return JSON.stringify(window.pneuDash && window.pneuDash.state.status)"))
+        except Exception as e:  # the browser itself may be gone
+            print(f"browser console unavailable: {e}")
     fail(f"{what} (within {limit_s} s)", *files)
 
 
@@ -183,8 +194,11 @@ def main():
         for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
                   "--window-size=1400,1000", f"--user-data-dir={d}/chromium"):
             options.add_argument(a)
+        options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
         browser = webdriver.Chrome(service=Service(driver), options=options)
         browser.set_script_timeout(20)
+        global BROWSER
+        BROWSER = browser
         browser.get(base + "/")
         wait_for("the command panel enabled (the server takes commands)",
                  lambda: browser.find_element(By.ID, "commands").get_attribute("data-enabled") == "true", 20, dash_err)
