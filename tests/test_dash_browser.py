@@ -134,12 +134,16 @@ def main():
             s = snap()
             if s["t"] is not None:
                 advancing.append((time.monotonic(), s["t"], s["tracePoints"]))
-            stuck_now = (s["stuck"] and s["stop"] and s["forecast"] and s["forecast"]["will_restart"]
-                         and s["forecastPathPoints"] > 1 and s["forecastState"] == "counting")
+            # stuck, the forecast and its path shown; counting down when it forecasts a restart
+            stuck_now = (s["stuck"] and s["stop"] and s["forecast"] and s["forecastPathPoints"] > 1
+                         and s["forecastState"] == ("counting" if s["forecast"]["will_restart"] else "no-restart"))
             if stuck_now and (stuck_seen is None or stuck_seen["stop"] == s["stop"]):
-                countdowns.append((s["t"], s["countdownS"]))
-                # well into a phase long enough to see (the paper's second stop: about 2.5 s)
-                if stuck_seen is None and s["countdownS"] > 1.0 and s["t"] - s["stop"]["t"] > 0.4:
+                if s["forecast"]["will_restart"]:
+                    countdowns.append((s["t"], s["countdownS"]))
+                # well into a phase long enough to see (the paper's second stop: about 2.5 s on
+                # an idle machine; on a loaded one the real clock's phase may end otherwise)
+                long_left = not s["forecast"]["will_restart"] or s["countdownS"] > 1.0
+                if stuck_seen is None and long_left and s["t"] - s["stop"]["t"] > 0.4:
                     driver.save_screenshot(shot)
                     after = snap()
                     if after["stuck"] and after["stop"] == s["stop"]:
@@ -150,9 +154,9 @@ def main():
             if stuck_seen and s["lastRestart"] and s["lastRestart"]["stop"] == stuck_seen["stop"]["index"]:
                 restart_seen = s
                 break
-            if pneud.poll() is not None and s["t"] is not None and not s["stuck"] and stuck_seen is None:
-                break
-            time.sleep(0.05)
+            if pneud.poll() is not None and s["t"] is not None and s["t"] >= RUN_S - 0.01:
+                break  # the page has seen the whole run
+            time.sleep(0.1)
         pneud.wait(timeout=RUN_S + 20)
         if pneud.returncode != 0:
             fail(f"pneud exited with {pneud.returncode}", logs)
@@ -179,19 +183,24 @@ def main():
         if not forecasts:
             fail(f"pneud made no {stuck_seen['forecast']['method']} forecast at stop {index}")
         # the forecast shown is one pneud made at this stop (at the stop or again while stuck)
-        made = [e["t_restart"] for e in events if e["event"] in ("prediction", "reforecast")
+        made = [(e["will_restart"], e["t_restart"]) for e in events if e["event"] in ("prediction", "reforecast")
                 and e["stop"] == index and e["method"] == stuck_seen["forecast"]["method"]]
-        if not any(abs(t - stuck_seen["forecast"]["t_restart"]) < 1e-6 for t in made if t is not None):
+        shown = (stuck_seen["forecast"]["will_restart"], stuck_seen["forecast"]["t_restart"])
+        if not any(w == shown[0] and (t == shown[1] or (t is not None and shown[1] is not None
+                                                        and abs(t - shown[1]) < 1e-6)) for w, t in made):
             fail(f"the page's forecast {stuck_seen['forecast']} is none of pneud's: {made}")
-        # counting down: the time left falls as loop time goes on, by as much
-        if len(countdowns) < 3:
+        # counting down: the time left falls as loop time goes on
+        if stuck_seen["forecast"]["will_restart"] and len(countdowns) < 3:
             fail(f"too few looks at the countdown: {countdowns}")
-        (t0, c0), (t1, c1) = countdowns[0], countdowns[-1]
-        if not (t1 - t0 > 0.3 and c1 < c0):
-            fail(f"the restart countdown did not count down: {countdowns[:3]} ... {countdowns[-3:]}")
-        print(f"countdown {c0:.3f} s at t = {t0:.3f} s -> {c1:.3f} s at t = {t1:.3f} s")
+        if countdowns:
+            (t0, c0), (t1, c1) = countdowns[0], countdowns[-1]
+            if not (t1 - t0 > 0.3 and c1 < c0):
+                fail(f"the restart countdown did not count down: {countdowns[:3]} ... {countdowns[-3:]}")
+            print(f"countdown {c0:.3f} s at t = {t0:.3f} s -> {c1:.3f} s at t = {t1:.3f} s")
+        else:
+            print(f"stop {index}: pneud forecast no restart, the page said so (no countdown)")
 
-        restarts = [e for e in events if e["event"] == "start" and e["stop"] == index]
+        restarts = [e for e in events if e["event"] == "start" and e["stop"] == index and e["restart"]]
         if restarts:
             if restart_seen is None:
                 fail(f"pneud restarted at {restarts[0]['t']} s, the page did not mark it", logs)
@@ -202,7 +211,8 @@ def main():
         else:
             print(f"pneud's run ended before stop {index} restarted: nothing to mark")
         final = snap()
-        print(f"gaps counted by the page: {final['gaps']}; events shown: {final['events']}; "
+        print(f"the page drew in {final['drawMs']} ms, {final['lagS']} s behind the server; "
+              f"gaps counted by the page: {final['gaps']}; events shown: {final['events']}; "
               f"messages by channel: {final['received']}")
         if not os.path.isfile(shot) or os.path.getsize(shot) < 10000:
             fail(f"no screenshot at {shot}")

@@ -148,25 +148,44 @@ TEST(DashPlane, AForecastPathRunsFromTheSnapshotToTheStictionBoundAtTheForecastR
   ASSERT_LT(std::abs(force.force_n(stop.p_p_pa, stop.p_n_pa)), b.plant.friction.static_positive_n);
   for (auto method : {controller::PredictionMethod::kLinearized, controller::PredictionMethod::kNonlinear}) {
     SCOPED_TRACE(controller::to_string(method));
-    const PlaneForecast f = plane_forecast(m, stop, method, 4, 2.9, 0, 5.0, 120);
-    ASSERT_TRUE(f.will_restart);
-    EXPECT_EQ(f.direction, 1);
-    EXPECT_GT(f.t_restart_s, stop.t_s);
-    ASSERT_EQ(f.path.size(), 120U);
-    EXPECT_DOUBLE_EQ(f.path.front().t_s, stop.t_s);
-    EXPECT_DOUBLE_EQ(f.path.back().t_s, f.t_restart_s);
-    EXPECT_NEAR(f.path.front().x_n, force.plane_x_n(stop.p_p_pa), 1e-6);
-    EXPECT_NEAR(f.path.front().y_n, force.plane_y_n(stop.p_n_pa), 1e-6);
-    EXPECT_NEAR(f.path.back().force_n, b.plant.friction.static_positive_n, 0.01);
-    for (const ForecastPathPoint& p : f.path) {
+    controller::ForecastRecord made;
+    made.stop = 4;
+    made.t_stop_s = 2.9;
+    made.t_s = stop.t_s;
+    made.u_star_v = stop.u_v;
+    made.prediction = controller::predict(method, m, stop);
+    const auto f = plane_forecast(m, stop, made, 5.0, 120);
+    ASSERT_TRUE(f.has_value());
+    ASSERT_TRUE(f->will_restart);
+    EXPECT_EQ(f->direction, 1);
+    EXPECT_EQ(f->stop, 4);
+    EXPECT_DOUBLE_EQ(f->t_restart_s, made.prediction.t_restart_s);
+    EXPECT_GT(f->t_restart_s, stop.t_s);
+    ASSERT_EQ(f->path.size(), 120U);
+    EXPECT_DOUBLE_EQ(f->path.front().t_s, stop.t_s);
+    EXPECT_DOUBLE_EQ(f->path.back().t_s, f->t_restart_s);
+    EXPECT_NEAR(f->path.front().x_n, force.plane_x_n(stop.p_p_pa), 1e-6);
+    EXPECT_NEAR(f->path.front().y_n, force.plane_y_n(stop.p_n_pa), 1e-6);
+    // the path reaches the bound F_S+ at the forecast restart, and not before
+    EXPECT_NEAR(f->path.back().force_n, b.plant.friction.static_positive_n, 0.01);
+    for (const ForecastPathPoint& p : f->path) {
       EXPECT_NEAR(p.x_n - p.y_n, p.force_n, 1e-6);
-      if (&p != &f.path.back()) {
+      if (&p != &f->path.back()) {
         EXPECT_LT(p.force_n, b.plant.friction.static_positive_n + 1e-6);
       }
     }
-    const controller::Prediction direct = controller::predict(method, m, stop);
-    EXPECT_DOUBLE_EQ(f.t_restart_s, direct.t_restart_s);
   }
+  // A forecast of no restart: the path runs to the horizon; the methods the track does not follow
+  // have none.
+  controller::ForecastRecord none;
+  none.prediction = controller::predict(controller::PredictionMethod::kLinearized, m, stop);
+  none.prediction.will_restart = false;
+  const auto to_horizon = plane_forecast(m, stop, none, 2.0, 10);
+  ASSERT_TRUE(to_horizon.has_value());
+  EXPECT_FALSE(to_horizon->will_restart);
+  EXPECT_DOUBLE_EQ(to_horizon->path.back().t_s, stop.t_s + 2.0);
+  none.prediction.method = controller::PredictionMethod::kRelaxation;
+  EXPECT_FALSE(plane_forecast(m, stop, none).has_value());
 }
 
 TEST(DashPlane, ItsMessagesFollowTheirDescriptions) {
@@ -180,7 +199,9 @@ TEST(DashPlane, ItsMessagesFollowTheirDescriptions) {
   EXPECT_NE(schema.find("\"additionalProperties\": false"), std::string::npos);
   controller::StopSnapshot stop;
   stop.p_p_pa = stop.p_n_pa = 4.0e5;
-  const std::string forecast = to_json(plane_forecast(b.model(), stop, controller::PredictionMethod::kLinearized, 1, 0.0, 0));
+  controller::ForecastRecord made;
+  made.prediction = controller::predict(controller::PredictionMethod::kLinearized, b.model(), stop);
+  const std::string forecast = to_json(*plane_forecast(b.model(), stop, made));
   EXPECT_NE(forecast.find("\"method\":\"linearized\""), std::string::npos) << forecast.substr(0, 300);
   EXPECT_NE(plane_forecast_schema("f").find("\"path\""), std::string::npos);
 }

@@ -21,6 +21,7 @@
 #include "pneu/dash/log_player.hpp"
 #include "pneu/dash/pneu_channels.hpp"
 #include "pneu/dash/server.hpp"
+#include "page.hpp"
 
 namespace pneu {
 namespace {
@@ -32,12 +33,14 @@ void print_usage(std::ostream& out) {
 
 usage:
   pneu-dash [--listen HOST:PORT] [--config FILE | --lcm-url URL] [--prefix PREFIX] [--www DIR]
-            [--commands-token-file FILE]
-  pneu-dash --log FILE [--paused] [--listen HOST:PORT] [--prefix PREFIX] [--www DIR]
+            [--chart-js DIR] [--commands-token-file FILE]
+  pneu-dash --log FILE [--paused] [--listen HOST:PORT] [--prefix PREFIX] [--www DIR] [--chart-js DIR]
   pneu-dash --help | --version
 
-Subscribes to pneud's LCM channels (<prefix>STATE, EVENT, PREDICTION, HEALTH, IDENTIFICATION) and
-serves, on --listen (default 127.0.0.1:8765, loopback only):
+Subscribes to pneud's LCM channels (<prefix>STATE, EVENT, PREDICTION, HEALTH, IDENTIFICATION),
+adds <prefix>PLANE (the pressure-force plane from the configuration's model: the stop and
+no-restarting areas, the null-flow curve; latched) and <prefix>PLANE_FORECAST (each restart
+forecast's path through the plane), and serves, on --listen (default 127.0.0.1:8765, loopback only):
   /          the page (static files of --www)
   /ws        the Foxglove WebSocket protocol (subprotocol foxglove.websocket.v1): one channel per
              LCM channel, JSON messages with the JSON Schema of their record; Foxglove Studio
@@ -49,6 +52,8 @@ serves, on --listen (default 127.0.0.1:8765, loopback only):
 --lcm-url URL   the LCM URL (default udpm://239.255.76.67:7667?ttl=0, pneud's default)
 --prefix P      the channels' prefix (default: the configuration's, else PNEU_)
 --www DIR       the page's files (default: the installed share/pneu/dash, else the source tree's)
+--chart-js DIR  where chart.min.js is, served at /js/chart.js/ (default /usr/share/javascript/chart.js,
+                Debian's libjs-chart.js)
 --commands-token-file FILE
                 take commands from the page (off without it): arm, disarm, fault reset, set point,
                 set-point step, hold on/off, sent to pneud on <prefix>COMMAND as pneu-command sends
@@ -97,7 +102,8 @@ fs::path default_www() {
 }
 
 int run(int argc, char** argv) {
-  const cli::Args args(argc, argv, 1, {"listen", "config", "lcm-url", "prefix", "www", "log", "commands-token-file"},
+  const cli::Args args(argc, argv, 1,
+                       {"listen", "config", "lcm-url", "prefix", "www", "log", "chart-js", "commands-token-file"},
                        {"help", "version", "paused"});
   if (args.flag("help")) {
     print_usage(std::cout);
@@ -114,8 +120,11 @@ int run(int argc, char** argv) {
   if (args.value("lcm-url") && args.value("config"))
     throw cli::UsageError("--lcm-url and --config exclude each other (the URL is the configuration's)");
 
+  // The configuration's model draws the plane (the embedded default's without --config).
+  const auto config_file = args.value("config");
+  const config::Config cfg = config_file ? config::load_file(*config_file) : config::load_file_or_default("");
   telemetry::TelemetryConfig telemetry;
-  if (const auto file = args.value("config")) telemetry = config::load_file(*file).telemetry;
+  if (config_file) telemetry = cfg.telemetry;
   if (const auto url = args.value("lcm-url")) telemetry.lcm_url = *url;
   if (const auto prefix = args.value("prefix")) telemetry.channel_prefix = *prefix;
 
@@ -151,6 +160,18 @@ int run(int argc, char** argv) {
     throw cli::UsageError("--listen " + options.address + ":" + std::to_string(options.port) + ": " + e.what());
   }
   dash::PneuFeed feed(*server, telemetry.channel_prefix);
+  try {
+    dash::serve_chart_js(*server, args.value("chart-js").value_or("/usr/share/javascript/chart.js"));
+  } catch (const std::runtime_error& e) {
+    throw cli::UsageError(std::string("--chart-js: ") + e.what());
+  }
+  dash::PlaneFeed plane(*server, telemetry.channel_prefix, cfg,
+                        config_file ? fs::path(*config_file).parent_path() : fs::current_path());
+  // Every LCM message to both: the channels as pneud publishes them, and the plane's forecasts.
+  auto forward = [&feed, &plane](const std::string& channel, const void* data, std::size_t size, std::int64_t utime) {
+    feed.forward(channel, data, size, utime);
+    plane.forward(channel, data, size, utime);
+  };
 
   std::unique_ptr<dash::LogPlayer> player;
   std::unique_ptr<lcm::LCM> lcm;
@@ -161,8 +182,8 @@ int run(int argc, char** argv) {
     try {
       player = std::make_unique<dash::LogPlayer>(
           *log,
-          [&feed](const std::string& channel, const void* data, std::size_t size, std::int64_t utime) {
-            feed.forward(channel, data, size, utime);
+          [&forward](const std::string& channel, const void* data, std::size_t size, std::int64_t utime) {
+            forward(channel, data, size, utime);
           },
           [&server](std::uint64_t t_ns) { server->publish_time(t_ns); });
     } catch (const std::runtime_error& e) {
@@ -177,9 +198,9 @@ int run(int argc, char** argv) {
                                " (a udpm:// URL needs a multicast route: see docs/dashboard.md)");
     lcm_subscribe(lcm->getUnderlyingLCM(), (dash::regex_literal(telemetry.channel_prefix) + ".*").c_str(),
                   [](const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
-                    static_cast<dash::PneuFeed*>(user)->forward(channel, rbuf->data, rbuf->data_size, rbuf->recv_utime);
+                    (*static_cast<decltype(forward)*>(user))(channel, rbuf->data, rbuf->data_size, rbuf->recv_utime);
                   },
-                  &feed);
+                  &forward);
     if (token_file) {
       const std::string command_channel = telemetry.channel_prefix + "COMMAND";
       gate = std::make_unique<dash::CommandGate>(

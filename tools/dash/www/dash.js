@@ -8,7 +8,8 @@ import { FoxgloveClient } from "./foxglove.js";
 
 const TRACE_WINDOW_S = 10.0;    // the traces' time window
 const TRAIL_S = 4.0;            // the plane's trail
-const REDRAW_MS = 100;          // charts redrawn at most this often
+const REDRAW_MS = 150;          // charts redrawn at most this often, and less often when drawing is
+                                // slow: the messages keep at least two thirds of the page's time
 const MAX_EVENT_ROWS = 400;
 const Chart = window.Chart;
 
@@ -107,7 +108,7 @@ function trim(arr, t0) {
 
 function redrawTraces() {
   if (!state.tick) return;
-  const t1 = state.tick.t, t0 = t1 - TRACE_WINDOW_S;
+  const t1 = state.tick.t, t0 = Math.max(t1 - TRACE_WINDOW_S, Math.min(0, t1));
   for (const arr of Object.values(series)) trim(arr, t0 - 0.5);
   while (state.gapIntervals.length && state.gapIntervals[0][1] < t0 - TRAIL_S) state.gapIntervals.shift();
   if (state.plane) {
@@ -140,9 +141,12 @@ function closed(points) {
 }
 
 function makePlaneChart() {
+  // Chart.js draws the dataset of the lowest order last, on top: the areas at the bottom, the
+  // state point on top, in the reverse of the order listed here.
+  let order = 100;
   const ds = (label, color, extra) => ({
     label, data: [], borderColor: color, backgroundColor: color, showLine: true, pointRadius: 0,
-    borderWidth: 1.2, parsing: false, ...extra,
+    borderWidth: 1.2, parsing: false, order: order--, ...extra,
   });
   charts.plane = new Chart(document.getElementById("chart-plane"), {
     type: "scatter",
@@ -153,8 +157,18 @@ function makePlaneChart() {
         ds("stop area (Eq. 12): F_C- <= F <= F_C+", "#5dade2",
            { backgroundColor: "rgba(214, 234, 248, 0.95)", fill: "shape", borderWidth: 0.8 }),
         ds("null-flow curve (complete equilibrium)", "#000000", { borderWidth: 1.6 }),
-        ds("trail (moving)", "#1f77b4", { borderWidth: 1.0, spanGaps: false }),
-        ds("trail (stuck)", "#d62728", { borderWidth: 1.6, spanGaps: false }),
+        // one line, red where stuck, blue where moving, not drawn over missing ticks
+        ds("trail: stuck (red), moving (blue)", "#d62728", {
+          borderWidth: 1.6,
+          segment: {
+            borderColor: (ctx) => {
+              const a = trailShown[ctx.p0DataIndex], b = trailShown[ctx.p1DataIndex];
+              if (!a || !b) return undefined;
+              if (state.gapIntervals.some(([g0, g1]) => g1 > a.t && g0 < b.t)) return "rgba(0, 0, 0, 0)";
+              return a.stuck && b.stuck ? "#d62728" : "#1f77b4";
+            },
+          },
+        }),
         ds("forecast path (from the model)", "#e66100", { borderDash: [6, 3], borderWidth: 2.0 }),
         ds("equilibrium under u*", "#1a9641", { showLine: false, pointRadius: 6, pointStyle: "crossRot", borderWidth: 2 }),
         ds("forecast restart", "#e66100", { showLine: false, pointRadius: 8, pointStyle: "triangle", borderWidth: 2,
@@ -180,8 +194,9 @@ function makePlaneChart() {
   });
 }
 
-const PLANE = { noRestart: 0, stopArea: 1, nullFlow: 2, moving: 3, stuck: 4, path: 5, equilibrium: 6,
-                forecastRestart: 7, stop: 8, restart: 9, point: 10 };
+const PLANE = { noRestart: 0, stopArea: 1, nullFlow: 2, trail: 3, path: 4, equilibrium: 5,
+                forecastRestart: 6, stop: 7, restart: 8, point: 9 };
+let trailShown = [];  // the trail as drawn last
 
 function onPlane(msg) {
   state.plane = msg;
@@ -198,17 +213,20 @@ function nearestTrailPoint(t) {
   return best && Math.abs(best.t - t) < 0.05 ? best : state.planePoint;
 }
 
-function planeView(points) {
+// The view: the whole plane, or around `points` (no side shorter than `minSpan` [N]), square.
+function planeView(points, minSpan) {
   const g = state.plane;
   const whole = document.querySelector('input[name="plane-view"]:checked')?.value === "whole";
-  if (whole || !points.length) return { x0: g.x_min, x1: g.x_max, y0: g.y_min, y1: g.y_max };
+  if (whole || !points.length) {
+    const span = Math.max(g.x_max - g.x_min, g.y_max - g.y_min);
+    return { x0: g.x_min, x1: g.x_min + span, y0: g.y_min, y1: g.y_min + span };
+  }
   let x0 = Infinity, x1 = -Infinity, y0 = Infinity, y1 = -Infinity;
   for (const p of points) {
     if (!Number.isFinite(p.x) || !Number.isFinite(p.y)) continue;
     x0 = Math.min(x0, p.x); x1 = Math.max(x1, p.x); y0 = Math.min(y0, p.y); y1 = Math.max(y1, p.y);
   }
-  const band = g.static_positive - g.static_negative;
-  const span = Math.max(x1 - x0, y1 - y0, 1.5 * band) * 1.15;
+  const span = Math.max(x1 - x0, y1 - y0, minSpan) * 1.25;
   const xc = (x0 + x1) / 2, yc = (y0 + y1) / 2;
   return { x0: xc - span / 2, x1: xc + span / 2, y0: yc - span / 2, y1: yc + span / 2 };
 }
@@ -216,22 +234,15 @@ function planeView(points) {
 function redrawPlane() {
   if (!state.plane || !state.planePoint) return;
   const d = charts.plane.data.datasets;
-  const moving = [], stuck = [];
-  let prev = null;
-  for (const p of trail) {
-    const gap = prev && state.gapIntervals.some(([g0, g1]) => g1 > prev.t && g0 < p.t);
-    // a NaN point breaks the line: missing ticks are not joined
-    if (gap) { moving.push({ x: NaN, y: NaN }); stuck.push({ x: NaN, y: NaN }); }
-    (p.stuck ? stuck : moving).push({ x: p.x, y: p.y });
-    (p.stuck ? moving : stuck).push({ x: NaN, y: NaN });
-    prev = p;
-  }
-  d[PLANE.moving].data = moving;
-  d[PLANE.stuck].data = stuck;
+  trailShown = trail.slice();
+  d[PLANE.trail].data = trailShown;
   d[PLANE.point].data = [state.planePoint];
   d[PLANE.point].backgroundColor = state.stuck ? "#d62728" : "#ffeb3b";
   const phase = state.stop ?? state.lastPhase;
-  const shown = [...trail.slice(-Math.min(trail.length, 400))];
+  // Stuck (or just restarted): a close-up on the phase (Fig. 10), else the last seconds' trail.
+  const band = state.plane.static_positive - state.plane.static_negative;
+  const closeUp = Boolean(phase && (state.stop || trail.length && trail[trail.length - 1].t - phase.restart.t < 0.5));
+  const shown = closeUp ? trail.filter((p) => p.t >= phase.t) : [...trail];
   const path = phase ? preferred(phase.paths) : null;
   const forecast = phase ? preferred(phase.forecasts) : null;
   d[PLANE.path].data = path ? path.path.map((p) => ({ x: p.x, y: p.y })) : [];
@@ -242,7 +253,7 @@ function redrawPlane() {
   d[PLANE.restart].data = phase?.restart?.point ? [phase.restart.point] : [];
   if (phase?.point) shown.push(phase.point);
   shown.push(...d[PLANE.path].data, ...d[PLANE.equilibrium].data);
-  const v = planeView(shown);
+  const v = planeView(shown, closeUp ? 0.35 * band : 1.5 * band);
   const s = charts.plane.options.scales;
   s.x.min = v.x0; s.x.max = v.x1; s.y.min = v.y0; s.y.max = v.y1;
   charts.plane.update("none");
@@ -485,7 +496,7 @@ const HANDLERS = [
 
 const decoder = new TextDecoder();
 
-function onMessage(channel, _stampNs, payload) {
+function onMessage(channel, stampNs, payload) {
   let m;
   try {
     m = JSON.parse(decoder.decode(payload));
@@ -499,6 +510,7 @@ function onMessage(channel, _stampNs, payload) {
     c.received += 1;
     countSequence(channel.topic, c, m);
   }
+  if (c?.isState) state.lagS = Date.now() / 1e3 - Number(stampNs) / 1e9;  // how far behind the page is
   const handler = HANDLERS.find(([re]) => re.test(channel.topic));
   if (handler) handler[1](m, c ?? {});
 }
@@ -549,7 +561,7 @@ function connect() {
       for (const c of channels) {
         let properties = {};
         try { properties = JSON.parse(c.schema || "{}").properties ?? {}; } catch { /* no schema */ }
-        state.channels[c.topic] = { id: c.id, schemaName: c.schemaName, received: 0, properties,
+        state.channels[c.topic] = { id: c.id, schemaName: c.schemaName, received: 0, properties, isState: /STATE$/.test(c.topic),
                                     sequenceField: c.sequenceField ?? (properties.seq && /STATE$/.test(c.topic) ? "seq" : "") };
       }
       client.subscribe(channels.map((c) => c.id));
@@ -643,6 +655,8 @@ window.pneuDash = {
       events: state.events,
       gaps: { ...state.gaps },
       health: Boolean(state.health),
+      drawMs: state.drawMs ?? null,
+      lagS: state.tick ? state.lagS : null,
       identification: Boolean(state.identification),
     };
   },
@@ -654,15 +668,22 @@ wireCommandPanel();
 connect();
 
 let lastDraw = 0;
-function frame(now) {
-  if (now - lastDraw >= REDRAW_MS) {
-    lastDraw = now;
-    redrawTraces();
-    redrawPlane();
-    redrawForecast();
-  }
+let drawEvery = REDRAW_MS;
+function draw() {
+  const now = performance.now();
+  if (now - lastDraw < drawEvery) return;
+  lastDraw = now;
+  redrawTraces();
+  redrawPlane();
+  redrawForecast();
+  const took = performance.now() - now;
+  state.drawMs = took;
+  drawEvery = Math.max(REDRAW_MS, 3 * took);
+}
+function frame() {
+  draw();
   requestAnimationFrame(frame);
 }
 requestAnimationFrame(frame);
-// Headless and hidden pages get no animation frames: draw on a timer too.
-setInterval(() => { if (performance.now() - lastDraw > 4 * REDRAW_MS) frame(performance.now()); }, 4 * REDRAW_MS);
+// A hidden page gets no animation frames: draw on a timer too.
+setInterval(() => { if (performance.now() - lastDraw > 4 * drawEvery) draw(); }, 4 * REDRAW_MS);

@@ -87,18 +87,21 @@ PlaneGeometry plane_geometry(const controller::PredictorModel& model, int max_po
   return g;
 }
 
-PlaneForecast plane_forecast(const controller::PredictorModel& model, const controller::StopSnapshot& stop,
-                             controller::PredictionMethod method, std::int64_t stop_index, double t_stop_s,
-                             std::int64_t update, double horizon_s, int points) {
+std::optional<PlaneForecast> plane_forecast(const controller::PredictorModel& model,
+                                            const controller::StopSnapshot& stop,
+                                            const controller::ForecastRecord& made, double horizon_s, int points) {
+  const controller::PredictionMethod method = made.prediction.method;
+  if (method != controller::PredictionMethod::kLinearized && method != controller::PredictionMethod::kNonlinear)
+    return std::nullopt;
   const model::PressureForce force(model.geometry, model.gas.exhaust_pressure_pa);
-  const controller::Prediction p = controller::predict(method, model, stop);
+  const controller::Prediction& p = made.prediction;
   PlaneForecast f;
-  f.stop = stop_index;
-  f.t_s = stop.t_s;
-  f.t_stop_s = t_stop_s;
-  f.update = update;
+  f.stop = static_cast<std::int64_t>(made.stop);
+  f.t_s = made.t_s;
+  f.t_stop_s = made.t_stop_s;
+  f.update = made.update;
   f.method = method;
-  f.will_restart = p.will_restart && std::isfinite(p.t_restart_s);
+  f.will_restart = p.will_restart && std::isfinite(p.t_restart_s) && p.t_restart_s >= stop.t_s;
   f.direction = static_cast<std::int8_t>(f.will_restart ? p.direction : 0);
   f.t_restart_s = f.will_restart ? p.t_restart_s : std::numeric_limits<double>::quiet_NaN();
   const double t_end = f.will_restart ? p.t_restart_s : stop.t_s + horizon_s;
@@ -106,7 +109,7 @@ PlaneForecast plane_forecast(const controller::PredictorModel& model, const cont
   const int n = std::max(points, 2);
   f.path.reserve(static_cast<std::size_t>(n));
   for (int i = 0; i < n; ++i) {
-    const double t = stop.t_s + (t_end - stop.t_s) * i / (n - 1);
+    const double t = i + 1 == n ? t_end : stop.t_s + (t_end - stop.t_s) * i / (n - 1);
     const controller::ForecastPoint e = track.at(t);
     f.path.push_back({t, force.plane_x_n(e.p_p_pa), force.plane_y_n(e.p_n_pa), e.force_n});
   }

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -75,14 +76,15 @@ struct PlaneForecast {
   std::vector<ForecastPathPoint> path;
 };
 
-/// The path `method`'s forecast from `stop` expects (controller::ForecastTrack), `points` points
-/// evenly in time from stop.t_s to the restart it forecasts (or stop.t_s + horizon_s without one),
-/// with the forecast itself (controller::predict) in its other members. `stop_index`, `t_stop_s`
-/// and `update` only label it.
-[[nodiscard]] PlaneForecast plane_forecast(const controller::PredictorModel& model, const controller::StopSnapshot& stop,
-                                           controller::PredictionMethod method, std::int64_t stop_index,
-                                           double t_stop_s, std::int64_t update, double horizon_s = 5.0,
-                                           int points = 120);
+/// The path the forecast `made` expects from `stop` (its snapshot: the tick it was made from, u*
+/// its u_star), as controller::ForecastTrack follows it for the forecast's method: `points`
+/// points evenly in time from stop.t_s to the restart it forecasts, or to stop.t_s + horizon_s
+/// when it forecasts none. The other members are the forecast's own. Only the methods the track
+/// follows (linearized, nonlinear) have a path: for the others, none.
+[[nodiscard]] std::optional<PlaneForecast> plane_forecast(const controller::PredictorModel& model,
+                                                          const controller::StopSnapshot& stop,
+                                                          const controller::ForecastRecord& made,
+                                                          double horizon_s = 5.0, int points = 120);
 
 /// The JSON message of each (the records' one description).
 [[nodiscard]] std::string to_json(const PlaneGeometry& plane);
