@@ -55,31 +55,11 @@ const char* wire_kind_name(std::int8_t kind) noexcept {
   }
 }
 
-std::string_view origin_text(const std::array<char, kOriginBytes>& origin) noexcept {
-  std::size_t n = 0;
-  while (n < origin.size() && origin[n] != '\0') ++n;
-  return {origin.data(), n};
-}
-
-bool origin_is_clean(const std::array<char, kOriginBytes>& origin) noexcept {
-  const std::size_t n = origin_text(origin).size();
-  for (std::size_t i = 0; i < origin.size(); ++i) {
-    const auto c = static_cast<unsigned char>(origin[i]);
-    if (i < n ? (c < 0x20 || c > 0x7e) : c != 0) return false;
-  }
-  return true;
-}
-
 std::string printable_origin(const std::array<char, kOriginBytes>& origin) {
   std::string out(origin_text(origin));
   for (char& c : out)
     if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) > 0x7e) c = '?';
   return out;
-}
-
-void set_origin(std::array<char, kOriginBytes>& origin, std::string_view text) noexcept {
-  origin.fill('\0');
-  for (std::size_t i = 0; i < text.size() && i < origin.size(); ++i) origin[i] = text[i];
 }
 
 CommandValidator::CommandValidator(const CommandsConfig& commands, double soft_limit_min_m, double soft_limit_max_m)

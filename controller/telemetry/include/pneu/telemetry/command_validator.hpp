@@ -28,15 +28,29 @@ struct CommandFields {
 };
 
 /// `origin` as text: up to its first NUL (all 32 bytes when there is none).
-[[nodiscard]] std::string_view origin_text(const std::array<char, kOriginBytes>& origin) noexcept;
+[[nodiscard]] inline std::string_view origin_text(const std::array<char, kOriginBytes>& origin) noexcept {
+  std::size_t n = 0;
+  while (n < origin.size() && origin[n] != '\0') ++n;
+  return {origin.data(), n};
+}
 /// Whether `origin` is printable ASCII (0x20 to 0x7e) up to its first NUL and NUL after it: what
 /// may be written into events, logs and pages as it is.
-[[nodiscard]] bool origin_is_clean(const std::array<char, kOriginBytes>& origin) noexcept;
+[[nodiscard]] inline bool origin_is_clean(const std::array<char, kOriginBytes>& origin) noexcept {
+  const std::size_t n = origin_text(origin).size();
+  for (std::size_t i = 0; i < origin.size(); ++i) {
+    const auto c = static_cast<unsigned char>(origin[i]);
+    if (i < n ? (c < 0x20 || c > 0x7e) : c != 0) return false;
+  }
+  return true;
+}
 /// `origin` as text that may be written anywhere: up to its first NUL, any byte that is not
 /// printable ASCII as '?'.
 [[nodiscard]] std::string printable_origin(const std::array<char, kOriginBytes>& origin);
 /// Fills `origin` with `text`, cut at kOriginBytes, NUL-padded (for senders).
-void set_origin(std::array<char, kOriginBytes>& origin, std::string_view text) noexcept;
+inline void set_origin(std::array<char, kOriginBytes>& origin, std::string_view text) noexcept {
+  origin.fill('\0');
+  for (std::size_t i = 0; i < text.size() && i < origin.size(); ++i) origin[i] = text[i];
+}
 
 /// Command kinds on the wire (command_t.KIND_*).
 inline constexpr std::int8_t kWireSetPoint = 1, kWireSetPointStep = 2, kWireArm = 3,
