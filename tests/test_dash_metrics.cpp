@@ -120,8 +120,7 @@ IdentificationRecord identification(std::uint32_t updates, double static_positiv
 }
 
 // A bench fed with one of each record: every family has samples.
-Metrics fed(const std::string& bench = "bench-7") {
-  Metrics m = metrics(bench);
+void feed(Metrics& m) {
   m.on_health(health());
   m.on_event(event(kind::kStop, 1.0, 1));
   m.on_forecast(forecast(PredictionMethod::kLinearized, 1, true, 2.5));
@@ -134,11 +133,15 @@ Metrics fed(const std::string& bench = "bench-7") {
   m.on_event(fault(FaultCause::kFollowingError, 3.0));
   m.on_identification(identification(1, 50.0, -48.0));
   m.on_identification(identification(2, 53.0, -48.5));
-  return m;
+}
+std::string fed_text(const std::string& bench = "bench-7") {
+  Metrics m = metrics(bench);
+  feed(m);
+  return m.text();
 }
 
 TEST(DashMetrics, EveryFamilyHasItsHelpAndTypeOnceAndEverySampleTheBenchLabelFirst) {
-  const std::string text = fed().text();
+  const std::string text = fed_text();
   for (const auto& f : pneu::dash::metric_families()) {
     EXPECT_LINE(text, "# TYPE " + f.name + " " + f.type);
     EXPECT_THAT(text, HasSubstr("# HELP " + f.name + " "));
@@ -164,7 +167,7 @@ TEST(DashMetrics, CountersEndInTotalAndNamesSayTheirUnit) {
 }
 
 TEST(DashMetrics, HealthCountersAreServedAsPneudCountedThemAndLatenciesInSeconds) {
-  const std::string text = fed().text();
+  const std::string text = fed_text();
   EXPECT_LINE(text, "pneu_overruns_total{bench=\"bench-7\"} 3");
   EXPECT_LINE(text, "pneu_ticks_total{bench=\"bench-7\"} 12000");
   EXPECT_LINE(text, "pneu_comms_errors_total{bench=\"bench-7\"} 5");
@@ -229,7 +232,7 @@ TEST(DashMetrics, EveryFaultCauseIsReadBackFromTheTextPneudSendsForIt) {
 }
 
 TEST(DashMetrics, AForecastAtAStopIsJudgedByHowTheStopEndsAndAHitsErrorIsObserved) {
-  const std::string text = fed().text();
+  const std::string text = fed_text();
   // linearized forecast 2.5 s, nonlinear 2.3 s, the restart at 2.4 s: both hits, 0.1 s off each way.
   EXPECT_LINE(text, "pneu_forecasts_total{bench=\"bench-7\",method=\"linearized\",made=\"at_stop\"} 1");
   EXPECT_LINE(text, "pneu_forecasts_total{bench=\"bench-7\",method=\"linearized\",made=\"again\"} 1");
@@ -285,7 +288,8 @@ TEST(DashMetrics, HoldTimeCountsEachHoldAndAnOpenOneUpToTheLatestLoopTime) {
 }
 
 TEST(DashMetrics, StictionIsServedWithItsDriftSinceTheProcesssFirstIdentification) {
-  Metrics m = fed();
+  Metrics m = metrics();
+  feed(m);
   const std::string text = m.text();
   EXPECT_LINE(text, "pneu_stiction_newtons{bench=\"bench-7\",direction=\"positive\"} 53");
   EXPECT_LINE(text, "pneu_stiction_newtons{bench=\"bench-7\",direction=\"negative\"} 48.5");
@@ -313,6 +317,8 @@ TEST(DashMetrics, LabelValuesAndValuesAreWrittenAsTheFormatWantsThem) {
   EXPECT_EQ(pneu::dash::format_sample_value(std::nan("")), "NaN");
   EXPECT_EQ(pneu::dash::format_sample_value(-1.0 / 0.0), "-Inf");
   EXPECT_EQ(pneu::dash::format_sample_value(1e21), "1e+21");
+  EXPECT_EQ(pneu::dash::format_sample_value(1.7e9), "1700000000");
+  EXPECT_EQ(pneu::dash::format_sample_value(-2.5e-7), "-2.5e-07");
   EXPECT_EQ(pneu::dash::format_sample_value(12000), "12000");
   EXPECT_LINE(metrics("rig \"A\"").text(), "pneu_stops_total{bench=\"rig \\\"A\\\"\"} 0");
 }
@@ -340,14 +346,18 @@ Checked promtool_check(const std::string& text) {
 
 TEST(DashMetrics, PromtoolParsesAndLintsTheTextCleanAndRefusesAMalformedLine) {
   if (promtool().empty()) GTEST_SKIP() << "promtool (Debian's prometheus, in scripts/deps) is not installed";
-  const std::string text = fed("rig \"A\"").text();
+  const std::string text = fed_text("rig \"A\"");
   const Checked good = promtool_check(text);
   EXPECT_EQ(good.status, 0) << good.output << "\n" << text;
   EXPECT_EQ(good.output, "") << "no lint";
   EXPECT_EQ(promtool_check(metrics().text()).status, 0) << "nothing heard yet: still well formed";
-  const Checked bad = promtool_check(text + "pneu_stops_total{bench=\"x\" 1\n");
+  // A family more, well formed, passes; the same with one line malformed does not.
+  const std::string probe = "# HELP pneu_probe_total a probe\n# TYPE pneu_probe_total counter\n";
+  const Checked more = promtool_check(text + probe + "pneu_probe_total{bench=\"x\"} 1\n");
+  EXPECT_EQ(more.status, 0) << more.output;
+  const Checked bad = promtool_check(text + probe + "pneu_probe_total{bench=\"x\" 1\n");
   EXPECT_NE(bad.status, 0) << "a malformed line: " << bad.output;
-  const Checked unescaped = promtool_check(text + "pneu_stops_total{bench=\"a\"b\"} 1\n");
+  const Checked unescaped = promtool_check(text + probe + "pneu_probe_total{bench=\"a\"b\"} 1\n");
   EXPECT_NE(unescaped.status, 0) << "an unescaped quote: " << unescaped.output;
 }
 

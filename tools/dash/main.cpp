@@ -18,6 +18,8 @@
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/dash/log_player.hpp"
+#include "pneu/dash/metrics.hpp"
+#include "pneu/dash/metrics_feed.hpp"
 #include "pneu/dash/pneu_channels.hpp"
 #include "pneu/dash/server.hpp"
 
@@ -31,7 +33,8 @@ void print_usage(std::ostream& out) {
 
 usage:
   pneu-dash [--listen HOST:PORT] [--config FILE | --lcm-url URL] [--prefix PREFIX] [--www DIR]
-  pneu-dash --log FILE [--paused] [--listen HOST:PORT] [--prefix PREFIX] [--www DIR]
+            [--bench NAME]
+  pneu-dash --log FILE [--paused] [--listen HOST:PORT] [--prefix PREFIX] [--www DIR] [--bench NAME]
   pneu-dash --help | --version
 
 Subscribes to pneud's LCM channels (<prefix>STATE, EVENT, PREDICTION, HEALTH, IDENTIFICATION) and
@@ -40,12 +43,14 @@ serves, on --listen (default 127.0.0.1:8765, loopback only):
   /ws        the Foxglove WebSocket protocol (subprotocol foxglove.websocket.v1): one channel per
              LCM channel, JSON messages with the JSON Schema of their record; Foxglove Studio
              connects to ws://HOST:PORT/ws
-  /metrics   counters in the Prometheus text format
+  /metrics   the bench's metrics in the Prometheus text format, every series labelled
+             bench="NAME" (docs/dashboard.md lists them)
   /playback  with --log: GET the player's state; POST {"play":true|false, "seek_s":S, "rate":R}
 
 --config FILE   pneud's configuration: telemetry.lcm_url and telemetry.channel_prefix from it
 --lcm-url URL   the LCM URL (default udpm://239.255.76.67:7667?ttl=0, pneud's default)
 --prefix P      the channels' prefix (default: the configuration's, else PNEU_)
+--bench NAME    the bench label of the metrics (default: this host's name)
 --www DIR       the page's files (default: the installed share/pneu/dash, else the source tree's)
 --log FILE      play a recorded LCM log (lcm-logger) instead of listening live; it plays from its
                 start at once (--paused: waits for POST /playback {"play":true})
@@ -71,6 +76,13 @@ std::pair<std::string, std::uint16_t> parse_listen(const std::string& text) {
   return {host, static_cast<std::uint16_t>(port)};
 }
 
+// This host's name: the metrics' bench label unless --bench names it.
+std::string host_name() {
+  char name[256] = {};
+  if (gethostname(name, sizeof name - 1) != 0 || name[0] == '\0') return "localhost";
+  return name;
+}
+
 // The page's files: the installed share/pneu/dash beside bin/, else (run from the build tree) the
 // source tree's.
 fs::path default_www() {
@@ -84,7 +96,7 @@ fs::path default_www() {
 }
 
 int run(int argc, char** argv) {
-  const cli::Args args(argc, argv, 1, {"listen", "config", "lcm-url", "prefix", "www", "log"},
+  const cli::Args args(argc, argv, 1, {"listen", "config", "lcm-url", "prefix", "www", "log", "bench"},
                        {"help", "version", "paused"});
   if (args.flag("help")) {
     print_usage(std::cout);
@@ -125,6 +137,10 @@ int run(int argc, char** argv) {
     throw cli::UsageError("--listen " + options.address + ":" + std::to_string(options.port) + ": " + e.what());
   }
   dash::PneuFeed feed(*server, telemetry.channel_prefix);
+  dash::Metrics metrics(args.value("bench").value_or(host_name()));
+  if (metrics.bench().empty()) throw cli::UsageError("--bench: a name, not empty");
+  dash::MetricsFeed metrics_feed(metrics, telemetry.channel_prefix);
+  server->set_metrics([&metrics, &server] { return metrics.text() + server->counters_text(); });
 
   std::unique_ptr<dash::LogPlayer> player;
   std::unique_ptr<lcm::LCM> lcm;
@@ -134,8 +150,9 @@ int run(int argc, char** argv) {
     try {
       player = std::make_unique<dash::LogPlayer>(
           *log,
-          [&feed](const std::string& channel, const void* data, std::size_t size, std::int64_t utime) {
+          [&feed, &metrics_feed](const std::string& channel, const void* data, std::size_t size, std::int64_t utime) {
             feed.forward(channel, data, size, utime);
+            metrics_feed.forward(channel, data, size);
           },
           [&server](std::uint64_t t_ns) { server->publish_time(t_ns); });
     } catch (const std::runtime_error& e) {
@@ -153,6 +170,11 @@ int run(int argc, char** argv) {
                     static_cast<dash::PneuFeed*>(user)->forward(channel, rbuf->data, rbuf->data_size, rbuf->recv_utime);
                   },
                   &feed);
+    lcm_subscribe(lcm->getUnderlyingLCM(), (dash::regex_literal(telemetry.channel_prefix) + ".*").c_str(),
+                  [](const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
+                    static_cast<dash::MetricsFeed*>(user)->forward(channel, rbuf->data, rbuf->data_size);
+                  },
+                  &metrics_feed);
     lcm_thread = std::thread([&] {
       while (!stopping) {
         if (lcm->handleTimeout(100) < 0) {

@@ -3,6 +3,7 @@
 #include <charconv>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <type_traits>
 #include <utility>
@@ -37,12 +38,14 @@ constexpr HealthCounter kHealthCounters[] = {
 // health_t's counters of rejected commands by reason: its fields named so.
 constexpr std::string_view kRejectedPrefix = "rejected_";
 // health_t's distributions of durations, written as quantiles (DurationsSummary's fields).
-struct DurationsGauge {
+struct DurationsSummary {
   const char* metric;
   const char* field;
+  const char* what;
 };
-constexpr DurationsGauge kDurations[] = {{"pneu_wake_latency_seconds", "wake_latency_us"},
-                                         {"pneu_compute_seconds", "compute_us"}};
+constexpr DurationsSummary kDurations[] = {
+    {"pneu_wake_latency_seconds", "wake_latency_us", "the loop's wake-up latency, wake-up minus deadline"},
+    {"pneu_compute_seconds", "compute_us", "one tick's computation time"}};
 constexpr std::pair<const char*, const char*> kQuantileOf[] = {
     {"min", "0"}, {"median", "0.5"}, {"p99", "0.99"}, {"max", "1"}};
 
@@ -78,9 +81,11 @@ std::vector<MetricFamily> make_families() {
     f.push_back({c.metric, "counter", health_doc(c.field) + c.more + since_start, ""});
   f.push_back({"pneu_commands_rejected_total", "counter",
                "commands pneud rejected, by reason (health_t's rejected_* counters)" + since_start, "reason"});
-  for (const DurationsGauge& d : kDurations)
-    f.push_back({d.metric, "gauge",
-                 health_doc(d.field) + ", in seconds, as quantiles (0: min, 1: max) over the last health period",
+  for (const DurationsSummary& d : kDurations)
+    f.push_back({d.metric, "summary",
+                 std::string(d.what) + " (health_t." + d.field +
+                     "), in seconds: quantiles over the last health period (0: min, 0.5: median, 0.99, 1: max; no "
+                     "_sum, no _count: pneud sends the quantiles only)",
                  "quantile"});
   f.push_back({"pneu_mode", "gauge", "1 for pneud's mode (health_t.mode), 0 for the others", "mode"});
   f.push_back({"pneu_fault_latched", "gauge", "1 for the cause of the fault latched now (health_t.fault_cause), 0 for the others",
@@ -88,10 +93,10 @@ std::vector<MetricFamily> make_families() {
   f.push_back({"pneu_pneud_start_time_seconds", "gauge", "when pneud started, seconds since the Unix epoch (health_t.start_utime)", ""});
   f.push_back({"pneu_last_health_timestamp_seconds", "gauge",
                "when the dashboard last heard pneud's health, seconds since the Unix epoch (alert on time() minus it)", ""});
-  const std::string since_dash = " (event_t), since the dashboard started";
+  const std::string since_dash = "; from the dashboard's start (event_t)";
   f.push_back({"pneu_stops_total", "counter", "stops: the carriage came to rest" + since_dash, ""});
   f.push_back({"pneu_restarts_total", "counter",
-               "restarts: the carriage moved again after a stop with the set point unchanged (stick-slip)" + since_dash, ""});
+               "restarts: the carriage moved again after a stop, the set point unchanged (stick-slip)" + since_dash, ""});
   f.push_back({"pneu_starts_total", "counter", "starts after a stop on a set point change (restarts not counted)" + since_dash, ""});
   f.push_back({"pneu_faults_total", "counter", "faults latched, by cause (\"unknown\": a cause this dashboard does not know)" + since_dash,
                "cause"});
@@ -101,15 +106,15 @@ std::vector<MetricFamily> make_families() {
   f.push_back({"pneu_hold_seconds_total", "counter",
                "loop time spent in the in-position hold (an open hold counted up to the latest loop time heard)" + since_dash, ""});
   f.push_back({"pneu_forecasts_total", "counter",
-               "restart forecasts (prediction_t), by method, made at a stop or made again while stuck, since the dashboard started",
+               "restart forecasts (prediction_t), by method, made at a stop or made again while stuck; from the dashboard's start",
                "method, made"});
   f.push_back({"pneu_forecast_outcomes_total", "counter",
                "forecasts made at a stop, judged when the stop ended: hit (forecast a restart, it restarted), missed "
                "(forecast none, it restarted), false_alarm (forecast a restart, the stop outlasted its time without one), "
-               "untested (the stop ended otherwise before the forecast time), since the dashboard started",
+               "untested (the stop ended otherwise before the forecast time); from the dashboard's start",
                "method, outcome"});
   f.push_back({"pneu_forecast_abs_error_seconds", "histogram",
-               "|forecast restart time - actual restart time| of the hits, since the dashboard started", "method"});
+               "|forecast restart time - actual restart time| of the hits; from the dashboard's start", "method"});
   f.push_back({"pneu_forecast_error_seconds", "gauge",
                "forecast restart time - actual restart time of the latest hit (positive: forecast late)", "method"});
   f.push_back({"pneu_forecast_force_error_newtons", "gauge",
@@ -198,6 +203,11 @@ std::string format_sample_value(double v) {
   if (std::isnan(v)) return "NaN";
   if (std::isinf(v)) return v > 0 ? "+Inf" : "-Inf";
   char buf[32];
+  // Whole numbers (counters, most of them) as integers, others in the shortest form that reads back.
+  if (v == std::trunc(v) && std::fabs(v) < 1e15) {
+    std::snprintf(buf, sizeof buf, "%.0f", v);
+    return buf;
+  }
   const auto r = std::to_chars(buf, buf + sizeof buf, v);
   return {buf, r.ptr};
 }
@@ -384,14 +394,14 @@ std::string Metrics::text() const {
       if constexpr (std::is_arithmetic_v<typename std::remove_cvref_t<decltype(f)>::member_type>)
         if (name.starts_with(kRejectedPrefix)) w.sample(static_cast<double>(f.of(*h)), {{"reason", name.substr(kRejectedPrefix.size())}});
     });
-  for (const DurationsGauge& d : kDurations) {
+  for (const DurationsSummary& d : kDurations) {
     w.begin(d.metric);
     if (h)
       records::with_field<HealthMessage>(d.field, [&](const auto& g) {
         if constexpr (std::is_same_v<typename std::remove_cvref_t<decltype(g)>::member_type, controller::DurationsSummary>)
           records::for_each_field<controller::DurationsSummary>([&](const auto& q) {
             for (const auto& [field, quantile] : kQuantileOf)
-              if (std::string_view(q.name) == field) w.sample(q.of(g.of(*h)) * 1e-6, {{"quantile", quantile}});
+              if (std::string_view(q.name) == field) w.sample(q.of(g.of(*h)) / 1e6, {{"quantile", quantile}});
           });
       });
   }
@@ -405,7 +415,7 @@ std::string Metrics::text() const {
       w.sample(h->fault_cause == static_cast<std::int8_t>(c) ? 1 : 0,
                {{"cause", controller::fault_name(static_cast<FaultCause>(c))}});
   w.begin("pneu_pneud_start_time_seconds");
-  if (h) w.sample(static_cast<double>(h->start_utime) * 1e-6);
+  if (h) w.sample(static_cast<double>(h->start_utime) / 1e6);
   w.begin("pneu_last_health_timestamp_seconds");
   if (h) w.sample(health_received_unix_s_);
 

@@ -20,14 +20,11 @@
 
 namespace pneu::dash {
 
-/// The Content-Type of what Metrics::text() writes.
-inline constexpr const char* kMetricsContentType = "text/plain; version=0.0.4; charset=utf-8";
-
 /// One family of metrics /metrics serves: its name, its Prometheus type, its HELP text, and its
 /// labels besides `bench`.
 struct MetricFamily {
   std::string name;
-  const char* type;  ///< counter, gauge or histogram
+  const char* type;  ///< counter, gauge, summary or histogram
   std::string help;
   std::string labels;  ///< "cause", "method, outcome", ... ("" for none)
 };
