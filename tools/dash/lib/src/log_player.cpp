@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cstdio>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -15,13 +16,19 @@ using json = nlohmann::json;
 LogPlayer::LogPlayer(const std::filesystem::path& log, Sink sink, TimeSink time)
     : sink_(std::move(sink)), time_(std::move(time)) {
   {
+    // Once through: the span, and where every 256th message starts (seek() starts there).
     lcm::LogFile scan(log.string(), "r");
     if (!scan.good()) throw std::runtime_error("cannot read the LCM log " + log.string());
     bool any = false;
-    while (const lcm::LogEvent* e = scan.readNextEvent()) {
+    std::size_t n = 0;
+    for (;;) {
+      const off_t at = ftello(scan.getFilePtr());
+      const lcm::LogEvent* e = scan.readNextEvent();
+      if (e == nullptr) break;
       if (!any) start_utime_ = e->timestamp;
       any = true;
       end_utime_ = std::max(end_utime_, e->timestamp);
+      if (n++ % 256 == 0) index_.emplace_back(e->timestamp, static_cast<std::int64_t>(at));
     }
     if (!any) throw std::runtime_error("the LCM log " + log.string() + " holds no message");
   }
@@ -66,7 +73,7 @@ void LogPlayer::play(bool on) {
     anchor_wall_ = std::chrono::steady_clock::now();
     if (on && ended_) {  // from the start again
       anchor_log_utime_ = start_utime_;
-      log_->seekToTimestamp(start_utime_);
+      fseeko(log_->getFilePtr(), static_cast<off_t>(index_.front().second), SEEK_SET);
       read_next_locked();
       ended_ = false;
     }
@@ -82,13 +89,13 @@ void LogPlayer::seek(double s) {
     const double span_s = static_cast<double>(end_utime_ - start_utime_) * 1e-6;
     const double at_s = std::clamp(std::isfinite(s) ? s : 0.0, 0.0, span_s);
     const std::int64_t target = start_utime_ + static_cast<std::int64_t>(std::llround(at_s * 1e6));
-    // lcm_eventlog_seek_to_timestamp lands near the time: read on to the first message at or after it.
-    log_->seekToTimestamp(target);
+    // From the last indexed message before the time (lcm_eventlog_seek_to_timestamp lands near
+    // it, past a message of that very time), on to the first at or after it.
+    std::int64_t offset = index_.front().second;
+    for (const auto& [utime, at] : index_)
+      if (utime < target) offset = at;
+    fseeko(log_->getFilePtr(), static_cast<off_t>(offset), SEEK_SET);
     read_next_locked();
-    if (have_next_ && next_utime_ > target) {
-      log_->seekToTimestamp(start_utime_);
-      read_next_locked();
-    }
     while (have_next_ && next_utime_ < target) read_next_locked();
     anchor_log_utime_ = target;
     anchor_wall_ = std::chrono::steady_clock::now();

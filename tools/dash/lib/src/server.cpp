@@ -600,7 +600,13 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
 void Server::Impl::accept() {
   acceptor.async_accept([this](beast::error_code ec, tcp::socket socket) {
     if (ec == asio::error::operation_aborted || !acceptor.is_open()) return;
-    if (!ec) std::make_shared<HttpSession>(std::move(socket), *this, live)->start();
+    if (!ec) {
+      beast::error_code ignored;
+      if (options.socket_send_buffer_bytes > 0)
+        socket.set_option(asio::socket_base::send_buffer_size(options.socket_send_buffer_bytes), ignored);
+      socket.set_option(tcp::no_delay(true), ignored);
+      std::make_shared<HttpSession>(std::move(socket), *this, live)->start();
+    }
     accept();
   });
 }

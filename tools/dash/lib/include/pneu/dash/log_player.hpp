@@ -8,6 +8,7 @@
 // position_s and seek_s count from the log's first message.
 #pragma once
 
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <filesystem>
@@ -16,6 +17,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "pneu/dash/server.hpp"
@@ -75,6 +77,7 @@ class LogPlayer {
   bool ended_ = false;
   double rate_ = 1.0;
   std::int64_t start_utime_ = 0, end_utime_ = 0;
+  std::vector<std::pair<std::int64_t, std::int64_t>> index_;  // (time, file offset) of every 256th message
   std::int64_t anchor_log_utime_ = 0;                 // the cursor at anchor_wall_
   std::chrono::steady_clock::time_point anchor_wall_;
   // The next message, read ahead.

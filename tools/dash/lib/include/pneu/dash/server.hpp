@@ -34,6 +34,9 @@ struct ServerOptions {
   std::size_t max_clients = 64;                  ///< WebSocket clients at once
   std::size_t max_connections = 256;             ///< TCP connections at once (HTTP and WebSocket)
   double header_timeout_s = 10.0;                ///< an HTTP request's header must arrive within it (slow loris)
+  /// The kernel's send buffer of each connection (SO_SNDBUF; 0: the system's): with
+  /// max_queue_bytes, what a client that stops reading can hold.
+  int socket_send_buffer_bytes = 256 << 10;
 };
 
 using ChannelId = std::uint32_t;
