@@ -323,6 +323,13 @@ TEST(DashMetrics, LabelValuesAndValuesAreWrittenAsTheFormatWantsThem) {
   EXPECT_LINE(metrics("rig \"A\"").text(), "pneu_stops_total{bench=\"rig \\\"A\\\"\"} 0");
 }
 
+TEST(DashMetrics, AnotherPartsMetricsGetTheBenchLabelFirstOnEverySample) {
+  EXPECT_EQ(pneu::dash::with_label("# HELP a_total x\n# TYPE a_total counter\na_total{channel=\"S\"} 3\nb 1\nc{} 2\n",
+                                   "bench", "rig \"A\""),
+            "# HELP a_total x\n# TYPE a_total counter\na_total{bench=\"rig \\\"A\\\"\",channel=\"S\"} 3\n"
+            "b{bench=\"rig \\\"A\\\"\"} 1\nc{bench=\"rig \\\"A\\\"\"} 2\n");
+}
+
 // promtool (Debian's prometheus) checks the text: parses it, and lints the names and help.
 std::string promtool() {
   for (const char* p : {"/usr/bin/promtool", "/usr/local/bin/promtool"})

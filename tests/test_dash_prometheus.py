@@ -58,8 +58,9 @@ def stop(proc, name):
 def main():
     bin_dir = sys.argv[1]
     prometheus = shutil.which("prometheus")
-    if prometheus is None:
-        print("SKIPPED: prometheus (Debian's package, in scripts/deps) is not installed", file=sys.stderr)
+    if prometheus is None or shutil.which("promtool") is None:
+        print("SKIPPED: prometheus and promtool (Debian's prometheus, in scripts/deps) are not installed",
+              file=sys.stderr)
         return 77
     tmp = tempfile.mkdtemp(prefix="dash_prometheus_")
     dash_port, prom_port = free_port(), free_port()
@@ -146,6 +147,20 @@ def main():
         stops_answer = query(f'pneu_stops_total{{bench="{BENCH}"}}')
         if not stops_answer or float(stops_answer[0]["value"][1]) != stops:
             print(f"pneu_stops_total: {json.dumps(stops_answer)}, pneud's events: {stops}", file=sys.stderr)
+            return 1
+        # The whole of /metrics (the server's own counters too): promtool parses and lints it clean,
+        # and every series is the bench's.
+        text = get(metrics_url)[1]
+        promtool = subprocess.run([shutil.which("promtool"), "check", "metrics"], input=text,
+                                  capture_output=True, text=True)
+        if promtool.returncode != 0:
+            print(f"promtool check metrics on pneu-dash's /metrics: {promtool.stdout}{promtool.stderr}\n{text}",
+                  file=sys.stderr)
+            return 1
+        unlabelled = [line for line in text.splitlines()
+                      if line and not line.startswith("#") and f'{{bench="{BENCH}"' not in line]
+        if unlabelled:
+            print("series without the bench label first:\n" + "\n".join(unlabelled), file=sys.stderr)
             return 1
         failed = False
         return 0

@@ -140,7 +140,8 @@ int run(int argc, char** argv) {
   dash::Metrics metrics(args.value("bench").value_or(host_name()));
   if (metrics.bench().empty()) throw cli::UsageError("--bench: a name, not empty");
   dash::MetricsFeed metrics_feed(metrics, telemetry.channel_prefix);
-  server->set_metrics([&metrics, &server] { return metrics.text() + server->counters_text(); });
+  server->set_metrics(
+      [&metrics, &server] { return metrics.text() + dash::with_label(server->counters_text(), "bench", metrics.bench()); });
 
   std::unique_ptr<dash::LogPlayer> player;
   std::unique_ptr<lcm::LCM> lcm;

@@ -97,7 +97,7 @@ std::vector<MetricFamily> make_families() {
   f.push_back({"pneu_stops_total", "counter", "stops: the carriage came to rest" + since_dash, ""});
   f.push_back({"pneu_restarts_total", "counter",
                "restarts: the carriage moved again after a stop, the set point unchanged (stick-slip)" + since_dash, ""});
-  f.push_back({"pneu_starts_total", "counter", "starts after a stop on a set point change (restarts not counted)" + since_dash, ""});
+  f.push_back({"pneu_starts_total", "counter", "starts: the carriage moved on a set point change (restarts not counted)" + since_dash, ""});
   f.push_back({"pneu_faults_total", "counter", "faults latched, by cause (\"unknown\": a cause this dashboard does not know)" + since_dash,
                "cause"});
   f.push_back({"pneu_fault_resets_total", "counter", "fault resets: cleared, or refused while the cause was present" + since_dash,
@@ -221,6 +221,27 @@ std::string escape_label_value(std::string_view v) {
     else o += c;
   }
   return o;
+}
+
+std::string with_label(std::string_view text, std::string_view name, std::string_view value) {
+  const std::string label = std::string(name) + "=\"" + escape_label_value(value) + "\"";
+  std::string out;
+  while (!text.empty()) {
+    const auto end = text.find('\n');
+    std::string_view line = text.substr(0, end);
+    text = end == std::string_view::npos ? std::string_view() : text.substr(end + 1);
+    const auto name_end = line.find_first_of("{ ");
+    if (line.empty() || line.front() == '#' || name_end == std::string_view::npos) {
+      out += line;
+    } else if (line[name_end] == '{') {
+      out += std::string(line.substr(0, name_end + 1)) + label + (line[name_end + 1] == '}' ? "" : ",");
+      out += line.substr(name_end + 1);
+    } else {
+      out += std::string(line.substr(0, name_end)) + "{" + label + "}" + std::string(line.substr(name_end));
+    }
+    if (end != std::string_view::npos) out += '\n';
+  }
+  return out;
 }
 
 Metrics::Metrics(std::string bench, WallClock now) : bench_(std::move(bench)), now_(std::move(now)) {

@@ -41,6 +41,10 @@ struct MetricFamily {
 /// A label value escaped as the exposition format wants it (\\, \", \n).
 [[nodiscard]] std::string escape_label_value(std::string_view v);
 
+/// `text` (the exposition format) with the label `name`="`value`" first on every sample: another
+/// part's metrics (the server's own counters) labelled with the bench as these are.
+[[nodiscard]] std::string with_label(std::string_view text, std::string_view name, std::string_view value);
+
 /// The upper bounds of pneu_forecast_abs_error_seconds' buckets [s] (then +Inf).
 inline constexpr std::array<double, 10> kForecastErrorBuckets_s = {0.005, 0.01, 0.02, 0.05, 0.1,
                                                                    0.2,   0.5,  1.0,  2.0,  5.0};
