@@ -240,6 +240,19 @@ TEST(DashCommandGate, EachLoginIsANewSession) {
   EXPECT_NE(first.session, second.session);
 }
 
+TEST(DashCommandGate, ItsCountersAreWrittenInThePrometheusTextFormat) {
+  Bench b;
+  EXPECT_FALSE(b.gate.login(1, login_json("wrong")).ok);
+  EXPECT_FALSE(b.gate.login(1, login_json("wrong again")).ok);
+  ASSERT_TRUE(b.gate.login(1, login_json(kToken)).ok);
+  ASSERT_TRUE(b.gate.command(1, R"({"kind":"arm"})").ok);
+  const std::string text = counters_text(b.gate.counters());
+  EXPECT_THAT(text, HasSubstr("# TYPE pneu_dash_command_tokens_refused_total counter\n"
+                              "pneu_dash_command_tokens_refused_total 2\n"));
+  EXPECT_THAT(text, HasSubstr("\npneu_dash_command_logins_total 1\n"));
+  EXPECT_THAT(text, HasSubstr("\npneu_dash_commands_sent_total 1\n"));
+}
+
 TEST(DashCommandGate, AFailedTransportIsCountedAndSaid) {
   Bench b;
   ASSERT_TRUE(b.gate.login(1, login_json(kToken)).ok);

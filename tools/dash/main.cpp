@@ -19,6 +19,8 @@
 #include "pneu/config/config.hpp"
 #include "pneu/dash/commands.hpp"
 #include "pneu/dash/log_player.hpp"
+#include "pneu/dash/metrics.hpp"
+#include "pneu/dash/metrics_feed.hpp"
 #include "pneu/dash/pneu_channels.hpp"
 #include "pneu/dash/server.hpp"
 #include "page.hpp"
@@ -33,8 +35,9 @@ void print_usage(std::ostream& out) {
 
 usage:
   pneu-dash [--listen HOST:PORT] [--config FILE | --lcm-url URL] [--prefix PREFIX] [--www DIR]
-            [--chart-js DIR] [--commands-token-file FILE]
+            [--chart-js DIR] [--bench NAME] [--commands-token-file FILE]
   pneu-dash --log FILE [--paused] [--listen HOST:PORT] [--prefix PREFIX] [--www DIR] [--chart-js DIR]
+            [--bench NAME]
   pneu-dash --help | --version
 
 Subscribes to pneud's LCM channels (<prefix>STATE, EVENT, PREDICTION, HEALTH, IDENTIFICATION),
@@ -45,12 +48,14 @@ forecast's path through the plane), and serves, on --listen (default 127.0.0.1:8
   /ws        the Foxglove WebSocket protocol (subprotocol foxglove.websocket.v1): one channel per
              LCM channel, JSON messages with the JSON Schema of their record; Foxglove Studio
              connects to ws://HOST:PORT/ws
-  /metrics   counters in the Prometheus text format
+  /metrics   the bench's metrics in the Prometheus text format, every series labelled
+             bench="NAME" (docs/dashboard.md lists them)
   /playback  with --log: GET the player's state; POST {"play":true|false, "seek_s":S, "rate":R}
 
 --config FILE   pneud's configuration: telemetry.lcm_url and telemetry.channel_prefix from it
 --lcm-url URL   the LCM URL (default udpm://239.255.76.67:7667?ttl=0, pneud's default)
 --prefix P      the channels' prefix (default: the configuration's, else PNEU_)
+--bench NAME    the bench label of the metrics (default: this host's name)
 --www DIR       the page's files (default: the installed share/pneu/dash, else the source tree's)
 --chart-js DIR  where chart.min.js is, served at /js/chart.js/ (default /usr/share/javascript/chart.js,
                 Debian's libjs-chart.js)
@@ -89,6 +94,13 @@ std::pair<std::string, std::uint16_t> parse_listen(const std::string& text) {
   return {host, static_cast<std::uint16_t>(port)};
 }
 
+// This host's name: the metrics' bench label unless --bench names it.
+std::string host_name() {
+  char name[256] = {};
+  if (gethostname(name, sizeof name - 1) != 0 || name[0] == '\0') return "localhost";
+  return name;
+}
+
 // The page's files: the installed share/pneu/dash beside bin/, else (run from the build tree) the
 // source tree's.
 fs::path default_www() {
@@ -103,7 +115,8 @@ fs::path default_www() {
 
 int run(int argc, char** argv) {
   const cli::Args args(argc, argv, 1,
-                       {"listen", "config", "lcm-url", "prefix", "www", "log", "chart-js", "commands-token-file"},
+                       {"listen", "config", "lcm-url", "prefix", "www", "log", "chart-js", "bench",
+                        "commands-token-file"},
                        {"help", "version", "paused"});
   if (args.flag("help")) {
     print_usage(std::cout);
@@ -167,15 +180,24 @@ int run(int argc, char** argv) {
   }
   dash::PlaneFeed plane(*server, telemetry.channel_prefix, cfg,
                         config_file ? fs::path(*config_file).parent_path() : fs::current_path());
-  // Every LCM message to both: the channels as pneud publishes them, and the plane's forecasts.
-  auto forward = [&feed, &plane](const std::string& channel, const void* data, std::size_t size, std::int64_t utime) {
+  dash::Metrics metrics(args.value("bench").value_or(host_name()));
+  if (metrics.bench().empty()) throw cli::UsageError("--bench: a name, not empty");
+  dash::MetricsFeed metrics_feed(metrics, telemetry.channel_prefix);
+  std::unique_ptr<dash::CommandGate> gate;  // with --commands-token-file
+  server->set_metrics([&metrics, &server, &gate] {
+    return metrics.text() + dash::with_label(server->counters_text() + (gate ? dash::counters_text(gate->counters()) : ""),
+                                             "bench", metrics.bench());
+  });
+  // Every LCM message to each: the channels as pneud publishes them, the plane's forecasts, the metrics.
+  auto forward = [&feed, &plane, &metrics_feed](const std::string& channel, const void* data, std::size_t size,
+                                                std::int64_t utime) {
     feed.forward(channel, data, size, utime);
     plane.forward(channel, data, size, utime);
+    metrics_feed.forward(channel, data, size);
   };
 
   std::unique_ptr<dash::LogPlayer> player;
   std::unique_ptr<lcm::LCM> lcm;
-  std::unique_ptr<dash::CommandGate> gate;
   std::atomic<bool> stopping{false};
   std::thread lcm_thread;
   if (log) {

@@ -138,6 +138,29 @@ bool same_token(std::string_view expected, std::string_view given) noexcept {
   return result == 0;
 }
 
+std::string counters_text(const GateCounters& c) {
+  struct Line {
+    const char* name;
+    const char* help;
+    std::uint64_t value;
+  };
+  const Line lines[] = {
+      {"pneu_dash_command_logins_total", "Browsers let in to command: the right token.", c.logins},
+      {"pneu_dash_command_tokens_refused_total", "Wrong tokens refused (nothing sent).", c.refused_tokens},
+      {"pneu_dash_command_logins_throttled_total", "Logins refused unread after too many wrong tokens.", c.throttled},
+      {"pneu_dash_commands_sent_total", "Commands sent to pneud (its verdict is in its events).", c.commands_sent},
+      {"pneu_dash_commands_refused_total", "Commands not sent: not logged in, malformed, unknown kind.",
+       c.commands_refused},
+      {"pneu_dash_command_send_failures_total", "Commands the LCM transport failed to send.", c.send_failures},
+  };
+  std::string s;
+  for (const Line& l : lines) {
+    s += std::string("# HELP ") + l.name + " " + l.help + "\n# TYPE " + l.name + " counter\n";
+    s += std::string(l.name) + " " + std::to_string(l.value) + "\n";
+  }
+  return s;
+}
+
 std::int64_t random_session() {
   for (;;) {
     std::uint64_t v = 0;

@@ -80,6 +80,10 @@ struct GateCounters {
   std::uint64_t send_failures = 0;     ///< the transport failed
 };
 
+/// The counters in the Prometheus text format (pneu_dash_command_*; no labels: the caller adds the
+/// bench's).
+[[nodiscard]] std::string counters_text(const GateCounters& c);
+
 /// The answer to a client's message: a status for that client.
 struct GateAnswer {
   bool ok = false;
