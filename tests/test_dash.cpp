@@ -280,7 +280,7 @@ class DashServer : public ::testing::Test {
     for (;;) {
       const auto f = c.read();
       ASSERT_TRUE(f);
-      if (f->text && f->data.find("unknown op \"barrier\"") != std::string::npos) return;
+      if (f->text && json::parse(f->data).value("message", "").find("unknown op \"barrier\"") != std::string::npos) return;
     }
   }
   void subscribe(Client& c, std::uint32_t sub, pneu::dash::ChannelId channel) {
@@ -491,6 +491,17 @@ TEST_F(DashServer, ClosesAClientThatSendsAMalformedFrameWithAProtocolErrorAndSer
   EXPECT_EQ(json::parse(m->payload)["seq"], 10);
 }
 
+TEST_F(DashServer, ClosesAClientThatSendsTextThatIsNotUtf8WithCode1007) {
+  start();
+  Client bad(server_->port());
+  bad.handshake_messages();
+  bad.send(std::string("{\"op\":\"\xff\xfe\"}"));
+  beast::error_code ec;
+  EXPECT_FALSE(bad.read(10s, &ec));
+  EXPECT_EQ(ec, websocket::error::closed) << ec.message();
+  EXPECT_EQ(bad.ws().reason().code, websocket::close_code::bad_payload);
+}
+
 TEST_F(DashServer, RefusesAFloodOfSubscriptionsBeyondItsLimitInOneStatusAndKeepsTheOnesWithin) {
   options_.max_subscriptions = 16;
   start();
@@ -571,6 +582,17 @@ TEST_F(DashServer, ServesStaticFilesWithTheirContentTypesAndNothingOutsideItsDir
   EXPECT_EQ(get(p, "/", "POST").rfind("HTTP/1.1 405", 0), 0u);
   EXPECT_EQ(http_raw(p, "NOT A REQUEST\r\n\r\n").rfind("HTTP/1.1 400", 0), 0u);
   EXPECT_EQ(http_raw(p, "GET / HTTP/1.1\r\nX: " + std::string(10000, 'a') + "\r\n\r\n").rfind("HTTP/1.1 431", 0), 0u);
+  EXPECT_EQ(http_raw(p, "POST /playback HTTP/1.1\r\nHost: x\r\nContent-Length: 70000\r\n\r\n")
+                .rfind("HTTP/1.1 413", 0),
+            0u);
+}
+
+TEST_F(DashServer, ClosesAnIdleKeptAliveConnectionAfterTheHeaderTimeoutWithoutA408) {
+  options_.header_timeout_s = 0.5;
+  start();
+  const std::string r = http_raw(server_->port(), "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");  // kept alive
+  EXPECT_EQ(r.rfind("HTTP/1.1 200", 0), 0u) << r;
+  EXPECT_EQ(r.find("408"), std::string::npos) << r;
 }
 
 TEST_F(DashServer, ServesItsCountersAtMetricsUntilAMetricsHookIsSet) {
@@ -590,7 +612,10 @@ TEST(DashServerHooks, RoutesTheMetricsHookAndClientsMessagesGoWhereTheyAreGiven)
   Server server(o);
   server.set_metrics([] { return std::string("pneu_bench_up 1\n"); });
   server.add_route("POST", "/echo", [](const pneu::dash::HttpRequest& r) {
-    return pneu::dash::HttpResponse{201, "application/json", r.body};
+    return pneu::dash::HttpResponse{201, "application/json", r.body + r.header("X-Bench") + " " + r.remote};
+  });
+  server.set_websocket_check([](const pneu::dash::HttpRequest& r) -> std::string {
+    return r.header("sec-websocket-protocol") == "foxglove.websocket.v1, refuse-me" ? "not you" : "";
   });
   std::vector<std::string> taken;
   server.set_client_publish([&](const pneu::dash::ClientMessage& m) -> std::string {
@@ -601,8 +626,16 @@ TEST(DashServerHooks, RoutesTheMetricsHookAndClientsMessagesGoWhereTheyAreGiven)
   });
   std::thread t([&] { server.run(); });
   EXPECT_NE(get(server.port(), "/metrics").find("\r\n\r\npneu_bench_up 1\n"), std::string::npos);
-  const std::string r = http_raw(server.port(), "POST /echo HTTP/1.1\r\nHost: x\r\nConnection: close\r\nContent-Length: 4\r\n\r\n{\"a\"");
+  const std::string r = http_raw(server.port(),
+                                 "POST /echo HTTP/1.1\r\nHost: x\r\nx-bench: b7\r\nConnection: close\r\nContent-Length: 4\r\n\r\n{\"a\"");
   EXPECT_EQ(r.rfind("HTTP/1.1 201", 0), 0u) << r;
+  EXPECT_NE(r.find("{\"a\"b7 127.0.0.1"), std::string::npos) << r;
+  const std::string refused =
+      http_raw(server.port(), "GET /ws HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: Upgrade\r\nUpgrade: websocket\r\n"
+                              "Sec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                              "Sec-WebSocket-Protocol: foxglove.websocket.v1, refuse-me\r\n\r\n");
+  EXPECT_EQ(refused.rfind("HTTP/1.1 403", 0), 0u) << refused;
+  EXPECT_NE(refused.find("not you"), std::string::npos) << refused;
   EXPECT_EQ(get(server.port(), "/echo").rfind("HTTP/1.1 405", 0), 0u);
   {
     Client c(server.port());

@@ -38,6 +38,7 @@ usage:
             [--chart-js DIR] [--bench NAME] [--commands-token-file FILE]
   pneu-dash --log FILE [--paused] [--listen HOST:PORT] [--prefix PREFIX] [--www DIR] [--chart-js DIR]
             [--bench NAME]
+  pneu-dash ... --check-config
   pneu-dash --help | --version
 
 Subscribes to pneud's LCM channels (<prefix>STATE, EVENT, PREDICTION, HEALTH, IDENTIFICATION),
@@ -70,6 +71,7 @@ forecast's path through the plane), and serves, on --listen (default 127.0.0.1:8
                 and --listen is a loopback address (pneu-dash has no TLS: reach it from elsewhere
                 through an SSH tunnel). Each command names this dashboard ("pneu-dash HOST:PORT")
                 and the browser's session, and pneud's events say so.
+--check-config  read the options, the configuration and the log, say what would be served, exit
 --log FILE      play a recorded LCM log (lcm-logger) instead of listening live; it plays from its
                 start at once (--paused: waits for POST /playback {"play":true})
 
@@ -117,7 +119,7 @@ int run(int argc, char** argv) {
   const cli::Args args(argc, argv, 1,
                        {"listen", "config", "lcm-url", "prefix", "www", "log", "chart-js", "bench",
                         "commands-token-file"},
-                       {"help", "version", "paused"});
+                       {"help", "version", "paused", "check-config"});
   if (args.flag("help")) {
     print_usage(std::cout);
     return cli::kExitOk;
@@ -157,6 +159,20 @@ int run(int argc, char** argv) {
     } catch (const dash::CommandsRefused& e) {
       throw cli::UsageError(e.what());
     }
+  }
+
+  if (args.flag("check-config")) {
+    if (log) {
+      try {
+        const dash::LogPlayer readable(*log, nullptr, nullptr);
+      } catch (const std::runtime_error& e) {
+        throw cli::UsageError(std::string("--log: ") + e.what());
+      }
+    }
+    std::cout << "pneu-dash: would serve http://" << options.address << ":" << options.port << "/ from "
+              << options.www.string() << ", " << (log ? "playing " + *log : "live from " + telemetry.lcm_url)
+              << ", channels " << telemetry.channel_prefix << "*\n";
+    return cli::kExitOk;
   }
 
   // SIGINT and SIGTERM are waited for by this thread, blocked in every other.

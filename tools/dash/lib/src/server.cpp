@@ -9,6 +9,8 @@
 #include <boost/beast/websocket.hpp>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <deque>
 #include <fstream>
@@ -108,7 +110,7 @@ struct Channel {
   ChannelSpec spec;
   std::shared_ptr<const std::string> last;  // latched: the last message
   std::uint64_t last_time_ns = 0;
-  std::atomic<std::uint64_t> published{0}, sent{0}, dropped{0};
+  mutable std::atomic<std::uint64_t> published{0}, sent{0}, dropped{0};  // counters, read by counters()
 };
 
 // What outlives the Impl: counted by the sessions' destructors.
@@ -132,6 +134,7 @@ struct Server::Impl {
   std::map<std::pair<std::string, std::string>, RouteHandler> routes;
   std::function<std::string()> metrics;
   ClientPublishHandler client_publish;
+  RouteHandlerCheck websocket_check;
   std::uint64_t next_client = 1;
   std::string session_id;
   std::atomic<bool> stopped{false};
@@ -201,9 +204,9 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
       put_le(*frame, time_ns, 8);
       *frame += payload;
       if (enqueue_data(std::move(frame))) {
-        ++const_cast<Channel&>(c).sent;
+        ++c.sent;
       } else {
-        ++const_cast<Channel&>(c).dropped;
+        ++c.dropped;
         ++dropped_by_topic_[c.spec.topic];
       }
     }
@@ -515,6 +518,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   void on_read(beast::error_code ec) {
     timer_.cancel();
     if (timed_out_) {
+      if (!parser_->got_some()) return shut();  // an idle kept-alive connection: closed, nothing refused
       ++live_->refused;
       return reply(408, "the request did not arrive within " + std::to_string(server_.options.header_timeout_s) + " s",
                    false, 11);
@@ -531,6 +535,13 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     }
     auto req = parser_->release();
     if (websocket::is_upgrade(req)) {
+      if (server_.websocket_check) {
+        const HttpRequest r = request_of(req);
+        if (std::string why = server_.websocket_check(r); !why.empty()) {
+          ++live_->refused;
+          return reply(403, why, false, req.version());
+        }
+      }
       const std::string target(req.target());
       if (target.substr(0, target.find('?')) != "/ws") {
         ++live_->refused;
@@ -552,16 +563,29 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       std::make_shared<WsSession>(std::move(stream_), server_, live_)->start(std::move(req));
       return;
     }
+    HttpRequest r = request_of(req);
+    HttpResponse res = server_.respond(r);
+    if (res.status >= 400) ++live_->refused;
+    send(std::move(res), req.keep_alive(), req.version());
+  }
+
+  HttpRequest request_of(http::request<http::string_body>& req) {
     HttpRequest r;
     r.method = std::string(req.method_string());
     const std::string target(req.target());
     const auto q = target.find('?');
     r.path = target.substr(0, q);
     r.query = q == std::string::npos ? "" : target.substr(q + 1);
-    r.body = std::move(req.body());
-    HttpResponse res = server_.respond(r);
-    if (res.status >= 400) ++live_->refused;
-    send(std::move(res), req.keep_alive(), req.version());
+    for (const auto& field : req) {
+      std::string name(field.name_string());
+      for (char& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      r.headers.emplace_back(std::move(name), std::string(field.value()));
+    }
+    beast::error_code ec;
+    const auto peer = stream_.socket().remote_endpoint(ec);
+    if (!ec) r.remote = peer.address().to_string();
+    r.body = req.body();
+    return r;
   }
 
   void reply(unsigned status, std::string text, bool keep_alive, unsigned version) {
@@ -739,6 +763,18 @@ void Server::send_status(std::uint64_t client, int level, std::string message, s
       if (s.id() == client) s.send_status(level, message, id);
     });
   });
+}
+
+void Server::set_websocket_check(RouteHandlerCheck check) { impl_->websocket_check = std::move(check); }
+
+std::string HttpRequest::header(std::string_view name) const {
+  for (const auto& [key, value] : headers)
+    if (key.size() == name.size() &&
+        std::equal(key.begin(), key.end(), name.begin(), [](char a, char b) {
+          return a == std::tolower(static_cast<unsigned char>(b));
+        }))
+      return value;
+  return {};
 }
 
 void Server::run() {

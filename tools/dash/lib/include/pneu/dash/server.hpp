@@ -15,6 +15,8 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <string_view>
+#include <utility>
 #include <vector>
 
 namespace pneu::dash {
@@ -59,7 +61,11 @@ struct HttpRequest {
   std::string method;  ///< GET, POST, ...
   std::string path;    ///< the target without its query
   std::string query;   ///< after '?', "" when none
+  std::vector<std::pair<std::string, std::string>> headers;  ///< names in lower case, in order
+  std::string remote;  ///< the peer's address
   std::string body;
+  /// The first header of that name (any case), "" when none.
+  [[nodiscard]] std::string header(std::string_view name) const;
 };
 
 struct HttpResponse {
@@ -70,6 +76,8 @@ struct HttpResponse {
 
 /// Answers one request on a route (add_route); runs on the server's thread.
 using RouteHandler = std::function<HttpResponse(const HttpRequest&)>;
+/// Judges a request: "" lets it through, else why not. Runs on the server's thread.
+using RouteHandlerCheck = std::function<std::string(const HttpRequest&)>;
 
 /// A message a client published on a channel it advertised (capability clientPublish).
 struct ClientMessage {
@@ -116,7 +124,8 @@ class Server {
   /// Sends a time message (capability "time": the time of a log being played) to every client.
   /// Thread-safe.
   void publish_time(std::uint64_t time_ns);
-  /// Adds a capability to serverInfo (before run()): "time" when a log is played, ...
+  // The hooks below are set before run().
+  /// Adds a capability to serverInfo: "time" when a log is played, ...
   void add_capability(std::string capability);
   /// Serves `method` `path` (exactly) with `handler`, before the static files.
   void add_route(std::string method, std::string path, RouteHandler handler);
@@ -128,6 +137,9 @@ class Server {
   /// none) to the client `client` (ClientMessage::client), if it is still connected: the answer
   /// to what it published. Thread-safe.
   void send_status(std::uint64_t client, int level, std::string message, std::string id = {});
+  /// Judges each WebSocket upgrade (its headers, its peer) before it is accepted: one refused gets
+  /// 403 and the reason.
+  void set_websocket_check(RouteHandlerCheck check);
 
   /// Serves until stop().
   void run();
