@@ -12,10 +12,13 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 #include "pneu/dash/commands.hpp"
 #include "support/child_process.hpp"
+#include "support/paths.hpp"
 
 namespace {
 
@@ -84,6 +87,32 @@ TEST_F(DashCommands, TheTokenFileIsRefusedWhenItIsALinkShortOrNotOneLine) {
   EXPECT_THAT(refusal(write("lines", std::string(kToken) + "\nmore\n", 0640), group), HasSubstr("one line"));
   EXPECT_THAT(refusal(dir_.path() / "missing", group), HasSubstr("No such file"));
   EXPECT_THAT(refusal(dir_.path(), group), HasSubstr("not a regular file"));
+}
+
+// pneu-dash itself: it refuses to start with commands that could not be safe, saying why, before
+// it listens (exit 2), and the check-config run says commands are judged as they would be.
+TEST_F(DashCommands, PneuDashRefusesToStartWithATokenFileOthersCanReadOrOnANonLoopbackAddress) {
+  const auto run = [&](const std::vector<std::string>& args) {
+    std::vector<std::string> argv = {pneu::test::bin("pneu-dash"), "--lcm-url", "udpm://239.255.76.67:7667?ttl=0"};
+    argv.insert(argv.end(), args.begin(), args.end());
+    pneu::test::Child c = pneu::test::Child::spawn(argv, dir_.path() / "out", dir_.path() / "err");
+    const int code = c.wait();
+    return std::make_pair(code, pneu::test::slurp(dir_.path() / "err"));
+  };
+  const fs::path open_file = write("open.token", kToken, 0644);
+  auto [code, err] = run({"--listen", "127.0.0.1:0", "--commands-token-file", open_file.string(), "--check-config"});
+  EXPECT_EQ(code, 2);
+  EXPECT_THAT(err, HasSubstr("mode 0644 grants more than 0640"));
+  const fs::path good = write("good.token", kToken, 0600);
+  if (const group* g = ::getgrnam("pneu"); g != nullptr) {  // this host has the group: the file must be its
+    ASSERT_EQ(::chown(good.c_str(), static_cast<uid_t>(-1), g->gr_gid), 0) << "chgrp pneu: run as root";
+  }
+  std::tie(code, err) = run({"--listen", "0.0.0.0:0", "--commands-token-file", good.string(), "--check-config"});
+  EXPECT_EQ(code, 2);
+  EXPECT_THAT(err, HasSubstr("loopback --listen address only, not on '0.0.0.0'"));
+  EXPECT_THAT(err, HasSubstr("no TLS"));
+  std::tie(code, err) = run({"--listen", "127.0.0.1:0", "--commands-token-file", good.string(), "--check-config"});
+  EXPECT_EQ(code, 0) << err;
 }
 
 TEST(DashCommandsListen, CommandsAreTakenOnLoopbackOnlySayingWhy) {

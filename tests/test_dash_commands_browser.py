@@ -13,8 +13,10 @@ file; headless Chromium driven by Selenium. What must hold:
   2. the right token and a set point of 170 mm typed in the page: the page shows pneud's verdict
      ("accepted: set point 170.000 mm"), PNEU_STATE's set point becomes 170 mm and the carriage
      moves there (position read from PNEU_STATE, decoded here from the raw datagrams);
-  3. pneud's events file attributes the command: origin "pneu-dash 127.0.0.1:PORT", the page's
-     session.
+  3. arm, clicked while armed: the page shows pneud's refusal in its words ("pneud rejected
+     (mode): arm refused: already armed");
+  4. pneud's events file holds exactly those two commands (the wrong token sent none), each
+     attributed: origin "pneu-dash 127.0.0.1:PORT", the page's session.
 
 Exit 77 (skipped, saying why) without Chromium, chromedriver or Selenium.
 """
@@ -250,22 +252,34 @@ def main():
         session = browser.execute_script("return window.pneuDash.state.commandSession")
         if not session:
             fail("the page has no command session")
+
+        # pneud's refusals are shown in its words too: arming an armed loop.
+        browser.execute_script("document.getElementById('cmd-verdict').dataset.verdict = '';")
+        browser.find_element(By.ID, "cmd-arm").click()
+        kind, text = wait_for("a verdict on arm shown in the page", lambda: verdict()[0] and verdict(), 15, dash_err)
+        print(f"arm while armed: page shows [{kind}] {text}")
+        if kind != "rejected" or "pneud rejected (mode): arm refused: already armed" not in text:
+            fail(f"the page shows [{kind}] {text!r}, not pneud's refusal of arm", dash_err)
     finally:
         if browser is not None:
             browser.quit()
         stop_all()
 
-    # 3. pneud's events: exactly the one command (the wrong token sent none), attributed.
+    # 3. pneud's events: exactly the two commands sent with the right token (the wrong token sent
+    # none), each attributed to this dashboard and the page's session.
     lines = [json.loads(line) for line in open(events) if line.startswith('{"event":"command"')]
-    if len(lines) != 1:
-        fail(f"pneud judged {len(lines)} commands, not 1", events)
-    c = lines[0]
-    if c["verdict"] != "accepted" or c["kind"] != "set_point" or c["value"] != TARGET_M:
-        fail(f"the command in pneud's events is {c}", events)
-    if c["origin"] != f"pneu-dash 127.0.0.1:{port}" or c["session"] != session:
-        fail(f"the command is attributed to {c['origin']!r} session {c['session']}, not pneu-dash 127.0.0.1:{port} "
-             f"session {session}", events)
-    print(f"ok: pneud's events attribute it to {c['origin']!r}, session {c['session']}")
+    if len(lines) != 2:
+        fail(f"pneud judged {len(lines)} commands, not 2", events)
+    sp, arm = lines
+    if sp["verdict"] != "accepted" or sp["kind"] != "set_point" or sp["value"] != TARGET_M:
+        fail(f"the set point in pneud's events is {sp}", events)
+    if arm["verdict"] != "rejected" or arm["kind"] != "arm" or arm["reason"] != "mode":
+        fail(f"the arm in pneud's events is {arm}", events)
+    for c in lines:
+        if c["origin"] != f"pneu-dash 127.0.0.1:{port}" or c["session"] != session:
+            fail(f"{c['kind']} is attributed to {c['origin']!r} session {c['session']}, not pneu-dash "
+                 f"127.0.0.1:{port} session {session}", events)
+    print(f"ok: pneud's events attribute both to {sp['origin']!r}, session {sp['session']}")
     shutil.rmtree(d, ignore_errors=True)
     print("PASS")
 
