@@ -127,8 +127,9 @@ def main():
         shot = os.path.join(out_dir, "dashboard.png")
         advancing = []           # (wall time, loop time, trace points)
         stuck_seen = None        # the snapshot the screenshot was taken at
-        countdowns = []          # (loop time, countdown) during the phase shot
+        countdowns = []          # (stop, loop time, countdown) while stuck with a restart forecast
         restart_seen = None
+        last_stuck = None        # the last look at a stuck carriage, for the failure's message
         deadline = time.monotonic() + RUN_S + 20
         while time.monotonic() < deadline:
             s = snap()
@@ -137,23 +138,27 @@ def main():
             # stuck, the forecast and its path shown; counting down when it forecasts a restart
             stuck_now = (s["stuck"] and s["stop"] and s["forecast"] and s["forecastPathPoints"] > 1
                          and s["forecastState"] == ("counting" if s["forecast"]["will_restart"] else "no-restart"))
+            if s["stuck"]:
+                last_stuck = s
             if stuck_now and (stuck_seen is None or stuck_seen["stop"] == s["stop"]):
                 if s["forecast"]["will_restart"]:
-                    countdowns.append((s["t"], s["countdownS"]))
-                # well into a phase long enough to see (the paper's second stop: about 2.5 s on
-                # an idle machine; on a loaded one the real clock's phase may end otherwise)
-                long_left = not s["forecast"]["will_restart"] or s["countdownS"] > 1.0
-                if stuck_seen is None and long_left and s["t"] - s["stop"]["t"] > 0.4:
+                    countdowns.append((s["stop"]["index"], s["t"], s["countdownS"]))
+                # well into a phase (the paper's second stop: about 2.5 s on an idle machine; on a
+                # loaded one the real clock's phase may end otherwise)
+                if stuck_seen is None and s["t"] - s["stop"]["t"] > 0.3:
                     driver.save_screenshot(shot)
                     after = snap()
                     if after["stuck"] and after["stop"] == s["stop"]:
                         stuck_seen = s
                         print(f"screenshot at t = {s['t']:.3f} s: stop {s['stop']['index']} since "
-                              f"{s['stop']['t']:.3f} s, state point {s['planePoint']}, forecast "
+                              f"{s['stop']['t']:.3f} s, state point {s['planePoint']} (trail: {s['trailPoints']} points, "
+                              f"{s['trailSegments']} segments), forecast "
                               f"{s['forecast']}, countdown '{s['countdownText']}'")
-            if stuck_seen and s["lastRestart"] and s["lastRestart"]["stop"] == stuck_seen["stop"]["index"]:
-                restart_seen = s
-                break
+            if stuck_seen:
+                marked = [r for r in s["restarts"] if r["stop"] == stuck_seen["stop"]["index"]]
+                if marked:
+                    restart_seen = marked[0]
+                    break
             if pneud.poll() is not None and s["t"] is not None and s["t"] >= RUN_S - 0.01:
                 break  # the page has seen the whole run
             time.sleep(0.1)
@@ -173,8 +178,10 @@ def main():
             events = [json.loads(line) for line in f if line.strip()]
         stops = {e["stop"]: e for e in events if e["event"] == "stop"}
         if stuck_seen is None:
-            fail(f"the page never showed a stuck carriage with a forecast path counting down; pneud's "
-                 f"stops: {list(stops.values())}", logs)
+            fail(f"the page never showed a stuck carriage with its forecast and the forecast's path for "
+                 f"0.3 s; pneud's stops: {list(stops.values())}; the page's last look at a stuck carriage: "
+                 f"{json.dumps({k: v for k, v in (last_stuck or {}).items() if k not in ('tickTimes', 'restarts')})}",
+                 logs)
         index = stuck_seen["stop"]["index"]
         if index not in stops or abs(stops[index]["t"] - stuck_seen["stop"]["t"]) > 1e-6:
             fail(f"the page's stop {stuck_seen['stop']} is not pneud's {stops.get(index)}")
@@ -190,8 +197,9 @@ def main():
                                                         and abs(t - shown[1]) < 1e-6)) for w, t in made):
             fail(f"the page's forecast {stuck_seen['forecast']} is none of pneud's: {made}")
         # counting down: the time left falls as loop time goes on
-        if stuck_seen["forecast"]["will_restart"] and len(countdowns) < 3:
+        if stuck_seen["forecast"]["will_restart"] and len([c for c in countdowns if c[0] == index]) < 3:
             fail(f"too few looks at the countdown: {countdowns}")
+        countdowns = [(t, c) for i, t, c in countdowns if i == index]
         if countdowns:
             (t0, c0), (t1, c1) = countdowns[0], countdowns[-1]
             if not (t1 - t0 > 0.3 and c1 < c0):
@@ -204,13 +212,23 @@ def main():
         if restarts:
             if restart_seen is None:
                 fail(f"pneud restarted at {restarts[0]['t']} s, the page did not mark it", logs)
-            if abs(restart_seen["lastRestart"]["t"] - restarts[0]["t"]) > 1e-6:
-                fail(f"the page marked the restart at {restart_seen['lastRestart']}, pneud's is {restarts[0]}")
-            print(f"restart marked at t = {restart_seen['lastRestart']['t']:.4f} s (pneud's events file: "
+            if abs(restart_seen["t"] - restarts[0]["t"]) > 1e-6:
+                fail(f"the page marked the restart at {restart_seen}, pneud's is {restarts[0]}")
+            print(f"restart marked at t = {restart_seen['t']:.4f} s (pneud's events file: "
                   f"{restarts[0]['t']:.4f} s); forecast {stuck_seen['forecast']['t_restart']:.4f} s")
         else:
             print(f"pneud's run ended before stop {index} restarted: nothing to mark")
         final = snap()
+        # Every tick is received or counted missing: none joined silently.
+        seqs = final["sequences"].get("PNEU_STATE")
+        if not seqs:
+            fail(f"the page counted no sequence numbers on PNEU_STATE: {final['sequences']}")
+        span = seqs["last"] - seqs["first"] + 1
+        if seqs["received"] + final["gaps"]["byTopic"].get("PNEU_STATE", 0) != span:
+            fail(f"ticks {seqs['first']}..{seqs['last']}: {seqs['received']} received and "
+                 f"{final['gaps']['byTopic'].get('PNEU_STATE', 0)} counted missing do not make {span}")
+        print(f"ticks seq {seqs['first']}..{seqs['last']}: {seqs['received']} received, "
+              f"{final['gaps']['missing']} counted missing")
         print(f"the page drew in {final['drawMs']} ms, {final['lagS']} s behind the server; "
               f"gaps counted by the page: {final['gaps']}; events shown: {final['events']}; "
               f"messages by channel: {final['received']}")

@@ -147,6 +147,10 @@ int run(int argc, char** argv) {
   std::tie(options.address, options.port) = parse_listen(args.value("listen").value_or("127.0.0.1:8765"));
   options.www = args.value("www") ? fs::path(*args.value("www")) : default_www();
   if (!fs::is_directory(options.www)) throw cli::UsageError("--www: not a directory: " + options.www.string());
+  const fs::path chart_js = args.value("chart-js").value_or("/usr/share/javascript/chart.js");
+  if (!fs::is_regular_file(chart_js / "chart.min.js"))
+    throw cli::UsageError("--chart-js: no chart.min.js in " + chart_js.string() +
+                          ": the page draws with Chart.js (Debian package libjs-chart.js)");
 
   // Commands (off without a token file): refused before anything listens when they cannot be safe.
   const auto token_file = args.value("commands-token-file");
@@ -190,7 +194,7 @@ int run(int argc, char** argv) {
   }
   dash::PneuFeed feed(*server, telemetry.channel_prefix);
   try {
-    dash::serve_chart_js(*server, args.value("chart-js").value_or("/usr/share/javascript/chart.js"));
+    dash::serve_chart_js(*server, chart_js);
   } catch (const std::runtime_error& e) {
     throw cli::UsageError(std::string("--chart-js: ") + e.what());
   }

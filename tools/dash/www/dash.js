@@ -31,6 +31,7 @@ const state = {
   stuck: false,
   stop: null,              // the sticking phase: {index, t, point, forecasts: {method: prediction}, paths: {method: path msg}, restart}
   lastPhase: null,         // the last phase that ended in a (re)start, with its restart marked
+  restarts: [],            // the last (re)starts after a stop: {stop, t, kind, forecast: {method: t_restart}}
   events: 0,
   health: null,
   identification: null,
@@ -100,6 +101,48 @@ function makeTraceCharts() {
   ]);
 }
 
+// The events on the traces' time axis, one lane each: what happened, and when the forecasts said
+// the carriage would restart.
+const LANES = ["fault", "command", "hold", "forecast restart", "restart / start", "stop"];
+const LANE_STYLE = {
+  "stop": ["#d62728", "rect"], "restart / start": ["#1a9641", "triangle"], "forecast restart": ["#e66100", "rectRot"],
+  "hold": ["#2471a3", "circle"], "command": ["#6a3d9a", "star"], "fault": ["#c62828", "crossRot"],
+};
+const timeline = Object.fromEntries(LANES.map((l) => [l, []]));
+
+function makeTimeline() {
+  charts.timeline = new Chart(document.getElementById("chart-timeline"), {
+    type: "scatter",
+    data: {
+      datasets: LANES.map((lane) => ({
+        // parsed: the forecast restarts are not in the order of their times
+        label: lane, data: timeline[lane], borderColor: LANE_STYLE[lane][0],
+        backgroundColor: LANE_STYLE[lane][0], pointStyle: LANE_STYLE[lane][1], pointRadius: 5, borderWidth: 1.5,
+        _seriesRef: timeline[lane],
+      })),
+    },
+    options: {
+      animation: false, responsive: true, maintainAspectRatio: false,
+      plugins: {
+        legend: { display: false },
+        title: { display: true, text: "events (forecast restarts: when each forecast said; stops and restarts: when they were)", font: { size: 12 } },
+        tooltip: { callbacks: { label: (ctx) => `${LANES[ctx.raw.y]} t = ${ctx.raw.x.toFixed(3)} s ${ctx.raw.text ?? ""}` } },
+      },
+      scales: {
+        x: { type: "linear", ticks: { maxRotation: 0 } },
+        y: { type: "linear", min: -0.5, max: LANES.length - 0.5,
+             afterBuildTicks: (axis) => { axis.ticks = LANES.map((_, i) => ({ value: i })); },
+             ticks: { autoSkip: false, callback: (v) => LANES[v] ?? "", font: { size: 10 } } },
+      },
+    },
+  });
+}
+
+function markTimeline(lane, t, text) {
+  if (!Number.isFinite(t)) return;
+  timeline[lane].push({ x: t, y: LANES.indexOf(lane), text });
+}
+
 function trim(arr, t0) {
   let k = 0;
   while (k < arr.length && arr[k].x < t0) ++k;
@@ -116,7 +159,8 @@ function redrawTraces() {
     fs[1]._seriesRef = [{ x: t0, y: state.plane.static_positive }, { x: t1, y: state.plane.static_positive }];
     fs[2]._seriesRef = [{ x: t0, y: state.plane.static_negative }, { x: t1, y: state.plane.static_negative }];
   }
-  for (const c of [charts.position, charts.pressure, charts.u, charts.force]) {
+  for (const arr of Object.values(timeline)) trim(arr, t0 - 0.5);
+  for (const c of [charts.position, charts.pressure, charts.u, charts.force, charts.timeline]) {
     c.options.scales.x.min = t0;
     c.options.scales.x.max = t1;
     // The decimation plugin shows its own copy as `data` once it has run: hand it the whole
@@ -142,11 +186,13 @@ function closed(points) {
 
 function makePlaneChart() {
   // Chart.js draws the dataset of the lowest order last, on top: the areas at the bottom, the
-  // state point on top, in the reverse of the order listed here.
+  // state point on top, in the reverse of the order listed here. The data are parsed (not
+  // `parsing: false`, which tells Chart.js the points are sorted by x and lets it draw only those
+  // its binary search finds in view): a trail, a path or an area goes back and forth in x.
   let order = 100;
   const ds = (label, color, extra) => ({
     label, data: [], borderColor: color, backgroundColor: color, showLine: true, pointRadius: 0,
-    borderWidth: 1.2, parsing: false, order: order--, ...extra,
+    borderWidth: 1.2, order: order--, ...extra,
   });
   charts.plane = new Chart(document.getElementById("chart-plane"), {
     type: "scatter",
@@ -322,7 +368,12 @@ function countSequence(topic, channel, msg) {
   const seq = msg[field];
   const last = channel.lastSeq;
   channel.lastSeq = seq;
-  if (last === undefined || seq <= last) return;  // the first, or a restarted sender
+  if (last === undefined || seq <= last) {  // the first, or a restarted sender
+    channel.firstSeq = seq;
+    channel.receivedSinceFirst = 1;
+    return;
+  }
+  channel.receivedSinceFirst += 1;
   const missing = seq - last - 1;
   if (missing <= 0) return;
   state.gaps.missing += missing;
@@ -344,10 +395,12 @@ function updateGapBadge() {
 function onTick(m) {
   if (state.tick && m.t < state.tick.t) {  // pneud restarted: a new run, a new time axis
     for (const arr of Object.values(series)) arr.length = 0;
+    for (const arr of Object.values(timeline)) arr.length = 0;
     trail.length = 0;
     state.gapIntervals.length = 0;
     state.stop = null;
     state.lastPhase = null;
+    state.restarts.length = 0;
   }
   state.tick = m;
   state.ticks += 1;
@@ -410,12 +463,20 @@ function onEvent(m) {
                   m.direction ? `direction ${m.direction > 0 ? "+" : "-"}` : "",
                   m.seq ? `command seq ${m.seq}` : ""].filter(Boolean).join("; ");
   addEventRow(m.t, kind, m.stop, detail, EVENT_CLASS[kind]);
+  const lane = { stop: "stop", restart: "restart / start", start: "restart / start", fault: "fault",
+                 fault_reset: "fault", fault_reset_refused: "fault", command_accepted: "command",
+                 command_rejected: "command", hold_start: "hold", hold_end: "hold" }[kind];
+  if (lane) markTimeline(lane, m.t, kind);
   if (kind === "stop") {
     state.stop = { index: m.stop, t: m.t, point: nearestTrailPoint(m.t), forecasts: {}, paths: {}, restart: null };
     state.lastPhase = null;
   } else if ((kind === "restart" || kind === "start") && state.stop) {
     state.stop.restart = { t: m.t, kind, direction: m.direction, point: nearestTrailPoint(m.t) };
     state.lastPhase = state.stop;
+    // the restarts marked, with what the forecasts had said (the last few)
+    state.restarts.push({ stop: m.stop, t: m.t, kind,
+                          forecast: Object.fromEntries(Object.values(state.stop.forecasts).map((f) => [f.method, f.t_restart])) });
+    if (state.restarts.length > 20) state.restarts.shift();
     state.stop = null;
   } else if ((kind === "fault" || kind === "end") && state.stop) {
     state.lastPhase = null;
@@ -431,6 +492,7 @@ function onPrediction(m) {
   }
   const phase = state.stop?.index === m.stop ? state.stop : null;
   if (phase) phase.forecasts[m.method] = m;
+  if (m.update === 0 && m.will_restart) markTimeline("forecast restart", m.t_restart, `${m.method}, stop ${m.stop}`);
 }
 
 function onPlaneForecast(m) {
@@ -637,6 +699,9 @@ window.pneuDash = {
       connected: state.connected,
       topics: Object.keys(state.channels),
       received: Object.fromEntries(Object.entries(state.channels).map(([k, c]) => [k, c.received])),
+      // per channel with sequence numbers: the first and last seen, the messages received between
+      sequences: Object.fromEntries(Object.entries(state.channels).filter(([, c]) => c.lastSeq !== undefined)
+        .map(([k, c]) => [k, { first: c.firstSeq, last: c.lastSeq, received: c.receivedSinceFirst }])),
       ticks: state.ticks,
       t: state.tick?.t ?? null,
       tickTimes: [...state.tickTimes],
@@ -644,6 +709,8 @@ window.pneuDash = {
       planeLoaded: Boolean(state.plane),
       nullFlowPoints: state.plane?.null_flow.length ?? 0,
       planePoint: state.planePoint,
+      trailPoints: charts.plane?.data.datasets[PLANE.trail].data.length ?? 0,
+      trailSegments: charts.plane?.getDatasetMeta(PLANE.trail).dataset?.segments.length ?? 0,
       stuck: state.stuck,
       stop: phase ? { index: phase.index, t: phase.t } : null,
       forecast: f ? { method: f.method, will_restart: f.will_restart, t_restart: f.t_restart } : null,
@@ -652,6 +719,7 @@ window.pneuDash = {
       countdownS: fc.countdownS === undefined ? null : Number(fc.countdownS),
       countdownText: document.getElementById("countdown").textContent,
       lastRestart: state.lastPhase?.restart ? { t: state.lastPhase.restart.t, stop: state.lastPhase.index } : null,
+      restarts: state.restarts.map((r) => ({ ...r })),
       events: state.events,
       gaps: { ...state.gaps },
       health: Boolean(state.health),
@@ -663,6 +731,7 @@ window.pneuDash = {
 };
 
 makeTraceCharts();
+makeTimeline();
 makePlaneChart();
 wireCommandPanel();
 connect();
