@@ -13,6 +13,12 @@
 
 #include "pneu/controller/records.hpp"
 #include "pneu/dash/metrics.hpp"
+#include "pneu/dash/metrics_feed.hpp"
+#include "pneu/records/lcm.hpp"
+#include "pneu_lcm/event_t_members.hpp"
+#include "pneu_lcm/health_t_members.hpp"
+#include "pneu_lcm/identification_t_members.hpp"
+#include "pneu_lcm/prediction_t_members.hpp"
 #include "support/child_process.hpp"
 
 namespace {
@@ -328,6 +334,45 @@ TEST(DashMetrics, AnotherPartsMetricsGetTheBenchLabelFirstOnEverySample) {
                                    "bench", "rig \"A\""),
             "# HELP a_total x\n# TYPE a_total counter\na_total{bench=\"rig \\\"A\\\"\",channel=\"S\"} 3\n"
             "b{bench=\"rig \\\"A\\\"\"} 1\nc{bench=\"rig \\\"A\\\"\"} 2\n");
+}
+
+// The bytes pneud publishes for `record` as LCM type Message.
+template <class Message, class Record>
+std::vector<std::uint8_t> lcm_bytes(const Record& record) {
+  Message m{};
+  pneu::records::to_lcm(record, m);
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(m.getEncodedSize()));
+  EXPECT_EQ(m.encode(bytes.data(), 0, static_cast<int>(bytes.size())), static_cast<int>(bytes.size()));
+  return bytes;
+}
+
+TEST(DashMetricsFeed, PneudsLcmMessagesReachTheMetricsAsTheirRecordsAndNothingElseDoes) {
+  Metrics m = metrics();
+  pneu::dash::MetricsFeed feed(m, "RIG7_");
+  const auto forward = [&](const std::string& channel, const std::vector<std::uint8_t>& bytes) {
+    return feed.forward(channel, bytes.data(), bytes.size());
+  };
+  EXPECT_TRUE(forward("RIG7_HEALTH", lcm_bytes<pneu_lcm::health_t>(health(11))));
+  EXPECT_TRUE(forward("RIG7_EVENT", lcm_bytes<pneu_lcm::event_t>(event(kind::kStop, 1.0, 1))));
+  EXPECT_TRUE(forward("RIG7_PREDICTION",
+                      lcm_bytes<pneu_lcm::prediction_t>(forecast(PredictionMethod::kNonlinear, 1, true, 2.0))));
+  EXPECT_TRUE(forward("RIG7_EVENT", lcm_bytes<pneu_lcm::event_t>(event(kind::kRestart, 2.25, 1))));
+  EXPECT_TRUE(forward("RIG7_IDENTIFICATION", lcm_bytes<pneu_lcm::identification_t>(identification(1, 50.0, -48.0))));
+  // Another bench's prefix, a channel the metrics do not read, a message cut short, another type.
+  EXPECT_FALSE(forward("PNEU_EVENT", lcm_bytes<pneu_lcm::event_t>(event(kind::kRestart, 3.0, 1))));
+  EXPECT_FALSE(forward("RIG7_STATE", lcm_bytes<pneu_lcm::event_t>(event(kind::kRestart, 3.0, 1))));
+  std::vector<std::uint8_t> cut = lcm_bytes<pneu_lcm::event_t>(event(kind::kRestart, 3.0, 1));
+  cut.resize(cut.size() - 1);
+  EXPECT_FALSE(forward("RIG7_EVENT", cut));
+  EXPECT_FALSE(forward("RIG7_EVENT", lcm_bytes<pneu_lcm::health_t>(health())));
+  EXPECT_EQ(feed.undecodable(), 2u);
+
+  const std::string text = m.text();
+  EXPECT_LINE(text, "pneu_overruns_total{bench=\"bench-7\"} 11");
+  EXPECT_LINE(text, "pneu_stops_total{bench=\"bench-7\"} 1");
+  EXPECT_LINE(text, "pneu_restarts_total{bench=\"bench-7\"} 1");
+  EXPECT_LINE(text, "pneu_forecast_error_seconds{bench=\"bench-7\",method=\"nonlinear\"} -0.25");
+  EXPECT_LINE(text, "pneu_stiction_newtons{bench=\"bench-7\",direction=\"positive\"} 50");
 }
 
 // promtool (Debian's prometheus) checks the text: parses it, and lints the names and help.
