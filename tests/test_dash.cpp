@@ -280,7 +280,7 @@ class DashServer : public ::testing::Test {
     for (;;) {
       const auto f = c.read();
       ASSERT_TRUE(f);
-      if (f->text && f->data.find("unknown op \"barrier\"") != std::string::npos) return;
+      if (f->text && json::parse(f->data).value("message", "").find("unknown op \"barrier\"") != std::string::npos) return;
     }
   }
   void subscribe(Client& c, std::uint32_t sub, pneu::dash::ChannelId channel) {
