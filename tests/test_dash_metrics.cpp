@@ -13,12 +13,16 @@
 
 #include "pneu/controller/records.hpp"
 #include "pneu/dash/metrics.hpp"
+#include "pneu/dash/metrics_feed.hpp"
+#include "pneu/records/lcm.hpp"
+#include "pneu_lcm/event_t_members.hpp"
+#include "pneu_lcm/health_t_members.hpp"
+#include "pneu_lcm/identification_t_members.hpp"
+#include "pneu_lcm/prediction_t_members.hpp"
 #include "support/child_process.hpp"
 
 namespace {
 
-using ::testing::HasSubstr;
-using ::testing::Not;
 using pneu::controller::EventMessage;
 using pneu::controller::FaultCause;
 using pneu::controller::ForecastRecord;
@@ -27,6 +31,8 @@ using pneu::controller::IdentificationRecord;
 using pneu::controller::LoopEvent;
 using pneu::controller::PredictionMethod;
 using pneu::dash::Metrics;
+using ::testing::HasSubstr;
+using ::testing::Not;
 namespace kind = pneu::controller::event_kind;
 namespace fs = std::filesystem;
 
@@ -47,7 +53,8 @@ bool has_line(const std::string& text, const std::string& line) {
     if (l == line) return true;
   return false;
 }
-#define EXPECT_LINE(text, line) EXPECT_TRUE(has_line(text, line)) << "no line\n  " << (line) << "\nin\n" << (text)
+#define EXPECT_LINE(text, line) \
+  EXPECT_TRUE(has_line(text, line)) << "no line\n  " << (line) << "\nin\n" << (text)
 
 HealthMessage health(std::int64_t overruns = 3) {
   HealthMessage h;
@@ -87,8 +94,8 @@ EventMessage fault(FaultCause cause, double t_s) {
   return pneu::controller::event_message(e);
 }
 
-ForecastRecord forecast(PredictionMethod m, std::uint64_t stop, bool will_restart, double t_restart_s,
-                        std::uint32_t update = 0) {
+ForecastRecord forecast(PredictionMethod m, std::uint64_t stop, bool will_restart,
+                        double t_restart_s, std::uint32_t update = 0) {
   ForecastRecord f;
   f.stop = stop;
   f.update = update;
@@ -106,7 +113,8 @@ std::size_t index_of(const char* name) {
   return 0;
 }
 
-IdentificationRecord identification(std::uint32_t updates, double static_positive_n, double static_negative_n) {
+IdentificationRecord identification(std::uint32_t updates, double static_positive_n,
+                                    double static_negative_n) {
   IdentificationRecord r;
   r.t_s = 5.0 * updates;
   r.updates = updates;
@@ -160,8 +168,10 @@ TEST(DashMetrics, EveryFamilyHasItsHelpAndTypeOnceAndEverySampleTheBenchLabelFir
 
 TEST(DashMetrics, CountersEndInTotalAndNamesSayTheirUnit) {
   for (const auto& f : pneu::dash::metric_families()) {
-    if (std::string(f.type) == "counter") EXPECT_TRUE(f.name.ends_with("_total")) << f.name;
-    else EXPECT_FALSE(f.name.ends_with("_total")) << f.name;
+    if (std::string(f.type) == "counter")
+      EXPECT_TRUE(f.name.ends_with("_total")) << f.name;
+    else
+      EXPECT_FALSE(f.name.ends_with("_total")) << f.name;
     EXPECT_TRUE(f.name.starts_with("pneu_")) << f.name;
   }
 }
@@ -226,32 +236,53 @@ TEST(DashMetrics, StopsRestartsAndFaultsByCauseAreCountedFromTheEvents) {
 TEST(DashMetrics, EveryFaultCauseIsReadBackFromTheTextPneudSendsForIt) {
   for (std::size_t c = 1; c < pneu::controller::kFaultCauseCount; ++c) {
     const auto cause = static_cast<FaultCause>(c);
-    EXPECT_EQ(Metrics::fault_cause_of(fault(cause, 1.0).text), cause) << pneu::controller::fault_name(cause);
+    EXPECT_EQ(Metrics::fault_cause_of(fault(cause, 1.0).text), cause)
+        << pneu::controller::fault_name(cause);
   }
   EXPECT_EQ(Metrics::fault_cause_of("stop"), FaultCause::kNone);
 }
 
 TEST(DashMetrics, AForecastAtAStopIsJudgedByHowTheStopEndsAndAHitsErrorIsObserved) {
   const std::string text = fed_text();
-  // linearized forecast 2.5 s, nonlinear 2.3 s, the restart at 2.4 s: both hits, 0.1 s off each way.
-  EXPECT_LINE(text, "pneu_forecasts_total{bench=\"bench-7\",method=\"linearized\",made=\"at_stop\"} 1");
-  EXPECT_LINE(text, "pneu_forecasts_total{bench=\"bench-7\",method=\"linearized\",made=\"again\"} 1");
-  EXPECT_LINE(text, "pneu_forecast_outcomes_total{bench=\"bench-7\",method=\"linearized\",outcome=\"hit\"} 1");
-  EXPECT_LINE(text, "pneu_forecast_outcomes_total{bench=\"bench-7\",method=\"nonlinear\",outcome=\"hit\"} 1");
-  EXPECT_LINE(text, "pneu_forecast_error_seconds{bench=\"bench-7\",method=\"linearized\"} 0.10000000000000009");
-  EXPECT_LINE(text, "pneu_forecast_error_seconds{bench=\"bench-7\",method=\"nonlinear\"} -0.10000000000000009");
-  EXPECT_LINE(text, "pneu_forecast_abs_error_seconds_bucket{bench=\"bench-7\",method=\"linearized\",le=\"0.05\"} 0");
-  EXPECT_LINE(text, "pneu_forecast_abs_error_seconds_bucket{bench=\"bench-7\",method=\"linearized\",le=\"0.2\"} 1");
-  EXPECT_LINE(text, "pneu_forecast_abs_error_seconds_bucket{bench=\"bench-7\",method=\"linearized\",le=\"+Inf\"} 1");
-  EXPECT_LINE(text, "pneu_forecast_abs_error_seconds_count{bench=\"bench-7\",method=\"linearized\"} 1");
+  // linearized forecast 2.5 s, nonlinear 2.3 s, the restart at 2.4 s: both hits, 0.1 s off each
+  // way.
+  EXPECT_LINE(text,
+              "pneu_forecasts_total{bench=\"bench-7\",method=\"linearized\",made=\"at_stop\"} 1");
+  EXPECT_LINE(text,
+              "pneu_forecasts_total{bench=\"bench-7\",method=\"linearized\",made=\"again\"} 1");
+  EXPECT_LINE(
+      text,
+      "pneu_forecast_outcomes_total{bench=\"bench-7\",method=\"linearized\",outcome=\"hit\"} 1");
+  EXPECT_LINE(
+      text,
+      "pneu_forecast_outcomes_total{bench=\"bench-7\",method=\"nonlinear\",outcome=\"hit\"} 1");
+  EXPECT_LINE(
+      text,
+      "pneu_forecast_error_seconds{bench=\"bench-7\",method=\"linearized\"} 0.10000000000000009");
+  EXPECT_LINE(
+      text,
+      "pneu_forecast_error_seconds{bench=\"bench-7\",method=\"nonlinear\"} -0.10000000000000009");
+  EXPECT_LINE(text,
+              "pneu_forecast_abs_error_seconds_bucket{bench=\"bench-7\",method=\"linearized\",le="
+              "\"0.05\"} 0");
+  EXPECT_LINE(text,
+              "pneu_forecast_abs_error_seconds_bucket{bench=\"bench-7\",method=\"linearized\",le="
+              "\"0.2\"} 1");
+  EXPECT_LINE(text,
+              "pneu_forecast_abs_error_seconds_bucket{bench=\"bench-7\",method=\"linearized\",le="
+              "\"+Inf\"} 1");
+  EXPECT_LINE(text,
+              "pneu_forecast_abs_error_seconds_count{bench=\"bench-7\",method=\"linearized\"} 1");
   EXPECT_LINE(text, "pneu_forecast_abs_error_seconds_count{bench=\"bench-7\",method=\"held\"} 0");
-  EXPECT_LINE(text, "pneu_forecast_force_error_newtons{bench=\"bench-7\",method=\"linearized\"} 1.5");
-  EXPECT_THAT(text, Not(HasSubstr("pneu_forecast_error_seconds{bench=\"bench-7\",method=\"held\"}")))
+  EXPECT_LINE(text,
+              "pneu_forecast_force_error_newtons{bench=\"bench-7\",method=\"linearized\"} 1.5");
+  EXPECT_THAT(text,
+              Not(HasSubstr("pneu_forecast_error_seconds{bench=\"bench-7\",method=\"held\"}")))
       << "no hit, no error";
 
   Metrics m = metrics();
-  // Stop 1: linearized forecasts no restart, it restarts (missed); nonlinear forecasts one at 1.5 s,
-  // the set point changes at 3 s, later (false alarm).
+  // Stop 1: linearized forecasts no restart, it restarts (missed); nonlinear forecasts one at 1.5
+  // s, the set point changes at 3 s, later (false alarm).
   m.on_event(event(kind::kStop, 1.0, 1));
   m.on_forecast(forecast(PredictionMethod::kLinearized, 1, false, std::nan("")));
   m.on_forecast(forecast(PredictionMethod::kNonlinear, 1, true, 1.5));
@@ -261,16 +292,25 @@ TEST(DashMetrics, AForecastAtAStopIsJudgedByHowTheStopEndsAndAHitsErrorIsObserve
   m.on_forecast(forecast(PredictionMethod::kLinearized, 2, true, 9.0));
   m.on_event(event(kind::kStart, 3.0, 2));
   const std::string t2 = m.text();
-  EXPECT_LINE(t2, "pneu_forecast_outcomes_total{bench=\"bench-7\",method=\"linearized\",outcome=\"missed\"} 1");
-  EXPECT_LINE(t2, "pneu_forecast_outcomes_total{bench=\"bench-7\",method=\"nonlinear\",outcome=\"hit\"} 1");
-  EXPECT_LINE(t2, "pneu_forecast_outcomes_total{bench=\"bench-7\",method=\"linearized\",outcome=\"untested\"} 1");
-  EXPECT_LINE(t2, "pneu_forecast_outcomes_total{bench=\"bench-7\",method=\"linearized\",outcome=\"hit\"} 0");
+  EXPECT_LINE(
+      t2,
+      "pneu_forecast_outcomes_total{bench=\"bench-7\",method=\"linearized\",outcome=\"missed\"} 1");
+  EXPECT_LINE(
+      t2, "pneu_forecast_outcomes_total{bench=\"bench-7\",method=\"nonlinear\",outcome=\"hit\"} 1");
+  EXPECT_LINE(t2,
+              "pneu_forecast_outcomes_total{bench=\"bench-7\",method=\"linearized\",outcome="
+              "\"untested\"} 1");
+  EXPECT_LINE(
+      t2,
+      "pneu_forecast_outcomes_total{bench=\"bench-7\",method=\"linearized\",outcome=\"hit\"} 0");
 
   Metrics f = metrics();
   f.on_event(event(kind::kStop, 1.0, 1));
   f.on_forecast(forecast(PredictionMethod::kLinearized, 1, true, 1.5));
   f.on_event(event(kind::kStart, 3.0, 1));
-  EXPECT_LINE(f.text(), "pneu_forecast_outcomes_total{bench=\"bench-7\",method=\"linearized\",outcome=\"false_alarm\"} 1");
+  EXPECT_LINE(f.text(),
+              "pneu_forecast_outcomes_total{bench=\"bench-7\",method=\"linearized\",outcome="
+              "\"false_alarm\"} 1");
 }
 
 TEST(DashMetrics, HoldTimeCountsEachHoldAndAnOpenOneUpToTheLatestLoopTime) {
@@ -296,10 +336,12 @@ TEST(DashMetrics, StictionIsServedWithItsDriftSinceTheProcesssFirstIdentificatio
   EXPECT_LINE(text, "pneu_stiction_drift_newtons{bench=\"bench-7\",direction=\"positive\"} 3");
   EXPECT_LINE(text, "pneu_stiction_drift_newtons{bench=\"bench-7\",direction=\"negative\"} 0.5");
   EXPECT_LINE(text, "pneu_stiction_sigma_newtons{bench=\"bench-7\",direction=\"positive\"} 0.5");
-  EXPECT_LINE(text, "pneu_identified_value{bench=\"bench-7\",parameter=\"static_negative_n\"} -48.5");
+  EXPECT_LINE(text,
+              "pneu_identified_value{bench=\"bench-7\",parameter=\"static_negative_n\"} -48.5");
   EXPECT_LINE(text, "pneu_identification_updates_total{bench=\"bench-7\"} 2");
   EXPECT_THAT(text, Not(HasSubstr("parameter=\"null_offset_v\""))) << "not identified, not served";
-  EXPECT_THAT(text, Not(HasSubstr("pneu_coulomb_friction_newtons{"))) << "not identified, not served";
+  EXPECT_THAT(text, Not(HasSubstr("pneu_coulomb_friction_newtons{")))
+      << "not identified, not served";
   // pneud started again (its updates count from 1 again): the drift from its first identification.
   m.on_identification(identification(1, 60.0, -50.0));
   m.on_identification(identification(2, 61.0, -50.0));
@@ -324,10 +366,53 @@ TEST(DashMetrics, LabelValuesAndValuesAreWrittenAsTheFormatWantsThem) {
 }
 
 TEST(DashMetrics, AnotherPartsMetricsGetTheBenchLabelFirstOnEverySample) {
-  EXPECT_EQ(pneu::dash::with_label("# HELP a_total x\n# TYPE a_total counter\na_total{channel=\"S\"} 3\nb 1\nc{} 2\n",
-                                   "bench", "rig \"A\""),
-            "# HELP a_total x\n# TYPE a_total counter\na_total{bench=\"rig \\\"A\\\"\",channel=\"S\"} 3\n"
-            "b{bench=\"rig \\\"A\\\"\"} 1\nc{bench=\"rig \\\"A\\\"\"} 2\n");
+  EXPECT_EQ(
+      pneu::dash::with_label(
+          "# HELP a_total x\n# TYPE a_total counter\na_total{channel=\"S\"} 3\nb 1\nc{} 2\n",
+          "bench", "rig \"A\""),
+      "# HELP a_total x\n# TYPE a_total counter\na_total{bench=\"rig \\\"A\\\"\",channel=\"S\"} 3\n"
+      "b{bench=\"rig \\\"A\\\"\"} 1\nc{bench=\"rig \\\"A\\\"\"} 2\n");
+}
+
+// The bytes pneud publishes for `record` as LCM type Message.
+template <class Message, class Record>
+std::vector<std::uint8_t> lcm_bytes(const Record& record) {
+  Message m{};
+  pneu::records::to_lcm(record, m);
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(m.getEncodedSize()));
+  EXPECT_EQ(m.encode(bytes.data(), 0, static_cast<int>(bytes.size())),
+            static_cast<int>(bytes.size()));
+  return bytes;
+}
+
+TEST(DashMetricsFeed, PneudsLcmMessagesReachTheMetricsAsTheirRecordsAndNothingElseDoes) {
+  Metrics m = metrics();
+  pneu::dash::MetricsFeed feed(m, "RIG7_");
+  const auto forward = [&](const std::string& channel, const std::vector<std::uint8_t>& bytes) {
+    return feed.forward(channel, bytes.data(), bytes.size());
+  };
+  EXPECT_TRUE(forward("RIG7_HEALTH", lcm_bytes<pneu_lcm::health_t>(health(11))));
+  EXPECT_TRUE(forward("RIG7_EVENT", lcm_bytes<pneu_lcm::event_t>(event(kind::kStop, 1.0, 1))));
+  EXPECT_TRUE(forward("RIG7_PREDICTION", lcm_bytes<pneu_lcm::prediction_t>(forecast(
+                                             PredictionMethod::kNonlinear, 1, true, 2.0))));
+  EXPECT_TRUE(forward("RIG7_EVENT", lcm_bytes<pneu_lcm::event_t>(event(kind::kRestart, 2.25, 1))));
+  EXPECT_TRUE(forward("RIG7_IDENTIFICATION",
+                      lcm_bytes<pneu_lcm::identification_t>(identification(1, 50.0, -48.0))));
+  // Another bench's prefix, a channel the metrics do not read, a message cut short, another type.
+  EXPECT_FALSE(forward("PNEU_EVENT", lcm_bytes<pneu_lcm::event_t>(event(kind::kRestart, 3.0, 1))));
+  EXPECT_FALSE(forward("RIG7_STATE", lcm_bytes<pneu_lcm::event_t>(event(kind::kRestart, 3.0, 1))));
+  std::vector<std::uint8_t> cut = lcm_bytes<pneu_lcm::event_t>(event(kind::kRestart, 3.0, 1));
+  cut.resize(cut.size() - 1);
+  EXPECT_FALSE(forward("RIG7_EVENT", cut));
+  EXPECT_FALSE(forward("RIG7_EVENT", lcm_bytes<pneu_lcm::health_t>(health())));
+  EXPECT_EQ(feed.undecodable(), 2u);
+
+  const std::string text = m.text();
+  EXPECT_LINE(text, "pneu_overruns_total{bench=\"bench-7\"} 11");
+  EXPECT_LINE(text, "pneu_stops_total{bench=\"bench-7\"} 1");
+  EXPECT_LINE(text, "pneu_restarts_total{bench=\"bench-7\"} 1");
+  EXPECT_LINE(text, "pneu_forecast_error_seconds{bench=\"bench-7\",method=\"nonlinear\"} -0.25");
+  EXPECT_LINE(text, "pneu_stiction_newtons{bench=\"bench-7\",direction=\"positive\"} 50");
 }
 
 // promtool (Debian's prometheus) checks the text: parses it, and lints the names and help.
@@ -347,12 +432,14 @@ Checked promtool_check(const std::string& text) {
     std::ofstream f(in);
     f << text;
   }
-  const int rc = std::system((promtool() + " check metrics < " + in.string() + " > " + out.string() + " 2>&1").c_str());
+  const int rc = std::system(
+      (promtool() + " check metrics < " + in.string() + " > " + out.string() + " 2>&1").c_str());
   return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, pneu::test::slurp(out)};
 }
 
 TEST(DashMetrics, PromtoolParsesAndLintsTheTextCleanAndRefusesAMalformedLine) {
-  if (promtool().empty()) GTEST_SKIP() << "promtool (Debian's prometheus, in scripts/deps) is not installed";
+  if (promtool().empty())
+    GTEST_SKIP() << "promtool (Debian's prometheus, in scripts/deps) is not installed";
   const std::string text = fed_text("rig \"A\"");
   const Checked good = promtool_check(text);
   EXPECT_EQ(good.status, 0) << good.output << "\n" << text;
@@ -372,12 +459,14 @@ TEST(DashMetrics, PromtoolParsesAndLintsTheTextCleanAndRefusesAMalformedLine) {
 // metric_families_markdown() writes it.
 TEST(DashMetrics, TheDocumentationsTableOfMetricsIsTheCodes) {
   const std::string doc = pneu::test::slurp(fs::path(PNEU_SOURCE_DIR) / "docs" / "dashboard.md");
-  const std::string begin = "<!-- metrics table: begin (tests/test_dash_metrics.cpp checks it) -->\n";
+  const std::string begin =
+      "<!-- metrics table: begin (tests/test_dash_metrics.cpp checks it) -->\n";
   const std::string end = "<!-- metrics table: end -->";
   const auto b = doc.find(begin), e = doc.find(end);
   ASSERT_NE(b, std::string::npos) << "docs/dashboard.md has no line " << begin;
   ASSERT_NE(e, std::string::npos) << "docs/dashboard.md has no line " << end;
-  EXPECT_EQ(doc.substr(b + begin.size(), e - b - begin.size()), pneu::dash::metric_families_markdown())
+  EXPECT_EQ(doc.substr(b + begin.size(), e - b - begin.size()),
+            pneu::dash::metric_families_markdown())
       << "docs/dashboard.md's table, as it should be between the markers:\n"
       << pneu::dash::metric_families_markdown();
 }

@@ -30,7 +30,8 @@ constexpr HealthCounter kHealthCounters[] = {
     {"pneu_ticks_total", "ticks", ""},
     {"pneu_overruns_total", "overruns", ""},
     {"pneu_deadlines_skipped_total", "deadlines_skipped", ""},
-    {"pneu_comms_errors_total", "comms_errors", " (on a Modbus bench: the Modbus transactions that failed)"},
+    {"pneu_comms_errors_total", "comms_errors",
+     " (on a Modbus bench: the Modbus transactions that failed)"},
     {"pneu_telemetry_dropped_total", "telemetry_dropped", ""},
     {"pneu_commands_received_total", "commands_received", ""},
     {"pneu_commands_accepted_total", "commands_accepted", ""},
@@ -44,7 +45,8 @@ struct DurationsSummary {
   const char* what;
 };
 constexpr DurationsSummary kDurations[] = {
-    {"pneu_wake_latency_seconds", "wake_latency_us", "the loop's wake-up latency, wake-up minus deadline"},
+    {"pneu_wake_latency_seconds", "wake_latency_us",
+     "the loop's wake-up latency, wake-up minus deadline"},
     {"pneu_compute_seconds", "compute_us", "one tick's computation time"}};
 constexpr std::pair<const char*, const char*> kQuantileOf[] = {
     {"min", "0"}, {"median", "0.5"}, {"p99", "0.99"}, {"max", "1"}};
@@ -80,63 +82,97 @@ std::vector<MetricFamily> make_families() {
   for (const HealthCounter& c : kHealthCounters)
     f.push_back({c.metric, "counter", health_doc(c.field) + c.more + since_start, ""});
   f.push_back({"pneu_commands_rejected_total", "counter",
-               "commands pneud rejected, by reason (health_t's rejected_* counters)" + since_start, "reason"});
+               "commands pneud rejected, by reason (health_t's rejected_* counters)" + since_start,
+               "reason"});
   for (const DurationsSummary& d : kDurations)
     f.push_back({d.metric, "summary",
                  std::string(d.what) + " (health_t." + d.field +
-                     "), in seconds: quantiles over the last health period (0: min, 0.5: median, 0.99, 1: max; no "
+                     "), in seconds: quantiles over the last health period (0: min, 0.5: median, "
+                     "0.99, 1: max; no "
                      "_sum, no _count: pneud sends the quantiles only)",
                  "quantile"});
-  f.push_back({"pneu_mode", "gauge", "1 for pneud's mode (health_t.mode), 0 for the others", "mode"});
-  f.push_back({"pneu_fault_latched", "gauge", "1 for the cause of the fault latched now (health_t.fault_cause), 0 for the others",
+  f.push_back(
+      {"pneu_mode", "gauge", "1 for pneud's mode (health_t.mode), 0 for the others", "mode"});
+  f.push_back({"pneu_fault_latched", "gauge",
+               "1 for the cause of the fault latched now (health_t.fault_cause), 0 for the others",
                "cause"});
-  f.push_back({"pneu_pneud_start_time_seconds", "gauge", "when pneud started, seconds since the Unix epoch (health_t.start_utime)", ""});
+  f.push_back({"pneu_pneud_start_time_seconds", "gauge",
+               "when pneud started, seconds since the Unix epoch (health_t.start_utime)", ""});
   f.push_back({"pneu_last_health_timestamp_seconds", "gauge",
-               "when the dashboard last heard pneud's health, seconds since the Unix epoch (alert on time() minus it)", ""});
+               "when the dashboard last heard pneud's health, seconds since the Unix epoch (alert "
+               "on time() minus it)",
+               ""});
   const std::string since_dash = "; from the dashboard's start (event_t)";
   f.push_back({"pneu_stops_total", "counter", "stops: the carriage came to rest" + since_dash, ""});
-  f.push_back({"pneu_restarts_total", "counter",
-               "restarts: the carriage moved again after a stop, the set point unchanged (stick-slip)" + since_dash, ""});
-  f.push_back({"pneu_starts_total", "counter", "starts: the carriage moved on a set point change (restarts not counted)" + since_dash, ""});
-  f.push_back({"pneu_faults_total", "counter", "faults latched, by cause (\"unknown\": a cause this dashboard does not know)" + since_dash,
-               "cause"});
-  f.push_back({"pneu_fault_resets_total", "counter", "fault resets: cleared, or refused while the cause was present" + since_dash,
+  f.push_back(
+      {"pneu_restarts_total", "counter",
+       "restarts: the carriage moved again after a stop, the set point unchanged (stick-slip)" +
+           since_dash,
+       ""});
+  f.push_back(
+      {"pneu_starts_total", "counter",
+       "starts: the carriage moved on a set point change (restarts not counted)" + since_dash, ""});
+  f.push_back(
+      {"pneu_faults_total", "counter",
+       "faults latched, by cause (\"unknown\": a cause this dashboard does not know)" + since_dash,
+       "cause"});
+  f.push_back({"pneu_fault_resets_total", "counter",
+               "fault resets: cleared, or refused while the cause was present" + since_dash,
                "result"});
   f.push_back({"pneu_holds_total", "counter", "in-position holds that took over" + since_dash, ""});
   f.push_back({"pneu_hold_seconds_total", "counter",
-               "loop time spent in the in-position hold (an open hold counted up to the latest loop time heard)" + since_dash, ""});
+               "loop time spent in the in-position hold (an open hold counted up to the latest "
+               "loop time heard)" +
+                   since_dash,
+               ""});
   f.push_back({"pneu_forecasts_total", "counter",
-               "restart forecasts (prediction_t), by method, made at a stop or made again while stuck; from the dashboard's start",
+               "restart forecasts (prediction_t), by method, made at a stop or made again while "
+               "stuck; from the dashboard's start",
                "method, made"});
-  f.push_back({"pneu_forecast_outcomes_total", "counter",
-               "forecasts made at a stop, judged when the stop ended: hit (forecast a restart, it restarted), missed "
-               "(forecast none, it restarted), false_alarm (forecast a restart, the stop outlasted its time without one), "
-               "untested (the stop ended otherwise before the forecast time); from the dashboard's start",
-               "method, outcome"});
-  f.push_back({"pneu_forecast_abs_error_seconds", "histogram",
-               "|forecast restart time - actual restart time| of the hits; from the dashboard's start", "method"});
-  f.push_back({"pneu_forecast_error_seconds", "gauge",
-               "forecast restart time - actual restart time of the latest hit (positive: forecast late)", "method"});
+  f.push_back(
+      {"pneu_forecast_outcomes_total", "counter",
+       "forecasts made at a stop, judged when the stop ended: hit (forecast a restart, it "
+       "restarted), missed "
+       "(forecast none, it restarted), false_alarm (forecast a restart, the stop outlasted its "
+       "time without one), "
+       "untested (the stop ended otherwise before the forecast time); from the dashboard's start",
+       "method, outcome"});
+  f.push_back(
+      {"pneu_forecast_abs_error_seconds", "histogram",
+       "|forecast restart time - actual restart time| of the hits; from the dashboard's start",
+       "method"});
+  f.push_back(
+      {"pneu_forecast_error_seconds", "gauge",
+       "forecast restart time - actual restart time of the latest hit (positive: forecast late)",
+       "method"});
   f.push_back({"pneu_forecast_force_error_newtons", "gauge",
-               "pressure force the forecast made at the stop expected minus the force measured, at the latest forecast "
+               "pressure force the forecast made at the stop expected minus the force measured, at "
+               "the latest forecast "
                "made again while stuck",
                "method"});
   f.push_back({"pneu_identification_updates_total", "counter",
-               "updates of online identification (identification_t.updates), from pneud's start-up", ""});
+               "updates of online identification (identification_t.updates), from pneud's start-up",
+               ""});
   f.push_back({"pneu_stiction_newtons", "gauge",
-               "identified static friction (breakaway force), its magnitude, each direction; rising over weeks: seal wear",
+               "identified static friction (breakaway force), its magnitude, each direction; "
+               "rising over weeks: seal wear",
                "direction"});
-  f.push_back({"pneu_stiction_sigma_newtons", "gauge", "1 sigma uncertainty of pneu_stiction_newtons", "direction"});
+  f.push_back({"pneu_stiction_sigma_newtons", "gauge",
+               "1 sigma uncertainty of pneu_stiction_newtons", "direction"});
   f.push_back({"pneu_stiction_drift_newtons", "gauge",
-               "pneu_stiction_newtons minus its first identified value since pneud started (positive: rising)",
+               "pneu_stiction_newtons minus its first identified value since pneud started "
+               "(positive: rising)",
                "direction"});
-  f.push_back({"pneu_coulomb_friction_newtons", "gauge", "identified Coulomb (sliding) friction, its magnitude, each direction",
+  f.push_back({"pneu_coulomb_friction_newtons", "gauge",
+               "identified Coulomb (sliding) friction, its magnitude, each direction",
                "direction"});
   f.push_back({"pneu_identified_value", "gauge",
-               "every identified parameter (identification_t.value), signed, in the unit its name ends with "
+               "every identified parameter (identification_t.value), signed, in the unit its name "
+               "ends with "
                "(plant.<section>.<parameter> in pneud's configuration)",
                "parameter"});
-  f.push_back({"pneu_identified_sigma", "gauge", "1 sigma uncertainty of pneu_identified_value, same unit", "parameter"});
+  f.push_back({"pneu_identified_sigma", "gauge",
+               "1 sigma uncertainty of pneu_identified_value, same unit", "parameter"});
   return f;
 }
 
@@ -152,18 +188,21 @@ class Writer {
       throw std::logic_error("metrics: " + std::string(name) + " written out of the table's order");
     const MetricFamily& f = families_[next_++];
     name_ = f.name;
-    out_ += "# HELP " + f.name + " " + escape_help(f.help) + "\n# TYPE " + f.name + " " + f.type + "\n";
+    out_ +=
+        "# HELP " + f.name + " " + escape_help(f.help) + "\n# TYPE " + f.name + " " + f.type + "\n";
   }
   using Labels = std::initializer_list<std::pair<const char*, std::string_view>>;
   void sample(double v, Labels labels = {}, std::string_view suffix = "") {
     out_ += name_;
     out_ += suffix;
     out_ += "{" + bench_;
-    for (const auto& [k, value] : labels) out_ += std::string(",") + k + "=\"" + escape_label_value(value) + "\"";
+    for (const auto& [k, value] : labels)
+      out_ += std::string(",") + k + "=\"" + escape_label_value(value) + "\"";
     out_ += "} " + format_sample_value(v) + "\n";
   }
   std::string finish() {
-    if (next_ != families_.size()) throw std::logic_error("metrics: " + families_[next_].name + " not written");
+    if (next_ != families_.size())
+      throw std::logic_error("metrics: " + families_[next_].name + " not written");
     return std::move(out_);
   }
 
@@ -171,9 +210,12 @@ class Writer {
   static std::string escape_help(std::string_view s) {
     std::string o;
     for (char c : s) {
-      if (c == '\\') o += "\\\\";
-      else if (c == '\n') o += "\\n";
-      else o += c;
+      if (c == '\\')
+        o += "\\\\";
+      else if (c == '\n')
+        o += "\\n";
+      else
+        o += c;
     }
     return o;
   }
@@ -194,7 +236,8 @@ std::string metric_families_markdown() {
   for (const MetricFamily& f : metric_families()) {
     std::string help;
     for (char c : f.help) help += c == '|' ? std::string("\\|") : std::string(1, c);
-    md += "| `" + f.name + "` | " + f.type + " | " + (f.labels.empty() ? "" : f.labels) + " | " + help + " |\n";
+    md += "| `" + f.name + "` | " + f.type + " | " + (f.labels.empty() ? "" : f.labels) + " | " +
+          help + " |\n";
   }
   return md;
 }
@@ -203,7 +246,8 @@ std::string format_sample_value(double v) {
   if (std::isnan(v)) return "NaN";
   if (std::isinf(v)) return v > 0 ? "+Inf" : "-Inf";
   char buf[32];
-  // Whole numbers (counters, most of them) as integers, others in the shortest form that reads back.
+  // Whole numbers (counters, most of them) as integers, others in the shortest form that reads
+  // back.
   if (v == std::trunc(v) && std::fabs(v) < 1e15) {
     std::snprintf(buf, sizeof buf, "%.0f", v);
     return buf;
@@ -215,10 +259,14 @@ std::string format_sample_value(double v) {
 std::string escape_label_value(std::string_view v) {
   std::string o;
   for (char c : v) {
-    if (c == '\\') o += "\\\\";
-    else if (c == '"') o += "\\\"";
-    else if (c == '\n') o += "\\n";
-    else o += c;
+    if (c == '\\')
+      o += "\\\\";
+    else if (c == '"')
+      o += "\\\"";
+    else if (c == '\n')
+      o += "\\n";
+    else
+      o += c;
   }
   return o;
 }
@@ -234,20 +282,24 @@ std::string with_label(std::string_view text, std::string_view name, std::string
     if (line.empty() || line.front() == '#' || name_end == std::string_view::npos) {
       out += line;
     } else if (line[name_end] == '{') {
-      out += std::string(line.substr(0, name_end + 1)) + label + (line[name_end + 1] == '}' ? "" : ",");
+      out += std::string(line.substr(0, name_end + 1)) + label +
+             (line[name_end + 1] == '}' ? "" : ",");
       out += line.substr(name_end + 1);
     } else {
-      out += std::string(line.substr(0, name_end)) + "{" + label + "}" + std::string(line.substr(name_end));
+      out += std::string(line.substr(0, name_end)) + "{" + label + "}" +
+             std::string(line.substr(name_end));
     }
     if (end != std::string_view::npos) out += '\n';
   }
   return out;
 }
 
-Metrics::Metrics(std::string bench, WallClock now) : bench_(std::move(bench)), now_(std::move(now)) {
+Metrics::Metrics(std::string bench, WallClock now)
+    : bench_(std::move(bench)), now_(std::move(now)) {
   if (!now_)
     now_ = [] {
-      return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+      return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch())
+          .count();
     };
 }
 
@@ -348,8 +400,12 @@ void Metrics::on_event(const EventMessage& e) {
         hold_since_s_.reset();
       }
       break;
-    case kind::kFaultReset: ++fault_resets_; break;
-    case kind::kFaultResetRefused: ++fault_resets_refused_; break;
+    case kind::kFaultReset:
+      ++fault_resets_;
+      break;
+    case kind::kFaultResetRefused:
+      ++fault_resets_refused_;
+      break;
     case kind::kHoldStart:
       if (!hold_since_s_) {
         ++holds_;
@@ -362,7 +418,8 @@ void Metrics::on_event(const EventMessage& e) {
         hold_since_s_.reset();
       }
       break;
-    default: break;
+    default:
+      break;
   }
 }
 
@@ -374,7 +431,8 @@ void Metrics::on_forecast(const controller::ForecastRecord& f) {
   if (f.update == 0) {
     ++forecasts_at_stop_[m];
     judge_locked(m, false, f.t_s);  // one at a stop is judged by the next, at the latest
-    pending_[m] = {true, static_cast<std::int64_t>(f.stop), f.prediction.will_restart, f.prediction.t_restart_s};
+    pending_[m] = {true, static_cast<std::int64_t>(f.stop), f.prediction.will_restart,
+                   f.prediction.t_restart_s};
   } else {
     ++forecasts_again_[m];
     if (std::isfinite(f.stop_forecast_force_n) && std::isfinite(f.force_n))
@@ -384,10 +442,12 @@ void Metrics::on_forecast(const controller::ForecastRecord& f) {
 
 void Metrics::on_identification(const IdentificationRecord& r) {
   std::lock_guard lock(mutex_);
-  if (identification_ && r.updates < identification_->updates) first_value_ = {};  // pneud started again
+  if (identification_ && r.updates < identification_->updates)
+    first_value_ = {};  // pneud started again
   see_time_locked(r.t_s);
   for (std::size_t i = 0; i < r.value.size(); ++i)
-    if (r.identified[i] && !first_value_[i] && std::isfinite(r.value[i])) first_value_[i] = r.value[i];
+    if (r.identified[i] && !first_value_[i] && std::isfinite(r.value[i]))
+      first_value_[i] = r.value[i];
   identification_ = r;
 }
 
@@ -413,16 +473,20 @@ std::string Metrics::text() const {
     records::for_each_field<HealthMessage>([&](const auto& f) {
       const std::string_view name = f.name;
       if constexpr (std::is_arithmetic_v<typename std::remove_cvref_t<decltype(f)>::member_type>)
-        if (name.starts_with(kRejectedPrefix)) w.sample(static_cast<double>(f.of(*h)), {{"reason", name.substr(kRejectedPrefix.size())}});
+        if (name.starts_with(kRejectedPrefix))
+          w.sample(static_cast<double>(f.of(*h)),
+                   {{"reason", name.substr(kRejectedPrefix.size())}});
     });
   for (const DurationsSummary& d : kDurations) {
     w.begin(d.metric);
     if (h)
       records::with_field<HealthMessage>(d.field, [&](const auto& g) {
-        if constexpr (std::is_same_v<typename std::remove_cvref_t<decltype(g)>::member_type, controller::DurationsSummary>)
+        if constexpr (std::is_same_v<typename std::remove_cvref_t<decltype(g)>::member_type,
+                                     controller::DurationsSummary>)
           records::for_each_field<controller::DurationsSummary>([&](const auto& q) {
             for (const auto& [field, quantile] : kQuantileOf)
-              if (std::string_view(q.name) == field) w.sample(q.of(g.of(*h)) / 1e6, {{"quantile", quantile}});
+              if (std::string_view(q.name) == field)
+                w.sample(q.of(g.of(*h)) / 1e6, {{"quantile", quantile}});
           });
       });
   }
@@ -448,7 +512,8 @@ std::string Metrics::text() const {
   w.sample(static_cast<double>(starts_));
   w.begin("pneu_faults_total");
   for (std::size_t c = 1; c < controller::kFaultCauseCount; ++c)
-    w.sample(static_cast<double>(faults_[c]), {{"cause", controller::fault_name(static_cast<FaultCause>(c))}});
+    w.sample(static_cast<double>(faults_[c]),
+             {{"cause", controller::fault_name(static_cast<FaultCause>(c))}});
   w.sample(static_cast<double>(faults_[0]), {{"cause", "unknown"}});
   w.begin("pneu_fault_resets_total");
   w.sample(static_cast<double>(fault_resets_), {{"result", "cleared"}});
@@ -474,25 +539,30 @@ std::string Metrics::text() const {
     const char* method = controller::kPredictionMethods[m].name;
     for (std::size_t b = 0; b < kForecastErrorBuckets_s.size(); ++b)
       w.sample(static_cast<double>(error_buckets_[m][b]),
-               {{"method", method}, {"le", format_sample_value(kForecastErrorBuckets_s[b])}}, "_bucket");
+               {{"method", method}, {"le", format_sample_value(kForecastErrorBuckets_s[b])}},
+               "_bucket");
     w.sample(static_cast<double>(error_count_[m]), {{"method", method}, {"le", "+Inf"}}, "_bucket");
     w.sample(error_abs_sum_s_[m], {{"method", method}}, "_sum");
     w.sample(static_cast<double>(error_count_[m]), {{"method", method}}, "_count");
   }
   w.begin("pneu_forecast_error_seconds");
   for (std::size_t m = 0; m < kMethods; ++m)
-    if (last_error_s_[m]) w.sample(*last_error_s_[m], {{"method", controller::kPredictionMethods[m].name}});
+    if (last_error_s_[m])
+      w.sample(*last_error_s_[m], {{"method", controller::kPredictionMethods[m].name}});
   w.begin("pneu_forecast_force_error_newtons");
   for (std::size_t m = 0; m < kMethods; ++m)
-    if (last_force_error_n_[m]) w.sample(*last_force_error_n_[m], {{"method", controller::kPredictionMethods[m].name}});
+    if (last_force_error_n_[m])
+      w.sample(*last_force_error_n_[m], {{"method", controller::kPredictionMethods[m].name}});
 
   const IdentificationRecord* id = identification_ ? &*identification_ : nullptr;
   w.begin("pneu_identification_updates_total");
   if (id) w.sample(static_cast<double>(id->updates));
-  static const std::size_t kStatic[2] = {parameter_index(kStaticPositive), parameter_index(kStaticNegative)};
-  static const std::size_t kCoulomb[2] = {parameter_index("coulomb_positive_n"), parameter_index("coulomb_negative_n")};
+  static const std::size_t kStatic[2] = {parameter_index(kStaticPositive),
+                                         parameter_index(kStaticNegative)};
+  static const std::size_t kCoulomb[2] = {parameter_index("coulomb_positive_n"),
+                                          parameter_index("coulomb_negative_n")};
   constexpr const char* kDirections[2] = {"positive", "negative"};
-  const auto each_direction = [&](const std::size_t (&index)[2], auto&& value) {
+  const auto each_direction = [&](const std::size_t(&index)[2], auto&& value) {
     if (!id) return;
     for (std::size_t d = 0; d < 2; ++d)
       if (id->identified[index[d]]) {
@@ -506,18 +576,21 @@ std::string Metrics::text() const {
   each_direction(kStatic, [&](std::size_t i) { return std::optional(id->sigma[i]); });
   w.begin("pneu_stiction_drift_newtons");
   each_direction(kStatic, [&](std::size_t i) {
-    return first_value_[i] ? std::optional(std::fabs(id->value[i]) - std::fabs(*first_value_[i])) : std::nullopt;
+    return first_value_[i] ? std::optional(std::fabs(id->value[i]) - std::fabs(*first_value_[i]))
+                           : std::nullopt;
   });
   w.begin("pneu_coulomb_friction_newtons");
   each_direction(kCoulomb, [&](std::size_t i) { return std::optional(std::fabs(id->value[i])); });
   w.begin("pneu_identified_value");
   if (id)
     for (std::size_t i = 0; i < id->value.size(); ++i)
-      if (id->identified[i]) w.sample(id->value[i], {{"parameter", controller::kIdentifiedParameters[i].name}});
+      if (id->identified[i])
+        w.sample(id->value[i], {{"parameter", controller::kIdentifiedParameters[i].name}});
   w.begin("pneu_identified_sigma");
   if (id)
     for (std::size_t i = 0; i < id->sigma.size(); ++i)
-      if (id->identified[i]) w.sample(id->sigma[i], {{"parameter", controller::kIdentifiedParameters[i].name}});
+      if (id->identified[i])
+        w.sample(id->sigma[i], {{"parameter", controller::kIdentifiedParameters[i].name}});
   return w.finish();
 }
 

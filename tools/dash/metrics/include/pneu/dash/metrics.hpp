@@ -43,7 +43,8 @@ struct MetricFamily {
 
 /// `text` (the exposition format) with the label `name`="`value`" first on every sample: another
 /// part's metrics (the server's own counters) labelled with the bench as these are.
-[[nodiscard]] std::string with_label(std::string_view text, std::string_view name, std::string_view value);
+[[nodiscard]] std::string with_label(std::string_view text, std::string_view name,
+                                     std::string_view value);
 
 /// The upper bounds of pneu_forecast_abs_error_seconds' buckets [s] (then +Inf).
 inline constexpr std::array<double, 10> kForecastErrorBuckets_s = {0.005, 0.01, 0.02, 0.05, 0.1,
@@ -105,8 +106,10 @@ class Metrics {
   double health_received_unix_s_ = 0.0;
 
   // event_t
-  std::uint64_t stops_ = 0, restarts_ = 0, starts_ = 0, holds_ = 0, fault_resets_ = 0, fault_resets_refused_ = 0;
-  std::array<std::uint64_t, controller::kFaultCauseCount> faults_{};  // [0]: a cause it does not know
+  std::uint64_t stops_ = 0, restarts_ = 0, starts_ = 0, holds_ = 0, fault_resets_ = 0,
+                fault_resets_refused_ = 0;
+  std::array<std::uint64_t, controller::kFaultCauseCount>
+      faults_{};  // [0]: a cause it does not know
   double hold_completed_s_ = 0.0;
   std::optional<double> hold_since_s_;
   double last_t_s_ = 0.0;  // the latest loop time seen of this pneud

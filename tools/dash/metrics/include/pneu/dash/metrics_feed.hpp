@@ -14,7 +14,8 @@ namespace pneu::dash {
 
 class MetricsFeed {
  public:
-  MetricsFeed(Metrics& metrics, std::string prefix) : metrics_(metrics), prefix_(std::move(prefix)) {}
+  MetricsFeed(Metrics& metrics, std::string prefix)
+      : metrics_(metrics), prefix_(std::move(prefix)) {}
 
   /// Hands one LCM message of `lcm_channel` to the metrics: false when it is none of their channels
   /// or does not decode whole (counted in undecodable()).
