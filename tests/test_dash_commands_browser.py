@@ -15,7 +15,8 @@ file; headless Chromium driven by Selenium. What must hold:
      moves there (position read from PNEU_STATE, decoded here from the raw datagrams);
   3. arm, clicked while armed: the page shows pneud's refusal in its words ("pneud rejected
      (mode): arm refused: already armed");
-  4. pneud's events file holds exactly those two commands (the wrong token sent none), each
+  4. hold off, clicked: accepted by pneud, shown in the page;
+  5. pneud's events file holds exactly those three commands (the wrong token sent none), each
      attributed: origin "pneu-dash 127.0.0.1:PORT", the page's session.
 
 Exit 77 (skipped, saying why) without Chromium, chromedriver or Selenium.
@@ -260,6 +261,14 @@ def main():
         print(f"arm while armed: page shows [{kind}] {text}")
         if kind != "rejected" or "pneud rejected (mode): arm refused: already armed" not in text:
             fail(f"the page shows [{kind}] {text!r}, not pneud's refusal of arm", dash_err)
+
+        # hold off: the page's hold button, through pneud's validation to the loop.
+        browser.execute_script("document.getElementById('cmd-verdict').dataset.verdict = '';")
+        browser.find_element(By.ID, "cmd-hold-off").click()
+        kind, text = wait_for("a verdict on hold off shown in the page", lambda: verdict()[0] and verdict(), 15, dash_err)
+        print(f"hold off: page shows [{kind}] {text}")
+        if kind != "accepted" or "pneud accepted: hold off" not in text:
+            fail(f"the page shows [{kind}] {text!r}, not pneud's acceptance of hold off", dash_err)
     finally:
         if browser is not None:
             browser.quit()
@@ -268,18 +277,20 @@ def main():
     # 3. pneud's events: exactly the two commands sent with the right token (the wrong token sent
     # none), each attributed to this dashboard and the page's session.
     lines = [json.loads(line) for line in open(events) if line.startswith('{"event":"command"')]
-    if len(lines) != 2:
-        fail(f"pneud judged {len(lines)} commands, not 2", events)
-    sp, arm = lines
+    if len(lines) != 3:
+        fail(f"pneud judged {len(lines)} commands, not 3", events)
+    sp, arm, hold = lines
     if sp["verdict"] != "accepted" or sp["kind"] != "set_point" or sp["value"] != TARGET_M:
         fail(f"the set point in pneud's events is {sp}", events)
     if arm["verdict"] != "rejected" or arm["kind"] != "arm" or arm["reason"] != "mode":
         fail(f"the arm in pneud's events is {arm}", events)
+    if hold["verdict"] != "accepted" or hold["kind"] != "hold_off":
+        fail(f"the hold off in pneud's events is {hold}", events)
     for c in lines:
         if c["origin"] != f"pneu-dash 127.0.0.1:{port}" or c["session"] != session:
             fail(f"{c['kind']} is attributed to {c['origin']!r} session {c['session']}, not pneu-dash "
                  f"127.0.0.1:{port} session {session}", events)
-    print(f"ok: pneud's events attribute both to {sp['origin']!r}, session {sp['session']}")
+    print(f"ok: pneud's events attribute all three to {sp['origin']!r}, session {sp['session']}")
     shutil.rmtree(d, ignore_errors=True)
     print("PASS")
 
