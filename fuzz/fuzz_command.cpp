@@ -23,7 +23,7 @@ using pneu::telemetry::CommandFields;
 using pneu::telemetry::DatagramKind;
 
 constexpr std::string_view kChannel = "PNEU_COMMAND";
-constexpr std::size_t kCommandPayloadBytes = 33;  // 8-byte fingerprint + int64, int64, int8, double
+using pneu::telemetry::kCommandPayloadBytes;
 
 [[noreturn]] void fail(const char* what) {
   std::fprintf(stderr, "pneu_fuzz_command: %s\n", what);
@@ -34,7 +34,8 @@ bool same_fields(const CommandFields& a, const CommandFields& b) {
   std::uint64_t va = 0, vb = 0;
   std::memcpy(&va, &a.value, sizeof va);
   std::memcpy(&vb, &b.value, sizeof vb);
-  return a.utime == b.utime && a.seq == b.seq && a.kind == b.kind && va == vb;
+  return a.utime == b.utime && a.seq == b.seq && a.kind == b.kind && va == vb && a.origin == b.origin &&
+         a.session == b.session;
 }
 }  // namespace
 

@@ -31,6 +31,13 @@ Bytes encode(const CommandFields& f, std::string_view channel = "PNEU_COMMAND", 
   return out;
 }
 
+// Who sent it (command_t.origin, .session), as pneu-dash and pneu-command say.
+CommandFields attributed(CommandFields f, const std::string& origin, std::int64_t session) {
+  pneu::telemetry::set_origin(f.origin, origin);
+  f.session = session;
+  return f;
+}
+
 double nan_with_payload() {
   const std::uint64_t bits = 0x7ff80000deadbeefULL;
   double v;
@@ -68,6 +75,9 @@ int main(int argc, char** argv) {
                                     std::numeric_limits<double>::denorm_min()}, "PNEU_COMMAND", 0xffffffffu)},
       {"other_channel_state", encode({t, 9, 1, 0.1}, "PNEU_STATE")},
       {"empty_channel", encode({t, 10, 1, 0.1}, "")},
+      {"attributed_set_point", encode(attributed({t, 11, 1, 0.17}, "pneu-dash 127.0.0.1:8765", 4503599627370497))},
+      {"origin_control_characters", encode(attributed({t, 12, 3, 0.0}, "pneu-dash \x1b[2J\r\n", -1))},
+      {"origin_full_no_nul", encode(attributed({t, 13, 4, 0.0}, std::string(32, 'o'), 1))},
   };
   // Truncations at the field boundaries of the set-point datagram: header, channel, fingerprint,
   // utime, seq, kind, and one byte short of the value; then one trailing byte.
@@ -75,6 +85,8 @@ int main(int argc, char** argv) {
   for (const std::size_t keep : {4u, 8u, 12u, 21u, 29u, 37u, 45u, 46u, 53u}) {
     if (keep < whole.size()) seeds.push_back({"truncated_" + std::to_string(keep), Bytes(whole.begin(), whole.begin() + keep)});
   }
+  // ... and one byte short of the session, the last field.
+  seeds.push_back({"truncated_session", Bytes(whole.begin(), whole.end() - 1)});
   Bytes trailing = whole;
   trailing.push_back(0);
   seeds.push_back({"trailing_byte", trailing});

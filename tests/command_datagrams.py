@@ -6,12 +6,14 @@
   command_datagrams.py flood TTL N           N garbage datagrams on PNEU_COMMAND, back to back
 
 KIND: replay (the template as captured), stale (stamped 10 s ago), future (stamped in 10 s),
-nan (set point NaN), out-of-bounds (set point 0.9 m), truncated, bad-fingerprint, garbage,
+nan (set point NaN), out-of-bounds (set point 0.9 m), dirty-origin (control characters in its
+origin), truncated, bad-fingerprint, garbage,
 oversized (a valid command followed by 2000 bytes), fragment (an LCM "LC03" fragment header),
 valid (a fresh set point of 0.15 m).
 
 The LCM short-message form: "LC02" | uint32 sequence | channel NUL | payload; command_t's payload:
-int64 fingerprint | int64 utime | int64 seq | int8 kind | double value, big-endian.
+int64 fingerprint | int64 utime | int64 seq | int8 kind | double value | int8 origin[32] | int64
+session, big-endian. A crafted command keeps the template's origin and session.
 """
 import socket
 import struct
@@ -31,13 +33,14 @@ def split(datagram):
     return datagram[:at], datagram[at:]
 
 
-def command(template, utime=None, value=None, kind=1):
+def command(template, utime=None, value=None, kind=1, origin=None):
     global _seq
     head, payload = split(template)
     fingerprint = payload[:8]
     _seq += 1000
     utime = int(time.time() * 1e6) if utime is None else utime
-    return head + fingerprint + struct.pack(">qqbd", utime, _seq, kind, value)
+    origin = payload[33:65] if origin is None else origin.ljust(32, b"\0")
+    return head + fingerprint + struct.pack(">qqbd", utime, _seq, kind, value) + origin + payload[65:]
 
 
 def sender(ttl):
@@ -79,6 +82,7 @@ def main():
         "nan": lambda: command(template, value=float("nan")),
         "out-of-bounds": lambda: command(template, value=0.9),
         "valid": lambda: command(template, value=0.15),
+        "dirty-origin": lambda: command(template, value=0.15, origin=b"pneu-dash \x1b[2J\r\n"),
         "truncated": lambda: command(template, value=0.15)[:-4],
         "bad-fingerprint": lambda: (lambda h, p: h + b"\0" * 8 + p[8:])(*split(command(template, value=0.15))),
         "garbage": lambda: header() + b"\xff" * 33,

@@ -108,7 +108,7 @@ CAP=$!
 wait_ready "$D/capture.out"
 "$B/pneu-command" set-point 0.16 || fail "pneu-command"
 wait "$CAP" || fail "no command datagram captured"
-for kind in replay stale future nan out-of-bounds truncated bad-fingerprint garbage oversized fragment valid; do
+for kind in replay stale future nan out-of-bounds dirty-origin truncated bad-fingerprint garbage oversized fragment valid; do
   "$PY" "$S/tests/command_datagrams.py" send 0 "$kind" "$D/template" || fail "sending $kind"
   sleep 0.1  # under the command rate limit (20/s): each datagram is judged on its content
 done
@@ -123,7 +123,7 @@ wait_pneud
 expect accepted 3        # pneu-command's, the crafted valid one, the one after the flood
 expect sequence 1        # the replayed datagram (its sequence number was used)
 expect stale 2           # stamped 10 s ago, stamped 10 s ahead
-expect invalid 2         # NaN, 0.9 m (outside the soft limits)
+expect invalid 3         # NaN, 0.9 m (outside the soft limits), control characters in the origin
 expect oversized 1
 expect foreign 0         # never delivered: the group is joined on lo only, the socket bound to it
 expect rate 0

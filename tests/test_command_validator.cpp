@@ -2,9 +2,14 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <array>
+#include <cstdint>
+#include <span>
 #include <limits>
+#include <string>
 
 #include "pneu/config/config.hpp"
+#include "pneu/telemetry/command_datagram.hpp"
 #include "pneu/telemetry/command_validator.hpp"
 
 namespace {
@@ -30,18 +35,26 @@ CommandValidator validator_of(const config::Config& c) {
   return {c.commands, c.controller.soft_limit_min_m, c.controller.soft_limit_max_m};
 }
 
-CommandFields cmd(std::int64_t seq, std::int8_t kind, double value = 0.0) { return {0, seq, kind, value}; }
+CommandFields at(std::int64_t utime, std::int64_t seq, std::int8_t kind, double value = 0.0) {
+  CommandFields f;
+  f.utime = utime;
+  f.seq = seq;
+  f.kind = kind;
+  f.value = value;
+  return f;
+}
+CommandFields cmd(std::int64_t seq, std::int8_t kind, double value = 0.0) { return at(0, seq, kind, value); }
 
 TEST(CommandValidator, RefusesACommandStampedOutsideTheAgeLimitEitherWay) {
   const config::Config c = make_config();
   CommandValidator v = validator_of(c);
   const std::int64_t now_us = 1'800'000'000'000'000;
   const auto age_us = static_cast<std::int64_t>(c.commands.max_age_s * 1e6);
-  auto r = v.validate({now_us - age_us - 1000, 1, telemetry::kWireSetPoint, 0.1}, 0.0, now_us, 0.0, Mode::kArmed);
+  auto r = v.validate(at(now_us - age_us - 1000, 1, telemetry::kWireSetPoint, 0.1), 0.0, now_us, 0.0, Mode::kArmed);
   EXPECT_EQ(r.rejection, Rejection::kStale) << "a captured command replayed later";
-  r = v.validate({now_us + age_us + 1000, 2, telemetry::kWireSetPoint, 0.1}, 0.1, now_us, 0.0, Mode::kArmed);
+  r = v.validate(at(now_us + age_us + 1000, 2, telemetry::kWireSetPoint, 0.1), 0.1, now_us, 0.0, Mode::kArmed);
   EXPECT_EQ(r.rejection, Rejection::kStale) << "stamped in the future";
-  r = v.validate({now_us - age_us / 2, 3, telemetry::kWireSetPoint, 0.1}, 0.2, now_us, 0.0, Mode::kArmed);
+  r = v.validate(at(now_us - age_us / 2, 3, telemetry::kWireSetPoint, 0.1), 0.2, now_us, 0.0, Mode::kArmed);
   EXPECT_TRUE(r.accepted) << r.text;
   EXPECT_EQ(v.counters().stale, 2u);
 }
@@ -170,6 +183,81 @@ TEST(CommandValidator, DuringTheMovementTestRefusesSetPointsSayingWhyAndTakesADi
   EXPECT_THAT(check(telemetry::kWireFaultReset).text, HasSubstr("no fault is latched"));
   EXPECT_TRUE(check(telemetry::kWireDisarm).accepted);
   EXPECT_EQ(v.counters().mode, 4u);
+}
+
+// Issue 31: hold on / hold off, a setting taken in any mode.
+TEST(CommandValidator, TakesHoldOnAndHoldOffInEveryMode) {
+  CommandValidator v = validator_of(make_config());
+  std::int64_t seq = 0;
+  double t = 0.0;
+  for (const Mode m : {Mode::kArmed, Mode::kHold, Mode::kDisarmed, Mode::kFault, Mode::kMovementTest}) {
+    auto on = v.validate(cmd(++seq, telemetry::kWireHoldOn), t += 0.2, 0, 0.0, m);
+    ASSERT_TRUE(on.accepted) << on.text;
+    EXPECT_EQ(on.command.kind, LoopCommand::Kind::kHoldOn);
+    EXPECT_THAT(on.text, HasSubstr("hold on"));
+    auto off = v.validate(cmd(++seq, telemetry::kWireHoldOff), t += 0.2, 0, 0.0, m);
+    ASSERT_TRUE(off.accepted) << off.text;
+    EXPECT_EQ(off.command.kind, LoopCommand::Kind::kHoldOff);
+  }
+  EXPECT_STREQ(telemetry::wire_kind_name(telemetry::kWireHoldOff), "hold_off");
+  EXPECT_EQ(v.validate(cmd(++seq, 8), t += 0.2, 0, 0.0, Mode::kArmed).rejection, Rejection::kInvalid)
+      << "the next number is no command";
+}
+
+// Issue 31: who sent a command goes into pneud's events as it is, so it must be text.
+TEST(CommandValidator, RefusesAnOriginWithControlCharactersOrBytesAfterItsPaddingAndTakesPrintableOnes) {
+  CommandValidator v = validator_of(make_config());
+  CommandFields c = cmd(1, telemetry::kWireSetPoint, 0.1);
+  telemetry::set_origin(c.origin, "pneu-dash 127.0.0.1:8765");
+  c.session = 77;
+  EXPECT_TRUE(v.validate(c, 0.0, 0, 0.0, Mode::kArmed).accepted);
+  c.seq = 2;
+  telemetry::set_origin(c.origin, "");
+  EXPECT_TRUE(v.validate(c, 0.1, 0, 0.0, Mode::kArmed).accepted) << "an unnamed sender is taken, recorded as such";
+  c.seq = 3;
+  telemetry::set_origin(c.origin, "pneu-dash \x1b[2J");
+  auto r = v.validate(c, 0.2, 0, 0.0, Mode::kArmed);
+  EXPECT_EQ(r.rejection, Rejection::kInvalid);
+  EXPECT_THAT(r.text, HasSubstr("origin is not printable ASCII"));
+  c.seq = 4;
+  telemetry::set_origin(c.origin, "ok");
+  c.origin[20] = 'x';  // hidden behind the NUL that ends "ok"
+  EXPECT_EQ(v.validate(c, 0.3, 0, 0.0, Mode::kArmed).rejection, Rejection::kInvalid);
+  c.seq = 5;
+  telemetry::set_origin(c.origin, "caf\xc3\xa9");
+  EXPECT_EQ(v.validate(c, 0.4, 0, 0.0, Mode::kArmed).rejection, Rejection::kInvalid) << "ASCII only";
+  EXPECT_EQ(v.counters().invalid, 3u);
+}
+
+TEST(CommandOrigin, IsTextUpToItsFirstNulCutAtThirtyTwoBytesAndPrintedWithQuestionMarksForOtherBytes) {
+  std::array<char, telemetry::kOriginBytes> o{};
+  telemetry::set_origin(o, "pneu-command alice");
+  EXPECT_EQ(telemetry::origin_text(o), "pneu-command alice");
+  EXPECT_TRUE(telemetry::origin_is_clean(o));
+  telemetry::set_origin(o, std::string(40, 'a'));
+  EXPECT_EQ(telemetry::origin_text(o), std::string(32, 'a')) << "cut to the field, no NUL needed";
+  EXPECT_TRUE(telemetry::origin_is_clean(o));
+  telemetry::set_origin(o, "a\tb\x7f");
+  EXPECT_FALSE(telemetry::origin_is_clean(o));
+  EXPECT_EQ(telemetry::printable_origin(o), "a?b?");
+}
+
+TEST(CommandDatagram, CarriesTheOriginAndSessionThereAndBackAtItsFixedSize) {
+  CommandFields c = at(1'800'000'000'000'000, 42, telemetry::kWireSetPoint, 0.125);
+  telemetry::set_origin(c.origin, "pneu-dash 127.0.0.1:8765");
+  c.session = 0x1234'5678'9abc'def0;
+  std::array<std::uint8_t, telemetry::kMaxCommandDatagramBytes> buffer{};
+  const std::size_t n = telemetry::encode_command_datagram(c, "PNEU_COMMAND", 7, buffer);
+  ASSERT_EQ(n, 8 + sizeof "PNEU_COMMAND" + telemetry::kCommandPayloadBytes);
+  const auto d = telemetry::decode_command_datagram(std::span<const std::uint8_t>(buffer.data(), n), "PNEU_COMMAND");
+  ASSERT_EQ(d.kind, telemetry::DatagramKind::kCommand) << d.why;
+  EXPECT_EQ(telemetry::origin_text(d.fields.origin), "pneu-dash 127.0.0.1:8765");
+  EXPECT_EQ(d.fields.session, c.session);
+  EXPECT_EQ(d.fields.seq, 42);
+  EXPECT_EQ(d.fields.value, 0.125);
+  // One byte less is not a command: the origin and session are part of every command.
+  EXPECT_EQ(telemetry::decode_command_datagram(std::span<const std::uint8_t>(buffer.data(), n - 1), "PNEU_COMMAND").kind,
+            telemetry::DatagramKind::kMalformed);
 }
 
 TEST(CommandValidator, CountsMalformedMessagesAmongTheRejected) {

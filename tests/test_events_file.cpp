@@ -30,7 +30,7 @@ struct RuntimeWithEvents {
   }
 };
 
-TEST(EventsFile, WritesAnAcceptedCommandWithItsKindSequenceNumberAndValue) {
+TEST(EventsFile, WritesAnAcceptedCommandWithItsKindSequenceNumberValueAndWhoSentIt) {
   RuntimeWithEvents r;
   r.tick(1.25);
   controller::CommandRecord c;
@@ -39,11 +39,14 @@ TEST(EventsFile, WritesAnAcceptedCommandWithItsKindSequenceNumberAndValue) {
   c.kind = "set_point";
   c.seq = 1718000000000123;
   c.value = -0.005;
+  c.origin = "pneu-dash 127.0.0.1:8765";
+  c.session = 4503599627370497;
   c.text = "set point -5.000 mm";
   r.runtime.record_command(c);
   EXPECT_EQ(r.events.str(),
             "{\"event\":\"command\",\"t\":1.25,\"verdict\":\"accepted\",\"reason\":null,\"kind\":\"set_point\","
-            "\"seq\":1718000000000123,\"value\":-0.005,\"text\":\"set point -5.000 mm\"}\n");
+            "\"seq\":1718000000000123,\"value\":-0.005,\"origin\":\"pneu-dash 127.0.0.1:8765\","
+            "\"session\":4503599627370497,\"text\":\"set point -5.000 mm\"}\n");
 }
 
 TEST(EventsFile, WritesARejectionWithItsReasonAndNullsForWhatDidNotDecode) {
@@ -55,7 +58,8 @@ TEST(EventsFile, WritesARejectionWithItsReasonAndNullsForWhatDidNotDecode) {
   r.runtime.record_command(c);
   EXPECT_EQ(r.events.str(),
             "{\"event\":\"command\",\"t\":0.5,\"verdict\":\"rejected\",\"reason\":\"malformed\",\"kind\":null,"
-            "\"seq\":null,\"value\":null,\"text\":\"malformed: \\\"LC02\\\" \\\\ cut\\u000ashort\\u0001\"}\n");
+            "\"seq\":null,\"value\":null,\"origin\":null,\"session\":null,"
+            "\"text\":\"malformed: \\\"LC02\\\" \\\\ cut\\u000ashort\\u0001\"}\n");
 }
 
 TEST(EventsFile, WritesTheMovementTestsEndAndTheFindingOnItsFault) {

@@ -104,7 +104,7 @@ class Telemetry {
   bool good() { return lcm_.good() && sniffer_.good(); }
 
   void send(std::int8_t kind, double value = 0.0) {
-    pneu_lcm::command_t c;
+    pneu_lcm::command_t c{};
     c.utime = unix_us();
     c.seq = ++seq_;
     c.kind = kind;

@@ -3,6 +3,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <lcm/lcm-cpp.hpp>
+#include <pwd.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -245,7 +246,7 @@ struct Listener {
 };
 
 pneu_lcm::command_t command(int64_t seq, int8_t kind, double value) {
-  pneu_lcm::command_t c;
+  pneu_lcm::command_t c{};
   // Stamped now: pneud refuses commands stamped further than commands.max_age_s from its clock.
   c.utime = std::chrono::duration_cast<std::chrono::microseconds>(
                 std::chrono::system_clock::now().time_since_epoch())
@@ -562,9 +563,16 @@ TEST_F(LcmIntegration, TwoControllersThatHearEachOtherWhileRunningBothLatchAFaul
   EXPECT_EQ(first.wait(), 0) << slurp(dir_ / "first.err");
 }
 
+// The user running this test, as pneu-command names it in its origin.
+std::string user_name() {
+  const passwd* pw = ::getpwuid(::geteuid());
+  return pw != nullptr ? pw->pw_name : std::to_string(::geteuid());
+}
+
 // pneu-command run to its end: exit code, stdout, stderr.
 struct CommandRun {
   int exit_code = -1;
+  pid_t pid = 0;
   std::string out, err;
   std::chrono::duration<double> took{};
 };
@@ -576,6 +584,7 @@ CommandRun pneu_command(const pneu::test::TestDir& dir, const std::vector<std::s
   const auto t0 = std::chrono::steady_clock::now();
   Child c = Child::spawn(argv, dir / (tag + ".out"), dir / (tag + ".err"));
   CommandRun r;
+  r.pid = c.pid;
   r.exit_code = c.wait();
   r.took = std::chrono::steady_clock::now() - t0;
   r.out = slurp(dir / (tag + ".out"));
@@ -615,15 +624,68 @@ TEST_F(LcmIntegration, PneuCommandPrintsTheDaemonsVerdictAndExitsNonZeroOnARejec
 
   kill(pneud.pid, SIGTERM);
   ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
-  // The events file holds each verdict, in the order given.
+  // The events file holds each verdict, in the order given, each attributed to its sender.
   const std::vector<std::string> lines = command_events(events);
   ASSERT_EQ(lines.size(), 3u) << slurp(events);
+  const auto by = [](const CommandRun& r) {
+    return ",\"origin\":\"pneu-command " + user_name() + "\",\"session\":" + std::to_string(r.pid) + ",";
+  };
   EXPECT_THAT(lines[0], HasSubstr(",\"verdict\":\"accepted\",\"reason\":null,\"kind\":\"set_point\",\"seq\":10,"
-                                  "\"value\":0.17,\"text\":\"set point 170.000 mm\"}"));
+                                  "\"value\":0.17" + by(accepted) + "\"text\":\"set point 170.000 mm\"}"));
   EXPECT_THAT(lines[1], HasSubstr(",\"verdict\":\"rejected\",\"reason\":\"invalid\",\"kind\":\"set_point\",\"seq\":11,"
-                                  "\"value\":0.9,\"text\":\"set point 900.000 mm is outside the soft limits"));
+                                  "\"value\":0.9" + by(outside) + "\"text\":\"set point 900.000 mm is outside the soft limits"));
   EXPECT_THAT(lines[2], HasSubstr(",\"verdict\":\"rejected\",\"reason\":\"mode\",\"kind\":\"arm\",\"seq\":12,"
-                                  "\"value\":0,\"text\":\"arm refused: already armed\"}"));
+                                  "\"value\":0" + by(armed) + "\"text\":\"arm refused: already armed\"}"));
+}
+
+// Issue 31: every command's verdict says who sent it and from which session, in the events file
+// and in the event on <prefix>EVENT, whatever the verdict; a sender names itself (--origin).
+TEST_F(LcmIntegration, EveryVerdictIsAttributedToItsSendersOriginAndSessionInTheEventsAndOnTheChannel) {
+  Listener listener;
+  ASSERT_TRUE(listener.sniffer.good());
+  std::atomic<bool> done{false};
+  std::thread handler([&] {
+    while (!done) listener.poll(20);
+  });
+  const fs::path events = dir_ / "events.jsonl";
+  Child pneud = start_commanded_pneud({"--events", events.string()});
+  ASSERT_FALSE(HasFailure());
+  const CommandRun named = pneu_command(dir_, {"--seq", "20", "--timeout-s", "10", "--origin", "line \"3\" rig",
+                                               "set-point", "0.17"});
+  EXPECT_EQ(named.exit_code, 0) << named.err;
+  const CommandRun refused = pneu_command(dir_, {"--seq", "21", "--timeout-s", "10", "arm"});
+  EXPECT_EQ(refused.exit_code, 3) << refused.err;
+  kill(pneud.pid, SIGTERM);
+  ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
+  done = true;
+  handler.join();
+
+  const std::vector<std::string> lines = command_events(events);
+  ASSERT_EQ(lines.size(), 2u) << slurp(events);
+  EXPECT_THAT(lines[0], HasSubstr("\"verdict\":\"accepted\""));
+  EXPECT_THAT(lines[0], HasSubstr(",\"origin\":\"line \\\"3\\\" rig\",\"session\":" + std::to_string(named.pid) + ","));
+  EXPECT_THAT(lines[1], HasSubstr("\"verdict\":\"rejected\""));
+  EXPECT_THAT(lines[1], HasSubstr(",\"origin\":\"pneu-command " + user_name() + "\",\"session\":" +
+                                  std::to_string(refused.pid) + ","));
+  std::lock_guard<std::mutex> l(listener.m);
+  int verdicts = 0;
+  for (const pneu_lcm::event_t& e : listener.events) {
+    if (e.kind == pneu_lcm::event_t::KIND_COMMAND_ACCEPTED) {
+      ++verdicts;
+      EXPECT_EQ(e.seq, 20);
+      EXPECT_EQ(e.origin, "line \"3\" rig");
+      EXPECT_EQ(e.session, named.pid);
+    } else if (e.kind == pneu_lcm::event_t::KIND_COMMAND_REJECTED) {
+      ++verdicts;
+      EXPECT_EQ(e.seq, 21);
+      EXPECT_EQ(e.origin, "pneu-command " + user_name());
+      EXPECT_EQ(e.session, refused.pid);
+    } else {
+      EXPECT_EQ(e.origin, "") << "only verdicts are attributed";
+      EXPECT_EQ(e.session, 0);
+    }
+  }
+  EXPECT_EQ(verdicts, 2);
 }
 
 // Issue 29: a set point sent while disarmed used to be "accepted: set point ..." and then not the

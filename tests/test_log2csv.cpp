@@ -323,6 +323,8 @@ TEST_F(Log2Csv, EventTextIsQuotedWithQuotesDoubledAndKindsNamed) {
     e.y_d = i == 3 ? kNaN : 0.02;
     e.direction = i % 2 == 0 ? 1 : -1;
     e.seq = i == 4 || i == 5 ? 1'718'000'000'000'000 + static_cast<std::int64_t>(i) : 0;  // command events
+    e.origin = i == 4 ? "pneu-dash \"lab, 2\"" : "";  // a command verdict's sender: free text, quoted
+    e.session = i == 4 ? 123456789 : 0;
     e.text = texts[i];
     events.push_back(e);
     log.push_back({"PNEU_EVENT", kLogStart + 100 + static_cast<std::int64_t>(i), encode(e)});
@@ -335,7 +337,7 @@ TEST_F(Log2Csv, EventTextIsQuotedWithQuotesDoubledAndKindsNamed) {
   EXPECT_THAT(raw, HasSubstr(",\"\"\n"));  // empty text: still quoted
   const Csv csv = parse_csv(raw);
   EXPECT_EQ(csv.header,
-            split_header("log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,seq,text"));
+            split_header("log_utime,utime,kind,kind_name,t,stop,y,force,y_d,direction,seq,origin,session,text"));
   EXPECT_EQ(csv.header, split_header("log_utime,utime," + pneu::records::csv_header<pneu::controller::EventMessage>()))
       << "the event message's description";
   ASSERT_EQ(csv.rows.size(), events.size());
@@ -353,6 +355,8 @@ TEST_F(Log2Csv, EventTextIsQuotedWithQuotesDoubledAndKindsNamed) {
     expect_double(csv.at(i, "y_d"), e.y_d, row + "y_d");
     expect_int(csv.at(i, "direction"), e.direction, row + "direction");
     expect_int(csv.at(i, "seq"), e.seq, row + "seq");
+    EXPECT_EQ(csv.at(i, "origin"), e.origin) << row;
+    expect_int(csv.at(i, "session"), e.session, row + "session");
     EXPECT_EQ(csv.at(i, "text"), e.text) << row;
   }
 }
@@ -535,14 +539,18 @@ TEST_F(Log2Csv, HealthAndCommandFieldsReadBack) {
   h.period = 0.25;
 
   std::vector<pneu_lcm::command_t> commands;
-  const std::vector<std::string> names = {"set_point", "set_point_step", "arm",
-                                          "disarm",    "fault_reset",    "unknown"};
-  for (int k = 1; k <= 6; ++k) {
+  const std::vector<std::string> names = {"set_point", "set_point_step", "arm",      "disarm",
+                                          "fault_reset", "hold_on",      "hold_off", "unknown"};
+  for (int k = 1; k <= 8; ++k) {
     pneu_lcm::command_t c{};
     c.utime = kLogStart + 10 * k;
     c.seq = 1000 + k * k;
     c.kind = static_cast<std::int8_t>(k);
     c.value = k == 2 ? -0.0015 : 0.05 * k;
+    // Who sent it: quoted in the CSV; a byte that is not printable ASCII comes out as '?'.
+    const std::string origin = k == 2 ? "a \"quoted\", sender\x07" : "pneu-dash 127.0.0.1:8765";
+    std::copy(origin.begin(), origin.end(), c.origin);
+    c.session = 1000000 + k;
     commands.push_back(c);
   }
   std::vector<Entry> log = {{"PNEU_HEALTH", kLogStart + 2, encode(h)}};
@@ -595,7 +603,7 @@ TEST_F(Log2Csv, HealthAndCommandFieldsReadBack) {
   expect_double(health.at(0, "period"), h.period, "period");
 
   const Csv cmd = read_csv("PNEU_COMMAND.csv");
-  EXPECT_EQ(cmd.header, split_header("log_utime,utime,seq,kind,kind_name,value"));
+  EXPECT_EQ(cmd.header, split_header("log_utime,utime,seq,kind,kind_name,value,origin,session"));
   ASSERT_EQ(cmd.rows.size(), commands.size());
   for (std::size_t i = 0; i < commands.size(); ++i) {
     const auto& c = commands[i];
@@ -606,6 +614,8 @@ TEST_F(Log2Csv, HealthAndCommandFieldsReadBack) {
     expect_int(cmd.at(i, "kind"), c.kind, row + "kind");
     EXPECT_EQ(cmd.at(i, "kind_name"), names[i]) << row;
     expect_double(cmd.at(i, "value"), c.value, row + "value");
+    EXPECT_EQ(cmd.at(i, "origin"), i == 1 ? "a \"quoted\", sender?" : "pneu-dash 127.0.0.1:8765") << row;
+    expect_int(cmd.at(i, "session"), c.session, row + "session");
   }
 }
 

@@ -560,6 +560,30 @@ TEST_F(LoopHold, IsOffUnlessEnabled) {
   EXPECT_TRUE(events().empty());
 }
 
+// Issue 31: hold on / hold off from a command (the dashboard's), for the rest of the run.
+TEST_F(LoopHold, AHoldOffCommandEndsItThatTickSayingOffAndItIsNotTakenAgainUntilAHoldOn) {
+  start_holding();
+  run_ticks(10);
+  command(LoopCommand::Kind::kHoldOff);
+  EXPECT_EQ(mode(), Mode::kArmed);
+  expect_hold_end(controller::HoldEnd::kOff);
+  EXPECT_STREQ(controller::hold_end_name(controller::HoldEnd::kOff), "off");
+  run_ticks(100);
+  EXPECT_EQ(mode(), Mode::kArmed) << "still at rest within the window, but not allowed";
+  EXPECT_TRUE(events().empty());
+  command(LoopCommand::Kind::kHoldOn);
+  EXPECT_EQ(mode(), Mode::kHold) << "allowed again: taken the tick the command is applied";
+}
+
+TEST_F(LoopHold, AHoldOnCommandAllowsItWhenTheConfigurationHasItOff) {
+  config_.controller.hold.enabled = false;
+  start();
+  run_ticks(10);
+  EXPECT_EQ(mode(), Mode::kArmed);
+  command(LoopCommand::Kind::kHoldOn);
+  EXPECT_EQ(mode(), Mode::kHold);
+}
+
 TEST_F(LoopHold, NotWithinTheWindowTheLawKeepsDriving) {
   backend_.sample.y_m = config_.controller.initial_setpoint_m + 1e-3;  // 1 mm off
   start();

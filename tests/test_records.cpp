@@ -401,9 +401,11 @@ TEST(Records, TheTickGoesThroughStateTAndBackUnchanged) {
 // says, 0x... below, as lcm-gen wrote it from the hand-written .lcm files) rotated left by one bit.
 constexpr std::uint64_t fingerprint_of_hash(std::uint64_t hash) { return (hash << 1) | (hash >> 63); }
 
-TEST(Records, TheMessagesWrittenFromDescriptionsKeepTheFingerprintsOfTheHandWrittenOnesSoOldLogsDecode) {
+TEST(Records, TheMessagesWrittenFromDescriptionsKeepTheirPinnedFingerprintsSoOldLogsDecode) {
   EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::state_t::getHash()), fingerprint_of_hash(0x47b1a6eb2d982914ULL));
-  EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::event_t::getHash()), fingerprint_of_hash(0xc90eb8a7692da280ULL));
+  // event_t changed on purpose in issue 31 (a command verdict's origin and session: who sent it):
+  // logs recorded before decode their other channels, their events only with the older tools.
+  EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::event_t::getHash()), fingerprint_of_hash(0xf00c70fb1f46ac8dULL));
   EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::prediction_t::getHash()), fingerprint_of_hash(0xba68c62bef413c1dULL));
   EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::health_t::getHash()), fingerprint_of_hash(0x2a01330226809dfdULL));
   EXPECT_EQ(static_cast<std::uint64_t>(pneu_lcm::identification_t::getHash()),

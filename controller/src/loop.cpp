@@ -20,6 +20,7 @@ const char* hold_end_name(HoldEnd why) noexcept {
     case HoldEnd::kMoved: return "moved";
     case HoldEnd::kFault: return "fault";
     case HoldEnd::kDisarmed: return "disarmed";
+    case HoldEnd::kOff: return "off";
   }
   return "?";
 }
@@ -64,6 +65,7 @@ void ControlLoop::begin(double t0_s) {
   fault_cause_ = FaultCause::kNone;
   faults_ = 0;
   schedule_active_ = true;
+  hold_allowed_ = params_.controller.hold.enabled;
   out_->setpoint_m.store(y_d_m_, std::memory_order_relaxed);
   out_->mode.store(mode_, std::memory_order_relaxed);
   out_->fault_cause.store(FaultCause::kNone, std::memory_order_relaxed);
@@ -288,6 +290,13 @@ void ControlLoop::apply_commands(double y_m) noexcept {
       case LoopCommand::Kind::kDisarm:
         transition({.event = ModeEvent::kDisarm, .y_m = y_m});
         break;
+      case LoopCommand::Kind::kHoldOn:
+        hold_allowed_ = true;
+        break;
+      case LoopCommand::Kind::kHoldOff:
+        hold_allowed_ = false;
+        if (mode_ == Mode::kHold) transition({.event = ModeEvent::kHoldEnd, .y_m = y_m, .why = HoldEnd::kOff});
+        break;
       case LoopCommand::Kind::kFaultReset: {
         // The cause must be gone: a reset while the e-stop is still pressed, or while the samples
         // are still bad, keeps the fault. A reset disarms: arming again is a separate, later
@@ -410,7 +419,7 @@ void ControlLoop::watch_hold(const Sample& s, double force_n) noexcept {
                         : !detector_.stopped() ? HoldEnd::kMoved
                                                : HoldEnd::kNone;
     if (why != HoldEnd::kNone) transition({.event = ModeEvent::kHoldEnd, .y_m = y_m, .why = why});
-  } else if (hold.enabled && mode_ == Mode::kArmed && s.good && detector_.stopped() &&
+  } else if (hold_allowed_ && mode_ == Mode::kArmed && s.good && detector_.stopped() &&
              std::abs(detector_.rest_position_m()) < half_stroke_m_ - kEndStopTolerance_m) {
     const double error_m = y_d_m_ - detector_.rest_position_m();
     if (std::abs(error_m) <= hold.window_m)

@@ -4,12 +4,17 @@
 #include <lcm/lcm.h>
 
 #include <cerrno>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <iostream>
 #include <string>
+
+#include <pwd.h>
+#include <unistd.h>
 
 #include "pneu/config/cli.hpp"
 #include "pneu_lcm/command_t.hpp"
@@ -27,7 +32,8 @@ constexpr int kExitNoAnswer = 4;
 constexpr const char* kHelp = R"(pneu-command: send a command to pneud over LCM and wait for its verdict
 
 Usage:
-  pneu-command [--lcm-url URL] [--prefix PNEU_] [--seq N] [--timeout-s S | --no-wait] COMMAND [VALUE]
+  pneu-command [--lcm-url URL] [--prefix PNEU_] [--seq N] [--origin TEXT]
+               [--timeout-s S | --no-wait] COMMAND [VALUE]
 
 Commands:
   set-point Y_M     move to the set point Y_M [m, from mid-stroke] (armed only: refused
@@ -36,6 +42,8 @@ Commands:
   arm               start controlling (holds the present position)
   disarm            stop controlling (valves at the neutral voltage u_0)
   fault-reset       clear a latched fault (the daemon comes back disarmed)
+  hold-on           allow the in-position hold for the rest of the run (controller.hold)
+  hold-off          do not take the in-position hold any more; one in force ends
 
 --lcm-url defaults to udpm://239.255.76.67:7667?ttl=0, --prefix to PNEU_ (publishes on
 <prefix>COMMAND). The sequence number (--seq, a positive integer) defaults to the present Unix
@@ -49,6 +57,10 @@ waits up to --timeout-s (default 2 s) for the verdict on its own command, and pr
 accepted on stdout, rejected on stderr. Accepted means validated and handed to the loop.
 --no-wait only sends (exit 0 once sent): for a script that streams set points and reads
 the verdicts itself.
+
+Each command says who sends it: its origin is "pneu-command USER" (the user running it; --origin
+TEXT says something else: printable ASCII, at most 32 characters) and its session this process's
+id. pneud writes both into the verdict's event, so that every command in its events is attributed.
 
 Exit codes:
   0  accepted (with --no-wait: sent)
@@ -113,8 +125,15 @@ void on_event(const lcm_recv_buf_t* rbuf, const char* /*channel*/, void* user) {
   v.text = e.text;
 }
 
+// "pneu-command USER": the program and the user running it.
+std::string default_origin() {
+  const passwd* pw = ::getpwuid(::geteuid());
+  return std::string("pneu-command ") + (pw != nullptr && pw->pw_name != nullptr ? pw->pw_name
+                                                                               : std::to_string(::geteuid()).c_str());
+}
+
 int run(int argc, char** argv) {
-  std::string url = "udpm://239.255.76.67:7667?ttl=0", prefix = "PNEU_";
+  std::string url = "udpm://239.255.76.67:7667?ttl=0", prefix = "PNEU_", origin = default_origin();
   std::int64_t seq = unix_now_us();
   double timeout_s = 2.0;
   bool wait = true, timeout_given = false;
@@ -130,7 +149,7 @@ int run(int argc, char** argv) {
       wait = false;
       continue;
     }
-    if (a != "--lcm-url" && a != "--prefix" && a != "--seq" && a != "--timeout-s")
+    if (a != "--lcm-url" && a != "--prefix" && a != "--seq" && a != "--timeout-s" && a != "--origin")
       throw cli::UsageError("unknown option " + a + " (see pneu-command --help)");
     if (i + 1 >= argc) throw cli::UsageError(a + " needs a value");
     const std::string v = argv[++i];
@@ -138,6 +157,14 @@ int run(int argc, char** argv) {
       url = v;
     } else if (a == "--prefix") {
       prefix = v;
+    } else if (a == "--origin") {
+      if (v.empty() || v.size() > sizeof(pneu_lcm::command_t::origin))
+        throw cli::UsageError("--origin: 1 to " + std::to_string(sizeof(pneu_lcm::command_t::origin)) +
+                              " characters, not " + std::to_string(v.size()));
+      for (const char c : v)
+        if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) > 0x7e)
+          throw cli::UsageError("--origin: printable ASCII only");
+      origin = v;
     } else if (a == "--seq") {
       seq = positive_integer(v, "--seq");
     } else if (a == "--timeout-s") {
@@ -147,11 +174,15 @@ int run(int argc, char** argv) {
     }
   }
   if (timeout_given && !wait) throw cli::UsageError("--timeout-s and --no-wait exclude each other");
-  if (i >= argc) throw cli::UsageError("missing command (set-point, step, arm, disarm, fault-reset)");
+  if (i >= argc) throw cli::UsageError("missing command (set-point, step, arm, disarm, fault-reset, hold-on, hold-off)");
   const std::string command = argv[i++];
   pneu_lcm::command_t msg;
   msg.seq = seq;
   msg.value = 0.0;
+  // Who sends it (pneud attributes the verdict to it): cut to the field, NUL-padded.
+  std::memset(msg.origin, 0, sizeof msg.origin);
+  std::memcpy(msg.origin, origin.data(), std::min(origin.size(), sizeof msg.origin));
+  msg.session = ::getpid();
   const auto value = [&]() {
     if (i >= argc) throw cli::UsageError(command + " needs a value in metres");
     return finite_number(argv[i++], command);
@@ -168,6 +199,10 @@ int run(int argc, char** argv) {
     msg.kind = pneu_lcm::command_t::KIND_DISARM;
   } else if (command == "fault-reset") {
     msg.kind = pneu_lcm::command_t::KIND_FAULT_RESET;
+  } else if (command == "hold-on") {
+    msg.kind = pneu_lcm::command_t::KIND_HOLD_ON;
+  } else if (command == "hold-off") {
+    msg.kind = pneu_lcm::command_t::KIND_HOLD_OFF;
   } else {
     throw cli::UsageError("unknown command '" + command + "'");
   }

@@ -17,7 +17,10 @@
 
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
+#include "pneu/dash/commands.hpp"
 #include "pneu/dash/log_player.hpp"
+#include "pneu/dash/metrics.hpp"
+#include "pneu/dash/metrics_feed.hpp"
 #include "pneu/dash/pneu_channels.hpp"
 #include "pneu/dash/server.hpp"
 #include "page.hpp"
@@ -32,8 +35,9 @@ void print_usage(std::ostream& out) {
 
 usage:
   pneu-dash [--listen HOST:PORT] [--config FILE | --lcm-url URL] [--prefix PREFIX] [--www DIR]
-            [--chart-js DIR]
+            [--chart-js DIR] [--bench NAME] [--commands-token-file FILE]
   pneu-dash --log FILE [--paused] [--listen HOST:PORT] [--prefix PREFIX] [--www DIR] [--chart-js DIR]
+            [--bench NAME]
   pneu-dash ... --check-config
   pneu-dash --help | --version
 
@@ -45,15 +49,28 @@ forecast's path through the plane), and serves, on --listen (default 127.0.0.1:8
   /ws        the Foxglove WebSocket protocol (subprotocol foxglove.websocket.v1): one channel per
              LCM channel, JSON messages with the JSON Schema of their record; Foxglove Studio
              connects to ws://HOST:PORT/ws
-  /metrics   counters in the Prometheus text format
+  /metrics   the bench's metrics in the Prometheus text format, every series labelled
+             bench="NAME" (docs/dashboard.md lists them)
   /playback  with --log: GET the player's state; POST {"play":true|false, "seek_s":S, "rate":R}
 
 --config FILE   pneud's configuration: telemetry.lcm_url and telemetry.channel_prefix from it
 --lcm-url URL   the LCM URL (default udpm://239.255.76.67:7667?ttl=0, pneud's default)
 --prefix P      the channels' prefix (default: the configuration's, else PNEU_)
+--bench NAME    the bench label of the metrics (default: this host's name)
 --www DIR       the page's files (default: the installed share/pneu/dash, else the source tree's)
 --chart-js DIR  where chart.min.js is, served at /js/chart.js/ (default /usr/share/javascript/chart.js,
                 Debian's libjs-chart.js)
+--commands-token-file FILE
+                take commands from the page (off without it): arm, disarm, fault reset, set point,
+                set-point step, hold on/off, sent to pneud on <prefix>COMMAND as pneu-command sends
+                them, so that pneud's own validation judges them; pneud's verdict comes back on
+                <prefix>EVENT. A browser sends the token (the file's one line) once on its
+                connection before it may command; a wrong one is refused, counted and nothing is
+                sent. Refused (exit 2, saying why) unless the file's mode is 0640 or stricter, it
+                is owned by group pneu when that group exists, the token has 16 characters or more,
+                and --listen is a loopback address (pneu-dash has no TLS: reach it from elsewhere
+                through an SSH tunnel). Each command names this dashboard ("pneu-dash HOST:PORT")
+                and the browser's session, and pneud's events say so.
 --check-config  read the options, the configuration and the log, say what would be served, exit
 --log FILE      play a recorded LCM log (lcm-logger) instead of listening live; it plays from its
                 start at once (--paused: waits for POST /playback {"play":true})
@@ -79,6 +96,13 @@ std::pair<std::string, std::uint16_t> parse_listen(const std::string& text) {
   return {host, static_cast<std::uint16_t>(port)};
 }
 
+// This host's name: the metrics' bench label unless --bench names it.
+std::string host_name() {
+  char name[256] = {};
+  if (gethostname(name, sizeof name - 1) != 0 || name[0] == '\0') return "localhost";
+  return name;
+}
+
 // The page's files: the installed share/pneu/dash beside bin/, else (run from the build tree) the
 // source tree's.
 fs::path default_www() {
@@ -92,7 +116,9 @@ fs::path default_www() {
 }
 
 int run(int argc, char** argv) {
-  const cli::Args args(argc, argv, 1, {"listen", "config", "lcm-url", "prefix", "www", "log", "chart-js"},
+  const cli::Args args(argc, argv, 1,
+                       {"listen", "config", "lcm-url", "prefix", "www", "log", "chart-js", "bench",
+                        "commands-token-file"},
                        {"help", "version", "paused", "check-config"});
   if (args.flag("help")) {
     print_usage(std::cout);
@@ -125,6 +151,19 @@ int run(int argc, char** argv) {
   if (!fs::is_regular_file(chart_js / "chart.min.js"))
     throw cli::UsageError("--chart-js: no chart.min.js in " + chart_js.string() +
                           ": the page draws with Chart.js (Debian package libjs-chart.js)");
+
+  // Commands (off without a token file): refused before anything listens when they cannot be safe.
+  const auto token_file = args.value("commands-token-file");
+  std::string token;
+  if (token_file) {
+    if (log) throw cli::UsageError("--commands-token-file: commands go to a live pneud, not to a log played (--log)");
+    try {
+      dash::listen_allows_commands(options.address);
+      token = dash::read_token_file(*token_file);
+    } catch (const dash::CommandsRefused& e) {
+      throw cli::UsageError(e.what());
+    }
+  }
 
   if (args.flag("check-config")) {
     if (log) {
@@ -161,10 +200,20 @@ int run(int argc, char** argv) {
   }
   dash::PlaneFeed plane(*server, telemetry.channel_prefix, cfg,
                         config_file ? fs::path(*config_file).parent_path() : fs::current_path());
-  // Every LCM message to both: the channels as pneud publishes them, and the plane's forecasts.
-  auto forward = [&feed, &plane](const std::string& channel, const void* data, std::size_t size, std::int64_t utime) {
+  dash::Metrics metrics(args.value("bench").value_or(host_name()));
+  if (metrics.bench().empty()) throw cli::UsageError("--bench: a name, not empty");
+  dash::MetricsFeed metrics_feed(metrics, telemetry.channel_prefix);
+  std::unique_ptr<dash::CommandGate> gate;  // with --commands-token-file
+  server->set_metrics([&metrics, &server, &gate] {
+    return metrics.text() + dash::with_label(server->counters_text() + (gate ? dash::counters_text(gate->counters()) : ""),
+                                             "bench", metrics.bench());
+  });
+  // Every LCM message to each: the channels as pneud publishes them, the plane's forecasts, the metrics.
+  auto forward = [&feed, &plane, &metrics_feed](const std::string& channel, const void* data, std::size_t size,
+                                                std::int64_t utime) {
     feed.forward(channel, data, size, utime);
     plane.forward(channel, data, size, utime);
+    metrics_feed.forward(channel, data, size);
   };
 
   std::unique_ptr<dash::LogPlayer> player;
@@ -194,6 +243,33 @@ int run(int argc, char** argv) {
                     (*static_cast<decltype(forward)*>(user))(channel, rbuf->data, rbuf->data_size, rbuf->recv_utime);
                   },
                   &forward);
+    if (token_file) {
+      const std::string command_channel = telemetry.channel_prefix + "COMMAND";
+      gate = std::make_unique<dash::CommandGate>(
+          dash::GateOptions{.token = token,
+                            .origin = "pneu-dash " + options.address + ":" + std::to_string(server->port())},
+          [&lcm, command_channel](const pneu_lcm::command_t& c) { return lcm->publish(command_channel, &c) == 0; });
+      token.assign(token.size(), '\0');
+      server->set_client_publish([&gate, &server](const dash::ClientMessage& m) -> std::string {
+        const std::string_view payload(reinterpret_cast<const char*>(m.payload.data()), m.payload.size());
+        dash::GateAnswer a;
+        const char* id = nullptr;
+        if (m.topic == dash::kLoginTopic) {
+          a = gate->login(m.client, payload);
+          id = dash::kLoginStatusId;
+        } else if (m.topic == dash::kCommandTopic) {
+          a = gate->command(m.client, payload);
+          id = dash::kCommandStatusId;
+        } else {
+          return "this server takes client messages on " + std::string(dash::kLoginTopic) + " and " +
+                 dash::kCommandTopic + " only";
+        }
+        // An audit trail (the journal): who logged in, what was refused, what was sent.
+        std::cerr << "pneu-dash: connection " << m.client << ": " << a.message << "\n";
+        server->send_status(m.client, a.ok ? 0 : 2, a.message, id);
+        return "";
+      });
+    }
     lcm_thread = std::thread([&] {
       while (!stopping) {
         if (lcm->handleTimeout(100) < 0) {
@@ -207,7 +283,10 @@ int run(int argc, char** argv) {
 
   std::cerr << "pneu-dash: serving http://" << options.address << ":" << server->port() << "/ (WebSocket /ws), "
             << (log ? "playing " + *log : "live from " + telemetry.lcm_url) << ", channels "
-            << telemetry.channel_prefix << "*\n";
+            << telemetry.channel_prefix << "*"
+            << (gate ? "; commands on (token from " + *token_file + "), sent as \"" + gate->origin() + "\""
+                     : std::string("; commands off"))
+            << "\n";
   std::thread server_thread([&] { server->run(); });
   std::thread signal_thread([&] {
     int sig = 0;

@@ -69,7 +69,8 @@ to the file of its own type.
 
 Cells: doubles as %.17g (they read back bit for bit), NaN as an empty cell, infinities as inf and
 -inf; booleans 0/1; kind_name and method_name "unknown" for a value the .lcm does not define;
-event text always in double quotes, a quote in it doubled (""), commas and newlines kept.
+event text and command origin always in double quotes, a quote in them doubled (""), commas and
+newlines kept; a byte of a command origin that is not printable ASCII as ?.
 
 Files appear whole or not at all. A log that ends inside an event (a logger killed mid-write) is
 converted up to its last complete event, with a warning, and exits 0. Prints, per channel, the

@@ -49,6 +49,17 @@ class Row {
     records::write_lcm_csv_cells<R>(line_, m, false, records::kDigitsToTheLastBit);
     return *this;
   }
+  // Free text: quoted, a quote doubled (RFC 4180).
+  Row& text(std::string_view v) {
+    separate();
+    line_ += '"';
+    for (const char c : v) {
+      if (c == '"') line_ += '"';
+      line_ += c;
+    }
+    line_ += '"';
+    return *this;
+  }
   // A name from a fixed table: never holds a comma or a quote.
   Row& word(std::string_view v) {
     separate();
@@ -66,6 +77,18 @@ class Row {
   bool first_ = true;
 };
 
+// command_t.origin up to its first NUL, a byte that is not printable ASCII as '?' (a log is
+// anyone's: its text is not trusted).
+std::string origin_of(const pneu_lcm::command_t& m) {
+  std::string out;
+  for (const std::int8_t b : m.origin) {
+    if (b == 0) break;
+    const auto c = static_cast<unsigned char>(b);
+    out += c < 0x20 || c > 0x7e ? '?' : static_cast<char>(c);
+  }
+  return out;
+}
+
 const char* command_kind_name(std::int8_t kind) {
   using C = pneu_lcm::command_t;
   switch (kind) {
@@ -79,6 +102,10 @@ const char* command_kind_name(std::int8_t kind) {
       return "disarm";
     case C::KIND_FAULT_RESET:
       return "fault_reset";
+    case C::KIND_HOLD_ON:
+      return "hold_on";
+    case C::KIND_HOLD_OFF:
+      return "hold_off";
     default:
       return "unknown";
   }
@@ -156,7 +183,7 @@ std::string_view csv_header(MessageType type) {
       return header;
     }
     case MessageType::kCommand:
-      return "log_utime,utime,seq,kind,kind_name,value";
+      return "log_utime,utime,seq,kind,kind_name,value,origin,session";
     case MessageType::kIdentification: {
       static const std::string header = "log_utime,utime," + records::csv_header<controller::IdentificationRecord>();
       return header;
@@ -228,6 +255,8 @@ RowInfo format_csv_row(std::int64_t log_utime, const void* data, std::int32_t si
           .integer(m.kind)
           .word(command_kind_name(m.kind))
           .number(m.value)
+          .text(origin_of(m))
+          .integer(m.session)
           .end();
       return {MessageType::kCommand, 0};
     }

@@ -6,6 +6,8 @@
 
 namespace pneu::telemetry {
 
+static_assert(sizeof(pneu_lcm::command_t::origin) == kOriginBytes, "command_t.origin is kOriginBytes long");
+
 namespace {
 constexpr std::uint32_t kShortMagic = 0x4c433032;     // "LC02": a whole message in one datagram
 constexpr std::uint32_t kFragmentMagic = 0x4c433033;  // "LC03": one fragment of a large message
@@ -44,14 +46,19 @@ DecodedDatagram decode_command_datagram(std::span<const std::uint8_t> datagram,
   const std::size_t payload_at = 8 + channel.size() + 1;
   const int payload_bytes = static_cast<int>(n - payload_at);
   pneu_lcm::command_t c;
-  // command_t is fixed-size: decode reads at most its 33 bytes and cannot allocate. The guard
+  // command_t is fixed-size: decode reads at most its kCommandPayloadBytes and cannot allocate. The guard
   // is the length check inside decode, and the exact-size check after it.
   const int used = c.decode(datagram.data() + payload_at, 0, payload_bytes);
   if (used < 0) return reject(DatagramKind::kMalformed, "not a pneu_lcm.command_t (wrong fingerprint or too short)");
   if (used != payload_bytes) return reject(DatagramKind::kMalformed, "trailing bytes after a command_t");
   DecodedDatagram d;
   d.kind = DatagramKind::kCommand;
-  d.fields = {c.utime, c.seq, c.kind, c.value};
+  d.fields.utime = c.utime;
+  d.fields.seq = c.seq;
+  d.fields.kind = c.kind;
+  d.fields.value = c.value;
+  for (std::size_t i = 0; i < kOriginBytes; ++i) d.fields.origin[i] = static_cast<char>(c.origin[i]);
+  d.fields.session = c.session;
   d.why = "";
   return d;
 }
@@ -63,6 +70,8 @@ std::size_t encode_command_datagram(const CommandFields& f, std::string_view cha
   c.seq = f.seq;
   c.kind = f.kind;
   c.value = f.value;
+  for (std::size_t i = 0; i < kOriginBytes; ++i) c.origin[i] = static_cast<std::int8_t>(f.origin[i]);
+  c.session = f.session;
   const int payload = c.getEncodedSize();
   if (channel.size() > 255 || channel.find('\0') != std::string_view::npos) return 0;
   const std::size_t total = 8 + channel.size() + 1 + static_cast<std::size_t>(payload);

@@ -49,8 +49,17 @@ const char* wire_kind_name(std::int8_t kind) noexcept {
     case kWireArm: return "arm";
     case kWireDisarm: return "disarm";
     case kWireFaultReset: return "fault_reset";
+    case kWireHoldOn: return "hold_on";
+    case kWireHoldOff: return "hold_off";
     default: return "unknown";
   }
+}
+
+std::string printable_origin(const std::array<char, kOriginBytes>& origin) {
+  std::string out(origin_text(origin));
+  for (char& c : out)
+    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) > 0x7e) c = '?';
+  return out;
 }
 
 CommandValidator::CommandValidator(const CommandsConfig& commands, double soft_limit_min_m, double soft_limit_max_m)
@@ -108,6 +117,10 @@ Verdict CommandValidator::validate(const CommandFields& c, double now_s, std::in
   if (have_seq_ && c.seq <= last_seq_)
     return reject(Rejection::kSequence, "sequence number " + std::to_string(c.seq) +
                                             " is not above the last accepted " + std::to_string(last_seq_));
+  // The origin goes into events, logs and the dashboard's page as it is: no control characters,
+  // no bytes a terminal or a page would read as anything but text.
+  if (!origin_is_clean(c.origin))
+    return reject(Rejection::kInvalid, "origin is not printable ASCII followed by NUL padding");
   if (!std::isfinite(c.value)) return reject(Rejection::kInvalid, "value is not a finite number");
 
   LoopCommand cmd;
@@ -155,6 +168,14 @@ Verdict CommandValidator::validate(const CommandFields& c, double now_s, std::in
       if (mode != Mode::kFault) return reject(Rejection::kMode, "fault reset refused: no fault is latched");
       cmd.kind = LoopCommand::Kind::kFaultReset;
       what = "fault reset";
+      break;
+    case kWireHoldOn:
+    case kWireHoldOff:
+      // A setting, taken in any mode: whether the in-position hold may take over once the carriage
+      // is at rest near its set point (a hold in force ends at a hold off).
+      cmd.kind = c.kind == kWireHoldOn ? LoopCommand::Kind::kHoldOn : LoopCommand::Kind::kHoldOff;
+      what = c.kind == kWireHoldOn ? "hold on: the in-position hold may take over"
+                                   : "hold off: the in-position hold is not taken (one in force ends)";
       break;
     default:
       return reject(Rejection::kInvalid, "unknown command kind " + std::to_string(c.kind));

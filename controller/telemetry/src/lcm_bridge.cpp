@@ -248,11 +248,14 @@ controller::TelemetryFigures LcmBridge::figures() const {
   return f;
 }
 
-void LcmBridge::publish_text_event(std::int8_t kind, const std::string& text, std::int64_t seq) {
+void LcmBridge::publish_text_event(std::int8_t kind, const std::string& text, std::int64_t seq, std::string origin,
+                                   std::int64_t session) {
   controller::EventMessage e;
   e.kind = kind;
   e.t_s = last_t_s_;
   e.seq = seq;
+  e.origin = std::move(origin);
+  e.session = session;
   e.text = text;
   pneu_lcm::event_t m;
   m.utime = unix_now_us();
@@ -302,12 +305,15 @@ void LcmBridge::on_datagram(std::span<const std::uint8_t> bytes, const CommandSo
       return;
     }
   }
-  // The verdict names the command by its sequence number, so that its sender can tell its own.
+  // The verdict names the command by its sequence number, so that its sender can tell its own, and
+  // says who sent it and from which session (as the command said: its origin, made printable).
   const bool is_command = decoded.kind == DatagramKind::kCommand;
   const CommandFields& c = decoded.fields;
+  const std::string origin = is_command ? printable_origin(c.origin) : std::string();
+  const std::int64_t session = is_command ? c.session : 0;
   publish_text_event(v.accepted ? controller::event_kind::kCommandAccepted : controller::event_kind::kCommandRejected,
                      v.accepted ? "accepted: " + v.text : "rejected (" + std::string(reason) + "): " + v.text,
-                     is_command ? c.seq : 0);
+                     is_command ? c.seq : 0, origin, session);
   if (command_log_) {
     controller::CommandRecord r;
     r.accepted = v.accepted;
@@ -316,6 +322,8 @@ void LcmBridge::on_datagram(std::span<const std::uint8_t> bytes, const CommandSo
     r.kind = wire_kind_name(c.kind);
     r.seq = c.seq;
     r.value = c.value;
+    r.origin = origin;
+    r.session = session;
     r.text = v.text;
     command_log_->record_command(r);
   }

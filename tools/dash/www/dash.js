@@ -659,10 +659,15 @@ function installCommands(impl) {
   for (const el of panel.querySelectorAll("button, input")) el.disabled = false;
 }
 
+// v.by: who said it, "pneud" (its verdict, in its words: "accepted: set point 170.000 mm",
+// "rejected (mode): ...") or "pneu-dash" (nothing was sent: a wrong token, not connected).
 function showVerdict(v) {
   const el = document.getElementById("cmd-verdict");
   el.dataset.verdict = v.accepted ? "accepted" : "rejected";
-  el.textContent = `${v.accepted ? "accepted" : "refused"}: ${v.text}`;
+  el.dataset.by = v.by ?? "";
+  el.textContent = v.by === "pneud" ? `pneud ${v.text}`
+                 : v.by ? `${v.by}: ${v.text}`
+                 : `${v.accepted ? "accepted" : "refused"}: ${v.text}`;
 }
 
 function wireCommandPanel() {

@@ -39,6 +39,7 @@ enum class HoldEnd : std::uint8_t {
   kMoved,       ///< the stop detector saw the carriage start inside the window
   kFault,       ///< a fault latched
   kDisarmed,    ///< a disarm command
+  kOff,         ///< a hold-off command: the hold is not allowed any more
 };
 [[nodiscard]] const char* hold_end_name(HoldEnd why) noexcept;
 
@@ -94,7 +95,9 @@ struct LoopEvent {
 
 /// A validated command for the loop (see CommandValidator).
 struct LoopCommand {
-  enum class Kind : std::uint8_t { kSetPoint, kSetPointStep, kArm, kDisarm, kFaultReset };
+  /// kHoldOn / kHoldOff: the in-position hold allowed or not from now on (controller.hold.enabled
+  /// at start); a hold in force ends at a hold off (hold_end: off).
+  enum class Kind : std::uint8_t { kSetPoint, kSetPointStep, kArm, kDisarm, kFaultReset, kHoldOn, kHoldOff };
   Kind kind = Kind::kSetPoint;
   double value_m = 0.0;  ///< set point, or its change [m]
   std::uint64_t seq = 0;
@@ -235,6 +238,7 @@ class ControlLoop {
   double y_d_at_stop_m_ = 0.0;
   Mode mode_ = Mode::kArmed;
   bool schedule_active_ = true;  ///< a set-point command ends the configured schedule
+  bool hold_allowed_ = false;    ///< controller.hold.enabled, then as hold on / off commands say
   Supervisor supervisor_;
   FaultCause fault_cause_ = FaultCause::kNone;
   std::uint64_t faults_ = 0;

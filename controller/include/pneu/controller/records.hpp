@@ -35,6 +35,8 @@ struct EventMessage {
   double y_d_m = kNaN;
   std::int8_t direction = 0;
   std::int64_t seq = 0;
+  std::string origin;
+  std::int64_t session = 0;
   std::string text;
 };
 
@@ -192,6 +194,12 @@ struct pneu::records::Description<pneu::controller::EventMessage> {
       field("seq", &R::seq, "",
             "command accepted/rejected: the command's sequence number (command_t.seq); 0 for a datagram that "
             "did not decode as a command, and for other events"),
+      field("origin", &R::origin, "",
+            "command accepted/rejected: who sent it, as it said (command_t.origin: e.g. \"pneu-dash 127.0.0.1:8765\", "
+            "\"pneu-command alice\"); empty when it did not say, or did not decode, and for other events"),
+      field("session", &R::session, "",
+            "command accepted/rejected: the sender's session (command_t.session: pneu-dash, the browser's login; "
+            "pneu-command, its pid); 0 for none, and for other events"),
       field("text", &R::text, "",
             "what happened, for people: a fault's cause, what a command did or why it was rejected"),
   };
@@ -208,7 +216,7 @@ struct pneu::records::Description<pneu::controller::EventLine> {
       field("stop", &R::stop, "", "index of the stop (from 1; a start: the last stop, 0 for none)"),
       field("restart", &R::restart, "", "start: the set point did not change since the stop"),
       field("direction", &R::direction, "", "start: +1 or -1"),
-      field("why", &R::why, "", "hold end: why (setpoint, left_window, moved, fault, disarmed)"),
+      field("why", &R::why, "", "hold end: why (setpoint, left_window, moved, fault, disarmed, off)"),
       field("y", &R::y_m, "m", "stop: rest position; start: position it left; the position then", 12),
       field("force", &R::force_n, "N", "pressure force when the stop was confirmed (Eq. 14)"),
       field("y_d", &R::y_d_m, "m", "set point at the event"),
@@ -276,13 +284,21 @@ struct pneu::records::Description<pneu::controller::CommandRecord> {
             "rejected: why, in a word (malformed, oversized, foreign, stale, sequence, invalid, rate, mode, "
             "queue_full); null when accepted")
           .null_when(+[](const R& r) { return r.accepted; }),
-      field("kind", &R::kind, "", "set_point, set_point_step, arm, disarm, fault_reset, unknown; null when the "
+      field("kind", &R::kind, "", "set_point, set_point_step, arm, disarm, fault_reset, hold_on, hold_off, unknown; null when the "
                                   "datagram did not decode as a command")
           .null_when(+[](const R& r) { return !r.decoded; }),
       field("seq", &R::seq, "", "command_t.seq; null when it did not decode").null_when(+[](const R& r) {
         return !r.decoded;
       }),
       field("value", &R::value, "m", "command_t.value as sent; null when it did not decode")
+          .null_when(+[](const R& r) { return !r.decoded; }),
+      field("origin", &R::origin, "",
+            "who sent it, as it said (command_t.origin: the program and where, e.g. \"pneu-dash 127.0.0.1:8765\"); "
+            "null when it did not decode")
+          .null_when(+[](const R& r) { return !r.decoded; }),
+      field("session", &R::session, "",
+            "the sender's session (command_t.session: pneu-dash, the browser's login; pneu-command, its pid; 0: "
+            "none); null when it did not decode")
           .null_when(+[](const R& r) { return !r.decoded; }),
       field("text", &R::text, "", "what the command did or why it was refused, for people"),
   };
@@ -307,7 +323,8 @@ inline constexpr const char* kReforecastLine[] = {"t", "stop", "t_stop", "update
                                                   "direction", "t_restart", "u_star", "force",
                                                   "stop_forecast_force", "min_margin", "horizon_reached",
                                                   "model_fits"};
-inline constexpr const char* kCommandLine[] = {"t", "verdict", "reason", "kind", "seq", "value", "text"};
+inline constexpr const char* kCommandLine[] = {"t", "verdict", "reason", "kind", "seq", "value", "origin", "session",
+                                               "text"};
 }  // namespace detail
 
 /// The events file's lines that a loop event or the run's end writes (views of EventLine).

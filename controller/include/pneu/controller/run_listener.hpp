@@ -49,9 +49,11 @@ struct CommandRecord {
   std::string_view reason;
   /// Whether the datagram decoded as a command_t: else `kind`, `seq` and `value` are unknown.
   bool decoded = false;
-  std::string_view kind;       ///< set_point, set_point_step, arm, disarm, fault_reset, unknown
+  std::string_view kind;       ///< set_point, set_point_step, arm, disarm, fault_reset, hold_on, hold_off, unknown
   std::int64_t seq = 0;        ///< command_t.seq
   double value = std::numeric_limits<double>::quiet_NaN();  ///< command_t.value as sent [m]
+  std::string_view origin;     ///< command_t.origin: who sent it, as it said (printable ASCII)
+  std::int64_t session = 0;    ///< command_t.session: the sender's session, 0 for none
   std::string_view text;       ///< what was done, or why not, for people
 };
 

@@ -226,6 +226,11 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     send_control(json{{"op", "advertise"}, {"channels", list}}.dump());
   }
 
+  [[nodiscard]] std::uint64_t id() const noexcept { return id_; }
+  void send_status(int level, const std::string& message, const std::string& id) {
+    send_control(status_json(level, message, id));
+  }
+
   void close() {
     if (closed_) return;
     closed_ = true;
@@ -751,6 +756,14 @@ void Server::add_route(std::string method, std::string path, RouteHandler handle
 void Server::set_metrics(std::function<std::string()> text) { impl_->metrics = std::move(text); }
 
 void Server::set_client_publish(ClientPublishHandler handler) { impl_->client_publish = std::move(handler); }
+
+void Server::send_status(std::uint64_t client, int level, std::string message, std::string id) {
+  asio::post(impl_->ioc, [impl = impl_.get(), client, level, message = std::move(message), id = std::move(id)] {
+    impl->for_each_session([&](WsSession& s) {
+      if (s.id() == client) s.send_status(level, message, id);
+    });
+  });
+}
 
 void Server::set_websocket_check(RouteHandlerCheck check) { impl_->websocket_check = std::move(check); }
 

@@ -5,7 +5,7 @@
 // Wire format (LCM's UDP multicast protocol, "short message" form; commands are never
 // fragmented):
 //   uint32 magic 0x4c433032 ("LC02", big-endian) | uint32 sequence | channel name, NUL-terminated
-//   | payload: pneu_lcm.command_t, LCM-encoded (8-byte fingerprint + fields, 33 bytes)
+//   | payload: pneu_lcm.command_t, LCM-encoded (8-byte fingerprint + fields, kCommandPayloadBytes)
 #pragma once
 
 #include <cstddef>
@@ -17,8 +17,10 @@
 
 namespace pneu::telemetry {
 
+/// A command_t's bytes: the fingerprint, utime, seq, kind, value, origin, session.
+inline constexpr std::size_t kCommandPayloadBytes = 8 + 8 + 8 + 1 + 8 + kOriginBytes + 8;
 /// The largest datagram a command can be: header, a 255-byte channel name and its NUL, payload.
-inline constexpr std::size_t kMaxCommandDatagramBytes = 8 + 256 + 33;
+inline constexpr std::size_t kMaxCommandDatagramBytes = 8 + 256 + kCommandPayloadBytes;
 
 enum class DatagramKind : std::uint8_t {
   kCommand,       ///< a well-formed command_t on the command channel: `fields` holds it

@@ -86,7 +86,8 @@ class LcmBridge final : public controller::RunListener {
   /// Asks the loop to latch the fault while another controller is heard, and says so.
   void update_watch();
   [[nodiscard]] double watch_time_s() const;
-  void publish_text_event(std::int8_t kind, const std::string& text, std::int64_t seq = 0);
+  void publish_text_event(std::int8_t kind, const std::string& text, std::int64_t seq = 0, std::string origin = {},
+                          std::int64_t session = 0);
   [[nodiscard]] std::int64_t utime_of(double t_s) const noexcept;
   template <typename T>
   void publish(const std::string& channel, const T& msg);

@@ -133,6 +133,10 @@ class Server {
   void set_metrics(std::function<std::string()> text);
   /// Takes the messages clients publish: advertises the capability clientPublish.
   void set_client_publish(ClientPublishHandler handler);
+  /// Sends a status message (level 0 info, 1 warning, 2 error; `id`: the status's "id", "" for
+  /// none) to the client `client` (ClientMessage::client), if it is still connected: the answer
+  /// to what it published. Thread-safe.
+  void send_status(std::uint64_t client, int level, std::string message, std::string id = {});
   /// Judges each WebSocket upgrade (its headers, its peer) before it is accepted: one refused gets
   /// 403 and the reason.
   void set_websocket_check(RouteHandlerCheck check);
