@@ -11,8 +11,12 @@ fail() {
   failures=$((failures + 1))
 }
 for p in pneud pneu-plant pneu-sweep pneu-identify pneu-command pneu-log2csv "pneu-plant simulate" "pneu-plant serve" \
-         "pneu-plant tune" "pneu-plant null-flow" "pneu-plant characterize-valve"; do
+         "pneu-plant tune" "pneu-plant null-flow" "pneu-plant characterize-valve" pneu-dash; do
   read -r -a cmd <<<"$p"
+  if [ "$p" = pneu-dash ] && [ ! -e "$bin/pneu-dash" ]; then
+    echo "note: pneu-dash is not built (PNEU_WITH_DASH=OFF)"
+    continue
+  fi
   [ -x "$bin/${cmd[0]}" ] || { fail "$bin/${cmd[0]} is missing: build it first"; continue; }
   cmd[0]=$bin/${cmd[0]}
   short=$("${cmd[@]}" -h 2>&1); short_rc=$?

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Every build option off at once (PNEU_WITH_MODBUS, PNEU_WITH_GPIOD, PNEU_WITH_LCM,
-# PNEU_WITH_LCM_JAVA, PNEU_BUILD_TESTS, PNEU_BUILD_BENCHMARKS): the project configures and builds
+# PNEU_WITH_LCM_JAVA, PNEU_WITH_DASH, PNEU_BUILD_TESTS, PNEU_BUILD_BENCHMARKS): the project configures and builds
 # into BINARY_DIR/options-off with the compiler, launcher, build type and warnings of BINARY_DIR;
 # the binaries run, and what the build left out is refused saying so (pneu-plant serve, pneud on
 # the modbus backend, with GPIO lines, with --require-telemetry), nothing driven.
@@ -10,7 +10,7 @@ src=$1
 out=$2/options-off
 fail() { echo "FAIL: $*"; exit 1; }
 
-options=(-DPNEU_WITH_MODBUS=OFF -DPNEU_WITH_GPIOD=OFF -DPNEU_WITH_LCM=OFF -DPNEU_WITH_LCM_JAVA=OFF
+options=(-DPNEU_WITH_MODBUS=OFF -DPNEU_WITH_GPIOD=OFF -DPNEU_WITH_LCM=OFF -DPNEU_WITH_LCM_JAVA=OFF -DPNEU_WITH_DASH=OFF
          -DPNEU_BUILD_TESTS=OFF -DPNEU_BUILD_BENCHMARKS=OFF)
 same=(-DCMAKE_CXX_COMPILER="$3" -DCMAKE_BUILD_TYPE="$4" -DPNEU_WERROR="$5")
 [ -n "${6:-}" ] && same+=(-DCMAKE_CXX_COMPILER_LAUNCHER="$6")
@@ -23,7 +23,7 @@ echo "built in $(($(date +%s) - start)) s"
 
 bin=$out/bin
 for b in pneud pneu-plant pneu-sweep; do [ -x "$bin/$b" ] || fail "$b was not built"; done
-for b in pneu-command pneu-log2csv bench_controller bare_loop test_controller; do
+for b in pneu-command pneu-log2csv pneu-dash bench_controller bare_loop test_controller; do
   [ ! -e "$bin/$b" ] || fail "$b was built with its option off"
 done
 

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# The systemd units of systemd/: `systemd-analyze verify` accepts both without a single warning,
-# pneud's command line in the unit is one the freshly built pneud accepts with the example bench
+# The systemd units of systemd/: `systemd-analyze verify` accepts them without a single warning,
+# pneud's (and pneu-dash's) command line in the unit is one the freshly built program accepts with the example bench
 # configuration, the unit lets pneud reach the I/O module of that configuration, and the
 # sandbox's exposure (`systemd-analyze security --offline=true`) stays at or below what was
 # measured with systemd 252. Exits 77 (ctest: skipped) with a reason without systemd-analyze.
@@ -16,6 +16,7 @@ set -u
 # Figures measured with systemd 252 (Debian 12); a newer systemd may score differently.
 readonly MAX_EXPOSURE_PNEUD=1.5
 readonly MAX_EXPOSURE_PLANT=0.9
+readonly MAX_EXPOSURE_DASH=1.0
 
 if [ $# -ne 2 ]; then
   echo "usage: $0 SOURCE_DIR BIN_DIR" >&2
@@ -44,6 +45,13 @@ for b in pneud pneu-plant; do
   [ -x "$bin/$b" ] || fail "$bin/$b is missing: build it first"
 done
 [ "$failures" -eq 0 ] || exit 1
+# pneu-dash.service: checked when pneu-dash was built (-DPNEU_WITH_DASH=ON, the default).
+unit_list=(pneud.service pneu-plant-hil.service)
+if [ -x "$bin/pneu-dash" ]; then
+  unit_list+=(pneu-dash.service)
+else
+  echo "note: $bin/pneu-dash is not built (PNEU_WITH_DASH=OFF): pneu-dash.service is not checked"
+fi
 
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
@@ -51,20 +59,20 @@ chmod 755 "$work"
 
 # 1. verify, on copies pointing at the built binaries; any output at all is a failure (verify
 #    exits 0 on unknown keys, unparsable system calls and the like: it only prints them).
-for u in pneud.service pneu-plant-hil.service; do
+for u in "${unit_list[@]}"; do
   grep -q '^ExecStart=/usr/bin/' "$units/$u" || fail "$u: ExecStart= does not start with /usr/bin/"
   sed "s#^ExecStart=/usr/bin/#ExecStart=$bin/#" "$units/$u" >"$work/$u"
   if ! diff -q <(grep -v '^ExecStart=' "$units/$u") <(grep -v '^ExecStart=' "$work/$u") >/dev/null; then
     fail "$u: the copy differs from the unit beyond ExecStart="
   fi
 done
-out=$(cd "$work" && systemd-analyze verify --man=no ./pneud.service ./pneu-plant-hil.service 2>&1)
+out=$(cd "$work" && systemd-analyze verify --man=no "${unit_list[@]/#/./}" 2>&1)
 rc=$?
 if [ "$rc" -ne 0 ] || [ -n "$out" ]; then
   fail "systemd-analyze verify (exit $rc):"
   printf '%s\n' "$out" >&2
 else
-  echo "systemd-analyze verify: both units accepted, no warning"
+  echo "systemd-analyze verify: ${unit_list[*]} accepted, no warning"
 fi
 
 # 2. pneud's command line from the unit, with the installed configuration path mapped to the
@@ -107,6 +115,17 @@ exposure_at_most() {  # unit max
 }
 exposure_at_most pneud.service "$MAX_EXPOSURE_PNEUD"
 exposure_at_most pneu-plant-hil.service "$MAX_EXPOSURE_PLANT"
+if [ -x "$bin/pneu-dash" ]; then
+  exposure_at_most pneu-dash.service "$MAX_EXPOSURE_DASH"
+  # Its command line, with the installed configuration mapped to the example, checked by the
+  # built pneu-dash (--check-config: the options and the configuration read, nothing served).
+  dash_cmd=$(sed -n 's#^ExecStart=/usr/bin/pneu-dash ##p' "$units/pneu-dash.service")
+  read -r -a dash_args <<<"${dash_cmd//\/etc\/pneu\//$src/config/}"
+  if ! check=$("$bin/pneu-dash" "${dash_args[@]}" --check-config 2>&1); then
+    fail "pneu-dash rejects the unit's command line (${dash_args[*]}):"
+    printf '%s\n' "$check" | tail -5 >&2
+  fi
+fi
 
 if ! getent passwd pneu >/dev/null 2>&1; then
   echo "note: no user 'pneu' on this machine; verify does not check User=, but pneud.service would fail to start (status 217/USER) until it is created (systemd/README.md)"

@@ -1,0 +1,205 @@
+// pneu-dash: a bench's LCM channels (live, or a recorded log) to browsers and Foxglove Studio, over
+// HTTP and the Foxglove WebSocket protocol (pneu_dash, tools/dash/lib).
+#include <lcm/lcm-cpp.hpp>
+#include <pthread.h>
+#include <signal.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <charconv>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <string>
+#include <thread>
+
+#include "pneu/config/cli.hpp"
+#include "pneu/config/config.hpp"
+#include "pneu/dash/log_player.hpp"
+#include "pneu/dash/pneu_channels.hpp"
+#include "pneu/dash/server.hpp"
+
+namespace pneu {
+namespace {
+
+namespace fs = std::filesystem;
+
+void print_usage(std::ostream& out) {
+  out << R"(pneu-dash: a bench's telemetry in a browser and in Foxglove Studio.
+
+usage:
+  pneu-dash [--listen HOST:PORT] [--config FILE | --lcm-url URL] [--prefix PREFIX] [--www DIR]
+  pneu-dash --log FILE [--paused] [--listen HOST:PORT] [--prefix PREFIX] [--www DIR]
+  pneu-dash ... --check-config
+  pneu-dash --help | --version
+
+Subscribes to pneud's LCM channels (<prefix>STATE, EVENT, PREDICTION, HEALTH, IDENTIFICATION) and
+serves, on --listen (default 127.0.0.1:8765, loopback only):
+  /          the page (static files of --www)
+  /ws        the Foxglove WebSocket protocol (subprotocol foxglove.websocket.v1): one channel per
+             LCM channel, JSON messages with the JSON Schema of their record; Foxglove Studio
+             connects to ws://HOST:PORT/ws
+  /metrics   counters in the Prometheus text format
+  /playback  with --log: GET the player's state; POST {"play":true|false, "seek_s":S, "rate":R}
+
+--config FILE   pneud's configuration: telemetry.lcm_url and telemetry.channel_prefix from it
+--lcm-url URL   the LCM URL (default udpm://239.255.76.67:7667?ttl=0, pneud's default)
+--prefix P      the channels' prefix (default: the configuration's, else PNEU_)
+--www DIR       the page's files (default: the installed share/pneu/dash, else the source tree's)
+--check-config  read the options, the configuration and the log, say what would be served, exit
+--log FILE      play a recorded LCM log (lcm-logger) instead of listening live; it plays from its
+                start at once (--paused: waits for POST /playback {"play":true})
+
+Exit status: 0 stopped by SIGINT or SIGTERM, 1 failed while serving, 2 bad command line, config
+or log.
+)";
+}
+
+// HOST:PORT, the port 0 to 65535 (0: a free one).
+std::pair<std::string, std::uint16_t> parse_listen(const std::string& text) {
+  const auto colon = text.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 == text.size())
+    throw cli::UsageError("--listen: HOST:PORT expected, got '" + text + "'");
+  std::string host = text.substr(0, colon);
+  if (host.size() > 2 && host.front() == '[' && host.back() == ']') host = host.substr(1, host.size() - 2);
+  unsigned port = 0;
+  const char* first = text.data() + colon + 1;
+  const char* last = text.data() + text.size();
+  const auto r = std::from_chars(first, last, port);
+  if (r.ec != std::errc{} || r.ptr != last || port > 65535)
+    throw cli::UsageError("--listen: the port must be a number from 0 to 65535, got '" + text.substr(colon + 1) + "'");
+  return {host, static_cast<std::uint16_t>(port)};
+}
+
+// The page's files: the installed share/pneu/dash beside bin/, else (run from the build tree) the
+// source tree's.
+fs::path default_www() {
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const fs::path installed = exe.parent_path().parent_path() / "share" / "pneu" / "dash";
+    if (fs::is_regular_file(installed / "index.html", ec)) return installed;
+  }
+  return PNEU_DASH_SOURCE_WWW;
+}
+
+int run(int argc, char** argv) {
+  const cli::Args args(argc, argv, 1, {"listen", "config", "lcm-url", "prefix", "www", "log"},
+                       {"help", "version", "paused", "check-config"});
+  if (args.flag("help")) {
+    print_usage(std::cout);
+    return cli::kExitOk;
+  }
+  if (args.flag("version")) {
+    std::printf("pneu-dash %s\n", PNEU_VERSION);
+    return cli::kExitOk;
+  }
+  const auto log = args.value("log");
+  if (log && (args.value("lcm-url") || args.value("config")))
+    throw cli::UsageError("--log plays a recorded log: --lcm-url and --config are for a live bench");
+  if (args.flag("paused") && !log) throw cli::UsageError("--paused is for --log");
+  if (args.value("lcm-url") && args.value("config"))
+    throw cli::UsageError("--lcm-url and --config exclude each other (the URL is the configuration's)");
+
+  telemetry::TelemetryConfig telemetry;
+  if (const auto file = args.value("config")) telemetry = config::load_file(*file).telemetry;
+  if (const auto url = args.value("lcm-url")) telemetry.lcm_url = *url;
+  if (const auto prefix = args.value("prefix")) telemetry.channel_prefix = *prefix;
+
+  dash::ServerOptions options;
+  std::tie(options.address, options.port) = parse_listen(args.value("listen").value_or("127.0.0.1:8765"));
+  options.www = args.value("www") ? fs::path(*args.value("www")) : default_www();
+  if (!fs::is_directory(options.www)) throw cli::UsageError("--www: not a directory: " + options.www.string());
+
+  if (args.flag("check-config")) {
+    if (log) {
+      try {
+        const dash::LogPlayer readable(*log, nullptr, nullptr);
+      } catch (const std::runtime_error& e) {
+        throw cli::UsageError(std::string("--log: ") + e.what());
+      }
+    }
+    std::cout << "pneu-dash: would serve http://" << options.address << ":" << options.port << "/ from "
+              << options.www.string() << ", " << (log ? "playing " + *log : "live from " + telemetry.lcm_url)
+              << ", channels " << telemetry.channel_prefix << "*\n";
+    return cli::kExitOk;
+  }
+
+  // SIGINT and SIGTERM are waited for by this thread, blocked in every other.
+  sigset_t stop_signals;
+  sigemptyset(&stop_signals);
+  sigaddset(&stop_signals, SIGINT);
+  sigaddset(&stop_signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+
+  std::unique_ptr<dash::Server> server;
+  try {
+    server = std::make_unique<dash::Server>(options);
+  } catch (const std::exception& e) {
+    throw cli::UsageError("--listen " + options.address + ":" + std::to_string(options.port) + ": " + e.what());
+  }
+  dash::PneuFeed feed(*server, telemetry.channel_prefix);
+
+  std::unique_ptr<dash::LogPlayer> player;
+  std::unique_ptr<lcm::LCM> lcm;
+  std::atomic<bool> stopping{false};
+  std::thread lcm_thread;
+  if (log) {
+    try {
+      player = std::make_unique<dash::LogPlayer>(
+          *log,
+          [&feed](const std::string& channel, const void* data, std::size_t size, std::int64_t utime) {
+            feed.forward(channel, data, size, utime);
+          },
+          [&server](std::uint64_t t_ns) { server->publish_time(t_ns); });
+    } catch (const std::runtime_error& e) {
+      throw cli::UsageError(std::string("--log: ") + e.what());
+    }
+    player->attach(*server);
+    if (!args.flag("paused")) player->play(true);
+  } else {
+    lcm = std::make_unique<lcm::LCM>(telemetry.lcm_url);
+    if (!lcm->good())
+      throw std::runtime_error("LCM does not start on " + telemetry.lcm_url +
+                               " (a udpm:// URL needs a multicast route: see docs/dashboard.md)");
+    lcm_subscribe(lcm->getUnderlyingLCM(), (dash::regex_literal(telemetry.channel_prefix) + ".*").c_str(),
+                  [](const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
+                    static_cast<dash::PneuFeed*>(user)->forward(channel, rbuf->data, rbuf->data_size, rbuf->recv_utime);
+                  },
+                  &feed);
+    lcm_thread = std::thread([&] {
+      while (!stopping) {
+        if (lcm->handleTimeout(100) < 0) {
+          std::cerr << "pneu-dash: LCM failed; stopping\n";
+          server->stop();
+          return;
+        }
+      }
+    });
+  }
+
+  std::cerr << "pneu-dash: serving http://" << options.address << ":" << server->port() << "/ (WebSocket /ws), "
+            << (log ? "playing " + *log : "live from " + telemetry.lcm_url) << ", channels "
+            << telemetry.channel_prefix << "*\n";
+  std::thread server_thread([&] { server->run(); });
+  std::thread signal_thread([&] {
+    int sig = 0;
+    sigwait(&stop_signals, &sig);
+    server->stop();
+  });
+  server_thread.join();
+  stopping = true;
+  if (lcm_thread.joinable()) lcm_thread.join();
+  // The signal thread still waits when the server stopped on its own: wake it.
+  pthread_kill(signal_thread.native_handle(), SIGTERM);
+  signal_thread.join();
+  player.reset();
+  return cli::kExitOk;
+}
+
+}  // namespace
+}  // namespace pneu
+
+int main(int argc, char** argv) { return pneu::cli::run_main("pneu-dash", pneu::run, argc, argv); }
