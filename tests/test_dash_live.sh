@@ -52,7 +52,8 @@ wait_port 8765
 # Online learning on: a run of 8 s brings every channel (identification after the first stop). The
 # loop-timing supervision is off: a stall of the shared machine would latch a fault (timing is not
 # this test's subject).
-"$B/pneud" --clock real --duration 8 --require-telemetry --set controller.predictor.learn_online=true \
+"$B/pneud" --clock real --duration 8 --require-telemetry --summary-json "$D/summary.json" \
+  --set controller.predictor.learn_online=true \
   --set controller.supervisor.overruns_in_a_row=0 --set controller.supervisor.max_tick_interval_s=0 \
   >"$D/pneud.out" 2>"$D/pneud.err" &
 PNEUD=$!
@@ -70,6 +71,16 @@ rc=$?
 cat "$D/client.out"
 [ $rc -eq 0 ] || fail "the client against the live bench exited $rc"
 wait "$PNEUD" || fail "pneud exited $?"
+# Where messages were lost, if any were (the client counts what is missing by the sequence): what
+# pneud published, what pneu-dash received from LCM, queued and dropped.
+"$PY" - "$D/summary.json" <<'PYEOF'
+import json, sys, urllib.request
+s = json.load(open(sys.argv[1]))
+print("pneud: %d ticks, %d publish errors" % (s["loop"]["ticks"], s["telemetry"]["publish_errors"]))
+for line in urllib.request.urlopen("http://127.0.0.1:8765/metrics").read().decode().splitlines():
+    if 'channel="PNEU_STATE"' in line:
+        print("pneu-dash: " + line)
+PYEOF
 kill "$DASH"
 wait "$DASH"
 rc=$?
