@@ -49,8 +49,9 @@ def cyclic(path):
 
 
 def client(path, epoch_s):
-    """The state rows of one client: (latencies us, tick->dash us, dash->client us, seqs, header)."""
-    lat, to_dash, to_client, seqs, head = [], [], [], set(), {"status": [], "count": {}}
+    """The state rows of one client: (latencies us, tick->dash us, dash->client us, seqs, header);
+    header["t"]: each row's loop time [s]."""
+    lat, to_dash, to_client, seqs, head = [], [], [], set(), {"status": [], "count": {}, "t": []}
     offset = 0
     with open(path) as f:
         for line in f:
@@ -71,14 +72,16 @@ def client(path, epoch_s):
             to_dash.append((dash_ns - tick_ns) / 1e3)
             to_client.append((recv - dash_ns) / 1e3)
             seqs.add(int(seq))
+            head["t"].append(float(t))
     return lat, to_dash, to_client, seqs, head
 
 
-def dropped(path):
+def counter(path, name):
+    """A pneu_dash counter by channel, from /metrics' text."""
     out = {}
     with open(path) as f:
         for line in f:
-            m = re.match(r'^pneu_dash_messages_dropped_total\{channel="([^"]+)"\} (\d+)', line)
+            m = re.match(r'^' + name + r'\{channel="([^"]+)"\} (\d+)', line)
             if m:
                 out[m.group(1)] = int(m.group(2))
     return out
@@ -103,14 +106,17 @@ def phase(d):
             if len(p) == 2:
                 rss.append((float(p[0]), int(p[1])))
     r["rss"] = rss
-    r["dropped"] = dropped(os.path.join(d, "metrics.txt"))
-    lat, to_dash, to_client, rates = [], [], [], []
+    r["dropped"] = counter(os.path.join(d, "metrics.txt"), "pneu_dash_messages_dropped_total")
+    r["published_states"] = sum(v for k, v in counter(os.path.join(d, "metrics.txt"),
+                                                      "pneu_dash_messages_published_total").items() if k.endswith("STATE"))
+    lat, to_dash, to_client, rates, ts = [], [], [], [], []
     epoch = loop["epoch_monotonic_s"]
     for path in sorted(glob.glob(os.path.join(d, "client*.txt"))):
-        l, a, b, seqs, _ = client(path, epoch)
+        l, a, b, seqs, head = client(path, epoch)
         lat += l
         to_dash += a
         to_client += b
+        ts += head["t"]
         rates.append(len(seqs) / loop["ticks"])
     r["clients"] = len(rates)
     if rates:
@@ -124,6 +130,21 @@ def phase(d):
         r["stalled_states"] = len(seqs)
         r["stalled_last_t"] = max(seqs) / loop["rate_hz"] if seqs else 0.0
         r["stalled_status"] = head["status"]
+        # The others' latency while its queue filled, and once it was full (pneu-dash dropping
+        # for it), each side 0.5 s away from the moment.
+        full = r["stalled_last_t"]
+        filling = [x for x, t in zip(lat, ts) if t < full - 0.5]
+        dropping = [x for x, t in zip(lat, ts) if t > full + 0.5]
+        r["filling_p50"], r["filling_p99"] = pct(filling, 0.5), pct(filling, 0.99)
+        r["dropping_p50"], r["dropping_p99"] = pct(dropping, 0.5), pct(dropping, 0.99)
+        # Every 5 s of the loop: the others' tick -> receipt p99, and its pneu-dash -> client part
+        # (the machine's stalls show in the tick -> pneu-dash part too; the server's queueing not).
+        r["windows"] = []
+        for w in range(0, int(max(ts)) + 1, 5):
+            idx = [i for i, t in enumerate(ts) if w <= t < w + 5]
+            if idx:
+                r["windows"].append((w, pct([lat[i] for i in idx], 0.99), pct([to_client[i] for i in idx], 0.5),
+                                     pct([to_client[i] for i in idx], 0.99)))
     return r
 
 
@@ -142,7 +163,7 @@ def main(argv):
     rows = {"A": [], "B": [], "C": []}
     for rep in range(1, reps + 1):
         print("repetition %d:" % rep)
-        prev_drop = {}
+        prev_drop, prev_published = {}, 0
         for name in "ABC":
             d = os.path.join(root, str(rep), name)
             r = phase(d)
@@ -150,7 +171,8 @@ def main(argv):
             end = float(open(os.path.join(d, "end.txt")).read())
             r["rss_marks"], r["rss_max"] = rss_line(r["rss"], start, end)
             r["drops_phase"] = sum(r["dropped"].values()) - sum(prev_drop.values())
-            prev_drop = r["dropped"]
+            r["lost_before_dash"] = r["ticks"] - (r["published_states"] - prev_published)
+            prev_drop, prev_published = r["dropped"], r["published_states"]
             rows[name].append(r)
             label = {"A": "0 clients", "B": "%d clients" % n, "C": "%d clients + 1 stopped reading" % n}[name]
             print("  %s %-30s pneud %6d ticks, overruns %3d, wake-up median %5.1f us p99 %6.1f us | cyclictest median %3d p99 %4d us"
@@ -162,10 +184,16 @@ def main(argv):
                       "pneu-dash -> client p50 %.0f p99 %.0f); states received per tick, the fewest of %d clients: %.4f"
                       % (r["lat_p50"], r["lat_p99"], r["lat_max"], r["to_dash_p50"], r["to_dash_p99"], r["to_client_p50"],
                          r["to_client_p99"], r["clients"], r["received_min"]))
-            print("    frames dropped by pneu-dash in this phase (/metrics): %d" % r["drops_phase"])
+            print("    frames dropped by pneu-dash in this phase (/metrics): %d; states pneud published that pneu-dash's LCM "
+                  "subscription never received (ticks - pneu_dash_messages_published_total): %d" % (r["drops_phase"], r["lost_before_dash"]))
             if "stalled_states" in r:
                 print("    the client that stopped reading: %d states taken in all (queued for it until t = %.1f s of the loop, dropped after); "
                       "pneu-dash told it: %s" % (r["stalled_states"], r["stalled_last_t"], "; ".join(r["stalled_status"]) or "(nothing)"))
+                print("    the 8 others, tick -> receipt while its queue filled: p50 %.0f p99 %.0f us; once pneu-dash dropped for it: p50 %.0f p99 %.0f us"
+                      % (r["filling_p50"], r["filling_p99"], r["dropping_p50"], r["dropping_p99"]))
+                print("    every 5 s of the loop (t from; tick -> receipt p99; pneu-dash -> client p50/p99) [us]: " +
+                      ", ".join("%d%s: %.0f; %.0f/%.0f" % (w, "*" if w + 5 > r["stalled_last_t"] else "", a, b, c)
+                                for w, a, b, c in r["windows"]) + "   (*: dropping for the stopped client)")
     med = lambda name, key: statistics.median(r[key] for r in rows[name])
     print("medians over %d repetitions:" % reps)
     print("  %-34s %9s %12s %10s %10s %10s %9s %9s %9s %9s %11s" % ("", "overruns", "wake med us", "p99 us", "cyc med", "cyc p99",
@@ -182,6 +210,10 @@ def main(argv):
           % (n, statistics.median(per_client), statistics.median(per_client) / 10, " ".join("%.2f" % x for x in per_client)))
     print("  C: pneu-dash's largest RSS %.1f MiB against B's %.1f MiB; frames dropped for the client that stopped reading: %s"
           % (med("C", "rss_max"), med("B", "rss_max"), " ".join(str(r["drops_phase"]) for r in rows["C"])))
+    print("  C: the others' tick -> receipt while its queue filled p50 %.0f p99 %.0f us, once dropping p50 %.0f p99 %.0f us (medians)"
+          % (med("C", "filling_p50"), med("C", "filling_p99"), med("C", "dropping_p50"), med("C", "dropping_p99")))
+    print("  states lost before pneu-dash (LCM/UDP, not its queues), A B C in each repetition: %s"
+          % ", ".join(" ".join(str(rows[p][i]["lost_before_dash"]) for p in "ABC") for i in range(reps)))
     return 0
 
 

@@ -34,6 +34,7 @@ port=8765
 tmp=$(mktemp -d)
 dash=
 cleanup() {
+  set +e
   [ -n "$dash" ] && kill "$dash" 2>/dev/null
   kill $(jobs -p) 2>/dev/null
   wait 2>/dev/null
