@@ -81,7 +81,8 @@ phase() {
   wait "$cyc"
   [ ${#pids[@]} -gt 0 ] && wait "${pids[@]}"
   kill "$sampler" 2>/dev/null; wait "$sampler" 2>/dev/null || true
-  curl -s "http://127.0.0.1:$port/metrics" >"$dir/metrics.txt"
+  /usr/bin/python3 -c "import sys, urllib.request; sys.stdout.write(urllib.request.urlopen(sys.argv[1]).read().decode())" \
+    "http://127.0.0.1:$port/metrics" >"$dir/metrics.txt"
   echo "$c0 $c1 $(getconf CLK_TCK)" >"$dir/cpu.txt"
 }
 
