@@ -17,6 +17,8 @@
 # The loop-timing supervision is off (a stall of a shared machine would latch a fault and change
 # what the loop does between phases); nothing else is changed from pneud's defaults.
 # Usage: bench/dash_clients.sh [SECONDS] [REPEATS]    (defaults 20 and 3; needs root for the netns)
+#   SECONDS of 15 or more: the stopped client's queue (4 MiB) and socket buffers take some 20 s of
+#   states to fill; with less, C ends before pneu-dash drops anything for it.
 #   PNEU_BENCH_KEEP=1: the run directory is kept (bench/dash_clients.py DIR REPEATS 8 prints it again)
 set -euo pipefail
 cd "$(dirname "$0")/.."
