@@ -248,6 +248,7 @@ class DashServer : public ::testing::Test {
     std::ofstream(www_.parent_path() / "pneu_dash_secret.txt") << "secret";
     options_.port = 0;
     options_.www = www_;
+    options_.metadata = pneu::dash::pneud_metadata();
   }
   void TearDown() override {
     if (server_) {
@@ -303,6 +304,8 @@ TEST_F(DashServer, SaysServerInfoThenAdvertisesEveryPneudChannelWithTheSchemaDer
   EXPECT_EQ(info["name"], "pneu-dash");
   EXPECT_EQ(info["supportedEncodings"], json::array({"json"}));
   EXPECT_TRUE(info["capabilities"].is_array());
+  // The modes' names for state_t's and health_t's numbers, from the controller's table.
+  EXPECT_EQ(info["metadata"]["modes"], "0:DISARMED,1:ARMED,2:FAULT,3:HOLD,4:MOVEMENT_TEST");
   const json adv = c.read_json();
   ASSERT_EQ(adv["op"], "advertise");
   ASSERT_EQ(adv["channels"].size(), 5u);

@@ -166,6 +166,11 @@ def main():
         if pneud.returncode != 0:
             fail(f"pneud exited with {pneud.returncode}", logs)
 
+        # The mode by its name (serverInfo's metadata, from the controller's table): pneud runs armed.
+        mode = driver.execute_script("return document.getElementById('mode').dataset.mode;")
+        if mode != "ARMED":
+            fail(f"the page names pneud's mode {mode!r}, not 'ARMED'", logs)
+
         # The traces advance: over at least a second of wall time, loop time and points grew.
         first = next((a for a in advancing if a[1] > 0.2), None)
         last = advancing[-1] if advancing else None

@@ -144,6 +144,7 @@ int run(int argc, char** argv) {
   if (const auto prefix = args.value("prefix")) telemetry.channel_prefix = *prefix;
 
   dash::ServerOptions options;
+  options.metadata = dash::pneud_metadata();  // the modes' names, for the page
   std::tie(options.address, options.port) = parse_listen(args.value("listen").value_or("127.0.0.1:8765"));
   options.www = args.value("www") ? fs::path(*args.value("www")) : default_www();
   if (!fs::is_directory(options.www)) throw cli::UsageError("--www: not a directory: " + options.www.string());

@@ -13,8 +13,9 @@ const REDRAW_MS = 150;          // charts redrawn at most this often, and less o
 const MAX_EVENT_ROWS = 400;
 const Chart = window.Chart;
 
-// The loop's modes by their number on the wire (state_t / health_t MODE_*).
-const MODE_NAMES = ["DISARMED", "ARMED", "FAULT", "HOLD", "MOVEMENT_TEST"];
+// The loop's modes by their number on the wire (state_t / health_t MODE_*): serverInfo's metadata
+// "modes" ("0:DISARMED,1:ARMED,..."), from the controller's own table.
+const MODE_NAMES = [];
 
 const state = {
   connected: false,
@@ -603,6 +604,10 @@ function connect() {
     },
     onServerInfo: (info) => {
       state.serverInfo = info;
+      for (const entry of (info.metadata?.modes ?? "").split(",").filter(Boolean)) {
+        const [number, name] = entry.split(":");
+        MODE_NAMES[Number(number)] = name;
+      }
       state.connected = true;
       setConnection("connected");
       document.getElementById("server-info").textContent =

@@ -128,6 +128,13 @@ bool PneuFeed::forward(const std::string& lcm_channel, const void* data, std::si
   return false;
 }
 
+std::vector<std::pair<std::string, std::string>> pneud_metadata() {
+  std::string modes;
+  for (const auto& [mode, name] : controller::kModeNames)
+    modes += (modes.empty() ? "" : ",") + std::to_string(static_cast<int>(mode)) + ":" + name;
+  return {{"modes", modes}};
+}
+
 std::string regex_literal(const std::string& s) {
   std::string out;
   for (const char c : s) {

@@ -655,11 +655,13 @@ std::string Server::Impl::server_info() const {
   json caps = json::array();
   for (const auto& c : capabilities) caps.push_back(c);
   if (client_publish) caps.push_back("clientPublish");
+  json metadata = json::object();
+  for (const auto& [key, value] : options.metadata) metadata[key] = value;
   return json{{"op", "serverInfo"},
               {"name", options.name},
               {"capabilities", caps},
               {"supportedEncodings", json::array({"json"})},
-              {"metadata", json::object()},
+              {"metadata", metadata},
               {"sessionId", session_id}}
       .dump();
 }

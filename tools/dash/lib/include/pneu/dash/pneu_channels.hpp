@@ -11,6 +11,8 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "pneu/dash/server.hpp"
 
@@ -51,6 +53,11 @@ class PneuFeed {
   std::array<ChannelId, kPneuChannelCount> ids_{};
   std::atomic<std::uint64_t> undecodable_{0};
 };
+
+/// serverInfo's metadata for pneud's channels: "modes", the loop's modes by their number on the
+/// wire ("0:DISARMED,1:ARMED,..." from the controller's table), for a client to name state_t's and
+/// health_t's `mode`.
+[[nodiscard]] std::vector<std::pair<std::string, std::string>> pneud_metadata();
 
 /// `s` as an LCM channel regular expression matching it literally.
 [[nodiscard]] std::string regex_literal(const std::string& s);

@@ -29,6 +29,8 @@ struct ServerOptions {
   std::uint16_t port = 8765;          ///< 0: a free port (port() says which)
   std::filesystem::path www;          ///< the static files served at / (empty: none)
   std::string name = "pneu-dash";     ///< serverInfo's name
+  /// serverInfo's metadata: what a client needs to read the messages beyond their schemas.
+  std::vector<std::pair<std::string, std::string>> metadata;
   std::size_t max_queue_bytes = 4u << 20;        ///< a client's unsent messages, beyond which they are dropped
   std::size_t max_incoming_bytes = 64u << 10;    ///< a WebSocket message from a client, larger is refused
   std::size_t max_subscriptions = 256;           ///< a client's subscriptions at once
