@@ -17,6 +17,7 @@
 #include <unistd.h>
 
 #include "pneu/config/cli.hpp"
+#include "pneu/telemetry/telemetry_params.hpp"
 #include "pneu_lcm/command_t.hpp"
 #include "pneu_lcm/event_t.hpp"
 
@@ -95,16 +96,6 @@ std::int64_t positive_integer(const std::string& text, const std::string& what) 
   return n;
 }
 
-// LCM subscribes by regular expression: the prefix is taken literally.
-std::string regex_literal(const std::string& s) {
-  std::string out;
-  for (const char c : s) {
-    const bool plain = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
-    if (!plain) out += '\\';
-    out += c;
-  }
-  return out;
-}
 
 // The verdict on one command, as pneud publishes it.
 struct Verdict {
@@ -215,7 +206,7 @@ int run(int argc, char** argv) {
   Verdict verdict;
   verdict.seq = seq;
   lcm_subscription_t* subscription =
-      wait ? lcm_subscribe(lcm.getUnderlyingLCM(), regex_literal(event_channel).c_str(), on_event, &verdict) : nullptr;
+      wait ? lcm_subscribe(lcm.getUnderlyingLCM(), telemetry::regex_literal(event_channel).c_str(), on_event, &verdict) : nullptr;
   if (wait && subscription == nullptr) throw std::runtime_error("LCM could not subscribe to " + event_channel);
   msg.utime = unix_now_us();  // stamped when sent: pneud refuses a command older than commands.max_age_s
   if (lcm.publish(prefix + "COMMAND", &msg) != 0) throw std::runtime_error("publish failed");

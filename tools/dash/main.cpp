@@ -17,6 +17,7 @@
 
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
+#include "pneu/telemetry/telemetry_params.hpp"
 #include "pneu/dash/commands.hpp"
 #include "pneu/dash/log_player.hpp"
 #include "pneu/dash/metrics.hpp"
@@ -239,7 +240,7 @@ int run(int argc, char** argv) {
     if (!lcm->good())
       throw std::runtime_error("LCM does not start on " + telemetry.lcm_url +
                                " (a udpm:// URL needs a multicast route: see docs/dashboard.md)");
-    lcm_subscribe(lcm->getUnderlyingLCM(), (dash::regex_literal(telemetry.channel_prefix) + ".*").c_str(),
+    lcm_subscribe(lcm->getUnderlyingLCM(), (telemetry::regex_literal(telemetry.channel_prefix) + ".*").c_str(),
                   [](const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
                     (*static_cast<decltype(forward)*>(user))(channel, rbuf->data, rbuf->data_size, rbuf->recv_utime);
                   },

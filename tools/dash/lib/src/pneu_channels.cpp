@@ -135,14 +135,5 @@ std::vector<std::pair<std::string, std::string>> pneud_metadata() {
   return {{"modes", modes}};
 }
 
-std::string regex_literal(const std::string& s) {
-  std::string out;
-  for (const char c : s) {
-    const bool plain = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
-    if (!plain) out += '\\';
-    out += c;
-  }
-  return out;
-}
 
 }  // namespace pneu::dash

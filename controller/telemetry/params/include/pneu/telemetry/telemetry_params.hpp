@@ -20,6 +20,18 @@ struct TelemetryConfig {
   bool in_simulated_time = false;
 };
 
+/// A channel's name as an LCM subscription's regular expression matching it literally (LCM
+/// subscribes by regular expression; a prefix may hold '.' and '-').
+inline std::string regex_literal(const std::string& s) {
+  std::string out;
+  for (const char c : s) {
+    const bool plain = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
+    if (!plain) out += '\\';
+    out += c;
+  }
+  return out;
+}
+
 }  // namespace pneu::telemetry
 
 // Its keys, described once (pneu/config/describe.hpp; config/include/pneu/config/schema.hpp reads

@@ -59,7 +59,4 @@ class PneuFeed {
 /// health_t's `mode`.
 [[nodiscard]] std::vector<std::pair<std::string, std::string>> pneud_metadata();
 
-/// `s` as an LCM channel regular expression matching it literally.
-[[nodiscard]] std::string regex_literal(const std::string& s);
-
 }  // namespace pneu::dash
