@@ -48,6 +48,8 @@ constexpr double kLeakFloorOfMax = 1.0e-3;
 constexpr double kMaxSpoolLagStd_s = 0.001;
 // The spool lags the fit tries stay within [0, this] [s].
 constexpr double kMaxSpoolLag_s = 0.05;
+// The spool lag at which the derivatives at the bound 0 are taken (from above) [s].
+constexpr double kSpoolLagAtBound_s = 1e-6;
 
 // theta: ln C_max, ln C_leak_in, ln C_leak_out, w_0, ln V_P0, ln V_N0, ln h, tau_spool.
 using Theta = Eigen::Matrix<double, kValveFitParams, 1>;
@@ -336,11 +338,16 @@ class Problem {
   // equations and steps as residuals(): the hidden states along the record (ChamberObserver) and
   // each phase's integration (RestingChamber), every parameter and the start carried as a direction.
   // The rest temperatures the estimate starts from at the record's first sample are taken as given
-  // (no derivatives): exact when the wall is at the supply's temperature (its rest temperature then
-  // whatever the parameters), and forgotten by the phases after a warm-up otherwise.
+  // (no derivatives): exact when the wall is at the supply's temperature (the rest temperature then
+  // the wall's, whatever the parameters); with a wall at another temperature their share is left out.
   void hidden_derivatives(const Theta& th, const Eigen::VectorXd& z, std::span<const std::size_t> free,
                           Eigen::MatrixXd& jt, Eigen::VectorXd& jz) const {
-    const model::PlantParams p = applied(prior_, th);
+    model::PlantParams p = applied(prior_, th);
+    // A spool lag at its bound 0 is no lag, and its derivative there none; the fit's step asks the
+    // limit from above, which a lag of kSpoolLagAtBound_s gives (the pressures are linear in a lag
+    // that short).
+    if (has_parameter(prior_, kSpoolLag) && !(p.valve.spool_time_constant_s > 0.0))
+      p.valve.spool_time_constant_s = kSpoolLagAtBound_s;
     const model::ValveModel valve(p.valve, p.gas);
     // Parameter i's value with its derivative by theta_i (d e^t / dt = e^t for a logarithm).
     const auto seeded = [&](std::size_t i) {
