@@ -50,25 +50,45 @@ double norm(const std::vector<double>& v) {
   return std::sqrt(s);
 }
 
+// The identification run on a bench with heat exchange and a spool lag, recorded with the HIL
+// sensors (so that the phases' starts are fitted too), and its stuck phases; the model has both
+// terms, at other values.
+struct Recorded {
+  config::Config cfg;
+  identify::RecordedRun run;
+  identify::Options o;
+  std::vector<identify::detail::StuckPhase> phases;
+};
+
+const Recorded& recorded() {
+  static const Recorded r = [] {
+    Recorded x;
+    x.cfg = config::load_file(test::shipped_config("hil.yaml"), {"hal.backend=sim"});
+    x.cfg.plant.has_thermal = true;
+    x.cfg.plant.thermal.heat_transfer_w_per_m2_k = 12.86;
+    x.cfg.plant.valve.spool_time_constant_s = 0.001;
+    model::PlantParams bench = x.cfg.plant;
+    bench.thermal.heat_transfer_w_per_m2_k = 25.72;
+    bench.valve.spool_time_constant_s = 0.003;
+    bench.valve.max_conductance_m3_per_s_pa *= 1.15;
+    bench.valve.null_offset_v = 0.07;
+    bench.geometry.dead_volume_p_m3 *= 1.2;
+    x.run = identify::record_run(assembly::RunSpec::of(x.cfg), bench, x.cfg.simulation.initial_position_m);
+    x.o = identify::options_for(x.cfg);
+    x.o.command_delay_samples = 0;
+    x.phases = identify::detail::stuck_phases(x.run.samples, x.cfg.plant.geometry.half_stroke_m(), x.o);
+    return x;
+  }();
+  return r;
+}
+
 TEST(ValveFit, TheExactJacobianWithHeatExchangeAndSpoolLagIsTheResidualsCentralDifferences) {
-  // The model with both terms, a bench at other values, the HIL sensors (so that the phases' starts
-  // are fitted too).
-  config::Config cfg = config::load_file(test::shipped_config("hil.yaml"), {"hal.backend=sim"});
-  cfg.plant.has_thermal = true;
-  cfg.plant.thermal.heat_transfer_w_per_m2_k = 12.86;
-  cfg.plant.valve.spool_time_constant_s = 0.001;
-  model::PlantParams bench = cfg.plant;
-  bench.thermal.heat_transfer_w_per_m2_k = 25.72;
-  bench.valve.spool_time_constant_s = 0.003;
-  bench.valve.max_conductance_m3_per_s_pa *= 1.15;
-  bench.valve.null_offset_v = 0.07;
-  bench.geometry.dead_volume_p_m3 *= 1.2;
-  const identify::RecordedRun run = identify::record_run(assembly::RunSpec::of(cfg), bench, cfg.simulation.initial_position_m);
+  const Recorded& rec = recorded();
+  const config::Config& cfg = rec.cfg;
+  const identify::RecordedRun& run = rec.run;
+  const identify::Options& o = rec.o;
+  const std::vector<identify::detail::StuckPhase>& phases = rec.phases;
   ASSERT_TRUE(run.fault.empty()) << run.fault;
-  identify::Options o = identify::options_for(cfg);
-  o.command_delay_samples = 0;
-  const std::vector<identify::detail::StuckPhase> phases =
-      identify::detail::stuck_phases(run.samples, cfg.plant.geometry.half_stroke_m(), o);
 
   // Somewhere between the prior and the bench, the starts moved (in noise floors).
   model::PlantParams at = cfg.plant;
@@ -120,6 +140,33 @@ TEST(ValveFit, TheExactJacobianWithHeatExchangeAndSpoolLagIsTheResidualsCentralD
     std::printf("starts: |d r/d z| %.6g Pa, relative error %.3g\n", norm(central), norm(error) / norm(central));
     EXPECT_LT(norm(error), 1e-6 * norm(central));
   }
+}
+
+TEST(ValveFit, AtASpoolLagOf0TheDerivativeByItIsTheResidualsSlopeJustAbove) {
+  // The fit's search may take the spool lag to its bound 0, where the model has no lag to
+  // differentiate: the derivative it steps by is the residuals' slope just above 0, at a microsecond
+  // (not the secant from 0 itself, where the integration's steps change as the lag appears).
+  const Recorded& rec = recorded();
+  ASSERT_TRUE(rec.run.fault.empty()) << rec.run.fault;
+  model::PlantParams at = rec.cfg.plant;
+  at.valve.spool_time_constant_s = 0.0;
+  const std::size_t lag = identify::detail::kSpoolLag;
+  const FitCheck exact = identify::detail::check_fit_model(rec.run.samples, rec.phases, rec.cfg.plant, rec.o, at, {}, true);
+  const auto residuals_at = [&](double lag_s) {
+    model::PlantParams p = at;
+    p.valve.spool_time_constant_s = lag_s;
+    return identify::detail::check_fit_model(rec.run.samples, rec.phases, rec.cfg.plant, rec.o, p, {}, false).residual_pa;
+  };
+  const std::vector<double> up = residuals_at(1.05e-6), down = residuals_at(0.95e-6);
+  const std::size_t rows = exact.residual_pa.size();
+  std::vector<double> slope(rows), error(rows);
+  for (std::size_t r = 0; r < rows; ++r) {
+    slope[r] = (up[r] - down[r]) / 1e-7;
+    error[r] = exact.by_theta[r * identify::detail::kValveFitParams + lag] - slope[r];
+  }
+  std::printf("spool lag just above 0: |d r/d tau| %.6g Pa/s, relative error %.3g\n", norm(slope), norm(error) / norm(slope));
+  EXPECT_GT(norm(slope), 1e6);
+  EXPECT_LT(norm(error), 1e-6 * norm(slope));
 }
 
 }  // namespace

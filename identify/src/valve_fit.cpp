@@ -214,30 +214,31 @@ struct RestingChamber {
 
   void advance(double command, double h, S& p, S& t_k, S& w) const noexcept {
     const S target = model::BasicSpoolLag<S>::target_v(*valve, command);
-    double done = 0.0;
-    // (The steps' lengths are the values'; the derivatives are of these steps.)
+    S done(0.0);
+    // (The steps' numbers are the values'. Their lengths move with the lag while it settles within
+    // h: the derivatives are of these very steps.)
     const double lag_s = model::value(spool.time_constant_s);
     if (spool.lags() && std::abs(model::value(w - target)) > 1e-9) {
-      const double moving = std::min(h, kSpoolSettled * lag_s);
-      integrate(target, moving, static_cast<int>(std::ceil(moving / (0.25 * lag_s))), p, t_k, w);
+      const S moving = kSpoolSettled * lag_s < h ? S(kSpoolSettled * spool.time_constant_s) : S(h);  // std::min
+      integrate(target, moving, static_cast<int>(std::ceil(model::value(moving) / (0.25 * lag_s))), p, t_k, w);
       done = moving;
     }
-    if (h - done > 0.0) integrate(target, h - done, 0, p, t_k, w);
+    if (model::value(h - done) > 0.0) integrate(target, h - done, 0, p, t_k, w);
   }
 
  private:
   // `steps` RK4 steps over h, at least as many as the chamber's fastest rate asks.
-  void integrate(const S& target, double h, int steps, S& p, S& t_k, S& w) const noexcept {
+  void integrate(const S& target, const S& h, int steps, S& p, S& t_k, S& w) const noexcept {
     const S w0 = w;
     // At rest: the volume and the wall's area are the same at every stage.
     const typename model::BasicChamberProcess<S>::Place at = process->place(side, y_m, 0.0);
     const auto rates = [&](const S& spool_w, const S& pp, const S& tt) { return process->rates(*valve, at, pp, tt, spool_w); };
     const double fastest =
         process->fastest_rate_1_per_s(*valve, side, model::value(p), model::value(t_k), model::value(w0), y_m);
-    steps = std::clamp(std::max(steps, static_cast<int>(std::ceil(h * fastest / 0.5))), 1, 10000);
-    const double dt = h / steps;
+    steps = std::clamp(std::max(steps, static_cast<int>(std::ceil(model::value(h) * fastest / 0.5))), 1, 10000);
+    const S dt = h / static_cast<double>(steps);
     for (int i = 0; i < steps; ++i) {
-      const double tau = i * dt;
+      const S tau = static_cast<double>(i) * dt;
       const S w_middle = spool.after(w0, target, tau + 0.5 * dt);  // the second and third stages'
       const model::BasicChamberRates<S> k1 = rates(spool.after(w0, target, tau), p, t_k);
       const model::BasicChamberRates<S> k2 =

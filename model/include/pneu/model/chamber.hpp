@@ -129,7 +129,8 @@ struct BasicSpoolLag {
     return fmin(fmax(S(w_v), S(valve.spool_min_v())), S(valve.spool_max_v()));
   }
   /// Where a spool at `from_v` is `dt_s` later, commanded `target_v` all along (exact).
-  [[nodiscard]] S after(const S& from_v, const S& target_v, double dt_s) const noexcept {
+  template <class T = double>
+  [[nodiscard]] S after(const S& from_v, const S& target_v, const T& dt_s) const noexcept {
     using std::exp;
     if (!lags()) return target_v;
     return target_v + (from_v - target_v) * exp(-dt_s / time_constant_s);
