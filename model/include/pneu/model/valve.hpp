@@ -193,8 +193,8 @@ class ValveModel final : public ValveCharacteristic {
   [[nodiscard]] double min_voltage_v() const noexcept override { return -valve_.max_voltage_v; }
   [[nodiscard]] double max_voltage_v() const noexcept override { return valve_.max_voltage_v; }
   /// w_0 -+ u_max.
-  [[nodiscard]] double spool_min_v() const noexcept override { return valve_.null_offset_v - valve_.max_voltage_v; }
-  [[nodiscard]] double spool_max_v() const noexcept override { return valve_.null_offset_v + valve_.max_voltage_v; }
+  [[nodiscard]] double spool_min_v() const noexcept override { return eq_.spool_min_v(); }
+  [[nodiscard]] double spool_max_v() const noexcept override { return eq_.spool_max_v(); }
 
   [[nodiscard]] double inlet_conductance_m3_per_s_pa(double w_v) const noexcept {
     return eq_.inlet_conductance_m3_per_s_pa(w_v);
