@@ -6,11 +6,13 @@
 #include <cmath>
 #include <cstdio>
 #include <optional>
+#include <type_traits>
 #include <span>
 #include <utility>
 #include <vector>
 
 #include "pneu/model/chamber.hpp"
+#include "pneu/model/dual.hpp"
 #include "pneu/model/valve.hpp"
 
 namespace pneu::identify::detail {
@@ -46,6 +48,8 @@ constexpr double kLeakFloorOfMax = 1.0e-3;
 constexpr double kMaxSpoolLagStd_s = 0.001;
 // The spool lags the fit tries stay within [0, this] [s].
 constexpr double kMaxSpoolLag_s = 0.05;
+// The spool lag at which the derivatives at the bound 0 are taken (from above) [s].
+constexpr double kSpoolLagAtBound_s = 1e-6;
 
 // theta: ln C_max, ln C_leak_in, ln C_leak_out, w_0, ln V_P0, ln V_N0, ln h, tau_spool.
 using Theta = Eigen::Matrix<double, kValveFitParams, 1>;
@@ -187,13 +191,20 @@ struct Commands {
   }
 };
 
+// The model with hidden state differentiated: its derivatives carried by the directions of theta's
+// parameters (in theta's order) and of the start of the chamber integrated (z, per unit of z).
+constexpr int kStartDirection = kValveFitParams;
+using Dual = model::Dual<kValveFitParams + 1>;
+
 // One chamber at rest with the energy balance and the spool's lag: its pressure, temperature and
 // spool advanced together (RK4 in steps short against the chamber's rates and, while the spool
-// moves, against its lag).
+// moves, against its lag). S, Valve: double and the model, or a Dual and the model's equations
+// with it (the derivatives of these very steps).
+template <class S, class Valve>
 struct RestingChamber {
-  const model::ChamberProcess* process;
-  const model::ValveModel* valve;
-  model::SpoolLag spool;
+  const model::BasicChamberProcess<S>* process;
+  const Valve* valve;
+  model::BasicSpoolLag<S> spool;
   model::Side side;
   double y_m;
 
@@ -201,34 +212,41 @@ struct RestingChamber {
   // then, steps of a quarter of the lag.
   static constexpr double kSpoolSettled = 8.0;
 
-  void advance(double command, double h, double& p, double& t_k, double& w) const noexcept {
-    const double target = model::SpoolLag::target_v(*valve, command);
-    double done = 0.0;
-    if (spool.lags() && std::abs(w - target) > 1e-9) {
-      const double moving = std::min(h, kSpoolSettled * spool.time_constant_s);
-      integrate(target, moving, static_cast<int>(std::ceil(moving / (0.25 * spool.time_constant_s))), p, t_k, w);
+  void advance(double command, double h, S& p, S& t_k, S& w) const noexcept {
+    const S target = model::BasicSpoolLag<S>::target_v(*valve, command);
+    S done(0.0);
+    // (The steps' numbers are the values'. Their lengths move with the lag while it settles within
+    // h: the derivatives are of these very steps.)
+    const double lag_s = model::value(spool.time_constant_s);
+    if (spool.lags() && std::abs(model::value(w - target)) > 1e-9) {
+      const S moving = kSpoolSettled * lag_s < h ? S(kSpoolSettled * spool.time_constant_s) : S(h);  // std::min
+      integrate(target, moving, static_cast<int>(std::ceil(model::value(moving) / (0.25 * lag_s))), p, t_k, w);
       done = moving;
     }
-    if (h - done > 0.0) integrate(target, h - done, 0, p, t_k, w);
+    if (model::value(h - done) > 0.0) integrate(target, h - done, 0, p, t_k, w);
   }
 
  private:
   // `steps` RK4 steps over h, at least as many as the chamber's fastest rate asks.
-  void integrate(double target, double h, int steps, double& p, double& t_k, double& w) const noexcept {
-    const double w0 = w;
+  void integrate(const S& target, const S& h, int steps, S& p, S& t_k, S& w) const noexcept {
+    const S w0 = w;
     // At rest: the volume and the wall's area are the same at every stage.
-    const model::ChamberProcess::Place at = process->place(side, y_m, 0.0);
-    const auto rates = [&](double spool_w, double pp, double tt) { return process->rates(*valve, at, pp, tt, spool_w); };
-    const double fastest = process->fastest_rate_1_per_s(*valve, side, p, t_k, w0, y_m);
-    steps = std::clamp(std::max(steps, static_cast<int>(std::ceil(h * fastest / 0.5))), 1, 10000);
-    const double dt = h / steps;
+    const typename model::BasicChamberProcess<S>::Place at = process->place(side, y_m, 0.0);
+    const auto rates = [&](const S& spool_w, const S& pp, const S& tt) { return process->rates(*valve, at, pp, tt, spool_w); };
+    const double fastest =
+        process->fastest_rate_1_per_s(*valve, side, model::value(p), model::value(t_k), model::value(w0), y_m);
+    steps = std::clamp(std::max(steps, static_cast<int>(std::ceil(model::value(h) * fastest / 0.5))), 1, 10000);
+    const S dt = h / static_cast<double>(steps);
     for (int i = 0; i < steps; ++i) {
-      const double tau = i * dt;
-      const double w_middle = spool.after(w0, target, tau + 0.5 * dt);  // the second and third stages'
-      const model::ChamberRates k1 = rates(spool.after(w0, target, tau), p, t_k);
-      const model::ChamberRates k2 = rates(w_middle, p + 0.5 * dt * k1.dp_dt_pa_per_s, t_k + 0.5 * dt * k1.dtemperature_dt_k_per_s);
-      const model::ChamberRates k3 = rates(w_middle, p + 0.5 * dt * k2.dp_dt_pa_per_s, t_k + 0.5 * dt * k2.dtemperature_dt_k_per_s);
-      const model::ChamberRates k4 = rates(spool.after(w0, target, tau + dt), p + dt * k3.dp_dt_pa_per_s, t_k + dt * k3.dtemperature_dt_k_per_s);
+      const S tau = static_cast<double>(i) * dt;
+      const S w_middle = spool.after(w0, target, tau + 0.5 * dt);  // the second and third stages'
+      const model::BasicChamberRates<S> k1 = rates(spool.after(w0, target, tau), p, t_k);
+      const model::BasicChamberRates<S> k2 =
+          rates(w_middle, p + 0.5 * dt * k1.dp_dt_pa_per_s, t_k + 0.5 * dt * k1.dtemperature_dt_k_per_s);
+      const model::BasicChamberRates<S> k3 =
+          rates(w_middle, p + 0.5 * dt * k2.dp_dt_pa_per_s, t_k + 0.5 * dt * k2.dtemperature_dt_k_per_s);
+      const model::BasicChamberRates<S> k4 =
+          rates(spool.after(w0, target, tau + dt), p + dt * k3.dp_dt_pa_per_s, t_k + dt * k3.dtemperature_dt_k_per_s);
       p += dt / 6.0 * (k1.dp_dt_pa_per_s + 2.0 * k2.dp_dt_pa_per_s + 2.0 * k3.dp_dt_pa_per_s + k4.dp_dt_pa_per_s);
       t_k += dt / 6.0 *
              (k1.dtemperature_dt_k_per_s + 2.0 * k2.dtemperature_dt_k_per_s + 2.0 * k3.dtemperature_dt_k_per_s +
@@ -277,17 +295,102 @@ class Problem {
   [[nodiscard]] std::pair<Eigen::Index, Eigen::Index> rows_of(std::size_t j) const noexcept { return {rows_[j], rows_[j + 1]}; }
   [[nodiscard]] const std::vector<FitPhase>& phases() const noexcept { return phases_; }
 
-  // Measured minus Eq. 19's pressures at every observed sample, P then N [Pa]: the rows of both
-  // chambers, or of one (`only`; the other's rows are left unset). The chambers are integrated
-  // apart: a parameter of one chamber alone (its dead volume) leaves the other's rows as they were.
-  [[nodiscard]] Eigen::VectorXd residuals(const Theta& th, const Eigen::VectorXd& z,
-                                          std::optional<model::Side> only = std::nullopt) const {
+  // Measured minus Eq. 19's pressures at every observed sample, P then N [Pa].
+  [[nodiscard]] Eigen::VectorXd residuals(const Theta& th, const Eigen::VectorXd& z) const {
     const model::PlantParams p = applied(prior_, th);
     const model::ValveModel valve(p.valve, p.gas);
-    const std::vector<model::ChamberState> at = hidden_states(p, valve);
     Eigen::VectorXd r(size_);
-    for (std::size_t j = 0; j < phases_.size(); ++j) phase_residuals(p, valve, at, j, z, r, only);
+    if (plain_) {
+      for (std::size_t j = 0; j < phases_.size(); ++j) plain_residuals(p, valve, j, z, r);
+      return r;
+    }
+    const model::ChamberProcess process(p);
+    const model::SpoolLag spool{p.valve.spool_time_constant_s};
+    model::ChamberObserver observer(process, valve, spool);
+    const Commands u{s_, delay_, 0};
+    observer.reset(s_[0].t_s, s_[0].y_m, s_[0].p_p_pa, s_[0].p_n_pa, u.p(0), u.n(0));
+    const std::vector<model::ChamberState> at = hidden_states(observer);
+    for (std::size_t j = 0; j < phases_.size(); ++j)
+      phase_pressures(process, valve, spool, at[j], j, start_pa(j, 0, z), start_pa(j, 1, z),
+                      [&](Eigen::Index row, std::size_t obs, double pp, double pn) {
+                        r[row] = s_[obs].p_p_pa - pp;
+                        r[row + 1] = s_[obs].p_n_pa - pn;
+                      });
     return r;
+  }
+  // The residuals' derivatives, exactly: by the parameters `free` (jt, m x free.size(), per unit of
+  // theta) and each row's by its own start (jz, per unit of z, when the starts are fitted) [Pa].
+  void derivatives(const Theta& th, const Eigen::VectorXd& z, std::span<const std::size_t> free, Eigen::MatrixXd& jt,
+                   Eigen::VectorXd& jz) const {
+    if (plain_)
+      plain_derivatives(th, z, free, jt, jz);
+    else
+      hidden_derivatives(th, z, free, jt, jz);
+  }
+
+ private:
+  // Phase j's start of chamber P (0) or N (1) [Pa]: its first reading, corrected by z.
+  [[nodiscard]] double start_pa(std::size_t j, int chamber, const Eigen::VectorXd& z) const {
+    const Sample& first = s_[phases_[j].first];
+    const auto c = static_cast<Eigen::Index>(2 * j) + chamber;
+    return (chamber == 0 ? first.p_p_pa : first.p_n_pa) + (fit_starts_ ? z[c] * kPressureNoiseFloor_pa : 0.0);
+  }
+  // The model with hidden state's derivatives, by one pass of Dual numbers through the same
+  // equations and steps as residuals(): the hidden states along the record (ChamberObserver) and
+  // each phase's integration (RestingChamber), every parameter and the start carried as a direction.
+  // The rest temperatures the estimate starts from at the record's first sample are taken as given
+  // (no derivatives): exact when the wall is at the supply's temperature (the rest temperature then
+  // the wall's, whatever the parameters); with a wall at another temperature their share is left out.
+  void hidden_derivatives(const Theta& th, const Eigen::VectorXd& z, std::span<const std::size_t> free,
+                          Eigen::MatrixXd& jt, Eigen::VectorXd& jz) const {
+    model::PlantParams p = applied(prior_, th);
+    // A spool lag at its bound 0 is no lag, and its derivative there none; the fit's step asks the
+    // limit from above, which a lag of kSpoolLagAtBound_s gives (the pressures are linear in a lag
+    // that short).
+    if (has_parameter(prior_, kSpoolLag) && !(p.valve.spool_time_constant_s > 0.0))
+      p.valve.spool_time_constant_s = kSpoolLagAtBound_s;
+    const model::ValveModel valve(p.valve, p.gas);
+    // Parameter i's value with its derivative by theta_i (d e^t / dt = e^t for a logarithm).
+    const auto seeded = [&](std::size_t i) {
+      model::PlantParams q = p;
+      const double x = parameter(q, i);
+      return has_parameter(p, i) ? Dual::variable(x, static_cast<int>(i), logarithmic(i) ? x : 1.0) : Dual(x);
+    };
+    model::ValveEquations<Dual> dual_valve(p.valve, p.gas);
+    dual_valve.max_conductance_m3_per_s_pa = seeded(kMaxConductance);
+    dual_valve.leak_conductance_in_m3_per_s_pa = seeded(kLeakIn);
+    dual_valve.leak_conductance_out_m3_per_s_pa = seeded(kLeakOut);
+    dual_valve.null_offset_v = seeded(kNullOffset);
+    const model::BasicChamberProcess<Dual> process(p.geometry, p.gas, p.has_thermal ? &p.thermal : nullptr,
+                                                   seeded(kDeadVolumeP), seeded(kDeadVolumeN), seeded(kHeatTransfer));
+    const model::BasicSpoolLag<Dual> spool{seeded(kSpoolLag)};
+    const Commands u{s_, delay_, 0};
+    model::ChamberObserver at_rest(model::ChamberProcess(p), valve, model::SpoolLag{p.valve.spool_time_constant_s});
+    at_rest.reset(s_[0].t_s, s_[0].y_m, s_[0].p_p_pa, s_[0].p_n_pa, u.p(0), u.n(0));
+    model::BasicChamberObserver<Dual, model::ValveEquations<Dual>> observer(process, dual_valve, spool);
+    observer.start(s_[0].t_s, s_[0].y_m,
+                   {s_[0].p_p_pa, s_[0].p_n_pa, at_rest.state().t_p_k, at_rest.state().t_n_k,
+                    model::BasicSpoolLag<Dual>::target_v(dual_valve, u.p(0)),
+                    model::BasicSpoolLag<Dual>::target_v(dual_valve, u.n(0))},
+                   u.p(0), u.n(0));
+    const std::vector<model::BasicChamberState<Dual>> at = hidden_states(observer);
+    jt.resize(size_, static_cast<Eigen::Index>(free.size()));
+    jz.resize(fit_starts_ ? size_ : 0);
+    for (std::size_t j = 0; j < phases_.size(); ++j) {
+      Dual pp(start_pa(j, 0, z)), pn(start_pa(j, 1, z));
+      pp.d[kStartDirection] = pn.d[kStartDirection] = fit_starts_ ? kPressureNoiseFloor_pa : 0.0;
+      phase_pressures(process, dual_valve, spool, at[j], j, pp, pn,
+                      [&](Eigen::Index row, std::size_t, const Dual& mp, const Dual& mn) {
+                        for (std::size_t col = 0; col < free.size(); ++col) {  // the residual is measured - model
+                          jt(row, static_cast<Eigen::Index>(col)) = -mp.d[free[col]];
+                          jt(row + 1, static_cast<Eigen::Index>(col)) = -mn.d[free[col]];
+                        }
+                        if (fit_starts_) {
+                          jz[row] = -mp.d[kStartDirection];
+                          jz[row + 1] = -mn.d[kStartDirection];
+                        }
+                      });
+    }
   }
   // The plain model's residuals' derivatives, exactly (SensitiveChamber): by the parameters `free`
   // (jt, m x free.size(), per unit of theta) and each row's by its own start (jz, per unit of z,
@@ -347,35 +450,13 @@ class Problem {
       }
     }
   }
-  // d(residual)/d(z of its row's start), row by row: each row depends on one start alone.
-  [[nodiscard]] Eigen::VectorXd start_derivatives(const Theta& th, const Eigen::VectorXd& z) const {
-    const model::PlantParams p = applied(prior_, th);
-    const model::ValveModel valve(p.valve, p.gas);
-    const std::vector<model::ChamberState> at = hidden_states(p, valve);
-    constexpr double h = 0.5;  // [noise floors]: the start's effect is close to linear
-    Eigen::VectorXd up(size_), down(size_);
-    for (std::size_t j = 0; j < phases_.size(); ++j) {
-      Eigen::VectorXd zu = z, zd = z;
-      for (const Eigen::Index c : {2 * static_cast<Eigen::Index>(j), 2 * static_cast<Eigen::Index>(j) + 1}) {
-        zu[c] += h;
-        zd[c] -= h;
-      }
-      phase_residuals(p, valve, at, j, zu, up);
-      phase_residuals(p, valve, at, j, zd, down);
-    }
-    return (up - down) / (2.0 * h);
-  }
-
- private:
-  // The chambers' temperatures and spools at each phase's first sample, as `p`'s model estimates
-  // them along the record (nothing for the plain model: the pressures are its whole state).
-  [[nodiscard]] std::vector<model::ChamberState> hidden_states(const model::PlantParams& p,
-                                                               const model::ValveModel& valve) const {
-    std::vector<model::ChamberState> at;
-    if (plain_ || phases_.empty()) return at;
+  // The chambers' temperatures and spools at each phase's first sample, as the model estimates
+  // them along the record (`observer`, reset at the record's first sample).
+  template <class Observer>
+  [[nodiscard]] std::vector<std::decay_t<decltype(std::declval<Observer&>().state())>> hidden_states(
+      Observer& observer) const {
+    std::vector<std::decay_t<decltype(observer.state())>> at;
     const Commands u{s_, delay_, 0};
-    model::ChamberObserver observer(model::ChamberProcess(p), valve, model::SpoolLag{p.valve.spool_time_constant_s});
-    observer.reset(s_[0].t_s, s_[0].y_m, s_[0].p_p_pa, s_[0].p_n_pa, u.p(0), u.n(0));
     // Where the carriage stands still under one command, up to kMaxStride samples are one step
     // (the pressures linear in between: a few pascals off over 10 ms, nothing to a temperature).
     constexpr std::size_t kMaxStride = 10;
@@ -395,50 +476,55 @@ class Problem {
     return at;
   }
 
-  void phase_residuals(const model::PlantParams& p, const model::ValveModel& valve,
-                       const std::vector<model::ChamberState>& at, std::size_t j, const Eigen::VectorXd& z,
-                       Eigen::VectorXd& r, std::optional<model::Side> only = std::nullopt) const {
-    const bool do_p = only != model::Side::kN, do_n = only != model::Side::kP;
+  // Phase j's pressures with the energy balance and the spool's lag, from the starts pp, pn and the
+  // hidden state `at`: emit(row, sample, P's, N's) at each observed sample.
+  template <class S, class Valve, class Emit>
+  void phase_pressures(const model::BasicChamberProcess<S>& process, const Valve& valve,
+                       const model::BasicSpoolLag<S>& spool, const model::BasicChamberState<S>& at, std::size_t j, S pp,
+                       S pn, Emit&& emit) const {
     const FitPhase& ph = phases_[j];
-    const auto zj = static_cast<Eigen::Index>(2 * j);
-    double pp = s_[ph.first].p_p_pa + (fit_starts_ ? z[zj] * kPressureNoiseFloor_pa : 0.0);
-    double pn = s_[ph.first].p_n_pa + (fit_starts_ ? z[zj + 1] * kPressureNoiseFloor_pa : 0.0);
+    const RestingChamber<S, Valve> cp{&process, &valve, spool, model::Side::kP, ph.y_m};
+    const RestingChamber<S, Valve> cn{&process, &valve, spool, model::Side::kN, ph.y_m};
+    S tp = at.t_p_k, tn = at.t_n_k, wp = at.w_p_v, wn = at.w_n_v;
+    // Each u holds from its sample to the next (the command of a tick until the next tick). The
+    // valves act on the command recorded `delay_` samples before (within the phase).
+    const Commands u{s_, delay_, ph.first};
     std::size_t k = ph.first;
     Eigen::Index row = rows_[j];
-    // Each u holds from its sample to the next (the command of a tick until the next tick).
-    // The valves act on the command recorded `delay_` samples before (within the phase).
-    const auto u_at = [&](std::size_t i) { return s_[i >= ph.first + delay_ ? i - delay_ : ph.first].u_v; };
-    if (plain_) {
-      const double c = p.gas.k_r_t();
-      const Chamber cp{&valve, c / p.geometry.volume_p_m3(ph.y_m)};
-      const Chamber cn{&valve, c / p.geometry.volume_n_m3(ph.y_m)};
-      for (const std::size_t obs : ph.observed) {
-        while (k < obs) {
-          std::size_t next = k + 1;
-          while (next < obs && u_at(next) == u_at(k)) ++next;
-          const double h = s_[next].t_s - s_[k].t_s;
-          if (do_p) pp = cp.advance(u_at(k), pp, h);
-          if (do_n) pn = cn.advance(-u_at(k), pn, h);
-          k = next;
-        }
-        r[row++] = s_[obs].p_p_pa - pp;
-        r[row++] = s_[obs].p_n_pa - pn;
-      }
-      return;
-    }
-    const model::ChamberProcess process(p);
-    const model::SpoolLag spool{p.valve.spool_time_constant_s};
-    const RestingChamber cp{&process, &valve, spool, model::Side::kP, ph.y_m};
-    const RestingChamber cn{&process, &valve, spool, model::Side::kN, ph.y_m};
-    double tp = at[j].t_p_k, tn = at[j].t_n_k, wp = at[j].w_p_v, wn = at[j].w_n_v;
-    const Commands u{s_, delay_, ph.first};
     for (const std::size_t obs : ph.observed) {
       while (k < obs) {
         std::size_t next = k + 1;
         while (next < obs && u.p(next) == u.p(k) && u.n(next) == u.n(k)) ++next;
         const double h = s_[next].t_s - s_[k].t_s;
-        if (do_p) cp.advance(u.p(k), h, pp, tp, wp);
-        if (do_n) cn.advance(u.n(k), h, pn, tn, wn);
+        cp.advance(u.p(k), h, pp, tp, wp);
+        cn.advance(u.n(k), h, pn, tn, wn);
+        k = next;
+      }
+      emit(row, obs, pp, pn);
+      row += 2;
+    }
+  }
+
+  // The plain model's residuals of phase j (Eq. 19, Chamber).
+  void plain_residuals(const model::PlantParams& p, const model::ValveModel& valve, std::size_t j,
+                       const Eigen::VectorXd& z, Eigen::VectorXd& r) const {
+    const FitPhase& ph = phases_[j];
+    double pp = start_pa(j, 0, z), pn = start_pa(j, 1, z);
+    std::size_t k = ph.first;
+    Eigen::Index row = rows_[j];
+    // Each u holds from its sample to the next (the command of a tick until the next tick).
+    // The valves act on the command recorded `delay_` samples before (within the phase).
+    const auto u_at = [&](std::size_t i) { return s_[i >= ph.first + delay_ ? i - delay_ : ph.first].u_v; };
+    const double c = p.gas.k_r_t();
+    const Chamber cp{&valve, c / p.geometry.volume_p_m3(ph.y_m)};
+    const Chamber cn{&valve, c / p.geometry.volume_n_m3(ph.y_m)};
+    for (const std::size_t obs : ph.observed) {
+      while (k < obs) {
+        std::size_t next = k + 1;
+        while (next < obs && u_at(next) == u_at(k)) ++next;
+        const double h = s_[next].t_s - s_[k].t_s;
+        pp = cp.advance(u_at(k), pp, h);
+        pn = cn.advance(-u_at(k), pn, h);
         k = next;
       }
       r[row++] = s_[obs].p_p_pa - pp;
@@ -489,8 +575,9 @@ double prior_spread(std::size_t i) {
 // a thousandth of their sigma of the optimum (sqrt of the decrease): the search has converged.
 constexpr double kConvergedDecrease = 1e-6;
 
-// Levenberg-Marquardt on the free parameters and the phases' starts (the plain model's Jacobian
-// exact, by the pressures' sensitivities; with the hidden state, by forward differences) for the measured pressures, at kPressureNoiseFloor_pa, and the priors; the
+// Levenberg-Marquardt on the free parameters and the phases' starts (the Jacobian exact: the plain
+// model's by the pressures' sensitivities, with the hidden state by Dual numbers) for the measured
+// pressures, at kPressureNoiseFloor_pa, and the priors; the
 // posterior covariance of the parameters (the starts' uncertainty marginalised), scaled up when
 // the residual is noisier than the floor. Each row depends on one start alone, so the normal
 // equations are formed without the starts' columns in full.
@@ -509,9 +596,8 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
     start_of[static_cast<std::size_t>(row)] = problem.start_of_row(row);
   Eigen::VectorXd z = Eigen::VectorXd::Zero(nz);
   // The data's residuals, weighted by the noise.
-  const auto residuals = [&](const Theta& th, const Eigen::VectorXd& zz,
-                             std::optional<model::Side> only = std::nullopt) {
-    return Eigen::VectorXd(problem.residuals(th, zz, only) / noise);
+  const auto residuals = [&](const Theta& th, const Eigen::VectorXd& zz) {
+    return Eigen::VectorXd(problem.residuals(th, zz) / noise);
   };
   const auto prior_cost = [&](const Theta& th, const Eigen::VectorXd& zz) {
     double c = zz.squaredNorm();
@@ -531,38 +617,17 @@ Solution levenberg_marquardt(const Problem& problem, Theta theta, const Theta& p
     Eigen::MatrixXd jt;
     Eigen::VectorXd jz;
   };
-  const auto jacobian = [&](const Theta& th, const Eigen::VectorXd& zz, const Eigen::VectorXd& r) {
+  const auto jacobian = [&](const Theta& th, const Eigen::VectorXd& zz) {
     Jacobian j{Eigen::MatrixXd(m, nf), Eigen::VectorXd()};
-    if (problem.plain()) {  // exactly, by the pressures' sensitivities
-      problem.plain_derivatives(th, zz, idx, j.jt, j.jz);
-      j.jt /= noise;
-      j.jz /= noise;
-      return j;
-    }
-    for (Eigen::Index c = 0; c < nf; ++c) {
-      const auto i = static_cast<Eigen::Index>(idx[static_cast<std::size_t>(c)]);
-      constexpr double h = 1.0e-5;
-      Theta up = th;
-      up[i] += h;
-      // Forward differences: each evaluation follows the whole record (the model's hidden state),
-      // and the Jacobian only steers the search.
-      // A dead volume is one chamber's: the other's rows do not move (r's rows less themselves).
-      const std::optional<model::Side> only = i == kDeadVolumeP   ? std::optional(model::Side::kP)
-                                              : i == kDeadVolumeN ? std::optional(model::Side::kN)
-                                                                  : std::nullopt;
-      j.jt.col(c) = (residuals(up, zz, only) - r) / h;
-      if (only) {
-        const Eigen::Index other = *only == model::Side::kP ? 1 : 0;  // rows alternate P, N
-        for (Eigen::Index row = other; row < m; row += 2) j.jt(row, c) = (r[row] - r[row]) / h;
-      }
-    }
-    if (nz > 0) j.jz = problem.start_derivatives(th, zz) / noise;
+    problem.derivatives(th, zz, idx, j.jt, j.jz);
+    j.jt /= noise;
+    j.jz /= noise;
     return j;
   };
   // The Jacobian of the last normal equations formed: at the solution, once the search ends.
   Jacobian j;
   const auto normal = [&](const Theta& th, const Eigen::VectorXd& zz, const Eigen::VectorXd& r) {
-    j = jacobian(th, zz, r);
+    j = jacobian(th, zz);
     const Eigen::MatrixXd& jt = j.jt;
     Normal out{Eigen::MatrixXd::Zero(n, n), Eigen::VectorXd::Zero(n)};
     out.a.topLeftCorner(nf, nf) = jt.transpose() * jt;
@@ -694,16 +759,9 @@ double pressure_noise_pa(std::span<const Sample> s, const std::vector<FitPhase>&
   return d[d.size() / 2] / (0.6745 * std::sqrt(6.0));
 }
 
-}  // namespace
-
-bool has_parameter(const model::PlantParams& prior, std::size_t i) noexcept {
-  if (i == kHeatTransfer) return prior.has_thermal;
-  if (i == kSpoolLag) return prior.valve.spool_time_constant_s > 0.0;
-  return i < kValveFitParams;
-}
-
-ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phases, const model::PlantParams& prior,
-                    const Options& o) {
+// The stuck phases the fit compares, each with the samples it is compared at.
+std::vector<FitPhase> fit_phases(std::span<const Sample> s, std::span<const StuckPhase> phases,
+                                 const model::PlantParams& prior, const Options& o) {
   // A window of a running record: the estimate of the hidden state starts from a guess (at rest),
   // and is trusted once it has forgotten it.
   double warm_up_s = 0.0;
@@ -723,6 +781,48 @@ ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phase
       }
     if (!f.observed.empty()) fit.push_back(std::move(f));
   }
+  return fit;
+}
+
+}  // namespace
+
+FitCheck check_fit_model(std::span<const Sample> s, std::span<const StuckPhase> phases, const model::PlantParams& prior,
+                         const Options& o, const model::PlantParams& at, std::span<const double> z, bool derivatives) {
+  const std::size_t delay = o.command_delay_samples >= 0 ? static_cast<std::size_t>(o.command_delay_samples) : 0;
+  const Problem problem(s, fit_phases(s, phases, prior, o), prior, delay, o.rest_band_m);
+  Eigen::VectorXd zz = Eigen::VectorXd::Zero(problem.starts());
+  for (Eigen::Index c = 0; c < zz.size() && static_cast<std::size_t>(c) < z.size(); ++c) zz[c] = z[static_cast<std::size_t>(c)];
+  const Theta th = theta_of(at);
+  FitCheck out;
+  const Eigen::VectorXd r = problem.residuals(th, zz);
+  out.residual_pa.assign(r.begin(), r.end());
+  out.starts = static_cast<std::size_t>(problem.starts());
+  for (Eigen::Index row = 0; out.starts > 0 && row < r.size(); ++row)
+    out.start_of_row.push_back(static_cast<std::size_t>(problem.start_of_row(row)));
+  if (!derivatives) return out;
+  std::vector<std::size_t> present;
+  for (std::size_t i = 0; i < kValveFitParams; ++i)
+    if (has_parameter(prior, i)) present.push_back(i);
+  Eigen::MatrixXd jt;
+  Eigen::VectorXd jz;
+  problem.derivatives(th, zz, present, jt, jz);
+  out.by_theta.assign(static_cast<std::size_t>(r.size()) * kValveFitParams, 0.0);
+  for (Eigen::Index row = 0; row < jt.rows(); ++row)
+    for (std::size_t c = 0; c < present.size(); ++c)
+      out.by_theta[static_cast<std::size_t>(row) * kValveFitParams + present[c]] = jt(row, static_cast<Eigen::Index>(c));
+  out.by_start.assign(jz.begin(), jz.end());
+  return out;
+}
+
+bool has_parameter(const model::PlantParams& prior, std::size_t i) noexcept {
+  if (i == kHeatTransfer) return prior.has_thermal;
+  if (i == kSpoolLag) return prior.valve.spool_time_constant_s > 0.0;
+  return i < kValveFitParams;
+}
+
+ValveFit fit_valves(std::span<const Sample> s, std::span<const StuckPhase> phases, const model::PlantParams& prior,
+                    const Options& o) {
+  std::vector<FitPhase> fit = fit_phases(s, phases, prior, o);
   ValveFit out;
   out.plant = prior;
   out.joint = prior;

@@ -63,6 +63,23 @@ struct ValveFit {
 
 /// Fits the conductances, the null offset and the dead volumes so that Eq. 19, integrated over each
 /// phase from its first measured pressures with the recorded u, follows the measured pressures.
+/// What the fit compares, for the tests: the residuals [Pa] (measured - model, chambers P and N at
+/// each observed sample of the fitted phases) with the model at `at` and the phases' starts
+/// corrected by z (two per phase, P and N, in the fit's units; missing ones 0), the command delay
+/// options.command_delay_samples (at least 0); with `derivatives`, their derivatives as the fit takes
+/// them: by each of the model's parameters (by_theta, row-major, rows x kValveFitParams, per unit of
+/// the fit's theta_i: the parameter's logarithm, but the null offset [V] and the spool lag [s]; 0 for
+/// a parameter the prior lacks) and each row's by its own start (by_start, when the starts are
+/// fitted: start_of_row says which).
+struct FitCheck {
+  std::vector<double> residual_pa, by_theta, by_start;
+  std::size_t starts = 0;
+  std::vector<std::size_t> start_of_row;
+};
+[[nodiscard]] FitCheck check_fit_model(std::span<const Sample> samples, std::span<const StuckPhase> phases,
+                                       const model::PlantParams& prior, const Options& options,
+                                       const model::PlantParams& at, std::span<const double> z, bool derivatives);
+
 [[nodiscard]] ValveFit fit_valves(std::span<const Sample> samples, std::span<const StuckPhase> phases,
                                   const model::PlantParams& prior, const Options& options);
 

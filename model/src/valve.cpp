@@ -8,23 +8,8 @@
 
 namespace pneu::model {
 
-namespace {
-
-double raw_flow_function(double x, double b) noexcept {
-  if (x <= b) return 1.0;
-  const double s = (x - b) / (1.0 - b);
-  return std::sqrt(std::max(0.0, 1.0 - s * s));
-}
-
-// Inlined into the orifice's flow, the innermost call of every integration of the chambers.
-[[gnu::always_inline]] inline double phi(double x, double b) noexcept {
-  x = std::clamp(x, 0.0, 1.0);
-  if (x <= kLaminarPressureRatio) return raw_flow_function(x, b);
-  const double at_threshold = raw_flow_function(kLaminarPressureRatio, b);
-  return at_threshold * (1.0 - x) / (1.0 - kLaminarPressureRatio);
-}
-
-}  // namespace
+using detail::phi;
+using detail::raw_flow_function;
 
 double flow_function(double x, double b) noexcept { return phi(x, b); }
 
@@ -38,12 +23,6 @@ double flow_function_slope(double x, double b) noexcept {
   return -raw_flow_function(kLaminarPressureRatio, b) / (1.0 - kLaminarPressureRatio);
 }
 
-double Orifice::mass_flow_kg_per_s(double c, double p_a, double p_b) const noexcept {
-  if (p_a >= p_b) {
-    return c * reference_density_kg_per_m3 * p_a * temperature_factor * phi(p_b / p_a, critical_ratio);
-  }
-  return -c * reference_density_kg_per_m3 * p_b * temperature_factor * phi(p_a / p_b, critical_ratio);
-}
 
 // With m = K p_up phi(p_down / p_up), K = C rho_0 sqrt(T0/T):
 //   dm/dp_down = K phi'(x)                      dm/dp_up = K (phi(x) - x phi'(x))
@@ -82,53 +61,14 @@ double ValveCharacteristic::null_pressure_pa(double w_v, double chamber_k, doubl
                          min_pressure_pa(), max_pressure_pa(), 1.0e-7);
 }
 
-ValveModel::ValveModel(const ValveParams& valve, const Gas& gas) noexcept
-    : valve_(valve),
-      p_supply_pa_(gas.supply_pressure_pa),
-      p_exhaust_pa_(gas.exhaust_pressure_pa),
-      orifice_{valve.critical_pressure_ratio, valve.reference_density_kg_per_m3,
-               std::sqrt(valve.reference_temperature_k / gas.temperature_k)} {}
+ValveModel::ValveModel(const ValveParams& valve, const Gas& gas) noexcept : valve_(valve), eq_(valve, gas) {}
 
-// The opening is measured from the null offset w_0: w = w_0 closes both orifices to their leaks.
-double ValveModel::inlet_conductance_m3_per_s_pa(double w) const noexcept {
-  return valve_.leak_conductance_in_m3_per_s_pa +
-         valve_.max_conductance_m3_per_s_pa * std::clamp((w - valve_.null_offset_v) / valve_.max_voltage_v, 0.0, 1.0);
-}
+double ValveModel::mass_flow_kg_per_s(double w, double p) const noexcept { return eq_.mass_flow_kg_per_s(w, p); }
 
-double ValveModel::outlet_conductance_m3_per_s_pa(double w) const noexcept {
-  return valve_.leak_conductance_out_m3_per_s_pa +
-         valve_.max_conductance_m3_per_s_pa * std::clamp((valve_.null_offset_v - w) / valve_.max_voltage_v, 0.0, 1.0);
-}
+double ValveModel::dq_dp(double w, double p) const noexcept { return eq_.dq_dp(w, p); }
 
-double ValveModel::mass_flow_kg_per_s(double w, double p) const noexcept {
-  return orifice_.mass_flow_kg_per_s(inlet_conductance_m3_per_s_pa(w), p_supply_pa_, p) -
-         orifice_.mass_flow_kg_per_s(outlet_conductance_m3_per_s_pa(w), p, p_exhaust_pa_);
-}
-
-double ValveModel::dq_dp(double w, double p) const noexcept {
-  return orifice_.d_mass_flow_d_pb(inlet_conductance_m3_per_s_pa(w), p_supply_pa_, p) -
-         orifice_.d_mass_flow_d_pa(outlet_conductance_m3_per_s_pa(w), p, p_exhaust_pa_);
-}
-
-// ISO 6358 scales an orifice's flow by sqrt(T_0 / T_up); the orifice's own factor is the supply's.
 ChamberInflow ValveModel::chamber_inflow(double w, double p, double chamber_k, double supply_k) const noexcept {
-  const double to_chamber = std::sqrt(supply_k / chamber_k);  // an orifice fed by the chamber
-  double in = orifice_.mass_flow_kg_per_s(inlet_conductance_m3_per_s_pa(w), p_supply_pa_, p);
-  double out = orifice_.mass_flow_kg_per_s(outlet_conductance_m3_per_s_pa(w), p, p_exhaust_pa_);
-  double enthalpy = 0.0;
-  if (in >= 0.0) {
-    enthalpy += in * supply_k;
-  } else {
-    in *= to_chamber;
-    enthalpy += in * chamber_k;
-  }
-  if (out >= 0.0) {
-    out *= to_chamber;
-    enthalpy -= out * chamber_k;
-  } else {
-    enthalpy -= out * supply_k;  // drawn in from the exhaust side
-  }
-  return {in - out, enthalpy};
+  return eq_.chamber_inflow(w, p, chamber_k, supply_k);
 }
 
 double equilibrium_force_n(const ValveCharacteristic& valve, const Geometry& g, double p_e,

@@ -2,7 +2,11 @@
 // model (ISO 6358 orifices) or as a measured table, behind one interface the predictor uses.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
+
 #include "pneu/model/chamber.hpp"
+#include "pneu/model/dual.hpp"
 #include "pneu/model/params.hpp"
 
 namespace pneu::model {
@@ -16,6 +20,27 @@ inline constexpr double kLaminarPressureRatio = 0.999;
 /// d phi / dx, consistent with flow_function().
 [[nodiscard]] double flow_function_slope(double pressure_ratio, double critical_ratio) noexcept;
 
+namespace detail {
+// phi(x) below the laminar threshold.
+template <class S>
+S raw_flow_function(const S& x, double b) noexcept {
+  using std::sqrt;
+  if (x <= b) return S(1.0);
+  const S s = (x - b) / (1.0 - b);
+  const S r = 1.0 - s * s;
+  return sqrt(0.0 < r ? r : S(0.0));  // std::max(0.0, r)
+}
+// flow_function() for a scalar S (a double, or a Dual with its derivatives): the one definition.
+// Inlined into the orifice's flow, the innermost call of every integration of the chambers.
+template <class S>
+[[gnu::always_inline]] inline S phi(const S& ratio, double b) noexcept {
+  const S x = ratio < 0.0 ? S(0.0) : 1.0 < ratio ? S(1.0) : ratio;  // std::clamp(x, 0.0, 1.0)
+  if (x <= kLaminarPressureRatio) return raw_flow_function(x, b);
+  const double at_threshold = raw_flow_function(kLaminarPressureRatio, b);
+  return at_threshold * (1.0 - x) / (1.0 - kLaminarPressureRatio);
+}
+}  // namespace detail
+
 /// One ISO 6358 orifice. Returns the mass flow from `p_a` to `p_b` [kg/s]: positive when
 /// p_a > p_b, negative (reversed) when p_b > p_a, zero when equal.
 /// m_dot = C rho_0 p_up sqrt(T_0 / T) phi(p_down / p_up).
@@ -25,7 +50,18 @@ struct Orifice {
   double temperature_factor;         ///< sqrt(T_0 / T) [-]
 
   [[nodiscard]] double mass_flow_kg_per_s(double conductance_m3_per_s_pa, double p_a_pa,
-                                          double p_b_pa) const noexcept;
+                                          double p_b_pa) const noexcept {
+    return flow(conductance_m3_per_s_pa, p_a_pa, p_b_pa);
+  }
+  /// mass_flow_kg_per_s for scalars (doubles, or Duals with their derivatives; a constant pressure
+  /// as a double).
+  template <class C, class A, class B>
+  [[nodiscard]] C flow(const C& c, const A& p_a, const B& p_b) const noexcept {
+    if (p_a >= p_b) {
+      return c * reference_density_kg_per_m3 * p_a * temperature_factor * detail::phi(p_b / p_a, critical_ratio);
+    }
+    return -c * reference_density_kg_per_m3 * p_b * temperature_factor * detail::phi(p_a / p_b, critical_ratio);
+  }
   /// d m_dot / d p_b at fixed p_a [kg/(s Pa)] (<= 0).
   [[nodiscard]] double d_mass_flow_d_pb(double conductance_m3_per_s_pa, double p_a_pa,
                                         double p_b_pa) const noexcept;
@@ -73,6 +109,71 @@ class ValveCharacteristic {
   [[nodiscard]] double null_pressure_pa(double w_v, double chamber_k, double supply_k) const noexcept;
 };
 
+/// The parametric model's equations (docs/model.md section 3) for a scalar S: at S = double they
+/// are ValveModel's (which holds them), at S = Dual the same with the derivatives by the fitted
+/// parameters (the identification's). Names as ValveCharacteristic's, for the chambers' templates.
+template <class S>
+struct ValveEquations {
+  S max_conductance_m3_per_s_pa, leak_conductance_in_m3_per_s_pa, leak_conductance_out_m3_per_s_pa, null_offset_v;
+  double max_voltage, p_supply_pa, p_exhaust_pa;
+  Orifice orifice;
+
+  ValveEquations(const ValveParams& valve, const Gas& gas) noexcept
+      : max_conductance_m3_per_s_pa(valve.max_conductance_m3_per_s_pa),
+        leak_conductance_in_m3_per_s_pa(valve.leak_conductance_in_m3_per_s_pa),
+        leak_conductance_out_m3_per_s_pa(valve.leak_conductance_out_m3_per_s_pa),
+        null_offset_v(valve.null_offset_v),
+        max_voltage(valve.max_voltage_v),
+        p_supply_pa(gas.supply_pressure_pa),
+        p_exhaust_pa(gas.exhaust_pressure_pa),
+        orifice{valve.critical_pressure_ratio, valve.reference_density_kg_per_m3,
+                std::sqrt(valve.reference_temperature_k / gas.temperature_k)} {}
+
+  // The opening is measured from the null offset w_0: w = w_0 closes both orifices to their leaks.
+  [[nodiscard]] S inlet_conductance_m3_per_s_pa(const S& w) const noexcept {
+    const S x = (w - null_offset_v) / max_voltage;
+    return leak_conductance_in_m3_per_s_pa + max_conductance_m3_per_s_pa * (x < 0.0 ? S(0.0) : 1.0 < x ? S(1.0) : x);
+  }
+  [[nodiscard]] S outlet_conductance_m3_per_s_pa(const S& w) const noexcept {
+    const S x = (null_offset_v - w) / max_voltage;
+    return leak_conductance_out_m3_per_s_pa + max_conductance_m3_per_s_pa * (x < 0.0 ? S(0.0) : 1.0 < x ? S(1.0) : x);
+  }
+  [[nodiscard]] S mass_flow_kg_per_s(const S& w, const S& p) const noexcept {
+    return orifice.flow(inlet_conductance_m3_per_s_pa(w), p_supply_pa, p) -
+           orifice.flow(outlet_conductance_m3_per_s_pa(w), p, p_exhaust_pa);
+  }
+  /// dq/dp at the values (for step sizes: no derivatives) [kg/(s Pa)].
+  [[nodiscard]] double dq_dp(const S& w, const S& p) const noexcept {
+    return orifice.d_mass_flow_d_pb(value(inlet_conductance_m3_per_s_pa(w)), p_supply_pa, value(p)) -
+           orifice.d_mass_flow_d_pa(value(outlet_conductance_m3_per_s_pa(w)), value(p), p_exhaust_pa);
+  }
+  // ISO 6358 scales an orifice's flow by sqrt(T_0 / T_up); the orifice's own factor is the supply's.
+  [[nodiscard]] BasicChamberInflow<S> chamber_inflow(const S& w, const S& p, const S& chamber_k,
+                                                     double supply_k) const noexcept {
+    using std::sqrt;
+    const S to_chamber = sqrt(supply_k / chamber_k);  // an orifice fed by the chamber
+    S in = orifice.flow(inlet_conductance_m3_per_s_pa(w), p_supply_pa, p);
+    S out = orifice.flow(outlet_conductance_m3_per_s_pa(w), p, p_exhaust_pa);
+    S enthalpy(0.0);
+    if (in >= 0.0) {
+      enthalpy += in * supply_k;
+    } else {
+      in *= to_chamber;
+      enthalpy += in * chamber_k;
+    }
+    if (out >= 0.0) {
+      out *= to_chamber;
+      enthalpy -= out * chamber_k;
+    } else {
+      enthalpy -= out * supply_k;  // drawn in from the exhaust side
+    }
+    return {in - out, enthalpy};
+  }
+  /// w_0 -+ u_max.
+  [[nodiscard]] S spool_min_v() const noexcept { return null_offset_v - max_voltage; }
+  [[nodiscard]] S spool_max_v() const noexcept { return null_offset_v + max_voltage; }
+};
+
 /// The parametric model of docs/model.md section 3:
 ///   C_in(w)  = C_leak_in  + C_max clamp( w / u_max, 0, 1)
 ///   C_out(w) = C_leak_out + C_max clamp(-w / u_max, 0, 1)
@@ -87,23 +188,26 @@ class ValveModel final : public ValveCharacteristic {
   /// (chamber_k when reversed), the chamber -> exhaust one at chamber_k (supply_k when reversed).
   [[nodiscard]] ChamberInflow chamber_inflow(double w_v, double p_pa, double chamber_k,
                                              double supply_k) const noexcept override;
-  [[nodiscard]] double min_pressure_pa() const noexcept override { return p_exhaust_pa_; }
-  [[nodiscard]] double max_pressure_pa() const noexcept override { return p_supply_pa_; }
+  [[nodiscard]] double min_pressure_pa() const noexcept override { return eq_.p_exhaust_pa; }
+  [[nodiscard]] double max_pressure_pa() const noexcept override { return eq_.p_supply_pa; }
   [[nodiscard]] double min_voltage_v() const noexcept override { return -valve_.max_voltage_v; }
   [[nodiscard]] double max_voltage_v() const noexcept override { return valve_.max_voltage_v; }
   /// w_0 -+ u_max.
-  [[nodiscard]] double spool_min_v() const noexcept override { return valve_.null_offset_v - valve_.max_voltage_v; }
-  [[nodiscard]] double spool_max_v() const noexcept override { return valve_.null_offset_v + valve_.max_voltage_v; }
+  [[nodiscard]] double spool_min_v() const noexcept override { return eq_.spool_min_v(); }
+  [[nodiscard]] double spool_max_v() const noexcept override { return eq_.spool_max_v(); }
 
-  [[nodiscard]] double inlet_conductance_m3_per_s_pa(double w_v) const noexcept;
-  [[nodiscard]] double outlet_conductance_m3_per_s_pa(double w_v) const noexcept;
-  [[nodiscard]] const Orifice& orifice() const noexcept { return orifice_; }
+  [[nodiscard]] double inlet_conductance_m3_per_s_pa(double w_v) const noexcept {
+    return eq_.inlet_conductance_m3_per_s_pa(w_v);
+  }
+  [[nodiscard]] double outlet_conductance_m3_per_s_pa(double w_v) const noexcept {
+    return eq_.outlet_conductance_m3_per_s_pa(w_v);
+  }
+  [[nodiscard]] const Orifice& orifice() const noexcept { return eq_.orifice; }
+  [[nodiscard]] const ValveEquations<double>& equations() const noexcept { return eq_; }
 
  private:
   ValveParams valve_;
-  double p_supply_pa_;
-  double p_exhaust_pa_;
-  Orifice orifice_;
+  ValveEquations<double> eq_;
 };
 
 /// Force gain characteristic: the pressure force (Eq. 14, PressureForce) at complete equilibrium
