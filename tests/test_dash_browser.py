@@ -71,7 +71,7 @@ def main():
             skip(f"{path} is missing (Debian packages chromium, chromium-driver)")
     try:
         from selenium import webdriver
-        from selenium.webdriver.chrome.service import Service
+        import chromium_driver
     except ImportError:
         skip("selenium is missing (Debian package python3-selenium)")
 
@@ -90,12 +90,11 @@ def main():
             fail("/ is not the dashboard page", logs)
         wait_http(base + "/js/chart.js/chart.min.js", 5, "pneu-dash's Chart.js", logs)
 
-        options = webdriver.ChromeOptions()
-        options.binary_location = CHROMIUM
-        for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-                    "--window-size=1680,1180", "--hide-scrollbars", "--force-device-scale-factor=1"):
-            options.add_argument(arg)
-        driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+        driver, browser_procs = chromium_driver.start(
+            CHROMIUM, CHROMEDRIVER, ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                                     "--window-size=1680,1180", "--hide-scrollbars", "--force-device-scale-factor=1"),
+            work)
+        procs.extend(browser_procs)
         driver.set_script_timeout(10)
         driver.get(base + "/")
 

@@ -135,7 +135,7 @@ def main():
     try:
         from selenium import webdriver
         from selenium.webdriver.common.by import By
-        from selenium.webdriver.chrome.service import Service
+        import chromium_driver
     except ImportError:
         skip("python3-selenium is needed")
 
@@ -192,13 +192,11 @@ def main():
                 return False
         wait_for("pneu-dash serving its page", page_served, 15, dash_err)
 
-        options = webdriver.ChromeOptions()
-        options.binary_location = chromium
-        for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-                  "--window-size=1400,1000", f"--user-data-dir={d}/chromium"):
-            options.add_argument(a)
-        options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
-        browser = webdriver.Chrome(service=Service(driver), options=options)
+        browser, browser_procs = chromium_driver.start(
+            chromium, driver, ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                               "--window-size=1400,1000"),
+            d, capabilities=[("goog:loggingPrefs", {"browser": "ALL"})])
+        procs.extend(browser_procs)
         browser.set_script_timeout(20)
         global BROWSER
         BROWSER = browser
