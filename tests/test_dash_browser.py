@@ -8,6 +8,14 @@ path and the forecast restart time counting down; that the actual restart is the
 time pneud's events file gives. A screenshot of the page during the sticking phase is written to
 OUT_DIR/dashboard.png (docs/img/dashboard.png is one of them).
 
+The sim backend on the real clock integrates the plant over the time that really passed: on a loaded
+machine, deadlines skipped change the run itself, and its long sticking phase may not come (seen:
+a run with 236 deadlines skipped stopped eleven times for 0.2 s at most). pneud's loop asks for
+SCHED_FIFO (a warning where refused); a run that had no sticking phase of 0.5 s is run again (a new
+pneu-dash, the page loaded again), up to ATTEMPTS runs, each attempt's figures printed. A run
+without deadlines skipped must have it; when every run skipped deadlines and none had it, the test
+skips saying so (the page was not shown what it is tested on).
+
 Run inside tests/in_private_netns.sh (LCM multicast stays in a namespace of the test's own):
   test_dash_browser.py BIN_DIR SOURCE_DIR OUT_DIR
 Exit codes: 0 passed, 1 failed (FAIL: what), 77 skipped (SKIPPED: why: no browser, no selenium).
@@ -25,6 +33,8 @@ import urllib.request
 CHROMIUM = "/usr/bin/chromium"
 CHROMEDRIVER = "/usr/bin/chromedriver"
 RUN_S = 7.0                  # pneud's run: the step at 1 s, the long sticking phase ends near 3.9 s
+ATTEMPTS = 3                 # runs of pneud, while none had a sticking phase of LONG_PHASE_S
+LONG_PHASE_S = 0.5
 
 
 def skip(why):
@@ -61,6 +71,106 @@ def wait_http(url, seconds, what, logs):
     fail(f"{what} did not answer at {url} within {seconds} s", logs)
 
 
+def longest_phase(events):
+    """(stop, seconds) of the longest sticking phase in pneud's events file (one not ended by a
+    restart lasts until the run's end event)."""
+    end = next((e["t"] for e in events if e["event"] == "end"), RUN_S)
+    stops = {e["stop"]: e["t"] for e in events if e["event"] == "stop"}
+    restarts = {e["stop"]: e["t"] for e in events if e["event"] == "start" and e.get("restart")}
+    phases = [(i, restarts.get(i, end) - t) for i, t in stops.items()]
+    return max(phases, key=lambda p: p[1], default=(None, 0.0))
+
+
+def watch_one_run(driver, bin_dir, work, logs, procs, shot):
+    """A new pneu-dash, the page loaded from it, pneud's run watched on the page to its end."""
+    port = free_port()
+    base = f"http://127.0.0.1:{port}"
+    dash = subprocess.Popen([os.path.join(bin_dir, "pneu-dash"), "--listen", f"127.0.0.1:{port}"],
+                            stdout=open(logs[0], "w"), stderr=subprocess.STDOUT)
+    procs.append(dash)
+    page = wait_http(base + "/", 20, "pneu-dash", logs).decode()
+    if "chart-plane" not in page:
+        fail("/ is not the dashboard page", logs)
+    wait_http(base + "/js/chart.js/chart.min.js", 5, "pneu-dash's Chart.js", logs)
+    driver.get(base + "/")
+
+    def snap():
+        return driver.execute_script("return window.pneuDash && window.pneuDash.snapshot();")
+
+    deadline = time.monotonic() + 15
+    s = snap()
+    while not (s and s["connected"] and s["planeLoaded"]):
+        if time.monotonic() > deadline:
+            fail(f"the page did not connect and get the plane within 15 s: {json.dumps(s)}", logs)
+        time.sleep(0.1)
+        s = snap()
+    print(f"connected; channels {s['topics']}; null-flow curve of {s['nullFlowPoints']} points")
+    if s["nullFlowPoints"] < 50:
+        fail(f"the plane's null-flow curve has {s['nullFlowPoints']} points")
+
+    # pneud on the real clock, the paper's scenario; its supervision of the loop's timing off: a
+    # stall of the shared machine would latch a fault (timing is not this test's subject); its loop
+    # on SCHED_FIFO where permitted (a warning otherwise), Chromium's drawing does not delay it.
+    events_path = os.path.join(work, "events.jsonl")
+    summary_path = os.path.join(work, "summary.json")
+    pneud = subprocess.Popen(
+        [os.path.join(bin_dir, "pneud"), "--clock", "real", "--duration", str(RUN_S),
+         "--require-telemetry", "--events", events_path, "--summary-json", summary_path,
+         "--set", "controller.realtime.priority=40",
+         "--set", "controller.supervisor.overruns_in_a_row=0",
+         "--set", "controller.supervisor.max_tick_interval_s=0"],
+        stdout=open(logs[1], "w"), stderr=open(logs[2], "w"))
+    procs.append(pneud)
+
+    advancing = []           # (wall time, loop time, trace points)
+    stuck_seen = None        # the snapshot the screenshot was taken at
+    countdowns = []          # (stop, loop time, countdown) while stuck with a restart forecast
+    restart_seen = None
+    last_stuck = None        # the last look at a stuck carriage, for the failure's message
+    deadline = time.monotonic() + RUN_S + 20
+    while time.monotonic() < deadline:
+        s = snap()
+        if s["t"] is not None:
+            advancing.append((time.monotonic(), s["t"], s["tracePoints"]))
+        # stuck, the forecast and its path shown; counting down when it forecasts a restart
+        stuck_now = (s["stuck"] and s["stop"] and s["forecast"] and s["forecastPathPoints"] > 1
+                     and s["forecastState"] == ("counting" if s["forecast"]["will_restart"] else "no-restart"))
+        if s["stuck"]:
+            last_stuck = s
+        if stuck_now and (stuck_seen is None or stuck_seen["stop"] == s["stop"]):
+            if s["forecast"]["will_restart"]:
+                countdowns.append((s["stop"]["index"], s["t"], s["countdownS"]))
+            # well into a phase (the paper's second stop: about 2.5 s on an idle machine; on a
+            # loaded one the real clock's phase may end otherwise)
+            if stuck_seen is None and s["t"] - s["stop"]["t"] > 0.3:
+                driver.save_screenshot(shot)
+                after = snap()
+                if after["stuck"] and after["stop"] == s["stop"]:
+                    stuck_seen = s
+                    print(f"screenshot at t = {s['t']:.3f} s: stop {s['stop']['index']} since "
+                          f"{s['stop']['t']:.3f} s, state point {s['planePoint']} (trail: {s['trailPoints']} points, "
+                          f"{s['trailSegments']} segments), forecast "
+                          f"{s['forecast']}, countdown '{s['countdownText']}'")
+        if stuck_seen:
+            marked = [r for r in s["restarts"] if r["stop"] == stuck_seen["stop"]["index"]]
+            if marked:
+                restart_seen = marked[0]
+                break
+        if pneud.poll() is not None and s["t"] is not None and s["t"] >= RUN_S - 0.01:
+            break  # the page has seen the whole run
+        time.sleep(0.1)
+    pneud.wait(timeout=RUN_S + 20)
+    if pneud.returncode != 0:
+        fail(f"pneud exited with {pneud.returncode}", logs)
+    with open(events_path, encoding="utf-8") as f:
+        events = [json.loads(line) for line in f if line.strip()]
+    with open(summary_path, encoding="utf-8") as f:
+        summary = json.load(f)
+    stops = {e["stop"]: e for e in events if e["event"] == "stop"}
+    return dict(dash=dash, stops=stops, stuck_seen=stuck_seen, countdowns=countdowns, restart_seen=restart_seen,
+                events=events, advancing=advancing, last_stuck=last_stuck, summary=summary, snap=snap)
+
+
 def main():
     if len(sys.argv) != 4:
         print(__doc__)
@@ -80,90 +190,34 @@ def main():
     procs = []
     driver = None
     try:
-        port = free_port()
-        base = f"http://127.0.0.1:{port}"
-        dash = subprocess.Popen([os.path.join(bin_dir, "pneu-dash"), "--listen", f"127.0.0.1:{port}"],
-                                stdout=open(logs[0], "w"), stderr=subprocess.STDOUT)
-        procs.append(dash)
-        page = wait_http(base + "/", 20, "pneu-dash", logs).decode()
-        if "chart-plane" not in page:
-            fail("/ is not the dashboard page", logs)
-        wait_http(base + "/js/chart.js/chart.min.js", 5, "pneu-dash's Chart.js", logs)
-
         driver, browser_procs = chromium_driver.start(
             CHROMIUM, CHROMEDRIVER, ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
                                      "--window-size=1680,1180", "--hide-scrollbars", "--force-device-scale-factor=1"),
             work)
         procs.extend(browser_procs)
         driver.set_script_timeout(10)
-        driver.get(base + "/")
-
-        def snap():
-            return driver.execute_script("return window.pneuDash && window.pneuDash.snapshot();")
-
-        deadline = time.monotonic() + 15
-        s = snap()
-        while not (s and s["connected"] and s["planeLoaded"]):
-            if time.monotonic() > deadline:
-                fail(f"the page did not connect and get the plane within 15 s: {json.dumps(s)}", logs)
-            time.sleep(0.1)
-            s = snap()
-        print(f"connected; channels {s['topics']}; null-flow curve of {s['nullFlowPoints']} points")
-        if s["nullFlowPoints"] < 50:
-            fail(f"the plane's null-flow curve has {s['nullFlowPoints']} points")
-
-        # pneud on the real clock, the paper's scenario; its supervision of the loop's timing off: a
-        # stall of the shared machine would latch a fault (timing is not this test's subject).
-        events_path = os.path.join(work, "events.jsonl")
-        pneud = subprocess.Popen(
-            [os.path.join(bin_dir, "pneud"), "--clock", "real", "--duration", str(RUN_S),
-             "--require-telemetry", "--events", events_path,
-             "--set", "controller.supervisor.overruns_in_a_row=0",
-             "--set", "controller.supervisor.max_tick_interval_s=0"],
-            stdout=open(logs[1], "w"), stderr=open(logs[2], "w"))
-        procs.append(pneud)
-
         shot = os.path.join(out_dir, "dashboard.png")
-        advancing = []           # (wall time, loop time, trace points)
-        stuck_seen = None        # the snapshot the screenshot was taken at
-        countdowns = []          # (stop, loop time, countdown) while stuck with a restart forecast
-        restart_seen = None
-        last_stuck = None        # the last look at a stuck carriage, for the failure's message
-        deadline = time.monotonic() + RUN_S + 20
-        while time.monotonic() < deadline:
-            s = snap()
-            if s["t"] is not None:
-                advancing.append((time.monotonic(), s["t"], s["tracePoints"]))
-            # stuck, the forecast and its path shown; counting down when it forecasts a restart
-            stuck_now = (s["stuck"] and s["stop"] and s["forecast"] and s["forecastPathPoints"] > 1
-                         and s["forecastState"] == ("counting" if s["forecast"]["will_restart"] else "no-restart"))
-            if s["stuck"]:
-                last_stuck = s
-            if stuck_now and (stuck_seen is None or stuck_seen["stop"] == s["stop"]):
-                if s["forecast"]["will_restart"]:
-                    countdowns.append((s["stop"]["index"], s["t"], s["countdownS"]))
-                # well into a phase (the paper's second stop: about 2.5 s on an idle machine; on a
-                # loaded one the real clock's phase may end otherwise)
-                if stuck_seen is None and s["t"] - s["stop"]["t"] > 0.3:
-                    driver.save_screenshot(shot)
-                    after = snap()
-                    if after["stuck"] and after["stop"] == s["stop"]:
-                        stuck_seen = s
-                        print(f"screenshot at t = {s['t']:.3f} s: stop {s['stop']['index']} since "
-                              f"{s['stop']['t']:.3f} s, state point {s['planePoint']} (trail: {s['trailPoints']} points, "
-                              f"{s['trailSegments']} segments), forecast "
-                              f"{s['forecast']}, countdown '{s['countdownText']}'")
-            if stuck_seen:
-                marked = [r for r in s["restarts"] if r["stop"] == stuck_seen["stop"]["index"]]
-                if marked:
-                    restart_seen = marked[0]
-                    break
-            if pneud.poll() is not None and s["t"] is not None and s["t"] >= RUN_S - 0.01:
-                break  # the page has seen the whole run
-            time.sleep(0.1)
-        pneud.wait(timeout=RUN_S + 20)
-        if pneud.returncode != 0:
-            fail(f"pneud exited with {pneud.returncode}", logs)
+        for number in range(1, ATTEMPTS + 1):
+            run = watch_one_run(driver, bin_dir, work, logs, procs, shot)
+            longest = longest_phase(run["events"])
+            skipped = run["summary"]["loop"]["deadlines_skipped"] if run["summary"] else None
+            print(f"run {number}: {len(run['stops'])} stops, the longest sticking phase "
+                  f"{longest[1]:.3f} s (stop {longest[0]}), {skipped} deadlines skipped, "
+                  f"{run['summary']['loop']['overruns'] if run['summary'] else None} overruns; "
+                  f"the page {'showed' if run['stuck_seen'] else 'did not show'} a stuck carriage for 0.3 s")
+            if run["stuck_seen"] is not None or longest[1] >= LONG_PHASE_S or skipped == 0:
+                break  # judged below: the page saw it, or it had to
+            run["dash"].terminate()
+            if number < ATTEMPTS:
+                print(f"run {number}: the machine's load changed the real-clock run (no sticking phase of "
+                      f"{LONG_PHASE_S} s); running it again")
+        else:
+            skip(f"none of {ATTEMPTS} runs of pneud on the real clock had a sticking phase of {LONG_PHASE_S} s, "
+                 f"each with deadlines skipped (the machine's load changed the run): the page was not shown "
+                 f"the sticking phase it is tested on")
+        stops, stuck_seen, countdowns, restart_seen, events, advancing, last_stuck, snap = (
+            run[k] for k in ("stops", "stuck_seen", "countdowns", "restart_seen", "events", "advancing", "last_stuck",
+                             "snap"))
 
         # The mode by its name (serverInfo's metadata, from the controller's table): pneud runs armed.
         mode = driver.execute_script("return document.getElementById('mode').dataset.mode;")
@@ -178,9 +232,6 @@ def main():
         print(f"traces advanced: loop time {first[1]:.3f} -> {last[1]:.3f} s over "
               f"{last[0] - first[0]:.2f} s of wall time, trace points {first[2]} -> {last[2]}")
 
-        with open(events_path, encoding="utf-8") as f:
-            events = [json.loads(line) for line in f if line.strip()]
-        stops = {e["stop"]: e for e in events if e["event"] == "stop"}
         if stuck_seen is None:
             fail(f"the page never showed a stuck carriage with its forecast and the forecast's path for "
                  f"0.3 s; pneud's stops: {list(stops.values())}; the page's last look at a stuck carriage: "
