@@ -2,7 +2,7 @@
 # The test suite while the machine is busy: RUNS times (default 3) `ctest -j<cores>` over BUILD_DIR
 # while as many busy loops as cores run beside it (what `stress-ng --cpu <cores>` does), and says,
 # run by run, how many tests passed and which failed. Extra arguments go to ctest (e.g.
-# `-LE 'idle|soak'` for the set that must hold under load; see the README, "Tests").
+# `-LE 'idle|soak'` for the set that must hold under load; see docs/development.md, "The test suite").
 #
 #   bench/ctest_under_load.sh BUILD_DIR [RUNS] [-- CTEST_ARGS...]
 #

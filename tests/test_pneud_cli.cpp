@@ -360,7 +360,7 @@ TEST_F(PneudCli, ShortRunOnTheRealClockCompletesAndReportsLoopTiming) {
   EXPECT_LE(s.ticks, 301u);
 }
 
-// --summary-json: the figures of the summary's lines, for programs (the README lists the members).
+// --summary-json: the figures of the summary's lines, for programs (docs/pneud.md lists the members).
 TEST_F(PneudCli, SummaryJsonHoldsTheFiguresTheSummaryPrints) {
   const Outcome o = pneud("--summary-json " + quoted(file("summary.json")));
   ASSERT_EQ(o.exit_code, 0) << o.err;
@@ -388,7 +388,7 @@ TEST_F(PneudCli, SummaryJsonHoldsTheFiguresTheSummaryPrints) {
   EXPECT_EQ(runtime["ticks_seen"].count(), 12001u);
   EXPECT_EQ(runtime["sequence_gaps"].count(), 0u);
   EXPECT_EQ(runtime["stops_forgotten"].count(), 0u);
-  EXPECT_EQ(runtime["stops"].count(), 2u) << "the two sticking phases of the README's table";
+  EXPECT_EQ(runtime["stops"].count(), 2u) << "the two sticking phases of the quick start's table (docs/results.md)";
   EXPECT_TRUE(j["faults"].elements().empty());
   EXPECT_TRUE(j["telemetry"].is_null()) << "telemetry off";
   EXPECT_TRUE(j["modbus"].is_null()) << "the sim backend";

@@ -535,7 +535,7 @@ TEST(ForecastTrackWithValveModel, NonlinearTrackIsEquation19AndMeetsTheBoundAtTh
   EXPECT_NEAR(track.at(p.t_restart_s).force_n, kForceSMinusN, 1e-3);
 }
 
-// The paper scenario's second stop (README: stuck 4.0 s at 171.8 mm), on the curved valve model.
+// The paper scenario's second stop (docs/results.md: stuck 4.0 s at 171.8 mm), on the curved valve model.
 StopSnapshot papers_long_stop() {
   StopSnapshot s;
   s.t_s = 2.013;

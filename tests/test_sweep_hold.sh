@@ -5,7 +5,7 @@
 #     pushes), counted per scenario in the scenarios file's restarts_after_hold;
 #   - no fault;
 #   - the hold began in most scenarios (those at rest within its window).
-# With the 0.5 mm window alone the final error is not the (measured, in the README): that
+# With the 0.5 mm window alone the final error is not the (measured, in docs/results.md): that
 # takes reaching the window.
 # reach: the default sweep reaching a 0.1 mm window (controller.hold.reach_m): besides, the final
 # error's p90 within 0.1 mm (measured 0.088 mm); the time to come to rest within the window, p90,

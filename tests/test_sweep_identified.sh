@@ -14,7 +14,7 @@
 # has, each drawn a thermal time constant of 0.5 to 3 s at mid-stroke and a spool lag of 0 to 5
 # ms besides, identified from a model that has both terms (at 1 s and 2 ms), on 60 steps (100
 # with hil.yaml's sensors, whose noise makes fewer stops judged: 22 long restarts there, 9 on 60;
-# the README gives the 200-step figures and their command); also: the
+# docs/results.md gives the 200-step figures and their command); also: the
 # model fits every bench (its residual within twice what the sensors' noise explains) and at
 # least 95 % of the parameters published that the bench has too lie within 3 of their sigmas of
 # it. unmodelled-thermal: the same benches identified from a model without either term are

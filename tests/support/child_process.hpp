@@ -202,7 +202,7 @@ inline std::vector<std::string> link_stalls_tolerated(std::vector<std::string> a
   return args;
 }
 
-/// The figures of a pneud run that the tests check, from its --summary-json file (the README
+/// The figures of a pneud run that the tests check, from its --summary-json file (docs/pneud.md
 /// describes its members; the file appears whole at the end of the run).
 struct PneudSummary {
   bool has_loop = false, has_modbus = false;  ///< the file was there; the run was on the modbus backend

@@ -44,7 +44,7 @@ Usage:
   --out OUT.yaml     write the configuration with plant: identified
   --quiet            no report on stdout
 
-What it estimates and how is pneud --identify's (see the README, "Identifying the bench"); from an
+What it estimates and how is pneud --identify's (see docs/identification.md); from an
 ordinary run it can only see what the run showed: a parameter the record cannot tell apart from
 the others is reported as such and kept. A record with no sticking phase, no breakaway, or no
 stuck phase long enough to fit the valves is refused, naming what is missing (exit 2).
