@@ -1,7 +1,7 @@
 // A sink of the runtime: the events file (pneud --events), one JSON object per line, in the order
 // the runtime emits them: start, stop, prediction (a forecast made at a stop), reforecast (made
 // again while stuck), fault, fault_reset, fault_reset_refused, command (a command's verdict), end.
-// The README lists each line's fields.
+// docs/pneud.md lists each line's fields.
 #pragma once
 
 #include <ostream>

@@ -32,14 +32,14 @@ enum class RunEnding : std::uint8_t {
 /// first line, and pneud's last line on stderr (the journal's).
 [[nodiscard]] std::string ending_text(const RunFigures& figures, const Runtime& runtime);
 
-/// pneud's summary, as the README shows it: first, when the run did not end well, why
+/// pneud's summary, as docs/results.md shows it: first, when the run did not end well, why
 /// (ending_text).
 void print_summary(std::FILE* out, const RunFigures& figures, const Runtime& runtime);
 
 /// The run's figures as the summary record (pneu/controller/summary_record.hpp describes it).
 [[nodiscard]] RunSummaryRecord run_summary_record(const RunFigures& figures, const Runtime& runtime);
 
-/// The run's figures as one JSON object (pneud --summary-json; the README lists its members):
+/// The run's figures as one JSON object (pneud --summary-json; docs/pneud.md lists its members):
 /// what the summary's lines say of the run, the loop, LCM and Modbus, with units in the names;
 /// the summary record's JSON document.
 void write_summary_json(std::ostream& out, const RunFigures& figures, const Runtime& runtime);
