@@ -185,7 +185,7 @@ struct pneu::records::Description<pneu::controller::EventMessage> {
   static constexpr const char* kDoc = "something that happened, as event_t carries it";
   static constexpr auto kFields = std::tuple{
       field("kind", &R::kind, "", "what happened: KIND_*").named(pneu::controller::kEventKinds),
-      field("t", &R::t_s, "s", "loop time; starts/stops are dated from the signals (see docs/pneud.md)", 12),
+      field("t", &R::t_s, "s", "loop time; starts/stops are dated from the signals (see README)", 12),
       field("stop", &R::stop, "", "index of the stop this event belongs to (0: none)"),
       field("y", &R::y_m, "m", "stop: rest position; start/restart: position it left", 12),
       field("force", &R::force_n, "N", "stop: pressure force when confirmed"),
@@ -212,7 +212,7 @@ struct pneu::records::Description<pneu::controller::EventLine> {
   static constexpr const char* kName = "event_line";
   static constexpr const char* kDoc = "a line of the events file that a loop event writes";
   static constexpr auto kFields = std::tuple{
-      field("t", &R::t_s, "s", "loop time; starts and stops are dated from the signals (see docs/pneud.md)", 12),
+      field("t", &R::t_s, "s", "loop time; starts and stops are dated from the signals (see README)", 12),
       field("stop", &R::stop, "", "index of the stop (from 1; a start: the last stop, 0 for none)"),
       field("restart", &R::restart, "", "start: the set point did not change since the stop"),
       field("direction", &R::direction, "", "start: +1 or -1"),
@@ -430,8 +430,8 @@ struct pneu::records::Description<pneu::controller::IdentificationRecord> {
   static constexpr const char* kDoc =
       "The bench as pneud has identified it online so far (controller.predictor.learn_online), on\n"
       "// <prefix>IDENTIFICATION after each update. Fixed size. Entry i of the arrays is parameter i, in\n"
-      "// the order of the constants below; its config key is plant.<section>.<name>\n"
-      "// (docs/identification.md). Not identified: the value is the configuration's, sigma 0.";
+      "// the order of the constants below; its config key is plant.<section>.<name> (README,\n"
+      "// \"Identifying the bench\"). Not identified: the value is the configuration's, sigma 0.";
   static constexpr auto kFields = std::tuple{
       field("t", &R::t_s, "s", "loop time of the update", 12),
       field("updates", &R::updates, "", "updates since start-up"),
