@@ -4,9 +4,11 @@
 // timestamp (pneu-dash's LCM receipt, ns since the Unix epoch) and this client's CLOCK_MONOTONIC
 // once the JSON is decoded. --stop-reading-after S: it stops reading S seconds after its handshake
 // (the socket stays open), and reads again for the last --resume-s seconds to take the status
-// message in which pneu-dash tells what it dropped.
+// message in which pneu-dash tells what it dropped. --max-rate-hz HZ: it asks the latest-wins
+// channels (the ticks) at most at HZ ("maxRateHz"), and keeps pneu-dash's last report of what it
+// skipped.
 //
-// usage: dash_client PORT SECONDS OUT_FILE [--stop-reading-after S] [--resume-s S]
+// usage: dash_client PORT SECONDS OUT_FILE [--stop-reading-after S] [--resume-s S] [--max-rate-hz HZ]
 // OUT_FILE: "# key value" lines (the clock offset, counts by topic, statuses), then one line per
 // state message: seq t_s frame_ns recv_mono_ns.
 #include <boost/asio/connect.hpp>
@@ -78,6 +80,8 @@ struct Client {
   std::vector<std::string> statuses;
   std::uint64_t bad_frames = 0;
   std::uint32_t next_sub = 0;
+  double max_rate_hz = -1.0;  // < 0: not asked
+  std::uint64_t skipped = 0;  // pneu-dash's last report
 
   explicit Client(asio::io_context& ioc) : ws(ioc), timer(ioc) { states.reserve(200000); }
 
@@ -90,10 +94,14 @@ struct Client {
         const auto id = c["id"].get<std::uint32_t>();
         topic_of_channel[id] = c["topic"].get<std::string>();
         topic_of_sub[next_sub] = topic_of_channel[id];
-        subs.push_back({{"id", next_sub++}, {"channelId", id}});
+        json sub = {{"id", next_sub++}, {"channelId", id}};
+        if (max_rate_hz >= 0.0 && c.value("latestWins", false)) sub["maxRateHz"] = max_rate_hz;
+        subs.push_back(sub);
       }
       ws.text(true);
       ws.write(asio::buffer(json{{"op", "subscribe"}, {"subscriptions", subs}}.dump()));
+    } else if (op == "status" && j.value("id", "") == "pneu-dash.skipped") {
+      skipped = j.value("skipped", std::uint64_t{0});
     } else if (op == "status") {
       statuses.push_back(std::to_string(j.value("level", -1)) + " " + j.value("message", ""));
     }
@@ -145,10 +153,11 @@ int main(int argc, char** argv) {
   const std::string port = argv[1];
   const double seconds = std::stod(argv[2]);
   const std::string out_file = argv[3];
-  double stop_after = -1.0, resume_s = 2.0;
+  double stop_after = -1.0, resume_s = 2.0, max_rate_hz = -1.0;
   for (int i = 4; i + 1 < argc; i += 2) {
     if (std::strcmp(argv[i], "--stop-reading-after") == 0) stop_after = std::stod(argv[i + 1]);
     else if (std::strcmp(argv[i], "--resume-s") == 0) resume_s = std::stod(argv[i + 1]);
+    else if (std::strcmp(argv[i], "--max-rate-hz") == 0) max_rate_hz = std::stod(argv[i + 1]);
     else {
       std::fprintf(stderr, "dash_client: unknown option %s\n", argv[i]);
       return 2;
@@ -156,6 +165,7 @@ int main(int argc, char** argv) {
   }
   asio::io_context ioc;
   Client c(ioc);
+  c.max_rate_hz = max_rate_hz;
   tcp::resolver resolver(ioc);
   beast::get_lowest_layer(c.ws).connect(resolver.resolve("127.0.0.1", port));
   c.ws.set_option(websocket::stream_base::decorator([](websocket::request_type& req) {
@@ -180,6 +190,8 @@ int main(int argc, char** argv) {
   }
   std::fprintf(out, "# realtime_minus_monotonic_ns %lld\n", static_cast<long long>(offset_ns));
   std::fprintf(out, "# bad_frames %llu\n", static_cast<unsigned long long>(c.bad_frames));
+  if (max_rate_hz >= 0.0)
+    std::fprintf(out, "# max_rate_hz %g\n# skipped %llu\n", max_rate_hz, static_cast<unsigned long long>(c.skipped));
   for (const auto& [topic, n] : c.count) std::fprintf(out, "# count %s %llu\n", topic.c_str(), static_cast<unsigned long long>(n));
   for (const auto& s : c.statuses) std::fprintf(out, "# status %s\n", s.c_str());
   for (const auto& r : c.states)

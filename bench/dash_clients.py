@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""The figures of bench/dash_clients.sh, from its run directory: DIR/REP/{A,B,C}/ each with pneud's
+"""The figures of bench/dash_clients.sh, from its run directory: DIR/REP/{A,B,D,C}/ each with pneud's
 --summary-json, cyclictest's histogram, pneu-dash's CPU ticks and RSS samples, /metrics after the
 phase, and each client's file (bench/dash_client.cpp).
 
@@ -10,7 +10,8 @@ frame and has decoded its JSON. latency = receipt - (epoch_monotonic_s + t): the
 the loop's queue to the telemetry thread, LCM encode and UDP multicast on loopback, pneu-dash's LCM
 decode, JSON writing and queueing, the WebSocket frame on TCP loopback, the client's JSON decode.
 Split at pneu-dash's LCM receipt: the frame's timestamp is LCM's recv_utime (CLOCK_REALTIME, us),
-mapped to CLOCK_MONOTONIC with the client's measured REALTIME - MONOTONIC offset.
+mapped to CLOCK_MONOTONIC with the client's measured REALTIME - MONOTONIC offset. At 60 Hz (D) a
+state may wait in pneu-dash up to 1/60 s for its turn (the newest then goes): that wait is in it.
 
 usage: dash_clients.py DIR REPEATS CLIENTS
 """
@@ -63,6 +64,8 @@ def client(path, epoch_s):
                     head["count"][parts[1]] = int(parts[2])
                 elif parts[0] == "status":
                     head["status"].append(" ".join(parts[1:]))
+                elif parts[0] in ("skipped", "max_rate_hz"):
+                    head[parts[0]] = float(parts[1])
                 continue
             seq, t, frame_ns, recv_ns = line.split()
             tick_ns = epoch_s * 1e9 + float(t) * 1e9
@@ -109,7 +112,7 @@ def phase(d):
     r["dropped"] = counter(os.path.join(d, "metrics.txt"), "pneu_dash_messages_dropped_total")
     r["published_states"] = sum(v for k, v in counter(os.path.join(d, "metrics.txt"),
                                                       "pneu_dash_messages_published_total").items() if k.endswith("STATE"))
-    lat, to_dash, to_client, rates, ts = [], [], [], [], []
+    lat, to_dash, to_client, rates, ts, per_s, lost = [], [], [], [], [], [], []
     epoch = loop["epoch_monotonic_s"]
     for path in sorted(glob.glob(os.path.join(d, "client*.txt"))):
         l, a, b, seqs, head = client(path, epoch)
@@ -118,6 +121,13 @@ def phase(d):
         to_client += b
         ts += head["t"]
         rates.append(len(seqs) / loop["ticks"])
+        per_s.append(len(seqs) / (loop["ticks"] / loop["rate_hz"]))
+        # of the states from the first to the last received: received, skipped at its request
+        # (pneu-dash's last report), lost (the rest)
+        if seqs:
+            lost.append(max(seqs) - min(seqs) + 1 - len(seqs) - int(head.get("skipped", 0)))
+    r["received_per_s_max"] = max(per_s, default=float("nan"))
+    r["lost_max"] = max(lost, default=0)
     r["clients"] = len(rates)
     if rates:
         r["lat_p50"], r["lat_p99"], r["lat_max"] = pct(lat, 0.5), pct(lat, 0.99), max(lat)
@@ -160,11 +170,11 @@ def rss_line(rss, t0, t1):
 
 def main(argv):
     root, reps, n = argv[0], int(argv[1]), int(argv[2])
-    rows = {"A": [], "B": [], "C": []}
+    rows = {"A": [], "B": [], "C": [], "D": []}
     for rep in range(1, reps + 1):
         print("repetition %d:" % rep)
         prev_drop, prev_published = {}, 0
-        for name in "ABC":
+        for name in "ABDC":  # in the order they ran
             d = os.path.join(root, str(rep), name)
             r = phase(d)
             start = float(open(os.path.join(d, "start.txt")).read())
@@ -174,7 +184,8 @@ def main(argv):
             r["lost_before_dash"] = r["ticks"] - (r["published_states"] - prev_published)
             prev_drop, prev_published = r["dropped"], r["published_states"]
             rows[name].append(r)
-            label = {"A": "0 clients", "B": "%d clients" % n, "C": "%d clients + 1 stopped reading" % n}[name]
+            label = {"A": "0 clients", "B": "%d clients" % n, "C": "%d clients + 1 stopped reading" % n,
+                     "D": "%d clients at 60 Hz" % n}[name]
             print("  %s %-30s pneud %6d ticks, overruns %3d, wake-up median %5.1f us p99 %6.1f us | cyclictest median %3d p99 %4d us"
                   % (name, label, r["ticks"], r["overruns"], r["wake_med"], r["wake_p99"], r["cyc_med"], r["cyc_p99"]))
             print("    pneu-dash CPU %.1f ms/s of running, RSS %s MiB (start, quarters, end of pneud's run; max %.1f)"
@@ -184,6 +195,9 @@ def main(argv):
                       "pneu-dash -> client p50 %.0f p99 %.0f); states received per tick, the fewest of %d clients: %.4f"
                       % (r["lat_p50"], r["lat_p99"], r["lat_max"], r["to_dash_p50"], r["to_dash_p99"], r["to_client_p50"],
                          r["to_client_p99"], r["clients"], r["received_min"]))
+                print("    states received per second of the loop, the most of %d clients: %.1f; states lost (neither received "
+                      "nor reported skipped, from the first to the last received), the most of a client: %d"
+                      % (r["clients"], r["received_per_s_max"], r["lost_max"]))
             print("    frames dropped by pneu-dash in this phase (/metrics): %d; states pneud published that pneu-dash's LCM "
                   "subscription never received (ticks - pneu_dash_messages_published_total): %d" % (r["drops_phase"], r["lost_before_dash"]))
             if "stalled_states" in r:
@@ -198,22 +212,28 @@ def main(argv):
     print("medians over %d repetitions:" % reps)
     print("  %-34s %9s %12s %10s %10s %10s %9s %9s %9s %9s %11s" % ("", "overruns", "wake med us", "p99 us", "cyc med", "cyc p99",
                                                                    "dash ms/s", "RSS MiB", "lat p50", "lat p99", "recv/tick"))
-    for name, label in (("A", "0 clients"), ("B", "%d clients" % n), ("C", "%d clients + 1 stopped reading" % n)):
+    for name, label in (("A", "0 clients"), ("B", "%d clients" % n), ("D", "%d clients at 60 Hz" % n),
+                        ("C", "%d clients + 1 stopped reading" % n)):
         lat = ("%9.0f %9.0f %11.4f" % (med(name, "lat_p50"), med(name, "lat_p99"), med(name, "received_min"))
                if rows[name][0]["clients"] else "%9s %9s %11s" % ("-", "-", "-"))
         print("  %s %-32s %9.0f %12.1f %10.1f %10.0f %10.0f %9.1f %9.1f %s" % (
             name, label, med(name, "overruns"), med(name, "wake_med"), med(name, "wake_p99"), med(name, "cyc_med"),
             med(name, "cyc_p99"), med(name, "dash_cpu_ms_per_s"), med(name, "rss_max"), lat))
     per_client = [(b["dash_cpu_ms_per_s"] - a["dash_cpu_ms_per_s"]) / n for a, b in zip(rows["A"], rows["B"])]
-    print("  pneu-dash CPU per client (B - A) / %d, every state forwarded (1 kHz; no decimation on the server): "
+    print("  pneu-dash CPU per client (B - A) / %d, every state forwarded (1 kHz): "
           "%.2f ms per second of running (%.2f %% of one core); each repetition: %s"
           % (n, statistics.median(per_client), statistics.median(per_client) / 10, " ".join("%.2f" % x for x in per_client)))
+    per_client_60 = [(dd["dash_cpu_ms_per_s"] - a["dash_cpu_ms_per_s"]) / n for a, dd in zip(rows["A"], rows["D"])]
+    print("  pneu-dash CPU per client at 60 Hz (D - A) / %d, the newest state at most every 1/60 s: "
+          "%.2f ms per second of running (%.2f %% of one core); each repetition: %s"
+          % (n, statistics.median(per_client_60), statistics.median(per_client_60) / 10,
+             " ".join("%.2f" % x for x in per_client_60)))
     print("  C: pneu-dash's largest RSS %.1f MiB against B's %.1f MiB; frames dropped for the client that stopped reading: %s"
           % (med("C", "rss_max"), med("B", "rss_max"), " ".join(str(r["drops_phase"]) for r in rows["C"])))
     print("  C: the others' tick -> receipt while its queue filled p50 %.0f p99 %.0f us, once dropping p50 %.0f p99 %.0f us (medians)"
           % (med("C", "filling_p50"), med("C", "filling_p99"), med("C", "dropping_p50"), med("C", "dropping_p99")))
-    print("  states lost before pneu-dash (LCM/UDP, not its queues), A B C in each repetition: %s"
-          % ", ".join(" ".join(str(rows[p][i]["lost_before_dash"]) for p in "ABC") for i in range(reps)))
+    print("  states lost before pneu-dash (LCM/UDP, not its queues), A B D C in each repetition: %s"
+          % ", ".join(" ".join(str(rows[p][i]["lost_before_dash"]) for p in "ABDC") for i in range(reps)))
     return 0
 
 

@@ -4,16 +4,19 @@
 # build/bin/dash_client (bench/dash_client.cpp) subscribes to every channel and decodes every
 # message frame's JSON. Each repetition runs, one after the other, with the same pneu-dash:
 #   A  0 clients          pneud SECONDS s, cyclictest beside it
-#   B  8 clients          the same
+#   B  8 clients          the same, every state (1 kHz)
+#   D  8 clients at 60 Hz the same, each asking the states at most at 60 Hz ("maxRateHz": 60, as a
+#                         page on a 60 Hz display would): pneu-dash sends each the newest state at
+#                         most every 1/60 s and reports what it skipped; every other message all
 #   C  8 clients + 1 that stops reading once subscribed, before pneud starts (and reads again 3 s before it
 #      ends, to take the status message in which pneu-dash tells its drops); pneud 2*SECONDS s
 # and prints, for each phase: pneud's overruns and wake-up latency median/p99 (--summary-json),
 # cyclictest's (the floor, same interval, same time); pneu-dash's CPU time over pneud's run
 # (/proc/PID/stat utime+stime) and its resident memory (VmRSS); for B and C the latency from the
 # loop's tick to the clients' receipt of its state message (see bench/dash_clients.py for exactly
-# what is measured); for C the RSS over time and the drops. Then the medians over the repetitions.
-# pneu-dash forwards every state message (1 kHz): there is no decimation on the server, a page
-# drawing at 60 Hz receives 1000 states a second all the same; the CPU per client is at that rate.
+# what is measured); for C the RSS over time and the drops; for D each client's states received,
+# skipped (pneu-dash's report) and lost. Then the medians over the repetitions, and pneu-dash's CPU
+# per client, (B - A) / 8 at every state and (D - A) / 8 at 60 Hz, each from the same repetition.
 # The loop-timing supervision is off (a stall of a shared machine would latch a fault and change
 # what the loop does between phases); nothing else is changed from pneud's defaults.
 # Usage: bench/dash_clients.sh [SECONDS] [REPEATS]    (defaults 20 and 3; needs root for the netns)
@@ -55,12 +58,13 @@ wait_port() {
   exit 1
 }
 
-# phase DIR NCLIENTS STALLED PNEUD_SECONDS
+# phase DIR NCLIENTS STALLED PNEUD_SECONDS [CLIENT OPTIONS...]
 phase() {
   local dir=$1 n=$2 stalled=$3 s=$4 pids=() i
+  shift 4
   mkdir -p "$dir"
   for i in $(seq "$n"); do
-    build/bin/dash_client $port $((s + 6)) "$dir/client$i.txt" &
+    build/bin/dash_client $port $((s + 6)) "$dir/client$i.txt" "$@" &
     pids+=($!)
   done
   if [ "$stalled" = 1 ]; then
@@ -95,6 +99,7 @@ for rep in $(seq "$reps"); do
   sleep 1
   phase "$tmp/$rep/A" 0 0 "$secs"
   phase "$tmp/$rep/B" "$clients" 0 "$secs"
+  phase "$tmp/$rep/D" "$clients" 0 "$secs" --max-rate-hz 60
   phase "$tmp/$rep/C" "$clients" 1 $((2 * secs))
   kill "$dash"; wait "$dash" || true
   dash=

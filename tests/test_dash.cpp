@@ -528,6 +528,145 @@ TEST_F(DashServer, RefusesAFloodOfSubscriptionsBeyondItsLimitInOneStatusAndKeeps
   EXPECT_EQ(*ids.rbegin(), 15u);
 }
 
+// What the subscriptions get: each message's "seq" (-1 when it has none) and the statuses, read
+// until `done` holds (or 10 s pass: a failure).
+struct Received {
+  std::map<std::uint32_t, std::vector<std::int64_t>> seqs;  // subscription -> its messages' seq
+  std::vector<json> statuses;
+};
+template <class Done>
+Received read_until(Client& c, Done done) {
+  Received r;
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  while (!done(r)) {
+    if (std::chrono::steady_clock::now() > deadline) {
+      ADD_FAILURE() << "not done within 10 s";
+      break;
+    }
+    const auto f = c.read(10s);
+    if (!f) break;
+    if (f->text) {
+      r.statuses.push_back(json::parse(f->data));
+      continue;
+    }
+    const auto* b = reinterpret_cast<const std::uint8_t*>(f->data.data());
+    std::uint32_t sub = 0;
+    for (int i = 3; i >= 0; --i) sub = (sub << 8) | b[1 + i];
+    const json m = json::parse(f->data.substr(13));
+    r.seqs[sub].push_back(m.value("seq", std::int64_t{-1}));
+  }
+  return r;
+}
+
+TEST_F(DashServer, ASubscriptionAtMostAtARateGetsTheNewestTickEveryEventAndIsToldWhatItSkipped) {
+  start();
+  Client c(server_->port());
+  auto channels = c.handshake_messages();
+  // The ticks are advertised latest-wins, no other channel.
+  for (const auto& [topic, ch] : channels) EXPECT_EQ(ch.value("latestWins", false), topic == "PNEU_STATE") << topic;
+  // 1 Hz: of the burst below the first goes at once, the newest when its second is up; events all.
+  c.send(json{{"op", "subscribe"},
+              {"subscriptions",
+               {{{"id", 1}, {"channelId", feed_->id(PneuChannel::kState)}, {"maxRateHz", 1}},
+                {{"id", 2}, {"channelId", feed_->id(PneuChannel::kEvent)}, {"maxRateHz", 1}}}}}
+             .dump());
+  barrier(c);
+  constexpr int kTicks = 500;
+  const auto ev = encoded_event("every one");
+  for (int i = 0; i < kTicks; ++i) {
+    forward_state(static_cast<std::uint64_t>(i));
+    if (i % 100 == 50) {
+      ASSERT_TRUE(feed_->forward("PNEU_EVENT", ev.data(), ev.size(), 5));
+    }
+  }
+  const Received r = read_until(c, [](const Received& got) {
+    return !got.statuses.empty() && got.seqs.contains(1) && got.seqs.at(1).back() == kTicks - 1;
+  });
+  EXPECT_EQ(r.seqs.at(1), (std::vector<std::int64_t>{0, kTicks - 1})) << "the first, then the newest";
+  ASSERT_TRUE(r.seqs.contains(2));
+  EXPECT_EQ(r.seqs.at(2).size(), 5u) << "every event, whatever rate was asked";
+  ASSERT_EQ(r.statuses.size(), 1u);
+  const json& report = r.statuses[0];
+  EXPECT_EQ(report["id"], pneu::dash::kSkippedStatusId) << report.dump();
+  EXPECT_EQ(report["level"], 0);
+  EXPECT_EQ(report["subscriptionId"], 1);
+  EXPECT_EQ(report["skipped"], kTicks - 2);
+  EXPECT_NE(report["message"].get<std::string>().find("498 messages of PNEU_STATE skipped for subscription 1"),
+            std::string::npos) << report.dump();
+  for (const auto& ch : server_->counters().channels) {
+    if (ch.topic == "PNEU_STATE") {
+      EXPECT_EQ(ch.sent, 2u);
+      EXPECT_EQ(ch.skipped, kTicks - 2u);
+      EXPECT_EQ(ch.dropped, 0u);
+    } else if (ch.topic == "PNEU_EVENT") {
+      EXPECT_EQ(ch.sent, 5u);
+      EXPECT_EQ(ch.skipped, 0u);
+    }
+  }
+  EXPECT_NE(get(server_->port(), "/metrics").find("pneu_dash_messages_skipped_total{channel=\"PNEU_STATE\"} 498\n"),
+            std::string::npos);
+}
+
+TEST_F(DashServer, TheServersRateGoesToASubscriptionThatAsksNoneSaidOnceAndMaxRate0AsksEveryMessage) {
+  options_.max_rate_hz = 1;  // pneu-dash --max-rate-hz 1
+  start();
+  Client c(server_->port());
+  c.handshake_messages();
+  c.send(json{{"op", "subscribe"},
+              {"subscriptions",
+               {{{"id", 1}, {"channelId", feed_->id(PneuChannel::kState)}},
+                {{"id", 2}, {"channelId", feed_->id(PneuChannel::kState)}, {"maxRateHz", 0}}}}}
+             .dump());
+  const json said = c.read_json();
+  EXPECT_EQ(said["id"], "pneu-dash.rate") << said.dump();
+  EXPECT_EQ(said["level"], 0);
+  EXPECT_NE(said["message"].get<std::string>().find("PNEU_STATE: at most 1 Hz to subscription 1 (pneu-dash --max-rate-hz)"),
+            std::string::npos) << said.dump();
+  barrier(c);
+  constexpr int kTicks = 100;
+  for (int i = 0; i < kTicks; ++i) forward_state(static_cast<std::uint64_t>(i));
+  Received r = read_until(c, [](const Received& got) {
+    return got.seqs.contains(1) && got.seqs.at(1).back() == kTicks - 1 && got.seqs.contains(2) &&
+           got.seqs.at(2).size() == kTicks;
+  });
+  EXPECT_EQ(r.seqs.at(1), (std::vector<std::int64_t>{0, kTicks - 1}));
+  for (int i = 0; i < kTicks; ++i) ASSERT_EQ(r.seqs.at(2)[static_cast<std::size_t>(i)], i) << "every message";
+  // Not told its skips (it did not ask, it may not know the status): past a report's time, nothing.
+  std::this_thread::sleep_for(std::chrono::duration<double>(2 * pneu::dash::kSkippedReportS));
+  c.send(R"({"op":"barrier"})");
+  r = read_until(c, [](const Received& got) { return !got.statuses.empty(); });
+  ASSERT_EQ(r.statuses.size(), 1u);
+  EXPECT_NE(r.statuses[0]["message"].get<std::string>().find("unknown op \"barrier\""), std::string::npos)
+      << r.statuses[0].dump();
+}
+
+TEST_F(DashServer, RefusesARateThatIsNotANumberFrom0To100kHzSayingWhyAndKeepsTheOthers) {
+  start();
+  Client c(server_->port());
+  c.handshake_messages();
+  const auto state = feed_->id(PneuChannel::kState);
+  c.send(json{{"op", "subscribe"},
+              {"subscriptions",
+               {{{"id", 1}, {"channelId", state}, {"maxRateHz", -1}},
+                {{"id", 2}, {"channelId", state}, {"maxRateHz", "60"}},
+                {{"id", 3}, {"channelId", state}, {"maxRateHz", 1e9}},
+                {{"id", 4}, {"channelId", state}, {"maxRateHz", nullptr}},
+                {{"id", 5}, {"channelId", state}, {"maxRateHz", true}},
+                {{"id", 6}, {"channelId", state}, {"maxRateHz", 60}}}}}
+             .dump());
+  const json s = c.read_json();
+  EXPECT_EQ(s["level"], 2);
+  EXPECT_NE(s["message"].get<std::string>().find(
+                "refused 5 subscriptions (\"maxRateHz\" must be a number from 0 (every message) to 100000 Hz, got -1)"),
+            std::string::npos) << s.dump();
+  barrier(c);
+  forward_state(7);
+  const auto m = c.read_message();
+  ASSERT_TRUE(m);
+  EXPECT_EQ(m->subscription, 6u);
+  EXPECT_EQ(json::parse(m->payload)["seq"], 7);
+}
+
 TEST_F(DashServer, RefusesAWebSocketWithoutTheFoxgloveSubprotocolSayingWhich) {
   start();
   try {
@@ -657,7 +796,7 @@ TEST(DashServerHooks, RoutesTheMetricsHookAndClientsMessagesGoWhereTheyAreGiven)
   EXPECT_EQ(taken, std::vector<std::string>{"/cmd:arm"});
 }
 
-TEST_F(DashServer, AClientThatStopsReadingCostsBoundedMemoryIsToldItsDropsAndDoesNotSlowTheOthers) {
+TEST_F(DashServer, AClientThatStopsReadingCostsBoundedMemoryGivesUpItsOldestTicksIsToldItsDropsAndSlowsNoOther) {
   options_.max_queue_bytes = 64u << 10;
   options_.socket_send_buffer_bytes = 16u << 10;
   start();
@@ -666,6 +805,7 @@ TEST_F(DashServer, AClientThatStopsReadingCostsBoundedMemoryIsToldItsDropsAndDoe
   slow.handshake_messages();
   fast.handshake_messages();
   subscribe(slow, 1, feed_->id(PneuChannel::kState));
+  subscribe(slow, 2, feed_->id(PneuChannel::kEvent));
   subscribe(fast, 1, feed_->id(PneuChannel::kState));
   barrier(slow);
   barrier(fast);
@@ -679,9 +819,15 @@ TEST_F(DashServer, AClientThatStopsReadingCostsBoundedMemoryIsToldItsDropsAndDoe
       ++fast_received;
     }
   });
-  // In bursts the fast one reads before the next: what it misses, the slow one made it miss.
+  // In bursts the fast one reads before the next: what it misses, the slow one made it miss. Events
+  // among them, while the slow one's queue is full.
+  constexpr int kEvents = 10;
+  const auto ev = encoded_event("never dropped while states can make room");
   for (int i = 0; i < kMessages; ++i) {
     forward_state(static_cast<std::uint64_t>(i));
+    if (i % (kMessages / kEvents) == kMessages / kEvents - 1) {
+      ASSERT_TRUE(feed_->forward("PNEU_EVENT", ev.data(), ev.size(), 5));
+    }
     if (i % 50 == 49)
       for (int w = 0; w < 2000 && fast_received < i + 1; ++w) std::this_thread::sleep_for(1ms);
   }
@@ -691,11 +837,12 @@ TEST_F(DashServer, AClientThatStopsReadingCostsBoundedMemoryIsToldItsDropsAndDoe
   for (const auto& c : counters.channels)
     if (c.topic == "PNEU_STATE") dropped = c.dropped;
   EXPECT_GT(dropped, 0u);
-  // The slow one reads again: what it gets plus what it is told it missed is every message.
-  int received = 0;
+  // The slow one reads again: what it gets plus what it is told it missed is every message; its
+  // full queue gave up its oldest states, not the newest (it gets the last), nor an event.
+  int received = 0, events = 0;
   std::uint64_t told = 0;
   std::int64_t last_seq = -1;
-  while (received + static_cast<int>(told) < kMessages) {
+  while (received + static_cast<int>(told) < kMessages || events < kEvents) {
     const auto f = slow.read(10s);
     ASSERT_TRUE(f) << received << " received, " << told << " told dropped";
     if (f->text) {
@@ -708,6 +855,10 @@ TEST_F(DashServer, AClientThatStopsReadingCostsBoundedMemoryIsToldItsDropsAndDoe
       EXPECT_NE(text.find("PNEU_STATE"), std::string::npos) << text;
       continue;
     }
+    if (f->data[1] == 2) {
+      ++events;
+      continue;
+    }
     const json record = json::parse(f->data.substr(13));
     EXPECT_GT(record["seq"].get<std::int64_t>(), last_seq);
     last_seq = record["seq"];
@@ -716,6 +867,8 @@ TEST_F(DashServer, AClientThatStopsReadingCostsBoundedMemoryIsToldItsDropsAndDoe
   EXPECT_EQ(told, dropped);
   EXPECT_LT(received, kMessages);
   EXPECT_GT(told, 0u);
+  EXPECT_EQ(events, kEvents);
+  EXPECT_EQ(last_seq, kMessages - 1) << "the newest state";
 }
 
 // A log of 200 states 10 ms apart, an event at 1 s.

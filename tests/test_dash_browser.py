@@ -8,6 +8,12 @@ path and the forecast restart time counting down; that the actual restart is the
 time pneud's events file gives. A screenshot of the page during the sticking phase is written to
 OUT_DIR/dashboard.png (docs/img/dashboard.png is one of them).
 
+The page asks for the ticks at most at 60 Hz (/?max_rate_hz=60), as on a 60 Hz display: pneu-dash
+sends it the newest tick at most every 1/60 s and reports what it skipped. Every tick of the run
+must be received, reported skipped or counted lost by the page, and the skipped ones must be those
+pneu-dash counted (its /metrics): decimation is never shown as loss, and a loss never hidden as
+decimation.
+
 The sim backend on the real clock integrates the plant over the time that really passed: on a loaded
 machine, deadlines skipped change the run itself, and its long sticking phase may not come (seen:
 a run with 236 deadlines skipped stopped eleven times for 0.2 s at most). pneud's loop asks for
@@ -35,6 +41,7 @@ CHROMEDRIVER = "/usr/bin/chromedriver"
 RUN_S = 7.0                  # pneud's run: the step at 1 s, the long sticking phase ends near 3.9 s
 ATTEMPTS = 3                 # runs of pneud, while none had a sticking phase of LONG_PHASE_S
 LONG_PHASE_S = 0.5
+MAX_RATE_HZ = 60             # the page's request for the ticks
 
 
 def skip(why):
@@ -92,7 +99,7 @@ def watch_one_run(driver, bin_dir, work, logs, procs, shot):
     if "chart-plane" not in page:
         fail("/ is not the dashboard page", logs)
     wait_http(base + "/js/chart.js/chart.min.js", 5, "pneu-dash's Chart.js", logs)
-    driver.get(base + "/")
+    driver.get(base + f"/?max_rate_hz={MAX_RATE_HZ}")
 
     def snap():
         return driver.execute_script("return window.pneuDash && window.pneuDash.snapshot();")
@@ -167,7 +174,7 @@ def watch_one_run(driver, bin_dir, work, logs, procs, shot):
     with open(summary_path, encoding="utf-8") as f:
         summary = json.load(f)
     stops = {e["stop"]: e for e in events if e["event"] == "stop"}
-    return dict(dash=dash, stops=stops, stuck_seen=stuck_seen, countdowns=countdowns, restart_seen=restart_seen,
+    return dict(dash=dash, base=base, stops=stops, stuck_seen=stuck_seen, countdowns=countdowns, restart_seen=restart_seen,
                 events=events, advancing=advancing, last_stuck=last_stuck, summary=summary, snap=snap)
 
 
@@ -273,17 +280,47 @@ def main():
                   f"{restarts[0]['t']:.4f} s); forecast {stuck_seen['forecast']['t_restart']:.4f} s")
         else:
             print(f"pneud's run ended before stop {index} restarted: nothing to mark")
+        # Every tick is received, skipped at the page's request or counted lost: none joined
+        # silently. pneu-dash reports the skipped ones at most every 0.5 s, after the tick they
+        # precede: wait for the report that covers the last tick received.
+        deadline = time.monotonic() + 5
         final = snap()
-        # Every tick is received or counted missing: none joined silently.
+        while time.monotonic() < deadline:
+            seqs = final["sequences"].get("PNEU_STATE")
+            if seqs and seqs["reportedSeq"] == seqs["last"]:
+                break
+            time.sleep(0.2)
+            final = snap()
         seqs = final["sequences"].get("PNEU_STATE")
         if not seqs:
             fail(f"the page counted no sequence numbers on PNEU_STATE: {final['sequences']}")
+        if not seqs["decimated"] or final["maxRateHz"] != MAX_RATE_HZ:
+            fail(f"the page did not ask for the ticks at {MAX_RATE_HZ} Hz: {seqs}, maxRateHz {final['maxRateHz']}")
+        if seqs["reportedSeq"] != seqs["last"]:
+            fail(f"pneu-dash's report of the ticks it skipped did not come after the last tick ({seqs})", logs)
         span = seqs["last"] - seqs["first"] + 1
-        if seqs["received"] + final["gaps"]["byTopic"].get("PNEU_STATE", 0) != span:
-            fail(f"ticks {seqs['first']}..{seqs['last']}: {seqs['received']} received and "
-                 f"{final['gaps']['byTopic'].get('PNEU_STATE', 0)} counted missing do not make {span}")
-        print(f"ticks seq {seqs['first']}..{seqs['last']}: {seqs['received']} received, "
-              f"{final['gaps']['missing']} counted missing")
+        lost = final["gaps"]["byTopic"].get("PNEU_STATE", 0)
+        if seqs["received"] + seqs["skipped"] + lost != span:
+            fail(f"ticks {seqs['first']}..{seqs['last']}: {seqs['received']} received, {seqs['skipped']} skipped "
+                 f"and {lost} counted lost do not make {span}")
+        # The skipped ones are what pneu-dash skipped (the page is its one client): none lost taken for
+        # skipped; and they are most of them (at most 60 a second of the 1000).
+        metrics = urllib.request.urlopen(run["base"] + "/metrics", timeout=5).read().decode()
+        skipped = [int(line.split()[-1]) for line in metrics.splitlines()
+                   if line.startswith('pneu_dash_messages_skipped_total{channel="PNEU_STATE"')]
+        if skipped != [seqs["skipped"]]:
+            fail(f"the page was told {seqs['skipped']} ticks skipped, pneu-dash's /metrics says {skipped}")
+        # And what it counts lost, pneu-dash never had (pneud's ticks it did not receive) or dropped.
+        counter = lambda name: sum(int(line.split()[-1]) for line in metrics.splitlines()
+                                   if line.startswith(name + '{channel="PNEU_STATE"'))
+        never_had = run["summary"]["loop"]["ticks"] - counter("pneu_dash_messages_published_total")
+        if lost > max(0, never_had) + counter("pneu_dash_messages_dropped_total"):
+            fail(f"the page counted {lost} ticks lost; pneu-dash never had {never_had} of pneud's "
+                 f"{run['summary']['loop']['ticks']} and dropped {counter('pneu_dash_messages_dropped_total')}")
+        if not 10 * seqs["received"] < span:
+            fail(f"the page asked for {MAX_RATE_HZ} Hz and received {seqs['received']} of {span} ticks")
+        print(f"ticks seq {seqs['first']}..{seqs['last']}: {seqs['received']} received, {seqs['skipped']} skipped "
+              f"at the page's request (pneu-dash's /metrics: {skipped[0]}), {lost} counted lost")
         print(f"the page drew in {final['drawMs']} ms, {final['lagS']} s behind the server; "
               f"gaps counted by the page: {final['gaps']}; events shown: {final['events']}; "
               f"messages by channel: {final['received']}")

@@ -36,9 +36,9 @@ void print_usage(std::ostream& out) {
 
 usage:
   pneu-dash [--listen HOST:PORT] [--config FILE | --lcm-url URL] [--prefix PREFIX] [--www DIR]
-            [--chart-js DIR] [--bench NAME] [--commands-token-file FILE]
+            [--chart-js DIR] [--bench NAME] [--max-rate-hz HZ] [--commands-token-file FILE]
   pneu-dash --log FILE [--paused] [--listen HOST:PORT] [--prefix PREFIX] [--www DIR] [--chart-js DIR]
-            [--bench NAME]
+            [--bench NAME] [--max-rate-hz HZ]
   pneu-dash ... --check-config
   pneu-dash --help | --version
 
@@ -61,6 +61,13 @@ forecast's path through the plane), and serves, on --listen (default 127.0.0.1:8
 --www DIR       the page's files (default: the installed share/pneu/dash, else the source tree's)
 --chart-js DIR  where chart.min.js is, served at /js/chart.js/ (default /usr/share/javascript/chart.js,
                 Debian's libjs-chart.js)
+--max-rate-hz HZ
+                the rate of <prefix>STATE (the ticks, 1 kHz) a WebSocket subscription gets when it
+                asks none: at most HZ messages a second, the newest each time, the skipped ones
+                counted (pneu_dash_messages_skipped_total); 0 (the default) every message. A
+                subscription asks its own with "maxRateHz" (0 to 100000; the page: /?max_rate_hz=60).
+                The other channels (events, forecasts, health, identification, the plane) are never
+                decimated
 --commands-token-file FILE
                 take commands from the page (off without it): arm, disarm, fault reset, set point,
                 set-point step, hold on/off, sent to pneud on <prefix>COMMAND as pneu-command sends
@@ -119,7 +126,7 @@ fs::path default_www() {
 int run(int argc, char** argv) {
   const cli::Args args(argc, argv, 1,
                        {"listen", "config", "lcm-url", "prefix", "www", "log", "chart-js", "bench",
-                        "commands-token-file"},
+                        "commands-token-file", "max-rate-hz"},
                        {"help", "version", "paused", "check-config"});
   if (args.flag("help")) {
     print_usage(std::cout);
@@ -148,6 +155,10 @@ int run(int argc, char** argv) {
   options.metadata = dash::pneud_metadata();  // the modes' names, for the page
   std::tie(options.address, options.port) = parse_listen(args.value("listen").value_or("127.0.0.1:8765"));
   options.www = args.value("www") ? fs::path(*args.value("www")) : default_www();
+  options.max_rate_hz = args.number("max-rate-hz", 0.0);
+  if (options.max_rate_hz < 0.0 || options.max_rate_hz > dash::kMaxRateLimitHz)
+    throw cli::UsageError("--max-rate-hz: from 0 (every message) to " + std::to_string(static_cast<int>(dash::kMaxRateLimitHz)) +
+                          " Hz, got " + *args.value("max-rate-hz"));
   if (!fs::is_directory(options.www)) throw cli::UsageError("--www: not a directory: " + options.www.string());
   const fs::path chart_js = args.value("chart-js").value_or("/usr/share/javascript/chart.js");
   if (!fs::is_regular_file(chart_js / "chart.min.js"))
@@ -177,7 +188,9 @@ int run(int argc, char** argv) {
     }
     std::cout << "pneu-dash: would serve http://" << options.address << ":" << options.port << "/ from "
               << options.www.string() << ", " << (log ? "playing " + *log : "live from " + telemetry.lcm_url)
-              << ", channels " << telemetry.channel_prefix << "*\n";
+              << ", channels " << telemetry.channel_prefix << "*"
+              << (options.max_rate_hz > 0 ? ", " + telemetry.channel_prefix + "STATE at most " + args.value("max-rate-hz").value() + " Hz unless a subscription asks" : std::string())
+              << "\n";
     return cli::kExitOk;
   }
 

@@ -11,6 +11,12 @@ const TRAIL_S = 4.0;            // the plane's trail
 const REDRAW_MS = 150;          // charts redrawn at most this often, and less often when drawing is
                                 // slow: the messages keep at least two thirds of the page's time
 const MAX_EVENT_ROWS = 400;
+// The rate of the tick records (PNEU_STATE, 1 kHz) this page asks (/?max_rate_hz=60): the server
+// then sends the newest tick at most that often and tells how many it skipped; the traces show the
+// ticks received, so a spike between two of them is not drawn. Without it, every tick (the default:
+// every extreme drawn).
+const MAX_RATE_HZ = new URLSearchParams(location.search).has("max_rate_hz")
+  ? Number(new URLSearchParams(location.search).get("max_rate_hz")) : 0;
 const Chart = window.Chart;
 
 // The loop's modes by their number on the wire (state_t / health_t MODE_*): serverInfo's metadata
@@ -22,7 +28,11 @@ const state = {
   serverInfo: null,
   channels: {},            // topic -> {id, schemaName, sequenceField, received}
   messages: 0,
-  gaps: { missing: 0, serverDropped: 0, total: 0, byTopic: {} },
+  // missing: messages lost (by the sequence numbers, less those the server skipped at this page's
+  // request); serverDropped: messages of channels without sequence numbers the server dropped for
+  // this page; skipped: skipped at this page's request (maxRateHz), not counted in total
+  gaps: { missing: 0, serverDropped: 0, total: 0, byTopic: {}, skipped: 0, skippedByTopic: {} },
+  maxRateHz: MAX_RATE_HZ,
   gapIntervals: [],        // [t0, t1] of the loop's time where ticks are missing
   tick: null,              // the last tick
   ticks: 0,
@@ -363,24 +373,55 @@ function redrawForecast() {
 }
 
 // ---------------------------------------------------------------- the messages
+// The messages missing from a channel's sequence numbers. On a channel the server decimates at this
+// page's request, a gap is messages skipped or lost: the server's reports of its skips (status
+// "pneu-dash.skipped", sent after the messages they cover) tell them apart, and what is lost is
+// counted at each report, drawn over the ticks between the reports.
 function countSequence(topic, channel, msg) {
   const field = channel.sequenceField;
   if (!field || typeof msg[field] !== "number") return;
   const seq = msg[field];
   const last = channel.lastSeq;
   channel.lastSeq = seq;
+  channel.lastT = msg.t;
   if (last === undefined || seq <= last) {  // the first, or a restarted sender
     channel.firstSeq = seq;
+    channel.firstT = msg.t;
     channel.receivedSinceFirst = 1;
     return;
   }
   channel.receivedSinceFirst += 1;
   const missing = seq - last - 1;
   if (missing <= 0) return;
-  state.gaps.missing += missing;
-  state.gaps.byTopic[topic] = (state.gaps.byTopic[topic] ?? 0) + missing;
-  if (topic.endsWith("STATE") && state.tick) state.gapIntervals.push([state.tick.t, msg.t]);
+  if (channel.decimated) {
+    channel.gapsInSequence += missing;  // judged at the server's next report
+    return;
+  }
+  countLost(topic, missing, state.tick?.t, msg.t);
+}
+
+function countLost(topic, lost, t0, t1) {
+  state.gaps.missing += lost;
+  state.gaps.byTopic[topic] = (state.gaps.byTopic[topic] ?? 0) + lost;
+  if (topic.endsWith("STATE") && t0 !== undefined && t1 !== undefined) state.gapIntervals.push([t0, t1]);
   updateGapBadge();
+}
+
+// The server's report of the messages it skipped for a subscription since it subscribed, among
+// those older than the last it sent before the report: of the gaps in the sequence up to there,
+// the rest is lost.
+function onSkippedReport(report) {
+  const channel = client.channels.get(client.subscriptions.get(report.subscriptionId));
+  const c = channel && state.channels[channel.topic];
+  if (!c || !c.decimated || typeof report.skipped !== "number") return;
+  const lost = c.gapsInSequence - report.skipped;
+  state.gaps.skipped += report.skipped - c.skipped;
+  state.gaps.skippedByTopic[channel.topic] = report.skipped;
+  c.skipped = report.skipped;
+  if (lost > c.lost) countLost(channel.topic, lost - c.lost, c.reportedT ?? c.firstT, c.lastT);
+  c.lost = Math.max(c.lost, lost);
+  c.reportedSeq = c.lastSeq;
+  c.reportedT = c.lastT;
 }
 
 function updateGapBadge() {
@@ -390,7 +431,9 @@ function updateGapBadge() {
   el.dataset.gaps = String(state.gaps.total);
   el.title = `missing from the sequence numbers: ${state.gaps.missing} ` +
     `(${Object.entries(state.gaps.byTopic).map(([k, v]) => `${k} ${v}`).join(", ") || "none"}); ` +
-    `dropped by the server for this page: ${state.gaps.serverDropped}`;
+    `dropped by the server for this page on channels without sequence numbers: ${state.gaps.serverDropped}` +
+    (state.maxRateHz > 0 ? `; not counted: ${state.gaps.skipped} ticks skipped by the server as this page asked ` +
+                           `for at most ${state.maxRateHz} Hz` : "");
 }
 
 function onTick(m) {
@@ -616,11 +659,17 @@ function connect() {
       document.getElementById("commands").dataset.serverAcceptsCommands = String(canCommand);
     },
     onStatus: (s) => {
+      if (s.id === "pneu-dash.skipped") return onSkippedReport(s);  // twice a second: not listed
       addStatus(s.level, s.message);
-      // The server tells how many messages it dropped for this page (a full send queue).
-      const dropped = /dropped\D*(\d+)/i.exec(s.message ?? "");
-      if (dropped) {
-        state.gaps.serverDropped += Number(dropped[1]);
+      // The server tells how many messages it dropped for this page (a full send queue), by channel
+      // ("dropped 12 messages (PNEU_STATE 10, PNEU_HEALTH 2) ..."): those of a channel with sequence
+      // numbers are counted by them already.
+      const dropped = /^dropped (\d+) messages \(([^)]*)\)/.exec(s.message ?? "");
+      if (s.id === "pneu-dash.dropped" && dropped) {
+        for (const part of dropped[2].split(", ")) {
+          const [, topic, n] = /^(.*) (\d+)$/.exec(part) ?? [];
+          if (topic !== undefined && !state.channels[topic]?.sequenceField) state.gaps.serverDropped += Number(n);
+        }
         updateGapBadge();
       }
     },
@@ -629,9 +678,14 @@ function connect() {
         let properties = {};
         try { properties = JSON.parse(c.schema || "{}").properties ?? {}; } catch { /* no schema */ }
         state.channels[c.topic] = { id: c.id, schemaName: c.schemaName, received: 0, properties, isState: /STATE$/.test(c.topic),
-                                    sequenceField: c.sequenceField ?? (properties.seq && /STATE$/.test(c.topic) ? "seq" : "") };
+                                    sequenceField: c.sequenceField ?? (properties.seq && /STATE$/.test(c.topic) ? "seq" : ""),
+                                    decimated: Boolean(c.latestWins) && MAX_RATE_HZ > 0,
+                                    gapsInSequence: 0, skipped: 0, lost: 0 };
       }
-      client.subscribe(channels.map((c) => c.id));
+      // A latest-wins channel (the ticks) at the rate this page asks, 0 every message (whatever the
+      // server's default); the others never decimated.
+      const latest = new Set(channels.filter((c) => c.latestWins).map((c) => c.id));
+      client.subscribe(channels.map((c) => c.id), (id) => (latest.has(id) ? { maxRateHz: MAX_RATE_HZ } : {}));
     },
     onMessage,
   });
@@ -706,7 +760,10 @@ window.pneuDash = {
       received: Object.fromEntries(Object.entries(state.channels).map(([k, c]) => [k, c.received])),
       // per channel with sequence numbers: the first and last seen, the messages received between
       sequences: Object.fromEntries(Object.entries(state.channels).filter(([, c]) => c.lastSeq !== undefined)
-        .map(([k, c]) => [k, { first: c.firstSeq, last: c.lastSeq, received: c.receivedSinceFirst }])),
+        .map(([k, c]) => [k, { first: c.firstSeq, last: c.lastSeq, received: c.receivedSinceFirst,
+                               decimated: c.decimated, reportedSeq: c.reportedSeq ?? null, skipped: c.skipped,
+                               lost: c.decimated ? c.lost : (state.gaps.byTopic[k] ?? 0) }])),
+      maxRateHz: state.maxRateHz,
       ticks: state.ticks,
       t: state.tick?.t ?? null,
       tickTimes: [...state.tickTimes],
@@ -735,6 +792,9 @@ window.pneuDash = {
   },
 };
 
+if (MAX_RATE_HZ > 0)
+  document.getElementById("trace-rate").textContent =
+    `the newest tick at most ${MAX_RATE_HZ} times a second (max_rate_hz): a spike between two is not drawn`;
 makeTraceCharts();
 makeTimeline();
 makePlaneChart();

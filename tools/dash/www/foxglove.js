@@ -93,9 +93,10 @@ export class FoxgloveClient {
     if (this.ws?.readyState === WebSocket.OPEN) this.ws.send(JSON.stringify(obj));
   }
 
-  /// Subscribes to the channels (ids); returns their subscription ids.
-  subscribe(channelIds) {
-    const subs = channelIds.map((channelId) => ({ id: this.nextSubscription++, channelId }));
+  /// Subscribes to the channels (ids); returns their subscription ids. fieldsOf(channelId): more
+  /// fields of a subscription, such as pneu-dash's {maxRateHz} (a server that knows none ignores them).
+  subscribe(channelIds, fieldsOf = () => ({})) {
+    const subs = channelIds.map((channelId) => ({ id: this.nextSubscription++, channelId, ...fieldsOf(channelId) }));
     for (const s of subs) this.subscriptions.set(s.id, s.channelId);
     if (subs.length) this.#send({ op: "subscribe", subscriptions: subs });
     return subs.map((s) => s.id);

@@ -97,6 +97,8 @@ const char* sequence_field_of(PneuChannel c) {
   }
 }
 
+bool latest_wins_of(PneuChannel c) { return c == PneuChannel::kState; }
+
 std::optional<std::string> record_json(PneuChannel c, const void* data, std::size_t size) {
   return with_types(c, [&]<class M, class R>() { return decode<M, R>(data, size); });
 }
@@ -108,6 +110,7 @@ PneuFeed::PneuFeed(Server& server, std::string prefix) : server_(server), prefix
     spec.schema_name = schema_name_of(c);
     spec.schema = schema_of(c);
     spec.sequence_field = sequence_field_of(c);
+    spec.latest_wins = latest_wins_of(c);
     ids_[static_cast<std::size_t>(c)] = server_.add_channel(std::move(spec));
   }
 }

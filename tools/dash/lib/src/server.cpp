@@ -66,10 +66,35 @@ bool offers_subprotocol(std::string_view header) {
   return false;
 }
 
-std::string status_json(int level, const std::string& message, const std::string& id = {}) {
+json status_json_object(int level, const std::string& message, const std::string& id = {}) {
   json j = {{"op", "status"}, {"level", level}, {"message", message}};
   if (!id.empty()) j["id"] = id;
-  return j.dump();
+  return j;
+}
+
+std::string status_json(int level, const std::string& message, const std::string& id = {}) {
+  return status_json_object(level, message, id).dump();
+}
+
+// A rate as people write it: 60, 0.5, 2.5.
+std::string rate_text(double hz) {
+  std::ostringstream out;
+  out << hz;
+  return out.str();
+}
+
+// A subscription's optional "maxRateHz": nothing when absent, else a number from 0 (every message)
+// to kMaxRateLimitHz; `why` says what is wrong with another.
+std::optional<double> max_rate_of(const json& s, std::string& why) {
+  if (!s.is_object()) return std::nullopt;
+  const auto it = s.find("maxRateHz");
+  if (it == s.end()) return std::nullopt;
+  if (!it->is_number() || !(it->get<double>() >= 0.0) || it->get<double>() > kMaxRateLimitHz) {
+    why = "\"maxRateHz\" must be a number from 0 (every message) to " + rate_text(kMaxRateLimitHz) + " Hz, got " +
+          it->dump().substr(0, 40);
+    return std::nullopt;
+  }
+  return it->get<double>();
 }
 
 // A client's integer field: an unsigned integer that fits uint32, or nothing.
@@ -110,7 +135,7 @@ struct Channel {
   ChannelSpec spec;
   std::shared_ptr<const std::string> last;  // latched: the last message
   std::uint64_t last_time_ns = 0;
-  mutable std::atomic<std::uint64_t> published{0}, sent{0}, dropped{0};  // counters, read by counters()
+  mutable std::atomic<std::uint64_t> published{0}, sent{0}, dropped{0}, skipped{0};  // counters, read by counters()
 };
 
 // What outlives the Impl: counted by the sessions' destructors.
@@ -193,22 +218,29 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     ws_.async_accept(req, [self = shared_from_this()](beast::error_code ec) { self->on_accept(ec); });
   }
 
-  // A message on `channel` to each subscription of it.
-  void send_message(const Channel& c, std::uint64_t time_ns, const std::string& payload) {
-    for (const auto& [sub, ch] : subscriptions_) {
-      if (ch != c.id) continue;
-      auto frame = std::make_shared<std::string>();
-      frame->reserve(13 + payload.size());
-      *frame += static_cast<char>(0x01);
-      put_le(*frame, sub, 4);
-      put_le(*frame, time_ns, 8);
-      *frame += payload;
-      if (enqueue_data(std::move(frame))) {
-        ++c.sent;
-      } else {
-        ++c.dropped;
-        ++dropped_by_topic_[c.spec.topic];
+  // A message on `channel` to each subscription of it: now, or, for a subscription at most at a
+  // rate, held until its time comes unless a newer one replaces it first (then it is skipped).
+  void send_message(const Channel& c, std::uint64_t time_ns, const std::shared_ptr<const std::string>& payload) {
+    for (auto& [sub, s] : subscriptions_) {
+      if (s.channel != c.id) continue;
+      if (s.interval.count() <= 0) {
+        send_frame_of(sub, s, c, time_ns, *payload);
+        continue;
       }
+      const auto now = Clock::now();
+      if (!s.pending && now >= s.last_sent + s.interval) {
+        send_frame_of(sub, s, c, time_ns, *payload);
+        s.last_sent = now;
+        schedule(sub, s);
+        continue;
+      }
+      if (s.pending) {
+        ++s.skipped_since_sent;
+        ++c.skipped;
+      }
+      s.pending = payload;
+      s.pending_time_ns = time_ns;
+      schedule(sub, s);
     }
   }
 
@@ -216,7 +248,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     auto frame = std::make_shared<std::string>();
     *frame += static_cast<char>(0x02);
     put_le(*frame, time_ns, 8);
-    if (!enqueue_data(std::move(frame))) ++dropped_by_topic_["(time)"];
+    enqueue_data(std::move(frame));
   }
 
   void advertise(const std::vector<const Channel*>& channels) {
@@ -242,6 +274,25 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   struct Out {
     std::shared_ptr<const std::string> data;
     bool binary;
+    const Channel* state = nullptr;  // a latest-wins channel's message frame: may make room
+  };
+  using Clock = std::chrono::steady_clock;
+  static constexpr auto kReportEvery =
+      std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(kSkippedReportS));
+  struct Subscription {
+    explicit Subscription(const asio::any_io_executor& ex) : timer(ex) {}
+    ChannelId channel = 0;
+    Clock::duration interval{0};    // 0: every message
+    bool reports = false;           // asked "maxRateHz": told its skips
+    Clock::time_point last_sent{};  // of the last message sent now or when its time came
+    std::shared_ptr<const std::string> pending;  // the newest message, held until its time
+    std::uint64_t pending_time_ns = 0;
+    std::uint64_t skipped_since_sent = 0;   // skipped since the last message queued to it
+    std::uint64_t skipped_before_sent = 0;  // skipped before the last message queued to it
+    std::uint64_t skipped_told = 0;         // the last report's
+    Clock::time_point last_report{};
+    asio::steady_timer timer;
+    bool armed = false;
   };
 
   void on_accept(beast::error_code ec) {
@@ -310,10 +361,16 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
       const auto sub = u32_of(s, "id");
       const auto ch = u32_of(s, "channelId");
       std::string why;
-      if (!sub || !ch) why = "each subscription needs an unsigned 32-bit \"id\" and \"channelId\"";
-      else if (server_.channel(*ch) == nullptr) why = "no channel " + std::to_string(*ch);
-      else if (subscriptions_.contains(*sub)) why = "subscription id " + std::to_string(*sub) + " already in use";
-      else if (subscriptions_.size() >= server_.options.max_subscriptions) {
+      const auto rate = max_rate_of(s, why);  // "maxRateHz", optional
+      if (!why.empty()) {
+        // refused for its rate
+      } else if (!sub || !ch) {
+        why = "each subscription needs an unsigned 32-bit \"id\" and \"channelId\"";
+      } else if (server_.channel(*ch) == nullptr) {
+        why = "no channel " + std::to_string(*ch);
+      } else if (subscriptions_.contains(*sub)) {
+        why = "subscription id " + std::to_string(*sub) + " already in use";
+      } else if (subscriptions_.size() >= server_.options.max_subscriptions) {
         ++over;
         why = "more than " + std::to_string(server_.options.max_subscriptions) + " subscriptions at once";
       }
@@ -322,8 +379,20 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
         ++refused;
         continue;
       }
-      subscriptions_[*sub] = *ch;
       const Channel* c = server_.channel(*ch);
+      Subscription& added = subscriptions_.try_emplace(*sub, ws_.get_executor()).first->second;
+      added.channel = *ch;
+      // A rate applies to a latest-wins channel's messages only: the others all go.
+      const double hz = c->spec.latest_wins ? rate.value_or(server_.options.max_rate_hz) : 0.0;
+      if (hz > 0.0)
+        added.interval = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / hz));
+      added.reports = rate.has_value();
+      if (hz > 0.0 && !rate)
+        send_status(0,
+                    c->spec.topic + ": at most " + rate_text(hz) + " Hz to subscription " + std::to_string(*sub) +
+                        " (pneu-dash --max-rate-hz), the newest message each time; a subscription's \"maxRateHz\" "
+                        "asks another rate, 0 every message",
+                    "pneu-dash.rate");
       if (c->spec.latched && c->last) {
         auto frame = std::make_shared<std::string>();
         *frame += static_cast<char>(0x01);
@@ -349,7 +418,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     for (const json& id : *it) {
       if (!id.is_number_unsigned() || id.get<std::uint64_t>() > 0xffffffffu ||
           subscriptions_.erase(static_cast<std::uint32_t>(id.get<std::uint64_t>())) == 0)
-        ++unknown;
+        ++unknown;  // an erased subscription's held message goes with it, its timer is cancelled
     }
     if (unknown > 0) refuse("unsubscribe: " + std::to_string(unknown) + " unknown subscription id(s)");
   }
@@ -394,20 +463,112 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     if (!why.empty()) refuse(why);
   }
 
-  // The data queue: dropped (false) beyond its bound.
-  bool enqueue_data(std::shared_ptr<std::string> frame) {
+  // The data queue: beyond its bound, the oldest frames of latest-wins channels queued (not the one
+  // being written) make room, each dropped and counted; when they do not suffice, this frame is
+  // dropped (false).
+  bool enqueue_data(std::shared_ptr<std::string> frame, const Channel* channel = nullptr) {
     if (closed_) return false;
-    if (queued_bytes_ + frame->size() > server_.options.max_queue_bytes) {
-      ++dropped_unreported_;
-      ++dropped_total_;
+    const std::size_t bound = server_.options.max_queue_bytes;
+    if (queued_bytes_ + frame->size() > bound) evict_states(queued_bytes_ + frame->size() - bound);
+    if (queued_bytes_ + frame->size() > bound) {
+      count_drop(channel);
       return false;
     }
-    push({std::move(frame), true});
+    push({std::move(frame), true, channel != nullptr && channel->spec.latest_wins ? channel : nullptr});
     return true;
+  }
+
+  void count_drop(const Channel* channel) {
+    ++dropped_unreported_;
+    ++dropped_total_;
+    if (channel == nullptr) {
+      ++dropped_by_topic_["(time)"];
+      return;
+    }
+    ++channel->dropped;
+    ++dropped_by_topic_[channel->spec.topic];
+  }
+
+  // Drops the oldest queued frames of latest-wins channels until `bytes` are freed or none is left.
+  void evict_states(std::size_t bytes) {
+    std::size_t freed = 0;
+    // The front is being written when writing_.
+    for (auto it = queue_.begin() + (writing_ && !queue_.empty() ? 1 : 0); it != queue_.end() && freed < bytes;) {
+      if (it->state == nullptr) {
+        ++it;
+        continue;
+      }
+      freed += it->data->size();
+      queued_bytes_ -= it->data->size();
+      --it->state->sent;  // counted sent when it was queued
+      count_drop(it->state);
+      it = queue_.erase(it);
+    }
   }
 
   void send_frame(std::shared_ptr<std::string> frame) { push_control({std::move(frame), true}); }
   void send_control(std::string text) { push_control({std::make_shared<std::string>(std::move(text)), false}); }
+
+  // A message frame to subscription `sub`: queued (counted sent) or dropped (counted).
+  void send_frame_of(std::uint32_t sub, Subscription& s, const Channel& c, std::uint64_t time_ns,
+                     const std::string& payload) {
+    auto frame = std::make_shared<std::string>();
+    frame->reserve(13 + payload.size());
+    *frame += static_cast<char>(0x01);
+    put_le(*frame, sub, 4);
+    put_le(*frame, time_ns, 8);
+    *frame += payload;
+    if (enqueue_data(std::move(frame), &c)) {
+      ++c.sent;
+      // The skips before it are now among those older than the last message sent.
+      s.skipped_before_sent += s.skipped_since_sent;
+      s.skipped_since_sent = 0;
+    }
+  }
+
+  // Arms the subscription's timer for what it owes next: its held message when its time comes, the
+  // report of its skips every kSkippedReportS.
+  void schedule(std::uint32_t sub, Subscription& s) {
+    auto next = Clock::time_point::max();
+    if (s.pending) next = s.last_sent + s.interval;
+    if (s.reports && s.skipped_before_sent != s.skipped_told)
+      next = std::min(next, s.last_report + kReportEvery);
+    if (next == Clock::time_point::max() || (s.armed && s.timer.expiry() <= next)) return;
+    s.armed = true;
+    s.timer.expires_at(next);
+    s.timer.async_wait([self = shared_from_this(), sub](beast::error_code ec) {
+      if (!ec) self->on_timer(sub);
+    });
+  }
+
+  void on_timer(std::uint32_t sub) {
+    const auto it = subscriptions_.find(sub);
+    if (it == subscriptions_.end() || closed_) return;
+    Subscription& s = it->second;
+    s.armed = false;
+    const auto now = Clock::now();
+    if (s.pending && now >= s.last_sent + s.interval) {
+      const Channel* c = server_.channel(s.channel);
+      if (c != nullptr) send_frame_of(sub, s, *c, s.pending_time_ns, *s.pending);
+      s.pending.reset();
+      s.last_sent = now;
+    }
+    if (s.reports && s.skipped_before_sent != s.skipped_told && now >= s.last_report + kReportEvery) {
+      s.skipped_told = s.skipped_before_sent;
+      s.last_report = now;
+      const Channel* c = server_.channel(s.channel);
+      json j = status_json_object(0,
+                                  std::to_string(s.skipped_told) + " messages of " + (c ? c->spec.topic : "?") +
+                                      " skipped for subscription " + std::to_string(sub) + " since it subscribed (at most " +
+                                      rate_text(1.0 / std::chrono::duration<double>(s.interval).count()) +
+                                      " Hz asked: the newest message each time)",
+                                  kSkippedStatusId);
+      j["subscriptionId"] = sub;
+      j["skipped"] = s.skipped_told;
+      send_control(j.dump());
+    }
+    schedule(sub, s);
+  }
 
   void push_control(Out out) {
     if (closed_) return;
@@ -474,7 +635,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   bool writing_ = false;
   bool closed_ = false;
   bool counted_ = false;
-  std::map<std::uint32_t, ChannelId> subscriptions_;
+  std::map<std::uint32_t, Subscription> subscriptions_;
   std::map<std::uint32_t, ClientChannel> client_channels_;
   std::uint64_t dropped_unreported_ = 0, dropped_total_ = 0;
   std::map<std::string, std::uint64_t> dropped_by_topic_;
@@ -648,6 +809,7 @@ json Server::Impl::channel_json(const Channel& c) {
             {"schema", c.spec.schema},
             {"schemaEncoding", "jsonschema"}};
   if (!c.spec.sequence_field.empty()) j["sequenceField"] = c.spec.sequence_field;
+  if (c.spec.latest_wins) j["latestWins"] = true;
   return j;
 }
 
@@ -685,7 +847,7 @@ void Server::Impl::do_publish(ChannelId id, std::uint64_t time_ns, std::shared_p
     c->last = payload;
     c->last_time_ns = time_ns;
   }
-  for_each_session([&](WsSession& s) { s.send_message(*c, time_ns, *payload); });
+  for_each_session([&](WsSession& s) { s.send_message(*c, time_ns, payload); });
 }
 
 void Server::Impl::do_time(std::uint64_t time_ns) {
@@ -799,7 +961,8 @@ ServerCounters Server::counters() const {
   ServerCounters out;
   {
     const std::lock_guard lock(impl_->table_mutex);
-    for (const Channel& c : impl_->channels) out.channels.push_back({c.spec.topic, c.published, c.sent, c.dropped});
+    for (const Channel& c : impl_->channels)
+      out.channels.push_back({c.spec.topic, c.published, c.sent, c.dropped, c.skipped});
   }
   out.clients = impl_->live->clients;
   out.clients_total = impl_->live->clients_total;
@@ -811,7 +974,7 @@ std::string Server::counters_text_of(const Impl& impl) {
   std::string s;
   s += "# HELP pneu_dash_messages_published_total Messages pneu-dash received for a channel.\n";
   s += "# TYPE pneu_dash_messages_published_total counter\n";
-  std::string sent, dropped;
+  std::string sent, dropped, skipped;
   {
     const std::lock_guard lock(impl.table_mutex);
     for (const Channel& c : impl.channels) {
@@ -819,12 +982,15 @@ std::string Server::counters_text_of(const Impl& impl) {
       s += "pneu_dash_messages_published_total" + label + std::to_string(c.published) + "\n";
       sent += "pneu_dash_messages_sent_total" + label + std::to_string(c.sent) + "\n";
       dropped += "pneu_dash_messages_dropped_total" + label + std::to_string(c.dropped) + "\n";
+      skipped += "pneu_dash_messages_skipped_total" + label + std::to_string(c.skipped) + "\n";
     }
   }
   s += "# HELP pneu_dash_messages_sent_total Message frames queued to subscribers.\n";
   s += "# TYPE pneu_dash_messages_sent_total counter\n" + sent;
   s += "# HELP pneu_dash_messages_dropped_total Message frames dropped as a subscriber read too slowly.\n";
   s += "# TYPE pneu_dash_messages_dropped_total counter\n" + dropped;
+  s += "# HELP pneu_dash_messages_skipped_total Messages not sent to a subscription that asked for at most a rate (a newer one was).\n";
+  s += "# TYPE pneu_dash_messages_skipped_total counter\n" + skipped;
   s += "# HELP pneu_dash_clients WebSocket clients connected.\n# TYPE pneu_dash_clients gauge\n";
   s += "pneu_dash_clients " + std::to_string(impl.live->clients.load()) + "\n";
   s += "# HELP pneu_dash_refused_total HTTP requests and WebSocket inputs refused with a reason.\n";

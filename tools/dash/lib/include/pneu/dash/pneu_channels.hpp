@@ -30,6 +30,10 @@ inline constexpr std::size_t kPneuChannelCount = 5;
 [[nodiscard]] std::string schema_of(PneuChannel c);
 /// Its field that counts messages without gaps ("" when the record has none).
 [[nodiscard]] const char* sequence_field_of(PneuChannel c);
+/// Whether each message supersedes the last (the tick records, 1 kHz): a subscription may ask for
+/// them at most at a rate (ChannelSpec::latest_wins). The others (events, forecasts, health,
+/// identification) are never decimated.
+[[nodiscard]] bool latest_wins_of(PneuChannel c);
 /// The record carried by an LCM message of the channel's type as JSON; nothing when the bytes do
 /// not decode whole as that type (wrong fingerprint, short, or bytes left over).
 [[nodiscard]] std::optional<std::string> record_json(PneuChannel c, const void* data, std::size_t size);

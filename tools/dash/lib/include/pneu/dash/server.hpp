@@ -4,7 +4,11 @@
 // frames, time; the client may advertise channels and publish on them when a handler takes them).
 // Boost.Beast on one Asio thread (run()); publish(), publish_time() and stop() may be called from
 // any thread. Every client has a bounded send queue: one that stops reading loses messages (counted,
-// and told in a status message when it reads again), never memory, and never slows the others.
+// and told in a status message when it reads again), never memory, and never slows the others; a
+// full queue gives up its oldest states (latest-wins channels) first, then the newest message.
+// A subscription to a latest-wins channel may ask for at most a rate (the subscription's optional
+// "maxRateHz", else ServerOptions::max_rate_hz): it then gets the newest message at most that often,
+// never a stale queue, and is told how many it skipped (status id kSkippedStatusId).
 #pragma once
 
 #include <atomic>
@@ -23,6 +27,15 @@ namespace pneu::dash {
 
 /// The Foxglove subprotocol this server speaks; a WebSocket upgrade asking for no other is refused.
 inline constexpr const char* kSubprotocol = "foxglove.websocket.v1";
+/// The status a subscription that asked for "maxRateHz" gets, at most every kSkippedReportS while it
+/// skips: {"op":"status","level":0,"id":kSkippedStatusId,"message":...,"subscriptionId":N,
+/// "skipped":S}, S the messages skipped since it subscribed, among those older than the last
+/// message it was sent before this status (so a client's sequence arithmetic up to that message,
+/// less S, is what it really lost).
+inline constexpr const char* kSkippedStatusId = "pneu-dash.skipped";
+inline constexpr double kSkippedReportS = 0.5;
+/// The highest "maxRateHz" a subscription may ask (0 asks for every message).
+inline constexpr double kMaxRateLimitHz = 100000.0;
 
 struct ServerOptions {
   std::string address = "127.0.0.1";  ///< where it listens (loopback by default)
@@ -41,6 +54,9 @@ struct ServerOptions {
   /// The kernel's send buffer of each connection (SO_SNDBUF; 0: the system's): with
   /// max_queue_bytes, what a client that stops reading can hold.
   int socket_send_buffer_bytes = 256 << 10;
+  /// The rate [Hz] of a latest-wins channel's messages a subscription gets when it asks none
+  /// ("maxRateHz" absent): 0 every message, else at most that often, the newest one.
+  double max_rate_hz = 0.0;
 };
 
 using ChannelId = std::uint32_t;
@@ -57,6 +73,10 @@ struct ChannelSpec {
   /// only the drops this server reports in status messages tell what a client missed). Advertised
   /// as the channel's "sequenceField".
   std::string sequence_field;
+  /// Each message supersedes the last (a state, such as the tick records): a subscription may ask
+  /// for at most a rate and then gets the newest, and a full queue gives up its oldest first.
+  /// Advertised as the channel's "latestWins". Other channels' messages all go, at any rate.
+  bool latest_wins = false;
 };
 
 struct HttpRequest {
@@ -99,6 +119,7 @@ struct ChannelCounters {
   std::uint64_t published = 0;  ///< messages publish() was given
   std::uint64_t sent = 0;       ///< message frames queued to subscribers
   std::uint64_t dropped = 0;    ///< message frames dropped as a subscriber's queue was full
+  std::uint64_t skipped = 0;    ///< messages not sent to a subscription that asked for at most a rate (a newer one was)
 };
 struct ServerCounters {
   std::vector<ChannelCounters> channels;
