@@ -141,7 +141,8 @@ def watch_one_run(driver, bin_dir, work, logs, procs, shot):
             advancing.append((time.monotonic(), s["t"], s["tracePoints"]))
         # stuck, the forecast and its path shown; counting down when it forecasts a restart
         stuck_now = (s["stuck"] and s["stop"] and s["forecast"] and s["forecastPathPoints"] > 1
-                     and s["forecastState"] == ("counting" if s["forecast"]["will_restart"] else "no-restart"))
+                     and s["forecastState"] == ("counting" if s["forecast"]["will_restart"] else "no-restart")
+                     and s["forecastStop"] == s["stop"]["index"])  # drawn for this stop, not the last one
         if s["stuck"]:
             last_stuck = s
         if stuck_now and (stuck_seen is None or stuck_seen["stop"] == s["stop"]):
@@ -307,12 +308,12 @@ def main():
         # skipped; and they are most of them (at most 60 a second of the 1000).
         metrics = urllib.request.urlopen(run["base"] + "/metrics", timeout=5).read().decode()
         skipped = [int(line.split()[-1]) for line in metrics.splitlines()
-                   if line.startswith('pneu_dash_messages_skipped_total{channel="PNEU_STATE"')]
+                   if line.startswith("pneu_dash_messages_skipped_total{") and 'channel="PNEU_STATE"' in line]
         if skipped != [seqs["skipped"]]:
             fail(f"the page was told {seqs['skipped']} ticks skipped, pneu-dash's /metrics says {skipped}")
         # And what it counts lost, pneu-dash never had (pneud's ticks it did not receive) or dropped.
         counter = lambda name: sum(int(line.split()[-1]) for line in metrics.splitlines()
-                                   if line.startswith(name + '{channel="PNEU_STATE"'))
+                                   if line.startswith(name + "{") and 'channel="PNEU_STATE"' in line)
         never_had = run["summary"]["loop"]["ticks"] - counter("pneu_dash_messages_published_total")
         if lost > max(0, never_had) + counter("pneu_dash_messages_dropped_total"):
             fail(f"the page counted {lost} ticks lost; pneu-dash never had {never_had} of pneud's "
@@ -320,7 +321,8 @@ def main():
         if not 10 * seqs["received"] < span:
             fail(f"the page asked for {MAX_RATE_HZ} Hz and received {seqs['received']} of {span} ticks")
         print(f"ticks seq {seqs['first']}..{seqs['last']}: {seqs['received']} received, {seqs['skipped']} skipped "
-              f"at the page's request (pneu-dash's /metrics: {skipped[0]}), {lost} counted lost")
+              f"at the page's request (pneu-dash's /metrics: {skipped[0]}), {lost} counted lost (pneu-dash never had "
+              f"{never_had} of pneud's ticks, dropped {counter('pneu_dash_messages_dropped_total')})")
         print(f"the page drew in {final['drawMs']} ms, {final['lagS']} s behind the server; "
               f"gaps counted by the page: {final['gaps']}; events shown: {final['events']}; "
               f"messages by channel: {final['received']}")

@@ -343,6 +343,7 @@ function redrawForecast() {
     line.textContent = `stuck since t = ${fmtS(phase.t)} s (stop ${phase.index}); ` +
       (made.length ? `forecast ${made.join("; ")}` : "no forecast yet");
     const f = preferred(phase.forecasts);
+    el.dataset.stop = String(phase.index);  // what is drawn is this stop's (the page draws every 150 ms or so)
     if (f && f.will_restart && Number.isFinite(f.t_restart) && Number.isFinite(now)) {
       const left = f.t_restart - now;
       countdown.textContent = left >= 0 ? `restart in ${left.toFixed(2)} s (${f.method})`
@@ -364,11 +365,13 @@ function redrawForecast() {
     restartLine.textContent = `${r.kind} at t = ${fmtS(r.t)} s` + (errs.length ? `: ${errs.join("; ")}` : "");
     el.dataset.state = "restarted";
     delete el.dataset.countdownS;
+    delete el.dataset.stop;
   } else {
     line.textContent = "no forecast: the carriage is not stuck";
     countdown.textContent = "";
     restartLine.textContent = "";
     el.dataset.state = "none";
+    delete el.dataset.stop;
   }
 }
 
@@ -778,6 +781,7 @@ window.pneuDash = {
       forecast: f ? { method: f.method, will_restart: f.will_restart, t_restart: f.t_restart } : null,
       forecastPathPoints: path ? path.path.length : 0,
       forecastState: fc.state,
+      forecastStop: fc.stop === undefined ? null : Number(fc.stop),  // the stop the forecast drawn is of
       countdownS: fc.countdownS === undefined ? null : Number(fc.countdownS),
       countdownText: document.getElementById("countdown").textContent,
       lastRestart: state.lastPhase?.restart ? { t: state.lastPhase.restart.t, stop: state.lastPhase.index } : null,
