@@ -84,7 +84,7 @@ def counter(path, name):
     out = {}
     with open(path) as f:
         for line in f:
-            m = re.match(r'^' + name + r'\{channel="([^"]+)"\} (\d+)', line)
+            m = re.match(r'^' + name + r'\{[^}]*channel="([^"]+)"[^}]*\} (\d+)', line)
             if m:
                 out[m.group(1)] = int(m.group(2))
     return out
@@ -138,11 +138,24 @@ def phase(d):
     if os.path.exists(stalled):
         _, _, _, seqs, head = client(stalled, epoch)
         r["stalled_states"] = len(seqs)
-        r["stalled_last_t"] = max(seqs) / loop["rate_hz"] if seqs else 0.0
+        ordered = sorted(seqs)
+        # the states it got before the first it never got (its socket's buffers), and the newest
+        gap = next((a for a, b in zip(ordered, ordered[1:]) if b != a + 1), ordered[-1] if ordered else 0)
+        r["stalled_first_gap_t"] = gap / loop["rate_hz"]
+        r["stalled_newest_t"] = ordered[-1] / loop["rate_hz"] if ordered else 0.0
         r["stalled_status"] = head["status"]
+        # When pneu-dash started dropping for it: the first second its dropped counter rose after
+        # pneud started (on the loop's time: pneud's start is the loop's 0, to within its start-up).
+        r["stalled_full_t"] = float("nan")
+        with open(os.path.join(d, "dropped.txt")) as f:
+            samples = [(float(a), int(b)) for a, b in (line.split() for line in f if len(line.split()) == 2)]
+        before = [n for t, n in samples if t <= start]
+        rose = [t for t, n in samples if t > start and n > (before[-1] if before else 0)]
+        if rose:
+            r["stalled_full_t"] = rose[0] - start
         # The others' latency while its queue filled, and once it was full (pneu-dash dropping
         # for it), each side 0.5 s away from the moment.
-        full = r["stalled_last_t"]
+        full = r["stalled_full_t"] if r["stalled_full_t"] == r["stalled_full_t"] else float("inf")
         filling = [x for x, t in zip(lat, ts) if t < full - 0.5]
         dropping = [x for x, t in zip(lat, ts) if t > full + 0.5]
         r["filling_p50"], r["filling_p99"] = pct(filling, 0.5), pct(filling, 0.99)
@@ -201,12 +214,15 @@ def main(argv):
             print("    frames dropped by pneu-dash in this phase (/metrics): %d; states pneud published that pneu-dash's LCM "
                   "subscription never received (ticks - pneu_dash_messages_published_total): %d" % (r["drops_phase"], r["lost_before_dash"]))
             if "stalled_states" in r:
-                print("    the client that stopped reading: %d states taken in all (queued for it until t = %.1f s of the loop, dropped after); "
-                      "pneu-dash told it: %s" % (r["stalled_states"], r["stalled_last_t"], "; ".join(r["stalled_status"]) or "(nothing)"))
+                print("    the client that stopped reading: %d states taken in all, those up to t = %.1f s of the loop (its socket's "
+                      "buffers) and the newest, up to t = %.1f s; pneu-dash dropped for it from t = %.0f s (its queue full: the "
+                      "oldest states queued, then what did not fit); pneu-dash told it: %s"
+                      % (r["stalled_states"], r["stalled_first_gap_t"], r["stalled_newest_t"], r["stalled_full_t"],
+                         "; ".join(r["stalled_status"]) or "(nothing)"))
                 print("    the 8 others, tick -> receipt while its queue filled: p50 %.0f p99 %.0f us; once pneu-dash dropped for it: p50 %.0f p99 %.0f us"
                       % (r["filling_p50"], r["filling_p99"], r["dropping_p50"], r["dropping_p99"]))
                 print("    every 5 s of the loop (t from; tick -> receipt p99; pneu-dash -> client p50/p99) [us]: " +
-                      ", ".join("%d%s: %.0f; %.0f/%.0f" % (w, "*" if w + 5 > r["stalled_last_t"] else "", a, b, c)
+                      ", ".join("%d%s: %.0f; %.0f/%.0f" % (w, "*" if w + 5 > r["stalled_full_t"] else "", a, b, c)
                                 for w, a, b, c in r["windows"]) + "   (*: dropping for the stopped client)")
     med = lambda name, key: statistics.median(r[key] for r in rows[name])
     print("medians over %d repetitions:" % reps)

@@ -49,6 +49,11 @@ trap cleanup EXIT
 
 cpu_ticks() { awk '{print $14 + $15}' "/proc/$1/stat"; }  # utime + stime [clock ticks]
 rss_kb() { awk '/^VmRSS/ {print $2}' "/proc/$1/status"; }
+# pneu-dash's frames dropped so far, all channels (/metrics, over bash's /dev/tcp: no process to start)
+dropped_now() {
+  (exec 3<>"/dev/tcp/127.0.0.1/$port" && printf 'GET /metrics HTTP/1.0\r\n\r\n' >&3 && cat <&3) 2>/dev/null |
+    awk '/^pneu_dash_messages_dropped_total/ {n += $NF} END {print n + 0}'
+}
 wait_port() {
   for _ in $(seq 200); do
     (exec 3<>"/dev/tcp/127.0.0.1/$1") 2>/dev/null && return 0
@@ -73,7 +78,11 @@ phase() {
   fi
   sleep 1
   (while kill -0 "$dash" 2>/dev/null; do echo "$(date +%s.%N) $(rss_kb "$dash")"; sleep 0.25; done) >"$dir/rss.txt" &
-  local sampler=$!
+  local sampler=$! dropper=
+  if [ "$stalled" = 1 ]; then  # when pneu-dash starts dropping for it: its dropped counter every second
+    (while kill -0 "$dash" 2>/dev/null; do echo "$(date +%s.%N) $(dropped_now)"; sleep 1; done) >"$dir/dropped.txt" &
+    dropper=$!
+  fi
   local c0 c1
   c0=$(cpu_ticks "$dash")
   cyclictest -m --default-system -i 1000 -l $((s * 1000)) -q -h 2000 >"$dir/cyclic.txt" 2>&1 &
@@ -86,7 +95,7 @@ phase() {
   c1=$(cpu_ticks "$dash")
   wait "$cyc"
   [ ${#pids[@]} -gt 0 ] && wait "${pids[@]}"
-  kill "$sampler" 2>/dev/null; wait "$sampler" 2>/dev/null || true
+  kill "$sampler" $dropper 2>/dev/null; wait "$sampler" $dropper 2>/dev/null || true
   /usr/bin/python3 -c "import sys, urllib.request; sys.stdout.write(urllib.request.urlopen(sys.argv[1]).read().decode())" \
     "http://127.0.0.1:$port/metrics" >"$dir/metrics.txt"
   echo "$c0 $c1 $(getconf CLK_TCK)" >"$dir/cpu.txt"
