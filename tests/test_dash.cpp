@@ -36,6 +36,8 @@
 #include "pneu_lcm/event_t_members.hpp"
 #include "pneu_lcm/health_t_members.hpp"
 #include "pneu_lcm/state_t_members.hpp"
+#include "support/child_process.hpp"
+#include "support/paths.hpp"
 
 namespace {
 
@@ -665,6 +667,27 @@ TEST_F(DashServer, RefusesARateThatIsNotANumberFrom0To100kHzSayingWhyAndKeepsThe
   ASSERT_TRUE(m);
   EXPECT_EQ(m->subscription, 6u);
   EXPECT_EQ(json::parse(m->payload)["seq"], 7);
+}
+
+TEST(DashCli, RefusesAServerRateThatIsNotANumberFrom0To100kHzAndSaysTheRateItServes) {
+  const fs::path dir = fs::temp_directory_path() / ("pneu_dash_cli_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const auto run = [&](const std::string& rate) {
+    pneu::test::Child c = pneu::test::Child::spawn(
+        {pneu::test::bin("pneu-dash"), "--listen", "127.0.0.1:0", "--max-rate-hz", rate, "--check-config"}, dir / "out",
+        dir / "err");
+    const int code = c.wait();
+    return std::make_tuple(code, pneu::test::slurp(dir / "out"), pneu::test::slurp(dir / "err"));
+  };
+  for (const char* bad : {"-1", "1e6", "abc", "nan"}) {
+    const auto [code, out, err] = run(bad);
+    EXPECT_EQ(code, 2) << bad;
+    EXPECT_NE(err.find("--max-rate-hz"), std::string::npos) << err;
+  }
+  const auto [code, out, err] = run("60");
+  EXPECT_EQ(code, 0) << err;
+  EXPECT_NE(out.find("PNEU_STATE at most 60 Hz unless a subscription asks"), std::string::npos) << out;
+  fs::remove_all(dir);
 }
 
 TEST_F(DashServer, RefusesAWebSocketWithoutTheFoxgloveSubprotocolSayingWhich) {
