@@ -12,6 +12,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <type_traits>
+#include <utility>
 
 #include "pneu/config/config.hpp"
 #include "pneu/controller/supervisor.hpp"
@@ -437,8 +438,8 @@ MergedSweep merge_shards(std::span<const std::filesystem::path> paths) {
   }
   const ShardFile& first = files.front();
   const int n = first.header.shard.count;
-  std::map<int, const ShardFile*> by_index;
-  for (const ShardFile& f : files) {
+  std::map<int, ShardFile*> by_index;
+  for (ShardFile& f : files) {
     if (f.setting_line != first.setting_line)
       throw std::runtime_error(f.path.string() + " is a shard of another sweep than " + first.path.string() + ": " +
                                first_difference(f.setting_line, first.setting_line));
@@ -476,7 +477,7 @@ MergedSweep merge_shards(std::span<const std::filesystem::path> paths) {
       if (next >= f->results.size() || f->results[next].scenario.index != i)
         throw std::runtime_error("the shard file " + f->path.string() + " does not hold the scenarios of shard " +
                                  std::to_string(k) + "/" + std::to_string(n) + " (scenario " + std::to_string(i) + ")");
-      results[static_cast<std::size_t>(i)] = f->results[next];
+      results[static_cast<std::size_t>(i)] = std::move(f->results[next]);  // (the file's copy is not read again)
       scenario_rows[static_cast<std::size_t>(i)] = &f->scenario_rows[next];
       stop_rows[static_cast<std::size_t>(i)] = &f->stop_rows[next];
       ++next;
