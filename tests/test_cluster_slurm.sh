@@ -13,7 +13,7 @@ bin=$1/bin
 src=$2
 fail() { echo "FAIL: $*"; exit 1; }
 skip() { echo "SKIP: $*"; exit 77; }
-for tool in munged slurmctld slurmd sbatch squeue sinfo scontrol; do
+for tool in munged munge unmunge slurmctld slurmd sbatch squeue sinfo scontrol setpriv; do
   command -v "$tool" > /dev/null || skip "$tool is not installed (scripts/deps installs slurm-wlm and munge)"
 done
 [ "$(id -u)" = 0 ] || skip "a single-host Slurm with SlurmUser=root needs root (this runs as $(id -un))"
@@ -22,13 +22,32 @@ tmp=$(mktemp -d /tmp/pneu-slurm.XXXXXX)
 chmod 700 "$tmp"
 pids=()
 cleanup() {
-  # Every daemon this test started, by its PID (munged by its pid file), then the directory.
-  for pid in "${pids[@]}"; do kill "$pid" 2> /dev/null || true; done
-  [ -s "$tmp/munge/munged.pid" ] && kill "$(cat "$tmp/munge/munged.pid")" 2> /dev/null || true
+  # The jobs' step daemons (slurmstepd) first end, reporting to slurmd: each has a socket in the
+  # spool directory while it lives (10 s at most). Then every daemon this test started, by its
+  # PID, slurmd and slurmctld before munged; then the directory.
+  for _ in $(seq 100); do
+    [ -z "$(find "$tmp/spool" -type s 2> /dev/null)" ] && break
+    sleep 0.1
+  done
+  for ((i = ${#pids[@]} - 1; i >= 0; --i)); do kill "${pids[i]}" 2> /dev/null || true; done
   for pid in "${pids[@]}"; do
     for _ in $(seq 50); do kill -0 "$pid" 2> /dev/null || break; sleep 0.1; done
     kill -9 "$pid" 2> /dev/null || true
   done
+  # Whatever is left of this Slurm (a step daemon still ending) has this test's SLURM_CONF in its
+  # environment: given 5 s to end, then ended by its PID.
+  # (Unset here first: the commands this loop runs must not carry it.)
+  local conf=$tmp/slurm.conf ours=() environ
+  unset SLURM_CONF
+  for _ in $(seq 50); do
+    ours=()
+    for environ in /proc/[0-9]*/environ; do
+      grep -qzx "SLURM_CONF=$conf" "$environ" 2> /dev/null && { environ=${environ%/environ}; ours+=("${environ#/proc/}"); }
+    done
+    [ ${#ours[@]} = 0 ] && break
+    sleep 0.1
+  done
+  [ ${#ours[@]} = 0 ] || kill -9 "${ours[@]}" 2> /dev/null || true
   rm -rf "$tmp"
 }
 trap cleanup EXIT
@@ -40,11 +59,20 @@ echo "== munged, with a key of its own"
 head -c 1024 /dev/urandom > "$tmp/munge/munge.key"
 chmod 400 "$tmp/munge/munge.key"
 socket=$tmp/munge/munge.socket
-munged --force --key-file="$tmp/munge/munge.key" --socket="$socket" --pid-file="$tmp/munge/munged.pid" \
-  --seed-file="$tmp/munge/munged.seed" --log-file="$tmp/log/munged.log" > "$tmp/log/munged.out" 2>&1 \
-  || skip "munged cannot start here: $(cat "$tmp/log/munged.out" "$tmp/log/munged.log" 2> /dev/null | tail -n 3)"
+# Each daemon in the foreground, a child of this script that dies with it (--pdeathsig: should
+# ctest kill the script on a timeout, no daemon is left behind).
+daemon() { setpriv --pdeathsig TERM "$@" & pids+=($!); }
+daemon munged --foreground --force --key-file="$tmp/munge/munge.key" --socket="$socket" \
+  --pid-file="$tmp/munge/munged.pid" --seed-file="$tmp/munge/munged.seed" --log-file="$tmp/log/munged.log" \
+  > "$tmp/log/munged.out" 2>&1
+for _ in $(seq 100); do
+  [ -S "$socket" ] && break
+  kill -0 "${pids[0]}" 2> /dev/null \
+    || skip "munged cannot start here: $(cat "$tmp/log/munged.out" "$tmp/log/munged.log" 2> /dev/null | tail -n 3)"
+  sleep 0.1
+done
 munge -S "$socket" -n | unmunge -S "$socket" > /dev/null \
-  || skip "munged started but cannot encode and decode a credential here: $(tail -n 3 "$tmp/log/munged.log")"
+  || skip "munged cannot encode and decode a credential here: $(tail -n 3 "$tmp/log/munged.log" "$tmp/log/munged.out")"
 
 # Two free TCP ports on 127.0.0.1; slurmctld's host is this host's short name (slurmctld checks
 # it), reached at 127.0.0.1: no name resolution needed.
@@ -86,10 +114,8 @@ NodeName=$node NodeAddr=127.0.0.1 NodeHostname=$host CPUs=$(nproc) State=UNKNOWN
 PartitionName=pneu Nodes=$node Default=YES MaxTime=60 State=UP
 EOF
 echo "== slurmctld and slurmd (node $node at 127.0.0.1, controller $host at 127.0.0.1:$ctld_port)"
-slurmctld -D -i -f "$SLURM_CONF" > "$tmp/log/slurmctld.out" 2>&1 &
-pids+=($!)
-slurmd -D -f "$SLURM_CONF" -N "$node" > "$tmp/log/slurmd.out" 2>&1 &
-pids+=($!)
+daemon slurmctld -D -i -f "$SLURM_CONF" > "$tmp/log/slurmctld.out" 2>&1
+daemon slurmd -D -f "$SLURM_CONF" -N "$node" > "$tmp/log/slurmd.out" 2>&1
 up=0
 for _ in $(seq 300); do
   if [ "$(sinfo -h -n "$node" -o %t 2> /dev/null)" = idle ]; then up=1; break; fi
