@@ -19,7 +19,7 @@ for hosts in local ssh-login; do
   login=()
   [ "$hosts" = local ] || login=(--sshlogin :)
   "$src/tools/cluster/parallel-sweep.sh" --dir "$tmp/$hosts" --shards 5 "${login[@]}" --sweep "$bin/pneu-sweep" \
-    -- --steps 200 > "$tmp/$hosts.txt"
+    -- --steps 200 > "$tmp/$hosts.txt" || fail "$hosts: parallel-sweep.sh failed"
   cmp "$tmp/whole.csv" "$tmp/$hosts/sweep.csv" || fail "$hosts: the merged stops file differs from the unsharded sweep's"
   cmp "$tmp/whole_scenarios.csv" "$tmp/$hosts/scenarios.csv" || fail "$hosts: the merged scenarios file differs"
   diff <(summary_lines "$tmp/whole.txt") <(summary_lines "$tmp/$hosts/summary.txt") || fail "$hosts: the merged summary differs"
@@ -46,7 +46,7 @@ before=$(stat -c %Y "$tmp/flaky/shard-1.csv.shard")
 touch "$tmp/fixed"
 sleep 1
 "$src/tools/cluster/parallel-sweep.sh" --dir "$tmp/flaky" --shards 5 --sweep "$tmp/flaky-sweep" --resume-failed \
-  -- --steps 200 > "$tmp/resumed.txt"
+  -- --steps 200 > "$tmp/resumed.txt" || fail "--resume-failed failed"
 [ "$(stat -c %Y "$tmp/flaky/shard-1.csv.shard")" = "$before" ] || fail "--resume-failed does not run shard 1 again"
 cmp "$tmp/whole.csv" "$tmp/flaky/sweep.csv" || fail "resumed: the merged stops file differs"
 echo "ok: GNU parallel's shards merged equal the unsharded 200-step sweep; a failed shard is run again alone"
