@@ -169,7 +169,11 @@ void optional_value(Io& io, const char* name, O& o, F each) {
 }
 
 // The sweep's setting: what makes two shards of one sweep (the options' config_dir aside: the
-// configuration's fingerprint stands for what it leads to).
+// configuration's fingerprint stands for what it leads to). Every member of Options and Setting
+// is listed; the sizes below (on 64-bit builds) stop a new one from being left out unnoticed: add
+// it here, then update them.
+static_assert(sizeof(void*) != 8 || (sizeof(Options) == 160 && sizeof(Setting) == 264),
+              "Options or Setting changed: list the new member in visit_setting (shard.cpp), then update these sizes");
 template <class Io, class S>
 void visit_setting(Io& io, S& s) {
   auto& o = s.options;
