@@ -10,7 +10,7 @@ fail() {
   echo "FAIL: $*" >&2
   failures=$((failures + 1))
 }
-for p in pneud pneu-plant pneu-sweep pneu-identify pneu-command pneu-log2csv "pneu-plant simulate" "pneu-plant serve" \
+for p in pneud pneu-plant pneu-sweep "pneu-sweep merge" pneu-identify pneu-command pneu-log2csv "pneu-plant simulate" "pneu-plant serve" \
          "pneu-plant tune" "pneu-plant null-flow" "pneu-plant characterize-valve" pneu-dash; do
   read -r -a cmd <<<"$p"
   if [ "$p" = pneu-dash ] && [ ! -e "$bin/pneu-dash" ]; then

@@ -6,17 +6,20 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <filesystem>
 #include <iostream>
 #include <optional>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
 #include "pneu/sweep/report.hpp"
 #include "pneu/sweep/run.hpp"
 #include "pneu/sweep/scenario.hpp"
+#include "pneu/sweep/shard.hpp"
 #include "pneu/sweep/statistics.hpp"
 
 namespace {
@@ -30,7 +33,9 @@ Usage:
              [--step-time S] [--tail S] [--margin-m M] [--min-step-m D] [--friction-spread F] [--gain-spread G]
              [--bench-spread B] [--bench-thermal-s LO[:HI]] [--bench-spool-lag-s LO[:HI]]
              [--scenarios-out SCENARIOS.csv] [--set KEY=VALUE ...] [--supervised] [--strict]
-             [--strict-forecasts] [--identify] [--online] [--summary-json FILE] [--quiet]
+             [--strict-forecasts] [--identify] [--online] [--summary-json FILE] [--quiet] [--shard K/N]
+  pneu-sweep merge --out SWEEP.csv [--scenarios-out SCENARIOS.csv] [--summary-json FILE] [--strict]
+             [--strict-forecasts] SHARD.csv...
 
 Scenario i starts at rest at a random position y0 and steps the set point at --step-time
 (default 1 s) to y_d, the targets spread evenly over the stroke less --margin-m (default 0.02 m)
@@ -134,6 +139,22 @@ never); hold; settling_rules; identification (with --identify); methods (lineari
 relaxation: the verdicts' counts, the errors' percentiles, the half-way forecasts, the --online
 splits); wall_s and jobs. Percentiles are objects of count, p50, p90, p99 and max (null when
 count is 0). A sweep that fails once started leaves no file there (an earlier one's is removed).
+
+--shard K/N (1 <= K <= N) runs only the scenarios whose index i falls to shard K (i % N == K - 1),
+each exactly as the whole sweep runs it (the same draw, seed and bench), and writes beside its
+--out file the shard file SWEEP.csv.shard: the sweep's setting, the configuration's fingerprint,
+and each of its scenarios' rows and figures (every value the summary is computed from). Its
+--out, --scenarios-out and summary are those of its own scenarios. A shard that failed is run
+again alone, with the same options. Progress goes to stderr (scenarios done, rate, time left and
+the estimated end): redrawn on a terminal, otherwise a line per 10 % or per minute.
+
+pneu-sweep merge takes the shards of one sweep, each named by its --out file (or its .shard
+file), in any order, and writes what the unsharded sweep writes: --out and --scenarios-out
+identical to its files byte for byte, the summary and --summary-json the same figures, except the
+wall time: the merge's is the shards' wall times summed (wall_s; jobs: the most threads a shard
+ran on), and its summary's line says so. It says on stderr which shards it took. It refuses (exit
+2), naming the file, a shard given twice, a shard of another sweep (other options, seed, number
+of steps, configuration, or N: what differs is said) and a sweep with shards missing (which).
 )";
 
 // "LO" or "LO:HI" of --bench-thermal-s and --bench-spool-lag-s: the range drawn from [s].
@@ -162,11 +183,99 @@ sweep::DrawRange draw_range(const cli::Args& args, const char* option, double mi
   return r;
 }
 
+// --strict and --strict-forecasts on a sweep's statistics: the exit code, and why on stderr.
+int strict_exit_code(const cli::Args& args, const sweep::Statistics& stats) {
+  int exit_code = cli::kExitOk;
+  const sweep::MethodStatistics &lin = stats.methods[0], &nl = stats.methods[1];
+  if ((args.flag("strict") || args.flag("strict-forecasts")) && (lin.outside_criteria || nl.outside_criteria)) {
+    std::fprintf(stderr, "pneu-sweep: strict: %llu forecasts outside the acceptance criteria (linearized %llu, nonlinear %llu)\n",
+                 static_cast<unsigned long long>(lin.outside_criteria + nl.outside_criteria),
+                 static_cast<unsigned long long>(lin.outside_criteria),
+                 static_cast<unsigned long long>(nl.outside_criteria));
+    exit_code = cli::kExitFailure;
+  }
+  const auto count = [&](sweep::Outcome oc) { return static_cast<unsigned long long>(stats.count(oc)); };
+  const unsigned long long unsettled = static_cast<unsigned long long>(stats.scenarios) - count(sweep::Outcome::kSettled);
+  if (args.flag("strict") && unsettled > 0) {
+    std::fprintf(stderr, "pneu-sweep: strict: %llu of %d scenarios did not settle (%llu never settled, %llu at an end stop, %llu faults)\n",
+                 unsettled, stats.scenarios, count(sweep::Outcome::kNeverSettled), count(sweep::Outcome::kEndStop),
+                 count(sweep::Outcome::kFault));
+    exit_code = cli::kExitFailure;
+  }
+  return exit_code;
+}
+
+// pneu-sweep merge: the shards' arguments are the words that are not options.
+int merge(int argc, char** argv) {
+  const std::vector<std::string> value_options{"out", "scenarios-out", "summary-json"};
+  std::vector<char*> option_argv{argv[0], argv[1]};
+  std::vector<std::filesystem::path> shards;
+  for (int i = 2; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a.rfind("-", 0) != 0) {
+      shards.emplace_back(a);
+      continue;
+    }
+    option_argv.push_back(argv[i]);
+    if (std::find(value_options.begin(), value_options.end(), a.substr(2)) != value_options.end() && i + 1 < argc)
+      option_argv.push_back(argv[++i]);
+  }
+  const cli::Args args(static_cast<int>(option_argv.size()), option_argv.data(), 2, value_options,
+                       {"strict", "strict-forecasts", "help"});
+  if (args.flag("help")) {
+    std::cout << kHelp;
+    return cli::kExitOk;
+  }
+  const std::string out_path = args.required("out");
+  if (shards.empty()) throw cli::UsageError("merge: no shard named (SHARD.csv: each shard's --out)");
+  std::vector<std::pair<std::string, std::string>> outputs{{"--out", out_path}};
+  for (const char* option : {"scenarios-out", "summary-json"})
+    if (const auto path = args.value(option)) outputs.emplace_back(std::string("--") + option, *path);
+  if (outputs.size() > 1) cli::refuse_same_file(outputs);
+  sweep::MergedSweep merged;
+  try {
+    merged = sweep::merge_shards(shards);
+  } catch (const std::runtime_error& e) {
+    throw cli::UsageError(std::string("merge: ") + e.what());
+  }
+  for (const std::string& line : merged.taken) std::fprintf(stderr, "pneu-sweep merge: took %s\n", line.c_str());
+  cli::OutputFile out(out_path, "--out");
+  std::optional<cli::OutputFile> scenarios_out, summary_json;
+  if (const auto path = args.value("scenarios-out")) scenarios_out.emplace(*path, "--scenarios-out");
+  if (const auto path = args.value("summary-json")) summary_json.emplace(*path, "--summary-json");
+  out.stream() << merged.stops_csv;
+  out.commit();
+  if (scenarios_out) {
+    scenarios_out->stream() << merged.scenarios_csv;
+    scenarios_out->commit();
+  }
+  if (summary_json) {
+    sweep::write_summary_json(summary_json->stream(), merged.statistics);
+    summary_json->commit();
+  }
+  sweep::print_summary(stdout, merged.statistics);
+  std::printf("  wrote %s\n", out_path.c_str());
+  if (scenarios_out) std::printf("  wrote %s\n", scenarios_out->path().c_str());
+  if (summary_json) std::printf("  wrote %s\n", summary_json->path().c_str());
+  return strict_exit_code(args, merged.statistics);
+}
+
+// "HH:MM:SS UTC" of now + seconds_from_now.
+std::string clock_after(double seconds_from_now) {
+  const std::time_t t = std::time(nullptr) + static_cast<std::time_t>(std::lround(seconds_from_now));
+  std::tm utc{};
+  gmtime_r(&t, &utc);
+  char text[16];
+  std::strftime(text, sizeof text, "%H:%M:%S", &utc);
+  return std::string(text) + " UTC";
+}
+
 int run(int argc, char** argv) {
+  if (argc > 1 && std::string(argv[1]) == "merge") return merge(argc, argv);
   const cli::Args args(argc, argv, 1,
                        {"config", "out", "steps", "seed", "jobs", "duration", "step-time", "margin-m",
                         "min-step-m", "friction-spread", "gain-spread", "bench-spread", "tail", "scenarios-out",
-                        "bench-thermal-s", "bench-spool-lag-s", "summary-json"},
+                        "bench-thermal-s", "bench-spool-lag-s", "summary-json", "shard"},
                        {"strict", "strict-forecasts", "quiet", "help", "supervised", "identify", "online"}, {"set"});
   if (args.flag("help")) {
     std::cout << kHelp;
@@ -209,37 +318,58 @@ int run(int argc, char** argv) {
   o.bench_spool_lag_s = draw_range(args, "bench-spool-lag-s", 0.0);
   o.steps = static_cast<int>(steps_d);
   o.seed = static_cast<std::uint64_t>(seed_d);
-  const auto jobs = static_cast<int>(std::min<double>(jobs_d, o.steps));
+  std::optional<sweep::ShardSpec> shard;
+  if (const auto text = args.value("shard")) {
+    try {
+      shard = sweep::parse_shard(*text);
+    } catch (const std::invalid_argument& e) {
+      throw cli::UsageError(e.what());
+    }
+  }
 
-  const std::vector<sweep::Scenario> scenarios = sweep::draw_scenarios(o, half);
+  std::vector<sweep::Scenario> scenarios = sweep::draw_scenarios(o, half);
+  if (shard) scenarios = sweep::scenarios_of(*shard, scenarios);
+  // (A shard may hold no scenario, when N > --steps.)
+  const auto jobs = static_cast<int>(std::max<double>(1.0, std::min<double>(jobs_d, static_cast<double>(scenarios.size()))));
 
   // Created before the run: an unwritable path, or two outputs on one file, fail fast.
   std::vector<std::pair<std::string, std::string>> outputs{{"--out", out_path}};
   for (const char* option : {"scenarios-out", "summary-json"})
     if (const auto path = args.value(option)) outputs.emplace_back(std::string("--") + option, *path);
+  if (shard) outputs.emplace_back("the shard file", sweep::shard_file_path(out_path).string());
   if (outputs.size() > 1) cli::refuse_same_file(outputs);
   cli::OutputFile out(out_path, "--out");
-  std::optional<cli::OutputFile> scenarios_out, summary_json;
+  std::optional<cli::OutputFile> scenarios_out, summary_json, shard_out;
   if (const auto path = args.value("scenarios-out")) scenarios_out.emplace(*path, "--scenarios-out");
   if (const auto path = args.value("summary-json")) summary_json.emplace(*path, "--summary-json");
+  if (shard) shard_out.emplace(sweep::shard_file_path(out_path), "the shard file");
 
-  // Progress bar on stderr: redrawn in place on a terminal, a line per 10 % otherwise.
+  // Progress on stderr (scenarios done, rate, time left, estimated end): redrawn in place on a
+  // terminal; otherwise a line per 10 % or per minute, for a batch job's log.
   const bool quiet = args.flag("quiet");
   const bool tty = ::isatty(STDERR_FILENO) && !quiet;
+  const std::string who =
+      shard ? "pneu-sweep shard " + std::to_string(shard->index) + "/" + std::to_string(shard->count) : "pneu-sweep";
   int last_decile = -1;
+  double last_line_s = 0.0;
   const auto progress = [&](int d, int n, double elapsed) {
-    if (!quiet) {
+    if (quiet || n == 0) return;
+    const double rate = elapsed > 0.0 ? d / elapsed : 0.0;
+    char left[96] = "";
+    if (d > 0 && d < n && rate > 0.0)
+      std::snprintf(left, sizeof left, ", about %.0f s left (ends %s)", (n - d) / rate,
+                    clock_after((n - d) / rate).c_str());
+    if (tty) {
       constexpr int kWidth = 40;
       const int filled = kWidth * d / n;
-      if (tty) {
-        std::fprintf(stderr, "\r[%.*s%*s] %d/%d scenarios, %.1f s", filled,
-                     "########################################", kWidth - filled, "", d, n, elapsed);
-      } else if (d * 10 / n != last_decile) {
-        last_decile = d * 10 / n;
-        std::fprintf(stderr, "pneu-sweep: %d/%d scenarios, %.1f s\n", d, n, elapsed);
-      }
+      std::fprintf(stderr, "\r%s [%.*s%*s] %d/%d scenarios, %.1f s, %.2f/s%s\x1b[K", who.c_str(), filled,
+                   "########################################", kWidth - filled, "", d, n, elapsed, rate, left);
+      if (d == n) std::fprintf(stderr, "\n");
+    } else if (d * 10 / n != last_decile || elapsed - last_line_s >= 60.0) {
+      last_decile = d * 10 / n;
+      last_line_s = elapsed;
+      std::fprintf(stderr, "%s: %d/%d scenarios, %.1f s, %.2f scenarios/s%s\n", who.c_str(), d, n, elapsed, rate, left);
     }
-    if (d == n && tty) std::fprintf(stderr, "\n");
   };
   std::optional<sweep::SweepRun> ran;
   try {
@@ -247,6 +377,7 @@ int run(int argc, char** argv) {
   } catch (...) {
     // As pneud's: no figures of an earlier sweep left at --summary-json to be taken for this one's.
     if (summary_json) summary_json->discard_removing_target();
+    if (shard_out) shard_out->discard_removing_target();  // the merge then names it missing
     throw;
   }
   const sweep::SweepRun& run = *ran;
@@ -254,6 +385,11 @@ int run(int argc, char** argv) {
 
   sweep::write_stops_csv(out.stream(), run.results, o.online);
   out.commit();
+  if (shard_out) {
+    sweep::write_shard(shard_out->stream(), {stats.setting, sweep::config_fingerprint(config), *shard, run.wall_s, run.jobs},
+                       run.results);
+    shard_out->commit();
+  }
   if (scenarios_out) {
     sweep::write_scenarios_csv(scenarios_out->stream(), run.results, o.identify);
     scenarios_out->commit();
@@ -266,25 +402,8 @@ int run(int argc, char** argv) {
   std::printf("  wrote %s\n", out_path.c_str());
   if (scenarios_out) std::printf("  wrote %s\n", scenarios_out->path().c_str());
   if (summary_json) std::printf("  wrote %s\n", summary_json->path().c_str());
-
-  int exit_code = cli::kExitOk;
-  const sweep::MethodStatistics &lin = stats.methods[0], &nl = stats.methods[1];
-  if ((args.flag("strict") || args.flag("strict-forecasts")) && (lin.outside_criteria || nl.outside_criteria)) {
-    std::fprintf(stderr, "pneu-sweep: strict: %llu forecasts outside the acceptance criteria (linearized %llu, nonlinear %llu)\n",
-                 static_cast<unsigned long long>(lin.outside_criteria + nl.outside_criteria),
-                 static_cast<unsigned long long>(lin.outside_criteria),
-                 static_cast<unsigned long long>(nl.outside_criteria));
-    exit_code = cli::kExitFailure;
-  }
-  const auto count = [&](sweep::Outcome oc) { return static_cast<unsigned long long>(stats.count(oc)); };
-  const unsigned long long unsettled = static_cast<unsigned long long>(o.steps) - count(sweep::Outcome::kSettled);
-  if (args.flag("strict") && unsettled > 0) {
-    std::fprintf(stderr, "pneu-sweep: strict: %llu of %d scenarios did not settle (%llu never settled, %llu at an end stop, %llu faults)\n",
-                 unsettled, o.steps, count(sweep::Outcome::kNeverSettled), count(sweep::Outcome::kEndStop),
-                 count(sweep::Outcome::kFault));
-    exit_code = cli::kExitFailure;
-  }
-  return exit_code;
+  if (shard_out) std::printf("  wrote %s\n", shard_out->path().c_str());
+  return strict_exit_code(args, stats);
 }
 
 }  // namespace

@@ -195,7 +195,11 @@ void print_summary(std::FILE* out, const Statistics& st) {
       }
     }
   }
-  std::fprintf(out, "  %.2f s wall on %d threads: %.1f scenarios/s\n", st.wall_s, st.jobs, n / st.wall_s);
+  if (st.shards > 0)  // merged: the shards' wall times summed (they may have run at once, or not)
+    std::fprintf(out, "  %.2f s wall summed over %d shards (each on up to %d threads): %.1f scenarios per shard-second\n",
+                 st.wall_s, st.shards, st.jobs, n / st.wall_s);
+  else
+    std::fprintf(out, "  %.2f s wall on %d threads: %.1f scenarios/s\n", st.wall_s, st.jobs, n / st.wall_s);
   const std::string names[2] = {set.linearized_name, "nonlinear"};
   for (std::size_t m = 0; m < 2; ++m) {
     const MethodStatistics& ms = st.methods[m];
@@ -406,15 +410,20 @@ StopRow stop_row(const ScenarioResult& r, const JudgedStop& j, bool online) {
   return row;
 }
 
+std::string stops_csv_header() { return records::csv_header<StopRow>() + '\n'; }
+
+std::string stops_csv_rows(const ScenarioResult& r, bool online) {
+  std::string lines;
+  for (const JudgedStop& j : r.stops) {
+    records::write_csv_cells(lines, stop_row(r, j, online));
+    lines += '\n';
+  }
+  return lines;
+}
+
 void write_stops_csv(std::ostream& os, std::span<const ScenarioResult> results, bool online) {
-  os << records::csv_header<StopRow>() << '\n';
-  std::string line;
-  for (const ScenarioResult& r : results)
-    for (const JudgedStop& j : r.stops) {
-      line.clear();
-      records::write_csv_cells(line, stop_row(r, j, online));
-      os << line << '\n';
-    }
+  os << stops_csv_header();
+  for (const ScenarioResult& r : results) os << stops_csv_rows(r, online);
 }
 
 ScenarioRow scenario_row(const ScenarioResult& r) {
@@ -485,15 +494,19 @@ ScenarioRow scenario_row(const ScenarioResult& r) {
   return row;
 }
 
-void write_scenarios_csv(std::ostream& os, std::span<const ScenarioResult> results, bool identify) {
-  const records::View& columns = identify ? kIdentifiedScenarioColumns : kScenarioColumns;
-  os << records::csv_header<ScenarioRow>(columns) << '\n';
+std::string scenarios_csv_header(bool identify) {
+  return records::csv_header<ScenarioRow>(identify ? kIdentifiedScenarioColumns : kScenarioColumns) + '\n';
+}
+
+std::string scenarios_csv_row(const ScenarioResult& r, bool identify) {
   std::string line;
-  for (const ScenarioResult& r : results) {
-    line.clear();
-    records::write_csv_row(line, columns, scenario_row(r));
-    os << line;
-  }
+  records::write_csv_row(line, identify ? kIdentifiedScenarioColumns : kScenarioColumns, scenario_row(r));
+  return line;
+}
+
+void write_scenarios_csv(std::ostream& os, std::span<const ScenarioResult> results, bool identify) {
+  os << scenarios_csv_header(identify);
+  for (const ScenarioResult& r : results) os << scenarios_csv_row(r, identify);
 }
 
 }  // namespace pneu::sweep

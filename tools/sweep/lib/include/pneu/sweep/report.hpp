@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <ostream>
 #include <span>
+#include <string>
 
 #include "pneu/sweep/rows.hpp"
 #include "pneu/sweep/run.hpp"
@@ -23,6 +24,12 @@ void write_summary_json(std::ostream& out, const Statistics& statistics);
 [[nodiscard]] StopRow stop_row(const ScenarioResult& r, const JudgedStop& j, bool online);
 /// The scenarios file's row of `r`.
 [[nodiscard]] ScenarioRow scenario_row(const ScenarioResult& r);
+/// The stops file's header line, and the rows of `r`'s stops (each line ending in a newline).
+[[nodiscard]] std::string stops_csv_header();
+[[nodiscard]] std::string stops_csv_rows(const ScenarioResult& r, bool online);
+/// The scenarios file's header line, and `r`'s row (ending in a newline).
+[[nodiscard]] std::string scenarios_csv_header(bool identify);
+[[nodiscard]] std::string scenarios_csv_row(const ScenarioResult& r, bool identify);
 /// One CSV row per judged-window stop (pneu-sweep --out).
 void write_stops_csv(std::ostream& out, std::span<const ScenarioResult> results, bool online);
 /// One CSV row per scenario (pneu-sweep --scenarios-out); identified_* columns with --identify.

@@ -144,6 +144,9 @@ struct Statistics {
   std::array<MethodStatistics, kMethodCount> methods;  ///< linearized, nonlinear, relaxation
   double wall_s = 0.0;
   int jobs = 1;
+  /// Merged from this many shards (pneu-sweep merge; 0: one run): wall_s is then the shards' wall
+  /// times summed, jobs the most threads a shard ran on.
+  int shards = 0;
 
   [[nodiscard]] std::uint64_t count(Outcome o) const noexcept { return outcomes[static_cast<std::size_t>(o)].count; }
 };
