@@ -176,6 +176,17 @@ TEST(IdentificationRun, StaysWithinTheSoftLimitsAndTakesUnderAMinute) {
   EXPECT_GT(hi, b.cfg.controller.soft_limit_max_m - 0.1);
 }
 
+// The plan's ramps carry the pressure force across the stiction band again and again; the
+// in-position hold, which hil.yaml and bench.yaml ship on, would drive it to the band's middle
+// instead (and end and begin again at each 10 ms step of the set point). The run drives without it.
+TEST(IdentificationRun, DrivesWithTheHoldOffWhateverTheConfigurationSays) {
+  const Bench b = mismatched("hil.yaml");
+  ASSERT_TRUE(b.cfg.controller.hold.enabled) << "hil.yaml ships with the hold on";
+  const identify::RecordedRun r = record_run(b);
+  EXPECT_FALSE(identify::configured_for(b.cfg, r.plan).controller.hold.enabled);
+  EXPECT_TRUE(identify::configured_for(b.cfg, r.plan).controller.start_armed);
+}
+
 TEST(IdentificationRun, AFaultEndsTheRunAndNothingIsIdentified) {
   Bench b = mismatched();
   b.cfg = config::load_string(config::default_config_yaml(), {"controller.supervisor.following_error_m=0.002",
