@@ -11,8 +11,9 @@
 # after the step, the rest position within controller.hold.window_m of the set point, no start
 # seen by pneud after the hold began and no breakaway of the plant after it on serve's own record
 # (CLOCK_MONOTONIC), the run's last tick in mode hold.
-# The real clock on a loaded machine: a step run whose loop skipped deadlines and did not end held
-# is run again (a fresh plant), up to 3 runs; when all 3 were robbed so, skipped saying why.
+# The real clock on a loaded machine: a run ended by a comms or overrun fault (samples or ticks
+# late), or a step run whose loop skipped deadlines and did not end held, is run again on a fresh
+# plant, up to 3 runs; when all 3 were robbed so, skipped saying why.
 #   test_commissioning.sh BINARY_DIR SOURCE_DIR   (PNEU_KEEP_TEST_FILES=1: the files kept, their directory said)
 set -euo pipefail
 build=$(cd "$1" && pwd); src=$(cd "$2" && pwd)
@@ -100,12 +101,27 @@ serve() {
 stop_serve() { kill -INT "$serve_pid"; wait "$serve_pid" || fail "pneu-plant serve: $(cat "$tmp/serve.err")"; serve_pid=; }
 serve
 
+# robbed NAME: whether step NAME ended on a fault the machine's load makes (samples late over the
+# link: comms; the loop late: overrun), not one of the bench's.
+robbed() { grep -qE "FAULT at [^:]*: (comms|overrun):" "$tmp/$1.err"; }
+# real_step NAME: step NAME on the real clock; a run the load ended by such a fault is run again
+# on a fresh plant, up to 3 runs; 3 so robbed: skipped, saying why.
+real_step() {
+  for run in 1 2 3; do
+    step "$1" && return 0
+    robbed "$1" || return 1
+    echo "run $run of $1: ended by a comms or overrun fault, the machine's load: run again on a fresh plant"
+    stop_serve; serve
+  done
+  echo "SKIPPED: $1: 3 runs, each ended by a comms or overrun fault the machine's load made"; exit 77
+}
+
 step check || fail "step 1: pneud --check-config refused the edited bench.yaml"
-step readings || fail "step 2: the disarmed run"
+real_step readings || fail "step 2: the disarmed run"
 [ "$(head -1 "$OUT/readings.csv" | cut -d, -f1-4)" = "seq,t,y_d,y" ] || fail "step 2: $OUT/readings.csv has no trajectory header"
-step movement || fail "step 2: the movement test did not pass"
+real_step movement || fail "step 2: the movement test did not pass"
 grep -q "movement test passed" "$tmp/movement.err" || fail "step 2: stderr does not say the movement test passed"
-step identify || fail "step 3: the identification"
+real_step identify || fail "step 3: the identification"
 [ -f "$OUT/identified.yaml" ] || fail "step 3: no $OUT/identified.yaml"
 # What was identified is the served bench, not the configuration's: stiction within 5 %.
 read -r fs_pos fs_neg window < <("$BIN/pneud" --config "$OUT/identified.yaml" --check-config | /usr/bin/python3 -c '
@@ -132,23 +148,29 @@ held = next((e for e in lines if e["event"] == "hold_start" and e["reach"] == 0 
 if held is None:
     sys.exit("never held within the window after the step")
 after = [e for e in lines if e["t"] > held["t"] and e["event"] in ("start", "hold_end")]
+starts = [e for e in after if e["event"] == "start"]
 error = abs(held["y"] - held["y_d"])
 epoch = json.load(open(summary))["loop"]["epoch_monotonic_s"]
 breakaways = [json.loads(l) for l in open(plant) if '"event":"breakaway"' in l]
 later = [b for b in breakaways if b["monotonic_s"] > epoch + held["t"]]
 rows = list(csv.DictReader(open(trajectory)))
 print(f"held from {held['t']:.3f} s at {held['y'] * 1e3:.3f} mm, {error * 1e3:.3f} mm from the set point "
-      f"{held['y_d'] * 1e3:.3f} mm; after it: {len(after)} start or hold end seen by pneud, {len(later)} breakaways "
+      f"{held['y_d'] * 1e3:.3f} mm; after it: {len(starts)} starts seen by pneud, {len(later)} breakaways "
       f"of the plant (of {len(breakaways)}); the last tick's mode {rows[-1]['mode']}")
-ok = error <= window + 1e-9 and not after and not later and breakaways and rows[-1]["mode"] == "3"
+for e in after:
+    print("  after the hold began:", json.dumps(e))
+ok = error <= window + 1e-9 and not starts and not later and breakaways and rows[-1]["mode"] == "3"
 sys.exit(0 if ok else 1)
 EOF
 }
 skipped_deadlines() { /usr/bin/python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["loop"]["deadlines_skipped"])' "$OUT/step.json"; }
-robbed=0
 for run in 1 2 3; do
   [ "$run" = 1 ] || { stop_serve; serve; }  # a fresh plant, at rest where the step starts
-  step step || fail "step 6: the step with the hold (run $run)"
+  if ! step step; then
+    robbed step || fail "step 6: the step with the hold (run $run)"
+    echo "run $run: ended by a comms or overrun fault, the machine's load: run again"
+    continue
+  fi
   if held; then
     echo "ok: the guide's steps end with a held carriage (run $run)"
     exit 0
@@ -156,7 +178,6 @@ for run in 1 2 3; do
   skipped=$(skipped_deadlines)
   [ "$skipped" -gt 0 ] || fail "step 6: the carriage is not held (run $run, no deadline skipped)"
   echo "run $run: not held, and the loop skipped $skipped deadlines: the machine's load, run again"
-  robbed=$((robbed + 1))
 done
-echo "SKIPPED: 3 runs of step 6, each robbed of deadlines by the machine's load, none ended held"
+echo "SKIPPED: 3 runs of step 6, each robbed by the machine's load (deadlines skipped, or a comms or overrun fault), none ended held"
 exit 77
