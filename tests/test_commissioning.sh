@@ -8,9 +8,10 @@
 # null offset of 40 mV (hal.sim.plant), 16-bit sensors with hil.yaml's noise. Step 1's hand edit
 # is played here: the module at 127.0.0.1 and the free port, no GPIO lines.
 # It passes when the guide's last step ends with a held carriage: a hold begun within the window
-# after the step, the rest position within controller.hold.window_m of the set point, no start
-# seen by pneud after the hold began and no breakaway of the plant after it on serve's own record
-# (CLOCK_MONOTONIC), the run's last tick in mode hold.
+# after the step, no breakaway of the plant after it on serve's own record (CLOCK_MONOTONIC; a
+# carriage still sliding within the rest band as the stop was confirmed may move on without one:
+# pneud sees a start, the plant none), the last hold's rest position within
+# controller.hold.window_m of the set point, no end after it, the run's last tick in mode hold.
 # The real clock on a loaded machine: a run ended by a comms or overrun fault (samples or ticks
 # late), or a step run whose loop skipped deadlines and did not end held, is run again on a fresh
 # plant, up to 3 runs; when all 3 were robbed so, skipped saying why.
@@ -121,22 +122,32 @@ real_step readings || fail "step 2: the disarmed run"
 [ "$(head -1 "$OUT/readings.csv" | cut -d, -f1-4)" = "seq,t,y_d,y" ] || fail "step 2: $OUT/readings.csv has no trajectory header"
 real_step movement || fail "step 2: the movement test did not pass"
 grep -q "movement test passed" "$tmp/movement.err" || fail "step 2: stderr does not say the movement test passed"
-real_step identify || fail "step 3: the identification"
-[ -f "$OUT/identified.yaml" ] || fail "step 3: no $OUT/identified.yaml"
-# What was identified is the served bench, not the configuration's: stiction within 5 %.
-read -r fs_pos fs_neg window < <("$BIN/pneud" --config "$OUT/identified.yaml" --check-config | /usr/bin/python3 -c '
+# Steps 3 to 5. An identification the load spoiled (THE MODEL DOES NOT FIT: samples and commands
+# late over the link) may give a model on which the verifying sweep shows restarts after the hold
+# began: the guide says to identify again, which is done, up to 3 identifications.
+for identification in 1 2 3; do
+  real_step identify || fail "step 3: the identification"
+  [ -f "$OUT/identified.yaml" ] || fail "step 3: no $OUT/identified.yaml"
+  # What was identified is the served bench, not the configuration's: stiction within 5 %.
+  read -r fs_pos fs_neg window < <("$BIN/pneud" --config "$OUT/identified.yaml" --check-config | /usr/bin/python3 -c '
 import sys, yaml
 c = yaml.safe_load(sys.stdin)
 print(c["plant"]["friction"]["static_positive_n"], c["plant"]["friction"]["static_negative_n"], c["controller"]["hold"]["window_m"])')
-echo "identified: F_S+ $fs_pos N (served 51.75 N), F_S- $fs_neg N (served -57.5 N); the hold's window $window m"
-/usr/bin/python3 -c "import sys; sys.exit(not (abs($fs_pos - 51.75) < 0.05 * 51.75 and abs($fs_neg + 57.5) < 0.05 * 57.5))" \
-  || fail "step 3: the identified stiction is not the served bench's"
-step tune || fail "step 4: pneu-plant tune or the stability map"
-grep -q "unstable, continuous: nowhere; sampled: nowhere" "$tmp/tune.out" || fail "step 4: the identified law is not stable everywhere"
-[ -s "$OUT/stability_map.png" ] || fail "step 4: no $OUT/stability_map.png"
-step sweep || fail "step 5: the verifying sweep"
-grep -q "restarts after it began (breakaways of the plant beyond the motion band): 0," "$tmp/sweep.out" \
-  || fail "step 5: the sweep on the identified model restarts after the hold began"
+  echo "identified: F_S+ $fs_pos N (served 51.75 N), F_S- $fs_neg N (served -57.5 N); the hold's window $window m"
+  /usr/bin/python3 -c "import sys; sys.exit(not (abs($fs_pos - 51.75) < 0.05 * 51.75 and abs($fs_neg + 57.5) < 0.05 * 57.5))" \
+    || fail "step 3: the identified stiction is not the served bench's"
+  step tune || fail "step 4: pneu-plant tune or the stability map"
+  grep -q "unstable, continuous: nowhere; sampled: nowhere" "$tmp/tune.out" || fail "step 4: the identified law is not stable everywhere"
+  [ -s "$OUT/stability_map.png" ] || fail "step 4: no $OUT/stability_map.png"
+  step sweep || fail "step 5: the verifying sweep"
+  grep -q "restarts after it began (breakaways of the plant beyond the motion band): 0," "$tmp/sweep.out" && break
+  grep -E "outcomes|final |at rest within|in-position" "$tmp/sweep.out" || true
+  grep -q "THE MODEL DOES NOT FIT" "$tmp/identify.out" \
+    || fail "step 5: the sweep on the identified model restarts after the hold began, on a model that fits"
+  [ "$identification" -lt 3 ] || { echo "SKIPPED: 3 identifications the load spoiled (the model does not fit), each's sweep restarting after the hold began"; exit 77; }
+  echo "identification $identification: the model does not fit and its sweep restarts after the hold began: identify again"
+  rm -f "$OUT/identified.yaml"
+done
 
 # Step 6, judged on the plant's own record.
 held() {
@@ -144,23 +155,28 @@ held() {
 import csv, json, sys
 events, summary, trajectory, plant, window = sys.argv[1:5] + [float(sys.argv[5])]
 lines = [json.loads(l) for l in open(events) if l.strip()]
-held = next((e for e in lines if e["event"] == "hold_start" and e["reach"] == 0 and e["t"] > 1.0), None)
-if held is None:
-    sys.exit("never held within the window after the step")
-after = [e for e in lines if e["t"] > held["t"] and e["event"] in ("start", "hold_end")]
-starts = [e for e in after if e["event"] == "start"]
-error = abs(held["y"] - held["y_d"])
+holds = [e for e in lines if e["event"] == "hold_start" and e["reach"] == 0 and e["t"] > 1.0]
+if not holds:
+    print("never held within the window after the step")
+    sys.exit(2)
+first, last = holds[0], holds[-1]
+after = [e for e in lines if e["t"] > first["t"] and e["event"] in ("start", "hold_end", "hold_start")]
 epoch = json.load(open(summary))["loop"]["epoch_monotonic_s"]
 breakaways = [json.loads(l) for l in open(plant) if '"event":"breakaway"' in l]
-later = [b for b in breakaways if b["monotonic_s"] > epoch + held["t"]]
+later = [b for b in breakaways if b["monotonic_s"] > epoch + first["t"]]
+ended = [e for e in lines if e["t"] > last["t"] and e["event"] == "hold_end"]
 rows = list(csv.DictReader(open(trajectory)))
-print(f"held from {held['t']:.3f} s at {held['y'] * 1e3:.3f} mm, {error * 1e3:.3f} mm from the set point "
-      f"{held['y_d'] * 1e3:.3f} mm; after it: {len(starts)} starts seen by pneud, {len(later)} breakaways "
-      f"of the plant (of {len(breakaways)}); the last tick's mode {rows[-1]['mode']}")
+error = abs(last["y"] - last["y_d"])
+print(f"held from {first['t']:.3f} s; {len(later)} breakaways of the plant after it (of {len(breakaways)}); held "
+      f"last from {last['t']:.3f} s at {last['y'] * 1e3:.3f} mm, {error * 1e3:.3f} mm from the set point "
+      f"{last['y_d'] * 1e3:.3f} mm, {len(ended)} ends after it; the last tick's mode {rows[-1]['mode']}")
+# pneud's own view after the hold began (a carriage still sliding slowly within the rest band when
+# the stop was confirmed moves on without a breakaway: a start to pneud, none of the plant's).
 for e in after:
     print("  after the hold began:", json.dumps(e))
-ok = error <= window + 1e-9 and not starts and not later and breakaways and rows[-1]["mode"] == "3"
-sys.exit(0 if ok else 1)
+if error > window + 1e-9 or ended or rows[-1]["mode"] != "3":
+    sys.exit(2)
+sys.exit(1 if later or not breakaways else 0)
 EOF
 }
 skipped_deadlines() { /usr/bin/python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["loop"]["deadlines_skipped"])' "$OUT/step.json"; }
@@ -171,13 +187,15 @@ for run in 1 2 3; do
     echo "run $run: ended by a comms or overrun fault, the machine's load: run again"
     continue
   fi
-  if held; then
+  rc=0; held || rc=$?
+  if [ "$rc" = 0 ]; then
     echo "ok: the guide's steps end with a held carriage (run $run)"
     exit 0
   fi
+  [ "$rc" = 1 ] || fail "step 6: the carriage does not end held within the window (run $run)"
   skipped=$(skipped_deadlines)
-  [ "$skipped" -gt 0 ] || fail "step 6: the carriage is not held (run $run, no deadline skipped)"
-  echo "run $run: not held, and the loop skipped $skipped deadlines: the machine's load, run again"
+  [ "$skipped" -gt 0 ] || fail "step 6: the plant broke away after the hold began (run $run, no deadline skipped)"
+  echo "run $run: the plant broke away after the hold began, and the loop skipped $skipped deadlines: the machine's load, run again"
 done
 echo "SKIPPED: 3 runs of step 6, each robbed by the machine's load (deadlines skipped, or a comms or overrun fault), none ended held"
 exit 77
