@@ -52,6 +52,9 @@ class HilMovementTestAtArm : public ::testing::Test {
     std::vector<std::string> args{bin("pneud"), "--config", hil_yaml(), "--duration", "0", "--require-telemetry",
                                   "--set", "hal.modbus.port=" + std::to_string(port_), "--set",
                                   "controller.start_armed=false", "--set", "controller.setpoints.schedule=[]",
+                                  // hil.yaml's in-position hold off: the modes judged are the ARM's
+                                  // (the hold's own are its tests')
+                                  "--set", "controller.hold.enabled=false",
                                   "--events", events().string(), "--trajectory", trajectory().string()};
     Child pneud = Child::spawn(pneu::test::loop_timing_faults_off(pneu::test::link_stalls_tolerated(args)),
                                dir_ / "pneud.out", dir_ / "pneud.err");

@@ -60,7 +60,10 @@ constexpr double kVoltStepV = 10.0 / 32767.0;
 // hil.yaml's detection times.
 constexpr double kCommsFaultAfterS = 0.05;
 constexpr double kFollowingErrorS = 2.0;
-constexpr std::int8_t kModeDisarmed = 0, kModeArmed = 1, kModeFault = 2;
+constexpr std::int8_t kModeDisarmed = 0, kModeArmed = 1, kModeFault = 2, kModeHold = 3;
+// Armed and driving: by Eq. 4, or by hil.yaml's in-position hold (on since issue 32), which an ARM
+// at rest at its set point (the present position) takes at once.
+constexpr bool driving(std::int8_t mode) { return mode == kModeArmed || mode == kModeHold; }
 
 
 std::vector<std::string> float32_overrides() {
@@ -251,7 +254,7 @@ class HilFaults : public ::testing::Test {
         limit);
   }
   bool wait_armed_and_running(double ticks) {
-    return telemetry_.wait_health([&](const auto& h) { return h.mode == kModeArmed && h.ticks >= ticks; }, 10s);
+    return telemetry_.wait_health([&](const auto& h) { return driving(h.mode) && h.ticks >= ticks; }, 10s);
   }
   // SIGTERM: the daemon exits promptly, having published a final health message: 0, or 3 when a
   // fault is still latched (`faulted`).
@@ -363,7 +366,7 @@ class HilFaults : public ::testing::Test {
     reset(plant);
     if (HasFatalFailure()) return;
     telemetry_.send(pneu_lcm::command_t::KIND_ARM);
-    ASSERT_TRUE(telemetry_.wait_health([](const auto& h) { return h.mode == kModeArmed; }, 3s)) << "armed again";
+    ASSERT_TRUE(telemetry_.wait_health([](const auto& h) { return driving(h.mode); }, 3s)) << "armed again";
     EXPECT_TRUE(wait_outputs(plant, /*safe=*/false, 3s)) << "the law drives the valves again";
   }
   // A reset while the cause is still there keeps the fault, and pneud says why: the refusal is
@@ -600,7 +603,7 @@ TEST_F(HilFaults, AStuckValveIsAFollowingErrorAfterItsTimeLimit) {
   telemetry_.send(pneu_lcm::command_t::KIND_FAULT_RESET);
   ASSERT_TRUE(telemetry_.wait_health([](const auto& h) { return h.mode == kModeDisarmed; }, 3s));
   telemetry_.send(pneu_lcm::command_t::KIND_ARM);
-  ASSERT_TRUE(telemetry_.wait_health([](const auto& h) { return h.mode == kModeArmed; }, 3s));
+  ASSERT_TRUE(telemetry_.wait_health([](const auto& h) { return driving(h.mode); }, 3s));
   telemetry_.send(pneu_lcm::command_t::KIND_SET_POINT, 0.05);
   EXPECT_TRUE(telemetry_.wait_health([](const auto& h) { return h.mode == kModeFault && h.faults == 2; }, 5s))
       << "the next move: a following error again";

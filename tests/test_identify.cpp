@@ -30,6 +30,10 @@ struct Bench {
   model::PlantParams bench;
 };
 
+// hil.yaml as the sweeps the scenarios below come from ran it: on the in-process plant, the
+// in-position hold off (hil.yaml ships it on since; those scenarios' restarts are what it prevents).
+const std::vector<std::string> kSweepsHil{"hal.backend=sim", "controller.hold.enabled=false"};
+
 Bench mismatched(const std::string& shipped = "") {
   Bench b{shipped.empty() ? config::load_string(config::default_config_yaml())
                           : config::load_file(pneu::test::shipped_config(shipped), {"hal.backend=sim"}),
@@ -174,6 +178,17 @@ TEST(IdentificationRun, StaysWithinTheSoftLimitsAndTakesUnderAMinute) {
   // ... and it goes near both ends of them, which separates the dead volumes.
   EXPECT_LT(lo, b.cfg.controller.soft_limit_min_m + 0.1);
   EXPECT_GT(hi, b.cfg.controller.soft_limit_max_m - 0.1);
+}
+
+// The plan's ramps carry the pressure force across the stiction band again and again; the
+// in-position hold, which hil.yaml and bench.yaml ship on, would drive it to the band's middle
+// instead (and end and begin again at each 10 ms step of the set point). The run drives without it.
+TEST(IdentificationRun, DrivesWithTheHoldOffWhateverTheConfigurationSays) {
+  const Bench b = mismatched("hil.yaml");
+  ASSERT_TRUE(b.cfg.controller.hold.enabled) << "hil.yaml ships with the hold on";
+  const identify::RecordedRun r = record_run(b);
+  EXPECT_FALSE(identify::configured_for(b.cfg, r.plan).controller.hold.enabled);
+  EXPECT_TRUE(identify::configured_for(b.cfg, r.plan).controller.start_armed);
 }
 
 TEST(IdentificationRun, AFaultEndsTheRunAndNothingIsIdentified) {
@@ -725,7 +740,7 @@ int valve_parameters_within_3_sigma(const OnlineRun& r, const model::PlantParams
 // is 10 mV at most, or it is not identified).
 TEST(OnlineIdentification, KeepsTheValvesItIdentifiedNearTheStrokesEndWithHilSensors) {
   const config::Config cfg =
-      config::load_file(pneu::test::hil_yaml(), {"hal.backend=sim"});
+      config::load_file(pneu::test::hil_yaml(), kSweepsHil);
   const model::PlantParams bench =
       sweep_bench(config::simulated_bench(cfg),
                   {51.4346, 41.5546, -48.7893, -43.7132, 50.3059, 1.44733e-08, 8.79404e-10,
@@ -753,7 +768,7 @@ TEST(OnlineIdentification, KeepsTheValvesItIdentifiedNearTheStrokesEndWithHilSen
 // stop's event: the same updates, to the last bit, and the same forecasts. (Scenario 190, as above.)
 TEST(OnlineIdentification, FittedOnItsOwnThreadASimulatedRunMakesTheSameUpdatesAndForecasts) {
   const config::Config cfg =
-      config::load_file(pneu::test::hil_yaml(), {"hal.backend=sim"});
+      config::load_file(pneu::test::hil_yaml(), kSweepsHil);
   const model::PlantParams bench =
       sweep_bench(config::simulated_bench(cfg),
                   {51.4346, 41.5546, -48.7893, -43.7132, 50.3059, 1.44733e-08, 8.79404e-10,
@@ -814,7 +829,7 @@ TEST(OnlineIdentification, AForceReadWhileTheCarriageCreepsIsNotHeldWithIdealSen
 // may hide in the rest band now ends the held forces before the still part's end too, as it does
 // before a breakaway.
 TEST(OnlineIdentification, AForceReadAfterTheCarriageCreptOffIsNotHeldWithHilSensors) {
-  config::Config cfg = config::load_file(pneu::test::hil_yaml(), {"hal.backend=sim"});
+  config::Config cfg = config::load_file(pneu::test::hil_yaml(), kSweepsHil);
   const model::PlantParams bench =
       sweep_bench(config::simulated_bench(cfg),
                   {49.065, 34.4141, -42.8394, -42.8394, 63.7705, 1.71876e-08, 7.32283e-10, 1.43308e-09,
@@ -849,7 +864,7 @@ TEST(OnlineIdentification, AForceReadAfterTheCarriageCreptOffIsNotHeldWithHilSen
 // the estimate now stays within them.
 TEST(OnlineIdentification, AStictionEstimateStaysWithinTheForcesHeldWithHilSensors) {
   const config::Config cfg =
-      config::load_file(pneu::test::hil_yaml(), {"hal.backend=sim"});
+      config::load_file(pneu::test::hil_yaml(), kSweepsHil);
   const model::PlantParams bench =
       sweep_bench(config::simulated_bench(cfg),
                   {46.14105910438068, 39.925974454745933, -45.12807586594348, -36.885359633264052,
@@ -952,7 +967,7 @@ TEST(OnlineIdentification,
 // valve fit now stops where the breakaway's onset could begin.
 TEST(OnlineIdentification, EveryValveParameterPublishedStatesAnUncertaintyThatCoversItsErrorWithHilSensors) {
   const config::Config cfg =
-      config::load_file(pneu::test::hil_yaml(), {"hal.backend=sim"});
+      config::load_file(pneu::test::hil_yaml(), kSweepsHil);
   const Scenario scenarios[] = {
       {1,
        {38.752116412819461, 38.752116412819461, -41.704946085707007, -41.704946085707007, 66.696933592672522,
@@ -999,7 +1014,7 @@ TEST(OnlineIdentification, EveryValveParameterPublishedStatesAnUncertaintyThatCo
 // uncertainty that covers its error.
 TEST(OnlineIdentification, ASingleFastBreakawaysStictionStatesAnUncertaintyThatCoversItsError) {
   const config::Config cfg =
-      config::load_file(pneu::test::hil_yaml(), {"hal.backend=sim"});
+      config::load_file(pneu::test::hil_yaml(), kSweepsHil);
   const model::PlantParams bench =
       sweep_bench(config::simulated_bench(cfg),
                   {45.1792, 34.0915, -56.1286, -33.1991, 57.1752, 1.46683e-08, 9.52179e-10,

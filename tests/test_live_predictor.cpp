@@ -362,14 +362,16 @@ TEST(LivePredictor, AnUpdatePeriodUnderTheLoopsMakesTheForecastsAgainEveryTick) 
   }
 }
 
-// HIL's sensors (16-bit ADCs, noise) on the in-process plant: while the carriage is still, the
+// HIL's sensors (16-bit ADCs, noise) on the in-process plant (hil.yaml's hold off: the sticking
+// phase judged here is the one it prevents): while the carriage is still, the
 // potentiometer reading toggles between codes 7.6 um apart and the velocity and acceleration
 // estimates carry the noise. At rest the loop holds u* at the stop's rest position: the valves see
 // one constant u through the whole sticking phase, the u* every forecast of that stop assumed.
 TEST(LivePredictor, AtRestTheLoopHoldsTheUStarOfTheForecastsWhateverThePotentiometerReads) {
   const LiveRun r(LiveRun::Loaded{config::load_file(fs::path(PNEU_SOURCE_DIR) / "config/hil.yaml",
                                                     {"hal.backend=sim", "controller.clock=simulated",
-                                                     "controller.law.gains=fixed"})},
+                                                     "controller.law.gains=fixed",
+                                                     "controller.hold.enabled=false"})},  // the phase the hold prevents
                   1, true);
   const StopOutcome& s = r.longest_restart();
   ASSERT_GE(s.sticking_s(), 1.0);

@@ -156,6 +156,9 @@ class PymodbusInterop : public ::testing::Test {
     // sensor after 0.2 s: a fault (exit 3 since issue 29; before, silent) that put the valves at the
     // safe output for the rest of the run. Not this test's subject: off.
     args.insert(args.end(), {"--set", "controller.supervisor.frozen_after_s=0"});
+    // hil.yaml's in-position hold drives u at rest by the measured force: off, so that every tick
+    // sends the same u* (the command the module holds, below).
+    args.insert(args.end(), {"--set", "controller.hold.enabled=false"});
     args.insert(args.end(), extra.begin(), extra.end());
     return Child::spawn(pneu::test::loop_timing_faults_off(std::move(args)), dir_ / "pneud.out", dir_ / "pneud.err");
   }

@@ -106,6 +106,10 @@ config::Config configured_for(config::Config cfg, const RunPlan& plan) {
   cfg.controller.schedule = plan.schedule;
   cfg.controller.duration_s = plan.duration_s;
   cfg.controller.start_armed = true;
+  // Without the in-position hold: the plan's ramps are to carry the pressure force across the
+  // stiction band, again and again, where the hold would drive it to the band's middle (and end
+  // and begin again at every 10 ms step of the set point). The written file keeps it as it was.
+  cfg.controller.hold.enabled = false;
   return cfg;
 }
 

@@ -105,7 +105,8 @@ class Progress final : public controller::RunListener {
 /// The sample a tick gives.
 [[nodiscard]] Sample sample_of(const controller::TickRecord& tick) noexcept;
 
-/// `config` with the plan's set points and length in force (armed from the start).
+/// `config` with the plan's set points and length in force (armed from the start, the in-position
+/// hold off).
 [[nodiscard]] config::Config configured_for(config::Config config, const RunPlan& plan);
 /// `spec` so configured, driven by `law` (identification_law()).
 [[nodiscard]] assembly::RunSpec configured_for(const assembly::RunSpec& spec, const RunPlan& plan,
