@@ -55,7 +55,7 @@ TEST(YamlText, ReplacesAValueAndKeepsEveryOtherByteItsCommentAtItsColumn) {
   // Longer: the comment moves only as far as it must; shorter: it stays at its column.
   EXPECT_THAT(with_value(kBench, "plant.friction.static_positive_n", "45.31234567"),
               HasSubstr("\n    static_positive_n: 45.31234567  # F_S+ [N]\n"));
-  EXPECT_THAT(with_value(kBench, "plant.mass_kg", "9"), HasSubstr("\n  mass_kg: 9             # M: moving mass [kg]\n"));
+  EXPECT_THAT(with_value(kBench, "plant.mass_kg", "9"), HasSubstr("\n  mass_kg: 9            # M: moving mass [kg]\n"));
 }
 
 TEST(YamlText, FindsTheValueBesideItsInlineCommentAndInsideQuotes) {
@@ -70,7 +70,8 @@ TEST(YamlText, FindsTheValueBesideItsInlineCommentAndInsideQuotes) {
   EXPECT_FALSE(yaml_text::find(text, "plant.friction.viscous_n_s_per_m").has_value());
   EXPECT_FALSE(yaml_text::find(text, "plant.mass").has_value()) << "a key is matched whole";
   EXPECT_THAT(with_value(text, "telemetry.lcm_url", "\"udpm://239.255.76.67:7667?ttl=1\""),
-              HasSubstr("  lcm_url: \"udpm://239.255.76.67:7667?ttl=1\"   # a '#' inside quotes\n"));
+              HasSubstr("  lcm_url: \"udpm://239.255.76.67:7667?ttl=1\"     # a '#' inside quotes\n"))
+      << "two characters shorter: the comment at its column";
 }
 
 TEST(YamlText, AddsANoteAfterTheCommentAndReplacesAnEarlierNoteOfTheSameWord) {
@@ -211,8 +212,10 @@ TEST(ConfigText, WritesAListWholeAndASectionTheTextLacks) {
     EXPECT_THAT(out, HasSubstr("    schedule: [{t_s: 1, position_m: 0.05}, {t_s: 2.5, position_m: -0.05}]"));
     EXPECT_THAT(out, HasSubstr("  thermal:"));
     EXPECT_THAT(out, HasSubstr("    heat_transfer_w_per_m2_k: 12.5"));
+    // The list's lines in block style are its value, replaced; nothing else is.
     const test::Edits e = test::edits(text, out);
-    EXPECT_THAT(e.lost, IsEmpty());
+    if (std::string(file) == "sim.yaml") EXPECT_THAT(e.lost, ElementsAre("      - {t_s: 1.0, position_m: 0.170}"));
+    else EXPECT_THAT(e.lost, IsEmpty());
   }
 }
 
