@@ -219,6 +219,30 @@ TEST(ConfigText, WritesAListWholeAndASectionTheTextLacks) {
   }
 }
 
+// hal.sim.plant gives only the keys it changes, each over plant:'s: a plant: written anew would
+// change the simulated bench too; the keys that keep it as it was are written into hal.sim.plant.
+TEST(ConfigText, KeepsASimulatedBenchLaidOverPlantAsItWasWhenPlantChanges) {
+  std::string text = text_of(test::shipped_config("sim.yaml"));
+  const std::string hal = "  backend: sim";
+  text.insert(text.find('\n', text.find(hal)) + 1,
+              "  sim:                             # the simulated bench: plant: but these\n"
+              "    plant:\n"
+              "      friction:\n"
+              "        static_positive_n: 50.0     # a bench that sticks more\n");
+  const Config source = load_string(text);
+  ASSERT_EQ(source.hal.sim.plant.friction.coulomb_positive_n, 35.0);
+  Config target = source;
+  target.plant.friction.coulomb_positive_n = 33.5;
+  target.plant.friction.viscous_n_s_per_m = 61.0;
+  const std::string out = with_values_of(text, target, {}, nullptr, "sim.yaml");
+  EXPECT_EQ(schema::values_of(load_string(out)), schema::values_of(target));
+  EXPECT_EQ(load_string(out).hal.sim.plant.friction.coulomb_positive_n, 35.0) << "the bench as it was";
+  EXPECT_THAT(out, HasSubstr("        static_positive_n: 50.0     # a bench that sticks more\n"
+                             "        coulomb_positive_n: 35\n"
+                             "        viscous_n_s_per_m: 60\n"));
+  EXPECT_THAT(test::edits(text, out).lost, IsEmpty());
+}
+
 TEST(ConfigText, RefusesWhatItCannotWriteInPlace) {
   const std::string bench = text_of(test::shipped_config("bench.yaml"));
   Config target = load_string(bench);
