@@ -2,7 +2,7 @@
 # pneu-identify (issue 15, offline): from pneud's trajectory of an ordinary run it writes a
 # configuration pneud loads; a record that cannot identify the bench is refused naming what is
 # missing (exit 2), as is one lacking a column; nothing is written then.
-#   test_pneu_identify_cli.sh BINARY_DIR
+#   test_pneu_identify_cli.sh BINARY_DIR SOURCE_DIR
 set -euo pipefail
 bin=$1/bin
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
@@ -16,6 +16,23 @@ grep -qE '^plant.friction.static_negative_n +-50 +-55\.0' "$tmp/out.txt" || fail
 grep -qE '^plant.friction.static_positive_n .*no breakaway in the positive direction' "$tmp/out.txt" \
   || fail "F_S+ reported not identified: the run restarts one way"
 "$bin/pneud" --config "$tmp/id.yaml" --check-config > /dev/null || fail "the written configuration loads"
+# The parameter table first (after the line saying what it was identified from), the evidence after.
+[ "$(sed -n 2p "$tmp/out.txt" | cut -c1-10)" = "parameter " ] || fail "the parameter table leads the report"
+table=$(grep -n '^parameter ' "$tmp/out.txt" | cut -d: -f1); evidence=$(grep -n '^evidence: ' "$tmp/out.txt" | cut -d: -f1)
+[ "$table" -lt "$evidence" ] || fail "the evidence (line $evidence) comes after the table (line $table)"
+# The header: when, by what, from which record, the fit; then the source's text.
+head -1 "$tmp/id.yaml" | grep -qE '^# identified [0-9-]+ [0-9:]+ UTC by pneu-identify [^:]+: pneu-identify --trajectory ' \
+  || fail "the header says when and by what: $(head -1 "$tmp/id.yaml")"
+grep -qF "# from the trajectory $tmp/run.csv: " "$tmp/id.yaml" || fail "the header names the record"
+grep -q '^# the fit: ' "$tmp/id.yaml" || fail "the header gives the fit's residual"
+grep -qE '^ +static_negative_n: -5[0-9.]+ .*# identified [0-9-]+: -5[0-9.]+ \+- [0-9.e-]+ \(was -50\)$' "$tmp/id.yaml" \
+  || fail "F_S- replaced in place, its sigma beside it"
+
+# From a configuration file with comments (--config), its text and comments are kept.
+"$bin/pneu-identify" --quiet --trajectory "$tmp/run.csv" --config "$2/config/sim.yaml" --out "$tmp/commented.yaml" \
+  || fail "identified with --config"
+grep -qF '# pneu default configuration: the in-process simulated bench' "$tmp/commented.yaml" \
+  || fail "sim.yaml's comments kept"
 
 # Without --config, the run's own configuration, the one pneud wrote beside the trajectory, is
 # the prior: what the run was given with --set is kept in the written configuration.

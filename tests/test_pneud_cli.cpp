@@ -586,8 +586,34 @@ TEST_F(PneudCli, IdentifyWritesTheConfigurationWithPlantIdentifiedAndTheSameBenc
   EXPECT_EQ(c.hal.sim.plant.friction.static_positive_n, 50.0) << "the simulated bench as it was";
   EXPECT_EQ(c.controller.schedule.size(), 1u) << "the configured set points, not the identification run's";
   EXPECT_EQ(c.controller.duration_s, 12.0);
-  // What it identified, at the top of the file.
-  EXPECT_THAT(slurp(out), ::testing::StartsWith("# plant: identified by pneu pneud --identify\n"));
+  // When, by what, from which run, at the top of the file; then sim.yaml's text, its comments kept.
+  const std::string written = slurp(out);
+  EXPECT_THAT(written, ::testing::StartsWith("# identified 20"));
+  EXPECT_THAT(written, ::testing::ContainsRegex("^# identified [0-9-]+ [0-9:]+ UTC by pneud [^:]+: pneud --identify "));
+  EXPECT_THAT(written, ::testing::HasSubstr("\n# from its own identification run: "));
+  EXPECT_THAT(written, ::testing::HasSubstr("on the sim backend (the in-process simulated bench), simulated clock\n"));
+  EXPECT_THAT(written, ::testing::HasSubstr("\n# the fit: the model fits the stuck phases' pressures: "));
+  EXPECT_THAT(written, ::testing::HasSubstr("\n# pneu default configuration: the in-process simulated bench"));
+  EXPECT_THAT(written, ::testing::ContainsRegex("\n    static_positive_n: [0-9.]+ +# F_S\\+: stiction, positive motion "
+                                                "\\[N\\], > 0, >= F_C\\+  # identified [0-9-]+: [0-9.]+ \\+- [0-9.e-]+ "
+                                                "\\(was 45\\)\n"));
+}
+
+// What a user reads first is what was identified: the parameter table, before and after with
+// each sigma; the run's summary (its stops, a hundred lines) after it.
+TEST_F(PneudCli, IdentifyPrintsTheParameterTableFirstAndTheRunsSummaryAfterIt) {
+  const fs::path out = file("identified.yaml");
+  const Outcome o = pneud("--identify " + quoted(out));
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  const std::size_t table = o.out.find("\nparameter "), evidence = o.out.find("\nevidence: "),
+                    written = o.out.find("\nwritten: "), stops = o.out.find("stops (sticking phases)");
+  ASSERT_NE(table, std::string::npos) << o.out;
+  EXPECT_THAT(o.out.substr(0, table), ::testing::StartsWith("identified from the run's own signals (")) << "its first line";
+  EXPECT_EQ(std::count(o.out.begin(), o.out.begin() + static_cast<std::ptrdiff_t>(table), '\n'), 0)
+      << "the table comes second, after the line saying what was identified from";
+  EXPECT_LT(table, evidence);
+  EXPECT_LT(evidence, written);
+  EXPECT_LT(written, stops) << "the run's summary after";
 }
 
 TEST_F(PneudCli, IdentifyStopsAtAFaultInTheSafeStateAndWritesNothing) {

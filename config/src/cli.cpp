@@ -25,6 +25,15 @@ Args::Args(int argc, char** argv, int first, std::vector<std::string> value_opti
   std::string help = argc > 0 ? std::filesystem::path(argv[0]).filename().string() : std::string("the program");
   if (first > 1 && argc > 1) help += std::string(" ") + argv[1];
   help = " (see " + help + " --help)";
+  command_line_ = argc > 0 ? std::filesystem::path(argv[0]).filename().string() : std::string();
+  for (int i = 1; i < argc; ++i) {
+    const std::string word = argv[i];
+    const bool plain = !word.empty() && word.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
+                                                                "0123456789-_.,/=:+@%") == std::string::npos;
+    std::string quoted = "'";
+    for (const char c : word) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    command_line_ += " " + (plain ? word : quoted + "'");
+  }
   for (int i = first; i < argc; ++i) {
     std::string arg = argv[i];
     if (arg == "-h" && contains(flags, "help")) arg = "--help";

@@ -8,7 +8,10 @@
 #include <cmath>
 #include <concepts>
 #include <fstream>
+#include <functional>
 #include <iterator>
+#include <map>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <type_traits>
@@ -16,6 +19,7 @@
 
 #include "pneu/config/schema.hpp"
 #include "pneu/config/spelling.hpp"
+#include "pneu/config/yaml_text.hpp"
 #include "yaml_reader.hpp"
 
 namespace pneu::config {
@@ -436,7 +440,10 @@ Config load_string(std::string_view yaml, const std::vector<std::string>& overri
   return decode(root);
 }
 
-Config load_file(const std::filesystem::path& path, const std::vector<std::string>& overrides) {
+namespace {
+
+// The file's text, refused as load_file() refuses it.
+std::string file_text(const std::filesystem::path& path) {
   std::error_code ec;
   const auto status = std::filesystem::status(path, ec);
   if (std::filesystem::is_directory(status))
@@ -453,7 +460,17 @@ Config load_file(const std::filesystem::path& path, const std::vector<std::strin
   std::string text(kMaxDocumentBytes + 1, '\0');
   in.read(text.data(), static_cast<std::streamsize>(text.size()));
   text.resize(static_cast<std::size_t>(in.gcount()));
-  return load_string(text, overrides, path.string());
+  return text;
+}
+
+}  // namespace
+
+Config load_file(const std::filesystem::path& path, const std::vector<std::string>& overrides) {
+  return load_string(file_text(path), overrides, path.string());
+}
+
+std::string text_of(const std::filesystem::path& path) {
+  return path.empty() ? std::string(default_config_yaml()) : file_text(path);
 }
 
 const model::PlantParams& simulated_bench(const Config& config) noexcept {
@@ -558,6 +575,105 @@ std::string to_yaml(const Config& c) {
   schema::describe(w, c);
   e << YAML::EndMap;
   return std::string(e.c_str()) + "\n";
+}
+
+namespace {
+
+// A value of to_yaml()'s document on one line: a scalar as written, a collection in flow style.
+std::string one_line(YAML::Node node) {
+  const std::function<void(YAML::Node)> flow = [&](YAML::Node n) {
+    if (!n.IsMap() && !n.IsSequence()) return;
+    n.SetStyle(YAML::EmitterStyle::Flow);
+    for (auto it = n.begin(); it != n.end(); ++it) {
+      if (n.IsMap()) flow(it->second);
+      else flow(*it);
+    }
+  };
+  flow(node);
+  YAML::Emitter e;
+  e << node;
+  return e.c_str();
+}
+
+// The node at a dotted key path of a document.
+YAML::Node node_at(const YAML::Node& root, const std::string& path) {
+  YAML::Node n = root;
+  std::stringstream keys(path);
+  for (std::string key; std::getline(keys, key, '.');) {
+    const YAML::Node& parent = n;
+    n.reset(parent[key]);
+  }
+  return n;
+}
+
+}  // namespace
+
+std::string with_values_of(std::string_view source, const Config& target, const std::vector<std::string>& always,
+                           const NoteOf& note_of, std::string_view origin) {
+  using Values = std::map<std::string, std::string>;
+  const auto values = [](const Config& c) {
+    const auto listed = schema::values_of(c);
+    return Values(listed.begin(), listed.end());
+  };
+  const Values wanted = values(target);
+  // The keys to_yaml() writes, in its order: what may be written, and how.
+  std::map<std::string, std::size_t> order;
+  std::map<std::string, schema::KeyKind> kind;
+  for (const schema::KeyInfo& k : schema::keys_of(target)) {
+    order.emplace(k.path, order.size());
+    kind.emplace(k.path, k.kind);
+  }
+  const YAML::Node document = YAML::Load(to_yaml(target));
+  std::string text(source);
+  const Values was = values(load_string(text, {}, origin));
+  std::set<std::string> written;
+  for (bool first = true;; first = false) {
+    const Values got = first ? was : values(load_string(text, {}, origin));
+    std::set<std::string> due;
+    if (first) due.insert(always.begin(), always.end());
+    const auto differs = [&](const std::string& path) {
+      const auto w = wanted.find(path), g = got.find(path);
+      if (w != wanted.end() && g != got.end() && w->second == "absent" && g->second == "present")
+        throw ConfigError(path, "the source has this optional section and the configuration to write does not: a "
+                                "section is not removed");
+      // A list entry's key: the list's, written whole.
+      const std::string key = path.substr(0, path.find('['));
+      const auto k = kind.find(key);
+      if (k == kind.end()) {
+        // Not written by to_yaml() either: the keys of a section left out (their defaults), an
+        // ignored key.
+        if (key == path) return;
+        throw ConfigError(key, "its entries are not those to write, and the list is not written");
+      }
+      if (k->second != schema::KeyKind::kSection) {
+        due.insert(key);
+        return;
+      }
+      // An optional section the source lacks: written with all of its keys.
+      for (const auto& [p, what] : kind)
+        if (p.starts_with(key + ".") && what != schema::KeyKind::kSection && p.find('[') == std::string::npos)
+          due.insert(p);
+    };
+    for (const auto& [path, value] : wanted)
+      if (const auto g = got.find(path); g == got.end() || g->second != value) differs(path);
+    for (const auto& [path, value] : got)
+      if (!wanted.contains(path)) differs(path);
+    if (due.empty()) return text;
+    std::vector<std::string> keys(due.begin(), due.end());
+    for (const std::string& key : keys)
+      if (!order.contains(key)) throw ConfigError(key, "not a key the configuration to write has");
+    std::sort(keys.begin(), keys.end(), [&](const auto& a, const auto& b) { return order.at(a) < order.at(b); });
+    for (const std::string& key : keys) {
+      // Written once: a key written that does not load back to its value would be written forever.
+      if (!written.insert(key).second)
+        throw ConfigError(key, "written as " + one_line(node_at(document, key)) + ", it does not load back to it");
+      // What it was: where the source has the key (a key it leaves out has its default).
+      const auto w = was.find(key);
+      const bool given = w != was.end() && yaml_text::find(source, key).has_value();
+      text = yaml_text::with_value(text, key, one_line(node_at(document, key)),
+                                   note_of ? note_of(key, given ? w->second : "") : "");
+    }
+  }
 }
 
 }  // namespace pneu::config

@@ -93,7 +93,7 @@ bool DaemonRun::real_clock() const noexcept { return config().controller.clock =
 
 bool DaemonRun::interrupted() const noexcept { return g_stop.load(); }
 
-controller::RunFigures DaemonRun::execute(const std::atomic<bool>* fault_stop) {
+controller::RunFigures DaemonRun::execute(const std::atomic<bool>* fault_stop, bool summary_later) {
   const config::Config& cfg = config();
   controller::Run& run = run_->run();
   const bool real = real_clock();
@@ -174,8 +174,12 @@ controller::RunFigures DaemonRun::execute(const std::atomic<bool>* fault_stop) {
   files_->commit();
   if (telemetry_) figures.telemetry = telemetry_->figures();
   files_->write_summary_json(figures, *run.runtime);
-  if (!quiet_) controller::print_summary(stdout, figures, *run.runtime);
+  if (!summary_later) print_summary(figures);
   return figures;
+}
+
+void DaemonRun::print_summary(const controller::RunFigures& figures) const {
+  if (!quiet_) controller::print_summary(stdout, figures, *run_->run().runtime);
 }
 
 int DaemonRun::ended(const controller::RunFigures& figures) const {

@@ -39,9 +39,12 @@ class DaemonRun {
 
   /// Starts LCM (another controller heard on its channels: refused, before anything is driven),
   /// runs the run to its end on the configured clock, puts the files into place (those of a run
-  /// that failed once started, too) and writes the summary (on stdout unless --quiet). With
-  /// `fault_stop`, that flag stops the run as well (an identification run's first fault).
-  [[nodiscard]] controller::RunFigures execute(const std::atomic<bool>* fault_stop = nullptr);
+  /// that failed once started, too) and writes the summary (print_summary(), unless
+  /// `summary_later`: the mode prints it after what it has to say first). With `fault_stop`, that
+  /// flag stops the run as well (an identification run's first fault).
+  [[nodiscard]] controller::RunFigures execute(const std::atomic<bool>* fault_stop = nullptr, bool summary_later = false);
+  /// The run's summary, on stdout unless --quiet.
+  void print_summary(const controller::RunFigures& figures) const;
 
   /// A fault still latched, or the safe output not confirmed: said last on stderr. The exit code.
   [[nodiscard]] int ended(const controller::RunFigures& figures) const;

@@ -4,6 +4,7 @@
 // configured set points (learning online or not), or an identification run.
 #include <atomic>
 #include <cstdio>
+#include <ctime>
 #include <filesystem>
 #include <iostream>
 #include <optional>
@@ -15,6 +16,8 @@
 #include "pneu/assembly/run_spec.hpp"
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
+#include "pneu/config/yaml_text.hpp"
+#include "pneu/config/text.hpp"
 #include "pneu/controller/run_summary.hpp"
 #include "pneu/controller/runtime.hpp"
 #include "pneu/identify/identification_run.hpp"
@@ -68,7 +71,10 @@ Usage:
                      then plant: identified from the run's own
                      signals (stiction, Coulomb and viscous friction, the valves' conductances and
                      null offset, the dead volumes) and written, with the rest of the configuration,
-                     to OUT.yaml; each parameter is printed before and after with its uncertainty.
+                     to OUT.yaml: the text of --config (its comments kept), each identified value
+                     replaced in place with its uncertainty beside it, under a header saying when,
+                     from which run and with which fit residual; each parameter is printed before
+                     and after with its uncertainty, then the evidence, then the run's summary.
                      A fault ends the run in the safe state and writes nothing (exit 3); a run that
                      showed too little to identify writes nothing either, naming what is missing
                      (exit 1)
@@ -185,32 +191,52 @@ int identification_run(const cli::Args& args, const std::string& config_path, co
   } catch (const std::invalid_argument& e) {
     throw config::ConfigError("controller.soft_limit_min_m", e.what());
   }
+  // The text the configuration came from, read now: its comments are kept in the file written.
+  const std::string source_text = config::text_of(config_path);
   std::atomic<bool> fault_stop{false};
   DaemonRun daemon(args, config_path, identify::configured_for(start, plan, std::move(law)));
   const identify::Recorder& recorder = daemon.assembled().emplace_sink<identify::Recorder>(fault_stop);
   // On the real clock the run lasts about a minute: how it goes, on stderr.
   if (daemon.real_clock()) daemon.assembled().emplace_sink<identify::Progress>(plan, stderr);
-  const controller::RunFigures figures = daemon.execute(&fault_stop);
+  // The run's summary (its stops, the loop's timing: a hundred lines) comes after what it identified.
+  const controller::RunFigures figures = daemon.execute(&fault_stop, true);
   if (!recorder.fault().empty()) {  // the run stops at its first fault: still latched (exit 3, or 4)
+    daemon.print_summary(figures);
     std::fprintf(stderr, "pneud: the identification run ended at t = %s s by a fault, %s: outputs in the safe state, "
                          "nothing written\n", std::to_string(recorder.fault_time_s()).c_str(), recorder.fault().c_str());
     return controller::exit_code(controller::run_ending(figures));
   }
-  if (daemon.interrupted()) throw std::runtime_error("the identification run was interrupted: nothing written");
+  if (daemon.interrupted()) {
+    daemon.print_summary(figures);
+    throw std::runtime_error("the identification run was interrupted: nothing written");
+  }
   identify::Identification id;
   try {
     id = identify::identify(recorder.samples(), as_configured.plant, identify::options_for(as_configured));
   } catch (const identify::InsufficientData& e) {
+    daemon.print_summary(figures);
     throw std::runtime_error(std::string("the identification run showed too little: ") + e.what() + "; nothing written");
   }
+  const double run_s = recorder.samples().empty() ? 0.0 : recorder.samples().back().t_s - recorder.samples().front().t_s;
   if (!daemon.quiet()) {
-    std::printf("identified from the run's own signals (%zu ticks):\n", recorder.samples().size());
+    std::printf("identified from the run's own signals (%zu ticks over %.1f s):\n", recorder.samples().size(), run_s);
     identify::print_report(stdout, id);
   }
+  const identify::IdentifiedYaml yaml = identify::identified_config_yaml(
+      source_text, as_configured, id,
+      {"pneud " PNEU_VERSION, args.command_line(),
+       text::format("its own identification run: %zu ticks over %.2f s", recorder.samples().size(), run_s), config_path,
+       std::time(nullptr)});
   cli::OutputFile& identified = *daemon.files().identified();
-  identified.stream() << identify::identified_config_yaml(as_configured, id, "pneud --identify");
+  identified.stream() << yaml.text;
   identified.commit();
   std::printf("written: %s\n", identified.path().c_str());
+  if (!yaml.text_not_kept.empty())
+    std::fprintf(stderr, "pneud: warning: %s: the whole configuration, without the comments of %s: %s\n",
+                 identified.path().c_str(), config_path.empty() ? "the embedded sim.yaml" : config_path.c_str(),
+                 yaml.text_not_kept.c_str());
+  if (!daemon.quiet()) std::printf("\nthe identification run:\n");
+  daemon.print_summary(figures);
   return daemon.ended(figures);
 }
 

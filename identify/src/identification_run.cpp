@@ -1,9 +1,12 @@
 #include "pneu/identify/identification_run.hpp"
 #include "pneu/config/config.hpp"
+#include "pneu/config/yaml_text.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
+#include <map>
 #include <memory>
 #include <stdexcept>
 #include <utility>
@@ -150,7 +153,46 @@ Identification identify_by_run(const assembly::RunSpec& spec, const model::Plant
   return identify(r.samples, config.plant, o);
 }
 
-std::string identified_config_yaml(const config::Config& config, const Identification& id, const std::string& source) {
+namespace {
+
+// The backend a configuration runs on, and its clock: "the sim backend (the in-process simulated
+// bench), simulated clock", "the modbus backend (tcp 192.168.1.10:502), real clock".
+std::string bench_of(const config::Config& c) {
+  std::string text;
+  if (c.hal.backend == config::BackendKind::kModbus) {
+    const config::ModbusConfig& m = c.hal.modbus;
+    text = m.transport == config::ModbusTransport::kTcp ? "the modbus backend (tcp " + m.host + ":" + std::to_string(m.port) + ")"
+                                                        : "the modbus backend (rtu " + m.device + ")";
+  } else {
+    text = "the sim backend (the in-process simulated bench)";
+  }
+  return text + (c.controller.clock == config::ClockKind::kReal ? ", real clock" : ", simulated clock");
+}
+
+// The day (2026-11-28) and the minute (2026-11-28 08:31 UTC) of `when`, in UTC.
+std::string utc(std::time_t when, bool with_time) {
+  std::tm tm{};
+  gmtime_r(&when, &tm);
+  char text[64];
+  const std::size_t n = with_time ? std::strftime(text, sizeof text, "%Y-%m-%d %H:%M UTC", &tm)
+                                  : std::strftime(text, sizeof text, "%Y-%m-%d", &tm);
+  return std::string(text, n);
+}
+
+// `text` without the header of an earlier identification (up to kEndOfIdentifiedHeader's line).
+std::string_view without_earlier_header(std::string_view text) {
+  if (!text.starts_with("# identified ")) return text;
+  const std::string end = std::string("\n") + kEndOfIdentifiedHeader;
+  const std::size_t at = text.find(end);
+  if (at == std::string_view::npos) return text;
+  const std::size_t next = text.find('\n', at + end.size());
+  return next == std::string_view::npos ? std::string_view() : text.substr(next + 1);
+}
+
+}  // namespace
+
+IdentifiedYaml identified_config_yaml(std::string_view source_text, const config::Config& config, const Identification& id,
+                                      const Provenance& from) {
   config::Config out = config;
   out.plant = id.plant;
   // How well the model fitted: forecasts made on a misfit say they are uncertain.
@@ -159,23 +201,63 @@ std::string identified_config_yaml(const config::Config& config, const Identific
     out.controller.predictor.model_fit = {id.evidence.pressure_rms_residual_pa, id.evidence.pressure_explained_pa};
   }
   // A simulated bench that was its model stays what it was: the run identified it, it did not change.
-  if (config.hal.backend == config::BackendKind::kSim && !config.hal.sim.has_plant) {
+  const bool bench_kept = config.hal.backend == config::BackendKind::kSim && !config.hal.sim.has_plant;
+  if (bench_kept) {
     out.hal.has_sim = out.hal.sim.has_plant = true;
     out.hal.sim.plant = config.plant;
   }
-  std::string text = "# plant: identified by pneu " + source + "\n# " + fit_verdict(id.evidence) +
-                     "\n# identified (value +- 1 sigma, was):\n";
+  const std::string day = utc(from.when, false);
+  // The notes beside the values written: each identified one with its sigma and what it was.
+  std::vector<std::string> identified;
+  std::map<std::string, std::string> notes;
   char line[256];
   for (const Estimate& e : id.estimates) {
-    if (e.identified)
-      std::snprintf(line, sizeof line, "#   %s: %.6g +- %.2g (was %.6g)\n", e.key.c_str(), e.value, e.std, e.prior);
-    else
-      std::snprintf(line, sizeof line, "#   %s: %.6g kept (%s)\n", e.key.c_str(), e.value, e.basis.c_str());
-    text += line;
+    if (!e.identified) continue;
+    identified.push_back(e.key);
+    std::snprintf(line, sizeof line, "identified %s: %.6g +- %.2g (was %.6g)", day.c_str(), e.value, e.std, e.prior);
+    notes[e.key] = line;
   }
-  text += config::to_yaml(out);
-  (void)config::load_string(text, {}, "the identified configuration");  // a rule broken is refused here
-  return text;
+  const config::NoteOf note_of = [&](const std::string& path, const std::string& was) -> std::string {
+    if (const auto n = notes.find(path); n != notes.end()) return n->second;
+    if (path.starts_with("hal.sim.")) return "";  // the bench the run ran on (the header says so)
+    if (path.starts_with("controller.predictor.model_fit."))
+      return "identified " + day + ": how well plant: fits" + (was.empty() ? "" : " (was " + was + ")");
+    return "identified " + day + ": as the run had it (--set)" + (was.empty() ? "" : ", was " + was);
+  };
+  IdentifiedYaml result;
+  const std::string_view source = without_earlier_header(source_text);
+  const std::string origin = from.source.empty() ? "the embedded sim.yaml" : from.source;
+  std::string body;
+  try {
+    body = config::with_values_of(source, out, identified, note_of, origin);
+  } catch (const config::ConfigError& e) {
+    (void)config::load_string(config::to_yaml(out), {}, "the identified configuration");  // a rule broken is refused here
+    result.text_not_kept = std::string(e.what());
+    body = config::to_yaml(out);
+  }
+  // The header: when, by what, from which record on which bench, the fit, what the file is.
+  std::string h = "# identified " + utc(from.when, true) + " by " + from.program + ": " + from.command +
+                  "\n# from " + from.record + ", on " + bench_of(config) + "\n# the fit: " + fit_verdict(id.evidence) +
+                  "\n";
+  if (result.text_not_kept.empty())
+    h += "# below: " + origin + " as it was, its comments kept; each value identified replaced in place with its 1-sigma "
+         "uncertainty and the value it replaced beside it (# identified " + day + ": value +- sigma (was ...))\n";
+  else
+    h += "# below: the whole configuration, as pneud writes it: the text of " + origin + " could not be kept (" +
+         result.text_not_kept + ")\n";
+  std::string kept;
+  for (const Estimate& e : id.estimates)
+    if (!e.identified) kept += (kept.empty() ? "" : "; ") + e.key + " (" + e.basis + ")";
+  if (!kept.empty()) h += "# not identified, kept: " + kept + "\n";
+  if (bench_kept)
+    h += "# hal.sim.plant: the simulated bench the run identified, plant: as it was, so that this file runs the same "
+         "bench\n";
+  else if (config.hal.backend == config::BackendKind::kSim)
+    h += "# hal.sim.plant: the simulated bench the run identified, as the run had it\n";
+  h += std::string(kEndOfIdentifiedHeader) + "\n";
+  result.text = h + body;
+  (void)config::load_string(result.text, {}, "the identified configuration");  // a rule broken is refused here
+  return result;
 }
 
 std::string fit_verdict(const Evidence& e) {
@@ -227,6 +309,13 @@ std::string fit_verdict(const Evidence& e) {
 }
 
 void print_report(std::FILE* out, const Identification& id) {
+  std::fprintf(out, "%-46s %12s %12s %10s  %s\n", "parameter", "before", "after", "+- 1 sigma", "from");
+  for (const Estimate& x : id.estimates) {
+    if (x.identified)
+      std::fprintf(out, "%-46s %12.5g %12.5g %10.2g  %s\n", x.key.c_str(), x.prior, x.value, x.std, x.basis.c_str());
+    else
+      std::fprintf(out, "%-46s %12.5g %12s %10s  %s\n", x.key.c_str(), x.prior, "(kept)", "", x.basis.c_str());
+  }
   const Evidence& e = id.evidence;
   std::fprintf(out,
                "evidence: %d stuck phases (%d fitted, %.1f s stuck, over %.0f mm, u over %.3f V), breakaways %d "
@@ -239,13 +328,6 @@ void print_report(std::FILE* out, const Identification& id) {
     std::fprintf(out, "timing: the loop skipped %d deadlines within the fitted phases (of %d samples)\n",
                  e.fitted_deadlines_skipped, e.fitted_samples);
   if (e.fitted_phases > 0) std::fprintf(out, "fit: %s\n", fit_verdict(e).c_str());
-  std::fprintf(out, "%-46s %12s %12s %10s  %s\n", "parameter", "before", "after", "+- 1 sigma", "from");
-  for (const Estimate& x : id.estimates) {
-    if (x.identified)
-      std::fprintf(out, "%-46s %12.5g %12.5g %10.2g  %s\n", x.key.c_str(), x.prior, x.value, x.std, x.basis.c_str());
-    else
-      std::fprintf(out, "%-46s %12.5g %12s %10s  %s\n", x.key.c_str(), x.prior, "(kept)", "", x.basis.c_str());
-  }
 }
 
 Options options_for(const config::Config& cfg) {

@@ -2,6 +2,7 @@
 // --trajectory file, pneu-log2csv's state CSV, or an LCM log of the daemon's <prefix>STATE.
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -12,6 +13,7 @@
 
 #include "pneu/config/cli.hpp"
 #include "pneu/config/config.hpp"
+#include "pneu/config/yaml_text.hpp"
 #include "pneu/identify/identification_run.hpp"
 #include "pneu/identify/identify.hpp"
 #if PNEU_WITH_LCM
@@ -41,7 +43,9 @@ Usage:
                      config/sim.yaml): plant:
                      is the prior (what is not identified is kept), the stop detector's rest band
                      says how still a stuck carriage reads
-  --out OUT.yaml     write the configuration with plant: identified
+  --out OUT.yaml     write the configuration with plant: identified: the text of --config (its
+                     comments kept), each identified value replaced in place with its uncertainty
+                     beside it, under a header saying when, from which record, with which residual
   --quiet            no report on stdout
 
 What it estimates and how is pneud --identify's (see docs/identification.md); from an
@@ -147,7 +151,9 @@ int run(int argc, char** argv) {
   std::string config_path = args.value("config").value_or("");
   if (config_path.empty() && trajectory && std::filesystem::is_regular_file(*trajectory + ".config.yaml"))
     config_path = *trajectory + ".config.yaml";
-  const config::Config cfg = config::load_file_or_default(config_path);
+  // Its text too: its comments are kept in the configuration written.
+  const std::string config_text = config::text_of(config_path);
+  const config::Config cfg = config::load_string(config_text, {}, config_path.empty() ? "<embedded sim.yaml>" : config_path);
   if (trajectory.has_value() == lcm_log.has_value()) throw cli::UsageError("give one of --trajectory and --lcm-log");
   std::optional<cli::OutputFile> out;
   if (const auto p = args.value("out")) out.emplace(*p, "--out");  // an unwritable path fails first
@@ -155,12 +161,12 @@ int run(int argc, char** argv) {
   std::string source;
   if (trajectory) {
     samples = read_csv(*trajectory);
-    source = "pneu-identify from " + *trajectory;
+    source = "the trajectory " + *trajectory;
   } else {
 #if PNEU_WITH_LCM
     const std::string channel = args.value("channel").value_or(cfg.telemetry.channel_prefix + "STATE");
     samples = read_lcm_log(*lcm_log, channel);
-    source = "pneu-identify from the LCM log " + *lcm_log + " (" + channel + ")";
+    source = "the LCM log " + *lcm_log + " (" + channel + ")";
 #else
     throw cli::UsageError("--lcm-log: this build has no LCM (PNEU_WITH_LCM=OFF); convert the log elsewhere with pneu-log2csv");
 #endif
@@ -176,9 +182,19 @@ int run(int argc, char** argv) {
     identify::print_report(stdout, id);
   }
   if (out) {
-    out->stream() << identify::identified_config_yaml(cfg, id, source);
+    char record[64];
+    std::snprintf(record, sizeof record, ": %zu samples over %.2f s", samples.size(),
+                  samples.back().t_s - samples.front().t_s);
+    const identify::IdentifiedYaml yaml = identify::identified_config_yaml(
+        config_text, cfg, id,
+        {"pneu-identify " PNEU_VERSION, args.command_line(), source + record, config_path, std::time(nullptr)});
+    out->stream() << yaml.text;
     out->commit();
     if (!args.flag("quiet")) std::printf("written: %s\n", out->path().c_str());
+    if (!yaml.text_not_kept.empty())
+      std::fprintf(stderr, "pneu-identify: warning: %s: the whole configuration, without the comments of %s: %s\n",
+                   out->path().c_str(), config_path.empty() ? "the embedded sim.yaml" : config_path.c_str(),
+                   yaml.text_not_kept.c_str());
   }
   return cli::kExitOk;
 }

@@ -46,9 +46,13 @@ class Args {
   [[nodiscard]] std::string required(const std::string& name) const;
   [[nodiscard]] double number(const std::string& name, double fallback) const;
   [[nodiscard]] std::vector<std::string> all(const std::string& name) const;
+  /// The command as given: the program by its file name, then every argument, each quoted for a
+  /// POSIX shell where it needs it ("pneud --identify out.yaml --set 'a.b=[x, y]'").
+  [[nodiscard]] const std::string& command_line() const noexcept { return command_line_; }
 
  private:
   std::map<std::string, std::vector<std::string>> values_;
+  std::string command_line_;
 };
 
 /// Runs a program's body and turns what it throws into the exit codes above, with the message on

@@ -11,8 +11,10 @@
 
 #include <atomic>
 #include <cstdio>
+#include <ctime>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "pneu/assembly/run_spec.hpp"
@@ -132,14 +134,45 @@ struct RecordedRun {
 [[nodiscard]] Identification identify_by_run(const assembly::RunSpec& spec, const model::PlantParams& bench,
                                              double start_m);
 
-/// The configuration to write: `config` (the one the run started from, its own set points and
-/// length) with plant: identified, as YAML headed by a comment saying what was identified and from
-/// what. Validated by loading it back: throws config::ConfigError when the identified values break
-/// a rule of the configuration.
-[[nodiscard]] std::string identified_config_yaml(const config::Config& config, const Identification& id,
-                                                 const std::string& source);
+/// Where an identification came from, for the header of the configuration it writes.
+struct Provenance {
+  std::string program;  ///< who identified, and its version ("pneud 0.1.0")
+  std::string command;  ///< the command line as given (cli::Args::command_line())
+  /// What it was identified from: "its own identification run: 34701 ticks over 34.70 s", "the
+  /// trajectory run.csv: ..."
+  std::string record;
+  /// The configuration file the run started from, whose text is kept; empty: the embedded sim.yaml.
+  std::string source;
+  std::time_t when = 0;  ///< when it was identified
+};
 
-/// Each parameter before and after, with its uncertainty and what it came from, and the evidence.
+/// The configuration written.
+struct IdentifiedYaml {
+  std::string text;
+  /// Why the source's text could not be kept (a key to write in flow style, ...), when it could
+  /// not: the text is then the whole configuration as to_yaml() writes it, under the same header.
+  std::string text_not_kept;
+};
+
+/// The line that ends the header identified_config_yaml() writes (an identification of a file
+/// identified before replaces its header, up to this line).
+inline constexpr const char* kEndOfIdentifiedHeader = "# (end of the identification's header)";
+
+/// The configuration to write: `source_text` (the YAML the run's configuration came from: its
+/// comments, the documentation of each key, kept byte for byte) edited to hold `config` (the
+/// configuration the run started from, --set applied, its own set points and length) with plant:
+/// identified (config::with_values_of()): each identified value replaced in place, its note beside
+/// it ("# identified 2026-11-28: 45.3 +- 0.12 (was 45)"); the keys the source lacks added in their
+/// sections (a simulated bench that was its model: hal.sim.plant, the old plant:, so that the
+/// file runs the same bench; controller.predictor.model_fit). Headed by a comment saying when,
+/// by what command from which record on which backend, with which fit residual, and what was kept.
+/// Validated by loading it back: throws config::ConfigError when the identified values break a
+/// rule of the configuration, or `source_text` is not the configuration's source.
+[[nodiscard]] IdentifiedYaml identified_config_yaml(std::string_view source_text, const config::Config& config,
+                                                   const Identification& id, const Provenance& from);
+
+/// Each parameter before and after, with its uncertainty and what it came from (the table a user
+/// reads first), then the evidence and whether the model fits.
 void print_report(std::FILE* out, const Identification& id);
 /// Whether the model fits the stuck phases' pressures, in a sentence: the residual against what the
 /// noise explains, and when it does not fit, the phases that fail worst.
