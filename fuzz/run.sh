@@ -1,8 +1,16 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer targets of fuzz/ with clang and runs each for a bounded time over a COPY of
-# its corpus (the repository's corpus is never written to), after replaying fuzz/regressions/.
+# Builds the libFuzzer targets of fuzz/ with clang and runs each over a COPY of its corpus (the
+# repository's corpus is never written to), after replaying fuzz/regressions/: for a bounded time,
+# or for a fixed number of inputs.
 #
-#   fuzz/run.sh SECONDS_PER_TARGET [BUILD_DIR]      (BUILD_DIR defaults to build/fuzz)
+#   fuzz/run.sh SECONDS_PER_TARGET [BUILD_DIR]                  (BUILD_DIR defaults to build/fuzz)
+#   fuzz/run.sh --runs CONFIG_INPUTS COMMAND_INPUTS [BUILD_DIR]
+#
+# With --runs (what ctest runs), each target is given that many inputs from seed PNEU_FUZZ_SEED
+# (default 1) with address-space randomisation off (setarch -R): the same work whatever else
+# loads the machine, and the same inputs when run again from the same environment (the config
+# loader compares stack addresses, which move with the environment's size); another seed
+# explores others.
 #
 # Exit status: 0 when nothing was found; 1 on any crash, sanitizer report, leak, timeout, out of
 # memory or contract violation (the input is left in BUILD_DIR/run/<target>/artifacts/ and named
@@ -11,12 +19,24 @@
 # time one input may take before it counts as a hang.
 set -uo pipefail
 
-usage() { echo "usage: $0 SECONDS_PER_TARGET [BUILD_DIR]" >&2; exit 2; }
-[ $# -ge 1 ] && [ $# -le 2 ] || usage
-seconds=$1
-[[ $seconds =~ ^[0-9]+$ ]] && [ "$seconds" -ge 1 ] || usage
+usage() { echo "usage: $0 SECONDS_PER_TARGET [BUILD_DIR] | --runs CONFIG_INPUTS COMMAND_INPUTS [BUILD_DIR]" >&2; exit 2; }
+count() { [[ $1 =~ ^[0-9]+$ ]] && [ "$1" -ge 1 ] || usage; }
+seconds='' runs_config='' runs_command=''
+if [ "${1:-}" = --runs ]; then
+  [ $# -ge 3 ] && [ $# -le 4 ] || usage
+  count "$2" && count "$3"
+  runs_config=$2 runs_command=$3
+  shift 3
+else
+  [ $# -ge 1 ] && [ $# -le 2 ] || usage
+  count "$1"
+  seconds=$1
+  shift
+fi
+seed=${PNEU_FUZZ_SEED:-1}
+count "$seed"
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
-build=${2:-$here/../build/fuzz}
+build=${1:-$here/../build/fuzz}
 timeout_s=${PNEU_FUZZ_TIMEOUT_S:-10}
 
 skip() { echo "fuzz/run.sh: SKIPPED: $*" >&2; exit 77; }
@@ -56,9 +76,9 @@ export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1}
 failures=()
 
-# run_target NAME CORPUS_DIR MAX_LEN
+# run_target NAME CORPUS_DIR MAX_LEN INPUTS (INPUTS: with --runs)
 run_target() {
-  local name=$1 corpus=$2 max_len=$3
+  local name=$1 corpus=$2 max_len=$3 inputs=$4
   local exe=$build/pneu_fuzz_$name work=$build/run/$name
   rm -rf "$work" && mkdir -p "$work/corpus" "$work/artifacts" || { failures+=("$name: cannot prepare $work"); return; }
   cp -R "$here/corpus/$corpus/." "$work/corpus/"
@@ -83,8 +103,18 @@ run_target() {
     fi
   fi
 
-  echo "fuzz/run.sh: $name: fuzzing for $seconds s over a copy of fuzz/corpus/$corpus/"
-  "$exe" "${common[@]}" -max_total_time="$seconds" -print_final_stats=1 "$work/corpus" > "$work/fuzz.log" 2>&1
+  local bound=(-max_total_time="$seconds") fixed=()
+  if [ -z "$seconds" ]; then
+    bound=(-runs="$inputs" -seed="$seed")
+    # Without address-space randomisation the same seed gives the same inputs in the same
+    # environment (comparisons of addresses steer the mutations); where setarch cannot, the count
+    # is still fixed.
+    setarch "$(uname -m)" -R true 2>/dev/null && fixed=(setarch "$(uname -m)" -R)
+    echo "fuzz/run.sh: $name: fuzzing $inputs inputs from seed $seed${fixed[*]:+ (setarch -R)} over a copy of fuzz/corpus/$corpus/"
+  else
+    echo "fuzz/run.sh: $name: fuzzing for $seconds s over a copy of fuzz/corpus/$corpus/"
+  fi
+  "${fixed[@]}" "$exe" "${common[@]}" "${bound[@]}" -print_final_stats=1 "$work/corpus" > "$work/fuzz.log" 2>&1
   local rc=$?
   grep -E '^#[0-9]+[[:space:]]+(INITED|DONE)' "$work/fuzz.log" | sed "s/^/fuzz\/run.sh: $name: /"
   grep -E '^stat::(number_of_executed_units|average_exec_per_sec|peak_rss_mb)' "$work/fuzz.log" | sed "s/^/fuzz\/run.sh: $name: /"
@@ -96,12 +126,16 @@ run_target() {
   fi
 }
 
-run_target config config 16384
-run_target command command 512
+run_target config config 16384 "$runs_config"
+run_target command command 512 "$runs_command"
 
 if [ ${#failures[@]} -gt 0 ]; then
   for f in "${failures[@]}"; do echo "fuzz/run.sh: FAILED: $f" >&2; done
   exit 1
 fi
-echo "fuzz/run.sh: no finding in $seconds s per target"
+if [ -n "$seconds" ]; then
+  echo "fuzz/run.sh: no finding in $seconds s per target"
+else
+  echo "fuzz/run.sh: no finding in $runs_config config and $runs_command command inputs"
+fi
 exit 0

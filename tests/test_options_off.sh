@@ -1,10 +1,14 @@
 #!/usr/bin/env bash
 # Every build option off at once (PNEU_WITH_MODBUS, PNEU_WITH_GPIOD, PNEU_WITH_LCM,
 # PNEU_WITH_LCM_JAVA, PNEU_WITH_DASH, PNEU_BUILD_TESTS, PNEU_BUILD_BENCHMARKS): the project configures and builds
-# into BINARY_DIR/options-off with the compiler, launcher, build type and warnings of BINARY_DIR;
-# the binaries run, and what the build left out is refused saying so (pneu-plant serve, pneud on
-# the modbus backend, with GPIO lines, with --require-telemetry), nothing driven.
-# Usage: test_options_off.sh SOURCE_DIR BINARY_DIR CXX BUILD_TYPE WERROR [LAUNCHER]
+# into BINARY_DIR/options-off with the generator, compiler, launcher, build type and warnings of
+# BINARY_DIR; the binaries run, and what the build left out is refused saying so (pneu-plant serve,
+# pneud on the modbus backend, with GPIO lines, with --require-telemetry), nothing driven.
+# Every library and program is built and linked there; an object whose compile is word for word
+# BINARY_DIR's, reading the same files, is copied from BINARY_DIR instead of compiled a second time
+# (tests/reuse_identical_objects.py says when exactly; the build log names each object compiled and
+# why). PNEU_OPTIONS_OFF_COMPILE_ALL=1 compiles every object again.
+# Usage: test_options_off.sh SOURCE_DIR BINARY_DIR CXX BUILD_TYPE WERROR GENERATOR [LAUNCHER]
 set -euo pipefail
 src=$1
 out=$2/options-off
@@ -12,14 +16,23 @@ fail() { echo "FAIL: $*"; exit 1; }
 
 options=(-DPNEU_WITH_MODBUS=OFF -DPNEU_WITH_GPIOD=OFF -DPNEU_WITH_LCM=OFF -DPNEU_WITH_LCM_JAVA=OFF -DPNEU_WITH_DASH=OFF
          -DPNEU_BUILD_TESTS=OFF -DPNEU_BUILD_BENCHMARKS=OFF)
-same=(-DCMAKE_CXX_COMPILER="$3" -DCMAKE_BUILD_TYPE="$4" -DPNEU_WERROR="$5")
-[ -n "${6:-}" ] && same+=(-DCMAKE_CXX_COMPILER_LAUNCHER="$6")
+same=(-G "$6" -DCMAKE_CXX_COMPILER="$3" -DCMAKE_BUILD_TYPE="$4" -DPNEU_WERROR="$5")
+launcher=${7:-}
+if [ "${PNEU_OPTIONS_OFF_COMPILE_ALL:-0}" != 1 ]; then
+  launcher="/usr/bin/python3;$src/tests/reuse_identical_objects.py;$2;$out${launcher:+;$launcher};--"
+fi
+[ -n "$launcher" ] && same+=(-DCMAKE_CXX_COMPILER_LAUNCHER="$launcher")
 echo "== configure: ${options[*]}"
 cmake -S "$src" -B "$out" "${same[@]}" "${options[@]}" >/dev/null || fail "configuring with every option off"
 echo "== build (one job: the other tests run beside it)"
 start=$(date +%s)
+rm -f "$out/objects.log"
 cmake --build "$out" -j1 >"$out/build.log" 2>&1 || { tail -40 "$out/build.log"; fail "building with every option off"; }
 echo "built in $(($(date +%s) - start)) s"
+if [ -f "$out/objects.log" ]; then
+  echo "objects compiled: $(grep -c '^compiled' "$out/objects.log"), copied from $2 (the same compile): $(grep -c '^reused' "$out/objects.log")"
+  grep '^compiled' "$out/objects.log" | cut -c1-300 || true
+fi
 
 bin=$out/bin
 for b in pneud pneu-plant pneu-sweep; do [ -x "$bin/$b" ] || fail "$b was not built"; done

@@ -103,15 +103,15 @@ std::vector<MetricFamily> make_families() {
                "on time() minus it)",
                ""});
   const std::string since_dash = "; from the dashboard's start (event_t)";
-  f.push_back({"pneu_stops_total", "counter", "stops: the carriage came to rest" + since_dash, ""});
-  f.push_back(
-      {"pneu_restarts_total", "counter",
-       "restarts: the carriage moved again after a stop, the set point unchanged (stick-slip)" +
-           since_dash,
-       ""});
-  f.push_back(
-      {"pneu_starts_total", "counter",
-       "starts: the carriage moved on a set point change (restarts not counted)" + since_dash, ""});
+  const auto event_counter = [&](const char* metric, const char* what) {
+    f.push_back({metric, "counter", what + since_dash, ""});
+  };
+  event_counter("pneu_stops_total", "stops: the carriage came to rest");
+  event_counter("pneu_restarts_total",
+                "restarts: the carriage moved again after a stop, the set point unchanged "
+                "(stick-slip)");
+  event_counter("pneu_starts_total",
+                "starts: the carriage moved on a set point change (restarts not counted)");
   f.push_back(
       {"pneu_faults_total", "counter",
        "faults latched, by cause (\"unknown\": a cause this dashboard does not know)" + since_dash,
@@ -119,7 +119,7 @@ std::vector<MetricFamily> make_families() {
   f.push_back({"pneu_fault_resets_total", "counter",
                "fault resets: cleared, or refused while the cause was present" + since_dash,
                "result"});
-  f.push_back({"pneu_holds_total", "counter", "in-position holds that took over" + since_dash, ""});
+  event_counter("pneu_holds_total", "in-position holds that took over");
   f.push_back({"pneu_hold_seconds_total", "counter",
                "loop time spent in the in-position hold (an open hold counted up to the latest "
                "loop time heard)" +
@@ -176,6 +176,23 @@ std::vector<MetricFamily> make_families() {
   return f;
 }
 
+// The text format's escapes: a backslash and a line feed in a HELP text; a double quote too in a
+// label's value.
+std::string escape(std::string_view s, bool double_quote) {
+  std::string o;
+  for (char c : s) {
+    if (c == '\\')
+      o += "\\\\";
+    else if (c == '"' && double_quote)
+      o += "\\\"";
+    else if (c == '\n')
+      o += "\\n";
+    else
+      o += c;
+  }
+  return o;
+}
+
 // Writes the families in the table's order: each begun by name, so that the text and the table
 // cannot part.
 class Writer {
@@ -188,8 +205,8 @@ class Writer {
       throw std::logic_error("metrics: " + std::string(name) + " written out of the table's order");
     const MetricFamily& f = families_[next_++];
     name_ = f.name;
-    out_ +=
-        "# HELP " + f.name + " " + escape_help(f.help) + "\n# TYPE " + f.name + " " + f.type + "\n";
+    out_ += "# HELP " + f.name + " " + escape(f.help, false) + "\n# TYPE " + f.name + " " + f.type +
+            "\n";
   }
   using Labels = std::initializer_list<std::pair<const char*, std::string_view>>;
   void sample(double v, Labels labels = {}, std::string_view suffix = "") {
@@ -207,18 +224,6 @@ class Writer {
   }
 
  private:
-  static std::string escape_help(std::string_view s) {
-    std::string o;
-    for (char c : s) {
-      if (c == '\\')
-        o += "\\\\";
-      else if (c == '\n')
-        o += "\\n";
-      else
-        o += c;
-    }
-    return o;
-  }
   const std::vector<MetricFamily>& families_;
   std::string bench_, name_, out_;
   std::size_t next_ = 0;
@@ -256,20 +261,7 @@ std::string format_sample_value(double v) {
   return {buf, r.ptr};
 }
 
-std::string escape_label_value(std::string_view v) {
-  std::string o;
-  for (char c : v) {
-    if (c == '\\')
-      o += "\\\\";
-    else if (c == '"')
-      o += "\\\"";
-    else if (c == '\n')
-      o += "\\n";
-    else
-      o += c;
-  }
-  return o;
-}
+std::string escape_label_value(std::string_view v) { return escape(v, true); }
 
 std::string with_label(std::string_view text, std::string_view name, std::string_view value) {
   const std::string label = std::string(name) + "=\"" + escape_label_value(value) + "\"";
@@ -504,12 +496,13 @@ std::string Metrics::text() const {
   w.begin("pneu_last_health_timestamp_seconds");
   if (h) w.sample(health_received_unix_s_);
 
-  w.begin("pneu_stops_total");
-  w.sample(static_cast<double>(stops_));
-  w.begin("pneu_restarts_total");
-  w.sample(static_cast<double>(restarts_));
-  w.begin("pneu_starts_total");
-  w.sample(static_cast<double>(starts_));
+  const auto counter = [&](std::string_view metric, std::uint64_t n) {
+    w.begin(metric);
+    w.sample(static_cast<double>(n));
+  };
+  counter("pneu_stops_total", stops_);
+  counter("pneu_restarts_total", restarts_);
+  counter("pneu_starts_total", starts_);
   w.begin("pneu_faults_total");
   for (std::size_t c = 1; c < controller::kFaultCauseCount; ++c)
     w.sample(static_cast<double>(faults_[c]),
@@ -518,8 +511,7 @@ std::string Metrics::text() const {
   w.begin("pneu_fault_resets_total");
   w.sample(static_cast<double>(fault_resets_), {{"result", "cleared"}});
   w.sample(static_cast<double>(fault_resets_refused_), {{"result", "refused"}});
-  w.begin("pneu_holds_total");
-  w.sample(static_cast<double>(holds_));
+  counter("pneu_holds_total", holds_);
   w.begin("pneu_hold_seconds_total");
   w.sample(hold_seconds_locked());
 
