@@ -437,9 +437,10 @@ class RunIdentity:
         return re.sub(r"[^A-Za-z0-9._-]+", "-", "_".join(parts))
 
 
-def check_events_belong(run, trajectory_path, events_path):
-    """Refuses events that another run wrote: each stop must fall on one of the trajectory's
-    ticks where the trajectory reads the stop's position, and the end on its last tick."""
+def check_events_belong(run, bench, trajectory_path, events_path):
+    """Refuses events that another run wrote: the two files' effective configurations must be
+    the same; each stop must fall on one of the trajectory's ticks, where it reads the stop's
+    position and comes to rest when the stop is confirmed; the end on its last tick."""
     import numpy as np
     if len(run.t) < 2:
         return
@@ -454,6 +455,18 @@ def check_events_belong(run, trajectory_path, events_path):
     if run.end_t is not None and abs(run.end_t - float(run.t[-1])) > 1.5 * period:
         raise InputError(f"{where}: the events end at t = {run.end_t:.4f} s, the trajectory at "
                          f"t = {float(run.t[-1]):.4f} s")
+    # the trajectory's stuck flag rises where the detector confirms a stop, hold_s after it
+    confirm_s = float(bench.key("controller", "stop_detector", "hold_s", default=0.0) or 0.0)
+    rises = run.t[1:][run.stuck[1:] & ~run.stuck[:-1]]
+    confirmed = [s for s in run.stops if s["t"] + confirm_s <= float(run.t[-1])]
+    if len(rises) != len(confirmed):
+        raise InputError(f"{where}: the trajectory comes to rest {len(rises)} times after its "
+                         f"first tick, the events have {len(confirmed)} stops")
+    for s, rise in zip(sorted(confirmed, key=lambda s: s["t"]), rises):
+        if abs(float(rise) - s["t"] - confirm_s) > 1.5 * period:
+            raise InputError(f"{where}: stop {s['index']} at t = {s['t']:.4f} s, the trajectory "
+                             f"comes to rest at t = {float(rise):.4f} s (stop_detector.hold_s = "
+                             f"{confirm_s:g} s)")
     for s in run.stops:
         i = int(np.argmin(np.abs(run.t - s["t"])))
         if abs(float(run.t[i]) - s["t"]) > 0.5 * period:
@@ -962,8 +975,10 @@ def _close_up_within(view, outer, end_point):
     if x_hi - x_lo <= CLOSE_UP_MAX * ox and y_hi - y_lo <= CLOSE_UP_MAX * oy:
         return view
     side = CLOSE_UP_MAX * min(ox, oy)
-    return (end_point[0] - side / 2, end_point[0] + side / 2,
-            end_point[1] - side / 2, end_point[1] + side / 2)
+    # centred where the phase ended, moved inside the panel it zooms into
+    x0 = min(max(end_point[0] - side / 2, outer[0]), outer[1] - side)
+    y0 = min(max(end_point[1] - side / 2, outer[2]), outer[3] - side)
+    return x0, x0 + side, y0, y0 + side
 
 
 def plane_panels(run, bench, curve, x, y):
@@ -1625,70 +1640,81 @@ def parse_args(argv):
     return args
 
 
+class Figures:
+    """A run's figures, drawn and not yet written: (file suffix, matplotlib figure) in order."""
+
+    def __init__(self, run, ident, name, figures):
+        self.run, self.ident, self.name, self.figures = run, ident, name, figures
+
+
+def make_figures(args):
+    """Reads the run args name and draws its figures (InputError on bad input)."""
+    try:
+        import numpy as np
+    except ImportError:
+        raise InputError("numpy is missing (Debian package python3-numpy)") from None
+    plt = _setup_matplotlib()
+    bench, recorded = run_configuration(args)
+    if args.log_csv:
+        run = load_log_csv(args.log_csv, args.prefix)
+    else:
+        run = load_pneud_output(args.trajectory, args.events)
+        if args.events:
+            check_events_belong(run, bench, args.trajectory, args.events)
+    ident = RunIdentity(run, bench, recorded)
+    if args.time_range:
+        restrict_to_time_range(run, *args.time_range)
+    if len(run.t) < 2:
+        raise InputError("fewer than two samples to plot")
+    raw = null_flow_curve(args, bench.path)
+    order = np.argsort(raw["u_v"])
+    curve = {"u": np.array(raw["u_v"])[order], "x": np.array(raw["x_n"])[order],
+             "y": np.array(raw["y_n"])[order]}
+    x, y = bench.plane(run.p_p, run.p_n)
+    mismatch = float(np.nanmax(np.abs(x - y - run.force)))
+    if mismatch > 0.5 + 0.01 * float(np.nanmax(np.abs(run.force))):
+        print(f"pneu_plots: warning: the recorded force differs from S_P p_P - S_N p_N - S_r p_E "
+              f"of {bench.path} by up to {mismatch:.2f} N: is it the run's configuration?",
+              file=sys.stderr)
+    figures = [("time", time_figure(run, bench, ident, plt)),
+               ("plane", plane_figure(run, bench, curve, ident, plt))]
+    fig = forecast_figure(run, bench, ident, plt)
+    if fig is not None:
+        figures.append(("forecast", fig))
+    elif args.log_csv:
+        print("pneu_plots: note: no forecast figure: the LCM STATE channel carries no "
+              "forecast columns (draw it from pneud --trajectory/--events output)",
+              file=sys.stderr)
+    elif not args.events:
+        print("pneu_plots: note: no forecast figure: no --events (the forecasts are events)",
+              file=sys.stderr)
+    elif run.forecast is None:
+        print(f"pneu_plots: note: no forecast figure: {args.trajectory} has no forecast "
+              f"columns (p_p_linearized ... force_nonlinear: the trajectory of an older pneud)",
+              file=sys.stderr)
+    else:
+        print("pneu_plots: note: no forecast figure: no sticking phase with forecast values "
+              "in the plotted range", file=sys.stderr)
+    return Figures(run, ident, args.name or ident.stem(), figures)
+
+
 def main(argv):
     args = parse_args(argv)  # argparse exits 2 on a bad command line
     try:
-        try:
-            import numpy as np
-        except ImportError:
-            raise InputError("numpy is missing (Debian package python3-numpy)") from None
+        made = make_figures(args)
         plt = _setup_matplotlib()
-        bench, recorded = run_configuration(args)
-        config_path = bench.path
-        if args.log_csv:
-            run = load_log_csv(args.log_csv, args.prefix)
-        else:
-            run = load_pneud_output(args.trajectory, args.events)
-            if args.events:
-                check_events_belong(run, args.trajectory, args.events)
-        ident = RunIdentity(run, bench, recorded)
-        name = args.name or ident.stem()
-        if args.time_range:
-            restrict_to_time_range(run, *args.time_range)
-        if len(run.t) < 2:
-            raise InputError("fewer than two samples to plot")
-        raw = null_flow_curve(args, config_path)
-        order = np.argsort(raw["u_v"])
-        curve = {"u": np.array(raw["u_v"])[order], "x": np.array(raw["x_n"])[order],
-                 "y": np.array(raw["y_n"])[order]}
-        x, y = bench.plane(run.p_p, run.p_n)
-        mismatch = float(np.nanmax(np.abs(x - y - run.force)))
-        if mismatch > 0.5 + 0.01 * float(np.nanmax(np.abs(run.force))):
-            print(f"pneu_plots: warning: the recorded force differs from S_P p_P - S_N p_N - S_r p_E "
-                  f"of {config_path} by up to {mismatch:.2f} N: is it the run's configuration?",
-                  file=sys.stderr)
         os.makedirs(args.out_dir, exist_ok=True)
         written = []
-        fig = time_figure(run, bench, ident, plt)
-        written += _save(fig, args.out_dir, f"{name}_time", args.dpi)
-        plt.close(fig)
-        fig = plane_figure(run, bench, curve, ident, plt)
-        written += _save(fig, args.out_dir, f"{name}_plane", args.dpi)
-        plt.close(fig)
-        fig = forecast_figure(run, bench, ident, plt)
-        if fig is not None:
-            written += _save(fig, args.out_dir, f"{name}_forecast", args.dpi)
+        for suffix, fig in made.figures:
+            written += _save(fig, args.out_dir, f"{made.name}_{suffix}", args.dpi)
             plt.close(fig)
-        elif args.log_csv:
-            print("pneu_plots: note: no forecast figure: the LCM STATE channel carries no "
-                  "forecast columns (draw it from pneud --trajectory/--events output)",
-                  file=sys.stderr)
-        elif not args.events:
-            print("pneu_plots: note: no forecast figure: no --events (the forecasts are events)",
-                  file=sys.stderr)
-        elif run.forecast is None:
-            print(f"pneu_plots: note: no forecast figure: {args.trajectory} has no forecast "
-                  f"columns (p_p_linearized ... force_nonlinear: the trajectory of an older pneud)",
-                  file=sys.stderr)
-        else:
-            print("pneu_plots: note: no forecast figure: no sticking phase with forecast values "
-                  "in the plotted range", file=sys.stderr)
     except InputError as e:
         print(f"pneu_plots: {e}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except OSError as e:
         print(f"pneu_plots: {e}", file=sys.stderr)
         return EXIT_BAD_INPUT if isinstance(e, (FileNotFoundError, PermissionError)) else 1
+    run = made.run
     print(f"pneu_plots: {len(run.stops)} stops, {sum(s['restart'] for s in run.starts)} restarts, "
           f"{len(run.predictions)} forecasts, {len(run.reforecasts)} re-forecasts; "
           f"wrote {', '.join(written)}")
