@@ -639,10 +639,14 @@ def holds_summary(run):
     to_end = sum(1 for h in held if h["end"] is None)
     reaches = len(run.holds) - len(held)
     superseded = len(law_forecasts(run)[1])
-    return (f"{len(held)} hold{'s' if len(held) != 1 else ''} ({to_end} held to the end), "
-            f"{reaches} reach{'es' if reaches != 1 else ''}"
-            + (f"; {superseded} forecast restart{'s' if superseded != 1 else ''} not drawn: "
-               "a hold or reach took over before them" if superseded else ""))
+    parts = [f"{len(held)} hold{'s' if len(held) != 1 else ''} ({to_end} held to the end)"]
+    if reaches:
+        parts.append(f"{reaches} reach{'es' if reaches != 1 else ''}")
+    text = ", ".join(parts)
+    if superseded:
+        text += (f"; {superseded} forecast restart{'s' if superseded != 1 else ''} superseded "
+                 "by a hold or reach, not drawn")
+    return text
 
 
 def _index_ranges(indices):
@@ -1543,14 +1547,14 @@ def _forecast_title(run, w, ident):
     s, end = w.stop, w.end
     how_it_ends = "" if w.restart else \
         " (then a start, not a restart)" if any(s["t"] < o["t"] <= end for o in run.starts) else \
-        " (no start before the end of the plotted record)"
+        " (no start before the record ends)"
     return (f"Sticking phase {s['index']}, measured vs forecast pressures and force "
-            f"(cf. Brun et al. 2005, Fig. 13)\n{ident.label()}\n{ident.source}: both forecasts made at the stop "
+            f"(cf. Brun et al. 2005, Fig. 13)\n{ident.label()}\n{ident.source}: forecasts made at the stop "
             f"(t = {next(iter(w.pred.values()))['t'] if w.pred else s['t']:.3f} s), "
             f"stuck {w.span:.3f} s{how_it_ends}")
 
 
-def _forecast_legend(fig, axes):
+def _forecast_legend(fig, axes, top):
     """One legend of these panels' curves: measured first, then the forecasts, then the rest."""
     handles, labels = [], []
     for ax in axes:
@@ -1561,7 +1565,7 @@ def _forecast_legend(fig, axes):
     order = sorted(range(len(labels)), key=lambda i: (0 if "measured" in labels[i] else
                                                       1 if "forecast (" in labels[i] else 2, i))
     return fig.legend([handles[i] for i in order], [labels[i] for i in order], loc="upper center",
-                      bbox_to_anchor=(0.5, 0.945), ncol=2, framealpha=0.95, fontsize=8.2)
+                      bbox_to_anchor=(0.5, top), ncol=2, framealpha=0.95, fontsize=8.2)
 
 
 def _fit_below_legend(fig, leg, ax_top):
@@ -1592,8 +1596,10 @@ def forecast_figure(run, bench, ident, plt):
         _reforecast_panel(axes[3], w)
     axes[-1].set_xlabel("time t [s]")
     axes[-1].set_xlim(w.t0, w.t1)
-    fig.suptitle(_forecast_title(run, w, ident), fontsize=11)
-    leg = _forecast_legend(fig, axes[:2])
+    title = fig.suptitle(_forecast_title(run, w, ident), fontsize=11)
+    fig.canvas.draw()  # the legend's top meets the title's last line
+    leg = _forecast_legend(fig, axes[:2], title.get_window_extent().transformed(
+        fig.transFigure.inverted()).y0 - 0.006)
     _fit_below_legend(fig, leg, axes[0])
     return fig
 
