@@ -197,6 +197,16 @@ map_tool="$src/tools/plots/stability_map.py"
 check_figure "$tmp" stability_map
 grep -q "paper's fixed gains" "$tmp/stability_map.svg" || fail "the map draws no fixed-gain line"
 grep -q "designed schedule" "$tmp/stability_map.svg" || fail "the map draws no schedule line"
+grep -qF "Stability map of Eq. 4 over the stroke (the map map.csv of pneu-plant tune --csv)" "$tmp/stability_map.svg" \
+  || fail "the map's title does not name its map"
+# Computed by the tool on a configuration with --set: the title names both, the fixed gains are
+# named by their values, not as the paper's.
+"$py" "$map_tool" --config "$src/config/paper.yaml" --set controller.law.position_gain_v_per_m=60 --step-mm 25 \
+  --pneu-plant "$bin/pneu-plant" --out "$tmp/map60" > /dev/null || fail "stability_map.py failed with --set"
+grep -qF "(pneu-plant tune on paper.yaml --set controller.law.position_gain_v_per_m=60, every 25 mm)" "$tmp/map60.svg" \
+  || fail "the map's title does not name its configuration and --set"
+grep -qF "fixed gains (60 V/m, 1.5 V/(m/s)" "$tmp/map60.svg" || fail "the map's fixed gains are not named by their values"
+! grep -q "paper's fixed gains" "$tmp/map60.svg" || fail "gains of 60 V/m named the paper's"
 rc=0; "$py" "$map_tool" --map "$tmp/nothing.csv" --out "$tmp/none" 2> "$tmp/map.err" || rc=$?
 [ "$rc" -eq 2 ] && grep -q "no such file" "$tmp/map.err" || fail "a missing map: exit $rc, $(cat "$tmp/map.err")"
 cut -d, -f1-3 "$tmp/map.csv" > "$tmp/short_map.csv"

@@ -1,12 +1,16 @@
 #!/usr/bin/python3
 """pneu_plots: the figures of a pneud run, after Brun et al. 2005 (Fig. 8, 7/10/11 and 13).
 
-Reads either pneud's own output (--trajectory T.csv --events E.jsonl) or the CSV files that
-pneu-log2csv converts from an LCM log (--log-csv DIR), and writes
+Reads either pneud's own output (--trajectory T.csv [--events E.jsonl], the events of the same
+run: checked, refused otherwise) or the CSV files that pneu-log2csv converts from an LCM log
+(--log-csv DIR), and writes, <name> being the run's configuration, backend, 'held' when the hold
+was on, and the date and time of the run (or --name):
 
   OUT/<name>_time.png/.svg   time traces: set point and position, chamber pressures, control
                              voltage and pressure force, with the stops, the forecast restarts
-                             (one marker per method) and the actual restarts;
+                             (one marker per method; those of the law that a hold or reach took
+                             over before are left out, the reaches' own drawn), the actual
+                             restarts, and the holds and reaches from hold_start to hold_end;
   OUT/<name>_plane.png/.svg  the pressure-force plane: x = S_P p_P, y = S_N p_N + S_r p_E [N],
                              with the stop area (Eq. 12), the no-restarting area (Eq. 13), the
                              null-flow curve and the run's trajectory, plus a zoom on the longest
@@ -20,11 +24,14 @@ pneu-log2csv converts from an LCM log (--log-csv DIR), and writes
                              columns: older trajectories and --log-csv input (the LCM STATE channel
                              carries no forecast) skip it with a note on stderr.
 
-Geometry and friction come from the run's configuration: --config, or else the effective
-configuration pneud wrote beside its output (T.csv.config.yaml, E.jsonl.config.yaml: --set
-applied), or else config/sim.yaml of the source tree; the null-flow curve from --null-flow CURVE.csv or, without it, from running
-`pneu-plant null-flow` on the same configuration. Exit codes: 0 written, 2 bad input (missing
-file, missing column, malformed value), 1 anything else.
+Each title names the run: the YAML it started from, its backend and clock, the hold, the date
+(of the trajectory file; of the first STATE row in an LCM log). Geometry and friction come from
+the run's own configuration: the effective configuration pneud wrote beside its output
+(T.csv.config.yaml, E.jsonl.config.yaml: --set applied), or else, for a run that recorded none,
+--config, or else config/sim.yaml of the source tree; the null-flow curve from --null-flow
+CURVE.csv or, without it, from running `pneu-plant null-flow` on the same configuration. Exit
+codes: 0 written, 2 bad input (missing file, missing column, malformed value, events of another
+run), 1 anything else.
 """
 
 import argparse
