@@ -332,7 +332,8 @@ def restrict_to_time_range(run, t0, t1):
         setattr(run, name, getattr(run, name)[keep])
     if run.held is not None:
         run.held = run.held[keep]
-    run.holds = [h for h in run.holds if t0 <= h["t"] <= t1]
+    run.holds = [h for h in run.holds  # those that overlap the range
+                 if h["t"] <= t1 and (h["end"] is None or h["end"] >= t0)]
     if run.forecast:
         run.forecast = {m: {k: v[keep] for k, v in cols.items()}
                         for m, cols in run.forecast.items()}
@@ -402,17 +403,18 @@ class RunIdentity:
     """What names a run in the figures' titles and file names: the configuration it started
     from, its backend and clock, whether it held, when it was made, its files."""
 
-    def __init__(self, run, bench, recorded):
+    def __init__(self, run, bench, origin):
         # pneud's effective configuration says on its first line which YAML the run started from
-        m = re.search(r"what its loop ran with \((.*), --set applied", bench.header) if recorded \
-            else None
+        m = re.search(r"what its loop ran with \((.*), --set applied", bench.header) \
+            if origin == "run" else None
         if m:
-            origin = m.group(1)
-            self.config = ("sim.yaml (embedded)" if origin == "the embedded sim.yaml"
-                           else os.path.basename(origin))
+            start = m.group(1)
+            self.config = ("sim.yaml (embedded)" if start == "the embedded sim.yaml"
+                           else os.path.basename(start))
         else:
-            self.config = os.path.basename(bench.path) + (
-                "" if recorded else " (given, not the run's own record)")
+            self.config = os.path.basename(bench.path) + {
+                "run": "", "config": " (--config: the run recorded none)",
+                "default": " (assumed: the run recorded no configuration)"}[origin]
         self.config_stem = re.sub(r"\.ya?ml\b.*", "", self.config) or "run"
         self.backend = str(bench.key("hal", "backend", default="sim"))
         self.clock = str(bench.key("controller", "clock", default="simulated"))
@@ -470,7 +472,10 @@ def check_events_belong(run, bench, trajectory_path, events_path):
         raise InputError(f"{where}: the trajectory comes to rest {len(rises)} times after its "
                          f"first tick, the events have {len(confirmed)} stops")
     for s, rise in zip(sorted(confirmed, key=lambda s: s["t"]), rises):
-        if abs(float(rise) - s["t"] - confirm_s) > 1.5 * period:
+        # the detector confirms on the first tick hold_s or more after the stop's tick
+        anchor = float(run.t[int(np.argmin(np.abs(run.t - s["t"])))])
+        confirming = run.t[int(np.searchsorted(run.t, anchor + confirm_s - 1e-7))]
+        if abs(float(rise) - float(confirming)) > 1e-7:
             raise InputError(f"{where}: stop {s['index']} at t = {s['t']:.4f} s, the trajectory "
                              f"comes to rest at t = {float(rise):.4f} s (stop_detector.hold_s = "
                              f"{confirm_s:g} s)")
@@ -531,15 +536,18 @@ def effective_config_beside(*outputs):
 
 
 def run_configuration(args):
-    """(Bench, whether it is the run's own record): the effective configuration pneud wrote
-    beside the run's output when there is one (--set applied), else --config, else sim.yaml."""
+    """(Bench, where it came from: 'run', 'config' or 'default'): the effective configuration
+    pneud wrote beside the run's output when there is one (--set applied), else --config, else
+    sim.yaml."""
     own = effective_config_beside(args.trajectory, args.events)
     if own:
         if args.config:
             print(f"pneu_plots: note: drawing the run's own effective configuration {own}, "
                   f"not --config {args.config}", file=sys.stderr)
-        return Bench(own), True
-    return Bench(args.config or default_config()), False
+        return Bench(own), "run"
+    if args.config:
+        return Bench(args.config), "config"
+    return Bench(default_config()), "default"
 
 
 def default_config():
@@ -1667,14 +1675,14 @@ def make_figures(args):
     except ImportError:
         raise InputError("numpy is missing (Debian package python3-numpy)") from None
     plt = _setup_matplotlib()
-    bench, recorded = run_configuration(args)
+    bench, origin = run_configuration(args)
     if args.log_csv:
         run = load_log_csv(args.log_csv, args.prefix)
     else:
         run = load_pneud_output(args.trajectory, args.events)
         if args.events:
             check_events_belong(run, bench, args.trajectory, args.events)
-    ident = RunIdentity(run, bench, recorded)
+    ident = RunIdentity(run, bench, origin)
     if args.time_range:
         restrict_to_time_range(run, *args.time_range)
     if len(run.t) < 2:
