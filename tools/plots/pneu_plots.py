@@ -143,6 +143,7 @@ class Run:
         self.forecast = None   # {method: {"p_p", "p_n", "force": per-tick arrays, NaN where
         #                        no forecast is followed}}, None when the input has no such columns
         self.source = ""
+        self.seq = None        # the trajectory's tick numbers, None when it has none
 
 
 MODE_HOLD = 3  # the trajectory's and state_t's mode while the in-position hold drives the valves
@@ -171,7 +172,7 @@ def load_pneud_output(trajectory_path, events_path):
 
     forecast_cols = [c for cs in FORECAST_COLUMNS.values() for c in cs]
     cols = read_csv_columns(trajectory_path, ["t", "y_d", "y", "p_p", "p_n", "force", "u", "stuck"],
-                            what="--trajectory", optional=forecast_cols + ["mode"],
+                            what="--trajectory", optional=forecast_cols + ["mode", "seq"],
                             older_spellings=OLDER_TRAJECTORY_SPELLINGS)
     run = Run()
     run.t, run.y_d, run.y = (np.array(cols[c]) for c in ("t", "y_d", "y"))
@@ -179,6 +180,8 @@ def load_pneud_output(trajectory_path, events_path):
     run.stuck = np.array(cols["stuck"]) > 0.5
     if "mode" in cols:
         run.held = np.array(cols["mode"]) == MODE_HOLD
+    if "seq" in cols:
+        run.seq = np.array(cols["seq"])
     missing = [c for c in forecast_cols if c not in cols]
     if len(missing) < len(forecast_cols):  # older pneud writes none of them
         if missing:
@@ -471,17 +474,24 @@ def check_events_belong(run, bench, trajectory_path, events_path):
     if len(rises) != len(confirmed):
         raise InputError(f"{where}: the trajectory comes to rest {len(rises)} times after its "
                          f"first tick, the events have {len(confirmed)} stops")
+    def rows_lost(t_a, t_b):
+        """Whether the trajectory lost rows between t_a and t_b (pneud counts ticks_dropped)."""
+        if run.seq is None:
+            return False
+        i, j = np.searchsorted(run.t, [t_a, t_b])
+        return bool(np.any(np.diff(run.seq[max(i - 1, 0):j + 1]) > 1))
+
     for s, rise in zip(sorted(confirmed, key=lambda s: s["t"]), rises):
         # the detector confirms on the first tick hold_s or more after the stop's tick
         anchor = float(run.t[int(np.argmin(np.abs(run.t - s["t"])))])
         confirming = run.t[int(np.searchsorted(run.t, anchor + confirm_s - 1e-7))]
-        if abs(float(rise) - float(confirming)) > 1e-7:
+        if abs(float(rise) - float(confirming)) > 1e-7 and not rows_lost(s["t"], float(rise)):
             raise InputError(f"{where}: stop {s['index']} at t = {s['t']:.4f} s, the trajectory "
                              f"comes to rest at t = {float(rise):.4f} s (stop_detector.hold_s = "
                              f"{confirm_s:g} s)")
     for s in run.stops:
         i = int(np.argmin(np.abs(run.t - s["t"])))
-        if abs(float(run.t[i]) - s["t"]) > 0.5 * period:
+        if abs(float(run.t[i]) - s["t"]) > 0.5 * period and not rows_lost(s["t"], s["t"]):
             raise InputError(f"{where}: stop {s['index']} at t = {s['t']:.4f} s falls on no "
                              f"tick of the trajectory (t = {float(run.t[0]):.4f} to "
                              f"{float(run.t[-1]):.4f} s)")
