@@ -5,12 +5,15 @@
 # one stop marker per stop), and bad input must be refused with exit code 2. The third figure
 # (Fig. 13: a sticking phase against its forecasts) needs the trajectory's forecast columns: it is
 # drawn from pneud's output, skipped with a note from the LCM CSVs and from an older trajectory.
+# An LCM log's figures name its date and the configuration drawn (tests/check_plot_figures.py;
+# runs of every kind: test_plots_runs.sh); the stability map names what it was computed on.
 # Usage: test_plots.sh BUILD_BIN_DIR SOURCE_DIR   (exit 77: skipped, saying why)
 set -euo pipefail
 bin=$1
 src=$2
 py=/usr/bin/python3
 tool="$src/tools/plots/pneu_plots.py"
+check="$src/tests/check_plot_figures.py"
 if ! "$py" -c "import matplotlib, numpy, yaml" 2>/dev/null; then
   echo "SKIPPED: $py lacks matplotlib, numpy or yaml (Debian packages python3-matplotlib," \
        "python3-numpy, python3-yaml)" >&2
@@ -145,6 +148,11 @@ EOF
   --null-flow "$tmp/null_flow.csv" --out-dir "$tmp/out_lcm" --name lcm > "$tmp/lcm.out" 2> "$tmp/lcm.err" \
   || fail "pneu_plots.py failed on the LCM CSVs: $(cat "$tmp/lcm.err")"
 check_figures "$tmp/out_lcm" lcm
+# An LCM log is dated by its first STATE message (utime 1700000000 s) and names the --config drawn.
+"$py" "$check" "$tool" --stem "config_sim_20231114-221320" \
+  --title "config.yaml (--config: the run recorded none) on the sim backend, simulated clock, hold off, run of 2023-11-14 22:13 UTC" \
+  -- --log-csv "$tmp/log" --prefix RUN1_ --config "$tmp/config.yaml" --null-flow "$tmp/null_flow.csv" --out-dir "$tmp/unused" \
+  2> /dev/null || fail "the LCM run's figures"
 # Only the stops' forecasts (update 0) are the forecasts; the re-forecasts are not.
 predictions=$(grep -c '"event":"prediction"' "$tmp/events.jsonl")
 reforecasts=$(grep -c '"event":"reforecast"' "$tmp/events.jsonl")
@@ -185,6 +193,16 @@ map_tool="$src/tools/plots/stability_map.py"
 check_figure "$tmp" stability_map
 grep -q "paper's fixed gains" "$tmp/stability_map.svg" || fail "the map draws no fixed-gain line"
 grep -q "designed schedule" "$tmp/stability_map.svg" || fail "the map draws no schedule line"
+grep -qF "Stability map of Eq. 4 over the stroke (the map map.csv of pneu-plant tune --csv)" "$tmp/stability_map.svg" \
+  || fail "the map's title does not name its map"
+# Computed by the tool on a configuration with --set: the title names both, the fixed gains are
+# named by their values, not as the paper's.
+"$py" "$map_tool" --config "$src/config/paper.yaml" --set controller.law.position_gain_v_per_m=60 --step-mm 25 \
+  --pneu-plant "$bin/pneu-plant" --out "$tmp/map60" > /dev/null || fail "stability_map.py failed with --set"
+grep -qF "(pneu-plant tune on paper.yaml --set controller.law.position_gain_v_per_m=60, every 25 mm)" "$tmp/map60.svg" \
+  || fail "the map's title does not name its configuration and --set"
+grep -qF "fixed gains (60 V/m, 1.5 V/(m/s)" "$tmp/map60.svg" || fail "the map's fixed gains are not named by their values"
+! grep -q "paper's fixed gains" "$tmp/map60.svg" || fail "gains of 60 V/m named the paper's"
 rc=0; "$py" "$map_tool" --map "$tmp/nothing.csv" --out "$tmp/none" 2> "$tmp/map.err" || rc=$?
 [ "$rc" -eq 2 ] && grep -q "no such file" "$tmp/map.err" || fail "a missing map: exit $rc, $(cat "$tmp/map.err")"
 cut -d, -f1-3 "$tmp/map.csv" > "$tmp/short_map.csv"
@@ -203,9 +221,10 @@ for text in "trajectory, held" "the hold's target: x - y = (F_S+ + F_S-) / 2 = -
   grep -qF "$text" "$tmp/held/held_plane.svg" || fail "the held run's plane figure lacks '$text'"
 done
 
-# 6. A run made with --set is drawn with the run's values: without --config the tool reads the
-# effective configuration pneud wrote beside the trajectory (T.csv.config.yaml), not a YAML file
-# that lacks the override (given it, the recorded force disagrees and the tool says so).
+# 6. A run made with --set is drawn with the run's values: the tool reads the effective
+# configuration pneud wrote beside the trajectory (T.csv.config.yaml), not a YAML file that lacks
+# the override, even when given one with --config (it says so). Without the run's own (an older
+# pneud), --config is drawn, and the recorded force disagreeing with it is told.
 "$bin/pneud" --config "$tmp/config.yaml" --quiet --duration 3 --set plant.geometry.bore_diameter_m=0.04 \
   --events "$tmp/bore.jsonl" --trajectory "$tmp/bore.csv"
 [ -s "$tmp/bore.csv.config.yaml" ] || fail "no effective configuration beside the trajectory"
@@ -214,8 +233,14 @@ done
 ! grep -q "is it the run's configuration" "$tmp/bore.err" || fail "drawn with other values than the run's: $(cat "$tmp/bore.err")"
 "$py" "$tool" --trajectory "$tmp/bore.csv" --events "$tmp/bore.jsonl" --config "$tmp/config.yaml" \
   --out-dir "$tmp/bore_file" --name bore > /dev/null 2> "$tmp/bore_file.err" || fail "pneu_plots.py failed with --config"
-grep -q "is it the run's configuration" "$tmp/bore_file.err" || fail "a configuration without the --set is not noticed"
+! grep -q "is it the run's configuration" "$tmp/bore_file.err" || fail "--config drawn over the run's own: $(cat "$tmp/bore_file.err")"
+grep -qF "drawing the run's own effective configuration $tmp/bore.csv.config.yaml, not --config $tmp/config.yaml" \
+  "$tmp/bore_file.err" || fail "no note on drawing the run's own configuration: $(cat "$tmp/bore_file.err")"
+mkdir "$tmp/older" && cp "$tmp/bore.csv" "$tmp/bore.jsonl" "$tmp/older/"
+"$py" "$tool" --trajectory "$tmp/older/bore.csv" --events "$tmp/older/bore.jsonl" --config "$tmp/config.yaml" \
+  --out-dir "$tmp/older/out" --name bore > /dev/null 2> "$tmp/older.err" || fail "pneu_plots.py failed on a run without its configuration"
+grep -q "is it the run's configuration" "$tmp/older.err" || fail "a configuration without the --set is not noticed"
 
 echo "plots: $stops stops; paper_time, paper_plane and paper_forecast (PNG and SVG) from pneud's output," \
      "the first two from LCM CSVs and from a trajectory without forecast columns; the stability map; a held run's plane;" \
-     "a --set run drawn with its effective configuration; bad input refused"
+     "a --set run drawn with its effective configuration; bad input refused; the LCM run and the map named"

@@ -1,12 +1,16 @@
 #!/usr/bin/python3
 """pneu_plots: the figures of a pneud run, after Brun et al. 2005 (Fig. 8, 7/10/11 and 13).
 
-Reads either pneud's own output (--trajectory T.csv --events E.jsonl) or the CSV files that
-pneu-log2csv converts from an LCM log (--log-csv DIR), and writes
+Reads either pneud's own output (--trajectory T.csv [--events E.jsonl], the events of the same
+run: checked, refused otherwise) or the CSV files that pneu-log2csv converts from an LCM log
+(--log-csv DIR), and writes, <name> being the run's configuration, backend, 'held' when the hold
+was on, and the date and time of the run (or --name):
 
   OUT/<name>_time.png/.svg   time traces: set point and position, chamber pressures, control
                              voltage and pressure force, with the stops, the forecast restarts
-                             (one marker per method) and the actual restarts;
+                             (one marker per method; those of the law that a hold or reach took
+                             over before are left out, the reaches' own drawn), the actual
+                             restarts, and the holds and reaches from hold_start to hold_end;
   OUT/<name>_plane.png/.svg  the pressure-force plane: x = S_P p_P, y = S_N p_N + S_r p_E [N],
                              with the stop area (Eq. 12), the no-restarting area (Eq. 13), the
                              null-flow curve and the run's trajectory, plus a zoom on the longest
@@ -20,11 +24,14 @@ pneu-log2csv converts from an LCM log (--log-csv DIR), and writes
                              columns: older trajectories and --log-csv input (the LCM STATE channel
                              carries no forecast) skip it with a note on stderr.
 
-Geometry and friction come from the run's configuration: --config, or else the effective
-configuration pneud wrote beside its output (T.csv.config.yaml, E.jsonl.config.yaml: --set
-applied), or else config/sim.yaml of the source tree; the null-flow curve from --null-flow CURVE.csv or, without it, from running
-`pneu-plant null-flow` on the same configuration. Exit codes: 0 written, 2 bad input (missing
-file, missing column, malformed value), 1 anything else.
+Each title names the run: the YAML it started from, its backend and clock, the hold, the date
+(of the trajectory file; of the first STATE row in an LCM log). Geometry and friction come from
+the run's own configuration: the effective configuration pneud wrote beside its output
+(T.csv.config.yaml, E.jsonl.config.yaml: --set applied), or else, for a run that recorded none,
+--config, or else config/sim.yaml of the source tree; the null-flow curve from --null-flow
+CURVE.csv or, without it, from running `pneu-plant null-flow` on the same configuration. Exit
+codes: 0 written, 2 bad input (missing file, missing column, malformed value, events of another
+run), 1 anything else.
 """
 
 import argparse
@@ -34,11 +41,13 @@ import itertools
 import json
 import math
 import os
+import re
 import shutil
 import subprocess
 import sys
 import textwrap
 import tempfile
+from datetime import datetime, timezone
 
 EXIT_BAD_INPUT = 2
 
@@ -126,10 +135,15 @@ class Run:
         self.reforecasts = []  # the same made again while stuck, plus update (1, 2, ...)
         self.held = None       # per tick: the in-position hold drove the valves (mode hold); None
         #                        when the input has no mode
-        self.holds = []        # dicts: t, reach (0: holding within the window, +-1: reaching)
+        self.holds = []        # dicts: t, stop, reach (0: holding within the window, +-1:
+        #                        reaching), end (the hold_end's time; None: held to the end)
+        self.hold_ends = []    # the hold_end events' times
+        self.end_t = None      # the end event's time, if the events have one
+        self.date = None       # when the run was made (UTC datetime), None if unknown
         self.forecast = None   # {method: {"p_p", "p_n", "force": per-tick arrays, NaN where
         #                        no forecast is followed}}, None when the input has no such columns
         self.source = ""
+        self.seq = None        # the trajectory's tick numbers, None when it has none
 
 
 MODE_HOLD = 3  # the trajectory's and state_t's mode while the in-position hold drives the valves
@@ -158,7 +172,7 @@ def load_pneud_output(trajectory_path, events_path):
 
     forecast_cols = [c for cs in FORECAST_COLUMNS.values() for c in cs]
     cols = read_csv_columns(trajectory_path, ["t", "y_d", "y", "p_p", "p_n", "force", "u", "stuck"],
-                            what="--trajectory", optional=forecast_cols + ["mode"],
+                            what="--trajectory", optional=forecast_cols + ["mode", "seq"],
                             older_spellings=OLDER_TRAJECTORY_SPELLINGS)
     run = Run()
     run.t, run.y_d, run.y = (np.array(cols[c]) for c in ("t", "y_d", "y"))
@@ -166,6 +180,8 @@ def load_pneud_output(trajectory_path, events_path):
     run.stuck = np.array(cols["stuck"]) > 0.5
     if "mode" in cols:
         run.held = np.array(cols["mode"]) == MODE_HOLD
+    if "seq" in cols:
+        run.seq = np.array(cols["seq"])
     missing = [c for c in forecast_cols if c not in cols]
     if len(missing) < len(forecast_cols):  # older pneud writes none of them
         if missing:
@@ -173,6 +189,17 @@ def load_pneud_output(trajectory_path, events_path):
                              f"(the forecast columns come all together)")
         run.forecast = {m: {k: np.array(cols[c]) for k, c in zip(("p_p", "p_n", "force"), cs)}
                         for m, cs in FORECAST_COLUMNS.items()}
+    run.source = os.path.basename(trajectory_path)
+    run.date = datetime.fromtimestamp(os.stat(trajectory_path).st_mtime, timezone.utc)
+    if events_path:
+        _load_events(run, events_path)
+        run.source += " + " + os.path.basename(events_path)
+    _pair_holds(run)
+    return run
+
+
+def _load_events(run, events_path):
+    """pneud's --events file into run: stops, starts, holds, the end, forecasts."""
     _require_file(events_path, "--events")
     with open(events_path, encoding="utf-8") as f:
         for n, line in enumerate(f, start=1):
@@ -200,15 +227,29 @@ def load_pneud_output(trajectory_path, events_path):
                                    "direction": ev.get("direction", 0)})
             elif kind == "hold_start":
                 need("t")
-                run.holds.append({"t": ev["t"], "reach": ev.get("reach", 0)})
+                run.holds.append({"t": ev["t"], "stop": ev.get("stop", 0),
+                                  "reach": ev.get("reach", 0), "end": None})
+            elif kind == "hold_end":
+                need("t")
+                run.hold_ends.append(ev["t"])
+            elif kind == "end":
+                need("t")
+                run.end_t = ev["t"]
             elif kind == "prediction":  # the forecast made at the stop
                 need("t_stop", "method", "will_restart", "t_restart")
                 run.predictions.append(_prediction(ev))
             elif kind == "reforecast":  # the same made again while stuck (live predictor)
                 need("t", "t_stop", "update", "method", "will_restart", "t_restart")
                 run.reforecasts.append(_prediction(ev, update=ev["update"]))
-    run.source = os.path.basename(trajectory_path)
-    return run
+
+
+def _pair_holds(run):
+    """Each hold's end: the first hold_end after it (None: held to the end of the record)."""
+    ends = sorted(run.hold_ends)
+    for h in sorted(run.holds, key=lambda h: h["t"]):
+        h["end"] = next((e for e in ends if e >= h["t"]), None)
+        if h["end"] is not None:
+            ends.remove(h["end"])
 
 
 def load_log_csv(directory, prefix):
@@ -218,10 +259,15 @@ def load_log_csv(directory, prefix):
         raise InputError(f"--log-csv: no such directory: {directory}")
     state = read_csv_columns(os.path.join(directory, prefix + "STATE.csv"),
                              ["t", "y_d", "y", "p_p", "p_n", "force", "u", "stuck"],
-                             what=f"--log-csv ({prefix}STATE.csv)", optional=["mode"])
-    events = read_csv_columns(os.path.join(directory, prefix + "EVENT.csv"),
-                              ["t", "stop", "y", "force", "direction"], ["kind_name"],
-                              what=f"--log-csv ({prefix}EVENT.csv)")
+                             what=f"--log-csv ({prefix}STATE.csv)", optional=["mode", "utime"])
+    event_path = os.path.join(directory, prefix + "EVENT.csv")
+    if os.path.isfile(event_path):
+        events = read_csv_columns(event_path, ["t", "stop", "y", "force", "direction"],
+                                  ["kind_name"], what=f"--log-csv ({prefix}EVENT.csv)")
+    else:
+        print(f"pneu_plots: note: no {event_path}: no stops, restarts or holds drawn",
+              file=sys.stderr)
+        events = {"kind_name": []}
     pred_path = os.path.join(directory, prefix + "PREDICTION.csv")
     run = Run()
     order = np.argsort(np.array(state["t"]), kind="stable")
@@ -231,12 +277,19 @@ def load_log_csv(directory, prefix):
     run.stuck = np.array(state["stuck"])[order] > 0.5
     if "mode" in state:
         run.held = np.array(state["mode"])[order] == MODE_HOLD
+    if "utime" in state and state["utime"] and math.isfinite(state["utime"][0]):
+        run.date = datetime.fromtimestamp(min(state["utime"]) / 1e6, timezone.utc)
     for i, kind in enumerate(events["kind_name"]):
         if kind == "stop":
             run.stops.append({"index": int(events["stop"][i]), "t": events["t"][i],
                               "y": events["y"][i], "force": events["force"][i]})
         elif kind == "hold_start":
-            run.holds.append({"t": events["t"][i], "reach": events["direction"][i]})
+            run.holds.append({"t": events["t"][i], "stop": int(events["stop"][i]),
+                              "reach": events["direction"][i], "end": None})
+        elif kind == "hold_end":
+            run.hold_ends.append(events["t"][i])
+        elif kind == "end":
+            run.end_t = events["t"][i]
         elif kind in ("start", "restart"):
             run.starts.append({"index": int(events["stop"][i]), "t": events["t"][i],
                                "y": events["y"][i], "restart": kind == "restart",
@@ -272,6 +325,7 @@ def load_log_csv(directory, prefix):
     else:
         print(f"pneu_plots: note: no {pred_path}: no forecasts drawn", file=sys.stderr)
     run.source = os.path.basename(os.path.normpath(directory)) + "/" + prefix + "*.csv"
+    _pair_holds(run)
     return run
 
 
@@ -281,7 +335,8 @@ def restrict_to_time_range(run, t0, t1):
         setattr(run, name, getattr(run, name)[keep])
     if run.held is not None:
         run.held = run.held[keep]
-    run.holds = [h for h in run.holds if t0 <= h["t"] <= t1]
+    run.holds = [h for h in run.holds  # those that overlap the range
+                 if h["t"] <= t1 and (h["end"] is None or h["end"] >= t0)]
     if run.forecast:
         run.forecast = {m: {k: v[keep] for k, v in cols.items()}
                         for m, cols in run.forecast.items()}
@@ -329,10 +384,126 @@ class Bench:
         self.fs_neg = get("plant", "friction", "static_negative_n")
         self.fc_neg = get("plant", "friction", "coulomb_negative_n")
         self.path = config_path
+        self.cfg = cfg
+        with open(config_path, encoding="utf-8") as f:
+            self.header = f.readline()
+
+    def key(self, *keys, default=None):
+        """A value of the configuration by its dotted path, default where it is absent."""
+        node = self.cfg
+        for k in keys:
+            if not isinstance(node, dict) or k not in node:
+                return default
+            node = node[k]
+        return node
 
     def plane(self, p_p, p_n):
         """Eq. 14 split in two: x = S_P p_P, y = S_N p_N + S_r p_E [N]."""
         return self.area_p * p_p, self.area_n * p_n + self.area_rod * self.p_e
+
+
+class RunIdentity:
+    """What names a run in the figures' titles and file names: the configuration it started
+    from, its backend and clock, whether it held, when it was made, its files."""
+
+    def __init__(self, run, bench, origin):
+        # pneud's effective configuration says on its first line which YAML the run started from
+        m = re.search(r"what its loop ran with \((.*), --set applied", bench.header) \
+            if origin == "run" else None
+        if m:
+            start = m.group(1)
+            self.config = ("sim.yaml (embedded)" if start == "the embedded sim.yaml"
+                           else os.path.basename(start))
+        else:
+            self.config = os.path.basename(bench.path) + {
+                "run": "", "config": " (--config: the run recorded none)",
+                "default": " (assumed: the run recorded no configuration)"}[origin]
+        self.config_stem = re.sub(r"\.ya?ml\b.*", "", self.config) or "run"
+        self.backend = str(bench.key("hal", "backend", default="sim"))
+        self.clock = str(bench.key("controller", "clock", default="simulated"))
+        self.hold = bench.key("controller", "hold", "enabled", default=False) is True
+        self.window_m = bench.key("controller", "hold", "window_m")
+        self.reach_m = bench.key("controller", "hold", "reach_m")
+        self.date = run.date
+        self.source = run.source
+
+    def hold_text(self):
+        if not self.hold:
+            return "hold off"
+        parts = [f"{k} {float(v) * 1e3:g} mm" for k, v in (("window", self.window_m),
+                                                             ("reach", self.reach_m))
+                 if v is not None and float(v) > 0]
+        return "hold on" + (f" ({', '.join(parts)})" if parts else "")
+
+    def label(self):
+        """One title line: configuration, backend, clock, hold, date."""
+        when = f", run of {self.date:%Y-%m-%d %H:%M} UTC" if self.date else ""
+        return (f"{self.config} on the {self.backend} backend, {self.clock} clock, "
+                f"{self.hold_text()}{when}")
+
+    def stem(self):
+        """The default file stem: configuration, backend, held or not, date and time."""
+        parts = [self.config_stem, self.backend] + (["held"] if self.hold else [])
+        if self.date:
+            parts.append(f"{self.date:%Y%m%d-%H%M%S}")
+        return re.sub(r"[^A-Za-z0-9._-]+", "-", "_".join(parts))
+
+
+def check_events_belong(run, bench, trajectory_path, events_path):
+    """Refuses events that another run wrote: the two files' effective configurations must be
+    the same; each stop must fall on one of the trajectory's ticks, where it reads the stop's
+    position and comes to rest when the stop is confirmed; the end on its last tick."""
+    import numpy as np
+    if len(run.t) < 2:
+        return
+    period = float(np.median(np.diff(run.t)))
+    where = f"--events {events_path} does not belong to --trajectory {trajectory_path}"
+    ca, cb = effective_config_beside(trajectory_path), effective_config_beside(events_path)
+    if ca and cb:
+        with open(ca, encoding="utf-8") as fa, open(cb, encoding="utf-8") as fb:
+            if fa.read() != fb.read():
+                raise InputError(f"{where}: their effective configurations differ "
+                                 f"({ca} and {cb}): two runs")
+    if run.end_t is not None and abs(run.end_t - float(run.t[-1])) > 1.5 * period:
+        raise InputError(f"{where}: the events end at t = {run.end_t:.4f} s, the trajectory at "
+                         f"t = {float(run.t[-1]):.4f} s")
+    # the trajectory's stuck flag rises where the detector confirms a stop, hold_s after it
+    confirm_s = float(bench.key("controller", "stop_detector", "hold_s", default=0.0) or 0.0)
+    rises = run.t[1:][run.stuck[1:] & ~run.stuck[:-1]]
+    confirmed = [s for s in run.stops if s["t"] + confirm_s <= float(run.t[-1])]
+    if len(rises) != len(confirmed):
+        raise InputError(f"{where}: the trajectory comes to rest {len(rises)} times after its "
+                         f"first tick, the events have {len(confirmed)} stops")
+    def rows_lost(t_a, t_b):
+        """Whether the trajectory lost rows between t_a and t_b (pneud counts ticks_dropped)."""
+        if run.seq is None:
+            return False
+        i, j = np.searchsorted(run.t, [t_a, t_b])
+        return bool(np.any(np.diff(run.seq[max(i - 1, 0):j + 1]) > 1))
+
+    for s, rise in zip(sorted(confirmed, key=lambda s: s["t"]), rises):
+        # the detector confirms on the first tick hold_s or more after the stop's tick
+        anchor = float(run.t[int(np.argmin(np.abs(run.t - s["t"])))])
+        confirming = run.t[int(np.searchsorted(run.t, anchor + confirm_s - 1e-7))]
+        if abs(float(rise) - float(confirming)) > 1e-7 and not rows_lost(s["t"], float(rise)):
+            raise InputError(f"{where}: stop {s['index']} at t = {s['t']:.4f} s, the trajectory "
+                             f"comes to rest at t = {float(rise):.4f} s (stop_detector.hold_s = "
+                             f"{confirm_s:g} s)")
+    for s in run.stops:
+        i = int(np.argmin(np.abs(run.t - s["t"])))
+        if abs(float(run.t[i]) - s["t"]) > 0.5 * period and not rows_lost(s["t"], s["t"]):
+            raise InputError(f"{where}: stop {s['index']} at t = {s['t']:.4f} s falls on no "
+                             f"tick of the trajectory (t = {float(run.t[0]):.4f} to "
+                             f"{float(run.t[-1]):.4f} s)")
+        if abs(float(run.y[i]) - s["y"]) > STOP_POSITION_TOLERANCE_M:
+            raise InputError(f"{where}: stop {s['index']} at t = {s['t']:.4f} s is at "
+                             f"y = {s['y'] * 1e3:.3f} mm, the trajectory reads "
+                             f"{float(run.y[i]) * 1e3:.3f} mm there")
+
+
+# A stop's position (the rest position the detector reports) and the trajectory's reading at the
+# stop's tick: equal on the simulated bench, within the sensor's noise and steps on a real one.
+STOP_POSITION_TOLERANCE_M = 1e-4
 
 
 def find_pneu_plant(explicit):
@@ -374,6 +545,21 @@ def effective_config_beside(*outputs):
     return None
 
 
+def run_configuration(args):
+    """(Bench, where it came from: 'run', 'config' or 'default'): the effective configuration
+    pneud wrote beside the run's output when there is one (--set applied), else --config, else
+    sim.yaml."""
+    own = effective_config_beside(args.trajectory, args.events)
+    if own:
+        if args.config:
+            print(f"pneu_plots: note: drawing the run's own effective configuration {own}, "
+                  f"not --config {args.config}", file=sys.stderr)
+        return Bench(own), "run"
+    if args.config:
+        return Bench(args.config), "config"
+    return Bench(default_config()), "default"
+
+
 def default_config():
     here = os.path.dirname(os.path.realpath(__file__))
     for c in (os.path.join(here, "..", "..", "config", "sim.yaml"),  # the source tree
@@ -394,6 +580,11 @@ METHOD_STYLE = {  # forecast markers, one per method
              "label": "forecast breakaway under the hold's commands (a reach)"},
 }
 C_HELD = "#00897b"  # the trajectory while the in-position hold drives the valves
+HOLD_LABELS = {"hold": "hold began (at rest within the window)",
+               "reach": "reach began (at rest outside the window: the force ramped towards "
+                        "the set point)"}
+HOLD_SHORT_LABELS = {"hold": "hold began (within the window)",
+                     "reach": "reach began (outside the window)"}
 OTHER_METHOD = {"marker": "s", "color": "#7b3294"}
 C_Y, C_YD = "#1f4e9c", "#555555"
 C_PP, C_PN = "#c0392b", "#2471a3"
@@ -437,6 +628,86 @@ def sticking_phases(run):
     return phases
 
 
+def law_forecasts(run):
+    """The restarts forecast at the stops that still applied, and those superseded: a forecast is
+    made under the law's commands; once a hold or reach of its stop began before the forecast
+    time, the hold's commands replaced the law's and the forecast no longer says anything."""
+    shown, superseded = [], []
+    for p in run.predictions:
+        if p["will_restart"] and p["t_restart"] is not None:
+            took_over = any(h["stop"] == p["stop"] and h["t"] <= p["t_restart"] for h in run.holds)
+            (superseded if took_over else shown).append(p)
+    return shown, superseded
+
+
+def reach_forecasts(run):
+    """Per stop with a reach, the breakaway forecast under the hold's commands made when the
+    reach began (its first 'held' re-forecast)."""
+    first = {}
+    for r in run.reforecasts:
+        if r["method"] == "held" and r["will_restart"] and r["t_restart"] is not None:
+            if r["stop"] not in first or r["update"] < first[r["stop"]]["update"]:
+                first[r["stop"]] = r
+    return [first[k] for k in sorted(first)]
+
+
+def drawn_forecasts(run):
+    """The forecast restarts a figure marks: the law's that still applied, the reaches'."""
+    return law_forecasts(run)[0] + reach_forecasts(run)
+
+
+def holds_summary(run):
+    """One line on the holds and reaches and the forecasts they superseded, or ''."""
+    if not run.holds:
+        return ""
+    held = [h for h in run.holds if h["reach"] == 0]
+    to_end = sum(1 for h in held if h["end"] is None)
+    reaches = len(run.holds) - len(held)
+    superseded = len(law_forecasts(run)[1])
+    parts = [f"{len(held)} hold{'s' if len(held) != 1 else ''} ({to_end} held to the end)"]
+    if reaches:
+        parts.append(f"{reaches} reach{'es' if reaches != 1 else ''}")
+    text = ", ".join(parts)
+    if superseded:
+        text += (f"; {superseded} forecast restart{'s' if superseded != 1 else ''} superseded "
+                 "by a hold or reach, not drawn")
+    return text
+
+
+def _index_ranges(indices):
+    """1, 2, 3, 5 -> '1-3, 5'."""
+    out, run_start, prev = [], None, None
+    for i in list(indices) + [None]:
+        if run_start is not None and (i is None or i != prev + 1):
+            out.append(str(run_start) if prev == run_start else f"{run_start}-{prev}")
+            run_start = None
+        if i is not None and run_start is None:
+            run_start = i
+        prev = i
+    return ", ".join(out)
+
+
+def label_stops(ax, points, min_px=24.0, **style):
+    """Numbers the stops (index, x, y) where they are in view, one label per cluster of stops
+    closer than min_px on screen ('3-12'), so that labels never sit on each other."""
+    import numpy as np
+    x_lo, x_hi = sorted(ax.get_xlim())
+    y_lo, y_hi = sorted(ax.get_ylim())
+    groups = []  # [anchor in pixels, data point, indices]
+    for index, x, y in points:
+        if not (x_lo < x < x_hi and y_lo < y < y_hi):
+            continue
+        d = ax.transData.transform((x, y))
+        near = next((g for g in groups if np.hypot(*(d - g[0])) < min_px), None)
+        if near:
+            near[2].append(index)
+        else:
+            groups.append([d, (x, y), [index]])
+    for _, xy, indices in groups:
+        ax.annotate(_index_ranges(sorted(indices)), xy, **style)
+    return groups
+
+
 def _interp(run, t, values):
     import numpy as np
     return float(np.interp(t, run.t, values))
@@ -460,7 +731,7 @@ def _save(fig, out_dir, stem, dpi):
     return [png, svg]
 
 
-def _event_markers(ax, run, phases, yscale):
+def _event_markers(ax, run, yscale):
     """Stops, forecast restarts (per method) and actual restarts on a position axis."""
     first = set()
 
@@ -473,20 +744,44 @@ def _event_markers(ax, run, phases, yscale):
     for s in run.stops:
         ax.plot(s["t"], s["y"] * yscale, "o", color=C_STOP, ms=5.5, zorder=5,
                 label=label("stop", "stop (t_stop, y*)"))
-    for p in run.predictions:
-        if p["will_restart"] and p["t_restart"] is not None:
-            st = _method_style(p["method"])
-            y_star = next((s["y"] for s in run.stops if s["index"] == p["stop"]),
-                          _interp(run, p["t_stop"], run.y))
-            ax.plot(p["t_restart"], y_star * yscale, st["marker"], color=st["color"], ms=6,
-                    mfc="none", mew=1.4, zorder=6, label=label(p["method"], st["label"]))
+    for p in drawn_forecasts(run):
+        st = _method_style(p["method"])
+        y_star = next((s["y"] for s in run.stops if s["index"] == p["stop"]),
+                      _interp(run, p["t_stop"], run.y))
+        ax.plot(p["t_restart"], y_star * yscale, st["marker"], color=st["color"], ms=6,
+                mfc="none", mew=1.4, zorder=6, label=label(p["method"], st["label"]))
+    for h in run.holds:
+        reach = h["reach"] != 0
+        ax.plot(h["t"], _interp(run, h["t"], run.y) * yscale, ">" if reach else "h",
+                color=C_HELD, ms=6.5 if reach else 7.5, mfc="white" if reach else C_HELD,
+                mec="0.15", mew=0.9, zorder=6.5,
+                label=label("reach" if reach else "hold", HOLD_SHORT_LABELS["reach" if reach else "hold"]))
     for st in run.starts:
         if st["restart"]:
             ax.plot(st["t"], st["y"] * yscale, "x", color=C_RESTART, ms=8, mew=1.8, zorder=7,
                     label=label("restart", "actual restart"))
 
 
-def time_figure(run, bench, name, plt):
+def _law_phase_end(run, stop, end):
+    """Where a sticking phase stops being the law's: its first hold or reach, else its end."""
+    return min([end] + [h["t"] for h in run.holds if h["stop"] == stop["index"]
+                        and stop["t"] <= h["t"] <= end])
+
+
+def _hold_spans(ax, run, legend):
+    """The holds (within the window) and reaches, from their start to their end or the record's."""
+    t_last = float(run.t[-1])
+    for h in run.holds:
+        reach = h["reach"] != 0
+        end = h["end"] if h["end"] is not None else t_last
+        key = "reaching" if reach else "held"
+        ax.axvspan(h["t"], end, facecolor=C_HELD, alpha=0.12 if reach else 0.3, lw=0,
+                   hatch="////" if reach else None, edgecolor=C_HELD if reach else None,
+                   label=legend(key, "reaching for the window (the hold's reach)" if reach
+                                else "held within the window (to hold_end)"))
+
+
+def time_figure(run, bench, ident, plt):
     import numpy as np
     from mpl_toolkits.axes_grid1.inset_locator import mark_inset
 
@@ -496,16 +791,18 @@ def time_figure(run, bench, name, plt):
     phases = sticking_phases(run)
     for ax in axes:
         for i, (s, end, _) in enumerate(phases):
-            ax.axvspan(s["t"], end, color=C_STUCK_SPAN, alpha=0.28, lw=0,
-                       label="sticking phase (stop to start)" if i == 0 and ax is ax_y else None)
+            ax.axvspan(s["t"], _law_phase_end(run, s, end), color=C_STUCK_SPAN, alpha=0.28, lw=0,
+                       label="sticking phase (stop to start or hold)" if i == 0 and ax is ax_y
+                       else None)
             ax.axvline(s["t"], color=C_STOP, lw=0.7, ls=":", alpha=0.8)
+        _hold_spans(ax, run, _FirstLabels() if ax is ax_y else lambda key, text: None)
 
     ax_y.plot(run.t, run.y_d * 1e3, color=C_YD, lw=1.3, ls="--", label="set point y_d")
     ax_y.plot(run.t, run.y * 1e3, color=C_Y, lw=1.6, label="position y")
-    _event_markers(ax_y, run, phases, 1e3)
+    _event_markers(ax_y, run, 1e3)
     ax_y.set_ylabel("position [mm]")
     ax_y.legend(loc="lower left", bbox_to_anchor=(0.0, 1.02, 1.0, 0.2), mode="expand", ncol=3,
-                borderaxespad=0.0, framealpha=0.92)
+                borderaxespad=0.0, framealpha=0.92, fontsize=7.8)
 
     # Inset: the stops around the final set point, where millimetres matter.
     if run.stops:
@@ -525,13 +822,14 @@ def time_figure(run, bench, name, plt):
             ins.plot(run.t, run.y_d * 1e3, color=C_YD, lw=1.1, ls="--")
             ins.plot(run.t, run.y * 1e3, color=C_Y, lw=1.4)
             for s, end, _ in phases:
-                ins.axvspan(s["t"], end, color=C_STUCK_SPAN, alpha=0.28, lw=0)
-            _event_markers(ins, run, phases, 1e3)
-            for s in run.stops:
-                ins.annotate(str(s["index"]), (s["t"], s["y"] * 1e3), xytext=(-3, 6),
-                             textcoords="offset points", fontsize=8, ha="right")
+                ins.axvspan(s["t"], _law_phase_end(run, s, end), color=C_STUCK_SPAN, alpha=0.28,
+                            lw=0)
+            _hold_spans(ins, run, lambda key, text: None)
+            _event_markers(ins, run, 1e3)
             ins.set_xlim(t0, t1)
             ins.set_ylim(lo - pad, hi + pad)
+            label_stops(ins, [(s["index"], s["t"], s["y"] * 1e3) for s in run.stops],
+                        xytext=(-3, 6), textcoords="offset points", fontsize=8, ha="right")
             ins.set_title("zoom on the stops (numbered) [mm]", fontsize=8.5, pad=3)
             ins.tick_params(labelsize=7.5)
             ins.set_facecolor("white")
@@ -557,10 +855,10 @@ def time_figure(run, bench, name, plt):
     ax_f.legend(loc="upper right", ncol=3, framealpha=0.92)
     ax_f.set_xlim(float(run.t[0]), float(run.t[-1]))
 
-    fig.suptitle(f"{name}: set-point step, sticking and restarting (cf. Brun et al. 2005, Fig. 8)\n"
-                 f"{run.source}; stops, forecast restarts per method and actual restarts",
-                 fontsize=11)
-    fig.tight_layout(rect=(0, 0, 1, 0.965))
+    marks = holds_summary(run) or "stops, forecast restarts per method and actual restarts"
+    fig.suptitle("Set-point step, sticking and restarting (cf. Brun et al. 2005, Fig. 8)\n"
+                 f"{ident.label()}\n{ident.source}: {marks}", fontsize=11)
+    fig.tight_layout(rect=(0, 0, 1, 0.955))
     return fig
 
 
@@ -591,6 +889,11 @@ def _label_band_lines(ax, bench, x_lo, x_hi, y_lo, y_hi):
                         va="top", xytext=(-3, -2), textcoords="offset points", zorder=9,
                         bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none",
                               "alpha": 0.8})
+
+
+def _seconds(t):
+    """A time [s] for a title: milliseconds at most, no exponent ('0.000', '12.000')."""
+    return f"{float(t):.3f}"
 
 
 def _positive(v):
@@ -671,18 +974,40 @@ def _longest_phase_panels(run, bench, curve, x, y, longest):
     # close-up: the last tenth of the phase, its forecasts and the equilibrium it aims at
     tail = sel & (run.t >= end - 0.1 * (end - s["t"]))
     cx, cy = list(x[tail]), list(y[tail])
-    for p in pred:
-        if p["will_restart"] and p["t_restart"] is not None:
+    for p in drawn_forecasts(run):
+        if p["stop"] == s["index"]:
             cx.append(_interp(run, p["t_restart"], x))
             cy.append(_interp(run, p["t_restart"], y))
     if eq:
         cx.append(eq[0])
         cy.append(eq[1])
-    what = "restart" if restart else "end"
-    close_up = {"view": _view(cx, cy, 0.3, 0.03 * band, min_aspect=0.8), "phase": longest,
-                "pred": pred, "eq": eq,
+    held = any(h["stop"] == s["index"] and h["reach"] == 0 and h["end"] is None
+               for h in run.holds)
+    what = "restart" if restart else "hold, to the end of the record," if held else "end"
+    view = _close_up_within(_view(cx, cy, 0.3, 0.03 * band, min_aspect=0.8), phase["view"],
+                            (_interp(run, end, x), _interp(run, end, y)))
+    close_up = {"view": view, "phase": longest, "pred": pred, "eq": eq,
                 "title": f"close-up: the {what} of sticking phase {s['index']}"}
     return [phase, close_up]
+
+
+CLOSE_UP_MAX = 0.35  # a close-up spans at most this fraction of the panel it zooms into
+
+
+def _close_up_within(view, outer, end_point):
+    """The close-up's view, or, where it would span more than CLOSE_UP_MAX of the panel it
+    zooms into (a phase whose pressures moved over most of its path until it ended), a view of
+    that size around where the phase ended."""
+    x_lo, x_hi, y_lo, y_hi = view
+    ox = outer[1] - outer[0]
+    oy = outer[3] - outer[2]
+    if x_hi - x_lo <= CLOSE_UP_MAX * ox and y_hi - y_lo <= CLOSE_UP_MAX * oy:
+        return view
+    side = CLOSE_UP_MAX * min(ox, oy)
+    # centred where the phase ended, moved inside the panel it zooms into
+    x0 = min(max(end_point[0] - side / 2, outer[0]), outer[1] - side)
+    y0 = min(max(end_point[1] - side / 2, outer[2]), outer[3] - side)
+    return x0, x0 + side, y0, y0 + side
 
 
 def plane_panels(run, bench, curve, x, y):
@@ -691,7 +1016,7 @@ def plane_panels(run, bench, curve, x, y):
     longest = max(phases, key=lambda ph: ph[1] - ph[0]["t"]) if phases else None
     band = bench.fs_pos - bench.fs_neg
     panels = [{"view": _view(x, y, 0.08, 1.6 * band), "phase": None,
-               "title": f"the whole record, t = {run.t[0]:g} to {run.t[-1]:g} s"}]
+               "title": f"the whole record, t = {_seconds(run.t[0])} to {_seconds(run.t[-1])} s"}]
     if longest:
         panels += _longest_phase_panels(run, bench, curve, x, y, longest)
     return panels
@@ -740,32 +1065,28 @@ def _hold_layer(ax, run, bench, x, y, held, x_span, label):
         ax.plot(_interp(run, h["t"], x), _interp(run, h["t"], y), ">" if reach else "h",
                 color=C_HELD, ms=7.5 if reach else 9, mfc="white" if reach else C_HELD,
                 mec="0.15", mew=1.0, zorder=7.2,
-                label=label("reach" if reach else "hold",
-                            "reach began (at rest outside the window: the force ramped "
-                            "towards the set point)" if reach else
-                            "hold began (at rest within the window)"))
+                label=label("reach" if reach else "hold", HOLD_LABELS["reach" if reach else "hold"]))
 
 
-def _event_layer(ax, run, x, y, view, label):
+def _event_layer(ax, run, x, y, label):
     """The stops (numbered where in view), the actual restarts and the forecast ones."""
-    x_lo, x_hi, y_lo, y_hi = view
+    points = []
     for s in run.stops:
         xs, ys = _interp(run, s["t"], x), _interp(run, s["t"], y)
         ax.plot(xs, ys, "o", color=C_STOP, ms=6.5, zorder=7, label=label("stop", "stop"))
-        if x_lo < xs < x_hi and y_lo < ys < y_hi:
-            ax.annotate(str(s["index"]), (xs, ys), xytext=(-5, 4), textcoords="offset points",
-                        fontsize=9, fontweight="bold", ha="right", zorder=8)
+        points.append((s["index"], xs, ys))
+    label_stops(ax, points, xytext=(-5, 4), textcoords="offset points", fontsize=9,
+                fontweight="bold", ha="right", zorder=8)
     for st in run.starts:
         if st["restart"]:
             ax.plot(_interp(run, st["t"], x), _interp(run, st["t"], y), "x", color=C_RESTART,
                     ms=9, mew=2.0, zorder=8, label=label("restart", "actual restart"))
-    for p in run.predictions:
-        if p["will_restart"] and p["t_restart"] is not None:
-            stl = _method_style(p["method"])
-            ax.plot(_interp(run, p["t_restart"], x), _interp(run, p["t_restart"], y),
-                    stl["marker"], color=stl["color"], ms=8, mfc="none", mew=1.6, zorder=7.5,
-                    label=label(p["method"], stl["label"] + ": where the pressures were "
-                                "at the forecast time"))
+    for p in drawn_forecasts(run):
+        stl = _method_style(p["method"])
+        ax.plot(_interp(run, p["t_restart"], x), _interp(run, p["t_restart"], y),
+                stl["marker"], color=stl["color"], ms=8, mfc="none", mew=1.6, zorder=7.5,
+                label=label(p["method"], stl["label"] + ": where the pressures were "
+                            "at the forecast time"))
 
 
 def _linearized_path(ax, run, x, y, stop, eq, lin):
@@ -838,8 +1159,8 @@ def _plane_panel(ax, run, bench, curve, x, y, masks, panel):
     if masks["held"] is not None:
         _hold_layer(ax, run, bench, x, y, masks["held"], [x_lo - pad, x_hi + pad], label)
     ax.plot(x[0], y[0], "s", color="0.3", ms=6, mfc="white", mew=1.3, zorder=6,
-            label=f"start of the run (t = {run.t[0]:g} s)")
-    _event_layer(ax, run, x, y, panel["view"], label)
+            label=f"start of the record (t = {_seconds(run.t[0])} s)")
+    _event_layer(ax, run, x, y, label)
     if panel["phase"]:
         _phase_layer(ax, run, x, y, panel, label)
     _label_band_lines(ax, bench, x_lo, x_hi, y_lo, y_hi)
@@ -878,7 +1199,7 @@ def _plane_legend(legend_ax, axes):
                      title_fontsize=8.8)
 
 
-def plane_figure(run, bench, curve, name, plt):
+def plane_figure(run, bench, curve, ident, plt):
     """The pressure-force plane (cf. Fig. 7, 10, 11): the whole run, the longest phase, its end."""
     x, y = bench.plane(run.p_p, run.p_n)
     panels = plane_panels(run, bench, curve, x, y)
@@ -888,12 +1209,14 @@ def plane_figure(run, bench, curve, name, plt):
         _plane_panel(ax, run, bench, curve, x, y, masks, panel)
         _number_panel(ax, k, panels)
     _plane_legend(legend_ax, cells[:len(panels)])
-    fig.suptitle(f"{name}: the pressure-force plane (cf. Brun et al. 2005, Fig. 7, 10, 11); "
-                 f"the pressure force is F = x - y (Eq. 14)\n{run.source}; "
+    marks = holds_summary(run)
+    fig.suptitle("The pressure-force plane (cf. Brun et al. 2005, Fig. 7, 10, 11); "
+                 "the pressure force is F = x - y (Eq. 14)\n"
+                 f"{ident.label()}\n{ident.source}: "
                  f"S_P = {bench.area_p * 1e4:.3f} cm^2, S_N = {bench.area_n * 1e4:.3f} cm^2, "
-                 f"S_r = {bench.area_rod * 1e4:.3f} cm^2, p_E = {bench.p_e / 1e5:g} bar",
-                 fontsize=11)
-    fig.tight_layout(rect=(0, 0, 1, 0.955))
+                 f"S_r = {bench.area_rod * 1e4:.3f} cm^2, p_E = {bench.p_e / 1e5:g} bar"
+                 + (f"\n{marks}" if marks else ""), fontsize=11)
+    fig.tight_layout(rect=(0, 0, 1, 0.94 if marks else 0.95))
     return fig
 
 
@@ -981,8 +1304,8 @@ class ForecastWindow:
             (p["direction"] for p in self.pred.values() if p["will_restart"]), 0)
         self.bound = bench.fs_pos if self.direction > 0 else bench.fs_neg  # the restart's bound [N]
         self.t_act = restart["t"] if restart else None       # the actual restart, if any
-        self.restarts = {m: p["t_restart"] for m, p in self.pred.items()  # forecast at the stop
-                         if p["will_restart"] and p["t_restart"] is not None}
+        self.restarts = {p["method"]: p["t_restart"] for p in law_forecasts(run)[0]
+                         if p["stop"] == s["index"]}  # forecast at the stop, still applying
         self.made = _restart_forecasts_made(self.methods, self.pred, self.refc)
 
 
@@ -1244,19 +1567,19 @@ def _reforecast_panel(ax, w):
     ax.legend(loc="lower right", fontsize=7.8, framealpha=0.92)
 
 
-def _forecast_title(run, w, name):
+def _forecast_title(run, w, ident):
     """The title: the phase, the run, when the forecasts were made, how the phase ended."""
     s, end = w.stop, w.end
     how_it_ends = "" if w.restart else \
         " (then a start, not a restart)" if any(s["t"] < o["t"] <= end for o in run.starts) else \
-        " (no start before the end of the plotted record)"
-    return (f"{name}: sticking phase {s['index']}, measured vs forecast pressures and force "
-            f"(cf. Brun et al. 2005, Fig. 13)\n{run.source}; both forecasts made at the stop "
+        " (no start before the record ends)"
+    return (f"Sticking phase {s['index']}, measured vs forecast pressures and force "
+            f"(cf. Brun et al. 2005, Fig. 13)\n{ident.label()}\n{ident.source}: forecasts made at the stop "
             f"(t = {next(iter(w.pred.values()))['t'] if w.pred else s['t']:.3f} s), "
             f"stuck {w.span:.3f} s{how_it_ends}")
 
 
-def _forecast_legend(fig, axes):
+def _forecast_legend(fig, axes, top):
     """One legend of these panels' curves: measured first, then the forecasts, then the rest."""
     handles, labels = [], []
     for ax in axes:
@@ -1267,7 +1590,7 @@ def _forecast_legend(fig, axes):
     order = sorted(range(len(labels)), key=lambda i: (0 if "measured" in labels[i] else
                                                       1 if "forecast (" in labels[i] else 2, i))
     return fig.legend([handles[i] for i in order], [labels[i] for i in order], loc="upper center",
-                      bbox_to_anchor=(0.5, 0.945), ncol=2, framealpha=0.95, fontsize=8.2)
+                      bbox_to_anchor=(0.5, top), ncol=2, framealpha=0.95, fontsize=8.2)
 
 
 def _fit_below_legend(fig, leg, ax_top):
@@ -1282,7 +1605,7 @@ def _fit_below_legend(fig, leg, ax_top):
     fig.subplots_adjust(top=fig.subplotpars.top + below_legend - top)
 
 
-def forecast_figure(run, bench, name, plt):
+def forecast_figure(run, bench, ident, plt):
     """The longest sticking phase against the forecasts made at its stop (cf. Fig. 13), or None
     when the run has no forecast columns or no sticking phase with forecast values."""
     phase = forecast_phase(run)
@@ -1298,8 +1621,10 @@ def forecast_figure(run, bench, name, plt):
         _reforecast_panel(axes[3], w)
     axes[-1].set_xlabel("time t [s]")
     axes[-1].set_xlim(w.t0, w.t1)
-    fig.suptitle(_forecast_title(run, w, name), fontsize=11)
-    leg = _forecast_legend(fig, axes[:2])
+    title = fig.suptitle(_forecast_title(run, w, ident), fontsize=11)
+    fig.canvas.draw()  # the legend's top meets the title's last line
+    leg = _forecast_legend(fig, axes[:2], title.get_window_extent().transformed(
+        fig.transFigure.inverted()).y0 - 0.006)
     _fit_below_legend(fig, leg, axes[0])
     return fig
 
@@ -1314,13 +1639,15 @@ def parse_args(argv):
                     "sticking phase (Fig. 13) of Brun et al. 2005.")
     src = p.add_argument_group("input (one of)")
     src.add_argument("--trajectory", metavar="T.csv", help="pneud --trajectory output")
-    src.add_argument("--events", metavar="E.jsonl", help="pneud --events output (with --trajectory)")
+    src.add_argument("--events", metavar="E.jsonl", help="pneud --events output of the same run "
+                     "(optional: without it, no stops, restarts, holds or forecast figure)")
     src.add_argument("--log-csv", metavar="DIR", help="directory of pneu-log2csv output")
     src.add_argument("--prefix", default="PNEU_", help="channel prefix of the --log-csv files "
                      "(default PNEU_)")
-    p.add_argument("--config", metavar="FILE", help="YAML configuration of the run (default: "
-                   "the effective configuration pneud wrote beside --trajectory or --events, "
-                   "else config/sim.yaml of the source tree)")
+    p.add_argument("--config", metavar="FILE", help="YAML configuration of a run that recorded "
+                   "none (the effective configuration pneud wrote beside --trajectory or "
+                   "--events, --set applied, is drawn whenever it is there; without either, "
+                   "config/sim.yaml of the source tree)")
     p.add_argument("--null-flow", metavar="CURVE.csv", help="output of pneu-plant null-flow "
                    "(default: run pneu-plant null-flow on --config)")
     p.add_argument("--pneu-plant", metavar="PATH", help="pneu-plant executable (default: next "
@@ -1328,78 +1655,97 @@ def parse_args(argv):
     p.add_argument("--time-range", nargs=2, type=float, metavar=("T0", "T1"),
                    help="plot only loop times T0 <= t <= T1 [s]")
     p.add_argument("--out-dir", required=True, metavar="DIR", help="where the figures go")
-    p.add_argument("--name", default="paper", help="file stem and title (default: paper)")
+    p.add_argument("--name", help="file stem (default: from the run: configuration, backend, "
+                   "'held' when the hold was on, date and time, e.g. sim_sim_held_20260101-120000)")
     p.add_argument("--dpi", type=float, default=110, help="PNG resolution (default 110)")
     args = p.parse_args(argv)
     if args.log_csv and (args.trajectory or args.events):
         p.error("give either --trajectory/--events or --log-csv, not both")
-    if not args.log_csv and not (args.trajectory and args.events):
-        p.error("give --trajectory T.csv --events E.jsonl, or --log-csv DIR")
-    if not args.name or "/" in args.name:
+    if not args.log_csv and not args.trajectory:
+        p.error("give --trajectory T.csv [--events E.jsonl], or --log-csv DIR (the figures "
+                "draw the trajectory's pressures: --events alone is not enough)")
+    if args.name is not None and (not args.name or "/" in args.name):
         p.error("--name must be a non-empty file stem without '/'")
     if not 20 <= args.dpi <= 600:
         p.error("--dpi must be in [20, 600]")
     return args
 
 
+class Figures:
+    """A run's figures, drawn and not yet written: (file suffix, matplotlib figure) in order."""
+
+    def __init__(self, run, ident, name, figures):
+        self.run, self.ident, self.name, self.figures = run, ident, name, figures
+
+
+def make_figures(args):
+    """Reads the run args name and draws its figures (InputError on bad input)."""
+    try:
+        import numpy as np
+    except ImportError:
+        raise InputError("numpy is missing (Debian package python3-numpy)") from None
+    plt = _setup_matplotlib()
+    bench, origin = run_configuration(args)
+    if args.log_csv:
+        run = load_log_csv(args.log_csv, args.prefix)
+    else:
+        run = load_pneud_output(args.trajectory, args.events)
+        if args.events:
+            check_events_belong(run, bench, args.trajectory, args.events)
+    ident = RunIdentity(run, bench, origin)
+    if args.time_range:
+        restrict_to_time_range(run, *args.time_range)
+    if len(run.t) < 2:
+        raise InputError("fewer than two samples to plot")
+    raw = null_flow_curve(args, bench.path)
+    order = np.argsort(raw["u_v"])
+    curve = {"u": np.array(raw["u_v"])[order], "x": np.array(raw["x_n"])[order],
+             "y": np.array(raw["y_n"])[order]}
+    x, y = bench.plane(run.p_p, run.p_n)
+    mismatch = float(np.nanmax(np.abs(x - y - run.force)))
+    if mismatch > 0.5 + 0.01 * float(np.nanmax(np.abs(run.force))):
+        print(f"pneu_plots: warning: the recorded force differs from S_P p_P - S_N p_N - S_r p_E "
+              f"of {bench.path} by up to {mismatch:.2f} N: is it the run's configuration?",
+              file=sys.stderr)
+    figures = [("time", time_figure(run, bench, ident, plt)),
+               ("plane", plane_figure(run, bench, curve, ident, plt))]
+    fig = forecast_figure(run, bench, ident, plt)
+    if fig is not None:
+        figures.append(("forecast", fig))
+    elif args.log_csv:
+        print("pneu_plots: note: no forecast figure: the LCM STATE channel carries no "
+              "forecast columns (draw it from pneud --trajectory/--events output)",
+              file=sys.stderr)
+    elif not args.events:
+        print("pneu_plots: note: no forecast figure: no --events (the forecasts are events)",
+              file=sys.stderr)
+    elif run.forecast is None:
+        print(f"pneu_plots: note: no forecast figure: {args.trajectory} has no forecast "
+              f"columns (p_p_linearized ... force_nonlinear: the trajectory of an older pneud)",
+              file=sys.stderr)
+    else:
+        print("pneu_plots: note: no forecast figure: no sticking phase with forecast values "
+              "in the plotted range", file=sys.stderr)
+    return Figures(run, ident, args.name or ident.stem(), figures)
+
+
 def main(argv):
     args = parse_args(argv)  # argparse exits 2 on a bad command line
     try:
-        try:
-            import numpy as np
-        except ImportError:
-            raise InputError("numpy is missing (Debian package python3-numpy)") from None
+        made = make_figures(args)
         plt = _setup_matplotlib()
-        config_path = (args.config or effective_config_beside(args.trajectory, args.events)
-                       or default_config())
-        bench = Bench(config_path)
-        if args.log_csv:
-            run = load_log_csv(args.log_csv, args.prefix)
-        else:
-            run = load_pneud_output(args.trajectory, args.events)
-        if args.time_range:
-            restrict_to_time_range(run, *args.time_range)
-        if len(run.t) < 2:
-            raise InputError("fewer than two samples to plot")
-        raw = null_flow_curve(args, config_path)
-        order = np.argsort(raw["u_v"])
-        curve = {"u": np.array(raw["u_v"])[order], "x": np.array(raw["x_n"])[order],
-                 "y": np.array(raw["y_n"])[order]}
-        x, y = bench.plane(run.p_p, run.p_n)
-        mismatch = float(np.nanmax(np.abs(x - y - run.force)))
-        if mismatch > 0.5 + 0.01 * float(np.nanmax(np.abs(run.force))):
-            print(f"pneu_plots: warning: the recorded force differs from S_P p_P - S_N p_N - S_r p_E "
-                  f"of {config_path} by up to {mismatch:.2f} N: is it the run's configuration?",
-                  file=sys.stderr)
         os.makedirs(args.out_dir, exist_ok=True)
         written = []
-        fig = time_figure(run, bench, args.name, plt)
-        written += _save(fig, args.out_dir, f"{args.name}_time", args.dpi)
-        plt.close(fig)
-        fig = plane_figure(run, bench, curve, args.name, plt)
-        written += _save(fig, args.out_dir, f"{args.name}_plane", args.dpi)
-        plt.close(fig)
-        fig = forecast_figure(run, bench, args.name, plt)
-        if fig is not None:
-            written += _save(fig, args.out_dir, f"{args.name}_forecast", args.dpi)
+        for suffix, fig in made.figures:
+            written += _save(fig, args.out_dir, f"{made.name}_{suffix}", args.dpi)
             plt.close(fig)
-        elif args.log_csv:
-            print("pneu_plots: note: no forecast figure: the LCM STATE channel carries no "
-                  "forecast columns (draw it from pneud --trajectory/--events output)",
-                  file=sys.stderr)
-        elif run.forecast is None:
-            print(f"pneu_plots: note: no forecast figure: {args.trajectory} has no forecast "
-                  f"columns (p_p_linearized ... force_nonlinear: the trajectory of an older pneud)",
-                  file=sys.stderr)
-        else:
-            print("pneu_plots: note: no forecast figure: no sticking phase with forecast values "
-                  "in the plotted range", file=sys.stderr)
     except InputError as e:
         print(f"pneu_plots: {e}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except OSError as e:
         print(f"pneu_plots: {e}", file=sys.stderr)
         return EXIT_BAD_INPUT if isinstance(e, (FileNotFoundError, PermissionError)) else 1
+    run = made.run
     print(f"pneu_plots: {len(run.stops)} stops, {sum(s['restart'] for s in run.starts)} restarts, "
           f"{len(run.predictions)} forecasts, {len(run.reforecasts)} re-forecasts; "
           f"wrote {', '.join(written)}")

@@ -10,6 +10,8 @@ itself, and writes
                  line per law (the paper's fixed gains, the designed schedule); middle: max |z|
                  of the sampled loop (pneud's period, differentiator and timing); bottom: the
                  sampled loop's gain margin. Where a law is unstable the stroke is shaded.
+                 The title names the map file or tune's configuration and --set; fixed gains
+                 are named by their values (the paper's as such).
 
 Exit codes: 0 written, 2 bad input (missing file, missing column, malformed value), 1 anything
 else.
@@ -25,8 +27,21 @@ import tempfile
 
 EXIT_BAD_INPUT = 2
 COLUMNS = ("law", "y_m", "max_real_part_1_per_s", "max_abs_z", "gain_margin", "position_gain_v_per_m")
-STYLE = {"fixed": ("tab:red", "paper's fixed gains (80 V/m, 1.5 V/(m/s), 0.002 V/(m/s$^2$))"),
-         "scheduled": ("tab:blue", "designed schedule")}
+STYLE = {"fixed": "tab:red", "scheduled": "tab:blue"}
+PAPER_GAINS = (80.0, 1.5, 0.002)  # Brun et al. 2005: K_p [V/m], K_v [V/(m/s)], K_a [V/(m/s^2)]
+GAIN_COLUMNS = ("position_gain_v_per_m", "velocity_gain_v_s_per_m", "acceleration_gain_v_s2_per_m")
+
+
+def law_label(law, rows):
+    """The law's legend entry: fixed gains with their values (the paper's named as such)."""
+    if law == "scheduled":
+        return "designed schedule"
+    if law == "fixed" and all(c in rows[0] for c in GAIN_COLUMNS):
+        gains = tuple(rows[0][c] for c in GAIN_COLUMNS)
+        text = f"{gains[0]:g} V/m, {gains[1]:g} V/(m/s), {gains[2]:g} V/(m/s$^2$)"
+        paper = all(abs(g - p) <= 1e-9 * p for g, p in zip(gains, PAPER_GAINS))
+        return ("paper's fixed gains" if paper else "fixed gains") + f" ({text})"
+    return law
 
 
 class InputError(Exception):
@@ -44,7 +59,8 @@ def read_map(path):
             raise InputError(f"{path}: missing column(s) {', '.join(missing)}")
         for line, row in enumerate(reader, start=2):
             try:
-                values = {c: float(row[c]) for c in COLUMNS if c != "law"}
+                values = {c: float(row[c]) for c in COLUMNS + GAIN_COLUMNS
+                          if c != "law" and row.get(c) not in (None, "")}
             except (TypeError, ValueError):
                 raise InputError(f"{path}:{line}: malformed number")
             laws.setdefault(row["law"], []).append(values)
@@ -67,7 +83,7 @@ def run_tune(pneu_plant, config, step_mm, extra):
     return out
 
 
-def figure(laws, out_stem, dpi):
+def figure(laws, source, out_stem, dpi):
     try:
         import matplotlib
     except ImportError:
@@ -79,7 +95,7 @@ def figure(laws, out_stem, dpi):
 
     fig, (ax_s, ax_z, ax_m) = plt.subplots(3, 1, figsize=(10, 9.5), sharex=True)
     for law, rows in laws.items():
-        color, label = STYLE.get(law, ("tab:gray", law))
+        color, label = STYLE.get(law, "tab:gray"), law_label(law, rows)
         y_mm = [r["y_m"] * 1e3 for r in rows]
         ax_s.plot(y_mm, [r["max_real_part_1_per_s"] for r in rows], "o-", ms=3, color=color, label=label)
         ax_z.plot(y_mm, [r["max_abs_z"] for r in rows], "o-", ms=3, color=color, label=label)
@@ -106,11 +122,20 @@ def figure(laws, out_stem, dpi):
     ax_m.legend(loc="center", fontsize=9)
     for ax in (ax_s, ax_z, ax_m):
         ax.grid(True, alpha=0.3)
-    fig.suptitle("Stability map of Eq. 4 over the stroke (pneu-plant tune, default bench)")
+    fig.suptitle(f"Stability map of Eq. 4 over the stroke ({source})")
     fig.tight_layout()
     fig.savefig(f"{out_stem}.png", dpi=dpi, metadata={"Software": None})
     fig.savefig(f"{out_stem}.svg", metadata={"Date": None})
     plt.close(fig)
+
+
+def map_source(args):
+    """What the map was computed on, for the title: the map file, or tune's configuration."""
+    if args.map:
+        return f"the map {os.path.basename(args.map)} of pneu-plant tune --csv"
+    bench = os.path.basename(args.config) if args.config else "the embedded sim.yaml"
+    return f"pneu-plant tune on {bench}" + "".join(f" --set {s}" for s in args.set) \
+        + f", every {args.step_mm:g} mm"
 
 
 def main(argv):
@@ -126,7 +151,7 @@ def main(argv):
     try:
         path = args.map or run_tune(args.pneu_plant, args.config, args.step_mm, args.set)
         laws = read_map(path)
-        figure(laws, args.out, args.dpi)
+        figure(laws, map_source(args), args.out, args.dpi)
     except InputError as e:
         print(f"stability_map: {e}", file=sys.stderr)
         return EXIT_BAD_INPUT
