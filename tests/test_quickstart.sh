@@ -36,3 +36,17 @@ if not same or same[0][3] is None or "no restart" not in same[0][4] or not same[
 print(f"ok: stop at {long[0][2]} mm: restart forecast at {long[0][3]} s and came without the hold; "
       f"with it, forecast at {same[0][3]} s and {same[0][4]}")
 PY
+# The README shows this table as the quick start prints it: each of its lines is in the output.
+/usr/bin/python3 - "$2/README.md" "$tmp/out.txt" <<'PY'
+import sys
+readme, out = open(sys.argv[1]).read(), open(sys.argv[2]).read().splitlines()
+blocks = readme.split("```")
+table = next((b for b in blocks[1::2] if "without the hold" in b and "with the hold" in b), None)
+if table is None:
+    sys.exit("FAIL: README.md shows no block with the quick start's side-by-side table")
+lines = [l.rstrip() for l in table.strip("\n").splitlines() if l.strip()]
+missing = [l for l in lines if l not in [o.rstrip() for o in out]]
+if missing:
+    sys.exit("FAIL: README.md's quick start table has lines the quick start does not print:\n" + "\n".join(missing))
+print(f"ok: README.md's quick start table ({len(lines)} lines) is what the quick start prints")
+PY
