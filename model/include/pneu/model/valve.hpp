@@ -39,6 +39,26 @@ template <class S>
   const double at_threshold = raw_flow_function(kLaminarPressureRatio, b);
   return at_threshold * (1.0 - x) / (1.0 - kLaminarPressureRatio);
 }
+// d phi / d ratio, the derivative of phi() above, branch by branch (0 where phi clamps the ratio or is
+// constant).
+[[gnu::always_inline]] inline double phi_slope(double ratio, double b) noexcept {
+  if (ratio < 0.0 || 1.0 < ratio || ratio <= b) return 0.0;
+  if (ratio <= kLaminarPressureRatio) {
+    const double s = (ratio - b) / (1.0 - b);
+    const double r = 1.0 - s * s;
+    return 0.0 < r ? -s / ((1.0 - b) * std::sqrt(r)) : 0.0;
+  }
+  return -raw_flow_function(kLaminarPressureRatio, b) / (1.0 - kLaminarPressureRatio);
+}
+// phi() of a Dual: its value phi()'s (bit for bit), its derivatives by the chain rule in one pass
+// over the directions (the innermost call of the identification's derivatives).
+template <int N>
+[[gnu::always_inline]] inline Dual<N> phi(const Dual<N>& ratio, double b) noexcept {
+  Dual<N> r(phi(ratio.v, b));
+  const double slope = phi_slope(ratio.v, b);
+  for (int i = 0; i < N; ++i) r.d[i] = slope * ratio.d[i];
+  return r;
+}
 }  // namespace detail
 
 /// One ISO 6358 orifice. Returns the mass flow from `p_a` to `p_b` [kg/s]: positive when
@@ -138,10 +158,18 @@ struct ValveEquations {
     const S x = (null_offset_v - w) / max_voltage;
     return leak_conductance_out_m3_per_s_pa + max_conductance_m3_per_s_pa * (x < 0.0 ? S(0.0) : 1.0 < x ? S(1.0) : x);
   }
-  [[nodiscard]] S mass_flow_kg_per_s(const S& w, const S& p) const noexcept {
-    return orifice.flow(inlet_conductance_m3_per_s_pa(w), p_supply_pa, p) -
-           orifice.flow(outlet_conductance_m3_per_s_pa(w), p, p_exhaust_pa);
+  /// Both orifices' conductances at a command w: what an integration that holds w computes once.
+  struct Opening {
+    S inlet_m3_per_s_pa, outlet_m3_per_s_pa;
+  };
+  [[nodiscard]] Opening opening(const S& w) const noexcept {
+    return {inlet_conductance_m3_per_s_pa(w), outlet_conductance_m3_per_s_pa(w)};
   }
+  /// q at the opening `o` (mass_flow_kg_per_s(w, p) at o = opening(w), bit for bit).
+  [[nodiscard]] S mass_flow_kg_per_s(const Opening& o, const S& p) const noexcept {
+    return orifice.flow(o.inlet_m3_per_s_pa, p_supply_pa, p) - orifice.flow(o.outlet_m3_per_s_pa, p, p_exhaust_pa);
+  }
+  [[nodiscard]] S mass_flow_kg_per_s(const S& w, const S& p) const noexcept { return mass_flow_kg_per_s(opening(w), p); }
   /// dq/dp at the values (for step sizes: no derivatives) [kg/(s Pa)].
   [[nodiscard]] double dq_dp(const S& w, const S& p) const noexcept {
     return orifice.d_mass_flow_d_pb(value(inlet_conductance_m3_per_s_pa(w)), p_supply_pa, value(p)) -
@@ -182,12 +210,17 @@ class ValveModel final : public ValveCharacteristic {
  public:
   ValveModel(const ValveParams& valve, const Gas& gas) noexcept;
 
-  [[nodiscard]] double mass_flow_kg_per_s(double w_v, double p_pa) const noexcept override;
-  [[nodiscard]] double dq_dp(double w_v, double p_pa) const noexcept override;
+  // (Inline: the innermost calls of the plant's and the identification's integrations.)
+  [[nodiscard]] double mass_flow_kg_per_s(double w_v, double p_pa) const noexcept override {
+    return eq_.mass_flow_kg_per_s(w_v, p_pa);
+  }
+  [[nodiscard]] double dq_dp(double w_v, double p_pa) const noexcept override { return eq_.dq_dp(w_v, p_pa); }
   /// Each orifice at its own upstream temperature: the supply -> chamber orifice at supply_k
   /// (chamber_k when reversed), the chamber -> exhaust one at chamber_k (supply_k when reversed).
   [[nodiscard]] ChamberInflow chamber_inflow(double w_v, double p_pa, double chamber_k,
-                                             double supply_k) const noexcept override;
+                                             double supply_k) const noexcept override {
+    return eq_.chamber_inflow(w_v, p_pa, chamber_k, supply_k);
+  }
   [[nodiscard]] double min_pressure_pa() const noexcept override { return eq_.p_exhaust_pa; }
   [[nodiscard]] double max_pressure_pa() const noexcept override { return eq_.p_supply_pa; }
   [[nodiscard]] double min_voltage_v() const noexcept override { return -valve_.max_voltage_v; }
