@@ -77,10 +77,27 @@ struct Orifice {
   /// as a double).
   template <class C, class A, class B>
   [[nodiscard]] C flow(const C& c, const A& p_a, const B& p_b) const noexcept {
-    if (p_a >= p_b) {
-      return c * reference_density_kg_per_m3 * p_a * temperature_factor * detail::phi(p_b / p_a, critical_ratio);
+    if constexpr (kIsDual<C>) {
+      // The value the double's (bit for bit); the derivatives from the partial ones, each argument's
+      // in one pass (with K = rho_0 sqrt(T_0 / T), x the ratio: forward dm/dC = K p_a phi,
+      // dm/dp_a = C K (phi - x phi'), dm/dp_b = C K phi'; reversed mirrored).
+      const double cv = value(c), av = value(p_a), bv = value(p_b);
+      C m(flow(cv, av, bv));
+      const bool forward = av >= bv;
+      const double up = forward ? av : bv, x = forward ? bv / av : av / bv;
+      const double phi = detail::phi(x, critical_ratio), slope = detail::phi_slope(x, critical_ratio);
+      const double k = (forward ? 1.0 : -1.0) * reference_density_kg_per_m3 * temperature_factor;
+      const double by_up = cv * k * (phi - x * slope), by_down = cv * k * slope;
+      add_scaled(m, k * up * phi, c);
+      add_scaled(m, forward ? by_up : by_down, p_a);
+      add_scaled(m, forward ? by_down : by_up, p_b);
+      return m;
+    } else {
+      if (p_a >= p_b) {
+        return c * reference_density_kg_per_m3 * p_a * temperature_factor * detail::phi(p_b / p_a, critical_ratio);
+      }
+      return -c * reference_density_kg_per_m3 * p_b * temperature_factor * detail::phi(p_a / p_b, critical_ratio);
     }
-    return -c * reference_density_kg_per_m3 * p_b * temperature_factor * detail::phi(p_a / p_b, critical_ratio);
   }
   /// d m_dot / d p_b at fixed p_a [kg/(s Pa)] (<= 0).
   [[nodiscard]] double d_mass_flow_d_pb(double conductance_m3_per_s_pa, double p_a_pa,
