@@ -8,6 +8,7 @@
 #   bench/sweep_throughput.sh [BASE_COMMIT [REPS [CASES...]]]
 # CASES (default all): default identified identified-hil identified-thermal identified-thermal-hil
 # Needs this tree's build/bin/pneu-sweep built (cmake --build build --target pneu-sweep).
+# PNEU_BASE_SWEEP=PATH: a pneu-sweep already built at BASE_COMMIT, used in place of building one.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
@@ -16,7 +17,10 @@ reps=${2:-3}
 shift $(($# > 2 ? 2 : $#))
 base_sha=$(git rev-parse --verify "$base_commit^{commit}")
 base=$root/build/bench-base
-if [ ! -x "$base/src/build/bin/pneu-sweep" ] || [ "$(git -C "$base/src" rev-parse HEAD 2>/dev/null)" != "$base_sha" ]; then
+base_sweep=${PNEU_BASE_SWEEP:-$base/src/build/bin/pneu-sweep}
+if [ -n "${PNEU_BASE_SWEEP:-}" ]; then
+  :  # a pneu-sweep already built at BASE_COMMIT (say, the main tree's build of it)
+elif [ ! -x "$base/src/build/bin/pneu-sweep" ] || [ "$(git -C "$base/src" rev-parse HEAD 2>/dev/null)" != "$base_sha" ]; then
   if [ -d "$base/src" ]; then
     git -C "$base/src" checkout -q --detach "$base_sha"
   else
@@ -29,7 +33,7 @@ if [ ! -x "$base/src/build/bin/pneu-sweep" ] || [ "$(git -C "$base/src" rev-pars
   cmake --build "$base/src/build" -j2 --target pneu-sweep >/dev/null
 fi
 [ -x build/bin/pneu-sweep ] || { echo "build this tree's pneu-sweep first (cmake --build build --target pneu-sweep)" >&2; exit 1; }
-exec /usr/bin/python3 "$root/bench/sweep_throughput.py" --base "$base/src/build/bin/pneu-sweep" \
+exec /usr/bin/python3 "$root/bench/sweep_throughput.py" --base "$base_sweep" \
   --base-name "$(git rev-parse --short "$base_sha")" --new "$root/build/bin/pneu-sweep" \
   --new-name "$(git rev-parse --short HEAD)$(git diff --quiet HEAD -- . ':!docs' || echo +)" \
   --source "$root" --reps "$reps" "$@"
