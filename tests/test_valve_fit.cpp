@@ -21,26 +21,10 @@ namespace {
 using namespace pneu;
 using identify::detail::FitCheck;
 
-// The fit's theta_i of `p`: a reference to the parameter, and whether theta is its logarithm.
-double& parameter(model::PlantParams& p, std::size_t i, bool& logarithmic) {
-  using namespace identify::detail;
-  logarithmic = i != kNullOffset && i != kSpoolLag;
-  switch (i) {
-    case kMaxConductance: return p.valve.max_conductance_m3_per_s_pa;
-    case kLeakIn: return p.valve.leak_conductance_in_m3_per_s_pa;
-    case kLeakOut: return p.valve.leak_conductance_out_m3_per_s_pa;
-    case kNullOffset: return p.valve.null_offset_v;
-    case kDeadVolumeP: return p.geometry.dead_volume_p_m3;
-    case kDeadVolumeN: return p.geometry.dead_volume_n_m3;
-    case kHeatTransfer: return p.thermal.heat_transfer_w_per_m2_k;
-    default: return p.valve.spool_time_constant_s;
-  }
-}
-
+// `p` with the fit's theta_i moved by `by`.
 model::PlantParams moved(model::PlantParams p, std::size_t i, double by) {
-  bool logarithmic = false;
-  double& x = parameter(p, i, logarithmic);
-  x = logarithmic ? x * std::exp(by) : x + by;
+  double& x = identify::detail::parameter(p, i);
+  x = identify::detail::logarithmic(i) ? x * std::exp(by) : x + by;
   return p;
 }
 
@@ -50,9 +34,9 @@ double norm(const std::vector<double>& v) {
   return std::sqrt(s);
 }
 
-// The identification run on a bench with heat exchange and a spool lag, recorded with the HIL
-// sensors (so that the phases' starts are fitted too), and its stuck phases; the model has both
-// terms, at other values.
+// An identification run recorded with the HIL sensors (so that the phases' starts are fitted too),
+// and its stuck phases. `hidden`: on a bench with heat exchange and a spool lag, the model with both
+// terms at other values; else the plain model (polytropic, no lag) on a bench of that model.
 struct Recorded {
   config::Config cfg;
   identify::RecordedRun run;
@@ -60,42 +44,43 @@ struct Recorded {
   std::vector<identify::detail::StuckPhase> phases;
 };
 
-const Recorded& recorded() {
-  static const Recorded r = [] {
-    Recorded x;
-    x.cfg = config::load_file(test::shipped_config("hil.yaml"), {"hal.backend=sim"});
+Recorded record(bool hidden) {
+  Recorded x;
+  x.cfg = config::load_file(test::shipped_config("hil.yaml"), {"hal.backend=sim"});
+  if (hidden) {
     x.cfg.plant.has_thermal = true;
     x.cfg.plant.thermal.heat_transfer_w_per_m2_k = 12.86;
     x.cfg.plant.valve.spool_time_constant_s = 0.001;
-    model::PlantParams bench = x.cfg.plant;
+  }
+  model::PlantParams bench = x.cfg.plant;
+  if (hidden) {
     bench.thermal.heat_transfer_w_per_m2_k = 25.72;
     bench.valve.spool_time_constant_s = 0.003;
-    bench.valve.max_conductance_m3_per_s_pa *= 1.15;
-    bench.valve.null_offset_v = 0.07;
-    bench.geometry.dead_volume_p_m3 *= 1.2;
-    x.run = identify::record_run(assembly::RunSpec::of(x.cfg), bench, x.cfg.simulation.initial_position_m);
-    x.o = identify::options_for(x.cfg);
-    x.o.command_delay_samples = 0;
-    x.phases = identify::detail::stuck_phases(x.run.samples, x.cfg.plant.geometry.half_stroke_m(), x.o);
-    return x;
-  }();
+  }
+  bench.valve.max_conductance_m3_per_s_pa *= 1.15;
+  bench.valve.null_offset_v = 0.07;
+  bench.geometry.dead_volume_p_m3 *= 1.2;
+  x.run = identify::record_run(assembly::RunSpec::of(x.cfg), bench, x.cfg.simulation.initial_position_m);
+  x.o = identify::options_for(x.cfg);
+  x.o.command_delay_samples = 0;
+  x.phases = identify::detail::stuck_phases(x.run.samples, x.cfg.plant.geometry.half_stroke_m(), x.o);
+  return x;
+}
+
+const Recorded& recorded() {
+  static const Recorded r = record(true);
   return r;
 }
 
-TEST(ValveFit, TheExactJacobianWithHeatExchangeAndSpoolLagIsTheResidualsCentralDifferences) {
-  const Recorded& rec = recorded();
+// The exact derivatives the fit takes at `at` with the starts moved (by 0.4 and -0.3 noise floors,
+// P and N), column by column against central differences of the residuals: each of the model's
+// parameters (the ones it lacks: none) and the starts.
+void expect_exact_jacobian(const Recorded& rec, const model::PlantParams& at) {
   const config::Config& cfg = rec.cfg;
   const identify::RecordedRun& run = rec.run;
   const identify::Options& o = rec.o;
   const std::vector<identify::detail::StuckPhase>& phases = rec.phases;
   ASSERT_TRUE(run.fault.empty()) << run.fault;
-
-  // Somewhere between the prior and the bench, the starts moved (in noise floors).
-  model::PlantParams at = cfg.plant;
-  at.thermal.heat_transfer_w_per_m2_k = 19.0;
-  at.valve.spool_time_constant_s = 0.0023;
-  at.valve.null_offset_v = 0.03;
-  at.valve.max_conductance_m3_per_s_pa *= 1.07;
   const FitCheck base = identify::detail::check_fit_model(run.samples, phases, cfg.plant, o, at, {}, false);
   std::vector<double> z(base.starts);
   for (std::size_t c = 0; c < z.size(); ++c) z[c] = c % 2 == 0 ? 0.4 : -0.3;
@@ -108,6 +93,7 @@ TEST(ValveFit, TheExactJacobianWithHeatExchangeAndSpoolLagIsTheResidualsCentralD
 
   // Each parameter's column.
   for (std::size_t i = 0; i < identify::detail::kValveFitParams; ++i) {
+    if (!identify::detail::has_parameter(cfg.plant, i)) continue;
     // Steps small against the kinks the null offset moves (a valve's opening at 0), whose crossings
     // central differences smear over h: a microvolt, a microsecond, 1e-4 of a logarithm.
     const double h = i == identify::detail::kSpoolLag || i == identify::detail::kNullOffset ? 1e-6 : 1e-4;
@@ -140,6 +126,26 @@ TEST(ValveFit, TheExactJacobianWithHeatExchangeAndSpoolLagIsTheResidualsCentralD
     std::printf("starts: |d r/d z| %.6g Pa, relative error %.3g\n", norm(central), norm(error) / norm(central));
     EXPECT_LT(norm(error), 1e-6 * norm(central));
   }
+}
+
+TEST(ValveFit, TheExactJacobianWithHeatExchangeAndSpoolLagIsTheResidualsCentralDifferences) {
+  // Somewhere between the prior and the bench.
+  model::PlantParams at = recorded().cfg.plant;
+  at.thermal.heat_transfer_w_per_m2_k = 19.0;
+  at.valve.spool_time_constant_s = 0.0023;
+  at.valve.null_offset_v = 0.03;
+  at.valve.max_conductance_m3_per_s_pa *= 1.07;
+  expect_exact_jacobian(recorded(), at);
+}
+
+TEST(ValveFit, ThePlainModelsExactJacobianIsTheResidualsCentralDifferences) {
+  // Polytropic, no spool lag: the pressures' sensitivities integrated beside them.
+  const Recorded rec = record(false);
+  model::PlantParams at = rec.cfg.plant;
+  at.valve.null_offset_v = 0.03;
+  at.valve.max_conductance_m3_per_s_pa *= 1.07;
+  at.geometry.dead_volume_p_m3 *= 1.1;
+  expect_exact_jacobian(rec, at);
 }
 
 TEST(ValveFit, AtASpoolLagOf0TheDerivativeByItIsTheResidualsSlopeJustAbove) {

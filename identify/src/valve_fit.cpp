@@ -54,24 +54,6 @@ constexpr double kSpoolLagAtBound_s = 1e-6;
 // theta: ln C_max, ln C_leak_in, ln C_leak_out, w_0, ln V_P0, ln V_N0, ln h, tau_spool.
 using Theta = Eigen::Matrix<double, kValveFitParams, 1>;
 
-// The plant's value of fitted parameter i.
-double& parameter(model::PlantParams& p, std::size_t i) {
-  switch (i) {
-    case kMaxConductance: return p.valve.max_conductance_m3_per_s_pa;
-    case kLeakIn: return p.valve.leak_conductance_in_m3_per_s_pa;
-    case kLeakOut: return p.valve.leak_conductance_out_m3_per_s_pa;
-    case kNullOffset: return p.valve.null_offset_v;
-    case kDeadVolumeP: return p.geometry.dead_volume_p_m3;
-    case kDeadVolumeN: return p.geometry.dead_volume_n_m3;
-    case kHeatTransfer: return p.thermal.heat_transfer_w_per_m2_k;
-    default: return p.valve.spool_time_constant_s;
-  }
-}
-
-// theta_i is the logarithm of the value, but for the null offset, an offset, and the spool lag,
-// which may be 0.
-bool logarithmic(std::size_t i) { return i != kNullOffset && i != kSpoolLag; }
-
 model::PlantParams applied(model::PlantParams p, const Theta& th) {
   for (std::size_t i = 0; i < kValveFitParams; ++i) {
     if (!has_parameter(p, i)) continue;
@@ -95,17 +77,20 @@ Theta theta_of(model::PlantParams p) {
 struct Chamber {
   const model::ValveModel* valve;
   double c_over_v;
-  [[nodiscard]] double rate(double w, double p) const noexcept { return c_over_v * valve->mass_flow_kg_per_s(w, p); }
-  // Advances p by h at constant w, in RK4 steps short enough for the chamber's time constant.
+  // Advances p by h at constant w, in RK4 steps short enough for the chamber's time constant (the
+  // valve's opening at w computed once: the same arithmetic as q(w, p), bit for bit).
   [[nodiscard]] double advance(double w, double p, double h) const noexcept {
     const double slope = -c_over_v * valve->dq_dp(w, p);  // 1/tau
     const int steps = std::max(1, static_cast<int>(std::ceil(h * slope / 0.5)));
     const double dt = h / steps;
+    const model::ValveEquations<double>& eq = valve->equations();
+    const model::ValveEquations<double>::Opening opening = eq.opening(w);
+    const auto rate = [&](double pp) { return c_over_v * eq.mass_flow_kg_per_s(opening, pp); };
     for (int i = 0; i < steps; ++i) {
-      const double k1 = rate(w, p);
-      const double k2 = rate(w, p + 0.5 * dt * k1);
-      const double k3 = rate(w, p + 0.5 * dt * k2);
-      const double k4 = rate(w, p + dt * k3);
+      const double k1 = rate(p);
+      const double k2 = rate(p + 0.5 * dt * k1);
+      const double k3 = rate(p + 0.5 * dt * k2);
+      const double k4 = rate(p + dt * k3);
       p += dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
     }
     return p;
@@ -134,24 +119,36 @@ struct SensitiveChamber {
   // record's zero command is to a null offset of 0) the mean of its two sides, as a central
   // difference would take it.
   static double inside(double x) noexcept { return x > 0.0 && x < 1.0 ? 1.0 : x == 0.0 || x == 1.0 ? 0.5 : 0.0; }
-  // dp/dt at (w, p) and its derivatives given the state's (s).
-  void rate(double w, double p, const Directions& s, double& f, Directions& df) const noexcept {
-    // The orifices' flows are linear in their conductances: q = C_in m_in - C_out m_out (docs/model.md
-    // section 3), C_in = C_leak_in + C_max clamp((w - w_0) / u_max, 0, 1), C_out mirrored.
-    const model::Orifice& orifice = valve->orifice();
-    const double unit_in = orifice.mass_flow_kg_per_s(1.0, p_supply_pa, p);
-    const double unit_out = orifice.mass_flow_kg_per_s(1.0, p, p_exhaust_pa);
+  // What a rate at constant w needs of w: the conductances and dq/dtheta's factors of the unit flows.
+  struct Held {
+    double c_in, c_out;
+    double max_in, max_out;  // dC_in / d ln C_max, dC_out / d ln C_max
+    double null_in, null_out;  // -dC_in / dw_0, dC_out / dw_0 (the slope inside the travel)
+  };
+  [[nodiscard]] Held held(double w) const noexcept {
     const double c_in = valve->inlet_conductance_m3_per_s_pa(w), c_out = valve->outlet_conductance_m3_per_s_pa(w);
-    const double q = c_in * unit_in - c_out * unit_out;
-    const double q_p = valve->dq_dp(w, p);
     const double opening = (w - params->null_offset_v) / params->max_voltage_v;
     const double slope = params->max_conductance_m3_per_s_pa / params->max_voltage_v;  // dC/dw inside the travel
+    return {c_in, c_out, c_in - params->leak_conductance_in_m3_per_s_pa, c_out - params->leak_conductance_out_m3_per_s_pa,
+            slope * inside(opening), slope * inside(-opening)};
+  }
+  // dp/dt at (w, p) and its derivatives given the state's (s).
+  void rate(const Held& at, double p, const Directions& s, double& f, Directions& df) const noexcept {
+    // The orifices' flows are linear in their conductances: q = C_in m_in - C_out m_out (docs/model.md
+    // section 3), C_in = C_leak_in + C_max clamp((w - w_0) / u_max, 0, 1), C_out mirrored. The unit
+    // flows m_in, m_out with their slopes by p, by the orifice's own equation.
+    using Slope = model::Dual<1>;
+    const model::Orifice& orifice = valve->orifice();
+    const Slope pressure = Slope::variable(p, 0);
+    const Slope unit_in = orifice.flow(Slope(1.0), p_supply_pa, pressure);
+    const Slope unit_out = orifice.flow(Slope(1.0), pressure, p_exhaust_pa);
+    const double q = at.c_in * unit_in.v - at.c_out * unit_out.v;
+    const double q_p = at.c_in * unit_in.d[0] - at.c_out * unit_out.d[0];
     Directions q_theta{};
-    q_theta[kDMax] = (c_in - params->leak_conductance_in_m3_per_s_pa) * unit_in -
-                     (c_out - params->leak_conductance_out_m3_per_s_pa) * unit_out;
-    q_theta[kDLeakIn] = params->leak_conductance_in_m3_per_s_pa * unit_in;
-    q_theta[kDLeakOut] = -params->leak_conductance_out_m3_per_s_pa * unit_out;
-    q_theta[kDNull] = -slope * (inside(opening) * unit_in + inside(-opening) * unit_out);
+    q_theta[kDMax] = at.max_in * unit_in.v - at.max_out * unit_out.v;
+    q_theta[kDLeakIn] = params->leak_conductance_in_m3_per_s_pa * unit_in.v;
+    q_theta[kDLeakOut] = -params->leak_conductance_out_m3_per_s_pa * unit_out.v;
+    q_theta[kDNull] = -(at.null_in * unit_in.v + at.null_out * unit_out.v);
     f = c_over_v * q;
     for (std::size_t d = 0; d < kDirections; ++d) df[d] = c_over_v * (q_p * s[d] + q_theta[d]);
     df[kDVolume] -= c_over_v * dead_volume_m3 / volume_m3 * q;  // d(c/V)/d ln V_0 = -c V_0 / V^2
@@ -161,6 +158,7 @@ struct SensitiveChamber {
     const double decay = -c_over_v * valve->dq_dp(w, p);
     const int steps = std::max(1, static_cast<int>(std::ceil(h * decay / 0.5)));
     const double dt = h / steps;
+    const Held at_w = held(w);
     Directions l1, l2, l3, l4, at;
     double k1, k2, k3, k4;
     const auto along = [&](const Directions& l, double f) {
@@ -168,10 +166,10 @@ struct SensitiveChamber {
       return at;
     };
     for (int i = 0; i < steps; ++i) {
-      rate(w, p, s, k1, l1);
-      rate(w, p + 0.5 * dt * k1, along(l1, 0.5 * dt), k2, l2);
-      rate(w, p + 0.5 * dt * k2, along(l2, 0.5 * dt), k3, l3);
-      rate(w, p + dt * k3, along(l3, dt), k4, l4);
+      rate(at_w, p, s, k1, l1);
+      rate(at_w, p + 0.5 * dt * k1, along(l1, 0.5 * dt), k2, l2);
+      rate(at_w, p + 0.5 * dt * k2, along(l2, 0.5 * dt), k3, l3);
+      rate(at_w, p + dt * k3, along(l3, dt), k4, l4);
       p += dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
       for (std::size_t d = 0; d < kDirections; ++d) s[d] += dt / 6.0 * (l1[d] + 2.0 * l2[d] + 2.0 * l3[d] + l4[d]);
     }
@@ -306,12 +304,16 @@ class Problem {
     }
     const model::ChamberProcess process(p);
     const model::SpoolLag spool{p.valve.spool_time_constant_s};
-    model::ChamberObserver observer(process, valve, spool);
     const Commands u{s_, delay_, 0};
-    observer.reset(s_[0].t_s, s_[0].y_m, s_[0].p_p_pa, s_[0].p_n_pa, u.p(0), u.n(0));
+    model::ChamberObserver at_rest(process, valve, spool);
+    at_rest.reset(s_[0].t_s, s_[0].y_m, s_[0].p_p_pa, s_[0].p_n_pa, u.p(0), u.n(0));
+    // On from there with the valve's equations themselves (ValveModel's, inlined: the same arithmetic).
+    const model::ValveEquations<double>& equations = valve.equations();
+    model::BasicChamberObserver<double, model::ValveEquations<double>> observer(process, equations, spool);
+    observer.start(s_[0].t_s, s_[0].y_m, at_rest.state(), u.p(0), u.n(0));
     const std::vector<model::ChamberState> at = hidden_states(observer);
     for (std::size_t j = 0; j < phases_.size(); ++j)
-      phase_pressures(process, valve, spool, at[j], j, start_pa(j, 0, z), start_pa(j, 1, z),
+      phase_pressures(process, equations, spool, at[j], j, start_pa(j, 0, z), start_pa(j, 1, z),
                       [&](Eigen::Index row, std::size_t obs, double pp, double pn) {
                         r[row] = s_[obs].p_p_pa - pp;
                         r[row + 1] = s_[obs].p_n_pa - pn;

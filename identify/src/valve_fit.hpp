@@ -29,6 +29,25 @@ enum ValveFitParam : std::size_t {
 /// Whether `prior`'s model has parameter i (the heat transfer and the spool lag only some).
 [[nodiscard]] bool has_parameter(const model::PlantParams& prior, std::size_t i) noexcept;
 
+/// The plant's value of fitted parameter i (the one place that maps the fit's parameters to the
+/// plant's; the tests move them by it).
+[[nodiscard]] inline double& parameter(model::PlantParams& p, std::size_t i) noexcept {
+  switch (i) {
+    case kMaxConductance: return p.valve.max_conductance_m3_per_s_pa;
+    case kLeakIn: return p.valve.leak_conductance_in_m3_per_s_pa;
+    case kLeakOut: return p.valve.leak_conductance_out_m3_per_s_pa;
+    case kNullOffset: return p.valve.null_offset_v;
+    case kDeadVolumeP: return p.geometry.dead_volume_p_m3;
+    case kDeadVolumeN: return p.geometry.dead_volume_n_m3;
+    case kHeatTransfer: return p.thermal.heat_transfer_w_per_m2_k;
+    default: return p.valve.spool_time_constant_s;
+  }
+}
+
+/// The fit's theta_i is the logarithm of parameter i's value, but for the null offset, an offset,
+/// and the spool lag, which may be 0 (those are theta_i themselves).
+[[nodiscard]] constexpr bool logarithmic(std::size_t i) noexcept { return i != kNullOffset && i != kSpoolLag; }
+
 struct ValveFit {
   model::PlantParams plant;                         ///< the prior with the identified values
   /// The fit with every parameter free (the posterior's mode): the pressures' best prediction,

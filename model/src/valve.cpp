@@ -9,19 +9,10 @@
 namespace pneu::model {
 
 using detail::phi;
-using detail::raw_flow_function;
 
 double flow_function(double x, double b) noexcept { return phi(x, b); }
 
-double flow_function_slope(double x, double b) noexcept {
-  x = std::clamp(x, 0.0, 1.0);
-  if (x <= b) return 0.0;
-  if (x <= kLaminarPressureRatio) {
-    const double s = (x - b) / (1.0 - b);
-    return -s / ((1.0 - b) * std::sqrt(1.0 - s * s));
-  }
-  return -raw_flow_function(kLaminarPressureRatio, b) / (1.0 - kLaminarPressureRatio);
-}
+double flow_function_slope(double x, double b) noexcept { return detail::phi_slope(std::clamp(x, 0.0, 1.0), b); }
 
 
 // With m = K p_up phi(p_down / p_up), K = C rho_0 sqrt(T0/T):
@@ -62,14 +53,6 @@ double ValveCharacteristic::null_pressure_pa(double w_v, double chamber_k, doubl
 }
 
 ValveModel::ValveModel(const ValveParams& valve, const Gas& gas) noexcept : valve_(valve), eq_(valve, gas) {}
-
-double ValveModel::mass_flow_kg_per_s(double w, double p) const noexcept { return eq_.mass_flow_kg_per_s(w, p); }
-
-double ValveModel::dq_dp(double w, double p) const noexcept { return eq_.dq_dp(w, p); }
-
-ChamberInflow ValveModel::chamber_inflow(double w, double p, double chamber_k, double supply_k) const noexcept {
-  return eq_.chamber_inflow(w, p, chamber_k, supply_k);
-}
 
 double equilibrium_force_n(const ValveCharacteristic& valve, const Geometry& g, double p_e,
                            double u) noexcept {

@@ -126,6 +126,21 @@ struct Dual {
   friend Dual fmin(const Dual& a, const Dual& b) noexcept { return std::fmin(a.v, b.v) == a.v && !std::isnan(a.v) ? a : b; }
 };
 
+/// Whether T is a Dual (a number with derivatives).
+template <class T>
+inline constexpr bool kIsDual = false;
+template <int N>
+inline constexpr bool kIsDual<Dual<N>> = true;
+
+/// r's derivatives += k times x's (nothing for a constant): a function's derivatives from its partial
+/// derivatives by each argument, in one pass over the directions per argument.
+template <int N>
+void add_scaled(Dual<N>& r, double k, const Dual<N>& x) noexcept {
+  for (int i = 0; i < N; ++i) r.d[i] += k * x.d[i];
+}
+template <int N>
+void add_scaled(Dual<N>&, double, double) noexcept {}
+
 /// The value of a number, with or without derivatives.
 [[nodiscard]] inline double value(double x) noexcept { return x; }
 template <int N>
