@@ -583,7 +583,8 @@ void check_table_benches(const std::string& sensors_from, double most_percent, d
     config::Config cfg = sensors_from.empty()
                              ? config::load_file(pneu::test::shipped_config("paper.yaml"))
                              : config::load_file(pneu::test::shipped_config(sensors_from),
-                                                 {"hal.backend=sim", "controller.law.gains=fixed"});
+                                                 {"hal.backend=sim", "controller.law.gains=fixed",
+                                                  "controller.hold.enabled=false"});  // the law's phases
     model::PlantParams bench = cfg.plant;
     tb.apply(bench);
     const Judged before = paper_step(cfg, cfg.plant, bench, tb.setpoint_m);

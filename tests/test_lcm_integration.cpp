@@ -307,10 +307,13 @@ TEST_F(LcmIntegration, OnlineIdentificationIsPublishedAndTheLogIdentifiesTheSame
   const auto at = yaml.find("\n    static_negative_n: ");
   ASSERT_NE(at, std::string::npos) << yaml;
   const double offline_fs_neg = std::stod(yaml.substr(at + 24));
-  const auto sigma_at = yaml.find("plant.friction.static_negative_n: ");
-  ASSERT_NE(sigma_at, std::string::npos);
-  const std::string comment = yaml.substr(sigma_at, yaml.find('\n', sigma_at) - sigma_at);
-  const double offline_sigma = std::stod(comment.substr(comment.find("+- ") + 3));
+  // Its line carries the note "# identified DATE: VALUE +- SIGMA (was ...)".
+  const std::string line = yaml.substr(at + 1, yaml.find('\n', at + 1) - at - 1);
+  const auto note = line.find("# identified ");
+  ASSERT_NE(note, std::string::npos) << line;
+  const auto pm = line.find(" +- ", note);
+  ASSERT_NE(pm, std::string::npos) << line;
+  const double offline_sigma = std::stod(line.substr(pm + 4));
   std::printf("F_S-: online %.4f +- %.4f (%d updates), offline %.4f +- %.4f\n", online.value[fs_neg],
               online.sigma[fs_neg], online.updates, offline_fs_neg, offline_sigma);
   EXPECT_LE(std::abs(online.value[fs_neg] - offline_fs_neg), 3 * (online.sigma[fs_neg] + offline_sigma));

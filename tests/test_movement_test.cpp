@@ -203,14 +203,17 @@ TEST(MovementTest, RunsAtTheFirstArmOnAModbusBackendStartingDisarmedAndNeverInPr
 // The loop at the first ARM of a run started disarmed (Mode::kMovementTest), on hil.yaml's bench
 // in process, through a wiring: tick by tick in simulated time, commands pushed as the command
 // thread pushes them. The in-process plant never runs it by itself (it cannot be miswired): the
-// parameters say it does, as hal.backend modbus makes them.
+// parameters say it does, as hal.backend modbus makes them. The in-position hold off (hil.yaml
+// ships with it on): the modes at ARM are the subject; with it on, a carriage armed at rest at its
+// set point goes on to hold (HilFaultInjection).
 class MovementTestAtArm : public ::testing::Test {
  protected:
   void start(const Wiring& wiring) {
     const assembly::RunSpec spec = assembly::RunSpec::of(
         config::load_file(pneu::test::hil_yaml(),
                           {"hal.backend=sim", "controller.clock=simulated", "controller.start_armed=false",
-                           "controller.setpoints.schedule=[]", "controller.setpoints.initial_m=0.2195"}));
+                           "controller.setpoints.schedule=[]", "controller.setpoints.initial_m=0.2195",
+                           "controller.hold.enabled=false"}));
     cfg_ = spec.config();
     auto sim = assembly::simulated_bench(spec);
     plant_ = sim.get();
