@@ -260,8 +260,8 @@ def plot_profiles(plt, np, runs, axes, tallies, bins, path):
                                label=(OUTCOME_LABELS.get(o, o) if a == 0 and r == 0 else None))
                 bottom += f
         grid[0][a].set_ylim(-0.02, 1.02)
-        for row in (1, 2):
-            grid[row][a].set_yscale("log")
+        grid[1][a].set_yscale("log")
+        grid[2][a].set_ylim(bottom=0)
         grid[3][a].set_ylim(0, 1)
         grid[3][a].set_xlabel(axis["label"])
     grid[0][0].set_ylabel("P(restart | judged stop)")
@@ -287,29 +287,32 @@ def plot_maps(plt, np, runs, axes, bins, path, what):
                              squeeze=False)
     cmap = plt.get_cmap("viridis").copy()
     cmap.set_bad("0.8")
+    # Every panel's values first: one colour scale for the whole figure, so that runs compare.
+    panels = {}
     for j, y_axis in enumerate(others):
         for r, run in enumerate(runs):
             judged, restarts, errors = grid_tally(run, x_axis, y_axis, bins)
             if what == "restart":
                 n = np.array(judged, float)
-                z = np.where(n > 0, np.array(restarts, float) / np.maximum(n, 1), np.nan)
-                norm = plt.Normalize(0, 1)
-                label = "P(restart | judged stop)"
+                panels[j, r] = np.where(n > 0, np.array(restarts, float) / np.maximum(n, 1), np.nan)
             else:
-                z = np.array([[percentile(c, 50) * 1e6 if c else np.nan for c in row] for row in errors])
-                import matplotlib.colors as mcolors
-                finite = z[np.isfinite(z) & (z > 0)]
-                norm = mcolors.LogNorm(finite.min(), finite.max()) if finite.size and finite.min() < finite.max() else None
-                label = "median final error [um]"
-            ax = grid[j][r]
-            image = ax.pcolormesh(np.linspace(x_axis["lo"], x_axis["hi"], bins + 1),
-                                  np.linspace(y_axis["lo"], y_axis["hi"], bins + 1),
-                                  np.ma.masked_invalid(z), cmap=cmap, norm=norm, shading="flat")
-            fig.colorbar(image, ax=ax, label=label)
-            ax.set_xlabel(x_axis["label"])
-            ax.set_ylabel(y_axis["label"])
-            if j == 0:
-                ax.set_title(run["label"], fontsize=10)
+                panels[j, r] = np.array([[percentile(c, 50) * 1e6 if c else np.nan for c in row] for row in errors])
+    if what == "restart":
+        norm, label = plt.Normalize(0, 1), "P(restart | judged stop)"
+    else:
+        every = np.concatenate([z[np.isfinite(z)] for z in panels.values()])
+        norm = plt.Normalize(0, every.max()) if every.size and every.max() > 0 else None
+        label = "median final error [um]"
+    for (j, r), z in panels.items():
+        y_axis, ax = others[j], grid[j][r]
+        image = ax.pcolormesh(np.linspace(x_axis["lo"], x_axis["hi"], bins + 1),
+                              np.linspace(y_axis["lo"], y_axis["hi"], bins + 1),
+                              np.ma.masked_invalid(z), cmap=cmap, norm=norm, shading="flat")
+        fig.colorbar(image, ax=ax, label=label)
+        ax.set_xlabel(x_axis["label"])
+        ax.set_ylabel(y_axis["label"])
+        if j == 0:
+            ax.set_title(runs[r]["label"], fontsize=10)
     kind = "Probability of a restart after a stop" if what == "restart" else "Final error"
     fig.suptitle(f"{kind} over set point x bench tolerance (grey: no value)\n" + title_of(runs), fontsize=10)
     fig.tight_layout()
@@ -333,6 +336,7 @@ def plot_sticking(plt, np, runs, path):
         ax.hist([max(t, edges[0]) for t in times], bins=edges, histtype="step", lw=1.5,
                 label=f"{run['label']}: {len(times)} restarts; {stuck} stuck to the end, {other} not judged")
     ax.set_xscale("log")
+    ax.set_yscale("log")
     ax.set_xlabel("sticking time before the restart [s]")
     ax.set_ylabel("restarts")
     ax.legend(fontsize=8)
