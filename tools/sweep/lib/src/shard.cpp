@@ -22,8 +22,8 @@ namespace pneu::sweep {
 
 namespace {
 
-// The shard file's first line: what it is, and its format's version.
-constexpr const char* kMagic = "pneu-sweep shard 1";
+// The shard file's first line: what it is, and its format's version (2: the setting names the design).
+constexpr const char* kMagic = "pneu-sweep shard 2";
 
 // A string as one token: "s:" and the string with '%', white space and control characters as %XX.
 std::string escape(const std::string& s) {
