@@ -8,6 +8,8 @@
 #   test_sweep_shards.sh BINARY_DIR default|identified
 #     default:    the 200-step sweep of the shipped configuration, and the refusals
 #     identified: --steps 40 --bench-spread 0.2 --identify (each bench its own, identified first)
+#     atlas:      --design lhs --steps 40 --bench-spread 0.3 --bench-spool-lag-s 0.001:0.004 (an
+#                 atlas's Latin hypercube); a Monte-Carlo shard of the same options is refused
 set -euo pipefail
 sweep=$1/bin/pneu-sweep
 mode=$2
@@ -16,6 +18,7 @@ fail() { echo "FAIL: $*"; exit 1; }
 case $mode in
   default) options=(--steps 200) ;;
   identified) options=(--steps 40 --bench-spread 0.2 --identify) ;;
+  atlas) options=(--design lhs --steps 40 --bench-spread 0.3 --bench-spool-lag-s 0.001:0.004) ;;
   *) fail "unknown mode $mode" ;;
 esac
 
@@ -32,8 +35,9 @@ echo "== unsharded: ${options[*]}"
 cat "$tmp/whole.txt"
 stops=$(($(wc -l < "$tmp/whole.csv") - 1))
 [ "$stops" -ge 20 ] || fail "not vacuous: the sweep has stops to merge (got $stops)"
-if [ "$mode" = identified ]; then
-  grep -q '^scenario,.*identified_static_positive_n' "$tmp/whole_scenarios.csv" || fail "--identify's columns are there"
+if [ "$mode" != default ]; then
+  [ "$mode" != identified ] || grep -q '^scenario,.*identified_static_positive_n' "$tmp/whole_scenarios.csv" \
+    || fail "--identify's columns are there"
   # The benches differ from one another (--bench-spread): each shard must carry its own.
   [ "$(cut -d, -f16 "$tmp/whole_scenarios.csv" | sort -u | wc -l)" -gt 10 ] || fail "not vacuous: the benches differ"
 fi
@@ -71,6 +75,13 @@ rm "$tmp/s4-3.csv" "$tmp/s4-3.csv.shard"
 "$sweep" merge --out "$tmp/again.csv" "$tmp"/s4-{1,2,3,4}.csv > /dev/null 2>&1
 cmp "$tmp/whole.csv" "$tmp/again.csv" || fail "the shard run again merges to the same file"
 
+if [ "$mode" = atlas ]; then
+  "$sweep" "${options[@]:2}" --shard 4/4 --quiet --out "$tmp/mc.csv" > /dev/null
+  status=0
+  "$sweep" merge --out "$tmp/refused.csv" "$tmp"/s4-{1,2,3}.csv "$tmp/mc.csv" > "$tmp/refused.txt" 2>&1 || status=$?
+  [ "$status" = 2 ] && grep -q "another sweep than .*: design=0, where the first has design=1" "$tmp/refused.txt" \
+    || fail "a Monte-Carlo shard is refused from an atlas's merge: $(cat "$tmp/refused.txt")"
+fi
 [ "$mode" = default ] || { echo "ok: $mode: 1, 2, 4 and 7 shards merged equal the unsharded sweep"; exit 0; }
 # refused WANT ARGS...: the merge exits 2, saying WANT (an extended regular expression).
 refused() {

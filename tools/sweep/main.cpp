@@ -34,6 +34,7 @@ Usage:
              [--bench-spread B] [--bench-thermal-s LO[:HI]] [--bench-spool-lag-s LO[:HI]]
              [--scenarios-out SCENARIOS.csv] [--set KEY=VALUE ...] [--supervised] [--strict]
              [--strict-forecasts] [--identify] [--online] [--summary-json FILE] [--quiet] [--shard K/N]
+             [--design mc|lhs|grid] [--grid-levels AxBxCxD[xE[xF]]]
   pneu-sweep merge --out SWEEP.csv [--scenarios-out SCENARIOS.csv] [--summary-json FILE] [--strict]
              [--strict-forecasts] SHARD.csv...
 
@@ -51,6 +52,19 @@ time, then --tail seconds more (default 1) in which no new stop is judged: a res
 before the end of the window is then seen or refuted by the signals rather than cut off (a
 breakaway with a force a hair beyond stiction moves the carriage by less than the detector's
 motion band for tens of milliseconds). --jobs threads (default: the cores) share the scenarios.
+
+--design lhs|grid draws an atlas instead (default mc: the above): each scenario's set point and
+bench tolerances placed by a Latin hypercube (lhs: in each dimension one scenario per stratum of
+its range, the strata shuffled per dimension from the seed, a random place within each) or on a
+full grid (grid: the middle of each level, the set point varying fastest; --grid-levels gives each
+dimension's number of levels, their product the number of scenarios: --steps, if given, must be
+it). The dimensions, in this order: the set point over the targets' range; the bench's friction,
+every friction value scaled by one factor in [1-B, 1+B]; its dead volumes, both by one factor in
+[1-B, 1+B]; its valve null offset in [-B/2, B/2] V (B: --bench-spread); then, when given, the
+thermal time constant in --bench-thermal-s's range and the spool lag in --bench-spool-lag-s's. The
+conductances stay the model's; the start y0 is drawn as above. The drawn bench is in the
+scenarios file's bench_* columns (bench_static_positive_n / the model's F_S+: the friction factor).
+tools/plots/atlas.py turns an atlas into maps (docs/atlas.md).
 
 --online adds pneud's online identification to each scenario's run: the forecasts use what it has
 identified so far, from the configured model (with --identify, from the identified one); the
@@ -183,6 +197,50 @@ sweep::DrawRange draw_range(const cli::Args& args, const char* option, double mi
   return r;
 }
 
+// --design and --grid-levels into `o` (its ranges and steps already read): the grid's levels give
+// the number of scenarios.
+void design_options(const cli::Args& args, sweep::Options& o) {
+  const std::string design = args.value("design").value_or("mc");
+  const auto levels_text = args.value("grid-levels");
+  if (design == "mc") {
+    o.design = sweep::Design::kMonteCarlo;
+  } else if (design == "lhs") {
+    o.design = sweep::Design::kLatinHypercube;
+  } else if (design == "grid") {
+    o.design = sweep::Design::kGrid;
+  } else {
+    throw cli::UsageError("--design must be mc, lhs or grid (got '" + design + "')");
+  }
+  if (o.design != sweep::Design::kGrid) {
+    if (levels_text) throw cli::UsageError("--grid-levels goes with --design grid");
+    return;
+  }
+  const std::size_t dims = sweep::atlas_dimensions(o);
+  const std::string want = "--grid-levels must be " + std::to_string(dims) +
+                           " whole numbers >= 1 joined by 'x', one per dimension (set point, friction, dead volume, "
+                           "null offset" + (o.bench_thermal_s.given() ? ", thermal time constant" : "") +
+                           (o.bench_spool_lag_s.given() ? ", spool lag" : "") + ")";
+  if (!levels_text) throw cli::UsageError(want);
+  std::size_t d = 0, at = 0;
+  long long product = 1;
+  while (at <= levels_text->size()) {
+    const std::size_t x = std::min(levels_text->find('x', at), levels_text->size());
+    const std::string word = levels_text->substr(at, x - at);
+    if (d >= dims || word.empty() || word.size() > 6 || word.find_first_not_of("0123456789") != std::string::npos ||
+        std::stoi(word) < 1)
+      throw cli::UsageError(want + " (got '" + *levels_text + "')");
+    o.grid_levels[d++] = std::stoi(word);
+    product *= o.grid_levels[d - 1];
+    if (product > 100000000) throw cli::UsageError("--grid-levels: more than 10^8 scenarios");
+    at = x + 1;
+  }
+  if (d != dims) throw cli::UsageError(want + " (got '" + *levels_text + "')");
+  if (args.value("steps") && o.steps != product)
+    throw cli::UsageError("--steps " + std::to_string(o.steps) + " is not the grid's " + std::to_string(product) +
+                          " scenarios (--grid-levels " + *levels_text + "): leave --steps out");
+  o.steps = static_cast<int>(product);
+}
+
 // --strict and --strict-forecasts on a sweep's statistics: the exit code, and why on stderr.
 int strict_exit_code(const cli::Args& args, const sweep::Statistics& stats) {
   int exit_code = cli::kExitOk;
@@ -275,7 +333,7 @@ int run(int argc, char** argv) {
   const cli::Args args(argc, argv, 1,
                        {"config", "out", "steps", "seed", "jobs", "duration", "step-time", "margin-m",
                         "min-step-m", "friction-spread", "gain-spread", "bench-spread", "tail", "scenarios-out",
-                        "bench-thermal-s", "bench-spool-lag-s", "summary-json", "shard"},
+                        "bench-thermal-s", "bench-spool-lag-s", "summary-json", "shard", "design", "grid-levels"},
                        {"strict", "strict-forecasts", "quiet", "help", "supervised", "identify", "online"}, {"set"});
   if (args.flag("help")) {
     std::cout << kHelp;
@@ -317,6 +375,7 @@ int run(int argc, char** argv) {
   o.bench_thermal_s = draw_range(args, "bench-thermal-s", 1e-6);
   o.bench_spool_lag_s = draw_range(args, "bench-spool-lag-s", 0.0);
   o.steps = static_cast<int>(steps_d);
+  design_options(args, o);
   o.seed = static_cast<std::uint64_t>(seed_d);
   std::optional<sweep::ShardSpec> shard;
   if (const auto text = args.value("shard")) {

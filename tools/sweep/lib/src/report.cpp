@@ -51,8 +51,14 @@ void print_summary(std::FILE* out, const Statistics& st) {
   const Setting& set = st.setting;
   const Options& o = set.options;
   const int n = st.scenarios;
-  char bench_text[96] = "";
-  if (o.bench_spread > 0.0)
+  char bench_text[160] = "";
+  if (o.design != Design::kMonteCarlo)
+    std::snprintf(bench_text, sizeof bench_text,
+                  ", an atlas (%s) of set point x bench friction and dead volumes +-%.0f %%, null offset within +-%.3g V%s%s",
+                  design_name(o.design), o.bench_spread * 100, 0.5 * o.bench_spread,
+                  o.bench_thermal_s.given() ? ", thermal time constant" : "",
+                  o.bench_spool_lag_s.given() ? ", spool lag" : "");
+  else if (o.bench_spread > 0.0)
     std::snprintf(bench_text, sizeof bench_text, ", bench +-%.0f %% of the model and a valve null offset within +-%.3g V",
                   o.bench_spread * 100, 0.5 * o.bench_spread);
   std::fprintf(out,

@@ -22,8 +22,8 @@ namespace pneu::sweep {
 
 namespace {
 
-// The shard file's first line: what it is, and its format's version.
-constexpr const char* kMagic = "pneu-sweep shard 1";
+// The shard file's first line: what it is, and its format's version (2: the setting names the design).
+constexpr const char* kMagic = "pneu-sweep shard 2";
 
 // A string as one token: "s:" and the string with '%', white space and control characters as %XX.
 std::string escape(const std::string& s) {
@@ -172,7 +172,7 @@ void optional_value(Io& io, const char* name, O& o, F each) {
 // configuration's fingerprint stands for what it leads to). Every member of Options and Setting
 // is listed; the sizes below (on 64-bit builds) stop a new one from being left out unnoticed: add
 // it here, then update them.
-static_assert(sizeof(void*) != 8 || (sizeof(Options) == 160 && sizeof(Setting) == 264),
+static_assert(sizeof(void*) != 8 || (sizeof(Options) == 184 && sizeof(Setting) == 288),
               "Options or Setting changed: list the new member in visit_setting (shard.cpp), then update these sizes");
 template <class Io, class S>
 void visit_setting(Io& io, S& s) {
@@ -194,6 +194,11 @@ void visit_setting(Io& io, S& s) {
   io("supervised", o.supervised);
   io("identify", o.identify);
   io("online", o.online);
+  io("design", o.design);
+  for (std::size_t d = 0; d < kMaxAtlasDimensions; ++d) {
+    const std::string name = "grid_levels_" + std::to_string(d);
+    io(name.c_str(), o.grid_levels[d]);
+  }
   io("targets_lo_m", s.targets.lo_m);
   io("targets_hi_m", s.targets.hi_m);
   io("hold_window_m", s.hold_window_m);

@@ -2,6 +2,7 @@
 // benches drawn from it (draw_scenarios), up front, so that they do not depend on the threads.
 #pragma once
 
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -16,6 +17,20 @@ struct DrawRange {
   double lo = NAN, hi = NAN;
   [[nodiscard]] bool given() const { return !std::isnan(lo); }
 };
+
+/// How a sweep draws its scenarios (--design): Monte Carlo (the set points spread evenly over the
+/// stroke, the rest drawn at random), or an atlas's design over set point x bench tolerances: a
+/// Latin hypercube, or a full grid of each dimension's levels.
+enum class Design : std::uint8_t { kMonteCarlo, kLatinHypercube, kGrid };
+/// "mc", "lhs", "grid" (--design's words).
+[[nodiscard]] const char* design_name(Design d) noexcept;
+
+/// The dimensions of an atlas's design, in this order (--grid-levels): the set point, the bench's
+/// friction factor (every friction value), its dead-volume factor (both chambers), its valve null
+/// offset, then its thermal time constant and its spool lag when their ranges are given.
+inline constexpr std::size_t kMaxAtlasDimensions = 6;
+inline constexpr const char* kAtlasDimensionNames[kMaxAtlasDimensions] = {
+    "set point", "friction", "dead volume", "null offset", "thermal time constant", "spool lag"};
 
 /// What a sweep is asked: pneu-sweep's options (its --help says what each does).
 struct Options {
@@ -33,6 +48,9 @@ struct Options {
   bool supervised = false;     ///< every supervisor check on, as in pneud
   bool identify = false;       ///< pneud's identification run on each bench first
   bool online = false;         ///< pneud's online identification during each run
+  Design design = Design::kMonteCarlo;
+  /// kGrid: each dimension's number of levels (atlas_dimensions() of them; the others 0)
+  std::array<int, kMaxAtlasDimensions> grid_levels{};
   std::filesystem::path config_dir;  ///< the configuration file's folder (relative valve tables)
 };
 
@@ -63,9 +81,19 @@ struct TargetRange {
 };
 [[nodiscard]] TargetRange target_range(const Options& options, double half_stroke_m) noexcept;
 
+/// How many dimensions an atlas of `options` draws: 4, and one each for --bench-thermal-s and
+/// --bench-spool-lag-s when given.
+[[nodiscard]] std::size_t atlas_dimensions(const Options& options) noexcept;
+
 /// The scenarios of `options` on a stroke of +-half_stroke_m: scenario i steps to the i-th of
 /// `steps` targets spread evenly over target_range(), from a start drawn at least min_step_m away;
-/// the same for a seed, whatever runs them. Throws std::invalid_argument when the options leave
+/// the same for a seed, whatever runs them. An atlas's design (lhs, grid) places each scenario's
+/// set point and bench tolerances instead: in [0, 1) per dimension, either stratum i of a random
+/// permutation per dimension plus a random offset within it (lhs), or the middle of each level of
+/// the grid, the set point varying fastest (grid); mapped onto the target range, the factors
+/// [1-B, 1+B] of friction (every value alike) and of the dead volumes (both alike), the null
+/// offset [-B/2, B/2] V (B: bench_spread) and the thermal and spool ranges; the conductances stay
+/// the model's. The grid needs steps == the product of grid_levels. Throws std::invalid_argument when the options leave
 /// no room for that (pneu-sweep says which option first).
 [[nodiscard]] std::vector<Scenario> draw_scenarios(const Options& options, double half_stroke_m);
 
