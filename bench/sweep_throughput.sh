@@ -7,6 +7,7 @@
 # is the median of the CPU times (user + system of the child) of the repetitions.
 #   bench/sweep_throughput.sh [BASE_COMMIT [REPS [CASES...]]]
 # CASES (default all): default identified identified-hil identified-thermal identified-thermal-hil
+# Issue 33's baseline, "today's build" when it was filed, is db797b5 (its thermal cases cannot run there).
 # Needs this tree's build/bin/pneu-sweep built (cmake --build build --target pneu-sweep).
 # PNEU_BASE_SWEEP=PATH: a pneu-sweep already built at BASE_COMMIT, used in place of building one.
 set -euo pipefail
@@ -33,7 +34,11 @@ elif [ ! -x "$base/src/build/bin/pneu-sweep" ] || [ "$(git -C "$base/src" rev-pa
   cmake --build "$base/src/build" -j2 --target pneu-sweep >/dev/null
 fi
 [ -x build/bin/pneu-sweep ] || { echo "build this tree's pneu-sweep first (cmake --build build --target pneu-sweep)" >&2; exit 1; }
-exec /usr/bin/python3 "$root/bench/sweep_throughput.py" --base "$base_sweep" \
+# The base reads its own tree's configuration files (a key added since would be refused there).
+base_config=$(mktemp -d)
+trap 'rm -rf "$base_config"' EXIT
+git archive "$base_sha" config | tar -x -C "$base_config"
+/usr/bin/python3 "$root/bench/sweep_throughput.py" --base "$base_sweep" --base-source "$base_config" \
   --base-name "$(git rev-parse --short "$base_sha")" --new "$root/build/bin/pneu-sweep" \
   --new-name "$(git rev-parse --short HEAD)$(git diff --quiet HEAD -- . ':!docs' || echo +)" \
   --source "$root" --reps "$reps" "$@"

@@ -11,17 +11,7 @@ set -euo pipefail
 bin=$1
 src=$2
 modbus=$3
-py=/usr/bin/python3
-tool="$src/tools/plots/pneu_plots.py"
-check="$src/tests/check_plot_figures.py"
-if ! "$py" -c "import matplotlib, numpy, yaml" 2>/dev/null; then
-  echo "SKIPPED: $py lacks matplotlib, numpy or yaml (Debian packages python3-matplotlib," \
-       "python3-numpy, python3-yaml)" >&2
-  exit 77
-fi
-fail() { echo "FAIL: $*" >&2; exit 1; }
-export PATH="$bin:$PATH"  # where the tool looks for pneu-plant when not told
-tmp=$(mktemp -d)
+. "$src/tests/plots_preamble.sh"  # py, tool, check, the skip, fail, PATH, tmp
 serve_pid=
 trap '[ -z "$serve_pid" ] || kill "$serve_pid" 2> /dev/null || true; rm -rf "$tmp"' EXIT
 date_re='[0-9]{8}-[0-9]{6}'  # the run's date and time in a file stem

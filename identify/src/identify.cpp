@@ -244,16 +244,34 @@ double fit_onset(std::span<const Sample> s, std::span<const double> force, const
   const int d = p.direction;
   const double f_c = d > 0 ? f.coulomb_positive_n : f.coulomb_negative_n;
   const double v_s = f.stribeck_velocity_m_per_s;
-  // The squared mismatch of the positions for a candidate stiction level.
-  const auto cost = [&](double f_s) {
+  constexpr int kSub = 8;
+  // What every candidate shares while its carriage is stuck at p.y_m: the mismatch summed up to
+  // each sample, and the force each sample's sub-steps reach towards d (the largest, or the
+  // smallest; NaN where one is NaN), which says whether a candidate may break away within it.
+  std::vector<double> stuck_sum(b - a), reach(b - a);
+  double stuck_total = 0.0;
+  for (std::size_t j = a; j < b; ++j) {
+    const double e = s[j].y_m - p.y_m;
+    stuck_total += e * e;
+    stuck_sum[j - a] = stuck_total;
+    const double f0 = force[j], f1 = force[j + 1];
+    double r = d > 0 ? -std::numeric_limits<double>::infinity() : std::numeric_limits<double>::infinity();
+    for (int i = 0; i < kSub; ++i) {
+      const double fb = f0 + (f1 - f0) * (i + 1) / kSub;
+      r = std::isnan(fb) || std::isnan(r) ? fb + r : d > 0 ? std::max(r, fb) : std::min(r, fb);
+    }
+    reach[j - a] = r;
+  }
+  // The squared mismatch of the positions for a candidate stiction level. It only grows along the
+  // window (a sum of squares), so once it exceeds `bound` the candidate cannot be the best: its
+  // sum so far is returned, larger than `bound`, and the rest of its window is not integrated.
+  const auto cost = [&](double f_s, double bound) {
     double y = p.y_m, v = 0.0, sum = 0.0;
     bool stuck = true;
-    for (std::size_t j = a; j < b; ++j) {
-      const double e = s[j].y_m - y;
-      sum += e * e;
+    // One sample's sub-steps from (y, v): breaking away where the force crosses f_s, then sliding.
+    const auto advance = [&](std::size_t j) {
       const double h = s[j + 1].t_s - s[j].t_s;
       const double f0 = force[j], f1 = force[j + 1];
-      constexpr int kSub = 8;
       for (int i = 0; i < kSub; ++i) {
         const double fa = f0 + (f1 - f0) * i / kSub, fb = f0 + (f1 - f0) * (i + 1) / kSub;
         double dt = h / kSub;
@@ -273,6 +291,21 @@ double fit_onset(std::span<const Sample> s, std::span<const double> force, const
         y += 0.5 * (v + v_next) * dt;
         v = v_next;
       }
+    };
+    std::size_t j = a;
+    for (; j < b; ++j) {  // stuck through whole samples: the shared sums, the same bit for bit
+      sum = stuck_sum[j - a];
+      if (sum > bound) return sum;
+      if (!(d * (reach[j - a] - f_s) <= 0.0)) {
+        advance(j++);
+        break;
+      }
+    }
+    for (; j < b; ++j) {
+      const double e = s[j].y_m - y;
+      sum += e * e;
+      if (sum > bound) return sum;
+      advance(j);
     }
     const double e = s[b].y_m - y;
     return sum + e * e;
@@ -281,13 +314,17 @@ double fit_onset(std::span<const Sample> s, std::span<const double> force, const
   double lo = std::min(force[a], force[k]), hi = std::max(force[a], force[k]);
   lo = std::min(lo, force[k] - d * 0.5);
   hi = std::max(hi, force[k] - d * 0.5);
+  // The best on the grid, the first of equals from lo. From hi down: the candidates near the force
+  // at the motion come first, and the lower ones, which break away early and would slide through
+  // most of the window, are mostly cut short by the best so far.
   constexpr int kGrid = 120;
-  double best = lo, best_cost = std::numeric_limits<double>::infinity();
+  constexpr double kNone = std::numeric_limits<double>::infinity();
+  double best = lo, best_cost = kNone;
   int best_i = 0;
-  for (int i = 0; i <= kGrid; ++i) {
+  for (int i = kGrid; i >= 0; --i) {
     const double c = lo + (hi - lo) * i / kGrid;
-    const double v = cost(c);
-    if (v < best_cost) {
+    const double v = cost(c, best_cost);
+    if (v <= best_cost) {
       best_cost = v;
       best = c;
       best_i = i;
@@ -298,20 +335,21 @@ double fit_onset(std::span<const Sample> s, std::span<const double> force, const
   double x0 = best - (hi - lo) / kGrid, x1 = best + (hi - lo) / kGrid;
   const double g = 0.5 * (std::sqrt(5.0) - 1.0);
   double c1 = x1 - g * (x1 - x0), c2 = x0 + g * (x1 - x0);
-  double v1 = cost(c1), v2 = cost(c2);
+  // Each new point is cut short only when above the point kept: then it is the one let go next.
+  double v1 = cost(c1, kNone), v2 = cost(c2, v1);
   for (int i = 0; i < 40; ++i) {
     if (v1 < v2) {
       x1 = c2;
       c2 = c1;
       v2 = v1;
       c1 = x1 - g * (x1 - x0);
-      v1 = cost(c1);
+      v1 = cost(c1, v2);
     } else {
       x0 = c1;
       c1 = c2;
       v1 = v2;
       c2 = x0 + g * (x1 - x0);
-      v2 = cost(c2);
+      v2 = cost(c2, v1);
     }
   }
   return 0.5 * (x0 + x1);
