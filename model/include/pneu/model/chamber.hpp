@@ -209,14 +209,26 @@ class BasicChamberProcess {
   [[nodiscard]] BasicChamberRates<S> rates(const Valve& valve, const Place& at, const S& p, const S& t_k,
                                            const S& w) const noexcept {
     const S& volume = at.volume_m3;
-    if (!thermal_) {
-      const S q = valve.mass_flow_kg_per_s(w, p);
-      const double v = at.v_m_per_s;
-      return {at.side == Side::kP ? k_r_t_ / volume * (q - area_p_m2_ * p * v / r_t_)
-                                  : k_r_t_ / volume * (q + area_n_m2_ * p * v / r_t_),
-              S(0.0)};
-    }
+    if (!thermal_) return {polytropic_dp_dt(at.side, k_r_t_ / volume, valve.mass_flow_kg_per_s(w, p), p, at.v_m_per_s), S(0.0)};
     return chamber_.rates(valve.chamber_inflow(w, p, t_k, supply_k_), p, t_k, volume, at.dvolume_dt_m3_per_s, at.wall_m2);
+  }
+  /// A polytropic chamber held at its place with its valve (the model's equations) held at an
+  /// opening, as an integration over a stuck carriage's step without a spool lag holds them: what
+  /// rates() would work out again at each call, once. dp_dt() from it is rates()'s, bit for bit.
+  template <class Valve>
+  struct Held {
+    Side side;
+    double v_m_per_s;
+    S k_r_t_over_volume;
+    typename Valve::Opening opening;
+  };
+  template <class Valve>
+  [[nodiscard]] Held<Valve> held(const Valve& valve, const Place& at, const S& w) const noexcept {
+    return {at.side, at.v_m_per_s, k_r_t_ / at.volume_m3, valve.opening(w)};
+  }
+  template <class Valve>
+  [[nodiscard]] S dp_dt(const Valve& valve, const Held<Valve>& h, const S& p) const noexcept {
+    return polytropic_dp_dt(h.side, h.k_r_t_over_volume, valve.mass_flow_kg_per_s(h.opening, p), p, h.v_m_per_s);
   }
   /// The rate at which chamber `side` at rest at y forgets a disturbance of its state (the
   /// largest of its local valve and thermal rates) [1/s]: for step sizes (at the values).
@@ -255,6 +267,12 @@ class BasicChamberProcess {
   S dead_p_m3_, dead_n_m3_;
   double area_p_m2_, area_n_m2_, half_stroke_m_;
   double k_r_t_, r_t_, supply_k_, exhaust_pa_, gamma_r_;
+
+  // Eq. 2's pressure equation, dp/dt = k r T / V (q -+ S p v / (r T)), from k r T / V.
+  [[nodiscard]] S polytropic_dp_dt(Side side, const S& k_r_t_over_volume, const S& q, const S& p, double v) const noexcept {
+    return side == Side::kP ? k_r_t_over_volume * (q - area_p_m2_ * p * v / r_t_)
+                            : k_r_t_over_volume * (q + area_n_m2_ * p * v / r_t_);
+  }
 };
 using ChamberProcess = BasicChamberProcess<double>;
 template <>

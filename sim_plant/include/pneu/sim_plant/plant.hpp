@@ -128,6 +128,7 @@ class Plant {
 
   [[nodiscard]] Vec derivative(const Vec& x, Motion motion, Voltages w) const noexcept;
   [[nodiscard]] Vec rk4(const Vec& x, double h, Motion motion, const Drive& u) const noexcept;
+  [[nodiscard]] Vec rk4_held(const Vec& x, double h, Voltages w) const noexcept;
   [[nodiscard]] double force_of(const Vec& x) const noexcept;
   /// What friction opposes: the pressure force and the external one [N].
   [[nodiscard]] double driving_force_of(const Vec& x) const noexcept { return force_of(x) + external_n_; }
