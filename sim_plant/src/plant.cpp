@@ -142,9 +142,9 @@ Plant::Vec Plant::derivative(const Vec& x, Motion motion, Voltages w) const noex
 
 Plant::Vec Plant::rk4(const Vec& x, double h, Motion motion, const Drive& u) const noexcept {
   const Voltages start = voltages_at(u, 0.0), middle = voltages_at(u, 0.5 * h), end = voltages_at(u, h);
-  if (motion == Motion::kStuck && !params_.has_thermal && start.w_p_v == end.w_p_v && start.w_n_v == end.w_n_v &&
-      start.w_p_v == middle.w_p_v && start.w_n_v == middle.w_n_v)
-    return rk4_held(x, h, start);
+  const bool valves_held = start.w_p_v == middle.w_p_v && start.w_p_v == end.w_p_v &&
+                           start.w_n_v == middle.w_n_v && start.w_n_v == end.w_n_v;
+  if (motion == Motion::kStuck && !params_.has_thermal && valves_held) return rk4_held(x, h, start);
   const Vec k1 = derivative(x, motion, start);
   const Vec k2 = derivative(x + 0.5 * h * k1, motion, middle);
   const Vec k3 = derivative(x + 0.5 * h * k2, motion, middle);
@@ -167,10 +167,14 @@ Plant::Vec Plant::rk4_held(const Vec& x, double h, Voltages w) const noexcept {
   const auto held_n = process_.held(eq, process_.place(model::Side::kN, x[0], x[1]), w.w_n_v);
   // Both chambers stage by stage (two independent chains for the processor to overlap).
   const double p = x[2], n = x[3];
-  const double k1p = process_.dp_dt(eq, held_p, p), k1n = process_.dp_dt(eq, held_n, n);
-  const double k2p = process_.dp_dt(eq, held_p, p + 0.5 * h * k1p), k2n = process_.dp_dt(eq, held_n, n + 0.5 * h * k1n);
-  const double k3p = process_.dp_dt(eq, held_p, p + 0.5 * h * k2p), k3n = process_.dp_dt(eq, held_n, n + 0.5 * h * k2n);
-  const double k4p = process_.dp_dt(eq, held_p, p + h * k3p), k4n = process_.dp_dt(eq, held_n, n + h * k3n);
+  const double k1p = process_.dp_dt(eq, held_p, p);
+  const double k1n = process_.dp_dt(eq, held_n, n);
+  const double k2p = process_.dp_dt(eq, held_p, p + 0.5 * h * k1p);
+  const double k2n = process_.dp_dt(eq, held_n, n + 0.5 * h * k1n);
+  const double k3p = process_.dp_dt(eq, held_p, p + 0.5 * h * k2p);
+  const double k3n = process_.dp_dt(eq, held_n, n + 0.5 * h * k2n);
+  const double k4p = process_.dp_dt(eq, held_p, p + h * k3p);
+  const double k4n = process_.dp_dt(eq, held_n, n + h * k3n);
   Vec out = x;
   out[1] = 0.0;
   out[2] = p + (h / 6.0) * (k1p + 2.0 * k2p + 2.0 * k3p + k4p);

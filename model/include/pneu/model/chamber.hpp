@@ -209,7 +209,9 @@ class BasicChamberProcess {
   [[nodiscard]] BasicChamberRates<S> rates(const Valve& valve, const Place& at, const S& p, const S& t_k,
                                            const S& w) const noexcept {
     const S& volume = at.volume_m3;
-    if (!thermal_) return {polytropic_dp_dt(at.side, k_r_t_ / volume, valve.mass_flow_kg_per_s(w, p), p, at.v_m_per_s), S(0.0)};
+    if (!thermal_)
+      return {polytropic_dp_dt(at.side, k_r_t_ / volume, valve.mass_flow_kg_per_s(w, p), p, at.v_m_per_s),
+              S(0.0)};
     return chamber_.rates(valve.chamber_inflow(w, p, t_k, supply_k_), p, t_k, volume, at.dvolume_dt_m3_per_s, at.wall_m2);
   }
   /// A polytropic chamber held at its place with its valve (the model's equations) held at an
@@ -269,7 +271,8 @@ class BasicChamberProcess {
   double k_r_t_, r_t_, supply_k_, exhaust_pa_, gamma_r_;
 
   // Eq. 2's pressure equation, dp/dt = k r T / V (q -+ S p v / (r T)), from k r T / V.
-  [[nodiscard]] S polytropic_dp_dt(Side side, const S& k_r_t_over_volume, const S& q, const S& p, double v) const noexcept {
+  [[nodiscard]] S polytropic_dp_dt(Side side, const S& k_r_t_over_volume, const S& q, const S& p,
+                                   double v) const noexcept {
     return side == Side::kP ? k_r_t_over_volume * (q - area_p_m2_ * p * v / r_t_)
                             : k_r_t_over_volume * (q + area_n_m2_ * p * v / r_t_);
   }
