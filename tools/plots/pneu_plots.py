@@ -481,11 +481,18 @@ def check_events_belong(run, bench, trajectory_path, events_path):
         i, j = np.searchsorted(run.t, [t_a, t_b])
         return bool(np.any(np.diff(run.seq[max(i - 1, 0):j + 1]) > 1))
 
+    # The detector confirms on the first tick hold_s or more after the stop's tick, by its own
+    # rule (t - t_stop >= hold_s - 1e-9 period: a real clock's tick 8 ns short of hold_s does not
+    # confirm). The files hold times to the nanosecond: a tick within 2 ns of that boundary may
+    # have fallen on either side of it.
+    rounding_s = 2e-9
     for s, rise in zip(sorted(confirmed, key=lambda s: s["t"]), rises):
-        # the detector confirms on the first tick hold_s or more after the stop's tick
         anchor = float(run.t[int(np.argmin(np.abs(run.t - s["t"])))])
-        confirming = run.t[int(np.searchsorted(run.t, anchor + confirm_s - 1e-7))]
-        if abs(float(rise) - float(confirming)) > 1e-7 and not rows_lost(s["t"], float(rise)):
+        i = int(np.searchsorted(run.t, anchor + confirm_s - 1e-9 * period - rounding_s))
+        confirming = [float(run.t[i])] if i < len(run.t) else []
+        if confirming and confirming[0] - anchor < confirm_s + rounding_s and i + 1 < len(run.t):
+            confirming.append(float(run.t[i + 1]))
+        if all(abs(float(rise) - c) > 1e-7 for c in confirming) and not rows_lost(s["t"], float(rise)):
             raise InputError(f"{where}: stop {s['index']} at t = {s['t']:.4f} s, the trajectory "
                              f"comes to rest at t = {float(rise):.4f} s (stop_detector.hold_s = "
                              f"{confirm_s:g} s)")
