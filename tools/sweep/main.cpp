@@ -202,15 +202,13 @@ sweep::DrawRange draw_range(const cli::Args& args, const char* option, double mi
 void design_options(const cli::Args& args, sweep::Options& o) {
   const std::string design = args.value("design").value_or("mc");
   const auto levels_text = args.value("grid-levels");
-  if (design == "mc") {
-    o.design = sweep::Design::kMonteCarlo;
-  } else if (design == "lhs") {
-    o.design = sweep::Design::kLatinHypercube;
-  } else if (design == "grid") {
-    o.design = sweep::Design::kGrid;
-  } else {
-    throw cli::UsageError("--design must be mc, lhs or grid (got '" + design + "')");
-  }
+  // By the designs' own names (sweep::design_name), as the summary and the shard files spell them.
+  constexpr sweep::Design kDesigns[] = {sweep::Design::kMonteCarlo, sweep::Design::kLatinHypercube,
+                                        sweep::Design::kGrid};
+  const auto named = std::find_if(std::begin(kDesigns), std::end(kDesigns),
+                                  [&](sweep::Design d) { return design == sweep::design_name(d); });
+  if (named == std::end(kDesigns)) throw cli::UsageError("--design must be mc, lhs or grid (got '" + design + "')");
+  o.design = *named;
   if (o.design != sweep::Design::kGrid) {
     if (levels_text) throw cli::UsageError("--grid-levels goes with --design grid");
     return;
