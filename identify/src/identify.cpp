@@ -712,22 +712,58 @@ void date_breakaways_by_onset(std::span<const Sample> s, std::span<const double>
 // phase or two of a run that is otherwise the model's. Where the other phases, nine or more for
 // each spoiled one, fit without them, those are left out (in `left_out`) and the fit without them
 // is the result; where they do not, the model does not fit, and the fit with them says so.
+// The spoiled phases are first those the fit with them all flags; a badly spoiled phase can drag
+// that fit so far that it flags good ones too (more than one in ten), so then they are left out
+// one at a time instead, the worst of each fit first, while nine or more phases remain for each.
 detail::ValveFit without_spoiled_phases(std::span<const Sample> s, std::span<const StuckPhase> still, detail::ValveFit vf,
                                         const model::PlantParams& plant, const Options& o,
                                         std::vector<Evidence::PhaseMisfit>& left_out) {
+  // Where phase p's residual is in fit f, if it was fitted.
+  const auto residual_of = [](const detail::ValveFit& f, const StuckPhase& p) {
+    const auto r = std::find_if(f.phase_residuals.begin(), f.phase_residuals.end(),
+                                [&](const auto& x) { return x.first >= p.first && x.last <= p.last; });
+    return r == f.phase_residuals.end() ? nullptr : &*r;
+  };
+  const auto misfit = [&](const detail::ValveFit::PhaseResidual& r) {
+    return Evidence::PhaseMisfit{s[r.first].t_s, r.y_m, r.rms_pa};
+  };
+  const std::size_t fitted = vf.phase_residuals.size();
   std::vector<StuckPhase> kept;
   std::vector<Evidence::PhaseMisfit> spoiled;
   for (const StuckPhase& p : still) {
-    const auto r = std::find_if(vf.phase_residuals.begin(), vf.phase_residuals.end(),
-                                [&](const auto& x) { return x.first >= p.first && x.last <= p.last; });
-    if (r != vf.phase_residuals.end() && r->misfit) spoiled.push_back({s[r->first].t_s, r->y_m, r->rms_pa});
+    const auto* r = residual_of(vf, p);
+    if (r && r->misfit) spoiled.push_back(misfit(*r));
     else kept.push_back(p);
   }
-  if (spoiled.empty() || 9 * spoiled.size() > vf.phase_residuals.size() - spoiled.size()) return vf;
-  detail::ValveFit without = detail::fit_valves(s, kept, plant, o);
-  if (!without.fits) return vf;
-  left_out = std::move(spoiled);
-  return without;
+  if (spoiled.empty()) return vf;
+  if (9 * spoiled.size() <= fitted - spoiled.size()) {
+    detail::ValveFit without = detail::fit_valves(s, kept, plant, o);
+    if (without.fits) {
+      left_out = std::move(spoiled);
+      return without;
+    }
+  }
+  // One at a time, the worst first.
+  kept.assign(still.begin(), still.end());
+  spoiled.clear();
+  detail::ValveFit current = vf;
+  while (9 * (spoiled.size() + 1) <= fitted - (spoiled.size() + 1)) {
+    auto worst = kept.end();
+    const detail::ValveFit::PhaseResidual* worst_r = nullptr;
+    for (auto p = kept.begin(); p != kept.end(); ++p) {
+      const auto* r = residual_of(current, *p);
+      if (r && r->misfit && (!worst_r || r->rms_pa > worst_r->rms_pa)) worst = p, worst_r = r;
+    }
+    if (!worst_r) break;
+    spoiled.push_back(misfit(*worst_r));
+    kept.erase(worst);
+    current = detail::fit_valves(s, kept, plant, o);
+    if (current.fits) {
+      left_out = std::move(spoiled);
+      return current;
+    }
+  }
+  return vf;
 }
 
 // The valves and the dead volumes from the stuck phases' pressure transients (Eq. 19).
