@@ -95,8 +95,9 @@ void expect_exact_jacobian(const Recorded& rec, const model::PlantParams& at) {
   for (std::size_t i = 0; i < identify::detail::kValveFitParams; ++i) {
     if (!identify::detail::has_parameter(cfg.plant, i)) continue;
     // Steps small against the kinks the null offset moves (a valve's opening at 0), whose crossings
-    // central differences smear over h: a microvolt, a microsecond, 1e-4 of a logarithm.
-    const double h = i == identify::detail::kSpoolLag || i == identify::detail::kNullOffset ? 1e-6 : 1e-4;
+    // central differences smear over h: 0.1 uV, 0.1 us, 1e-4 of a logarithm (with 1 uV one sample of
+    // a record straddled a kink: 3.5e-6 off; the rounding floor at 0.1 uV is near 1e-8).
+    const double h = i == identify::detail::kSpoolLag || i == identify::detail::kNullOffset ? 1e-7 : 1e-4;
     const FitCheck up = identify::detail::check_fit_model(run.samples, phases, cfg.plant, o, moved(at, i, h), z, false);
     const FitCheck down = identify::detail::check_fit_model(run.samples, phases, cfg.plant, o, moved(at, i, -h), z, false);
     std::vector<double> central(rows), error(rows);
