@@ -12,7 +12,9 @@ fail() { echo "FAIL: $*"; exit 1; }
   --set controller.predictor.horizon_s=9
 "$bin/pneu-identify" --trajectory "$tmp/run.csv" --out "$tmp/id.yaml" > "$tmp/out.txt" || fail "identified from an ordinary run"
 cat "$tmp/out.txt"
-grep -qE '^plant.friction.static_negative_n +-50 +-55\.0' "$tmp/out.txt" || fail "F_S- identified from the run's restarts"
+# The bench's -55 N to within 0.05 N (its breakaways bracket it to about 0.1 N).
+awk '$1 == "plant.friction.static_negative_n" && $2 == -50 && ($3 + 55 < 0.05 && $3 + 55 > -0.05) { ok = 1 }
+     END { exit !ok }' "$tmp/out.txt" || fail "F_S- identified from the run's restarts"
 grep -qE '^plant.friction.static_positive_n .*no breakaway in the positive direction' "$tmp/out.txt" \
   || fail "F_S+ reported not identified: the run restarts one way"
 "$bin/pneud" --config "$tmp/id.yaml" --check-config > /dev/null || fail "the written configuration loads"
