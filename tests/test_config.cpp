@@ -113,7 +113,8 @@ TEST(ShippedConfig, LoadsWithTheDocumentedPaperBenchValues) {
   EXPECT_EQ(c.plant.friction.viscous_n_s_per_m, 60.0);
   EXPECT_EQ(c.plant.friction.stribeck_velocity_m_per_s, 0.01);
   EXPECT_EQ(c.plant.friction.stick_velocity_m_per_s, 1.0e-4);
-  EXPECT_EQ(c.plant.max_step_s, 2.0e-4);
+  EXPECT_EQ(c.plant.max_step_s, 3.4e-4);
+  EXPECT_EQ(c.plant.max_stuck_step_s, 1.0e-3);
   EXPECT_EQ(c.sensors.seed, 1u);
   EXPECT_EQ(c.sensors.position.gain_v_per_unit, 20.0);
   EXPECT_EQ(c.sensors.position.offset_v, 5.0);

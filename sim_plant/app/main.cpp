@@ -200,9 +200,11 @@ int simulate(int argc, char** argv) {
               end.y_m * 1e3, end.v_m_per_s, end.p_p_pa * 1e-5, end.p_n_pa * 1e-5,
               plant.pressure_force_n(), end.motion == plant::Motion::kStuck ? "stuck" : "sliding");
   std::printf("  travel  %.3f mm to %.3f mm\n", y_min * 1e3, y_max * 1e3);
-  std::printf("  speed   plant %.1f ms for %.3f s simulated (%.0fx real time; RK4 step %.3g ms, %llu rhs evaluations); whole run %.1f ms\n",
-              plant_s * 1e3, duration, duration / plant_s, plant.step_size_s() * 1e3,
-              static_cast<unsigned long long>(plant.rhs_evaluations()), wall_s * 1e3);
+  const auto& pp = plant.params();
+  std::printf("  speed   plant %.1f ms for %.3f s simulated (%.0fx real time; RK4 steps from %.3g ms (the stiffest state) "
+              "up to %.3g ms sliding, %.3g ms stuck; %llu rhs evaluations); whole run %.1f ms\n",
+              plant_s * 1e3, duration, duration / plant_s, plant.step_size_s() * 1e3, pp.max_step_s * 1e3,
+              pp.max_stuck_step_s * 1e3, static_cast<unsigned long long>(plant.rhs_evaluations()), wall_s * 1e3);
   std::printf("  wrote   %s (%zu rows)\n", out_path.c_str(), n);
   return cli::kExitOk;
 }

@@ -66,32 +66,34 @@ Plant::Plant(const model::PlantParams& params)
       area_n_m2_(force_.area_n_m2()),
       half_stroke_m_(params.geometry.half_stroke_m()),
       k_r_t_(params.gas.k_r_t()) {
-  assert(params.mass_kg > 0.0 && params.max_step_s > 0.0 && area_n_m2_ > 0.0);
+  assert(params.mass_kg > 0.0 && params.max_step_s > 0.0 && params.max_stuck_step_s > 0.0 && area_n_m2_ > 0.0);
   // Fastest pressure mode: |dq/dp| is largest in the laminar region of a wide-open orifice,
   // |d m/d p| <= K (1 + |phi'|) per orifice; both orifices of one valve together open at most
   // C_max + C_leak_in + C_leak_out.
   const auto& v = params.valve;
   const double max_open = v.max_conductance_m3_per_s_pa + v.leak_conductance_in_m3_per_s_pa +
                           v.leak_conductance_out_m3_per_s_pa;
-  const double k = max_open * v.reference_density_kg_per_m3 * valve_.orifice().temperature_factor;
-  const double max_dq_dp =
-      k * (1.0 + std::abs(model::flow_function_slope(1.0, v.critical_pressure_ratio)));
+  // A chamber's pressure mode per unit of opening and of 1 / volume: k r T rho_0 sqrt(T_0 / T)
+  // (1 + |phi'(1)|), with the energy balance the adiabatic index in place of k.
+  pressure_rate_per_opening_ =
+      k_r_t_ * v.reference_density_kg_per_m3 * valve_.orifice().temperature_factor *
+      (1.0 + std::abs(model::flow_function_slope(1.0, v.critical_pressure_ratio))) *
+      (params.has_thermal ? params.thermal.adiabatic_index / params.gas.polytropic_index : 1.0);
   const double min_volume =
       std::min(params.geometry.dead_volume_p_m3, params.geometry.dead_volume_n_m3);
-  double lambda_max = k_r_t_ * max_dq_dp / min_volume;
   if (params.has_thermal) {
-    // The energy balance: the adiabatic index in place of k, and the wall's heat, fastest in the
-    // least air per wall area: a chamber at its dead volume, at the exhaust pressure.
-    const double gamma = params.thermal.adiabatic_index;
-    lambda_max *= gamma / params.gas.polytropic_index;
+    // The wall's heat, fastest in the least air per wall area: a chamber at its dead volume, at
+    // the exhaust pressure.
     const auto& g = params.geometry;
     const double t_wall = params.wall_temperature_k();
     for (const auto& [volume, wall] : {std::pair{g.dead_volume_p_m3, model::wall_area_p_m2(g, -half_stroke_m_)},
                                        std::pair{g.dead_volume_n_m3, model::wall_area_n_m2(g, half_stroke_m_)}})
-      lambda_max = std::max(lambda_max, 1.0 / process_.thermal_chamber().time_constant_s(params.gas.exhaust_pressure_pa,
-                                                                                           t_wall, volume, wall));
+      wall_rate_per_s_ = std::max(wall_rate_per_s_, 1.0 / process_.thermal_chamber().time_constant_s(
+                                                              params.gas.exhaust_pressure_pa, t_wall, volume, wall));
   }
-  step_s_ = std::min(params.max_step_s, kStabilityMargin / lambda_max);
+  const double lambda_max = std::max(pressure_rate_per_opening_ * max_open / min_volume, wall_rate_per_s_);
+  stable_step_s_ = kStabilityMargin / lambda_max;
+  step_s_ = std::min(params.max_step_s, stable_step_s_);
   reset_at_rest(0.0, 0.0);
 }
 
@@ -234,15 +236,44 @@ void Plant::step(double dt_s, double u_p_v, double u_n_v) noexcept {
   event_count_ = 0;
   if (!(dt_s > 0.0)) return;
   const double t_end = state_.t_s + dt_s;
-  const int n = static_cast<int>(std::ceil(dt_s / step_s_ - 1e-9));
-  const double h = dt_s / std::max(n, 1);
   // With a spool lag the spools follow the commands within the valves' travel; without, the
   // valves see the commands themselves.
   const bool lag = spool_.time_constant_s > 0.0;
   const Drive u{lag ? model::SpoolLag::target_v(valve_, u_p_v) : u_p_v,
                 lag ? model::SpoolLag::target_v(valve_, u_n_v) : u_n_v, 0.0, 0.0};
+  const int n = static_cast<int>(std::ceil(dt_s / sub_step_s(dt_s, u.u_p_v, u.u_n_v) - 1e-9));
+  const double h = dt_s / std::max(n, 1);
   for (int i = 0; i < std::max(n, 1); ++i) advance(h, u);
   state_.t_s = t_end;
+}
+
+double Plant::sub_step_s(double dt_s, double w_p_v, double w_n_v) const noexcept {
+  const double max_step_s = state_.motion == Motion::kStuck ? params_.max_stuck_step_s : params_.max_step_s;
+  if (max_step_s <= stable_step_s_) return max_step_s;  // stable in any state
+  // Each chamber's pressure mode over this step: its valve's opening, the larger of where the spool
+  // stands and where it goes (both orifices together pass the leaks and |w - w_0| / u_max of C_max,
+  // convex in w), over the smallest volume the chamber can reach within the step (the carriage going
+  // on at its speed, and 1 mm more), and the piston's own term k S |v| / V.
+  const auto& eq = valve_.equations();
+  const auto opening = [&](double w) {
+    const auto o = eq.opening(w);
+    return o.inlet_m3_per_s_pa + o.outlet_m3_per_s_pa;
+  };
+  const double speed = std::abs(state_.v_m_per_s);
+  const double travel_m = speed * dt_s + 1.0e-3;
+  const double k = params_.has_thermal ? params_.thermal.adiabatic_index : params_.gas.polytropic_index;
+  const auto rate = [&](model::Side side, double w_from, double w_to) {
+    const bool p_side = side == model::Side::kP;
+    const double y = std::clamp(state_.y_m + (p_side ? -travel_m : travel_m), -half_stroke_m_, half_stroke_m_);
+    const double volume = process_.volume_m3(side, y);
+    return (pressure_rate_per_opening_ * std::max(opening(w_from), opening(w_to)) +
+            k * (p_side ? area_p_m2_ : area_n_m2_) * speed) /
+           volume;
+  };
+  const double lambda = std::max({rate(model::Side::kP, state_.w_p_v, w_p_v),
+                                  rate(model::Side::kN, state_.w_n_v, w_n_v), wall_rate_per_s_});
+  // Never below the stiffest state's step: that one is stable anywhere.
+  return std::min(max_step_s, std::max(stable_step_s_, kStabilityMargin / lambda));
 }
 
 void Plant::advance(double h, Drive command) noexcept {
@@ -266,14 +297,20 @@ void Plant::advance(double h, Drive command) noexcept {
     remaining -= dt;
   };
 
-  // Each pass integrates the rest of the sub-step or stops at the first located mode change.
+  // Each pass integrates the rest of the sub-step or stops at the first located mode change. A
+  // sub-step begun stuck (up to max_stuck_step_s) goes on sliding after a breakaway in steps of the
+  // sliding carriage's own size (sub_step_s()).
+  const bool began_stuck = state_.motion == Motion::kStuck;
   for (int pass = 0; pass < 32 && remaining > 0.0; ++pass) {
     const Motion m = state_.motion;
     u.from_p_v = state_.w_p_v;
     u.from_n_v = state_.w_n_v;
+    const double span = began_stuck && m != Motion::kStuck
+                            ? std::min(remaining, sub_step_s(remaining, command.u_p_v, command.u_n_v))
+                            : remaining;
     const Vec x0 = x;
-    const Vec x1 = rk4(x0, remaining, m, u);
-    const double theta_tolerance = kEventTimeTolerance_s / remaining;
+    const Vec x1 = rk4(x0, span, m, u);
+    const double theta_tolerance = kEventTimeTolerance_s / span;
 
     if (m == Motion::kStuck) {
       // Breakaway when F leaves [F_S-, F_S+]; an end stop blocks breakaway into itself.
@@ -287,14 +324,14 @@ void Plant::advance(double h, Drive command) noexcept {
       };
       const double g1 = g(x1);
       if (g1 <= 0.0) {
-        commit(x1, remaining);
-        break;
+        commit(x1, span);
+        continue;
       }
       const double g0 = std::min(g(x0), 0.0);
       const double theta = locate_event(
-          [&](double th) { return g(rk4(x0, th * remaining, m, u)); }, g0, g1, theta_tolerance);
-      const Vec xe = rk4(x0, theta * remaining, m, u);
-      commit(xe, theta * remaining);
+          [&](double th) { return g(rk4(x0, th * span, m, u)); }, g0, g1, theta_tolerance);
+      const Vec xe = rk4(x0, theta * span, m, u);
+      commit(xe, theta * span);
       const double force = driving_force_of(xe);
       const int dir = (may_go_up && force > f.static_positive_n) ? kPositive : kNegative;
       state_.motion = sliding(dir);
@@ -309,7 +346,7 @@ void Plant::advance(double h, Drive command) noexcept {
     const auto g = [&](const Vec& xs) { return std::max(g_velocity(xs), g_stop(xs)); };
     const double g1 = g(x1);
     if (g1 <= 0.0) {
-      commit(x1, remaining);
+      commit(x1, span);
       // Asymptotic approach to rest: inside the velocity band, decelerating, F inside the
       // stiction band -> stick.
       if (std::abs(x[1]) < f.stick_velocity_m_per_s && s * derivative(x, m, {state_.w_p_v, state_.w_n_v})[1] < 0.0 &&
@@ -318,16 +355,16 @@ void Plant::advance(double h, Drive command) noexcept {
         state_.motion = Motion::kStuck;
         record(PlantEvent::Kind::kStick, s);
       }
-      break;
+      continue;
     }
     const double g0 = std::min(g(x0), 0.0);
-    const double theta = locate_event([&](double th) { return g(rk4(x0, th * remaining, m, u)); },
+    const double theta = locate_event([&](double th) { return g(rk4(x0, th * span, m, u)); },
                                       g0, g1, theta_tolerance);
-    Vec xe = rk4(x0, theta * remaining, m, u);
+    Vec xe = rk4(x0, theta * span, m, u);
     const bool hit_stop = g_stop(xe) >= g_velocity(xe);
     xe[1] = 0.0;
     if (hit_stop) xe[0] = s * half_stroke_m_;
-    commit(xe, theta * remaining);
+    commit(xe, theta * span);
     const double force = driving_force_of(xe);
     if (hit_stop) {
       state_.motion = Motion::kStuck;

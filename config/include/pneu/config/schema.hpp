@@ -151,7 +151,9 @@ void describe(auto& a, Like<model::PlantParams> auto& p) {
   a.section(PNEU_NVP(p, valve));
   a.section(PNEU_NVP(p, friction));
   a.optional_section(optional(PNEU_NVP(p, thermal)), p.has_thermal);
-  a.field(PNEU_NVP(p, max_step_s), Range::closed(1.0e-7, 1.0e-2), "largest RK4 step [s]");
+  a.field(PNEU_NVP(p, max_step_s), Range::closed(1.0e-7, 1.0e-2), "largest RK4 step while the carriage slides [s]");
+  a.field(optional(PNEU_NVP(p, max_stuck_step_s)), Range::closed(1.0e-7, 1.0e-2),
+          "largest RK4 step while it is stuck [s]");
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -101,9 +101,11 @@ struct PlantParams {
   /// gas.temperature_k with gas.polytropic_index (Eq. 2).
   bool has_thermal = false;
   ThermalParams thermal;
-  /// Largest integration step [s]. The plant further limits it to keep explicit RK4 stable on the
-  /// stiffest pressure mode (see Plant::step_size_s()).
-  double max_step_s = 2.0e-4;
+  /// Largest integration step while the carriage slides [s], and while it is stuck. The plant
+  /// further limits them to keep explicit RK4 stable on the step's fastest pressure mode (see
+  /// Plant::step_size_s()).
+  double max_step_s = 3.4e-4;
+  double max_stuck_step_s = 1.0e-3;
 
   /// T_w [K]: thermal.wall_temperature_k, or the supply's (gas.temperature_k) when auto.
   [[nodiscard]] double wall_temperature_k() const noexcept {

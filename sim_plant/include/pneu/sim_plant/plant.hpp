@@ -95,9 +95,11 @@ class Plant {
     return {events_.data(), event_count_};
   }
   [[nodiscard]] std::uint64_t events_dropped() const noexcept { return events_dropped_; }
-  /// Integration step actually used: min(max_step_s, 2.5 / |lambda_max|), lambda_max the fastest
-  /// pressure eigenvalue (smallest chamber volume, valve wide open, laminar slope) so explicit RK4
-  /// (stable for h |lambda| < 2.78) stays stable anywhere in the stroke.
+  /// The sliding carriage's step at the stiffest state: min(max_step_s, 2.5 / |lambda_max|),
+  /// lambda_max the fastest pressure eigenvalue (smallest chamber volume, valve wide open, laminar
+  /// slope), so explicit RK4 (stable for h |lambda| < 2.78) is stable anywhere in the stroke. Each
+  /// step() takes equal sub-steps of at most max_step_s (max_stuck_step_s while stuck) and at most
+  /// 2.5 / lambda of that step's openings and volumes, never shorter than 2.5 / |lambda_max|.
   [[nodiscard]] double step_size_s() const noexcept { return step_s_; }
   /// Number of right-hand-side evaluations since construction (for benchmarks).
   [[nodiscard]] std::uint64_t rhs_evaluations() const noexcept { return rhs_evaluations_; }
@@ -132,6 +134,9 @@ class Plant {
   [[nodiscard]] double force_of(const Vec& x) const noexcept;
   /// What friction opposes: the pressure force and the external one [N].
   [[nodiscard]] double driving_force_of(const Vec& x) const noexcept { return force_of(x) + external_n_; }
+  /// The sub-step of a step of dt_s towards the valve voltages w: the mode's largest step, or less
+  /// where the step's fastest pressure mode needs it (2.5 / lambda), never below 2.5 / |lambda_max|.
+  [[nodiscard]] double sub_step_s(double dt_s, double w_p_v, double w_n_v) const noexcept;
   void advance(double h, Drive u) noexcept;
   void record(PlantEvent::Kind kind, int direction) noexcept;
   void settle_mode_at_rest() noexcept;
@@ -143,6 +148,9 @@ class Plant {
   model::SpoolLag spool_;
   double area_p_m2_, area_n_m2_, half_stroke_m_, k_r_t_;
   double step_s_;
+  double stable_step_s_;                    // 2.5 / |lambda_max|: stable in any state
+  double pressure_rate_per_opening_ = 0.0;  // a chamber's lambda per unit of opening / volume
+  double wall_rate_per_s_ = 0.0;            // the wall's heat exchange at its fastest (plant.thermal)
   PlantState state_;
   double external_n_ = 0.0;
   std::array<PlantEvent, kMaxEventsPerStep> events_{};
