@@ -298,14 +298,14 @@ void Plant::advance(double h, Drive command) noexcept {
   };
 
   // Each pass integrates the rest of the sub-step or stops at the first located mode change. A
-  // sub-step begun stuck (up to max_stuck_step_s) goes on sliding after a breakaway in steps of the
-  // sliding carriage's own size (sub_step_s()).
-  const bool began_stuck = state_.motion == Motion::kStuck;
+  // sub-step sized for a stuck carriage (up to max_stuck_step_s) that slides, after a breakaway in
+  // it or in an earlier sub-step of the sample, goes on in steps of the sliding carriage's size
+  // (sub_step_s()).
   for (int pass = 0; pass < 32 && remaining > 0.0; ++pass) {
     const Motion m = state_.motion;
     u.from_p_v = state_.w_p_v;
     u.from_n_v = state_.w_n_v;
-    const double span = began_stuck && m != Motion::kStuck
+    const double span = m != Motion::kStuck && h > params_.max_step_s
                             ? std::min(remaining, sub_step_s(remaining, command.u_p_v, command.u_n_v))
                             : remaining;
     const Vec x0 = x;
