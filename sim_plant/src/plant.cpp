@@ -305,7 +305,8 @@ void Plant::advance(double h, Drive command) noexcept {
     const Motion m = state_.motion;
     u.from_p_v = state_.w_p_v;
     u.from_n_v = state_.w_n_v;
-    const double span = m != Motion::kStuck && h > params_.max_step_s
+    // (h is dt / n: allow the rounding that step()'s count of sub-steps allows.)
+    const double span = m != Motion::kStuck && h > params_.max_step_s * (1.0 + 1e-9)
                             ? std::min(remaining, sub_step_s(remaining, command.u_p_v, command.u_n_v))
                             : remaining;
     const Vec x0 = x;
