@@ -319,14 +319,43 @@ TEST_F(Hil, PaperScenarioWithTheHoldOverModbusNeverRestartsOnceHeldWithinTheWind
   ASSERT_EQ(pneud.wait(), 0) << slurp(dir_ / "pneud.err");
   kill(plant.pid, SIGINT);
   ASSERT_EQ(plant.wait(), 0) << slurp(dir_ / "serve.err");
+  // The plant's truth: its sticks and breakaways (serve's record, on CLOCK_MONOTONIC), on pneud's
+  // loop time.
+  const double epoch = pneu::test::PneudSummary::read(summary_json()).epoch_monotonic_s;
+  ASSERT_TRUE(std::isfinite(epoch));
+  std::vector<std::pair<double, bool>> motion;  // t, stuck from then on
+  std::string plant_record = slurp(plant_events);
+  {
+    std::istringstream plant_lines(plant_record);
+    for (std::string line; std::getline(plant_lines, line);) {
+      const bool breakaway = line.find("\"event\":\"breakaway\"") != std::string::npos;
+      if (breakaway || line.find("\"event\":\"stick\"") != std::string::npos)
+        motion.emplace_back(field(line, "monotonic_s") - epoch, !breakaway);
+    }
+  }
+  ASSERT_TRUE(std::any_of(motion.begin(), motion.end(), [](const auto& m) { return !m.second; }))
+      << "not vacuous: serve's record holds the plant's motion\n" << plant_record;
+  // Stuck by `t` + 50 ms, by the plant's record.
+  const auto plant_stuck_by = [&](double t) {
+    const auto after = std::find_if(motion.begin(), motion.end(), [&](const auto& m) { return m.first > t + 0.05; });
+    return after != motion.begin() && std::prev(after)->second;
+  };
+  // Held: the first hold within the window (not reaching) on a carriage the plant's record has stuck
+  // by 50 ms after the hold began. Over Modbus pneud may call a stop over the last micrometres of a
+  // slide (a stale sample reads as no motion) and begin a hold there, which ends "moved" a few
+  // milliseconds later; the forecasts made under it rightly say restart. Such holds are not judged.
   double t_held = NAN, y_held = NAN, y_d = NAN;
   int held_forecasts = 0, held_restart_forecasts = 0;
   std::istringstream lines(slurp(dir_ / "events.jsonl"));
   for (std::string line; std::getline(lines, line);) {
     const double t = field(line, "t");
     if (std::isnan(t_held)) {
-      if (line.find("\"event\":\"hold_start\"") != std::string::npos && field(line, "reach") == 0.0 && t > 1.0)
-        t_held = t, y_held = field(line, "y"), y_d = field(line, "y_d");
+      if (line.find("\"event\":\"hold_start\"") != std::string::npos && field(line, "reach") == 0.0 && t > 1.0) {
+        if (plant_stuck_by(t))
+          t_held = t, y_held = field(line, "y"), y_d = field(line, "y_d");
+        else
+          std::printf("hold from %.3f s on a carriage the plant's record has sliding: not judged\n", t);
+      }
       continue;
     }
     if (line.find("\"method\":\"held\"") != std::string::npos) {
@@ -340,20 +369,11 @@ TEST_F(Hil, PaperScenarioWithTheHoldOverModbusNeverRestartsOnceHeldWithinTheWind
   EXPECT_GT(held_forecasts, 10);
   EXPECT_EQ(held_restart_forecasts, 0);
 
-  // The plant's truth: its breakaways, on CLOCK_MONOTONIC; pneud's hold on the same clock.
-  const double epoch = pneu::test::PneudSummary::read(summary_json()).epoch_monotonic_s;
-  ASSERT_TRUE(std::isfinite(epoch));
-  const double held_monotonic_s = epoch + t_held;
-  int breakaways = 0, breakaways_after = 0;
-  std::string after;
-  std::istringstream plant_lines(slurp(plant_events));
-  for (std::string line; std::getline(plant_lines, line);) {
-    if (line.find("\"event\":\"breakaway\"") == std::string::npos) continue;
-    ++breakaways;
-    if (field(line, "monotonic_s") > held_monotonic_s) ++breakaways_after, after += line + "\n";
-  }
-  EXPECT_GE(breakaways, 1) << "not vacuous: serve's record holds the plant's motion";
-  EXPECT_EQ(breakaways_after, 0) << "the plant started again after the hold:\n" << after;
+  // Once held, the plant never broke away again.
+  int breakaways_after = 0;
+  for (const auto& [t, stuck] : motion)
+    if (!stuck && t > t_held) ++breakaways_after;
+  EXPECT_EQ(breakaways_after, 0) << "the plant started again after the hold:\n" << plant_record;
 }
 
 // Issue 15 over Modbus: pneu-plant serve plays a bench that is not pneud's model (stiction 20 %
