@@ -80,9 +80,9 @@ void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t de
                                 ? std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::llround(health_period_s / period_s)))
                                 : 0;
   std::uint64_t next_health = health_every;
-  loop.open(0.0);  // opens the backend (a connect, a first exchange) before time starts
   clock.prepare_loop_thread();
-  if (after_start) after_start();
+  if (after_start) after_start();  // first: a thread the backend starts inherits the loop thread's set-up
+  loop.open(0.0);  // opens the backend (a connect, a first exchange) before time starts
   if (before_time) before_time();
   loop.begin(0.0);
   const double epoch = clock.now_s();

@@ -82,12 +82,13 @@ struct LoopTiming {
 /// `stop_requested`. `between_ticks`, when set, runs after each tick outside the timed part (the
 /// simulated clock's way of servicing the non-real-time side deterministically).
 /// Every `health_period_s` (0: never) the period's timing goes to `health` (a full queue drops it).
-/// `after_start`, when set, runs once the loop has started (its backend open, with any thread of
-/// its own already created) and before time starts: the place for the loop thread's real-time
-/// set-up, which threads created later would otherwise inherit. `clock.prepare_loop_thread()` runs
-/// just before it. `before_time`, when set, runs on the loop thread after `after_start`, the backend
-/// open and the loop not begun yet (its first reading is taken after it): the movement test's
-/// place; what it throws ends the run before any tick.
+/// `after_start`, when set, runs on the loop thread before the backend opens and before time
+/// starts: the place for the loop thread's real-time set-up, which a thread the backend starts
+/// inherits (a Modbus module's I/O thread: each tick's reading comes through it, so it keeps the
+/// loop's priority and CPU). `clock.prepare_loop_thread()` runs just before it. `before_time`,
+/// when set, runs on the loop thread after `after_start`, the backend open and the loop not begun
+/// yet (its first reading is taken after it): the movement test's place; what it throws ends the
+/// run before any tick.
 void run_loop(ControlLoop& loop, Clock& clock, double period_s, std::uint64_t deadlines,
               const std::atomic<bool>& stop_requested, LoopTiming& timing,
               const std::function<void()>& between_ticks = {}, double health_period_s = 0.0,

@@ -79,9 +79,9 @@ struct Run {
 /// what is left (a model update still being made waited for) and finishes the runtime.
 /// `wait_for_input(timeout_ms)`, when set, is how the service thread waits between drains (LCM's
 /// handle); else it sleeps 2 ms.
-/// `on_loop_thread`, when set, runs on the loop thread once the backend is open, just before time
-/// starts (real clock: its real-time set-up, so that the backend's own I/O thread, created
-/// earlier, keeps the ordinary scheduling; what it throws ends the run, the backend closed).
+/// `on_loop_thread`, when set, runs on the loop thread before the backend opens and time starts
+/// (real clock: its real-time set-up, which the backend's own I/O thread, started after it,
+/// inherits; what it throws ends the run, the backend closed).
 /// On hal.backend modbus with controller.movement_test.enabled, the movement test then runs on the
 /// loop thread before time starts (movement_test_runs()); its result goes to `on_movement_test`
 /// (when set, on the loop thread, before any tick) and into `run.movement_test`. A finding other

@@ -5,7 +5,8 @@
 
 namespace pneu::controller {
 
-/// Real-time set-up of the loop thread (controller.realtime.*), real clock only.
+/// Real-time set-up of the loop thread (controller.realtime.*), real clock only; a thread the
+/// backend starts (the Modbus I/O thread) inherits it.
 struct RealtimeConfig {
   int priority = 0;           ///< SCHED_FIFO priority of the loop thread, 1..99; 0 = normal scheduling
   int cpu = -1;               ///< pin the loop thread to this CPU; -1 = no pinning
