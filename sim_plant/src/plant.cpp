@@ -53,6 +53,10 @@ constexpr double kStabilityMargin = 2.5;
 
 // Event time resolution [s].
 constexpr double kEventTimeTolerance_s = 1.0e-11;
+// A sub-step dt / n may come out this much (relative) above the step it was sized by: rounding,
+// not a longer step (1e-3 / 5 is one ulp above 2e-4). step()'s count of sub-steps and advance()'s
+// cap both allow it.
+constexpr double kStepRounding = 1.0e-9;
 
 }  // namespace
 
@@ -93,7 +97,6 @@ Plant::Plant(const model::PlantParams& params)
   }
   const double lambda_max = std::max(pressure_rate_per_opening_ * max_open / min_volume, wall_rate_per_s_);
   stable_step_s_ = kStabilityMargin / lambda_max;
-  step_s_ = std::min(params.max_step_s, stable_step_s_);
   reset_at_rest(0.0, 0.0);
 }
 
@@ -241,7 +244,7 @@ void Plant::step(double dt_s, double u_p_v, double u_n_v) noexcept {
   const bool lag = spool_.time_constant_s > 0.0;
   const Drive u{lag ? model::SpoolLag::target_v(valve_, u_p_v) : u_p_v,
                 lag ? model::SpoolLag::target_v(valve_, u_n_v) : u_n_v, 0.0, 0.0};
-  const int n = static_cast<int>(std::ceil(dt_s / sub_step_s(dt_s, u.u_p_v, u.u_n_v) - 1e-9));
+  const int n = static_cast<int>(std::ceil(dt_s / sub_step_s(dt_s, u.u_p_v, u.u_n_v) - kStepRounding));
   const double h = dt_s / std::max(n, 1);
   for (int i = 0; i < std::max(n, 1); ++i) advance(h, u);
   state_.t_s = t_end;
@@ -305,8 +308,8 @@ void Plant::advance(double h, Drive command) noexcept {
     const Motion m = state_.motion;
     u.from_p_v = state_.w_p_v;
     u.from_n_v = state_.w_n_v;
-    // (h is dt / n: allow the rounding that step()'s count of sub-steps allows.)
-    const double span = m != Motion::kStuck && h > params_.max_step_s * (1.0 + 1e-9)
+    // (h is dt / n: kStepRounding.)
+    const double span = m != Motion::kStuck && h > params_.max_step_s * (1.0 + kStepRounding)
                             ? std::min(remaining, sub_step_s(remaining, command.u_p_v, command.u_n_v))
                             : remaining;
     const Vec x0 = x;

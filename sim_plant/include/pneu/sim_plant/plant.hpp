@@ -100,7 +100,7 @@ class Plant {
   /// slope), so explicit RK4 (stable for h |lambda| < 2.78) is stable anywhere in the stroke. Each
   /// step() takes equal sub-steps of at most max_step_s (max_stuck_step_s while stuck) and at most
   /// 2.5 / lambda of that step's openings and volumes, never shorter than 2.5 / |lambda_max|.
-  [[nodiscard]] double step_size_s() const noexcept { return step_s_; }
+  [[nodiscard]] double step_size_s() const noexcept { return std::min(params_.max_step_s, stable_step_s_); }
   /// Number of right-hand-side evaluations since construction (for benchmarks).
   [[nodiscard]] std::uint64_t rhs_evaluations() const noexcept { return rhs_evaluations_; }
 
@@ -147,7 +147,6 @@ class Plant {
   model::ChamberProcess process_;
   model::SpoolLag spool_;
   double area_p_m2_, area_n_m2_, half_stroke_m_, k_r_t_;
-  double step_s_;
   double stable_step_s_;                    // 2.5 / |lambda_max|: stable in any state
   double pressure_rate_per_opening_ = 0.0;  // a chamber's lambda per unit of opening / volume
   double wall_rate_per_s_ = 0.0;            // the wall's heat exchange at its fastest (plant.thermal)
