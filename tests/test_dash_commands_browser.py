@@ -169,9 +169,12 @@ def main():
     try:
         # The loop-timing supervision off: a stall of the shared machine would latch an overrun
         # fault, and the set point would be refused for the mode; timing is not this test's subject.
+        # Its loop on SCHED_FIFO where permitted (a warning otherwise): the tests beside it do not
+        # delay the carriage the page commands.
         pneud = subprocess.Popen(
             [os.path.join(bin_dir, "pneud"), "--clock", "real", "--duration", "0", "--require-telemetry",
-             "--set", "controller.setpoints.schedule=[]", "--set", "controller.supervisor.overruns_in_a_row=0",
+             "--set", "controller.setpoints.schedule=[]", "--set", "controller.realtime.priority=40",
+             "--set", "controller.supervisor.overruns_in_a_row=0",
              "--set", "controller.supervisor.max_tick_interval_s=0", "--events", events],
             stdout=open(os.path.join(d, "pneud.out"), "w"), stderr=open(os.path.join(d, "pneud.err"), "w"))
         procs.append(pneud)

@@ -126,8 +126,10 @@ bool ended(pid_t pid) {
 // and the richer the model, the longer the fit): the longest gap between two pets stays under 1.5
 // s, and under 0.1 s or half the longest update, whichever is longer (measured: 22 ms, the longest
 // update 811 ms; with the fit on the service thread, a polytropic model: 251 ms for a longest
-// update of 242 ms).
-TEST_F(PneudDaemon, LearningOnlineTheWatchdogIsPettedWhileTheUpdatesAreMadeOnAnIdleMachine) {
+// update of 242 ms). It holds with both cores busy beside it (two busy loops, three runs on
+// 2026-11-28: the longest gap 18 to 19 ms, the longest update 510 to 559 ms), so it runs beside the
+// other tests.
+TEST_F(PneudDaemon, LearningOnlineTheWatchdogIsPettedWhileTheUpdatesAreMade) {
   NotifySocket notify(dir_ / "notify");
   ASSERT_TRUE(notify.bound());
   std::string schedule = "controller.setpoints.schedule=[";
