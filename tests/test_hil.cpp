@@ -142,6 +142,20 @@ std::map<int, StopRecord> stops_of(const std::string& events) {
   return stops;
 }
 
+// serve's record of the plant's motion (pneu-plant serve --events): its sticks and breakaways on
+// pneud's loop time (`epoch`: the loop's time 0 on CLOCK_MONOTONIC), each as (t, stuck from then on).
+using Motion = std::vector<std::pair<double, bool>>;
+Motion plant_motion(const std::string& record, double epoch) {
+  Motion motion;
+  std::istringstream lines(record);
+  for (std::string line; std::getline(lines, line);) {
+    const bool breakaway = line.find("\"event\":\"breakaway\"") != std::string::npos;
+    if (breakaway || line.find("\"event\":\"stick\"") != std::string::npos)
+      motion.emplace_back(field(line, "monotonic_s") - epoch, !breakaway);
+  }
+  return motion;
+}
+
 class Hil : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -175,17 +189,17 @@ class Hil : public ::testing::Test {
   }
   // pneud's figures (--summary-json), read once it has ended.
   [[nodiscard]] std::string summary_json() const { return (dir_ / "summary.json").string(); }
-  // The tests named ...WithTheLoopOnTime judge figures that need pneud's loop on time (and serve's
-  // answers): where SCHED_FIFO is permitted, pneud's loop and its I/O thread (controller.realtime)
-  // and serve run at real-time priority, so that the tests beside them (ctest -j) cannot delay
-  // them, as a bench runs pneud; else they run alone (tests/CMakeLists.txt decides which at
-  // configure time, and a build that counted on SCHED_FIFO skips them, saying why, without it).
   // `args` run at real-time priority above pneud's, when the test asks for its loop on time: the
   // module's side (serve, the serial line) answers as hardware does, whatever else the host runs.
   [[nodiscard]] std::vector<std::string> answering_on_time(std::vector<std::string> args) const {
     if (on_time_) args.insert(args.begin(), {"chrt", "-f", "41"});
     return args;
   }
+  // The tests named ...WithTheLoopOnTime judge figures that need pneud's loop on time (and serve's
+  // answers): where SCHED_FIFO is permitted, pneud's loop and its I/O thread (controller.realtime)
+  // and serve run at real-time priority, so that the tests beside them (ctest -j) cannot delay
+  // them, as a bench runs pneud; else they run alone (tests/CMakeLists.txt decides which at
+  // configure time, and a build that counted on SCHED_FIFO skips them, saying why, without it).
   void on_time() {
     on_time_ = std::system("chrt -f 1 true 2>/dev/null") == 0;
 #ifdef PNEU_TESTS_AT_REALTIME_PRIORITY
@@ -349,16 +363,8 @@ TEST_F(Hil, PaperScenarioWithTheHoldOverModbusNeverRestartsOnceHeldWithinTheWind
   // loop time.
   const double epoch = pneu::test::PneudSummary::read(summary_json()).epoch_monotonic_s;
   ASSERT_TRUE(std::isfinite(epoch));
-  std::vector<std::pair<double, bool>> motion;  // t, stuck from then on
-  std::string plant_record = slurp(plant_events);
-  {
-    std::istringstream plant_lines(plant_record);
-    for (std::string line; std::getline(plant_lines, line);) {
-      const bool breakaway = line.find("\"event\":\"breakaway\"") != std::string::npos;
-      if (breakaway || line.find("\"event\":\"stick\"") != std::string::npos)
-        motion.emplace_back(field(line, "monotonic_s") - epoch, !breakaway);
-    }
-  }
+  const std::string plant_record = slurp(plant_events);
+  const Motion motion = plant_motion(plant_record, epoch);
   ASSERT_TRUE(std::any_of(motion.begin(), motion.end(), [](const auto& m) { return !m.second; }))
       << "not vacuous: serve's record holds the plant's motion\n" << plant_record;
   // Stuck by `t` + 50 ms, by the plant's record.
@@ -532,13 +538,7 @@ TEST_F(Hil, AThermalBenchWithASpoolLagIdentifiedOverModbusForecastsTheLongSticki
     const double epoch = pneu::test::PneudSummary::read(summary_json()).epoch_monotonic_s;
     ASSERT_TRUE(std::isfinite(epoch));
     // The plant's own record of its motion, on pneud's loop time.
-    std::vector<std::pair<double, bool>> motion;  // t, stuck from then on
-    std::istringstream plant_lines(slurp(plant_events));
-    for (std::string line; std::getline(plant_lines, line);) {
-      const bool breakaway = line.find("\"event\":\"breakaway\"") != std::string::npos;
-      if (breakaway || line.find("\"event\":\"stick\"") != std::string::npos)
-        motion.emplace_back(field(line, "monotonic_s") - epoch, !breakaway);
-    }
+    const Motion motion = plant_motion(slurp(plant_events), epoch);
     ASSERT_FALSE(motion.empty()) << slurp(plant_events);
     const std::string events_text = slurp(dir_ / events);
     EXPECT_EQ(events_text.find("\"model_fits\":false") == std::string::npos, fits)
