@@ -195,12 +195,20 @@ class Hil : public ::testing::Test {
     if (on_time_) args.insert(args.begin(), {"chrt", "-f", "41"});
     return args;
   }
-  // The tests named ...WithTheLoopOnTime judge figures that need pneud's loop on time (and serve's
-  // answers): where SCHED_FIFO is permitted, pneud's loop and its I/O thread (controller.realtime)
-  // and serve run at real-time priority, so that the tests beside them (ctest -j) cannot delay
-  // them, as a bench runs pneud; else they run alone (tests/CMakeLists.txt decides which at
-  // configure time, and a build that counted on SCHED_FIFO skips them, saying why, without it).
-  void on_time() {
+  pneu::test::TestDir dir_{"pneu_hil_"};
+  int port_ = 0;
+  bool on_time_ = false;  // HilOnTime
+};
+
+// The tests that judge figures that need pneud's loop on time (and serve's answers): where
+// SCHED_FIFO is permitted, pneud's loop and its I/O thread (controller.realtime) and serve run at
+// real-time priority, so that the tests beside them (ctest -j) cannot delay them, as a bench runs
+// pneud; else they run alone (tests/CMakeLists.txt decides which at configure time, and a build
+// that counted on SCHED_FIFO skips them, saying why, without it).
+class HilOnTime : public Hil {
+ protected:
+  void SetUp() override {
+    Hil::SetUp();
     on_time_ = std::system("chrt -f 1 true 2>/dev/null") == 0;
 #ifdef PNEU_TESTS_AT_REALTIME_PRIORITY
     if (!on_time_)
@@ -208,9 +216,6 @@ class Hil : public ::testing::Test {
                       "configure the build as this user (these tests then run alone), or run them on an idle machine";
 #endif
   }
-  pneu::test::TestDir dir_{"pneu_hil_"};
-  int port_ = 0;
-  bool on_time_ = false;
 };
 
 // The movement test before closed loop (controller.movement_test) over Modbus: pneu-plant serve
@@ -339,15 +344,13 @@ TEST_F(Hil, PaperScenarioOverModbusSticksRestartsAndTheNonlinearForecastHoldsWit
 // window, and once held there it never starts again: judged on serve's own record of the plant's
 // motion (--events: no breakaway after the hold, on CLOCK_MONOTONIC), not on pneud's dating, which
 // a loaded machine blurs; the forecasts under the hold's commands say no restart.
-// The loop on time (on_time()): the hold keeps the force inside the stiction band only while its
+// The loop on time (HilOnTime): the hold keeps the force inside the stiction band only while its
 // loop runs on time. With two busy loops beside the suite (bench/ctest_under_load.sh), at ordinary
 // scheduling, it failed once in six: the forecasts under the hold said restart three times, and
 // the plant broke away at the bound (-50 N) after the hold began: most likely the pressures
 // drifting under a late loop's commands, the phenomenon itself. A bench's pneud runs with
 // controller.realtime on a PREEMPT_RT kernel.
-TEST_F(Hil, PaperScenarioWithTheHoldOverModbusNeverRestartsOnceHeldWithinTheWindowWithTheLoopOnTime) {
-  on_time();
-  if (IsSkipped()) return;
+TEST_F(HilOnTime, PaperScenarioWithTheHoldOverModbusNeverRestartsOnceHeldWithinTheWindowWithTheLoopOnTime) {
   const fs::path plant_events = dir_ / "plant.jsonl";
   Child plant = serve(15.0, {"--events", plant_events.string()});
   // The hold and reach as measured here (hil.yaml ships them on, with a 0.2 mm window).
@@ -412,12 +415,10 @@ TEST_F(Hil, PaperScenarioWithTheHoldOverModbusNeverRestartsOnceHeldWithinTheWind
 // high, the exhaust leak 22 % low, a valve null offset of 50 mV); pneud --identify identifies it
 // over the link (refused without --armed), and the paper's step on the identified configuration
 // forecasts its long sticking phases within 5 %, where the model as configured was tens of % off.
-// The loop on time (on_time()): deadlines the loop skips shift when its commands reach the valves,
+// The loop on time (HilOnTime): deadlines the loop skips shift when its commands reach the valves,
 // which the fit over the link cannot tell from the valves' physics (beside four builds, at ordinary
 // scheduling, 1672 skipped in the fitted phases: a misfit of 181 Pa rms and no null offset found).
-TEST_F(Hil, IdentifiedOverModbusThePaperStepsLongStickingPhaseIsForecastWithin5PercentWithTheLoopOnTime) {
-  on_time();
-  if (IsSkipped()) return;
+TEST_F(HilOnTime, IdentifiedOverModbusThePaperStepsLongStickingPhaseIsForecastWithin5PercentWithTheLoopOnTime) {
   const std::vector<std::string> bench{"--set", "hal.sim.plant.friction.static_positive_n=54",
                                        "--set", "hal.sim.plant.friction.static_negative_n=-60",
                                        "--set", "hal.sim.plant.valve.leak_conductance_out_m3_per_s_pa=9.98e-10",
@@ -480,9 +481,7 @@ TEST_F(Hil, IdentifiedOverModbusThePaperStepsLongStickingPhaseIsForecastWithin5P
 // ms). pneud --identify --armed identifies it over the link, and the paper's step on the identified
 // configuration forecasts its long sticking phases within 5 % of the breakaway that serve's own
 // record (--events) dates, on serve's clock.
-TEST_F(Hil, AThermalBenchWithASpoolLagIdentifiedOverModbusForecastsTheLongStickingPhaseWithin5PercentOfServesRecordWithTheLoopOnTime) {
-  on_time();
-  if (IsSkipped()) return;
+TEST_F(HilOnTime, AThermalBenchWithASpoolLagIdentifiedOverModbusForecastsTheLongStickingPhaseWithin5PercentOfServesRecordWithTheLoopOnTime) {
   const std::vector<std::string> bench{"--set", "hal.sim.plant.thermal.heat_transfer_w_per_m2_k=25.72",
                                        "--set", "hal.sim.plant.valve.spool_time_constant_s=0.003",
                                        "--set", "hal.sim.plant.friction.static_positive_n=50",
@@ -859,9 +858,7 @@ TEST_F(Hil, WithARealtimePriorityTheModbusIoThreadRunsAtTheLoopsPriority) {
   EXPECT_GE(other, 1) << "the service thread keeps the ordinary scheduling";
 }
 
-TEST_F(Hil, RtuOverAPtyPairAt115200BaudKeepsTheLoopRateAndFreshSamplesWithTheLoopOnTime) {
-  on_time();
-  if (IsSkipped()) return;
+TEST_F(HilOnTime, RtuOverAPtyPairAt115200BaudKeepsTheLoopRateAndFreshSamplesWithTheLoopOnTime) {
   if (system("command -v socat > /dev/null") != 0) GTEST_SKIP() << "socat (Debian package socat) is not installed";
   const fs::path a = dir_ / "ttyA", b = dir_ / "ttyB";
   Child pty = Child::spawn(answering_on_time({"socat", "pty,raw,echo=0,link=" + a.string(), "pty,raw,echo=0,link=" + b.string()}),
