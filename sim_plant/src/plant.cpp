@@ -69,7 +69,8 @@ Plant::Plant(const model::PlantParams& params)
       area_p_m2_(force_.area_p_m2()),
       area_n_m2_(force_.area_n_m2()),
       half_stroke_m_(params.geometry.half_stroke_m()),
-      k_r_t_(params.gas.k_r_t()) {
+      k_r_t_(params.gas.k_r_t()),
+      piston_index_(params.has_thermal ? params.thermal.adiabatic_index : params.gas.polytropic_index) {
   assert(params.mass_kg > 0.0 && params.max_step_s > 0.0 && params.max_stuck_step_s > 0.0 && area_n_m2_ > 0.0);
   // Fastest pressure mode: |dq/dp| is largest in the laminar region of a wide-open orifice,
   // |d m/d p| <= K (1 + |phi'|) per orifice; both orifices of one valve together open at most
@@ -82,7 +83,7 @@ Plant::Plant(const model::PlantParams& params)
   pressure_rate_per_opening_ =
       k_r_t_ * v.reference_density_kg_per_m3 * valve_.orifice().temperature_factor *
       (1.0 + std::abs(model::flow_function_slope(1.0, v.critical_pressure_ratio))) *
-      (params.has_thermal ? params.thermal.adiabatic_index / params.gas.polytropic_index : 1.0);
+      (piston_index_ / params.gas.polytropic_index);
   const double min_volume =
       std::min(params.geometry.dead_volume_p_m3, params.geometry.dead_volume_n_m3);
   if (params.has_thermal) {
@@ -264,13 +265,12 @@ double Plant::sub_step_s(double dt_s, double w_p_v, double w_n_v) const noexcept
   };
   const double speed = std::abs(state_.v_m_per_s);
   const double travel_m = speed * dt_s + 1.0e-3;
-  const double k = params_.has_thermal ? params_.thermal.adiabatic_index : params_.gas.polytropic_index;
   const auto rate = [&](model::Side side, double w_from, double w_to) {
     const bool p_side = side == model::Side::kP;
     const double y = std::clamp(state_.y_m + (p_side ? -travel_m : travel_m), -half_stroke_m_, half_stroke_m_);
     const double volume = process_.volume_m3(side, y);
     return (pressure_rate_per_opening_ * std::max(opening(w_from), opening(w_to)) +
-            k * (p_side ? area_p_m2_ : area_n_m2_) * speed) /
+            piston_index_ * (p_side ? area_p_m2_ : area_n_m2_) * speed) /
            volume;
   };
   const double lambda = std::max({rate(model::Side::kP, state_.w_p_v, w_p_v),

@@ -147,6 +147,7 @@ class Plant {
   model::ChamberProcess process_;
   model::SpoolLag spool_;
   double area_p_m2_, area_n_m2_, half_stroke_m_, k_r_t_;
+  double piston_index_;                     // k of the piston's term k S v / V (adiabatic: plant.thermal)
   double stable_step_s_;                    // 2.5 / |lambda_max|: stable in any state
   double pressure_rate_per_opening_ = 0.0;  // a chamber's lambda per unit of opening / volume
   double wall_rate_per_s_ = 0.0;            // the wall's heat exchange at its fastest (plant.thermal)
