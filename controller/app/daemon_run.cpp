@@ -51,6 +51,7 @@ controller::RunFigures figures_of(const config::Config& cfg, const std::string& 
   f.ticks_dropped = run.outputs->ticks_dropped;
   f.events_dropped = run.outputs->events_dropped;
   f.modbus = run.backend->link_report();
+  f.link_transactions_before_time = run.link_transactions_before_time;
   f.fault_at_end = run.loop->fault_cause();
   return f;
 }

@@ -165,11 +165,19 @@ void print_telemetry(std::FILE* out, const TelemetryFigures& t) {
                static_cast<ull>(c.mode));
 }
 
-void print_modbus(std::FILE* out, const hal::LinkReport& m, double t_end_s) {
+// The link's exchanges per second of the run: those made before its time started (the movement
+// test's) are not the loop's.
+double transactions_per_s(const RunFigures& f, double t_end_s) {
+  const std::uint64_t before = std::min(f.link_transactions_before_time, f.modbus->transactions);
+  return static_cast<double>(f.modbus->transactions - before) / std::max(t_end_s, 1e-9);
+}
+
+void print_modbus(std::FILE* out, const RunFigures& f, double t_end_s) {
+  const hal::LinkReport& m = *f.modbus;
   std::fprintf(out,
                "modbus: %llu transactions (%.0f per second), %llu errors, %llu reconnects, %llu samples out of range, "
                "%llu stale reads, oldest sample %.2f ms%s%s\n",
-               static_cast<ull>(m.transactions), static_cast<double>(m.transactions) / std::max(t_end_s, 1e-9),
+               static_cast<ull>(m.transactions), transactions_per_s(f, t_end_s),
                static_cast<ull>(m.errors), static_cast<ull>(m.reconnects), static_cast<ull>(m.out_of_range),
                static_cast<ull>(m.stale_reads), m.oldest_sample_s * 1e3, m.errors ? "; last error: " : "",
                m.errors ? m.last_error.c_str() : "");
@@ -260,7 +268,7 @@ void print_summary(std::FILE* out, const RunFigures& f, const Runtime& runtime) 
                  fault.fault_key != nullptr ? "; decided by " : "", fault.fault_key != nullptr ? fault.fault_key : "");
   print_loop(out, f.timing);
   if (f.telemetry) print_telemetry(out, *f.telemetry);
-  if (f.modbus) print_modbus(out, *f.modbus, t_end_s);
+  if (f.modbus) print_modbus(out, f, t_end_s);
   if (f.ticks_dropped || f.events_dropped)
     std::fprintf(out, "  telemetry dropped: %llu tick records, %llu events\n", static_cast<ull>(f.ticks_dropped),
                  static_cast<ull>(f.events_dropped));
@@ -311,7 +319,7 @@ RunSummaryRecord run_summary_record(const RunFigures& f, const Runtime& runtime)
   if (const auto& m = f.modbus) {
     ModbusSummary b;
     b.transactions = m->transactions;
-    b.transactions_per_s = static_cast<double>(m->transactions) / std::max(runtime.end_time_s(), 1e-9);
+    b.transactions_per_s = transactions_per_s(f, runtime.end_time_s());
     b.errors = m->errors;
     b.reconnects = m->reconnects;
     b.samples_out_of_range = m->out_of_range;

@@ -126,6 +126,7 @@ void execute(Run& run, const config::Config& config, Clock& clock,
       MovementTest test(config.controller.movement_test, MovementTestBench::of(config));
       const MovementTestResult& r = run.movement_test.emplace(
           run_movement_test(*run.backend, clock, period, test, stop_requested));
+      if (const auto link = run.backend->link_report()) run.link_transactions_before_time = link->transactions;
       if (on_movement_test) on_movement_test(r);
       if (!r.passed() && r.finding != MovementFinding::kInterrupted)
         throw std::runtime_error(

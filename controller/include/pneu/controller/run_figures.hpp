@@ -44,6 +44,8 @@ struct RunFigures {
   std::uint64_t events_dropped = 0;  ///< events the loop's full queue dropped
   std::optional<TelemetryFigures> telemetry;  ///< when LCM ran
   std::optional<hal::LinkReport> modbus;      ///< the backend's link (hal::Backend::link_report): modbus
+  /// Of modbus->transactions, those before the loop's time started (the movement test's).
+  std::uint64_t link_transactions_before_time = 0;
   /// The fault still latched when the run ended (ControlLoop::fault_cause; FaultCause::kNone: none).
   FaultCause fault_at_end = FaultCause::kNone;
 };

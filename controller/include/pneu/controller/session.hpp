@@ -71,6 +71,8 @@ struct Run {
   std::unique_ptr<Runtime> runtime;
   LoopTiming timing;
   std::optional<MovementTestResult> movement_test;  ///< the movement test's, when it ran
+  /// The link's exchanges before the loop's time started (the movement test's; hal::LinkReport).
+  std::uint64_t link_transactions_before_time = 0;
 };
 
 /// Runs it for controller.duration_s on `clock` (the simulated clock drains the runtime between

@@ -191,7 +191,7 @@ struct pneu::records::Description<pneu::controller::ModbusSummary> {
   static constexpr const char* kDoc = "the Modbus link";
   static constexpr auto kFields = std::tuple{
       field("transactions", &R::transactions, "", "successful exchanges"),
-      field("transactions_per_s", &R::transactions_per_s, "1/s", "per second of the run"),
+      field("transactions_per_s", &R::transactions_per_s, "1/s", "per second of the run (the exchanges before its time, the movement test's, left out)"),
       field("errors", &R::errors, "", "failed exchanges (timeout, exception, bad data)"),
       field("reconnects", &R::reconnects, "", "reconnections"),
       field("samples_out_of_range", &R::samples_out_of_range, "", "samples with a register outside its raw range"),
