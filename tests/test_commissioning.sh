@@ -81,8 +81,9 @@ open(path, "w").write(text)
 EOF
 
 # The bench: not the configuration's. It answers as a module does, whatever else the host runs:
-# where this user may use SCHED_FIFO, at real-time priority below pneud's loop
-# (controller.realtime.priority in bench.yaml), as the HIL tests that need the loop on time run it.
+# where this user may use SCHED_FIFO, at real-time priority 41, below the guide's pneud (bench.yaml's
+# controller.realtime.priority, 80, pinned to CPU 1), where the HilOnTime tests run serve above
+# their pneud's 40: here the loop's own priority is the guide's, not the test's.
 answering=()
 chrt -f 1 true 2>/dev/null && answering=(chrt -f 41)
 serve() {
